@@ -1,0 +1,371 @@
+//! Packing a raster into an incomplete quadtree.
+//!
+//! The raster is first brought onto a `2^D × 2^D` grid of *cells* (the
+//! squares of the deepest level `D`). When the image is already that size,
+//! cells are texels. Otherwise every cell stores the exact area-weighted mean
+//! of the texels it overlaps (texels are rectangles of the unit square, see
+//! the crate conventions), so a square that straddles texel borders is exact
+//! on average.
+//!
+//! Then one bottom-up pass computes, for every square, the integer sum, the
+//! minimum and the maximum of its cells per channel. A square is **terminal**
+//! iff every cell lies within the tolerance `T` of the square's (rounded)
+//! mean in every channel (the L∞ metric on linear, premultiplied
+//! channels, in units of full scale); with `T = 0` iff all its cells are equal.
+//! An inner square's colour is the rounded exact mean of all its cells, so
+//! rounding never accumulates up the tree.
+
+use crate::colour::{Rgba, Unorm16Rgba};
+use crate::tree::{self, QuadTree, MAX_DEPTH, MAX_NODES};
+use crate::Error;
+
+/// Largest width or height the builder accepts (2^20 texels).
+pub const MAX_DIMENSION: u32 = 1 << 20;
+
+/// A raster in the tree's colour format, row 0 at the top of the texture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TexelGrid {
+    width: u32,
+    height: u32,
+    texels: Vec<Unorm16Rgba>,
+}
+
+impl TexelGrid {
+    /// A grid from row-major texels (row 0 at the top).
+    pub fn new(width: u32, height: u32, texels: Vec<Unorm16Rgba>) -> Result<TexelGrid, Error> {
+        check_dimensions(width, height)?;
+        let expected = u64::from(width) * u64::from(height);
+        if texels.len() as u64 != expected {
+            return Err(Error::TexelCount { expected, actual: texels.len() as u64 });
+        }
+        Ok(TexelGrid { width, height, texels })
+    }
+
+    /// A grid whose texel `(col, row)` is `f(col, row)`.
+    pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> Rgba) -> Result<TexelGrid, Error> {
+        check_dimensions(width, height)?;
+        let mut texels = Vec::with_capacity(width as usize * height as usize);
+        for row in 0..height {
+            for col in 0..width {
+                texels.push(f(col, row).to_unorm16());
+            }
+        }
+        Ok(TexelGrid { width, height, texels })
+    }
+
+    /// Width in texels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Height in texels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    /// Texel `(col, row)`, row 0 at the top. Panics out of range (caller's bug).
+    pub fn texel(&self, col: u32, row: u32) -> Unorm16Rgba {
+        self.texels[row as usize * self.width as usize + col as usize]
+    }
+    /// All texels, row-major from the top.
+    pub fn texels(&self) -> &[Unorm16Rgba] {
+        &self.texels
+    }
+
+    /// The depth at which cells are at least as fine as texels: `ceil(log2(max(w, h)))`.
+    pub fn natural_depth(&self) -> u8 {
+        let side = self.width.max(self.height);
+        (32 - (side - 1).leading_zeros()) as u8
+    }
+}
+
+fn check_dimensions(width: u32, height: u32) -> Result<(), Error> {
+    let (w, h) = (u64::from(width), u64::from(height));
+    if width == 0 || height == 0 {
+        return Err(Error::BadDimensions { width: w, height: h, reason: "zero-sized" });
+    }
+    if width > MAX_DIMENSION || height > MAX_DIMENSION {
+        return Err(Error::BadDimensions { width: w, height: h, reason: "larger than 1048576 texels on a side" });
+    }
+    Ok(())
+}
+
+/// How to pack.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BuildOptions {
+    /// Largest per-channel deviation (linear, premultiplied, full scale = 1)
+    /// allowed between a cell and its terminal square's colour. `0` is lossless.
+    pub tolerance: f64,
+    /// Depth of the tree's finest cells; `None` for [`TexelGrid::natural_depth`].
+    pub max_level: Option<u8>,
+    /// Refuse to build trees with more nodes than this.
+    pub max_nodes: u64,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions { tolerance: 0.0, max_level: None, max_nodes: MAX_NODES }
+    }
+}
+
+/// What packing did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BuildReport {
+    /// Depth of the cell grid (the tree may stop above it).
+    pub cell_depth: u8,
+    /// True when cells are not the texels themselves (non-power-of-two or
+    /// resized input): each cell then holds an area-weighted mean.
+    pub resampled: bool,
+    /// Largest deviation, per channel in full-scale units, between a cell and
+    /// the colour of the terminal square that holds it. `0` when lossless.
+    pub max_error: f64,
+}
+
+/// Per-square statistics of the bottom-up pass.
+#[derive(Clone, Copy)]
+struct Stats {
+    sum: [u64; 4],
+    min: [u16; 4],
+    max: [u16; 4],
+}
+
+impl Stats {
+    fn of(c: Unorm16Rgba) -> Stats {
+        Stats { sum: c.0.map(u64::from), min: c.0, max: c.0 }
+    }
+    fn merge(parts: [Stats; 4]) -> Stats {
+        let mut s = parts[0];
+        for p in &parts[1..] {
+            for ch in 0..4 {
+                s.sum[ch] += p.sum[ch];
+                s.min[ch] = s.min[ch].min(p.min[ch]);
+                s.max[ch] = s.max[ch].max(p.max[ch]);
+            }
+        }
+        s
+    }
+    /// Rounded mean over `cells` cells (a power of four).
+    fn mean(&self, log4_cells: u32) -> Unorm16Rgba {
+        let shift = 2 * log4_cells;
+        let half = if shift == 0 { 0 } else { 1u64 << (shift - 1) };
+        Unorm16Rgba(self.sum.map(|s| ((s + half) >> shift) as u16))
+    }
+    /// Largest deviation of any cell from `mean`, in unorm16 steps.
+    fn deviation(&self, mean: Unorm16Rgba) -> u16 {
+        (0..4).map(|ch| (self.max[ch] - mean.0[ch]).max(mean.0[ch] - self.min[ch])).max().unwrap_or(0)
+    }
+}
+
+struct Builder<'a> {
+    cells: &'a [Unorm16Rgba],
+    side: usize,
+    depth: u8,
+    tolerance: u16,
+    levels: Vec<Vec<(bool, Unorm16Rgba)>>,
+    nodes: u64,
+    max_nodes: u64,
+    max_error: u16,
+}
+
+impl Builder<'_> {
+    /// Cell at `(ix, iz)` of the finest level, `iz` counted from the bottom.
+    fn cell(&self, ix: usize, iz: usize) -> Unorm16Rgba {
+        self.cells[(self.side - 1 - iz) * self.side + ix]
+    }
+
+    /// Builds the subtree of square `(level, ix, iz)`: returns its stats and
+    /// its (colour, terminal) decision; pushes its descendants if it is inner.
+    fn square(&mut self, level: u8, ix: usize, iz: usize) -> Result<(Stats, Unorm16Rgba, bool), Error> {
+        if level == self.depth {
+            let c = self.cell(ix, iz);
+            return Ok((Stats::of(c), c, true));
+        }
+        let mut marks = [0usize; MAX_DEPTH as usize + 1];
+        for (m, l) in marks.iter_mut().zip(&self.levels[usize::from(level) + 1..]) {
+            *m = l.len();
+        }
+        let mut parts = [Stats::of(Unorm16Rgba::default()); 4];
+        let mut children = [(Unorm16Rgba::default(), true); 4];
+        for k in 0..4 {
+            let (s, c, term) = self.square(level + 1, 2 * ix + (k & 1), 2 * iz + (k >> 1))?;
+            parts[k] = s;
+            children[k] = (c, term);
+        }
+        let stats = Stats::merge(parts);
+        let mean = stats.mean(u32::from(self.depth - level));
+        let deviation = stats.deviation(mean);
+        if deviation <= self.tolerance {
+            self.max_error = self.max_error.max(deviation);
+            // Discard descendants the children pushed (only possible with a tolerance).
+            for (l, &m) in self.levels[usize::from(level) + 1..].iter_mut().zip(&marks) {
+                self.nodes -= (l.len() - m) as u64;
+                l.truncate(m);
+            }
+            return Ok((stats, mean, true));
+        }
+        self.nodes += 4;
+        if self.nodes > self.max_nodes {
+            return Err(Error::TooManyNodes { nodes: self.nodes, max: self.max_nodes });
+        }
+        let next = &mut self.levels[usize::from(level) + 1];
+        for (c, term) in children {
+            next.push((!term, c));
+        }
+        Ok((stats, mean, false))
+    }
+}
+
+impl QuadTree {
+    /// Packs a raster (see the [module documentation](crate::build)).
+    pub fn from_texels(grid: &TexelGrid, options: &BuildOptions) -> Result<(QuadTree, BuildReport), Error> {
+        if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
+            return Err(Error::BadTolerance(options.tolerance));
+        }
+        let depth = options.max_level.unwrap_or_else(|| grid.natural_depth());
+        if depth > MAX_DEPTH {
+            return Err(Error::DepthTooLarge { depth: depth.into(), max: MAX_DEPTH.into() });
+        }
+        let side = 1usize << depth;
+        let max_cells = 1u64 << 34;
+        if (side as u64) * (side as u64) > max_cells {
+            return Err(Error::DepthTooLarge { depth: depth.into(), max: 17 });
+        }
+        let resampled = grid.width as usize != side || grid.height as usize != side;
+        let owned;
+        let cells: &[Unorm16Rgba] = if resampled {
+            owned = resample(grid, side);
+            &owned
+        } else {
+            &grid.texels
+        };
+        let tolerance = (options.tolerance * 65535.0).floor().min(65535.0) as u16;
+        let mut b = Builder {
+            cells,
+            side,
+            depth,
+            tolerance,
+            levels: vec![Vec::new(); usize::from(depth) + 1],
+            nodes: 1,
+            max_nodes: options.max_nodes,
+            max_error: 0,
+        };
+        let (_, root, terminal) = b.square(0, 0, 0)?;
+        b.levels[0].push((!terminal, root));
+        while b.levels.last().is_some_and(Vec::is_empty) {
+            b.levels.pop();
+        }
+        let report = BuildReport { cell_depth: depth, resampled, max_error: f64::from(b.max_error) / 65535.0 };
+        Ok((tree::from_levels(b.levels)?, report))
+    }
+}
+
+/// Exact area-weighted resampling of the texels onto a `side × side` cell grid.
+fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
+    let xw = weights_1d(grid.width as usize, side);
+    let zw = weights_1d(grid.height as usize, side);
+    // Horizontal pass into f32 rows, then vertical pass with rounding once.
+    let w = grid.width as usize;
+    let mut rows = vec![[0f32; 4]; grid.height as usize * side];
+    for row in 0..grid.height as usize {
+        let src = &grid.texels[row * w..(row + 1) * w];
+        for (cx, taps) in xw.iter().enumerate() {
+            let mut acc = [0f32; 4];
+            for &(col, wgt) in taps {
+                for ch in 0..4 {
+                    acc[ch] += wgt * f32::from(src[col].0[ch]);
+                }
+            }
+            rows[row * side + cx] = acc;
+        }
+    }
+    let mut out = vec![Unorm16Rgba::default(); side * side];
+    for (cz, taps) in zw.iter().enumerate() {
+        for cx in 0..side {
+            let mut acc = [0f32; 4];
+            for &(row, wgt) in taps {
+                for ch in 0..4 {
+                    acc[ch] += wgt * rows[row * side + cx][ch];
+                }
+            }
+            let q = acc.map(|v| (v + 0.5).clamp(0.0, 65535.0) as u16);
+            let a = q[3];
+            out[cz * side + cx] = Unorm16Rgba([q[0].min(a), q[1].min(a), q[2].min(a), a]);
+        }
+    }
+    out
+}
+
+/// For each of `cells` equal cells of `[0,1)`, the texels (of `texels` equal
+/// ones) it overlaps and the fraction of the cell each covers.
+fn weights_1d(texels: usize, cells: usize) -> Vec<Vec<(usize, f32)>> {
+    (0..cells)
+        .map(|c| {
+            // In units of 1/(texels·cells): cell c spans [c·texels, (c+1)·texels), texel t [t·cells, (t+1)·cells).
+            let (lo, hi) = (c * texels, (c + 1) * texels);
+            (lo / cells..hi.div_ceil(cells))
+                .filter_map(|t| {
+                    let overlap = hi.min((t + 1) * cells) - lo.max(t * cells);
+                    (overlap > 0).then_some((t, overlap as f32 / texels as f32))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weights_cover_each_cell_once() {
+        for (t, c) in [(3, 4), (5, 8), (8, 8), (16, 4), (7, 2), (1, 1)] {
+            for taps in weights_1d(t, c) {
+                let s: f32 = taps.iter().map(|&(_, w)| w).sum();
+                assert!((s - 1.0).abs() < 1e-6, "{t} texels -> {c} cells: {taps:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn uniform_image_is_a_single_terminal_root() {
+        let g = TexelGrid::from_fn(64, 64, |_, _| Rgba::opaque(0.25, 0.5, 0.75)).unwrap();
+        let (t, r) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+        assert_eq!(t.node_count(), 1);
+        assert_eq!(t.depth(), 0);
+        assert_eq!(r.max_error, 0.0);
+    }
+
+    #[test]
+    fn one_odd_texel_splits_only_its_path() {
+        let g = TexelGrid::from_fn(16, 16, |c, r| if (c, r) == (3, 5) { Rgba::opaque(1.0, 0.0, 0.0) } else { Rgba::opaque(0.0, 0.0, 1.0) })
+            .unwrap();
+        let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+        assert_eq!(t.depth(), 4);
+        assert_eq!(t.node_count(), 1 + 4 * 4, "one inner node per level");
+        let stats = t.level_stats();
+        assert_eq!(stats.iter().map(|s| s.nodes).collect::<Vec<_>>(), vec![1, 4, 4, 4, 4]);
+    }
+
+    #[test]
+    fn tolerance_merges_small_noise_and_reports_error() {
+        let g = TexelGrid::from_fn(8, 8, |c, r| Rgba::opaque(0.5 + 0.001 * ((c + r) % 2) as f32, 0.5, 0.5)).unwrap();
+        let (lossless, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+        assert!(lossless.node_count() > 1);
+        let opts = BuildOptions { tolerance: 0.002, ..BuildOptions::default() };
+        let (lossy, report) = QuadTree::from_texels(&g, &opts).unwrap();
+        assert_eq!(lossy.node_count(), 1);
+        assert!(report.max_error > 0.0 && report.max_error <= 0.002, "{report:?}");
+    }
+
+    #[test]
+    fn refuses_bad_input() {
+        assert!(matches!(TexelGrid::new(0, 4, vec![]), Err(Error::BadDimensions { .. })));
+        assert!(matches!(TexelGrid::new(2, 2, vec![Unorm16Rgba::default(); 3]), Err(Error::TexelCount { .. })));
+        let g = TexelGrid::from_fn(2, 2, |_, _| Rgba::TRANSPARENT).unwrap();
+        let bad = BuildOptions { tolerance: f64::NAN, ..BuildOptions::default() };
+        assert!(matches!(QuadTree::from_texels(&g, &bad), Err(Error::BadTolerance(_))));
+        let deep = BuildOptions { max_level: Some(40), ..BuildOptions::default() };
+        assert!(matches!(QuadTree::from_texels(&g, &deep), Err(Error::DepthTooLarge { .. })));
+        let few = BuildOptions { max_nodes: 3, ..BuildOptions::default() };
+        let g = TexelGrid::from_fn(4, 4, |c, _| Rgba::opaque(c as f32 / 4.0, 0.0, 0.0)).unwrap();
+        assert!(matches!(QuadTree::from_texels(&g, &few), Err(Error::TooManyNodes { .. })));
+    }
+}

@@ -1,0 +1,109 @@
+use std::ops::{Add, AddAssign, Mul};
+
+/// A colour in linear light with premultiplied alpha, channels nominally in `[0,1]`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Rgba {
+    /// Red, premultiplied by alpha.
+    pub r: f32,
+    /// Green, premultiplied by alpha.
+    pub g: f32,
+    /// Blue, premultiplied by alpha.
+    pub b: f32,
+    /// Coverage / opacity.
+    pub a: f32,
+}
+
+impl Rgba {
+    /// Opaque black with zero alpha: the colour of "nothing".
+    pub const TRANSPARENT: Rgba = Rgba { r: 0.0, g: 0.0, b: 0.0, a: 0.0 };
+
+    /// A colour from premultiplied linear channels.
+    pub const fn new(r: f32, g: f32, b: f32, a: f32) -> Rgba {
+        Rgba { r, g, b, a }
+    }
+    /// An opaque colour from linear channels.
+    pub const fn opaque(r: f32, g: f32, b: f32) -> Rgba {
+        Rgba { r, g, b, a: 1.0 }
+    }
+    /// The channels as an array `[r, g, b, a]`.
+    pub fn to_array(self) -> [f32; 4] {
+        [self.r, self.g, self.b, self.a]
+    }
+    /// Quantise to the tree's storage format (clamped to `[0,1]`, then rounded).
+    pub fn to_unorm16(self) -> Unorm16Rgba {
+        let q = |v: f32| (v.clamp(0.0, 1.0) * 65535.0 + 0.5) as u16;
+        let a = q(self.a);
+        // Premultiplied colour never exceeds alpha; keep that true after rounding.
+        Unorm16Rgba([q(self.r).min(a), q(self.g).min(a), q(self.b).min(a), a])
+    }
+}
+
+/// A colour as stored in a tree node: linear, premultiplied, each channel an
+/// integer `v` standing for `v / 65535`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub struct Unorm16Rgba(pub [u16; 4]);
+
+impl Unorm16Rgba {
+    /// The colour as floats.
+    pub fn to_rgba(self) -> Rgba {
+        let f = |v: u16| f32::from(v) / 65535.0;
+        Rgba::new(f(self.0[0]), f(self.0[1]), f(self.0[2]), f(self.0[3]))
+    }
+}
+
+/// Colour × area: the integral of the texture's colour over a region.
+///
+/// Channels are linear, premultiplied, in units of (colour × texture-space
+/// area); dividing by the region's area gives its mean colour.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct WeightedColour(pub [f64; 4]);
+
+impl WeightedColour {
+    /// Zero.
+    pub const ZERO: WeightedColour = WeightedColour([0.0; 4]);
+
+    /// The mean colour over a region of area `area`; transparent for zero area.
+    pub fn mean_over(self, area: f64) -> Rgba {
+        if area > 0.0 {
+            let s = 1.0 / area;
+            Rgba::new(
+                (self.0[0] * s) as f32,
+                (self.0[1] * s) as f32,
+                (self.0[2] * s) as f32,
+                (self.0[3] * s) as f32,
+            )
+        } else {
+            Rgba::TRANSPARENT
+        }
+    }
+
+    /// `colour × area`, exactly in `f64` from the stored integers.
+    pub fn from_unorm16(colour: Unorm16Rgba, area: f64) -> WeightedColour {
+        WeightedColour(colour.0.map(|c| f64::from(c) * area * (1.0 / 65535.0)))
+    }
+
+    /// `colour × area`.
+    pub fn from_colour(colour: Rgba, area: f64) -> WeightedColour {
+        WeightedColour(colour.to_array().map(|c| f64::from(c) * area))
+    }
+}
+
+impl Add for WeightedColour {
+    type Output = WeightedColour;
+    fn add(self, o: WeightedColour) -> WeightedColour {
+        WeightedColour([self.0[0] + o.0[0], self.0[1] + o.0[1], self.0[2] + o.0[2], self.0[3] + o.0[3]])
+    }
+}
+
+impl AddAssign for WeightedColour {
+    fn add_assign(&mut self, o: WeightedColour) {
+        *self = *self + o;
+    }
+}
+
+impl Mul<f64> for WeightedColour {
+    type Output = WeightedColour;
+    fn mul(self, s: f64) -> WeightedColour {
+        WeightedColour(self.0.map(|c| c * s))
+    }
+}

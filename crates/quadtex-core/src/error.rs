@@ -1,0 +1,92 @@
+use std::fmt;
+
+/// Everything that can go wrong in `quadtex-core`.
+///
+/// Every variant names the offending value, so a message can be shown to a
+/// user as it is.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Error {
+    /// A coordinate is NaN or infinite; `field` names it (`x0`, `z0`, `x1`, `z1`).
+    NonFiniteCoordinate {
+        /// Which coordinate.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A rectangle's upper bound lies below its lower bound on `axis`.
+    ReversedBounds {
+        /// `"x"` or `"z"`.
+        axis: &'static str,
+        /// Lower bound as given.
+        lo: f64,
+        /// Upper bound as given.
+        hi: f64,
+    },
+    /// Image dimensions that are zero or larger than the builder accepts.
+    BadDimensions {
+        /// Width in texels.
+        width: u64,
+        /// Height in texels.
+        height: u64,
+        /// Why they were refused.
+        reason: &'static str,
+    },
+    /// The texel buffer does not hold `width × height` texels.
+    TexelCount {
+        /// Texels expected.
+        expected: u64,
+        /// Texels given.
+        actual: u64,
+    },
+    /// A requested tree depth above [`crate::MAX_DEPTH`] or above a caller's limit.
+    DepthTooLarge {
+        /// The depth asked for.
+        depth: u32,
+        /// The largest accepted.
+        max: u32,
+    },
+    /// A node count above [`crate::MAX_NODES`] or above a caller's limit.
+    TooManyNodes {
+        /// Nodes the tree would have.
+        nodes: u64,
+        /// The largest accepted.
+        max: u64,
+    },
+    /// A tolerance that is negative or not finite.
+    BadTolerance(f64),
+    /// The node arrays given to [`crate::QuadTree::from_parts`] do not describe a
+    /// quadtree; the message says which invariant fails.
+    MalformedTree(String),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::NonFiniteCoordinate { field, value } => {
+                write!(f, "coordinate {field} is not finite ({value})")
+            }
+            Error::ReversedBounds { axis, lo, hi } => {
+                write!(f, "reversed bounds on {axis}: upper {hi} < lower {lo}")
+            }
+            Error::BadDimensions { width, height, reason } => {
+                write!(f, "bad image dimensions {width}x{height}: {reason}")
+            }
+            Error::TexelCount { expected, actual } => {
+                write!(f, "texel buffer holds {actual} texels, expected {expected}")
+            }
+            Error::DepthTooLarge { depth, max } => {
+                write!(f, "tree depth {depth} exceeds the limit {max}")
+            }
+            Error::TooManyNodes { nodes, max } => {
+                write!(f, "tree would have {nodes} nodes, above the limit {max}")
+            }
+            Error::BadTolerance(t) => {
+                write!(f, "tolerance must be finite and >= 0, got {t}")
+            }
+            Error::MalformedTree(why) => write!(f, "malformed quadtree: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {}

@@ -1,0 +1,42 @@
+//! # quadtex-core
+//!
+//! Textures packed as *incomplete quadtrees* and the exact area integral of a
+//! texture over an axis-aligned rectangle (a *fragment*), after
+//! the method restated in `ALGORITHM.md`. This crate does no I/O.
+//!
+//! ## Conventions (written once, here)
+//!
+//! * **Texture space** is the unit square `[0,1)²`: axis `x` to the right,
+//!   axis `z` *up*. A raster image's row 0 is the *top* of the texture:
+//!   texel `(col, row)` of a `W×H` image covers
+//!   `x ∈ [col/W, (col+1)/W)`, `z ∈ [1-(row+1)/H, 1-row/H)`.
+//! * **Rectangles are half-open**: a [`Fragment`] `[x0,x1) × [z0,z1)` and every
+//!   quadtree square include their left and bottom edges only.
+//! * **Levels**: the root square is level 0; a square at level `i` has side
+//!   `2^-i` and area `2^-2i`.
+//! * **Colour** is linear light, premultiplied alpha, nominal range `[0,1]`
+//!   ([`Rgba`]). sRGB is decoded before packing and encoded after filtering, by
+//!   the I/O crate.
+//! * **Float types by purpose**: texture-space coordinates, areas and weighted
+//!   colours are `f64` (a level-30 square has side `2^-30`; repeating
+//!   textures put coordinates far from zero); colours handed to a renderer are
+//!   `f32`; colours stored in the tree are unsigned 16-bit normalised integers
+//!   (`unorm16`, step `1/65535`, far finer than the 12 linear bits asked of us).
+#![forbid(unsafe_code)]
+
+mod colour;
+mod error;
+mod fragment;
+
+pub mod build;
+pub mod reference;
+pub mod sat;
+pub mod synth;
+mod tree;
+pub mod variant;
+
+pub use build::{BuildOptions, BuildReport, TexelGrid};
+pub use colour::{Rgba, Unorm16Rgba, WeightedColour};
+pub use error::Error;
+pub use fragment::Fragment;
+pub use tree::{LevelStats, QuadTree, TraversalStats, MAX_DEPTH, MAX_NODES};

@@ -1,0 +1,110 @@
+//! Slow, obvious references for the fragment integral, kept public so tests,
+//! fuzz targets and benchmarks can check the fast path against them.
+
+use crate::build::TexelGrid;
+use crate::colour::{Unorm16Rgba, WeightedColour};
+use crate::fragment::Fragment;
+use crate::tree::{unit_side, QuadTree};
+use crate::variant::{self, f_high, f_low, Variant};
+
+/// Σ over texels of colour × area(texel ∩ fragment), texels as rectangles of
+/// the unit square (crate conventions). O(texels).
+pub fn texel_sum(grid: &TexelGrid, fragment: &Fragment) -> WeightedColour {
+    let (w, h) = (f64::from(grid.width()), f64::from(grid.height()));
+    let mut acc = WeightedColour::ZERO;
+    for row in 0..grid.height() {
+        let z_lo = 1.0 - f64::from(row + 1) / h;
+        let z_hi = 1.0 - f64::from(row) / h;
+        for col in 0..grid.width() {
+            let x_lo = f64::from(col) / w;
+            let x_hi = f64::from(col + 1) / w;
+            let area = overlap(fragment.x0(), fragment.x1(), x_lo, x_hi) * overlap(fragment.z0(), fragment.z1(), z_lo, z_hi);
+            if area > 0.0 {
+                acc += weigh(grid.texel(col, row), area);
+            }
+        }
+    }
+    acc
+}
+
+/// Σ over the squares of the tree truncated at `max_level` (terminal nodes
+/// above it, all nodes at it) of colour × area(square ∩ fragment). O(nodes).
+pub fn truncated_tree_sum(tree: &QuadTree, fragment: &Fragment, max_level: u8) -> WeightedColour {
+    let mut acc = WeightedColour::ZERO;
+    tree.for_each_leaf(max_level, |level, ix, iz, colour| {
+        let side = unit_side(level);
+        let area = fragment.overlap_area(f64::from(ix) * side, f64::from(iz) * side, side);
+        if area > 0.0 {
+            acc += weigh(colour, area);
+        }
+    });
+    acc
+}
+
+/// The paper's recursive traversal, literally: variants from `init` against
+/// the unit square (pass [`variant::f_init`]; tests pass the misprinted one),
+/// transitions by eq. 7–8, the four checks in the paper's order, no
+/// clipping and no shortcuts.
+pub fn paper_traversal(
+    tree: &QuadTree,
+    fragment: &Fragment,
+    max_level: u8,
+    init: fn(f64, f64) -> Variant,
+) -> WeightedColour {
+    let k = max_level.min(tree.depth());
+    let (a_x, b_x, a_z, b_z) = (fragment.x0(), fragment.x1(), fragment.z0(), fragment.z1());
+    let (vx, vz) = (init(a_x, b_x), init(a_z, b_z));
+    let (inner, colour) = tree.node(QuadTree::ROOT);
+    if variant::is_disjoint(vx) || variant::is_disjoint(vz) {
+        return WeightedColour::ZERO;
+    }
+    if k == 0 || !inner {
+        return weigh(colour, fragment.overlap_area(0.0, 0.0, 1.0));
+    }
+    let mut acc = WeightedColour::ZERO;
+    step(tree, fragment, k, QuadTree::ROOT, 0, 0.0, 0.0, vx, vz, &mut acc);
+    acc
+}
+
+#[allow(clippy::too_many_arguments)]
+fn step(
+    tree: &QuadTree,
+    f: &Fragment,
+    k: u8,
+    node: usize,
+    level: u8,
+    lo_x: f64,
+    lo_z: f64,
+    vx: Variant,
+    vz: Variant,
+    acc: &mut WeightedColour,
+) {
+    let child_level = level + 1;
+    let half = unit_side(child_level);
+    let (mx, mz) = (lo_x + half, lo_z + half);
+    let first = tree.children_of(node);
+    for c in 0..4 {
+        let (hx, hz) = (c & 1 == 1, c & 2 == 2);
+        let cvx = if hx { f_high(f.x0(), f.x1(), mx, vx) } else { f_low(f.x0(), f.x1(), mx, vx) };
+        let cvz = if hz { f_high(f.z0(), f.z1(), mz, vz) } else { f_low(f.z0(), f.z1(), mz, vz) };
+        let (clo_x, clo_z) = (if hx { mx } else { lo_x }, if hz { mz } else { lo_z });
+        let (inner, colour) = tree.node(first + c);
+        if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
+            *acc += weigh(colour, half * half);
+        } else if variant::is_disjoint(cvx) || variant::is_disjoint(cvz) {
+            continue;
+        } else if !inner || child_level == k {
+            *acc += weigh(colour, f.overlap_area(clo_x, clo_z, half));
+        } else {
+            step(tree, f, k, first + c, child_level, clo_x, clo_z, cvx, cvz, acc);
+        }
+    }
+}
+
+fn overlap(a: f64, b: f64, lo: f64, hi: f64) -> f64 {
+    (b.min(hi) - a.max(lo)).max(0.0)
+}
+
+fn weigh(c: Unorm16Rgba, area: f64) -> WeightedColour {
+    WeightedColour::from_unorm16(c, area)
+}

@@ -1,0 +1,513 @@
+//! The incomplete quadtree and the fragment integral.
+//!
+//! ## Layout
+//!
+//! Nodes are stored without pointers, in breadth-first order (the paper's
+//! per-level indexing): level 0 (the root), then level 1, and so on; within a
+//! level, the children of one inner node are four consecutive entries in the
+//! order *low-x low-z, high-x low-z, low-x high-z, high-x high-z*. Hence the
+//! children of the node with the `r`-th inner rank (counting inner nodes before
+//! it in that order) start at `4r + 1`.
+//!
+//! In memory the array is shifted by three padding entries so that every
+//! sibling group starts at a multiple of four and its four "inner" bits sit in
+//! one machine word. Per node the tree stores:
+//!
+//! * 8 bytes of colour ([`Unorm16Rgba`]),
+//! * 1 bit "inner", plus a 64-bit rank counter per 64 nodes (0.25 byte/node),
+//!
+//! and per tree a small direct-addressed table of the top levels (at most
+//! 1/16 of the colour bytes) that lets a query start at the smallest square
+//! that encloses its fragment.
+
+use crate::colour::{Unorm16Rgba, WeightedColour};
+use crate::fragment::{overlap_1d, Fragment};
+use crate::variant::{self, Variant};
+use crate::Error;
+
+/// Deepest level a tree may have. A level-30 square has side `2^-30`, still
+/// exactly representable with room to spare in the `f64` coordinates.
+pub const MAX_DEPTH: u8 = 30;
+
+/// Most nodes a tree may have (2³¹, i.e. 16 GiB of colour).
+pub const MAX_NODES: u64 = 1 << 31;
+
+/// Padding entries before the root, so sibling groups are 4-aligned.
+const PAD: usize = 3;
+
+/// Deepest level of the direct-addressed top table.
+const MAX_TOP_LEVEL: u8 = 8;
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct RankBlock {
+    /// Bit `i`: the node at padded index `64·block + i` is inner.
+    bits: u64,
+    /// Inner nodes at padded indices below `64·block`.
+    rank: u64,
+}
+
+/// Node and terminal counts of one level, for reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LevelStats {
+    /// The level (root = 0).
+    pub level: u8,
+    /// Nodes at this level.
+    pub nodes: u64,
+    /// Terminal nodes at this level.
+    pub terminals: u64,
+}
+
+/// Counters a caller can accumulate over many queries (for cost reports).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TraversalStats {
+    /// Queries answered.
+    pub queries: u64,
+    /// Nodes whose colour was read (whole, partial or descended into).
+    pub nodes_visited: u64,
+}
+
+/// A texture packed as an incomplete quadtree over the unit square.
+///
+/// Invariants (established by [`QuadTree::from_parts`] or the builder):
+/// every inner node has four children; the tree's deepest level is
+/// [`QuadTree::depth`] `<= MAX_DEPTH`; colours are premultiplied
+/// (`r,g,b <= a`) and an inner node's colour is the rounded area-average of
+/// what lies below it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QuadTree {
+    depth: u8,
+    /// Padded node colours.
+    colours: Vec<Unorm16Rgba>,
+    blocks: Vec<RankBlock>,
+    /// Padded index of the first node of each level, plus one past the end.
+    level_starts: Vec<usize>,
+    /// Deepest level covered by `top`.
+    top_level: u8,
+    /// For each level `l <= top_level` (concatenated, `4^l` entries, row-major
+    /// with `z` rows from the bottom): the padded index of the node covering
+    /// that cell at level `l`, or of its terminal ancestor.
+    top: Vec<u32>,
+}
+
+impl QuadTree {
+    /// A tree from its breadth-first node list.
+    ///
+    /// `inner` holds one bit per node (bit `i % 64` of word `i / 64`, set for an
+    /// inner node); `colours` one colour per node. Returns
+    /// [`Error::MalformedTree`] if the two do not describe a quadtree of
+    /// depth `depth` with consistent colours.
+    pub fn from_parts(depth: u8, inner: &[u64], colours: Vec<Unorm16Rgba>) -> Result<QuadTree, Error> {
+        let n = colours.len() as u64;
+        if depth > MAX_DEPTH {
+            return Err(Error::DepthTooLarge { depth: depth.into(), max: MAX_DEPTH.into() });
+        }
+        if n > MAX_NODES {
+            return Err(Error::TooManyNodes { nodes: n, max: MAX_NODES });
+        }
+        if n == 0 {
+            return Err(Error::MalformedTree("no nodes".into()));
+        }
+        if (inner.len() as u64) < n.div_ceil(64) {
+            return Err(Error::MalformedTree(format!(
+                "{} inner-flag words for {n} nodes",
+                inner.len()
+            )));
+        }
+        let is_inner = |i: u64| inner[(i / 64) as usize] >> (i % 64) & 1 == 1;
+        // Walk the levels: each level holds four children per inner node of the previous one.
+        let mut level_starts = vec![PAD];
+        let (mut start, mut len) = (0u64, 1u64);
+        loop {
+            let inner_here = (start..start + len).filter(|&i| is_inner(i)).count() as u64;
+            let next = start + len;
+            if inner_here == 0 {
+                if next != n {
+                    return Err(Error::MalformedTree(format!(
+                        "{n} nodes given but the inner flags account for {next}"
+                    )));
+                }
+                break;
+            }
+            if level_starts.len() > usize::from(depth) {
+                return Err(Error::MalformedTree(format!(
+                    "inner nodes at level {depth}, the declared depth"
+                )));
+            }
+            if next + 4 * inner_here > n {
+                return Err(Error::MalformedTree(format!(
+                    "level {} needs {} nodes, only {} remain",
+                    level_starts.len(),
+                    4 * inner_here,
+                    n - next
+                )));
+            }
+            level_starts.push(PAD + next as usize);
+            start = next;
+            len = 4 * inner_here;
+        }
+        if level_starts.len() != usize::from(depth) + 1 {
+            return Err(Error::MalformedTree(format!(
+                "declared depth {depth}, but the nodes reach level {}",
+                level_starts.len() - 1
+            )));
+        }
+        level_starts.push(PAD + n as usize);
+        for (i, c) in colours.iter().enumerate() {
+            let [r, g, b, a] = c.0;
+            if r > a || g > a || b > a {
+                return Err(Error::MalformedTree(format!(
+                    "node {i}: colour {:?} is not premultiplied (a channel exceeds alpha)",
+                    c.0
+                )));
+            }
+        }
+        let mut padded = Vec::with_capacity(PAD + colours.len());
+        padded.extend([Unorm16Rgba::default(); PAD]);
+        padded.extend(colours);
+        let mut blocks = vec![RankBlock::default(); padded.len().div_ceil(64)];
+        for i in 0..n {
+            if is_inner(i) {
+                let p = i as usize + PAD;
+                blocks[p / 64].bits |= 1 << (p % 64);
+            }
+        }
+        Ok(Self::finish(depth, padded, blocks, level_starts)?.checked_averages()?)
+    }
+
+    /// Completes a tree from validated padded arrays: rank counters and top table.
+    fn finish(
+        depth: u8,
+        colours: Vec<Unorm16Rgba>,
+        mut blocks: Vec<RankBlock>,
+        level_starts: Vec<usize>,
+    ) -> Result<QuadTree, Error> {
+        let mut rank = 0u64;
+        for b in &mut blocks {
+            b.rank = rank;
+            rank += u64::from(b.bits.count_ones());
+        }
+        let node_bytes = colours.len() * std::mem::size_of::<Unorm16Rgba>();
+        let mut top_level = 0u8;
+        while top_level < depth.min(MAX_TOP_LEVEL) && top_table_len(top_level + 1) * 4 <= (node_bytes / 16).max(4096) {
+            top_level += 1;
+        }
+        let mut tree = QuadTree { depth, colours, blocks, level_starts, top_level, top: Vec::new() };
+        tree.top = tree.build_top_table();
+        Ok(tree)
+    }
+
+    fn build_top_table(&self) -> Vec<u32> {
+        let mut top = vec![0u32; top_table_len(self.top_level)];
+        top[0] = PAD as u32;
+        for l in 1..=self.top_level {
+            let side = 1usize << l;
+            let (prev, here) = (top_table_offset(l - 1), top_table_offset(l));
+            for cz in 0..side {
+                for cx in 0..side {
+                    let parent = top[prev + (cz / 2) * (side / 2) + cx / 2] as usize;
+                    top[here + cz * side + cx] = if self.is_inner(parent) {
+                        (self.first_child(parent) + (cx & 1) + 2 * (cz & 1)) as u32
+                    } else {
+                        parent as u32
+                    };
+                }
+            }
+        }
+        top
+    }
+
+    /// Checks that every inner colour is the average of its children to
+    /// within rounding (|4·parent − Σ children| ≤ 4 per channel).
+    fn checked_averages(self) -> Result<QuadTree, Error> {
+        for p in PAD..self.colours.len() {
+            if !self.is_inner(p) {
+                continue;
+            }
+            let c = self.first_child(p);
+            for ch in 0..4 {
+                let sum: i64 = (0..4).map(|k| i64::from(self.colours[c + k].0[ch])).sum();
+                let parent = 4 * i64::from(self.colours[p].0[ch]);
+                if (parent - sum).abs() > 4 {
+                    return Err(Error::MalformedTree(format!(
+                        "node {}: channel {ch} is {} but its children average {:.1}",
+                        p - PAD,
+                        self.colours[p].0[ch],
+                        sum as f64 / 4.0
+                    )));
+                }
+            }
+        }
+        Ok(self)
+    }
+
+    /// Deepest level present (0 for a single-colour texture).
+    pub fn depth(&self) -> u8 {
+        self.depth
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> u64 {
+        (self.colours.len() - PAD) as u64
+    }
+
+    /// The texture's average colour (the root's colour).
+    pub fn average(&self) -> Unorm16Rgba {
+        self.colours[PAD]
+    }
+
+    /// Bytes of memory the tree occupies (node colours, rank blocks, top table,
+    /// level index), excluding the struct itself.
+    pub fn memory_bytes(&self) -> u64 {
+        (self.colours.len() * std::mem::size_of::<Unorm16Rgba>()
+            + self.blocks.len() * std::mem::size_of::<RankBlock>()
+            + self.top.len() * 4
+            + self.level_starts.len() * std::mem::size_of::<usize>()) as u64
+    }
+
+    /// Nodes and terminals per level.
+    pub fn level_stats(&self) -> Vec<LevelStats> {
+        self.level_starts
+            .windows(2)
+            .enumerate()
+            .map(|(level, w)| {
+                let inner = (w[0]..w[1]).filter(|&i| self.is_inner(i)).count() as u64;
+                let nodes = (w[1] - w[0]) as u64;
+                LevelStats { level: level as u8, nodes, terminals: nodes - inner }
+            })
+            .collect()
+    }
+
+    /// The nodes in breadth-first order: `(inner, colour)`.
+    pub fn nodes(&self) -> impl ExactSizeIterator<Item = (bool, Unorm16Rgba)> + '_ {
+        (PAD..self.colours.len()).map(|i| (self.is_inner(i), self.colours[i]))
+    }
+
+    /// Calls `f(level, ix, iz, colour)` for every square a traversal to level
+    /// `max_level` treats as uniform: terminal nodes at levels `< max_level`
+    /// and all nodes at level `max_level`. Square `(level, ix, iz)` covers
+    /// `[ix, ix+1) × [iz, iz+1)` scaled by `2^-level`. Order: depth first.
+    pub fn for_each_leaf(&self, max_level: u8, mut f: impl FnMut(u8, u32, u32, Unorm16Rgba)) {
+        let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
+        while let Some((node, level, ix, iz)) = stack.pop() {
+            if !self.is_inner(node) || level >= max_level {
+                f(level, ix, iz, self.colours[node]);
+            } else {
+                let c = self.first_child(node);
+                for k in 0..4 {
+                    stack.push((c + k, level + 1, 2 * ix + (k & 1) as u32, 2 * iz + (k >> 1) as u32));
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn is_inner(&self, p: usize) -> bool {
+        self.blocks[p / 64].bits >> (p % 64) & 1 == 1
+    }
+
+    /// Padded index of the first child of the inner node at padded index `p`.
+    #[inline]
+    fn first_child(&self, p: usize) -> usize {
+        let b = self.blocks[p / 64];
+        let below = b.bits & ((1u64 << (p % 64)) - 1);
+        4 + 4 * (b.rank as usize + below.count_ones() as usize)
+    }
+
+    /// The colour of the node at (padded) index `p`, for the reference traversal.
+    pub(crate) fn node(&self, p: usize) -> (bool, Unorm16Rgba) {
+        (self.is_inner(p), self.colours[p])
+    }
+
+    /// Padded index of the root.
+    pub(crate) const ROOT: usize = PAD;
+
+    /// Padded index of the first child of inner node `p` (reference traversal).
+    pub(crate) fn children_of(&self, p: usize) -> usize {
+        self.first_child(p)
+    }
+
+    /// The weighted colour (integral of colour over area) of the fragment's
+    /// overlap with the unit square, from a traversal down to level
+    /// `max_level` (clamped to [`QuadTree::depth`]).
+    ///
+    /// Squares inside the fragment count whole at the highest level they
+    /// exist, squares at `max_level` or terminal count by their overlap, as in
+    /// the paper. Against the exact integral of the tree truncated at
+    /// `max_level` the result is off by float rounding plus at most half a
+    /// storage step per channel times the area taken from inner nodes
+    /// (`≤ 0.5/65535 × area`): an inner colour is the exact mean of its
+    /// region rounded once to 16 bits.
+    pub fn weighted_colour(&self, fragment: &Fragment, max_level: u8) -> WeightedColour {
+        self.integrate::<false>(fragment, max_level, &mut TraversalStats::default())
+    }
+
+    /// As [`QuadTree::weighted_colour`], adding the query's cost to `stats`.
+    pub fn weighted_colour_counted(
+        &self,
+        fragment: &Fragment,
+        max_level: u8,
+        stats: &mut TraversalStats,
+    ) -> WeightedColour {
+        self.integrate::<true>(fragment, max_level, stats)
+    }
+
+    #[inline]
+    fn integrate<const COUNT: bool>(
+        &self,
+        fragment: &Fragment,
+        max_level: u8,
+        stats: &mut TraversalStats,
+    ) -> WeightedColour {
+        if COUNT {
+            stats.queries += 1;
+        }
+        let Some(f) = fragment.clip_to_unit() else {
+            return WeightedColour::ZERO;
+        };
+        let k = max_level.min(self.depth);
+        let (x0, z0, x1, z1) = (f.x0(), f.z0(), f.x1(), f.z1());
+
+        // Start at the smallest square of level <= min(k, top_level) enclosing the fragment.
+        let t = self.top_level;
+        let scale = f64::from(1u32 << t);
+        let cells = (1u32 << t) - 1;
+        let cx0 = ((x0 * scale) as u32).min(cells);
+        let cz0 = ((z0 * scale) as u32).min(cells);
+        let cx1 = (((x1 * scale).ceil() as u32).max(1) - 1).clamp(cx0, cells);
+        let cz1 = (((z1 * scale).ceil() as u32).max(1) - 1).clamp(cz0, cells);
+        let diverge = (32 - (cx0 ^ cx1).leading_zeros()).max(32 - (cz0 ^ cz1).leading_zeros());
+        let level = (t - diverge as u8).min(k);
+        let shift = t - level;
+        let (sx, sz) = (cx0 >> shift, cz0 >> shift);
+        let start = self.top[top_table_offset(level) + ((sz as usize) << level) + sx as usize] as usize;
+
+        if COUNT {
+            stats.nodes_visited += 1;
+        }
+        if level >= k || !self.is_inner(start) {
+            return scaled(weigh(self.colours[start], f.area()));
+        }
+        let side = unit_side(level);
+        let (lo_x, lo_z) = (f64::from(sx) * side, f64::from(sz) * side);
+        let vx = variant::classify(x0, x1, lo_x, lo_x + side);
+        let vz = variant::classify(z0, z1, lo_z, lo_z + side);
+        if vx == variant::SQUARE_INSIDE && vz == variant::SQUARE_INSIDE {
+            return scaled(weigh(self.colours[start], side * side));
+        }
+
+        let mut acc = [0f64; 4];
+        let mut stack = [Pending::default(); STACK];
+        stack[0] = Pending { node: start as u32, level, vx, vz, lo_x, lo_z };
+        let mut top = 1usize;
+        let mut visited = 0u64;
+        while top > 0 {
+            top -= 1;
+            let Pending { node, level, vx, vz, lo_x, lo_z } = stack[top];
+            let child_level = level + 1;
+            let half = unit_side(child_level);
+            let child_area = half * half;
+            let (mx, mz) = (lo_x + half, lo_z + half);
+            let vxs = [variant::f_low(x0, x1, mx, vx), variant::f_high(x0, x1, mx, vx)];
+            let vzs = [variant::f_low(z0, z1, mz, vz), variant::f_high(z0, z1, mz, vz)];
+            let first = self.first_child(node as usize);
+            let block = self.blocks[first / 64].bits >> (first % 64);
+            let descend_allowed = child_level < k;
+            for c in 0..4 {
+                let (cvx, cvz): (Variant, Variant) = (vxs[c & 1], vzs[c >> 1]);
+                if variant::is_disjoint(cvx) || variant::is_disjoint(cvz) {
+                    continue;
+                }
+                visited += 1;
+                let colour = self.colours[first + c];
+                let (clo_x, clo_z) = (lo_x + (c & 1) as f64 * half, lo_z + (c >> 1) as f64 * half);
+                if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
+                    add(&mut acc, colour, child_area);
+                } else if block >> c & 1 == 0 || !descend_allowed {
+                    let area = overlap_1d(x0, x1, clo_x, clo_x + half) * overlap_1d(z0, z1, clo_z, clo_z + half);
+                    add(&mut acc, colour, area);
+                } else {
+                    stack[top] = Pending {
+                        node: (first + c) as u32,
+                        level: child_level,
+                        vx: cvx,
+                        vz: cvz,
+                        lo_x: clo_x,
+                        lo_z: clo_z,
+                    };
+                    top += 1;
+                }
+            }
+        }
+        if COUNT {
+            stats.nodes_visited += visited;
+        }
+        scaled(acc)
+    }
+}
+
+/// Depth-first stack bound: each level leaves at most three siblings pending.
+const STACK: usize = 4 * MAX_DEPTH as usize + 8;
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Pending {
+    node: u32,
+    level: u8,
+    vx: Variant,
+    vz: Variant,
+    lo_x: f64,
+    lo_z: f64,
+}
+
+/// Side of a square at `level`: `2^-level`, exact.
+#[inline]
+pub(crate) fn unit_side(level: u8) -> f64 {
+    f64::from_bits((1023 - u64::from(level)) << 52)
+}
+
+#[inline]
+fn add(acc: &mut [f64; 4], colour: Unorm16Rgba, area: f64) {
+    for (a, &c) in acc.iter_mut().zip(&colour.0) {
+        *a += area * f64::from(c);
+    }
+}
+
+#[inline]
+fn weigh(colour: Unorm16Rgba, area: f64) -> [f64; 4] {
+    colour.0.map(|c| area * f64::from(c))
+}
+
+#[inline]
+fn scaled(acc: [f64; 4]) -> WeightedColour {
+    WeightedColour(acc.map(|a| a * (1.0 / 65535.0)))
+}
+
+fn top_table_offset(level: u8) -> usize {
+    ((1usize << (2 * level)) - 1) / 3
+}
+
+fn top_table_len(top_level: u8) -> usize {
+    top_table_offset(top_level + 1)
+}
+
+/// Assembles a tree from per-level node lists produced by the builder
+/// (already valid by construction).
+pub(crate) fn from_levels(levels: Vec<Vec<(bool, Unorm16Rgba)>>) -> Result<QuadTree, Error> {
+    let depth = (levels.len() - 1) as u8;
+    let n: usize = levels.iter().map(Vec::len).sum();
+    let mut colours = Vec::with_capacity(PAD + n);
+    colours.extend([Unorm16Rgba::default(); PAD]);
+    let mut blocks = vec![RankBlock::default(); (PAD + n).div_ceil(64)];
+    let mut level_starts = Vec::with_capacity(levels.len() + 1);
+    for level in levels {
+        level_starts.push(colours.len());
+        for (inner, colour) in level {
+            let p = colours.len();
+            if inner {
+                blocks[p / 64].bits |= 1 << (p % 64);
+            }
+            colours.push(colour);
+        }
+    }
+    level_starts.push(colours.len());
+    QuadTree::finish(depth, colours, blocks, level_starts)
+}
