@@ -1,1 +1,279 @@
-fn main() {}
+//! `quadtex`: pack textures into incomplete quadtrees, inspect and query them,
+//! benchmark the fragment integral, and render scenes.
+
+mod bench;
+
+use std::error::Error;
+use std::io::{BufRead, BufWriter, IsTerminal, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use lexopt::prelude::*;
+use quadtex_core::{BuildOptions, Fragment, QuadTree, MAX_DEPTH};
+
+type Result<T> = std::result::Result<T, Box<dyn Error>>;
+
+const USAGE: &str = "\
+quadtex: alias-free texture mapping with incomplete-quadtree textures
+
+USAGE:
+  quadtex pack IMAGE -o OUT.qtx [--tolerance T] [--max-level L]
+  quadtex info FILE.qtx
+  quadtex query FILE.qtx [--level K]      (fragments `x0 z0 x1 z1` on stdin)
+  quadtex bench [--size N] [--queries Q]
+  quadtex help
+";
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("Error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<()> {
+    let mut parser = lexopt::Parser::from_env();
+    let Some(arg) = parser.next()? else {
+        print!("{USAGE}");
+        return Ok(());
+    };
+    let command = match arg {
+        Value(v) => v.string()?,
+        Long("help") | Short('h') => "help".to_string(),
+        other => return Err(other.unexpected().into()),
+    };
+    match command.as_str() {
+        "pack" => pack(&mut parser),
+        "info" => info(&mut parser),
+        "query" => query(&mut parser),
+        "bench" => bench::run(&mut parser),
+        "help" => {
+            print!("{USAGE}");
+            Ok(())
+        }
+        other => Err(format!("unknown command `{other}`\n\n{USAGE}").into()),
+    }
+}
+
+fn parse_level(parser: &mut lexopt::Parser, flag: &str) -> Result<u8> {
+    let v: u32 = parser.value()?.parse().map_err(|e| format!("{flag}: {e}"))?;
+    if v > u32::from(MAX_DEPTH) {
+        return Err(format!("{flag} {v} exceeds the maximum depth {MAX_DEPTH}").into());
+    }
+    Ok(v as u8)
+}
+
+fn pack(parser: &mut lexopt::Parser) -> Result<()> {
+    let (mut input, mut output) = (None::<PathBuf>, None::<PathBuf>);
+    let mut options = BuildOptions::default();
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Short('o') | Long("output") => output = Some(parser.value()?.into()),
+            Long("tolerance") => {
+                let t: f64 = parser.value()?.parse().map_err(|e| format!("--tolerance: {e}"))?;
+                if !(t.is_finite() && (0.0..=1.0).contains(&t)) {
+                    return Err(format!("--tolerance must be in [0, 1], got {t}").into());
+                }
+                options.tolerance = t;
+            }
+            Long("max-level") => options.max_level = Some(parse_level(parser, "--max-level")?),
+            Value(v) if input.is_none() => input = Some(v.into()),
+            other => return Err(other.unexpected().into()),
+        }
+    }
+    let input = input.ok_or("pack: missing IMAGE")?;
+    let output = output.ok_or("pack: missing -o OUT.qtx")?;
+    let progress = Progress::new();
+    let start = Instant::now();
+    progress.stage(&format!("decoding {}", input.display()));
+    let grid = quadtex_io::load_texels(&input)?;
+    progress.stage(&format!("packing {}x{} texels", grid.width(), grid.height()));
+    let (tree, report) = QuadTree::from_texels(&grid, &options).map_err(|e| format!("{}: {e}", input.display()))?;
+    progress.stage(&format!("writing {}", output.display()));
+    quadtex_io::write_qtx(&output, &tree, Some((grid.width(), grid.height())))?;
+    progress.finish();
+    let terminals: u64 = tree.level_stats().iter().map(|l| l.terminals).sum();
+    let bytes = tree.memory_bytes();
+    let (raster, mips) = raster_bytes(grid.width(), grid.height());
+    let error = if report.max_error == 0.0 {
+        "lossless".to_string()
+    } else {
+        format!("max error {:.6} (L∞ per channel, linear)", report.max_error)
+    };
+    println!(
+        "packed {} -> {}: {} nodes ({} terminal), depth {}, {} ({:.2} B/node); RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {}{}; {:.2} s",
+        input.display(),
+        output.display(),
+        tree.node_count(),
+        terminals,
+        tree.depth(),
+        human_bytes(bytes),
+        bytes as f64 / tree.node_count() as f64,
+        raster as f64 / bytes as f64,
+        mips as f64 / bytes as f64,
+        error,
+        if report.resampled { ", cells resampled (area-weighted) from a non-power-of-two raster" } else { "" },
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Bytes of an RGBA8 raster and of the raster with its full mip pyramid.
+fn raster_bytes(width: u32, height: u32) -> (u64, u64) {
+    let raster = 4 * u64::from(width) * u64::from(height);
+    let (mut w, mut h, mut mips) = (u64::from(width), u64::from(height), 0u64);
+    loop {
+        mips += 4 * w * h;
+        if w == 1 && h == 1 {
+            break;
+        }
+        w = (w / 2).max(1);
+        h = (h / 2).max(1);
+    }
+    (raster, mips)
+}
+
+fn human_bytes(b: u64) -> String {
+    match b {
+        b if b >= 1 << 30 => format!("{:.2} GiB", b as f64 / f64::from(1u32 << 30)),
+        b if b >= 1 << 20 => format!("{:.2} MiB", b as f64 / f64::from(1u32 << 20)),
+        b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
+        b => format!("{b} B"),
+    }
+}
+
+fn single_path(parser: &mut lexopt::Parser, what: &str) -> Result<PathBuf> {
+    match parser.next()? {
+        Some(Value(v)) => Ok(v.into()),
+        Some(other) => Err(other.unexpected().into()),
+        None => Err(format!("{what}: missing FILE.qtx").into()),
+    }
+}
+
+fn info(parser: &mut lexopt::Parser) -> Result<()> {
+    let path = single_path(parser, "info")?;
+    if let Some(arg) = parser.next()? {
+        return Err(arg.unexpected().into());
+    }
+    let (tree, meta) = quadtex_io::read_qtx_with_limits(&path, &quadtex_io::Limits::default())?;
+    let bytes = tree.memory_bytes();
+    println!("file:        {} ({})", path.display(), human_bytes(meta.file_bytes));
+    println!("depth:       {}", tree.depth());
+    println!("nodes:       {}", tree.node_count());
+    println!("memory:      {} ({:.3} bytes/node; colour 8 B/node as unorm16 RGBA)", human_bytes(bytes), bytes as f64 / tree.node_count() as f64);
+    let (w, h) = if meta.source_width > 0 {
+        (meta.source_width, meta.source_height)
+    } else {
+        let side = 1u32.checked_shl(tree.depth().into()).unwrap_or(u32::MAX);
+        (side, side)
+    };
+    let (raster, mips) = raster_bytes(w, h);
+    println!("source:      {w}x{h}; RGBA8 raster {} ({:.1}x the tree), raster+mips {} ({:.1}x)", human_bytes(raster), raster as f64 / bytes as f64, human_bytes(mips), mips as f64 / bytes as f64);
+    let avg = tree.average().to_rgba();
+    println!("average:     {} {} {} {} (linear, premultiplied)", avg.r, avg.g, avg.b, avg.a);
+    println!("level      nodes  terminals");
+    for l in tree.level_stats() {
+        println!("{:>5} {:>10} {:>10}", l.level, l.nodes, l.terminals);
+    }
+    Ok(())
+}
+
+fn query(parser: &mut lexopt::Parser) -> Result<()> {
+    let (mut path, mut level) = (None::<PathBuf>, None);
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("level") | Short('k') => level = Some(parse_level(parser, "--level")?),
+            Value(v) if path.is_none() => path = Some(v.into()),
+            other => return Err(other.unexpected().into()),
+        }
+    }
+    let path = path.ok_or("query: missing FILE.qtx")?;
+    let tree = quadtex_io::read_qtx(&path)?;
+    let k = level.unwrap_or(tree.depth());
+    let stdin = std::io::stdin().lock();
+    let mut out = BufWriter::new(std::io::stdout().lock());
+    for (i, line) in stdin.lines().enumerate() {
+        let line = line.map_err(|e| format!("stdin line {}: {e}", i + 1))?;
+        let Some(fragment) = parse_fragment(&line).map_err(|e| format!("stdin line {}: {e}", i + 1))? else {
+            continue;
+        };
+        let w = tree.weighted_colour(&fragment, k);
+        writeln!(out, "{} {} {} {}", w.0[0], w.0[1], w.0[2], w.0[3])?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// One query line: `x0 z0 x1 z1`; blank lines and `#` comments yield `None`.
+fn parse_fragment(line: &str) -> Result<Option<Fragment>> {
+    let line = line.trim();
+    if line.is_empty() || line.starts_with('#') {
+        return Ok(None);
+    }
+    let fields: Vec<&str> = line.split_whitespace().collect();
+    if fields.len() != 4 {
+        return Err(format!("expected 4 numbers `x0 z0 x1 z1`, found {} fields", fields.len()).into());
+    }
+    let mut v = [0f64; 4];
+    for (slot, (name, text)) in v.iter_mut().zip(["x0", "z0", "x1", "z1"].iter().zip(&fields)) {
+        *slot = text.parse().map_err(|_| format!("{name}: `{text}` is not a number"))?;
+    }
+    Ok(Some(Fragment::new(v[0], v[1], v[2], v[3])?))
+}
+
+/// Stage messages on a spinner when stderr is a terminal, nothing otherwise.
+struct Progress(Option<indicatif::ProgressBar>);
+
+impl Progress {
+    fn new() -> Progress {
+        Progress(std::io::stderr().is_terminal().then(|| {
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.enable_steady_tick(std::time::Duration::from_millis(120));
+            bar
+        }))
+    }
+    fn stage(&self, message: &str) {
+        if let Some(bar) = &self.0 {
+            bar.set_message(message.to_string());
+        }
+    }
+    fn finish(&self) {
+        if let Some(bar) = &self.0 {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn query_lines_parse_or_name_the_problem() {
+        assert!(parse_fragment("  # comment").unwrap().is_none());
+        assert!(parse_fragment("").unwrap().is_none());
+        let f = parse_fragment("0 0.25\t1 0.5").unwrap().unwrap();
+        assert_eq!((f.x0(), f.z0(), f.x1(), f.z1()), (0.0, 0.25, 1.0, 0.5));
+        for (line, needle) in [
+            ("0 0 1", "found 3 fields"),
+            ("0 0 x 1", "x1: `x` is not a number"),
+            ("0 NaN 1 1", "z0 is not finite"),
+            ("0 0 inf 1", "x1 is not finite"),
+            ("1 0 0 1", "reversed bounds on x"),
+        ] {
+            let e = parse_fragment(line).unwrap_err().to_string();
+            assert!(e.contains(needle), "{line}: {e}");
+        }
+    }
+
+    #[test]
+    fn raster_and_mip_bytes() {
+        assert_eq!(raster_bytes(4, 4), (64, 4 * (16 + 4 + 1)));
+        assert_eq!(raster_bytes(4, 1), (16, 4 * (4 + 2 + 1)));
+    }
+}

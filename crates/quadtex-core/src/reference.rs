@@ -8,23 +8,30 @@ use crate::tree::{unit_side, QuadTree};
 use crate::variant::{self, f_high, f_low, Variant};
 
 /// Σ over texels of colour × area(texel ∩ fragment), texels as rectangles of
-/// the unit square (crate conventions). O(texels).
+/// the unit square (crate conventions). Visits only the texels the fragment
+/// touches: the brute-force baseline, O(covered texels).
 pub fn texel_sum(grid: &TexelGrid, fragment: &Fragment) -> WeightedColour {
+    let Some(f) = fragment.clip_to_unit() else {
+        return WeightedColour::ZERO;
+    };
     let (w, h) = (f64::from(grid.width()), f64::from(grid.height()));
-    let mut acc = WeightedColour::ZERO;
-    for row in 0..grid.height() {
+    let cols = (f.x0() * w).floor() as u32..((f.x1() * w).ceil() as u32).min(grid.width());
+    // Rows count from the top: z in [1-(row+1)/h, 1-row/h).
+    let rows = ((1.0 - f.z1()) * h).floor() as u32..(((1.0 - f.z0()) * h).ceil() as u32).min(grid.height());
+    let mut acc = [0f64; 4];
+    for row in rows {
         let z_lo = 1.0 - f64::from(row + 1) / h;
         let z_hi = 1.0 - f64::from(row) / h;
-        for col in 0..grid.width() {
-            let x_lo = f64::from(col) / w;
-            let x_hi = f64::from(col + 1) / w;
-            let area = overlap(fragment.x0(), fragment.x1(), x_lo, x_hi) * overlap(fragment.z0(), fragment.z1(), z_lo, z_hi);
-            if area > 0.0 {
-                acc += weigh(grid.texel(col, row), area);
+        let dz = overlap(f.z0(), f.z1(), z_lo, z_hi);
+        for col in cols.clone() {
+            let dx = overlap(f.x0(), f.x1(), f64::from(col) / w, f64::from(col + 1) / w);
+            let t = grid.texel(col, row);
+            for ch in 0..4 {
+                acc[ch] += dx * dz * f64::from(t.0[ch]);
             }
         }
     }
-    acc
+    WeightedColour(acc.map(|a| a / 65535.0))
 }
 
 /// Σ over the squares of the tree truncated at `max_level` (terminal nodes

@@ -289,3 +289,40 @@ mod tests {
         assert!(n > 256 * 256 / 3, "{n}");
     }
 }
+
+/// A benchmark workload: `count` fragments about `width_texels` texels wide
+/// (each side jittered by ±25%) on a texture of `texels²` texels, in
+/// render-like order: marching along rows left to right, rows top to bottom,
+/// one fragment width per step, with sub-texel jitter. Deterministic in `seed`.
+pub fn scanline_fragments(texels: u32, width_texels: f64, count: usize, seed: u64) -> Vec<crate::Fragment> {
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut rand = move || {
+        // xorshift64*: fast, deterministic, good enough for jitter.
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        (state.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let texel = 1.0 / f64::from(texels);
+    let w = width_texels * texel;
+    let mut out = Vec::with_capacity(count);
+    let (mut x, mut z) = (0.0, 1.0 - w);
+    while out.len() < count {
+        let fw = w * (0.75 + 0.5 * rand());
+        let fh = w * (0.75 + 0.5 * rand());
+        let x0 = x + texel * rand();
+        let z0 = z + texel * rand();
+        if let Ok(f) = crate::Fragment::new(x0, z0, x0 + fw, z0 + fh) {
+            out.push(f);
+        }
+        x += w;
+        if x + w > 1.0 {
+            x = 0.0;
+            z -= w;
+            if z < 0.0 {
+                z = 1.0 - w;
+            }
+        }
+    }
+    out
+}

@@ -1,1 +1,23 @@
-//! placeholder
+//! # quadtex-io
+//!
+//! Everything of quadtex that touches files: decoding PNG and JPEG into the
+//! core's linear, premultiplied [`TexelGrid`]; writing rendered images
+//! (PNG in sRGB 8-bit, OpenEXR in linear float); and the `.qtx` tree file
+//! (see `docs/format.md`). Every file is written atomically: to a temporary
+//! file in the same directory, then renamed over the target, so a reader never
+//! sees a half-written file and an interrupted run leaves none behind.
+#![forbid(unsafe_code)]
+
+mod atomic;
+mod error;
+mod image_io;
+mod limits;
+mod qtx;
+
+pub use atomic::write_atomically;
+pub use error::Error;
+pub use image_io::{linear_to_srgb, load_texels, load_texels_with_limits, save_image, srgb_to_linear, to_srgb8, LinearImage};
+pub use limits::Limits;
+pub use qtx::{read_qtx, read_qtx_with_limits, write_qtx, QtxInfo, FORMAT_VERSION, MAGIC};
+
+pub use quadtex_core::TexelGrid;

@@ -1,0 +1,87 @@
+use std::fmt;
+use std::path::PathBuf;
+
+/// Everything that can go wrong in `quadtex-io`. Each variant names the file
+/// and, for format errors, the field at fault.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum Error {
+    /// The operating system refused a read or write.
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        source: std::io::Error,
+    },
+    /// An image could not be decoded or encoded.
+    Image {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's message.
+        message: String,
+    },
+    /// A `.qtx` file is malformed; `field` names the first thing found wrong.
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// The header field or section (`magic`, `version`, `node_count`, `colours`…).
+        field: &'static str,
+        /// Why it is wrong.
+        message: String,
+    },
+    /// A configured resource limit would be exceeded; nothing was allocated.
+    Limit {
+        /// The file.
+        path: PathBuf,
+        /// Which limit (`max_dimension`, `max_file_bytes`, `max_nodes`, `max_depth`).
+        limit: &'static str,
+        /// The value found.
+        value: u64,
+        /// The limit's value.
+        max: u64,
+    },
+    /// An output file name whose extension selects no supported format.
+    UnsupportedExtension(PathBuf),
+    /// The core library refused the data.
+    Core {
+        /// The file.
+        path: PathBuf,
+        /// The core error.
+        source: quadtex_core::Error,
+    },
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
+            Error::Image { path, message } => write!(f, "{}: {message}", path.display()),
+            Error::Format { path, field, message } => {
+                write!(f, "{}: invalid .qtx file: {field}: {message}", path.display())
+            }
+            Error::Limit { path, limit, value, max } => {
+                write!(f, "{}: {limit} exceeded: {value} > {max}", path.display())
+            }
+            Error::UnsupportedExtension(path) => write!(
+                f,
+                "{}: unsupported output format (use .png or .exr)",
+                path.display()
+            ),
+            Error::Core { path, source } => write!(f, "{}: {source}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            Error::Core { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+pub(crate) fn io(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
+    move |source| Error::Io { path: path.to_path_buf(), source }
+}

@@ -1,0 +1,25 @@
+/// Resource limits applied while reading files, checked before any
+/// allocation they bound. The defaults suit this project's 24 GiB machines;
+/// embedders lower them (`Limits { max_nodes: 1 << 20, ..Limits::default() }`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Largest image width or height, in texels (default 65536).
+    pub max_dimension: u32,
+    /// Largest input file, in bytes (default 16 GiB).
+    pub max_file_bytes: u64,
+    /// Most nodes in a tree (default [`quadtex_core::MAX_NODES`], 2³¹).
+    pub max_nodes: u64,
+    /// Deepest tree level (default [`quadtex_core::MAX_DEPTH`], 30).
+    pub max_depth: u8,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_dimension: 65536,
+            max_file_bytes: 16 << 30,
+            max_nodes: quadtex_core::MAX_NODES,
+            max_depth: quadtex_core::MAX_DEPTH,
+        }
+    }
+}

@@ -1,0 +1,228 @@
+//! The `.qtx` file: a quadtree texture, byte layout in `docs/format.md`.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::Path;
+
+use quadtex_core::{QuadTree, Unorm16Rgba};
+
+use crate::atomic::{put, write_atomically};
+use crate::error::{io, Error};
+use crate::limits::Limits;
+
+/// First eight bytes of every `.qtx` file (PNG-style: a high byte, a name,
+/// and line endings that reveal text-mode corruption).
+pub const MAGIC: [u8; 8] = *b"\x89QTX\r\n\x1a\n";
+/// The version this library writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+const HEADER_BYTES: usize = 64;
+/// Colour format 1: four little-endian u16 per node, linear light,
+/// premultiplied RGBA, value v meaning v/65535.
+const COLOUR_UNORM16_PREMUL_LINEAR: u8 = 1;
+
+/// Facts about a `.qtx` file beyond the tree itself.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct QtxInfo {
+    /// Width of the image the tree was packed from (0 when not a raster).
+    pub source_width: u32,
+    /// Height of the image the tree was packed from (0 when not a raster).
+    pub source_height: u32,
+    /// Size of the file in bytes.
+    pub file_bytes: u64,
+}
+
+/// Writes `tree` to `path` atomically. `source` is the raster size it came
+/// from, if any, kept for reports.
+pub fn write_qtx(path: &Path, tree: &QuadTree, source: Option<(u32, u32)>) -> Result<(), Error> {
+    let n = tree.node_count();
+    let bit_bytes = n.div_ceil(8) as usize;
+    let mut bits = vec![0u8; bit_bytes];
+    let mut colours = Vec::with_capacity(8 * n as usize);
+    let mut inner = 0u64;
+    for (i, (is_inner, c)) in tree.nodes().enumerate() {
+        if is_inner {
+            bits[i / 8] |= 1 << (i % 8);
+            inner += 1;
+        }
+        for v in c.0 {
+            colours.extend(v.to_le_bytes());
+        }
+    }
+    let (sw, sh) = source.unwrap_or((0, 0));
+    let mut header = [0u8; HEADER_BYTES];
+    header[0..8].copy_from_slice(&MAGIC);
+    header[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+    header[12..16].copy_from_slice(&(HEADER_BYTES as u32).to_le_bytes());
+    header[16] = tree.depth();
+    header[17] = COLOUR_UNORM16_PREMUL_LINEAR;
+    header[20..24].copy_from_slice(&sw.to_le_bytes());
+    header[24..28].copy_from_slice(&sh.to_le_bytes());
+    header[32..40].copy_from_slice(&n.to_le_bytes());
+    header[40..48].copy_from_slice(&inner.to_le_bytes());
+    header[48..56].copy_from_slice(&((bit_bytes + colours.len()) as u64).to_le_bytes());
+    let header_crc = crc32fast::hash(&header[..56]);
+    header[56..60].copy_from_slice(&header_crc.to_le_bytes());
+    let mut hasher = crc32fast::Hasher::new();
+    hasher.update(&bits);
+    hasher.update(&colours);
+    let payload_crc = hasher.finalize();
+    write_atomically(path, |w| {
+        put(w, path, &header)?;
+        put(w, path, &bits)?;
+        put(w, path, &colours)?;
+        put(w, path, &payload_crc.to_le_bytes())
+    })
+}
+
+/// Reads a `.qtx` file under the default [`Limits`].
+pub fn read_qtx(path: &Path) -> Result<QuadTree, Error> {
+    read_qtx_with_limits(path, &Limits::default()).map(|(t, _)| t)
+}
+
+/// Reads and fully validates a `.qtx` file. Every size is checked against
+/// the file's real length and `limits` before anything is allocated.
+pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
+    let bad = |field: &'static str, message: String| Error::Format { path: path.to_path_buf(), field, message };
+    let limit = |limit: &'static str, value: u64, max: u64| Error::Limit { path: path.to_path_buf(), limit, value, max };
+
+    let mut file = File::open(path).map_err(io(path))?;
+    let file_bytes = file.metadata().map_err(io(path))?.len();
+    if file_bytes > limits.max_file_bytes {
+        return Err(limit("max_file_bytes", file_bytes, limits.max_file_bytes));
+    }
+    if file_bytes < HEADER_BYTES as u64 {
+        return Err(bad("header", format!("file is {file_bytes} bytes, shorter than the {HEADER_BYTES}-byte header")));
+    }
+    let mut h = [0u8; HEADER_BYTES];
+    file.read_exact(&mut h).map_err(io(path))?;
+    if h[0..8] != MAGIC {
+        return Err(bad("magic", "not a quadtex .qtx file (wrong magic bytes)".into()));
+    }
+    let u32_at = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
+    let u64_at = |o: usize| u64::from(u32_at(o)) | u64::from(u32_at(o + 4)) << 32;
+    let version = u32_at(8);
+    if version != FORMAT_VERSION {
+        return Err(bad("version", format!("version {version} is not supported (this build reads {FORMAT_VERSION})")));
+    }
+    if crc32fast::hash(&h[..56]) != u32_at(56) {
+        return Err(bad("header_crc", "header checksum mismatch (corrupt header)".into()));
+    }
+    if h[18..20] != [0, 0] || h[28..32] != [0; 4] || h[60..64] != [0; 4] {
+        return Err(bad("reserved", "reserved header bytes are not zero".into()));
+    }
+    if u32_at(12) as usize != HEADER_BYTES {
+        return Err(bad("header_bytes", format!("{} (expected {HEADER_BYTES})", u32_at(12))));
+    }
+    let depth = h[16];
+    if depth > limits.max_depth {
+        return Err(limit("max_depth", depth.into(), limits.max_depth.into()));
+    }
+    if h[17] != COLOUR_UNORM16_PREMUL_LINEAR {
+        return Err(bad("colour_format", format!("unknown colour format {}", h[17])));
+    }
+    let nodes = u64_at(32);
+    let inner = u64_at(40);
+    if nodes > limits.max_nodes {
+        return Err(limit("max_nodes", nodes, limits.max_nodes));
+    }
+    if nodes == 0 || inner.checked_mul(4).and_then(|x| x.checked_add(1)) != Some(nodes) {
+        return Err(bad("node_count", format!("{nodes} nodes cannot hold {inner} inner nodes of four children each")));
+    }
+    let bit_bytes = nodes.div_ceil(8);
+    let payload = bit_bytes + 8 * nodes;
+    if u64_at(48) != payload {
+        return Err(bad("payload_bytes", format!("{} declared, {payload} implied by node_count", u64_at(48))));
+    }
+    let expected = HEADER_BYTES as u64 + payload + 4;
+    if file_bytes != expected {
+        return Err(bad(
+            "length",
+            format!("file is {file_bytes} bytes, the header implies {expected} (truncated or trailing data)"),
+        ));
+    }
+    // Sizes are now bounded by the real file length, itself under the limit.
+    let mut body = vec![0u8; (payload + 4) as usize];
+    file.read_exact(&mut body).map_err(io(path))?;
+    let (data, crc) = body.split_at(payload as usize);
+    if crc32fast::hash(data) != u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]) {
+        return Err(bad("payload_crc", "payload checksum mismatch (corrupt node data)".into()));
+    }
+    let (bits, colour_bytes) = data.split_at(bit_bytes as usize);
+    let mut words = vec![0u64; nodes.div_ceil(64) as usize];
+    for (i, &b) in bits.iter().enumerate() {
+        words[i / 8] |= u64::from(b) << (8 * (i % 8));
+    }
+    let counted: u64 = words.iter().map(|w| u64::from(w.count_ones())).sum();
+    if counted != inner {
+        return Err(bad("inner_bits", format!("{counted} inner flags set, header says {inner}")));
+    }
+    let colours = colour_bytes
+        .chunks_exact(8)
+        .map(|c| Unorm16Rgba(std::array::from_fn(|k| u16::from_le_bytes([c[2 * k], c[2 * k + 1]]))))
+        .collect();
+    let tree = QuadTree::from_parts(depth, &words, colours).map_err(|e| bad("nodes", e.to_string()))?;
+    Ok((tree, QtxInfo { source_width: u32_at(20), source_height: u32_at(24), file_bytes }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use quadtex_core::synth;
+    use quadtex_core::BuildOptions;
+
+    fn sample() -> QuadTree {
+        let g = synth::runway_art().rasterise(64, 64).unwrap();
+        QuadTree::from_texels(&g, &BuildOptions::default()).unwrap().0
+    }
+
+    fn temp(name: &str) -> std::path::PathBuf {
+        std::env::temp_dir().join(format!("quadtex-qtx-{}-{name}", std::process::id()))
+    }
+
+    #[test]
+    fn round_trips() {
+        let t = sample();
+        let p = temp("rt.qtx");
+        write_qtx(&p, &t, Some((64, 64))).unwrap();
+        let (back, info) = read_qtx_with_limits(&p, &Limits::default()).unwrap();
+        assert_eq!(back, t);
+        assert_eq!((info.source_width, info.source_height), (64, 64));
+        std::fs::remove_file(&p).unwrap();
+    }
+
+    #[test]
+    fn every_single_byte_flip_and_truncation_is_an_error() {
+        let p = temp("flip.qtx");
+        write_qtx(&p, &sample(), None).unwrap();
+        let good = std::fs::read(&p).unwrap();
+        let q = temp("flip-bad.qtx");
+        for i in (0..good.len()).step_by(7) {
+            let mut bytes = good.clone();
+            bytes[i] ^= 0x10;
+            std::fs::write(&q, &bytes).unwrap();
+            assert!(read_qtx(&q).is_err(), "flip at byte {i} accepted");
+        }
+        for len in [0, 10, 63, 64, good.len() / 2, good.len() - 1] {
+            std::fs::write(&q, &good[..len]).unwrap();
+            let e = read_qtx(&q).unwrap_err().to_string();
+            assert!(e.contains("flip-bad.qtx"), "{e}");
+        }
+        std::fs::remove_file(&p).unwrap();
+        std::fs::remove_file(&q).unwrap();
+    }
+
+    #[test]
+    fn absurd_sizes_are_refused_before_allocating() {
+        let p = temp("huge.qtx");
+        write_qtx(&p, &sample(), None).unwrap();
+        let mut bytes = std::fs::read(&p).unwrap();
+        // Claim 2^40 nodes with a valid header checksum.
+        bytes[32..40].copy_from_slice(&(1u64 << 40).to_le_bytes());
+        let crc = crc32fast::hash(&bytes[..56]);
+        bytes[56..60].copy_from_slice(&crc.to_le_bytes());
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_qtx(&p).unwrap_err();
+        assert!(matches!(e, Error::Limit { limit: "max_nodes", .. }), "{e}");
+        std::fs::remove_file(&p).unwrap();
+    }
+}
