@@ -11,10 +11,14 @@ use quadtex_core::sat::SummedAreaTable;
 use quadtex_core::synth::{runway_art, scanline_fragments};
 use quadtex_core::{BuildOptions, Fragment, QuadTree, WeightedColour};
 
-use crate::{human_bytes, raster_bytes, Result};
+use crate::{Result, human_bytes, raster_bytes};
 
 /// Median seconds per call of `f` over `runs` runs, each answering every fragment.
-fn time_per_query(runs: usize, frags: &[Fragment], mut f: impl FnMut(&Fragment) -> WeightedColour) -> f64 {
+fn time_per_query(
+    runs: usize,
+    frags: &[Fragment],
+    mut f: impl FnMut(&Fragment) -> WeightedColour,
+) -> f64 {
     let mut samples: Vec<f64> = (0..runs)
         .map(|_| {
             let start = Instant::now();
@@ -60,21 +64,47 @@ pub fn run(parser: &mut lexopt::Parser) -> Result<()> {
     let tree_bytes = tree.memory_bytes();
     let depth = tree.depth();
 
-    println!("## quadtex bench: runway markings and lettering, {size}x{size} texels (vector-like, lossless)\n");
-    println!("Pack time (median of 3): {:.3} s; {} nodes, depth {depth}\n", pack_times[1], tree.node_count());
+    println!(
+        "## quadtex bench: runway markings and lettering, {size}x{size} texels (vector-like, lossless)\n"
+    );
+    println!(
+        "Pack time (median of 3): {:.3} s; {} nodes, depth {depth}\n",
+        pack_times[1],
+        tree.node_count()
+    );
     println!("| storage | bytes | tree is smaller by |");
     println!("|---|---:|---:|");
-    println!("| quadtree ({:.2} B/node) | {} | 1 |", tree_bytes as f64 / tree.node_count() as f64, human_bytes(tree_bytes));
-    println!("| RGBA8 raster | {} | {:.1}x |", human_bytes(raster), raster as f64 / tree_bytes as f64);
-    println!("| RGBA8 raster + mips | {} | {:.1}x |", human_bytes(mips), mips as f64 / tree_bytes as f64);
-    println!("| summed-area table (f64 RGBA) | {} | {:.1}x |", human_bytes(sat.memory_bytes()), sat.memory_bytes() as f64 / tree_bytes as f64);
+    println!(
+        "| quadtree ({:.2} B/node) | {} | 1 |",
+        tree_bytes as f64 / tree.node_count() as f64,
+        human_bytes(tree_bytes)
+    );
+    println!(
+        "| RGBA8 raster | {} | {:.1}x |",
+        human_bytes(raster),
+        raster as f64 / tree_bytes as f64
+    );
+    println!(
+        "| RGBA8 raster + mips | {} | {:.1}x |",
+        human_bytes(mips),
+        mips as f64 / tree_bytes as f64
+    );
+    println!(
+        "| summed-area table (f64 RGBA) | {} | {:.1}x |",
+        human_bytes(sat.memory_bytes()),
+        sat.memory_bytes() as f64 / tree_bytes as f64
+    );
     println!();
-    println!("Median ns per fragment over {runs} runs, {queries} fragments per width in scanline order (same run, same fragments):\n");
-    println!("| width (texels) | quadtree k={depth} (exact) | quadtree matched k | SAT (exact) | texel loop | matched / SAT | exact / SAT | max abs error vs SAT |");
+    println!(
+        "Median ns per fragment over {runs} runs, {queries} fragments per width in scanline order (same run, same fragments):\n"
+    );
+    println!(
+        "| width (texels) | quadtree k={depth} (exact) | quadtree matched k | SAT (exact) | texel loop | matched / SAT | exact / SAT | max abs error vs SAT |"
+    );
     println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
     for width in [1.0, 4.0, 16.0, 256.0] {
         let frags = scanline_fragments(size, width, queries, 7);
-        let matched = depth.saturating_sub((width as f64).log2().floor() as u8);
+        let matched = depth.saturating_sub(width.log2().floor() as u8);
         let full = time_per_query(runs, &frags, |f| tree.weighted_colour(f, depth));
         let lod = time_per_query(runs, &frags, |f| tree.weighted_colour(f, matched));
         let sat_t = time_per_query(runs, &frags, |f| sat.weighted_colour(f));
@@ -86,7 +116,9 @@ pub fn run(parser: &mut lexopt::Parser) -> Result<()> {
             .map(|f| {
                 let (a, b) = (tree.weighted_colour(f, depth), sat.weighted_colour(f));
                 let area = f.clip_to_unit().map_or(0.0, |c| c.area()).max(1e-300);
-                (0..4).map(|ch| (a.0[ch] - b.0[ch]).abs() / area).fold(0.0, f64::max)
+                (0..4)
+                    .map(|ch| (a.0[ch] - b.0[ch]).abs() / area)
+                    .fold(0.0, f64::max)
             })
             .fold(0.0, f64::max);
         println!(
@@ -100,6 +132,8 @@ pub fn run(parser: &mut lexopt::Parser) -> Result<()> {
             max_err
         );
     }
-    println!("\n(max abs error: largest per-channel difference of the mean colour over a fragment, exact quadtree vs SAT; both are exact, so it shows rounding only.)");
+    println!(
+        "\n(max abs error: largest per-channel difference of the mean colour over a fragment, exact quadtree vs SAT; both are exact, so it shows rounding only.)"
+    );
     Ok(())
 }

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use lexopt::prelude::*;
-use quadtex_core::{BuildOptions, Fragment, QuadTree, MAX_DEPTH};
+use quadtex_core::{BuildOptions, Fragment, MAX_DEPTH, QuadTree};
 
 type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
@@ -60,7 +60,10 @@ fn run() -> Result<()> {
 }
 
 fn parse_level(parser: &mut lexopt::Parser, flag: &str) -> Result<u8> {
-    let v: u32 = parser.value()?.parse().map_err(|e| format!("{flag}: {e}"))?;
+    let v: u32 = parser
+        .value()?
+        .parse()
+        .map_err(|e| format!("{flag}: {e}"))?;
     if v > u32::from(MAX_DEPTH) {
         return Err(format!("{flag} {v} exceeds the maximum depth {MAX_DEPTH}").into());
     }
@@ -74,7 +77,10 @@ fn pack(parser: &mut lexopt::Parser) -> Result<()> {
         match arg {
             Short('o') | Long("output") => output = Some(parser.value()?.into()),
             Long("tolerance") => {
-                let t: f64 = parser.value()?.parse().map_err(|e| format!("--tolerance: {e}"))?;
+                let t: f64 = parser
+                    .value()?
+                    .parse()
+                    .map_err(|e| format!("--tolerance: {e}"))?;
                 if !(t.is_finite() && (0.0..=1.0).contains(&t)) {
                     return Err(format!("--tolerance must be in [0, 1], got {t}").into());
                 }
@@ -91,8 +97,13 @@ fn pack(parser: &mut lexopt::Parser) -> Result<()> {
     let start = Instant::now();
     progress.stage(&format!("decoding {}", input.display()));
     let grid = quadtex_io::load_texels(&input)?;
-    progress.stage(&format!("packing {}x{} texels", grid.width(), grid.height()));
-    let (tree, report) = QuadTree::from_texels(&grid, &options).map_err(|e| format!("{}: {e}", input.display()))?;
+    progress.stage(&format!(
+        "packing {}x{} texels",
+        grid.width(),
+        grid.height()
+    ));
+    let (tree, report) =
+        QuadTree::from_texels(&grid, &options).map_err(|e| format!("{}: {e}", input.display()))?;
     progress.stage(&format!("writing {}", output.display()));
     quadtex_io::write_qtx(&output, &tree, Some((grid.width(), grid.height())))?;
     progress.finish();
@@ -116,7 +127,11 @@ fn pack(parser: &mut lexopt::Parser) -> Result<()> {
         raster as f64 / bytes as f64,
         mips as f64 / bytes as f64,
         error,
-        if report.resampled { ", cells resampled (area-weighted) from a non-power-of-two raster" } else { "" },
+        if report.resampled {
+            ", cells resampled (area-weighted) from a non-power-of-two raster"
+        } else {
+            ""
+        },
         start.elapsed().as_secs_f64()
     );
     Ok(())
@@ -161,10 +176,18 @@ fn info(parser: &mut lexopt::Parser) -> Result<()> {
     }
     let (tree, meta) = quadtex_io::read_qtx_with_limits(&path, &quadtex_io::Limits::default())?;
     let bytes = tree.memory_bytes();
-    println!("file:        {} ({})", path.display(), human_bytes(meta.file_bytes));
+    println!(
+        "file:        {} ({})",
+        path.display(),
+        human_bytes(meta.file_bytes)
+    );
     println!("depth:       {}", tree.depth());
     println!("nodes:       {}", tree.node_count());
-    println!("memory:      {} ({:.3} bytes/node; colour 8 B/node as unorm16 RGBA)", human_bytes(bytes), bytes as f64 / tree.node_count() as f64);
+    println!(
+        "memory:      {} ({:.3} bytes/node; colour 8 B/node as unorm16 RGBA)",
+        human_bytes(bytes),
+        bytes as f64 / tree.node_count() as f64
+    );
     let (w, h) = if meta.source_width > 0 {
         (meta.source_width, meta.source_height)
     } else {
@@ -172,9 +195,18 @@ fn info(parser: &mut lexopt::Parser) -> Result<()> {
         (side, side)
     };
     let (raster, mips) = raster_bytes(w, h);
-    println!("source:      {w}x{h}; RGBA8 raster {} ({:.1}x the tree), raster+mips {} ({:.1}x)", human_bytes(raster), raster as f64 / bytes as f64, human_bytes(mips), mips as f64 / bytes as f64);
+    println!(
+        "source:      {w}x{h}; RGBA8 raster {} ({:.1}x the tree), raster+mips {} ({:.1}x)",
+        human_bytes(raster),
+        raster as f64 / bytes as f64,
+        human_bytes(mips),
+        mips as f64 / bytes as f64
+    );
     let avg = tree.average().to_rgba();
-    println!("average:     {} {} {} {} (linear, premultiplied)", avg.r, avg.g, avg.b, avg.a);
+    println!(
+        "average:     {} {} {} {} (linear, premultiplied)",
+        avg.r, avg.g, avg.b, avg.a
+    );
     println!("level      nodes  terminals");
     for l in tree.level_stats() {
         println!("{:>5} {:>10} {:>10}", l.level, l.nodes, l.terminals);
@@ -198,7 +230,9 @@ fn query(parser: &mut lexopt::Parser) -> Result<()> {
     let mut out = BufWriter::new(std::io::stdout().lock());
     for (i, line) in stdin.lines().enumerate() {
         let line = line.map_err(|e| format!("stdin line {}: {e}", i + 1))?;
-        let Some(fragment) = parse_fragment(&line).map_err(|e| format!("stdin line {}: {e}", i + 1))? else {
+        let Some(fragment) =
+            parse_fragment(&line).map_err(|e| format!("stdin line {}: {e}", i + 1))?
+        else {
             continue;
         };
         let w = tree.weighted_colour(&fragment, k);
@@ -216,11 +250,20 @@ fn parse_fragment(line: &str) -> Result<Option<Fragment>> {
     }
     let fields: Vec<&str> = line.split_whitespace().collect();
     if fields.len() != 4 {
-        return Err(format!("expected 4 numbers `x0 z0 x1 z1`, found {} fields", fields.len()).into());
+        return Err(format!(
+            "expected 4 numbers `x0 z0 x1 z1`, found {} fields",
+            fields.len()
+        )
+        .into());
     }
     let mut v = [0f64; 4];
-    for (slot, (name, text)) in v.iter_mut().zip(["x0", "z0", "x1", "z1"].iter().zip(&fields)) {
-        *slot = text.parse().map_err(|_| format!("{name}: `{text}` is not a number"))?;
+    for (slot, (name, text)) in v
+        .iter_mut()
+        .zip(["x0", "z0", "x1", "z1"].iter().zip(&fields))
+    {
+        *slot = text
+            .parse()
+            .map_err(|_| format!("{name}: `{text}` is not a number"))?;
     }
     Ok(Some(Fragment::new(v[0], v[1], v[2], v[3])?))
 }
@@ -247,7 +290,6 @@ impl Progress {
         }
     }
 }
-
 
 #[cfg(test)]
 mod tests {

@@ -15,9 +15,9 @@
 //! An inner square's colour is the rounded exact mean of all its cells, so
 //! rounding never accumulates up the tree.
 
-use crate::colour::{Rgba, Unorm16Rgba};
-use crate::tree::{self, QuadTree, MAX_DEPTH, MAX_NODES};
 use crate::Error;
+use crate::colour::{Rgba, Unorm16Rgba};
+use crate::tree::{self, MAX_DEPTH, MAX_NODES, QuadTree};
 
 /// Largest width or height the builder accepts (2^20 texels).
 pub const MAX_DIMENSION: u32 = 1 << 20;
@@ -36,13 +36,24 @@ impl TexelGrid {
         check_dimensions(width, height)?;
         let expected = u64::from(width) * u64::from(height);
         if texels.len() as u64 != expected {
-            return Err(Error::TexelCount { expected, actual: texels.len() as u64 });
+            return Err(Error::TexelCount {
+                expected,
+                actual: texels.len() as u64,
+            });
         }
-        Ok(TexelGrid { width, height, texels })
+        Ok(TexelGrid {
+            width,
+            height,
+            texels,
+        })
     }
 
     /// A grid whose texel `(col, row)` is `f(col, row)`.
-    pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> Rgba) -> Result<TexelGrid, Error> {
+    pub fn from_fn(
+        width: u32,
+        height: u32,
+        mut f: impl FnMut(u32, u32) -> Rgba,
+    ) -> Result<TexelGrid, Error> {
         check_dimensions(width, height)?;
         let mut texels = Vec::with_capacity(width as usize * height as usize);
         for row in 0..height {
@@ -50,7 +61,11 @@ impl TexelGrid {
                 texels.push(f(col, row).to_unorm16());
             }
         }
-        Ok(TexelGrid { width, height, texels })
+        Ok(TexelGrid {
+            width,
+            height,
+            texels,
+        })
     }
 
     /// Width in texels.
@@ -80,10 +95,18 @@ impl TexelGrid {
 fn check_dimensions(width: u32, height: u32) -> Result<(), Error> {
     let (w, h) = (u64::from(width), u64::from(height));
     if width == 0 || height == 0 {
-        return Err(Error::BadDimensions { width: w, height: h, reason: "zero-sized" });
+        return Err(Error::BadDimensions {
+            width: w,
+            height: h,
+            reason: "zero-sized",
+        });
     }
     if width > MAX_DIMENSION || height > MAX_DIMENSION {
-        return Err(Error::BadDimensions { width: w, height: h, reason: "larger than 1048576 texels on a side" });
+        return Err(Error::BadDimensions {
+            width: w,
+            height: h,
+            reason: "larger than 1048576 texels on a side",
+        });
     }
     Ok(())
 }
@@ -102,7 +125,11 @@ pub struct BuildOptions {
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { tolerance: 0.0, max_level: None, max_nodes: MAX_NODES }
+        BuildOptions {
+            tolerance: 0.0,
+            max_level: None,
+            max_nodes: MAX_NODES,
+        }
     }
 }
 
@@ -129,7 +156,11 @@ struct Stats {
 
 impl Stats {
     fn of(c: Unorm16Rgba) -> Stats {
-        Stats { sum: c.0.map(u64::from), min: c.0, max: c.0 }
+        Stats {
+            sum: c.0.map(u64::from),
+            min: c.0,
+            max: c.0,
+        }
     }
     fn merge(parts: [Stats; 4]) -> Stats {
         let mut s = parts[0];
@@ -150,7 +181,10 @@ impl Stats {
     }
     /// Largest deviation of any cell from `mean`, in unorm16 steps.
     fn deviation(&self, mean: Unorm16Rgba) -> u16 {
-        (0..4).map(|ch| (self.max[ch] - mean.0[ch]).max(mean.0[ch] - self.min[ch])).max().unwrap_or(0)
+        (0..4)
+            .map(|ch| (self.max[ch] - mean.0[ch]).max(mean.0[ch] - self.min[ch]))
+            .max()
+            .unwrap_or(0)
     }
 }
 
@@ -173,7 +207,12 @@ impl Builder<'_> {
 
     /// Builds the subtree of square `(level, ix, iz)`: returns its stats and
     /// its (colour, terminal) decision; pushes its descendants if it is inner.
-    fn square(&mut self, level: u8, ix: usize, iz: usize) -> Result<(Stats, Unorm16Rgba, bool), Error> {
+    fn square(
+        &mut self,
+        level: u8,
+        ix: usize,
+        iz: usize,
+    ) -> Result<(Stats, Unorm16Rgba, bool), Error> {
         if level == self.depth {
             let c = self.cell(ix, iz);
             return Ok((Stats::of(c), c, true));
@@ -203,7 +242,10 @@ impl Builder<'_> {
         }
         self.nodes += 4;
         if self.nodes > self.max_nodes {
-            return Err(Error::TooManyNodes { nodes: self.nodes, max: self.max_nodes });
+            return Err(Error::TooManyNodes {
+                nodes: self.nodes,
+                max: self.max_nodes,
+            });
         }
         let next = &mut self.levels[usize::from(level) + 1];
         for (c, term) in children {
@@ -215,18 +257,27 @@ impl Builder<'_> {
 
 impl QuadTree {
     /// Packs a raster (see the [module documentation](crate::build)).
-    pub fn from_texels(grid: &TexelGrid, options: &BuildOptions) -> Result<(QuadTree, BuildReport), Error> {
+    pub fn from_texels(
+        grid: &TexelGrid,
+        options: &BuildOptions,
+    ) -> Result<(QuadTree, BuildReport), Error> {
         if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
             return Err(Error::BadTolerance(options.tolerance));
         }
         let depth = options.max_level.unwrap_or_else(|| grid.natural_depth());
         if depth > MAX_DEPTH {
-            return Err(Error::DepthTooLarge { depth: depth.into(), max: MAX_DEPTH.into() });
+            return Err(Error::DepthTooLarge {
+                depth: depth.into(),
+                max: MAX_DEPTH.into(),
+            });
         }
         let side = 1usize << depth;
         let max_cells = 1u64 << 34;
         if (side as u64) * (side as u64) > max_cells {
-            return Err(Error::DepthTooLarge { depth: depth.into(), max: 17 });
+            return Err(Error::DepthTooLarge {
+                depth: depth.into(),
+                max: 17,
+            });
         }
         let resampled = grid.width as usize != side || grid.height as usize != side;
         let owned;
@@ -252,7 +303,11 @@ impl QuadTree {
         while b.levels.last().is_some_and(Vec::is_empty) {
             b.levels.pop();
         }
-        let report = BuildReport { cell_depth: depth, resampled, max_error: f64::from(b.max_error) / 65535.0 };
+        let report = BuildReport {
+            cell_depth: depth,
+            resampled,
+            max_error: f64::from(b.max_error) / 65535.0,
+        };
         Ok((tree::from_levels(b.levels)?, report))
     }
 }
@@ -269,8 +324,8 @@ fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
         for (cx, taps) in xw.iter().enumerate() {
             let mut acc = [0f32; 4];
             for &(col, wgt) in taps {
-                for ch in 0..4 {
-                    acc[ch] += wgt * f32::from(src[col].0[ch]);
+                for (a, &c) in acc.iter_mut().zip(&src[col].0) {
+                    *a += wgt * f32::from(c);
                 }
             }
             rows[row * side + cx] = acc;
@@ -281,8 +336,8 @@ fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
         for cx in 0..side {
             let mut acc = [0f32; 4];
             for &(row, wgt) in taps {
-                for ch in 0..4 {
-                    acc[ch] += wgt * rows[row * side + cx][ch];
+                for (a, &c) in acc.iter_mut().zip(&rows[row * side + cx]) {
+                    *a += wgt * c;
                 }
             }
             let q = acc.map(|v| (v + 0.5).clamp(0.0, 65535.0) as u16);
@@ -335,37 +390,79 @@ mod tests {
 
     #[test]
     fn one_odd_texel_splits_only_its_path() {
-        let g = TexelGrid::from_fn(16, 16, |c, r| if (c, r) == (3, 5) { Rgba::opaque(1.0, 0.0, 0.0) } else { Rgba::opaque(0.0, 0.0, 1.0) })
-            .unwrap();
+        let g = TexelGrid::from_fn(16, 16, |c, r| {
+            if (c, r) == (3, 5) {
+                Rgba::opaque(1.0, 0.0, 0.0)
+            } else {
+                Rgba::opaque(0.0, 0.0, 1.0)
+            }
+        })
+        .unwrap();
         let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
         assert_eq!(t.depth(), 4);
         assert_eq!(t.node_count(), 1 + 4 * 4, "one inner node per level");
         let stats = t.level_stats();
-        assert_eq!(stats.iter().map(|s| s.nodes).collect::<Vec<_>>(), vec![1, 4, 4, 4, 4]);
+        assert_eq!(
+            stats.iter().map(|s| s.nodes).collect::<Vec<_>>(),
+            vec![1, 4, 4, 4, 4]
+        );
     }
 
     #[test]
     fn tolerance_merges_small_noise_and_reports_error() {
-        let g = TexelGrid::from_fn(8, 8, |c, r| Rgba::opaque(0.5 + 0.001 * ((c + r) % 2) as f32, 0.5, 0.5)).unwrap();
+        let g = TexelGrid::from_fn(8, 8, |c, r| {
+            Rgba::opaque(0.5 + 0.001 * ((c + r) % 2) as f32, 0.5, 0.5)
+        })
+        .unwrap();
         let (lossless, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
         assert!(lossless.node_count() > 1);
-        let opts = BuildOptions { tolerance: 0.002, ..BuildOptions::default() };
+        let opts = BuildOptions {
+            tolerance: 0.002,
+            ..BuildOptions::default()
+        };
         let (lossy, report) = QuadTree::from_texels(&g, &opts).unwrap();
         assert_eq!(lossy.node_count(), 1);
-        assert!(report.max_error > 0.0 && report.max_error <= 0.002, "{report:?}");
+        assert!(
+            report.max_error > 0.0 && report.max_error <= 0.002,
+            "{report:?}"
+        );
     }
 
     #[test]
     fn refuses_bad_input() {
-        assert!(matches!(TexelGrid::new(0, 4, vec![]), Err(Error::BadDimensions { .. })));
-        assert!(matches!(TexelGrid::new(2, 2, vec![Unorm16Rgba::default(); 3]), Err(Error::TexelCount { .. })));
+        assert!(matches!(
+            TexelGrid::new(0, 4, vec![]),
+            Err(Error::BadDimensions { .. })
+        ));
+        assert!(matches!(
+            TexelGrid::new(2, 2, vec![Unorm16Rgba::default(); 3]),
+            Err(Error::TexelCount { .. })
+        ));
         let g = TexelGrid::from_fn(2, 2, |_, _| Rgba::TRANSPARENT).unwrap();
-        let bad = BuildOptions { tolerance: f64::NAN, ..BuildOptions::default() };
-        assert!(matches!(QuadTree::from_texels(&g, &bad), Err(Error::BadTolerance(_))));
-        let deep = BuildOptions { max_level: Some(40), ..BuildOptions::default() };
-        assert!(matches!(QuadTree::from_texels(&g, &deep), Err(Error::DepthTooLarge { .. })));
-        let few = BuildOptions { max_nodes: 3, ..BuildOptions::default() };
+        let bad = BuildOptions {
+            tolerance: f64::NAN,
+            ..BuildOptions::default()
+        };
+        assert!(matches!(
+            QuadTree::from_texels(&g, &bad),
+            Err(Error::BadTolerance(_))
+        ));
+        let deep = BuildOptions {
+            max_level: Some(40),
+            ..BuildOptions::default()
+        };
+        assert!(matches!(
+            QuadTree::from_texels(&g, &deep),
+            Err(Error::DepthTooLarge { .. })
+        ));
+        let few = BuildOptions {
+            max_nodes: 3,
+            ..BuildOptions::default()
+        };
         let g = TexelGrid::from_fn(4, 4, |c, _| Rgba::opaque(c as f32 / 4.0, 0.0, 0.0)).unwrap();
-        assert!(matches!(QuadTree::from_texels(&g, &few), Err(Error::TooManyNodes { .. })));
+        assert!(matches!(
+            QuadTree::from_texels(&g, &few),
+            Err(Error::TooManyNodes { .. })
+        ));
     }
 }

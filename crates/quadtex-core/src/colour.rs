@@ -15,7 +15,12 @@ pub struct Rgba {
 
 impl Rgba {
     /// Opaque black with zero alpha: the colour of "nothing".
-    pub const TRANSPARENT: Rgba = Rgba { r: 0.0, g: 0.0, b: 0.0, a: 0.0 };
+    pub const TRANSPARENT: Rgba = Rgba {
+        r: 0.0,
+        g: 0.0,
+        b: 0.0,
+        a: 0.0,
+    };
 
     /// A colour from premultiplied linear channels.
     pub const fn new(r: f32, g: f32, b: f32, a: f32) -> Rgba {
@@ -91,7 +96,12 @@ impl WeightedColour {
 impl Add for WeightedColour {
     type Output = WeightedColour;
     fn add(self, o: WeightedColour) -> WeightedColour {
-        WeightedColour([self.0[0] + o.0[0], self.0[1] + o.0[1], self.0[2] + o.0[2], self.0[3] + o.0[3]])
+        WeightedColour([
+            self.0[0] + o.0[0],
+            self.0[1] + o.0[1],
+            self.0[2] + o.0[2],
+            self.0[3] + o.0[3],
+        ])
     }
 }
 

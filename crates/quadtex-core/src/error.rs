@@ -69,7 +69,11 @@ impl fmt::Display for Error {
             Error::ReversedBounds { axis, lo, hi } => {
                 write!(f, "reversed bounds on {axis}: upper {hi} < lower {lo}")
             }
-            Error::BadDimensions { width, height, reason } => {
+            Error::BadDimensions {
+                width,
+                height,
+                reason,
+            } => {
                 write!(f, "bad image dimensions {width}x{height}: {reason}")
             }
             Error::TexelCount { expected, actual } => {

@@ -22,10 +22,18 @@ impl Fragment {
             }
         }
         if x1 < x0 {
-            return Err(Error::ReversedBounds { axis: "x", lo: x0, hi: x1 });
+            return Err(Error::ReversedBounds {
+                axis: "x",
+                lo: x0,
+                hi: x1,
+            });
         }
         if z1 < z0 {
-            return Err(Error::ReversedBounds { axis: "z", lo: z0, hi: z1 });
+            return Err(Error::ReversedBounds {
+                axis: "z",
+                lo: z0,
+                hi: z1,
+            });
         }
         Ok(Fragment { x0, z0, x1, z1 })
     }
@@ -71,7 +79,8 @@ impl Fragment {
 
     /// Area of the overlap with the axis-aligned square `[lo_x, lo_x+side) × [lo_z, lo_z+side)`.
     pub fn overlap_area(&self, lo_x: f64, lo_z: f64, side: f64) -> f64 {
-        overlap_1d(self.x0, self.x1, lo_x, lo_x + side) * overlap_1d(self.z0, self.z1, lo_z, lo_z + side)
+        overlap_1d(self.x0, self.x1, lo_x, lo_x + side)
+            * overlap_1d(self.z0, self.z1, lo_z, lo_z + side)
     }
 }
 
@@ -103,7 +112,10 @@ mod tests {
             Fragment::new(0.0, 0.5, 1.0, 0.25),
             Err(Error::ReversedBounds { axis: "z", .. })
         ));
-        assert!(Fragment::new(0.3, 0.3, 0.3, 0.3).is_ok(), "zero area is allowed");
+        assert!(
+            Fragment::new(0.3, 0.3, 0.3, 0.3).is_ok(),
+            "zero area is allowed"
+        );
     }
 
     #[test]
@@ -112,6 +124,11 @@ mod tests {
         let c = f.clip_to_unit().unwrap();
         assert_eq!((c.x0(), c.z0(), c.x1(), c.z1()), (0.0, 0.25, 0.5, 1.0));
         assert_eq!(f.overlap_area(0.0, 0.0, 1.0), 0.5 * 0.75);
-        assert!(Fragment::new(1.0, 0.0, 2.0, 1.0).unwrap().clip_to_unit().is_none());
+        assert!(
+            Fragment::new(1.0, 0.0, 2.0, 1.0)
+                .unwrap()
+                .clip_to_unit()
+                .is_none()
+        );
     }
 }

@@ -39,4 +39,4 @@ pub use build::{BuildOptions, BuildReport, TexelGrid};
 pub use colour::{Rgba, Unorm16Rgba, WeightedColour};
 pub use error::Error;
 pub use fragment::Fragment;
-pub use tree::{LevelStats, QuadTree, TraversalStats, MAX_DEPTH, MAX_NODES};
+pub use tree::{LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};

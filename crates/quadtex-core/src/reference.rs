@@ -4,8 +4,8 @@
 use crate::build::TexelGrid;
 use crate::colour::{Unorm16Rgba, WeightedColour};
 use crate::fragment::Fragment;
-use crate::tree::{unit_side, QuadTree};
-use crate::variant::{self, f_high, f_low, Variant};
+use crate::tree::{QuadTree, unit_side};
+use crate::variant::{self, Variant, f_high, f_low};
 
 /// Σ over texels of colour × area(texel ∩ fragment), texels as rectangles of
 /// the unit square (crate conventions). Visits only the texels the fragment
@@ -17,7 +17,8 @@ pub fn texel_sum(grid: &TexelGrid, fragment: &Fragment) -> WeightedColour {
     let (w, h) = (f64::from(grid.width()), f64::from(grid.height()));
     let cols = (f.x0() * w).floor() as u32..((f.x1() * w).ceil() as u32).min(grid.width());
     // Rows count from the top: z in [1-(row+1)/h, 1-row/h).
-    let rows = ((1.0 - f.z1()) * h).floor() as u32..(((1.0 - f.z0()) * h).ceil() as u32).min(grid.height());
+    let rows = ((1.0 - f.z1()) * h).floor() as u32
+        ..(((1.0 - f.z0()) * h).ceil() as u32).min(grid.height());
     let mut acc = [0f64; 4];
     for row in rows {
         let z_lo = 1.0 - f64::from(row + 1) / h;
@@ -26,8 +27,8 @@ pub fn texel_sum(grid: &TexelGrid, fragment: &Fragment) -> WeightedColour {
         for col in cols.clone() {
             let dx = overlap(f.x0(), f.x1(), f64::from(col) / w, f64::from(col + 1) / w);
             let t = grid.texel(col, row);
-            for ch in 0..4 {
-                acc[ch] += dx * dz * f64::from(t.0[ch]);
+            for (a, &c) in acc.iter_mut().zip(&t.0) {
+                *a += dx * dz * f64::from(c);
             }
         }
     }
@@ -69,7 +70,18 @@ pub fn paper_traversal(
         return weigh(colour, fragment.overlap_area(0.0, 0.0, 1.0));
     }
     let mut acc = WeightedColour::ZERO;
-    step(tree, fragment, k, QuadTree::ROOT, 0, 0.0, 0.0, vx, vz, &mut acc);
+    step(
+        tree,
+        fragment,
+        k,
+        QuadTree::ROOT,
+        0,
+        0.0,
+        0.0,
+        vx,
+        vz,
+        &mut acc,
+    );
     acc
 }
 
@@ -92,8 +104,16 @@ fn step(
     let first = tree.children_of(node);
     for c in 0..4 {
         let (hx, hz) = (c & 1 == 1, c & 2 == 2);
-        let cvx = if hx { f_high(f.x0(), f.x1(), mx, vx) } else { f_low(f.x0(), f.x1(), mx, vx) };
-        let cvz = if hz { f_high(f.z0(), f.z1(), mz, vz) } else { f_low(f.z0(), f.z1(), mz, vz) };
+        let cvx = if hx {
+            f_high(f.x0(), f.x1(), mx, vx)
+        } else {
+            f_low(f.x0(), f.x1(), mx, vx)
+        };
+        let cvz = if hz {
+            f_high(f.z0(), f.z1(), mz, vz)
+        } else {
+            f_low(f.z0(), f.z1(), mz, vz)
+        };
         let (clo_x, clo_z) = (if hx { mx } else { lo_x }, if hz { mz } else { lo_z });
         let (inner, colour) = tree.node(first + c);
         if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
@@ -103,7 +123,18 @@ fn step(
         } else if !inner || child_level == k {
             *acc += weigh(colour, f.overlap_area(clo_x, clo_z, half));
         } else {
-            step(tree, f, k, first + c, child_level, clo_x, clo_z, cvx, cvz, acc);
+            step(
+                tree,
+                f,
+                k,
+                first + c,
+                child_level,
+                clo_x,
+                clo_z,
+                cvx,
+                cvz,
+                acc,
+            );
         }
     }
 }

@@ -38,7 +38,11 @@ impl SummedAreaTable {
                 }
             }
         }
-        SummedAreaTable { width: w, height: h, table }
+        SummedAreaTable {
+            width: w,
+            height: h,
+            table,
+        }
     }
 
     /// Bytes of memory the table occupies.
@@ -56,7 +60,10 @@ impl SummedAreaTable {
         let (fu, fv) = (u - i as f64, v - j as f64);
         let stride = self.width + 1;
         let (a, b) = (self.table[j * stride + i], self.table[j * stride + i + 1]);
-        let (c, d) = (self.table[(j + 1) * stride + i], self.table[(j + 1) * stride + i + 1]);
+        let (c, d) = (
+            self.table[(j + 1) * stride + i],
+            self.table[(j + 1) * stride + i + 1],
+        );
         let mut out = [0f64; 4];
         for ch in 0..4 {
             let lo = a[ch] + fu * (b[ch] - a[ch]);
@@ -76,6 +83,8 @@ impl SummedAreaTable {
         let p10 = self.integral_to(f.x1(), f.z0());
         let p00 = self.integral_to(f.x0(), f.z0());
         let scale = 1.0 / (65535.0 * self.width as f64 * self.height as f64);
-        WeightedColour(std::array::from_fn(|ch| (p11[ch] - p01[ch] - p10[ch] + p00[ch]) * scale))
+        WeightedColour(std::array::from_fn(|ch| {
+            (p11[ch] - p01[ch] - p10[ch] + p00[ch]) * scale
+        }))
     }
 }

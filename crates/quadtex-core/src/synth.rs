@@ -2,9 +2,9 @@
 //! sharp edges) rasterised with exact box coverage, for the benchmark, the
 //! demo and tests. Shapes are described in texture space (crate conventions).
 
+use crate::Error;
 use crate::build::TexelGrid;
 use crate::colour::Rgba;
-use crate::Error;
 
 /// A flat-coloured shape in texture space.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,7 +41,10 @@ pub struct Art {
 impl Art {
     /// Empty art on a uniform background.
     pub fn new(background: Rgba) -> Art {
-        Art { background, shapes: Vec::new() }
+        Art {
+            background,
+            shapes: Vec::new(),
+        }
     }
 
     /// Adds a shape on top.
@@ -70,7 +73,13 @@ impl Art {
                         while col < 5 && bits >> (4 - col) & 1 == 1 {
                             col += 1;
                         }
-                        self.rect(gx + start as f64 * px, gz, gx + col as f64 * px, gz + px, colour);
+                        self.rect(
+                            gx + start as f64 * px,
+                            gz,
+                            gx + col as f64 * px,
+                            gz + px,
+                            colour,
+                        );
                     } else {
                         col += 1;
                     }
@@ -237,7 +246,13 @@ pub fn runway_art() -> Art {
         for side in [-1.0, 1.0] {
             for b in 0..bars {
                 let x = 0.5 + side * (0.06 + b as f64 * 0.016);
-                art.rect(x.min(x + side * 0.009), *z, x.max(x + side * 0.009), z + 0.035, WHITE);
+                art.rect(
+                    x.min(x + side * 0.009),
+                    *z,
+                    x.max(x + side * 0.009),
+                    z + 0.035,
+                    WHITE,
+                );
             }
         }
     }
@@ -246,7 +261,14 @@ pub fn runway_art() -> Art {
     let mut z = 0.02;
     while z < 1.0 {
         for x in [0.296, 0.704] {
-            art.push(Shape::Disc { cx: x, cz: z, r: 0.0022 }, YELLOW);
+            art.push(
+                Shape::Disc {
+                    cx: x,
+                    cz: z,
+                    r: 0.0022,
+                },
+                YELLOW,
+            );
         }
         z += 0.04;
     }
@@ -265,36 +287,16 @@ pub fn checkerboard(cells: u32, size: u32) -> Result<TexelGrid, Error> {
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn rect_coverage_is_exact() {
-        let mut art = Art::new(Rgba::TRANSPARENT);
-        art.rect(0.125, 0.0, 0.375, 0.5, Rgba::opaque(1.0, 1.0, 1.0));
-        let g = art.rasterise(4, 4).unwrap();
-        // Columns 0 and 1 each covered half, column 2 not at all, bottom two rows only.
-        assert!((g.texel(0, 3).to_rgba().a - 0.5).abs() < 1e-4);
-        assert!((g.texel(1, 2).to_rgba().a - 0.5).abs() < 1e-4);
-        assert_eq!(g.texel(2, 2).to_rgba().a, 0.0);
-        assert_eq!(g.texel(1, 1).to_rgba().a, 0.0);
-    }
-
-    #[test]
-    fn runway_has_many_flat_texels() {
-        let g = runway_art().rasterise(256, 256).unwrap();
-        let grass = palette::GRASS.to_unorm16();
-        let n = g.texels().iter().filter(|&&t| t == grass).count();
-        assert!(n > 256 * 256 / 3, "{n}");
-    }
-}
-
 /// A benchmark workload: `count` fragments about `width_texels` texels wide
 /// (each side jittered by ±25%) on a texture of `texels²` texels, in
 /// render-like order: marching along rows left to right, rows top to bottom,
 /// one fragment width per step, with sub-texel jitter. Deterministic in `seed`.
-pub fn scanline_fragments(texels: u32, width_texels: f64, count: usize, seed: u64) -> Vec<crate::Fragment> {
+pub fn scanline_fragments(
+    texels: u32,
+    width_texels: f64,
+    count: usize,
+    seed: u64,
+) -> Vec<crate::Fragment> {
     let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
     let mut rand = move || {
         // xorshift64*: fast, deterministic, good enough for jitter.
@@ -325,4 +327,29 @@ pub fn scanline_fragments(texels: u32, width_texels: f64, count: usize, seed: u6
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rect_coverage_is_exact() {
+        let mut art = Art::new(Rgba::TRANSPARENT);
+        art.rect(0.125, 0.0, 0.375, 0.5, Rgba::opaque(1.0, 1.0, 1.0));
+        let g = art.rasterise(4, 4).unwrap();
+        // Columns 0 and 1 each covered half, column 2 not at all, bottom two rows only.
+        assert!((g.texel(0, 3).to_rgba().a - 0.5).abs() < 1e-4);
+        assert!((g.texel(1, 2).to_rgba().a - 0.5).abs() < 1e-4);
+        assert_eq!(g.texel(2, 2).to_rgba().a, 0.0);
+        assert_eq!(g.texel(1, 1).to_rgba().a, 0.0);
+    }
+
+    #[test]
+    fn runway_has_many_flat_texels() {
+        let g = runway_art().rasterise(256, 256).unwrap();
+        let grass = palette::GRASS.to_unorm16();
+        let n = g.texels().iter().filter(|&&t| t == grass).count();
+        assert!(n > 256 * 256 / 3, "{n}");
+    }
 }

@@ -20,10 +20,10 @@
 //! 1/16 of the colour bytes) that lets a query start at the smallest square
 //! that encloses its fragment.
 
-use crate::colour::{Unorm16Rgba, WeightedColour};
-use crate::fragment::{overlap_1d, Fragment};
-use crate::variant::{self, Variant};
 use crate::Error;
+use crate::colour::{Unorm16Rgba, WeightedColour};
+use crate::fragment::{Fragment, overlap_1d};
+use crate::variant::{self, Variant};
 
 /// Deepest level a tree may have. A level-30 square has side `2^-30`, still
 /// exactly representable with room to spare in the `f64` coordinates.
@@ -96,13 +96,23 @@ impl QuadTree {
     /// inner node); `colours` one colour per node. Returns
     /// [`Error::MalformedTree`] if the two do not describe a quadtree of
     /// depth `depth` with consistent colours.
-    pub fn from_parts(depth: u8, inner: &[u64], colours: Vec<Unorm16Rgba>) -> Result<QuadTree, Error> {
+    pub fn from_parts(
+        depth: u8,
+        inner: &[u64],
+        colours: Vec<Unorm16Rgba>,
+    ) -> Result<QuadTree, Error> {
         let n = colours.len() as u64;
         if depth > MAX_DEPTH {
-            return Err(Error::DepthTooLarge { depth: depth.into(), max: MAX_DEPTH.into() });
+            return Err(Error::DepthTooLarge {
+                depth: depth.into(),
+                max: MAX_DEPTH.into(),
+            });
         }
         if n > MAX_NODES {
-            return Err(Error::TooManyNodes { nodes: n, max: MAX_NODES });
+            return Err(Error::TooManyNodes {
+                nodes: n,
+                max: MAX_NODES,
+            });
         }
         if n == 0 {
             return Err(Error::MalformedTree("no nodes".into()));
@@ -171,7 +181,7 @@ impl QuadTree {
                 blocks[p / 64].bits |= 1 << (p % 64);
             }
         }
-        Ok(Self::finish(depth, padded, blocks, level_starts)?.checked_averages()?)
+        Self::finish(depth, padded, blocks, level_starts)?.checked_averages()
     }
 
     /// Completes a tree from validated padded arrays: rank counters and top table.
@@ -188,10 +198,19 @@ impl QuadTree {
         }
         let node_bytes = colours.len() * std::mem::size_of::<Unorm16Rgba>();
         let mut top_level = 0u8;
-        while top_level < depth.min(MAX_TOP_LEVEL) && top_table_len(top_level + 1) * 4 <= (node_bytes / 16).max(4096) {
+        while top_level < depth.min(MAX_TOP_LEVEL)
+            && top_table_len(top_level + 1) * 4 <= (node_bytes / 16).max(4096)
+        {
             top_level += 1;
         }
-        let mut tree = QuadTree { depth, colours, blocks, level_starts, top_level, top: Vec::new() };
+        let mut tree = QuadTree {
+            depth,
+            colours,
+            blocks,
+            level_starts,
+            top_level,
+            top: Vec::new(),
+        };
         tree.top = tree.build_top_table();
         Ok(tree)
     }
@@ -272,7 +291,11 @@ impl QuadTree {
             .map(|(level, w)| {
                 let inner = (w[0]..w[1]).filter(|&i| self.is_inner(i)).count() as u64;
                 let nodes = (w[1] - w[0]) as u64;
-                LevelStats { level: level as u8, nodes, terminals: nodes - inner }
+                LevelStats {
+                    level: level as u8,
+                    nodes,
+                    terminals: nodes - inner,
+                }
             })
             .collect()
     }
@@ -294,7 +317,12 @@ impl QuadTree {
             } else {
                 let c = self.first_child(node);
                 for k in 0..4 {
-                    stack.push((c + k, level + 1, 2 * ix + (k & 1) as u32, 2 * iz + (k >> 1) as u32));
+                    stack.push((
+                        c + k,
+                        level + 1,
+                        2 * ix + (k & 1) as u32,
+                        2 * iz + (k >> 1) as u32,
+                    ));
                 }
             }
         }
@@ -379,7 +407,8 @@ impl QuadTree {
         let level = (t - diverge as u8).min(k);
         let shift = t - level;
         let (sx, sz) = (cx0 >> shift, cz0 >> shift);
-        let start = self.top[top_table_offset(level) + ((sz as usize) << level) + sx as usize] as usize;
+        let start =
+            self.top[top_table_offset(level) + ((sz as usize) << level) + sx as usize] as usize;
 
         if COUNT {
             stats.nodes_visited += 1;
@@ -397,18 +426,38 @@ impl QuadTree {
 
         let mut acc = [0f64; 4];
         let mut stack = [Pending::default(); STACK];
-        stack[0] = Pending { node: start as u32, level, vx, vz, lo_x, lo_z };
+        stack[0] = Pending {
+            node: start as u32,
+            level,
+            vx,
+            vz,
+            lo_x,
+            lo_z,
+        };
         let mut top = 1usize;
         let mut visited = 0u64;
         while top > 0 {
             top -= 1;
-            let Pending { node, level, vx, vz, lo_x, lo_z } = stack[top];
+            let Pending {
+                node,
+                level,
+                vx,
+                vz,
+                lo_x,
+                lo_z,
+            } = stack[top];
             let child_level = level + 1;
             let half = unit_side(child_level);
             let child_area = half * half;
             let (mx, mz) = (lo_x + half, lo_z + half);
-            let vxs = [variant::f_low(x0, x1, mx, vx), variant::f_high(x0, x1, mx, vx)];
-            let vzs = [variant::f_low(z0, z1, mz, vz), variant::f_high(z0, z1, mz, vz)];
+            let vxs = [
+                variant::f_low(x0, x1, mx, vx),
+                variant::f_high(x0, x1, mx, vx),
+            ];
+            let vzs = [
+                variant::f_low(z0, z1, mz, vz),
+                variant::f_high(z0, z1, mz, vz),
+            ];
             let first = self.first_child(node as usize);
             let block = self.blocks[first / 64].bits >> (first % 64);
             let descend_allowed = child_level < k;
@@ -423,7 +472,8 @@ impl QuadTree {
                 if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
                     add(&mut acc, colour, child_area);
                 } else if block >> c & 1 == 0 || !descend_allowed {
-                    let area = overlap_1d(x0, x1, clo_x, clo_x + half) * overlap_1d(z0, z1, clo_z, clo_z + half);
+                    let area = overlap_1d(x0, x1, clo_x, clo_x + half)
+                        * overlap_1d(z0, z1, clo_z, clo_z + half);
                     add(&mut acc, colour, area);
                 } else {
                     stack[top] = Pending {

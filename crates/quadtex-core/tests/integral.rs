@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 //! The fast fragment integral against slow, obvious references, on random
 //! incomplete trees and random fragments (arbtest).
 
@@ -22,10 +23,20 @@ fn blocky_grid(u: &mut Unstructured<'_>) -> ArbResult<TexelGrid> {
     let side = 1usize << depth;
     let mut texels = vec![PALETTE[0]; side * side];
     fill(u, &mut texels, side, 0, 0, side)?;
-    Ok(TexelGrid::from_fn(side as u32, side as u32, |c, r| texels[r as usize * side + c as usize]).unwrap())
+    Ok(TexelGrid::from_fn(side as u32, side as u32, |c, r| {
+        texels[r as usize * side + c as usize]
+    })
+    .unwrap())
 }
 
-fn fill(u: &mut Unstructured<'_>, t: &mut [Rgba], side: usize, x: usize, y: usize, n: usize) -> ArbResult<()> {
+fn fill(
+    u: &mut Unstructured<'_>,
+    t: &mut [Rgba],
+    side: usize,
+    x: usize,
+    y: usize,
+    n: usize,
+) -> ArbResult<()> {
     if n == 1 || u.ratio(1, 3)? {
         let c = if u.ratio(1, 8)? {
             Rgba::opaque(u.int_in_range(0..=255u8)? as f32 / 255.0, 0.3, 0.7)
@@ -102,10 +113,16 @@ fn fast_traversal_equals_truncated_tree_sum_and_paper_recursion() {
             let fast = tree.weighted_colour(&f, k);
             let slow = truncated_tree_sum(&tree, &f, k);
             let paper = paper_traversal(&tree, &f, k, f_init);
-            assert!(close(fast, slow, storage_tol(&f)), "{f:?} k={k}: fast {fast:?} vs truncated sum {slow:?}");
+            assert!(
+                close(fast, slow, storage_tol(&f)),
+                "{f:?} k={k}: fast {fast:?} vs truncated sum {slow:?}"
+            );
             // At ties (A == lo) the paper keeps variant 4 where the fast path
             // sees 3 and takes the square whole: equal up to storage rounding.
-            assert!(close(fast, paper, storage_tol(&f)), "{f:?} k={k}: fast {fast:?} vs paper {paper:?}");
+            assert!(
+                close(fast, paper, storage_tol(&f)),
+                "{f:?} k={k}: fast {fast:?} vs paper {paper:?}"
+            );
         }
         Ok(())
     })
@@ -122,9 +139,15 @@ fn full_depth_equals_sum_over_texels_for_power_of_two_grids() {
             let f = fragment(u)?;
             let texels = texel_sum(&grid, &f);
             let fast = tree.weighted_colour(&f, u8::MAX);
-            assert!(close(fast, texels, storage_tol(&f)), "{f:?}: tree {fast:?} vs texels {texels:?}");
+            assert!(
+                close(fast, texels, storage_tol(&f)),
+                "{f:?}: tree {fast:?} vs texels {texels:?}"
+            );
             let s = sat.weighted_colour(&f);
-            assert!(close(s, texels, 1e-9), "{f:?}: SAT {s:?} vs texels {texels:?}");
+            assert!(
+                close(s, texels, 1e-9),
+                "{f:?}: SAT {s:?} vs texels {texels:?}"
+            );
         }
         Ok(())
     })
@@ -142,12 +165,19 @@ fn any_size_image_integrates_to_its_texels_at_cell_resolution() {
         let d = tree.depth().max(1);
         let cells = f64::from(1u32 << report.cell_depth);
         let whole = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
-        assert!(close(tree.weighted_colour(&whole, d), texel_sum(&grid, &whole), 2e-5));
+        assert!(close(
+            tree.weighted_colour(&whole, d),
+            texel_sum(&grid, &whole),
+            2e-5
+        ));
         for _ in 0..10 {
             let i = f64::from(u.int_in_range(0..=(cells as u32))?) / cells;
             let j = f64::from(u.int_in_range(0..=(cells as u32))?) / cells;
             let f = Fragment::new(i.min(j), 0.0, i.max(j), 1.0).unwrap();
-            assert!(close(tree.weighted_colour(&f, 30), texel_sum(&grid, &f), 2e-5), "{f:?}");
+            assert!(
+                close(tree.weighted_colour(&f, 30), texel_sum(&grid, &f), 2e-5),
+                "{f:?}"
+            );
         }
         Ok(())
     })
@@ -165,13 +195,22 @@ fn additive_when_split_in_two() {
         let whole = tree.weighted_colour(&f, k);
         let (a, b) = if u.arbitrary()? {
             let m = (f.x0() + t * f.width()).min(f.x1());
-            (Fragment::new(f.x0(), f.z0(), m, f.z1()).unwrap(), Fragment::new(m, f.z0(), f.x1(), f.z1()).unwrap())
+            (
+                Fragment::new(f.x0(), f.z0(), m, f.z1()).unwrap(),
+                Fragment::new(m, f.z0(), f.x1(), f.z1()).unwrap(),
+            )
         } else {
             let m = (f.z0() + t * f.height()).min(f.z1());
-            (Fragment::new(f.x0(), f.z0(), f.x1(), m).unwrap(), Fragment::new(f.x0(), m, f.x1(), f.z1()).unwrap())
+            (
+                Fragment::new(f.x0(), f.z0(), f.x1(), m).unwrap(),
+                Fragment::new(f.x0(), m, f.x1(), f.z1()).unwrap(),
+            )
         };
         let parts = tree.weighted_colour(&a, k) + tree.weighted_colour(&b, k);
-        assert!(close(whole, parts, storage_tol(&f)), "{f:?} split at {t}: {whole:?} vs {parts:?}");
+        assert!(
+            close(whole, parts, storage_tol(&f)),
+            "{f:?} split at {t}: {whole:?} vs {parts:?}"
+        );
         Ok(())
     })
     .budget_ms(1000);
@@ -187,7 +226,10 @@ fn constant_texture_gives_colour_times_clipped_area() {
         let f = fragment(u)?;
         let area = f.clip_to_unit().map_or(0.0, |g| g.area());
         let got = tree.weighted_colour(&f, 5);
-        assert!(close(got, WeightedColour::from_unorm16(stored, area), 1e-15), "{f:?}");
+        assert!(
+            close(got, WeightedColour::from_unorm16(stored, area), 1e-15),
+            "{f:?}"
+        );
         Ok(())
     })
     .budget_ms(300);
@@ -210,7 +252,11 @@ fn bounded_by_extreme_texels_times_area() {
         let k = u.int_in_range(0..=tree.depth())?;
         let got = tree.weighted_colour(&f, k);
         for ch in 0..4 {
-            assert!(got.0[ch] >= lo[ch] * area - storage_tol(&f) && got.0[ch] <= hi[ch] * area + storage_tol(&f), "{f:?} ch {ch}: {got:?}");
+            assert!(
+                got.0[ch] >= lo[ch] * area - storage_tol(&f)
+                    && got.0[ch] <= hi[ch] * area + storage_tol(&f),
+                "{f:?} ch {ch}: {got:?}"
+            );
         }
         Ok(())
     })
@@ -236,11 +282,21 @@ fn printed_f_init_is_wrong_and_the_corrected_one_is_right() {
     let f = Fragment::new(0.25, 0.25, 0.5, 0.5).unwrap();
     let truth = texel_sum(&grid, &f);
     // Texel (col 1, row 2) is red: (1+2) % 2 == 1 → blue. Check the truth itself.
-    assert!(close(truth, WeightedColour::from_unorm16(blue.to_unorm16(), 1.0 / 16.0), 1e-12));
+    assert!(close(
+        truth,
+        WeightedColour::from_unorm16(blue.to_unorm16(), 1.0 / 16.0),
+        1e-12
+    ));
     let corrected = paper_traversal(&tree, &f, 2, f_init);
     let as_printed = paper_traversal(&tree, &f, 2, printed);
-    assert!(close(corrected, truth, 1e-12), "corrected {corrected:?} vs {truth:?}");
-    assert!(!close(as_printed, truth, 1e-3), "printed F_init should be wrong here, got {as_printed:?}");
+    assert!(
+        close(corrected, truth, 1e-12),
+        "corrected {corrected:?} vs {truth:?}"
+    );
+    assert!(
+        !close(as_printed, truth, 1e-3),
+        "printed F_init should be wrong here, got {as_printed:?}"
+    );
     // As printed, "square inside fragment" makes every child count whole: the whole texture.
     let whole = texel_sum(&grid, &Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap());
     assert!(close(as_printed, whole, 1.0 / 65535.0));
@@ -255,7 +311,10 @@ fn level_of_detail_below_depth_uses_prefiltered_colours() {
     // One texel, but at level 0 the root's average (purple) is all we see.
     let f = Fragment::new(0.0, 0.0, 0.125, 0.125).unwrap();
     let got = tree.weighted_colour(&f, 0).mean_over(f.area());
-    assert!((got.r - 0.5).abs() < 1e-4 && (got.b - 0.5).abs() < 1e-4, "{got:?}");
+    assert!(
+        (got.r - 0.5).abs() < 1e-4 && (got.b - 0.5).abs() < 1e-4,
+        "{got:?}"
+    );
     let exact = tree.weighted_colour(&f, 3).mean_over(f.area());
     assert!(exact.r == 0.0 || exact.r == 1.0, "{exact:?}");
 }

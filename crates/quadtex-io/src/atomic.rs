@@ -2,7 +2,7 @@ use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use crate::error::{io, Error};
+use crate::error::{Error, io};
 
 /// Writes a file atomically: `write` fills a temporary file in the same
 /// directory (`.NAME.tmp-PID`), which is flushed, synced and renamed over
@@ -16,7 +16,10 @@ pub fn write_atomically(
         let file = File::create(&tmp).map_err(io(path))?;
         let mut w = BufWriter::new(file);
         write(&mut w)?;
-        let file = w.into_inner().map_err(|e| Error::Io { path: path.to_path_buf(), source: e.into_error() })?;
+        let file = w.into_inner().map_err(|e| Error::Io {
+            path: path.to_path_buf(),
+            source: e.into_error(),
+        })?;
         file.sync_all().map_err(io(path))?;
         fs::rename(&tmp, path).map_err(io(path))
     })();
@@ -27,7 +30,10 @@ pub fn write_atomically(
 }
 
 fn temp_path(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
 
@@ -51,7 +57,11 @@ mod tests {
         });
         assert!(r.is_err());
         assert!(!target.exists());
-        assert_eq!(fs::read_dir(&dir).unwrap().count(), 0, "temporary file left behind");
+        assert_eq!(
+            fs::read_dir(&dir).unwrap().count(),
+            0,
+            "temporary file left behind"
+        );
         write_atomically(&target, |w| put(w, &target, b"whole")).unwrap();
         assert_eq!(fs::read(&target).unwrap(), b"whole");
         fs::remove_dir_all(&dir).unwrap();

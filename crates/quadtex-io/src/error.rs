@@ -56,10 +56,23 @@ impl fmt::Display for Error {
         match self {
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
             Error::Image { path, message } => write!(f, "{}: {message}", path.display()),
-            Error::Format { path, field, message } => {
-                write!(f, "{}: invalid .qtx file: {field}: {message}", path.display())
+            Error::Format {
+                path,
+                field,
+                message,
+            } => {
+                write!(
+                    f,
+                    "{}: invalid .qtx file: {field}: {message}",
+                    path.display()
+                )
             }
-            Error::Limit { path, limit, value, max } => {
+            Error::Limit {
+                path,
+                limit,
+                value,
+                max,
+            } => {
                 write!(f, "{}: {limit} exceeded: {value} > {max}", path.display())
             }
             Error::UnsupportedExtension(path) => write!(
@@ -83,5 +96,8 @@ impl std::error::Error for Error {
 }
 
 pub(crate) fn io(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
-    move |source| Error::Io { path: path.to_path_buf(), source }
+    move |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    }
 }

@@ -12,7 +12,7 @@ use image::{DynamicImage, ImageFormat, ImageReader};
 use quadtex_core::{Rgba, TexelGrid, Unorm16Rgba};
 
 use crate::atomic::write_atomically;
-use crate::error::{io, Error};
+use crate::error::{Error, io};
 use crate::limits::Limits;
 
 /// A rendered image: linear light, premultiplied alpha, row 0 at the top.
@@ -28,20 +28,32 @@ pub struct LinearImage {
 
 /// The sRGB transfer function's inverse: encoded `[0,1]` → linear `[0,1]`.
 pub fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.04045 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 /// The sRGB transfer function: linear `[0,1]` → encoded `[0,1]` (clamped).
 pub fn linear_to_srgb(v: f32) -> f32 {
     let v = v.clamp(0.0, 1.0);
-    if v <= 0.003_130_8 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
+    if v <= 0.003_130_8 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 /// sRGB-encoded 16-bit value → linear, for every value (8-bit input is
 /// widened by ×257 first, which maps it onto the same curve exactly).
 fn decode_table() -> &'static [f32] {
     static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
-    TABLE.get_or_init(|| (0..=u16::MAX).map(|v| srgb_to_linear(f32::from(v) / 65535.0)).collect())
+    TABLE.get_or_init(|| {
+        (0..=u16::MAX)
+            .map(|v| srgb_to_linear(f32::from(v) / 65535.0))
+            .collect()
+    })
 }
 
 /// Decodes a PNG or JPEG (8- or 16-bit; grey, grey+alpha, RGB, RGBA) into
@@ -52,12 +64,23 @@ pub fn load_texels(path: &Path) -> Result<TexelGrid, Error> {
 
 /// As [`load_texels`] with explicit limits, checked before decoding.
 pub fn load_texels_with_limits(path: &Path, limits: &Limits) -> Result<TexelGrid, Error> {
-    let image_err = |e: image::ImageError| Error::Image { path: path.to_path_buf(), message: e.to_string() };
+    let image_err = |e: image::ImageError| Error::Image {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
     let len = std::fs::metadata(path).map_err(io(path))?.len();
     if len > limits.max_file_bytes {
-        return Err(Error::Limit { path: path.into(), limit: "max_file_bytes", value: len, max: limits.max_file_bytes });
+        return Err(Error::Limit {
+            path: path.into(),
+            limit: "max_file_bytes",
+            value: len,
+            max: limits.max_file_bytes,
+        });
     }
-    let reader = ImageReader::open(path).map_err(io(path))?.with_guessed_format().map_err(io(path))?;
+    let reader = ImageReader::open(path)
+        .map_err(io(path))?
+        .with_guessed_format()
+        .map_err(io(path))?;
     let (w, h) = reader.into_dimensions().map_err(image_err)?;
     for v in [w, h] {
         if v > limits.max_dimension {
@@ -69,14 +92,20 @@ pub fn load_texels_with_limits(path: &Path, limits: &Limits) -> Result<TexelGrid
             });
         }
     }
-    let mut reader = ImageReader::open(path).map_err(io(path))?.with_guessed_format().map_err(io(path))?;
+    let mut reader = ImageReader::open(path)
+        .map_err(io(path))?
+        .with_guessed_format()
+        .map_err(io(path))?;
     let mut il = image::Limits::default();
     il.max_image_width = Some(limits.max_dimension);
     il.max_image_height = Some(limits.max_dimension);
     il.max_alloc = Some(limits.max_file_bytes.max(1 << 30).saturating_mul(8));
     reader.limits(il);
     let decoded = reader.decode().map_err(image_err)?;
-    texels_from_image(decoded).map_err(|source| Error::Core { path: path.into(), source })
+    texels_from_image(decoded).map_err(|source| Error::Core {
+        path: path.into(),
+        source,
+    })
 }
 
 fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Error> {
@@ -85,16 +114,24 @@ fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Err
     let mut texels = Vec::with_capacity(w as usize * h as usize);
     let to_texel = |p: [u16; 4]| {
         let a = f32::from(p[3]) / 65535.0;
-        Rgba::new(lut[usize::from(p[0])] * a, lut[usize::from(p[1])] * a, lut[usize::from(p[2])] * a, a).to_unorm16()
+        Rgba::new(
+            lut[usize::from(p[0])] * a,
+            lut[usize::from(p[1])] * a,
+            lut[usize::from(p[2])] * a,
+            a,
+        )
+        .to_unorm16()
     };
     match image {
         // Common 8-bit cases without widening the whole image first.
-        DynamicImage::ImageRgb8(buf) => {
-            texels.extend(buf.pixels().map(|p| to_texel([p[0], p[1], p[2], 255].map(|v| u16::from(v) * 257))))
-        }
-        DynamicImage::ImageRgba8(buf) => {
-            texels.extend(buf.pixels().map(|p| to_texel(p.0.map(|v| u16::from(v) * 257))))
-        }
+        DynamicImage::ImageRgb8(buf) => texels.extend(
+            buf.pixels()
+                .map(|p| to_texel([p[0], p[1], p[2], 255].map(|v| u16::from(v) * 257))),
+        ),
+        DynamicImage::ImageRgba8(buf) => texels.extend(
+            buf.pixels()
+                .map(|p| to_texel(p.0.map(|v| u16::from(v) * 257))),
+        ),
         other => texels.extend(other.to_rgba16().pixels().map(|p| to_texel(p.0))),
     }
     TexelGrid::new(w, h, texels)
@@ -104,13 +141,24 @@ fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Err
 /// `.png` (sRGB-encoded, straight alpha, 8 bits per channel) or `.exr`
 /// (linear, premultiplied, 32-bit float RGBA).
 pub fn save_image(path: &Path, image: &LinearImage) -> Result<(), Error> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let image_err = |e: image::ImageError| Error::Image { path: path.to_path_buf(), message: e.to_string() };
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let image_err = |e: image::ImageError| Error::Image {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
     let n = image.width as usize * image.height as usize;
     if image.pixels.len() != n {
         return Err(Error::Image {
             path: path.into(),
-            message: format!("{} pixels for a {}x{} image", image.pixels.len(), image.width, image.height),
+            message: format!(
+                "{} pixels for a {}x{} image",
+                image.pixels.len(),
+                image.width,
+                image.height
+            ),
         });
     }
     let dynamic = match ext.as_deref() {
@@ -119,20 +167,31 @@ pub fn save_image(path: &Path, image: &LinearImage) -> Result<(), Error> {
             for p in &image.pixels {
                 let inv = if p.a > 0.0 { 1.0 / p.a } else { 0.0 };
                 let enc = |c: f32| (linear_to_srgb(c * inv) * 255.0 + 0.5) as u8;
-                bytes.extend([enc(p.r), enc(p.g), enc(p.b), (p.a.clamp(0.0, 1.0) * 255.0 + 0.5) as u8]);
+                bytes.extend([
+                    enc(p.r),
+                    enc(p.g),
+                    enc(p.b),
+                    (p.a.clamp(0.0, 1.0) * 255.0 + 0.5) as u8,
+                ]);
             }
-            image::RgbaImage::from_raw(image.width, image.height, bytes).map(DynamicImage::ImageRgba8)
+            image::RgbaImage::from_raw(image.width, image.height, bytes)
+                .map(DynamicImage::ImageRgba8)
         }
         Some("exr") => {
             let floats = image.pixels.iter().flat_map(|p| p.to_array()).collect();
-            image::Rgba32FImage::from_raw(image.width, image.height, floats).map(DynamicImage::ImageRgba32F)
+            image::Rgba32FImage::from_raw(image.width, image.height, floats)
+                .map(DynamicImage::ImageRgba32F)
         }
         _ => return Err(Error::UnsupportedExtension(path.into())),
     };
     let Some(dynamic) = dynamic else {
         return Err(Error::UnsupportedExtension(path.into()));
     };
-    let format = if ext.as_deref() == Some("png") { ImageFormat::Png } else { ImageFormat::OpenExr };
+    let format = if ext.as_deref() == Some("png") {
+        ImageFormat::Png
+    } else {
+        ImageFormat::OpenExr
+    };
     write_atomically(path, |w| dynamic.write_to(w, format).map_err(image_err))
 }
 
@@ -158,12 +217,19 @@ mod tests {
 
     #[test]
     fn decodes_grey_alpha_16_bit_and_premultiplies() {
-        let img = DynamicImage::ImageLumaA16(image::ImageBuffer::from_raw(1, 1, vec![65535u16, 32768]).unwrap());
+        let img = DynamicImage::ImageLumaA16(
+            image::ImageBuffer::from_raw(1, 1, vec![65535u16, 32768]).unwrap(),
+        );
         let g = texels_from_image(img).unwrap();
         let t = g.texel(0, 0).to_rgba();
-        assert!((t.a - 0.5).abs() < 1e-4 && (t.r - 0.5).abs() < 1e-4, "{t:?}");
+        assert!(
+            (t.a - 0.5).abs() < 1e-4 && (t.r - 0.5).abs() < 1e-4,
+            "{t:?}"
+        );
         // sRGB mid-grey 128 is ~0.216 in linear light.
-        let img = DynamicImage::ImageRgb8(image::ImageBuffer::from_raw(1, 1, vec![128u8, 128, 128]).unwrap());
+        let img = DynamicImage::ImageRgb8(
+            image::ImageBuffer::from_raw(1, 1, vec![128u8, 128, 128]).unwrap(),
+        );
         let t = texels_from_image(img).unwrap().texel(0, 0).to_rgba();
         assert!((t.r - 0.2158).abs() < 1e-3, "{t:?}");
     }

@@ -16,8 +16,11 @@ mod qtx;
 
 pub use atomic::write_atomically;
 pub use error::Error;
-pub use image_io::{linear_to_srgb, load_texels, load_texels_with_limits, save_image, srgb_to_linear, to_srgb8, LinearImage};
+pub use image_io::{
+    LinearImage, linear_to_srgb, load_texels, load_texels_with_limits, save_image, srgb_to_linear,
+    to_srgb8,
+};
 pub use limits::Limits;
-pub use qtx::{read_qtx, read_qtx_with_limits, write_qtx, QtxInfo, FORMAT_VERSION, MAGIC};
+pub use qtx::{FORMAT_VERSION, MAGIC, QtxInfo, read_qtx, read_qtx_with_limits, write_qtx};
 
 pub use quadtex_core::TexelGrid;

@@ -7,7 +7,7 @@ use std::path::Path;
 use quadtex_core::{QuadTree, Unorm16Rgba};
 
 use crate::atomic::{put, write_atomically};
-use crate::error::{io, Error};
+use crate::error::{Error, io};
 use crate::limits::Limits;
 
 /// First eight bytes of every `.qtx` file (PNG-style: a high byte, a name,
@@ -82,8 +82,17 @@ pub fn read_qtx(path: &Path) -> Result<QuadTree, Error> {
 /// Reads and fully validates a `.qtx` file. Every size is checked against
 /// the file's real length and `limits` before anything is allocated.
 pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
-    let bad = |field: &'static str, message: String| Error::Format { path: path.to_path_buf(), field, message };
-    let limit = |limit: &'static str, value: u64, max: u64| Error::Limit { path: path.to_path_buf(), limit, value, max };
+    let bad = |field: &'static str, message: String| Error::Format {
+        path: path.to_path_buf(),
+        field,
+        message,
+    };
+    let limit = |limit: &'static str, value: u64, max: u64| Error::Limit {
+        path: path.to_path_buf(),
+        limit,
+        value,
+        max,
+    };
 
     let mut file = File::open(path).map_err(io(path))?;
     let file_bytes = file.metadata().map_err(io(path))?.len();
@@ -91,34 +100,52 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
         return Err(limit("max_file_bytes", file_bytes, limits.max_file_bytes));
     }
     if file_bytes < HEADER_BYTES as u64 {
-        return Err(bad("header", format!("file is {file_bytes} bytes, shorter than the {HEADER_BYTES}-byte header")));
+        return Err(bad(
+            "header",
+            format!("file is {file_bytes} bytes, shorter than the {HEADER_BYTES}-byte header"),
+        ));
     }
     let mut h = [0u8; HEADER_BYTES];
     file.read_exact(&mut h).map_err(io(path))?;
     if h[0..8] != MAGIC {
-        return Err(bad("magic", "not a quadtex .qtx file (wrong magic bytes)".into()));
+        return Err(bad(
+            "magic",
+            "not a quadtex .qtx file (wrong magic bytes)".into(),
+        ));
     }
     let u32_at = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
     let u64_at = |o: usize| u64::from(u32_at(o)) | u64::from(u32_at(o + 4)) << 32;
     let version = u32_at(8);
     if version != FORMAT_VERSION {
-        return Err(bad("version", format!("version {version} is not supported (this build reads {FORMAT_VERSION})")));
+        return Err(bad(
+            "version",
+            format!("version {version} is not supported (this build reads {FORMAT_VERSION})"),
+        ));
     }
     if crc32fast::hash(&h[..56]) != u32_at(56) {
-        return Err(bad("header_crc", "header checksum mismatch (corrupt header)".into()));
+        return Err(bad(
+            "header_crc",
+            "header checksum mismatch (corrupt header)".into(),
+        ));
     }
     if h[18..20] != [0, 0] || h[28..32] != [0; 4] || h[60..64] != [0; 4] {
         return Err(bad("reserved", "reserved header bytes are not zero".into()));
     }
     if u32_at(12) as usize != HEADER_BYTES {
-        return Err(bad("header_bytes", format!("{} (expected {HEADER_BYTES})", u32_at(12))));
+        return Err(bad(
+            "header_bytes",
+            format!("{} (expected {HEADER_BYTES})", u32_at(12)),
+        ));
     }
     let depth = h[16];
     if depth > limits.max_depth {
         return Err(limit("max_depth", depth.into(), limits.max_depth.into()));
     }
     if h[17] != COLOUR_UNORM16_PREMUL_LINEAR {
-        return Err(bad("colour_format", format!("unknown colour format {}", h[17])));
+        return Err(bad(
+            "colour_format",
+            format!("unknown colour format {}", h[17]),
+        ));
     }
     let nodes = u64_at(32);
     let inner = u64_at(40);
@@ -126,18 +153,26 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
         return Err(limit("max_nodes", nodes, limits.max_nodes));
     }
     if nodes == 0 || inner.checked_mul(4).and_then(|x| x.checked_add(1)) != Some(nodes) {
-        return Err(bad("node_count", format!("{nodes} nodes cannot hold {inner} inner nodes of four children each")));
+        return Err(bad(
+            "node_count",
+            format!("{nodes} nodes cannot hold {inner} inner nodes of four children each"),
+        ));
     }
     let bit_bytes = nodes.div_ceil(8);
     let payload = bit_bytes + 8 * nodes;
     if u64_at(48) != payload {
-        return Err(bad("payload_bytes", format!("{} declared, {payload} implied by node_count", u64_at(48))));
+        return Err(bad(
+            "payload_bytes",
+            format!("{} declared, {payload} implied by node_count", u64_at(48)),
+        ));
     }
     let expected = HEADER_BYTES as u64 + payload + 4;
     if file_bytes != expected {
         return Err(bad(
             "length",
-            format!("file is {file_bytes} bytes, the header implies {expected} (truncated or trailing data)"),
+            format!(
+                "file is {file_bytes} bytes, the header implies {expected} (truncated or trailing data)"
+            ),
         ));
     }
     // Sizes are now bounded by the real file length, itself under the limit.
@@ -145,7 +180,10 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
     file.read_exact(&mut body).map_err(io(path))?;
     let (data, crc) = body.split_at(payload as usize);
     if crc32fast::hash(data) != u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]) {
-        return Err(bad("payload_crc", "payload checksum mismatch (corrupt node data)".into()));
+        return Err(bad(
+            "payload_crc",
+            "payload checksum mismatch (corrupt node data)".into(),
+        ));
     }
     let (bits, colour_bytes) = data.split_at(bit_bytes as usize);
     let mut words = vec![0u64; nodes.div_ceil(64) as usize];
@@ -154,25 +192,42 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
     }
     let counted: u64 = words.iter().map(|w| u64::from(w.count_ones())).sum();
     if counted != inner {
-        return Err(bad("inner_bits", format!("{counted} inner flags set, header says {inner}")));
+        return Err(bad(
+            "inner_bits",
+            format!("{counted} inner flags set, header says {inner}"),
+        ));
     }
     let colours = colour_bytes
         .chunks_exact(8)
-        .map(|c| Unorm16Rgba(std::array::from_fn(|k| u16::from_le_bytes([c[2 * k], c[2 * k + 1]]))))
+        .map(|c| {
+            Unorm16Rgba(std::array::from_fn(|k| {
+                u16::from_le_bytes([c[2 * k], c[2 * k + 1]])
+            }))
+        })
         .collect();
-    let tree = QuadTree::from_parts(depth, &words, colours).map_err(|e| bad("nodes", e.to_string()))?;
-    Ok((tree, QtxInfo { source_width: u32_at(20), source_height: u32_at(24), file_bytes }))
+    let tree =
+        QuadTree::from_parts(depth, &words, colours).map_err(|e| bad("nodes", e.to_string()))?;
+    Ok((
+        tree,
+        QtxInfo {
+            source_width: u32_at(20),
+            source_height: u32_at(24),
+            file_bytes,
+        },
+    ))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use quadtex_core::synth;
     use quadtex_core::BuildOptions;
+    use quadtex_core::synth;
 
     fn sample() -> QuadTree {
         let g = synth::runway_art().rasterise(64, 64).unwrap();
-        QuadTree::from_texels(&g, &BuildOptions::default()).unwrap().0
+        QuadTree::from_texels(&g, &BuildOptions::default())
+            .unwrap()
+            .0
     }
 
     fn temp(name: &str) -> std::path::PathBuf {
@@ -222,7 +277,16 @@ mod tests {
         bytes[56..60].copy_from_slice(&crc.to_le_bytes());
         std::fs::write(&p, &bytes).unwrap();
         let e = read_qtx(&p).unwrap_err();
-        assert!(matches!(e, Error::Limit { limit: "max_nodes", .. }), "{e}");
+        assert!(
+            matches!(
+                e,
+                Error::Limit {
+                    limit: "max_nodes",
+                    ..
+                }
+            ),
+            "{e}"
+        );
         std::fs::remove_file(&p).unwrap();
     }
 }
