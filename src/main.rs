@@ -21,7 +21,8 @@ USAGE:
   quadtex pack IMAGE -o OUT.qtx [--tolerance T] [--max-level L]
   quadtex info FILE.qtx
   quadtex query FILE.qtx [--level K]      (fragments `x0 z0 x1 z1` on stdin)
-  quadtex bench [--size N] [--queries Q]
+  quadtex bench [--size N] [--queries Q] [--runs R]
+  quadtex sample runway|checker -o OUT.png [--size N]   (built-in art as a PNG)
   quadtex help
 ";
 
@@ -51,6 +52,7 @@ fn run() -> Result<()> {
         "info" => info(&mut parser),
         "query" => query(&mut parser),
         "bench" => bench::run(&mut parser),
+        "sample" => sample(&mut parser),
         "help" => {
             print!("{USAGE}");
             Ok(())
@@ -159,6 +161,32 @@ fn human_bytes(b: u64) -> String {
         b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
         b => format!("{b} B"),
     }
+}
+
+fn sample(parser: &mut lexopt::Parser) -> Result<()> {
+    let (mut which, mut output, mut size) = (None::<String>, None::<PathBuf>, 1024u32);
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Short('o') | Long("output") => output = Some(parser.value()?.into()),
+            Long("size") => size = parser.value()?.parse().map_err(|e| format!("--size: {e}"))?,
+            Value(v) if which.is_none() => which = Some(v.string()?),
+            other => return Err(other.unexpected().into()),
+        }
+    }
+    let output = output.ok_or("sample: missing -o OUT.png")?;
+    if !(1..=32768).contains(&size) {
+        return Err(format!("--size must be in 1..=32768, got {size}").into());
+    }
+    let grid = match which.as_deref() {
+        Some("runway") => quadtex_core::synth::runway_art().rasterise(size, size)?,
+        Some("checker") => quadtex_core::synth::checkerboard(8, size)?,
+        other => return Err(format!("sample: expected `runway` or `checker`, got {other:?}").into()),
+    };
+    let pixels = grid.texels().iter().map(|t| t.to_rgba()).collect();
+    drop(grid);
+    quadtex_io::save_image(&output, &quadtex_io::LinearImage { width: size, height: size, pixels })?;
+    println!("wrote {} ({size}x{size})", output.display());
+    Ok(())
 }
 
 fn single_path(parser: &mut lexopt::Parser, what: &str) -> Result<PathBuf> {

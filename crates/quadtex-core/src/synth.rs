@@ -289,14 +289,10 @@ pub fn checkerboard(cells: u32, size: u32) -> Result<TexelGrid, Error> {
 
 /// A benchmark workload: `count` fragments about `width_texels` texels wide
 /// (each side jittered by ±25%) on a texture of `texels²` texels, in
-/// render-like order: marching along rows left to right, rows top to bottom,
-/// one fragment width per step, with sub-texel jitter. Deterministic in `seed`.
-pub fn scanline_fragments(
-    texels: u32,
-    width_texels: f64,
-    count: usize,
-    seed: u64,
-) -> Vec<crate::Fragment> {
+/// render-like order: marching along rows left to right, one fragment width
+/// per step, rows from top to bottom spaced so that the rows spread over the
+/// whole texture. Sub-texel jitter; deterministic in `seed`.
+pub fn scanline_fragments(texels: u32, width_texels: f64, count: usize, seed: u64) -> Vec<crate::Fragment> {
     let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
     let mut rand = move || {
         // xorshift64*: fast, deterministic, good enough for jitter.
@@ -307,6 +303,9 @@ pub fn scanline_fragments(
     };
     let texel = 1.0 / f64::from(texels);
     let w = width_texels * texel;
+    let per_row = ((1.0 / w).floor() as usize).max(1);
+    let rows = count.div_ceil(per_row).max(1);
+    let row_step = w.max((1.0 - w) / rows as f64);
     let mut out = Vec::with_capacity(count);
     let (mut x, mut z) = (0.0, 1.0 - w);
     while out.len() < count {
@@ -320,7 +319,7 @@ pub fn scanline_fragments(
         x += w;
         if x + w > 1.0 {
             x = 0.0;
-            z -= w;
+            z -= row_step;
             if z < 0.0 {
                 z = 1.0 - w;
             }
