@@ -168,7 +168,12 @@ fn sample(parser: &mut lexopt::Parser) -> Result<()> {
     while let Some(arg) = parser.next()? {
         match arg {
             Short('o') | Long("output") => output = Some(parser.value()?.into()),
-            Long("size") => size = parser.value()?.parse().map_err(|e| format!("--size: {e}"))?,
+            Long("size") => {
+                size = parser
+                    .value()?
+                    .parse()
+                    .map_err(|e| format!("--size: {e}"))?
+            }
             Value(v) if which.is_none() => which = Some(v.string()?),
             other => return Err(other.unexpected().into()),
         }
@@ -180,11 +185,20 @@ fn sample(parser: &mut lexopt::Parser) -> Result<()> {
     let grid = match which.as_deref() {
         Some("runway") => quadtex_core::synth::runway_art().rasterise(size, size)?,
         Some("checker") => quadtex_core::synth::checkerboard(8, size)?,
-        other => return Err(format!("sample: expected `runway` or `checker`, got {other:?}").into()),
+        other => {
+            return Err(format!("sample: expected `runway` or `checker`, got {other:?}").into());
+        }
     };
     let pixels = grid.texels().iter().map(|t| t.to_rgba()).collect();
     drop(grid);
-    quadtex_io::save_image(&output, &quadtex_io::LinearImage { width: size, height: size, pixels })?;
+    quadtex_io::save_image(
+        &output,
+        &quadtex_io::LinearImage {
+            width: size,
+            height: size,
+            pixels,
+        },
+    )?;
     println!("wrote {} ({size}x{size})", output.display());
     Ok(())
 }

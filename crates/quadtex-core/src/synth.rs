@@ -292,7 +292,12 @@ pub fn checkerboard(cells: u32, size: u32) -> Result<TexelGrid, Error> {
 /// render-like order: marching along rows left to right, one fragment width
 /// per step, rows from top to bottom spaced so that the rows spread over the
 /// whole texture. Sub-texel jitter; deterministic in `seed`.
-pub fn scanline_fragments(texels: u32, width_texels: f64, count: usize, seed: u64) -> Vec<crate::Fragment> {
+pub fn scanline_fragments(
+    texels: u32,
+    width_texels: f64,
+    count: usize,
+    seed: u64,
+) -> Vec<crate::Fragment> {
     let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
     let mut rand = move || {
         // xorshift64*: fast, deterministic, good enough for jitter.
