@@ -19,6 +19,10 @@ use crate::Error;
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::tree::{self, MAX_DEPTH, MAX_NODES, QuadTree};
 
+/// Deepest cell grid the raster builder allocates: `2^15 × 2^15` cells, 8 GiB.
+/// (Vector art packs deeper without a grid; see the SVG packer.)
+pub const MAX_BUILD_DEPTH: u8 = 15;
+
 /// Largest width or height the builder accepts (2^20 texels).
 pub const MAX_DIMENSION: u32 = 1 << 20;
 
@@ -265,20 +269,14 @@ impl QuadTree {
             return Err(Error::BadTolerance(options.tolerance));
         }
         let depth = options.max_level.unwrap_or_else(|| grid.natural_depth());
-        if depth > MAX_DEPTH {
+        // The cell grid is 8 bytes a cell: 2^30 cells (depth 15, 8 GiB) is the most we allocate.
+        if depth > MAX_BUILD_DEPTH {
             return Err(Error::DepthTooLarge {
                 depth: depth.into(),
-                max: MAX_DEPTH.into(),
+                max: MAX_BUILD_DEPTH.into(),
             });
         }
         let side = 1usize << depth;
-        let max_cells = 1u64 << 34;
-        if (side as u64) * (side as u64) > max_cells {
-            return Err(Error::DepthTooLarge {
-                depth: depth.into(),
-                max: 17,
-            });
-        }
         let resampled = grid.width as usize != side || grid.height as usize != side;
         let owned;
         let cells: &[Unorm16Rgba] = if resampled {

@@ -207,6 +207,38 @@ pub fn to_srgb8(c: Unorm16Rgba) -> [u8; 4] {
 mod tests {
     use super::*;
 
+    fn temp(name: &str) -> std::path::PathBuf {
+        std::env::temp_dir().join(format!("quadtex-img-{}-{name}", std::process::id()))
+    }
+
+    #[test]
+    fn reads_jpeg_and_16_bit_png_files() {
+        // 16-bit grey PNG: exact values survive.
+        let p = temp("g16.png");
+        let buf: image::ImageBuffer<image::Luma<u16>, Vec<u16>> =
+            image::ImageBuffer::from_fn(4, 2, |x, _| image::Luma([if x < 2 { 0 } else { 65535 }]));
+        buf.save(&p).unwrap();
+        let g = load_texels(&p).unwrap();
+        assert_eq!((g.width(), g.height()), (4, 2));
+        assert_eq!(g.texel(0, 0).0, [0, 0, 0, 65535]);
+        assert_eq!(g.texel(3, 1).0, [65535; 4]);
+        std::fs::remove_file(&p).unwrap();
+        // JPEG (lossy): a flat mid-grey decodes near sRGB 128, i.e. linear ~0.216.
+        let p = temp("grey.jpg");
+        image::RgbImage::from_pixel(16, 16, image::Rgb([128, 128, 128]))
+            .save(&p)
+            .unwrap();
+        let t = load_texels(&p).unwrap().texel(5, 5).to_rgba();
+        assert!((t.g - 0.2158).abs() < 0.01 && t.a == 1.0, "{t:?}");
+        std::fs::remove_file(&p).unwrap();
+        // Not an image at all: an error naming the file, no panic.
+        let p = temp("junk.png");
+        std::fs::write(&p, b"not a png").unwrap();
+        let e = load_texels(&p).unwrap_err().to_string();
+        assert!(e.contains("junk.png"), "{e}");
+        std::fs::remove_file(&p).unwrap();
+    }
+
     #[test]
     fn srgb_round_trips_every_8_bit_code() {
         for v in 0..=255u8 {

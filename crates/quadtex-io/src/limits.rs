@@ -3,7 +3,8 @@
 /// embedders lower them (`Limits { max_nodes: 1 << 20, ..Limits::default() }`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Limits {
-    /// Largest image width or height, in texels (default 65536).
+    /// Largest image width or height, in texels (default 32768, the raster
+    /// builder's deepest grid).
     pub max_dimension: u32,
     /// Largest input file, in bytes (default 16 GiB).
     pub max_file_bytes: u64,
@@ -16,7 +17,7 @@ pub struct Limits {
 impl Default for Limits {
     fn default() -> Self {
         Limits {
-            max_dimension: 65536,
+            max_dimension: 32768,
             max_file_bytes: 16 << 30,
             max_nodes: quadtex_core::MAX_NODES,
             max_depth: quadtex_core::MAX_DEPTH,
