@@ -311,7 +311,7 @@ impl QuadTree {
 }
 
 /// Exact area-weighted resampling of the texels onto a `side × side` cell grid.
-fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
+pub(crate) fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
     let xw = weights_1d(grid.width as usize, side);
     let zw = weights_1d(grid.height as usize, side);
     // Horizontal pass into f32 rows, then vertical pass with rounding once.

@@ -29,6 +29,7 @@ mod error;
 mod fragment;
 
 pub mod build;
+pub mod filters;
 pub mod reference;
 pub mod sat;
 pub mod synth;
