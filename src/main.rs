@@ -10,7 +10,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use lexopt::prelude::*;
-use quadtex_core::{BuildOptions, Fragment, MAX_DEPTH, QuadTree};
+use quadtex_core::{BuildOptions, MAX_DEPTH, QuadTree};
 
 type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
@@ -272,8 +272,8 @@ fn query(parser: &mut lexopt::Parser) -> Result<()> {
     let mut out = BufWriter::new(std::io::stdout().lock());
     for (i, line) in stdin.lines().enumerate() {
         let line = line.map_err(|e| format!("stdin line {}: {e}", i + 1))?;
-        let Some(fragment) =
-            parse_fragment(&line).map_err(|e| format!("stdin line {}: {e}", i + 1))?
+        let Some(fragment) = quadtex_io::parse_query_line(&line)
+            .map_err(|e| format!("stdin line {}: {e}", i + 1))?
         else {
             continue;
         };
@@ -282,32 +282,6 @@ fn query(parser: &mut lexopt::Parser) -> Result<()> {
     }
     out.flush()?;
     Ok(())
-}
-
-/// One query line: `x0 z0 x1 z1`; blank lines and `#` comments yield `None`.
-fn parse_fragment(line: &str) -> Result<Option<Fragment>> {
-    let line = line.trim();
-    if line.is_empty() || line.starts_with('#') {
-        return Ok(None);
-    }
-    let fields: Vec<&str> = line.split_whitespace().collect();
-    if fields.len() != 4 {
-        return Err(format!(
-            "expected 4 numbers `x0 z0 x1 z1`, found {} fields",
-            fields.len()
-        )
-        .into());
-    }
-    let mut v = [0f64; 4];
-    for (slot, (name, text)) in v
-        .iter_mut()
-        .zip(["x0", "z0", "x1", "z1"].iter().zip(&fields))
-    {
-        *slot = text
-            .parse()
-            .map_err(|_| format!("{name}: `{text}` is not a number"))?;
-    }
-    Ok(Some(Fragment::new(v[0], v[1], v[2], v[3])?))
 }
 
 /// Stage messages on a spinner when stderr is a terminal, nothing otherwise.
@@ -336,24 +310,6 @@ impl Progress {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn query_lines_parse_or_name_the_problem() {
-        assert!(parse_fragment("  # comment").unwrap().is_none());
-        assert!(parse_fragment("").unwrap().is_none());
-        let f = parse_fragment("0 0.25\t1 0.5").unwrap().unwrap();
-        assert_eq!((f.x0(), f.z0(), f.x1(), f.z1()), (0.0, 0.25, 1.0, 0.5));
-        for (line, needle) in [
-            ("0 0 1", "found 3 fields"),
-            ("0 0 x 1", "x1: `x` is not a number"),
-            ("0 NaN 1 1", "z0 is not finite"),
-            ("0 0 inf 1", "x1 is not finite"),
-            ("1 0 0 1", "reversed bounds on x"),
-        ] {
-            let e = parse_fragment(line).unwrap_err().to_string();
-            assert!(e.contains(needle), "{line}: {e}");
-        }
-    }
 
     #[test]
     fn raster_and_mip_bytes() {

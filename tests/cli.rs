@@ -160,7 +160,10 @@ fn bad_query_lines_name_the_line_and_fail() {
             .success()
     );
     for (input, needle) in [
-        ("0 0 1 1\n0 0 1\n", "line 2: expected 4 numbers"),
+        (
+            "0 0 1 1\n0 0 1\n",
+            "line 2: expected 4 numbers `x0 z0 x1 z1`, missing z1",
+        ),
         ("0 0 1 NaN\n", "line 1: coordinate z1 is not finite"),
         ("0.5 0 0.25 1\n", "line 1: reversed bounds on x"),
         (

@@ -13,6 +13,7 @@ mod error;
 mod image_io;
 mod limits;
 mod qtx;
+mod query;
 
 pub use atomic::write_atomically;
 pub use error::Error;
@@ -22,5 +23,6 @@ pub use image_io::{
 };
 pub use limits::Limits;
 pub use qtx::{FORMAT_VERSION, MAGIC, QtxInfo, read_qtx, read_qtx_with_limits, write_qtx};
+pub use query::parse_query_line;
 
 pub use quadtex_core::TexelGrid;

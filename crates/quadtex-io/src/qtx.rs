@@ -82,6 +82,107 @@ pub fn read_qtx(path: &Path) -> Result<QuadTree, Error> {
 /// Reads and fully validates a `.qtx` file. Every size is checked against
 /// the file's real length and `limits` before anything is allocated.
 pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
+    let mut file = File::open(path).map_err(io(path))?;
+    let file_bytes = file.metadata().map_err(io(path))?.len();
+    if file_bytes > limits.max_file_bytes {
+        return Err(Error::Limit {
+            path: path.to_path_buf(),
+            limit: "max_file_bytes",
+            value: file_bytes,
+            max: limits.max_file_bytes,
+        });
+    }
+    // Check the header before reading the body, so a hostile size field
+    // costs nothing.
+    let mut header = [0u8; HEADER_BYTES];
+    let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
+    check_header(&header[..got], file_bytes, path, limits)?;
+    let mut bytes = header.to_vec();
+    bytes.reserve_exact((file_bytes as usize).saturating_sub(HEADER_BYTES));
+    file.read_to_end(&mut bytes).map_err(io(path))?;
+    parse_qtx(&bytes, path, limits)
+}
+
+fn read_up_to(file: &mut File, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match file.read(&mut buf[filled..])? {
+            0 => break,
+            n => filled += n,
+        }
+    }
+    Ok(filled)
+}
+
+/// Parses and validates a whole `.qtx` file held in memory; `path` only
+/// names the source in errors.
+pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
+    let file_bytes = bytes.len() as u64;
+    let header = check_header(bytes, file_bytes, path, limits)?;
+    let bad = |field: &'static str, message: String| Error::Format {
+        path: path.to_path_buf(),
+        field,
+        message,
+    };
+    let body = &bytes[HEADER_BYTES..];
+    let (data, crc) = body.split_at(header.payload as usize);
+    if crc32fast::hash(data) != u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]) {
+        return Err(bad(
+            "payload_crc",
+            "payload checksum mismatch (corrupt node data)".into(),
+        ));
+    }
+    let nodes = header.nodes;
+    let (bits, colour_bytes) = data.split_at(nodes.div_ceil(8) as usize);
+    let mut words = vec![0u64; nodes.div_ceil(64) as usize];
+    for (i, &b) in bits.iter().enumerate() {
+        words[i / 8] |= u64::from(b) << (8 * (i % 8));
+    }
+    // Bits past the last node must be clear, or the count below would lie.
+    if let Some(last) = words.last().filter(|_| nodes % 64 != 0)
+        && last >> (nodes % 64) != 0
+    {
+        return Err(bad("inner_bits", "flags set beyond the last node".into()));
+    }
+    let counted: u64 = words.iter().map(|w| u64::from(w.count_ones())).sum();
+    if counted != header.inner {
+        return Err(bad(
+            "inner_bits",
+            format!("{counted} inner flags set, header says {}", header.inner),
+        ));
+    }
+    let colours = colour_bytes
+        .chunks_exact(8)
+        .map(|c| {
+            Unorm16Rgba(std::array::from_fn(|k| {
+                u16::from_le_bytes([c[2 * k], c[2 * k + 1]])
+            }))
+        })
+        .collect();
+    let tree = QuadTree::from_parts(header.depth, &words, colours)
+        .map_err(|e| bad("nodes", e.to_string()))?;
+    Ok((
+        tree,
+        QtxInfo {
+            source_width: header.source_width,
+            source_height: header.source_height,
+            file_bytes,
+        },
+    ))
+}
+
+struct Header {
+    depth: u8,
+    nodes: u64,
+    inner: u64,
+    payload: u64,
+    source_width: u32,
+    source_height: u32,
+}
+
+/// Validates the 64-byte header of a file of `file_bytes` bytes; `h` may be
+/// shorter than 64 bytes (a truncated file).
+fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Result<Header, Error> {
     let bad = |field: &'static str, message: String| Error::Format {
         path: path.to_path_buf(),
         field,
@@ -93,20 +194,21 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
         value,
         max,
     };
-
-    let mut file = File::open(path).map_err(io(path))?;
-    let file_bytes = file.metadata().map_err(io(path))?.len();
     if file_bytes > limits.max_file_bytes {
         return Err(limit("max_file_bytes", file_bytes, limits.max_file_bytes));
     }
-    if file_bytes < HEADER_BYTES as u64 {
+    if h.len() < HEADER_BYTES {
+        if h.len() >= 8 && h[0..8] != MAGIC {
+            return Err(bad(
+                "magic",
+                "not a quadtex .qtx file (wrong magic bytes)".into(),
+            ));
+        }
         return Err(bad(
             "header",
             format!("file is {file_bytes} bytes, shorter than the {HEADER_BYTES}-byte header"),
         ));
     }
-    let mut h = [0u8; HEADER_BYTES];
-    file.read_exact(&mut h).map_err(io(path))?;
     if h[0..8] != MAGIC {
         return Err(bad(
             "magic",
@@ -158,8 +260,7 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
             format!("{nodes} nodes cannot hold {inner} inner nodes of four children each"),
         ));
     }
-    let bit_bytes = nodes.div_ceil(8);
-    let payload = bit_bytes + 8 * nodes;
+    let payload = nodes.div_ceil(8) + 8 * nodes;
     if u64_at(48) != payload {
         return Err(bad(
             "payload_bytes",
@@ -175,46 +276,14 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
             ),
         ));
     }
-    // Sizes are now bounded by the real file length, itself under the limit.
-    let mut body = vec![0u8; (payload + 4) as usize];
-    file.read_exact(&mut body).map_err(io(path))?;
-    let (data, crc) = body.split_at(payload as usize);
-    if crc32fast::hash(data) != u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]) {
-        return Err(bad(
-            "payload_crc",
-            "payload checksum mismatch (corrupt node data)".into(),
-        ));
-    }
-    let (bits, colour_bytes) = data.split_at(bit_bytes as usize);
-    let mut words = vec![0u64; nodes.div_ceil(64) as usize];
-    for (i, &b) in bits.iter().enumerate() {
-        words[i / 8] |= u64::from(b) << (8 * (i % 8));
-    }
-    let counted: u64 = words.iter().map(|w| u64::from(w.count_ones())).sum();
-    if counted != inner {
-        return Err(bad(
-            "inner_bits",
-            format!("{counted} inner flags set, header says {inner}"),
-        ));
-    }
-    let colours = colour_bytes
-        .chunks_exact(8)
-        .map(|c| {
-            Unorm16Rgba(std::array::from_fn(|k| {
-                u16::from_le_bytes([c[2 * k], c[2 * k + 1]])
-            }))
-        })
-        .collect();
-    let tree =
-        QuadTree::from_parts(depth, &words, colours).map_err(|e| bad("nodes", e.to_string()))?;
-    Ok((
-        tree,
-        QtxInfo {
-            source_width: u32_at(20),
-            source_height: u32_at(24),
-            file_bytes,
-        },
-    ))
+    Ok(Header {
+        depth,
+        nodes,
+        inner,
+        payload,
+        source_width: u32_at(20),
+        source_height: u32_at(24),
+    })
 }
 
 #[cfg(test)]
