@@ -1,0 +1,368 @@
+//! The catalogue of bad inputs: one hostile input per test, run through the
+//! `quadtex` binary. Each must exit non-zero, name the problem (file, and
+//! field or line where one applies) on stderr after `Error: `, never panic,
+//! and leave no output file behind. The inputs are generated here from a
+//! valid file, so they stay in step with the format.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use quadtex_core::{BuildOptions, QuadTree, synth};
+
+fn dir(case: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("quadtex-bad-{}-{case}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A small valid `.qtx` file's bytes.
+fn valid_qtx(d: &Path) -> Vec<u8> {
+    let g = synth::runway_art().rasterise(32, 32).unwrap();
+    let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+    let p = d.join("valid.qtx");
+    quadtex_io::write_qtx(&p, &t, Some((32, 32))).unwrap();
+    std::fs::read(&p).unwrap()
+}
+
+fn reseal_header(b: &mut [u8]) {
+    let crc = crc32(&b[..56]);
+    b[56..60].copy_from_slice(&crc.to_le_bytes());
+}
+
+fn reseal_payload(b: &mut [u8]) {
+    let n = b.len();
+    let crc = crc32(&b[64..n - 4]);
+    b[n - 4..].copy_from_slice(&crc.to_le_bytes());
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &byte in data {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+/// Runs `quadtex args…` with `stdin`; asserts failure, `Error: ` with every
+/// needle on stderr, no panic, and that `must_not_exist` was not created.
+fn expect_failure(args: &[&str], stdin: &str, needles: &[&str], must_not_exist: Option<&Path>) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_quadtex"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut pipe = child.stdin.take().unwrap();
+    let input = stdin.to_owned();
+    let feeder = std::thread::spawn(move || {
+        let _ = pipe.write_all(input.as_bytes());
+    });
+    let out = child.wait_with_output().unwrap();
+    feeder.join().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded; stderr: {err}");
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+    assert!(
+        err.starts_with("Error: ") && !err.contains("panicked"),
+        "{args:?}: {err}"
+    );
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: `{n}` not in: {err}");
+    }
+    if let Some(p) = must_not_exist {
+        assert!(!p.exists(), "{} was written", p.display());
+    }
+}
+
+/// A `.qtx` case: mutate the valid bytes, run `info` and `query` on them.
+fn qtx_case(case: &str, mutate: impl FnOnce(&mut Vec<u8>), field: &str) {
+    let d = dir(case);
+    let mut bytes = valid_qtx(&d);
+    mutate(&mut bytes);
+    let p = d.join(format!("{case}.qtx"));
+    std::fs::write(&p, &bytes).unwrap();
+    let name = format!("{case}.qtx");
+    expect_failure(&["info", p.to_str().unwrap()], "", &[&name, field], None);
+    expect_failure(
+        &["query", p.to_str().unwrap()],
+        "0 0 1 1\n",
+        &[&name, field],
+        None,
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+macro_rules! qtx_cases {
+    ($($name:ident: $field:expr, $mutate:expr;)*) => {$(
+        #[test]
+        fn $name() {
+            qtx_case(stringify!($name), $mutate, $field);
+        }
+    )*};
+}
+
+qtx_cases! {
+    qtx_empty: "header", |b| b.clear();
+    qtx_truncated_header: "header", |b| b.truncate(40);
+    qtx_truncated_body: "length", |b| { let n = b.len(); b.truncate(n - 20); };
+    qtx_trailing_garbage: "length", |b| b.extend_from_slice(b"extra");
+    qtx_wrong_magic: "magic", |b| b[1] = b'P';
+    qtx_text_file: "magic", |b| { *b = b"x0 z0 x1 z1\n0 0 1 1\n".repeat(5); };
+    qtx_future_version: "version", |b| { b[8] = 2; reseal_header(b); };
+    qtx_header_bit_flip: "header_crc", |b| b[33] ^= 0x04;
+    qtx_payload_bit_flip: "payload_crc", |b| { let n = b.len(); b[n - 9] ^= 0x01; };
+    qtx_terabyte_node_count: "max_nodes", |b| { b[32..40].copy_from_slice(&(1u64 << 40).to_le_bytes()); reseal_header(b); };
+    qtx_inconsistent_inner_count: "node_count", |b| { let inner = u64::from_le_bytes(b[40..48].try_into().unwrap()); b[40..48].copy_from_slice(&(inner + 1).to_le_bytes()); reseal_header(b); };
+    qtx_payload_size_lie: "payload_bytes", |b| { b[48] ^= 0x08; reseal_header(b); };
+    qtx_absurd_depth: "max_depth", |b| { b[16] = 200; reseal_header(b); };
+    qtx_unknown_colour_format: "colour_format", |b| { b[17] = 7; reseal_header(b); };
+    qtx_reserved_bytes_set: "reserved", |b| { b[29] = 1; reseal_header(b); };
+    qtx_wrong_header_size: "header_bytes", |b| { b[12] = 128; reseal_header(b); };
+    qtx_inner_flags_cleared: "inner_bits", |b| { b[64] = 0; reseal_payload(b); };
+    qtx_not_premultiplied: "premultiplied", |b| {
+        // Node 0's red channel (first colour, after the inner bits) above its alpha.
+        let n = u64::from_le_bytes(b[32..40].try_into().unwrap()) as usize;
+        let c = 64 + n.div_ceil(8);
+        b[c..c + 2].copy_from_slice(&u16::MAX.to_le_bytes());
+        b[c + 6..c + 8].copy_from_slice(&1u16.to_le_bytes());
+        reseal_payload(b);
+    };
+    qtx_inner_colour_not_average: "children average", |b| {
+        let n = u64::from_le_bytes(b[32..40].try_into().unwrap()) as usize;
+        let c = 64 + n.div_ceil(8);
+        b[c..c + 2].copy_from_slice(&0u16.to_le_bytes());
+        b[c + 2..c + 4].copy_from_slice(&0u16.to_le_bytes());
+        b[c + 4..c + 6].copy_from_slice(&0u16.to_le_bytes());
+        reseal_payload(b);
+    };
+}
+
+/// A PNG whose IHDR declares `w × h` (valid chunk CRCs) followed by an
+/// empty IDAT and IEND: the decoder sees the dimensions, the data is absent.
+fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut ihdr = b"IHDR".to_vec();
+    ihdr.extend(w.to_be_bytes());
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]);
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(13u32.to_be_bytes());
+    png.extend(&ihdr);
+    png.extend(crc32(&ihdr).to_be_bytes());
+    for chunk in [b"IDAT", b"IEND"] {
+        png.extend(0u32.to_be_bytes());
+        png.extend(chunk);
+        png.extend(crc32(chunk).to_be_bytes());
+    }
+    png
+}
+
+fn pack_case(case: &str, file_name: &str, bytes: &[u8], extra: &[&str], needles: &[&str]) {
+    let d = dir(case);
+    let input = d.join(file_name);
+    std::fs::write(&input, bytes).unwrap();
+    let out = d.join("out.qtx");
+    let mut args = vec!["pack", input.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    args.extend(extra);
+    expect_failure(&args, "", needles, Some(&out));
+    assert_eq!(
+        std::fs::read_dir(&d).unwrap().count(),
+        1,
+        "temporary files left in {}",
+        d.display()
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn image_zero_by_zero() {
+    pack_case(
+        "zero",
+        "zero.png",
+        &png_header_only(0, 0),
+        &[],
+        &["zero.png"],
+    );
+}
+
+#[test]
+fn image_declares_100000_squared() {
+    pack_case(
+        "huge",
+        "huge.png",
+        &png_header_only(100_000, 100_000),
+        &[],
+        &["huge.png", "max_dimension"],
+    );
+}
+
+#[test]
+fn image_truncated_png() {
+    let d = dir("trunc-src");
+    let p = d.join("ok.png");
+    let pixels = vec![quadtex_core::Rgba::opaque(0.5, 0.2, 0.1); 64 * 64];
+    quadtex_io::save_image(
+        &p,
+        &quadtex_io::LinearImage {
+            width: 64,
+            height: 64,
+            pixels,
+        },
+    )
+    .unwrap();
+    let bytes = std::fs::read(&p).unwrap();
+    std::fs::remove_dir_all(&d).unwrap();
+    pack_case(
+        "trunc",
+        "trunc.png",
+        &bytes[..bytes.len() / 2],
+        &[],
+        &["trunc.png"],
+    );
+}
+
+#[test]
+fn image_not_an_image() {
+    pack_case(
+        "text",
+        "notes.png",
+        b"these are not pixels",
+        &[],
+        &["notes.png"],
+    );
+}
+
+#[test]
+fn image_empty_file() {
+    pack_case("empty", "empty.jpg", b"", &[], &["empty.jpg"]);
+}
+
+#[test]
+fn image_missing_file() {
+    let d = dir("missing");
+    let out = d.join("out.qtx");
+    expect_failure(
+        &[
+            "pack",
+            d.join("absent.png").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        &["absent.png"],
+        Some(&out),
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+fn valid_png(d: &Path) -> PathBuf {
+    let p = d.join("ok.png");
+    let pixels = vec![quadtex_core::Rgba::opaque(0.5, 0.2, 0.1); 16];
+    quadtex_io::save_image(
+        &p,
+        &quadtex_io::LinearImage {
+            width: 4,
+            height: 4,
+            pixels,
+        },
+    )
+    .unwrap();
+    p
+}
+
+fn pack_arg_case(case: &str, extra: &[&str], needle: &str) {
+    let d = dir(case);
+    let png = valid_png(&d);
+    let out = d.join("out.qtx");
+    let mut args = vec!["pack", png.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    args.extend(extra);
+    expect_failure(&args, "", &[needle], Some(&out));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn pack_level_beyond_limit() {
+    pack_arg_case("level99", &["--max-level", "99"], "--max-level 99 exceeds");
+}
+
+#[test]
+fn pack_level_beyond_raster_grid() {
+    pack_arg_case("level20", &["--max-level", "20"], "exceeds the limit 15");
+}
+
+#[test]
+fn pack_negative_tolerance() {
+    pack_arg_case(
+        "tolneg",
+        &["--tolerance", "-1"],
+        "--tolerance must be in [0, 1]",
+    );
+}
+
+#[test]
+fn pack_nan_tolerance() {
+    pack_arg_case(
+        "tolnan",
+        &["--tolerance", "NaN"],
+        "--tolerance must be in [0, 1]",
+    );
+}
+
+fn query_case(case: &str, line: &str, needle: &str) {
+    let d = dir(case);
+    let p = d.join("ok.qtx");
+    std::fs::write(&p, valid_qtx(&d)).unwrap();
+    let input = format!("0 0 0.5 0.5\n{line}\n0 0 1 1\n");
+    expect_failure(
+        &["query", p.to_str().unwrap()],
+        &input,
+        &["stdin line 2", needle],
+        None,
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+macro_rules! query_cases {
+    ($($name:ident: $line:expr => $needle:expr;)*) => {$(
+        #[test]
+        fn $name() {
+            query_case(stringify!($name), $line, $needle);
+        }
+    )*};
+}
+
+query_cases! {
+    query_nan: "0 NaN 1 1" => "z0 is not finite";
+    query_infinity: "0 0 inf 1" => "x1 is not finite";
+    query_negative_infinity: "-inf 0 1 1" => "x0 is not finite";
+    query_overflowing_literal: "0 0 1 1e400" => "z1 is not finite";
+    query_reversed_x: "0.75 0 0.25 1" => "reversed bounds on x";
+    query_reversed_z: "0 0.75 1 0.25" => "reversed bounds on z";
+    query_non_numeric: "0 0 one 1" => "x1: `one` is not a number";
+    query_too_few_fields: "0 0 1" => "missing z1";
+    query_too_many_fields: "0 0 1 1 1" => "found 5";
+    query_hex_float: "0x1p-3 0 1 1" => "x0: `0x1p-3` is not a number";
+}
+
+#[test]
+fn query_level_beyond_limit() {
+    let d = dir("qlevel");
+    let p = d.join("ok.qtx");
+    std::fs::write(&p, valid_qtx(&d)).unwrap();
+    expect_failure(
+        &["query", p.to_str().unwrap(), "--level", "300"],
+        "",
+        &["--level"],
+        None,
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
