@@ -22,7 +22,9 @@ pub use image_io::{
     to_srgb8,
 };
 pub use limits::Limits;
-pub use qtx::{FORMAT_VERSION, MAGIC, QtxInfo, parse_qtx, read_qtx, read_qtx_with_limits, write_qtx};
+pub use qtx::{
+    FORMAT_VERSION, MAGIC, QtxInfo, parse_qtx, read_qtx, read_qtx_with_limits, write_qtx,
+};
 pub use query::parse_query_line;
 
 pub use quadtex_core::TexelGrid;
