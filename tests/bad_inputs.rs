@@ -5,16 +5,16 @@
 //! valid file, so they stay in step with the format.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::io::Write;
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+
+use common::{run, temp_dir};
 
 use quadtex_core::{BuildOptions, QuadTree, synth};
 
 fn dir(case: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("quadtex-bad-{}-{case}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    temp_dir(&format!("bad-{case}"))
 }
 
 /// A small valid `.qtx` file's bytes.
@@ -55,20 +55,7 @@ fn crc32(data: &[u8]) -> u32 {
 /// Runs `quadtex args…` with `stdin`; asserts failure, `Error: ` with every
 /// needle on stderr, no panic, and that `must_not_exist` was not created.
 fn expect_failure(args: &[&str], stdin: &str, needles: &[&str], must_not_exist: Option<&Path>) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_quadtex"))
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut pipe = child.stdin.take().unwrap();
-    let input = stdin.to_owned();
-    let feeder = std::thread::spawn(move || {
-        let _ = pipe.write_all(input.as_bytes());
-    });
-    let out = child.wait_with_output().unwrap();
-    feeder.join().unwrap();
+    let out = run(args, stdin);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{args:?} succeeded; stderr: {err}");
     assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
