@@ -21,6 +21,11 @@ USAGE:
   quadtex pack IMAGE -o OUT.qtx [--tolerance T] [--max-level L]
   quadtex info FILE.qtx
   quadtex query FILE.qtx [--level K]      (fragments `x0 z0 x1 z1` on stdin)
+  quadtex demo [-o demo.png] [RENDER OPTIONS]          (built-in airfield scene)
+  quadtex render SCENE.toml -o OUT.png|OUT.exr [RENDER OPTIONS]
+      RENDER OPTIONS: [--width W] [--height H]
+                      [--filter quadtree|nearest|bilinear|supersample:N]
+                      [--quality Q] [--level K]
   quadtex bench [--size N] [--queries Q] [--runs R]
   quadtex sample runway|checker -o OUT.png [--size N]   (built-in art as a PNG)
   quadtex help
@@ -52,6 +57,8 @@ fn run() -> Result<()> {
         "info" => info(&mut parser),
         "query" => query(&mut parser),
         "bench" => bench::run(&mut parser),
+        "render" => render(&mut parser, false),
+        "demo" => render(&mut parser, true),
         "sample" => sample(&mut parser),
         "help" => {
             print!("{USAGE}");
@@ -161,6 +168,104 @@ fn human_bytes(b: u64) -> String {
         b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
         b => format!("{b} B"),
     }
+}
+
+/// `render` and `demo`: the same options; `demo` builds its scene in code.
+fn render(parser: &mut lexopt::Parser, demo: bool) -> Result<()> {
+    use quadtex_render::{Filter, LevelOfDetail, RenderOptions};
+    let (mut scene_path, mut output) = (None::<PathBuf>, None::<PathBuf>);
+    let mut options = RenderOptions::default();
+    let (mut quality, mut level, mut filter_name) = (1.0f64, None::<u8>, "quadtree".to_string());
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Short('o') | Long("output") => output = Some(parser.value()?.into()),
+            Long("width") => {
+                options.width = Some(
+                    parser
+                        .value()?
+                        .parse()
+                        .map_err(|e| format!("--width: {e}"))?,
+                )
+            }
+            Long("height") => {
+                options.height = Some(
+                    parser
+                        .value()?
+                        .parse()
+                        .map_err(|e| format!("--height: {e}"))?,
+                )
+            }
+            Long("filter") => filter_name = parser.value()?.string()?,
+            Long("quality") => {
+                quality = parser
+                    .value()?
+                    .parse()
+                    .map_err(|e| format!("--quality: {e}"))?;
+                if !(1.0..=64.0).contains(&quality) {
+                    return Err(format!("--quality must be in 1..=64, got {quality}").into());
+                }
+            }
+            Long("level") => level = Some(parse_level(parser, "--level")?),
+            Value(v) if !demo && scene_path.is_none() => scene_path = Some(v.into()),
+            other => return Err(other.unexpected().into()),
+        }
+    }
+    options.filter = match filter_name.as_str() {
+        "quadtree" => Filter::Quadtree {
+            quality,
+            lod: level.map_or(LevelOfDetail::ErrorBound(1.0 / 512.0), LevelOfDetail::Fixed),
+        },
+        "nearest" => Filter::Nearest,
+        "bilinear" => Filter::Bilinear,
+        other => match other.strip_prefix("supersample:").map(str::parse::<u32>) {
+            Some(Ok(n)) => Filter::Supersample(n),
+            _ => {
+                return Err(format!(
+                    "--filter {other}: expected quadtree, nearest, bilinear or supersample:N"
+                )
+                .into());
+            }
+        },
+    };
+    let (scene, output) = if demo {
+        (
+            quadtex_render::demo_scene()?,
+            output.unwrap_or_else(|| PathBuf::from("demo.png")),
+        )
+    } else {
+        let path = scene_path.ok_or("render: missing SCENE.toml")?;
+        let out = output.ok_or("render: missing -o OUT.png")?;
+        (quadtex_render::load_scene(&path)?, out)
+    };
+    let ext = output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("png" | "exr")) {
+        return Err(format!("{}: output must end in .png or .exr", output.display()).into());
+    }
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let bar = indicatif::ProgressBar::new(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} rows {elapsed}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let progress = |done: u64, total: u64| {
+        if let Some(bar) = &bar {
+            bar.set_length(total);
+            bar.set_position(done);
+        }
+    };
+    let (image, summary) = quadtex_render::render(&scene, &options, &progress)?;
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    quadtex_io::save_image(&output, &image)?;
+    println!("wrote {}", output.display());
+    println!("{summary}");
+    Ok(())
 }
 
 fn sample(parser: &mut lexopt::Parser) -> Result<()> {

@@ -354,6 +354,43 @@ impl QuadTree {
         self.first_child(p)
     }
 
+    /// The colour of the fragment's overlap with the unit square when one
+    /// terminal square holds all of it (so every point of it has that colour),
+    /// found by descending only through squares that enclose the fragment;
+    /// `None` when the overlap is empty or crosses a border between squares
+    /// whose colours differ. Renderers use it to skip cutting footprints that
+    /// lie in a uniform region.
+    pub fn uniform_colour(&self, fragment: &Fragment) -> Option<Unorm16Rgba> {
+        let f = fragment.clip_to_unit()?;
+        let mut node = PAD;
+        let (mut level, mut ix, mut iz) = (0u8, 0u64, 0u64);
+        loop {
+            if !self.is_inner(node) {
+                return Some(self.colours[node]);
+            }
+            let child_level = level + 1;
+            let side = unit_side(child_level);
+            let (mx, mz) = ((2 * ix + 1) as f64 * side, (2 * iz + 1) as f64 * side);
+            // Half-open: the fragment lies in one half iff it does not cross the middle.
+            let hx = if f.x1() <= mx {
+                0
+            } else if f.x0() >= mx {
+                1
+            } else {
+                return None;
+            };
+            let hz = if f.z1() <= mz {
+                0
+            } else if f.z0() >= mz {
+                1
+            } else {
+                return None;
+            };
+            node = self.first_child(node) + hx + 2 * hz;
+            (level, ix, iz) = (child_level, 2 * ix + hx as u64, 2 * iz + hz as u64);
+        }
+    }
+
     /// The weighted colour (integral of colour over area) of the fragment's
     /// overlap with the unit square, from a traversal down to level
     /// `max_level` (clamped to [`QuadTree::depth`]).

@@ -263,6 +263,47 @@ fn bounded_by_extreme_texels_times_area() {
     .budget_ms(1000);
 }
 
+#[test]
+fn uniform_colour_is_exact_where_it_answers() {
+    arbtest::arbtest(|u| {
+        let grid = blocky_grid(u)?;
+        let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+        let f = fragment(u)?;
+        if let Some(c) = tree.uniform_colour(&f) {
+            let area = f.clip_to_unit().map_or(0.0, |c| c.area());
+            let exact = texel_sum(&grid, &f);
+            assert!(
+                close(WeightedColour::from_unorm16(c, area), exact, 1e-12),
+                "{f:?}"
+            );
+        }
+        Ok(())
+    })
+    .budget_ms(500);
+    // A constant texture always answers; a checkerboard answers inside one square only.
+    let grid = TexelGrid::from_fn(4, 4, |c, r| {
+        if (c + r) % 2 == 0 {
+            PALETTE[0]
+        } else {
+            PALETTE[1]
+        }
+    })
+    .unwrap();
+    let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+    assert!(
+        tree.uniform_colour(&Fragment::new(0.3, 0.3, 0.45, 0.45).unwrap())
+            .is_some()
+    );
+    assert!(
+        tree.uniform_colour(&Fragment::new(0.2, 0.3, 0.3, 0.45).unwrap())
+            .is_none()
+    );
+    assert!(
+        tree.uniform_colour(&Fragment::new(2.0, 2.0, 3.0, 3.0).unwrap())
+            .is_none()
+    );
+}
+
 /// The erratum: eq. (2) as printed swaps variants 2 and 3.
 #[test]
 fn printed_f_init_is_wrong_and_the_corrected_one_is_right() {

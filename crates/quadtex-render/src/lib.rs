@@ -1,1 +1,119 @@
-//! placeholder
+//! # quadtex-render
+//!
+//! A backward ray tracer whose textures are sampled by the exact area
+//! integral over each pixel's footprint (`quadtex-core`). Scenes come from
+//! TOML files ([`load_scene`], format in `docs/scenes.md`) or from code
+//! ([`demo_scene`]); [`render`] turns one into a linear image.
+#![forbid(unsafe_code)]
+
+mod demo;
+pub mod footprint;
+pub mod math;
+mod parse;
+mod render;
+pub mod scene;
+
+use std::fmt;
+use std::path::PathBuf;
+
+pub use demo::{demo_scene, sign_art};
+pub use footprint::LevelOfDetail;
+pub use parse::{load_scene, parse_scene};
+pub use render::{Filter, RenderOptions, RenderSummary, render};
+pub use scene::Scene;
+
+/// Most pixels one render may have (64 megapixels).
+pub const MAX_PIXELS: u64 = 1 << 26;
+
+/// Most surfaces a scene may hold.
+pub const MAX_SURFACES: usize = 10_000;
+
+/// Everything that can go wrong while loading or rendering a scene.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum Error {
+    /// The scene file could not be read.
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The scene is malformed: `key` is the dotted path of the offending
+    /// entry (`shape[2].texture`), `line` its line in the file when known.
+    Scene {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line, when known.
+        line: Option<usize>,
+        /// Dotted key path.
+        key: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A texture failed to load.
+    Texture {
+        /// The scene key that names it.
+        key: String,
+        /// The underlying error.
+        source: quadtex_io::Error,
+    },
+    /// A texture could not be packed.
+    Pack {
+        /// The scene key or built-in name.
+        key: String,
+        /// The core error.
+        source: quadtex_core::Error,
+    },
+    /// A zero or too large output size.
+    Resolution {
+        /// Width asked for.
+        width: u32,
+        /// Height asked for.
+        height: u32,
+    },
+    /// An invalid render option.
+    Option(String),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
+            Error::Scene {
+                path,
+                line: Some(line),
+                key,
+                message,
+            } => {
+                write!(f, "{}:{line}: {key}: {message}", path.display())
+            }
+            Error::Scene {
+                path,
+                line: None,
+                key,
+                message,
+            } => write!(f, "{}: {key}: {message}", path.display()),
+            Error::Texture { key, source } => write!(f, "{key}: {source}"),
+            Error::Pack { key, source } => write!(f, "{key}: {source}"),
+            Error::Resolution { width, height } => {
+                write!(
+                    f,
+                    "resolution {width}x{height} is zero or above {MAX_PIXELS} pixels"
+                )
+            }
+            Error::Option(m) => write!(f, "{m}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            Error::Texture { source, .. } => Some(source),
+            Error::Pack { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,80 @@
+//! Small 3D vector type for the ray tracer (world space, `f64`, `y` up).
+
+use std::ops::{Add, Mul, Neg, Sub};
+
+/// A vector or point in world space.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Vec3 {
+    /// x.
+    pub x: f64,
+    /// y (up).
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+
+impl Vec3 {
+    /// A vector from components.
+    pub const fn new(x: f64, y: f64, z: f64) -> Vec3 {
+        Vec3 { x, y, z }
+    }
+    /// Dot product.
+    pub fn dot(self, o: Vec3) -> f64 {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+    /// Cross product.
+    pub fn cross(self, o: Vec3) -> Vec3 {
+        Vec3::new(
+            self.y * o.z - self.z * o.y,
+            self.z * o.x - self.x * o.z,
+            self.x * o.y - self.y * o.x,
+        )
+    }
+    /// Euclidean length.
+    pub fn length(self) -> f64 {
+        self.dot(self).sqrt()
+    }
+    /// Unit vector in the same direction, `None` for (near) zero or non-finite.
+    pub fn normalized(self) -> Option<Vec3> {
+        let l = self.length();
+        (l.is_finite() && l > 1e-12).then(|| self * (1.0 / l))
+    }
+    /// True when every component is finite.
+    pub fn is_finite(self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
+    }
+}
+
+impl Add for Vec3 {
+    type Output = Vec3;
+    fn add(self, o: Vec3) -> Vec3 {
+        Vec3::new(self.x + o.x, self.y + o.y, self.z + o.z)
+    }
+}
+impl Sub for Vec3 {
+    type Output = Vec3;
+    fn sub(self, o: Vec3) -> Vec3 {
+        Vec3::new(self.x - o.x, self.y - o.y, self.z - o.z)
+    }
+}
+impl Mul<f64> for Vec3 {
+    type Output = Vec3;
+    fn mul(self, s: f64) -> Vec3 {
+        Vec3::new(self.x * s, self.y * s, self.z * s)
+    }
+}
+impl Neg for Vec3 {
+    type Output = Vec3;
+    fn neg(self) -> Vec3 {
+        Vec3::new(-self.x, -self.y, -self.z)
+    }
+}
+
+/// A ray `origin + t·direction`, `t > 0`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ray {
+    /// Start.
+    pub origin: Vec3,
+    /// Direction (unit length).
+    pub direction: Vec3,
+}

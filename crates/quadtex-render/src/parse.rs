@@ -1,0 +1,600 @@
+//! Scene files in TOML (format in `docs/scenes.md`). Values are read from a
+//! `toml::Table`; when something is wrong, the same text is parsed once more
+//! with spans so the error can name the line of the offending key.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use quadtex_core::{BuildOptions, QuadTree, Rgba};
+use toml::{Table, Value};
+
+use crate::demo::builtin_texture;
+use crate::math::Vec3;
+use crate::scene::{
+    Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform, WrapMode,
+};
+use crate::{Error, MAX_SURFACES};
+
+/// Largest coordinate magnitude accepted in a scene (beyond it `f64`
+/// intersections lose the precision footprints need).
+const MAX_COORDINATE: f64 = 1e9;
+
+/// Reads and validates a scene file; textures load relative to its folder.
+pub fn load_scene(path: &Path) -> Result<Scene, Error> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.into(),
+        source,
+    })?;
+    parse_scene(&text, path)
+}
+
+/// Parses scene text; `path` names it in errors and anchors relative paths.
+pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, Error> {
+    let mut cx = Context {
+        text,
+        path,
+        textures: HashMap::new(),
+    };
+    let root: Table = text.parse().map_err(|e: toml::de::Error| {
+        let line = e.span().map(|s| line_of(text, s.start));
+        Error::Scene {
+            path: path.into(),
+            line,
+            key: "(syntax)".into(),
+            message: e.message().to_string(),
+        }
+    })?;
+    cx.keys(&root, "", &["camera", "sky", "light", "shape"])?;
+    let camera = cx.camera(cx.table(&root, "camera")?)?;
+    let sky = match root.get("sky") {
+        None => Sky::Solid(Rgba::opaque(0.0, 0.0, 0.0)),
+        Some(_) => cx.sky(cx.table(&root, "sky")?)?,
+    };
+    let lighting = match root.get("light") {
+        None => Lighting::Unlit,
+        Some(_) => cx.light(cx.table(&root, "light")?)?,
+    };
+    let shapes = match root.get("shape") {
+        Some(Value::Array(a)) => a,
+        Some(_) => return Err(cx.err("shape", "must be an array of tables: [[shape]]")),
+        None => return Err(cx.err("shape", "the scene has no [[shape]]")),
+    };
+    if shapes.len() > MAX_SURFACES {
+        return Err(cx.err(
+            "shape",
+            &format!(
+                "{} shapes, more than the limit {MAX_SURFACES}",
+                shapes.len()
+            ),
+        ));
+    }
+    let mut surfaces = Vec::with_capacity(shapes.len());
+    for (i, s) in shapes.iter().enumerate() {
+        let key = format!("shape[{i}]");
+        let Value::Table(t) = s else {
+            return Err(cx.err(&key, "must be a table"));
+        };
+        surfaces.push(cx.surface(t, &key)?);
+    }
+    Ok(Scene {
+        camera,
+        surfaces,
+        sky,
+        lighting,
+    })
+}
+
+struct Context<'a> {
+    text: &'a str,
+    path: &'a Path,
+    textures: HashMap<PathBuf, Arc<QuadTree>>,
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())]
+        .bytes()
+        .filter(|&b| b == b'\n')
+        .count()
+        + 1
+}
+
+impl Context<'_> {
+    /// An error at `key` (dotted path, with `[i]` for array items).
+    fn err(&self, key: &str, message: &str) -> Error {
+        Error::Scene {
+            path: self.path.into(),
+            line: self.line(key),
+            key: key.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The line where `key` is defined, from a spanned parse.
+    fn line(&self, key: &str) -> Option<usize> {
+        let doc = toml::de::DeTable::parse(self.text).ok()?;
+        let mut table = doc.get_ref();
+        let mut span = None;
+        for part in key.split('.') {
+            let (name, index) = match part.split_once('[') {
+                Some((n, rest)) => (n, rest.trim_end_matches(']').parse::<usize>().ok()),
+                None => (part, None),
+            };
+            let (k, v) = table.get_key_value(name)?;
+            span = Some(k.span().start);
+            let mut value = v.get_ref();
+            if let (Some(i), toml::de::DeValue::Array(a)) = (index, value) {
+                let item = a.get(i)?;
+                span = Some(item.span().start);
+                value = item.get_ref();
+            }
+            match value {
+                toml::de::DeValue::Table(t) => table = t,
+                _ => break,
+            }
+        }
+        span.map(|s| line_of(self.text, s))
+    }
+
+    fn keys(&self, t: &Table, prefix: &str, allowed: &[&str]) -> Result<(), Error> {
+        for k in t.keys() {
+            if !allowed.contains(&k.as_str()) {
+                let key = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
+                return Err(self.err(
+                    &key,
+                    &format!("unknown key (expected one of: {})", allowed.join(", ")),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn table<'t>(&self, t: &'t Table, key: &str) -> Result<&'t Table, Error> {
+        match t.get(key) {
+            Some(Value::Table(x)) => Ok(x),
+            Some(_) => Err(self.err(key, "must be a table")),
+            None => Err(self.err(key, "missing")),
+        }
+    }
+
+    fn number(&self, t: &Table, prefix: &str, key: &str) -> Result<Option<f64>, Error> {
+        let full = format!("{prefix}.{key}");
+        let v = match t.get(key) {
+            None => return Ok(None),
+            Some(Value::Float(f)) => *f,
+            Some(Value::Integer(i)) => *i as f64,
+            Some(_) => return Err(self.err(&full, "must be a number")),
+        };
+        if !v.is_finite() {
+            return Err(self.err(&full, &format!("must be finite, got {v}")));
+        }
+        if v.abs() > MAX_COORDINATE {
+            return Err(self.err(
+                &full,
+                &format!("{v} is beyond the limit ±{MAX_COORDINATE:e}"),
+            ));
+        }
+        Ok(Some(v))
+    }
+
+    fn numbers<const N: usize>(
+        &self,
+        t: &Table,
+        prefix: &str,
+        key: &str,
+    ) -> Result<Option<[f64; N]>, Error> {
+        let full = format!("{prefix}.{key}");
+        let Some(v) = t.get(key) else { return Ok(None) };
+        let Value::Array(a) = v else {
+            return Err(self.err(&full, &format!("must be an array of {N} numbers")));
+        };
+        if a.len() != N {
+            return Err(self.err(&full, &format!("must have {N} numbers, has {}", a.len())));
+        }
+        let mut out = [0f64; N];
+        for (o, x) in out.iter_mut().zip(a) {
+            *o = match x {
+                Value::Float(f) => *f,
+                Value::Integer(i) => *i as f64,
+                _ => return Err(self.err(&full, "must contain only numbers")),
+            };
+            if !o.is_finite() {
+                return Err(self.err(&full, &format!("must be finite, got {o}")));
+            }
+            if o.abs() > MAX_COORDINATE {
+                return Err(self.err(
+                    &full,
+                    &format!("{o} is beyond the limit ±{MAX_COORDINATE:e}"),
+                ));
+            }
+        }
+        Ok(Some(out))
+    }
+
+    fn vec3(&self, t: &Table, prefix: &str, key: &str) -> Result<Option<Vec3>, Error> {
+        Ok(self
+            .numbers::<3>(t, prefix, key)?
+            .map(|[x, y, z]| Vec3::new(x, y, z)))
+    }
+
+    fn required_vec3(&self, t: &Table, prefix: &str, key: &str) -> Result<Vec3, Error> {
+        self.vec3(t, prefix, key)?
+            .ok_or_else(|| self.err(&format!("{prefix}.{key}"), "missing"))
+    }
+
+    fn colour(&self, t: &Table, prefix: &str, key: &str) -> Result<Option<Rgba>, Error> {
+        let full = format!("{prefix}.{key}");
+        let rgba = match t.get(key) {
+            Some(Value::Array(a)) if a.len() == 4 => self.numbers::<4>(t, prefix, key)?,
+            _ => self
+                .numbers::<3>(t, prefix, key)?
+                .map(|[r, g, b]| [r, g, b, 1.0]),
+        };
+        let Some([r, g, b, a]) = rgba else {
+            return Ok(None);
+        };
+        if [r, g, b, a].iter().any(|&c| c < 0.0) || a > 1.0 {
+            return Err(self.err(&full, "colour channels must be >= 0 and alpha <= 1"));
+        }
+        Ok(Some(Rgba::new(
+            (r * a) as f32,
+            (g * a) as f32,
+            (b * a) as f32,
+            a as f32,
+        )))
+    }
+
+    fn size(&self, t: &Table, key: &str) -> Result<u32, Error> {
+        let full = format!("camera.{key}");
+        match t.get(key) {
+            Some(Value::Integer(i)) if (1..=65536).contains(i) => Ok(*i as u32),
+            Some(_) => Err(self.err(&full, "must be an integer in 1..=65536")),
+            None => Err(self.err(&full, "missing")),
+        }
+    }
+
+    fn camera(&self, t: &Table) -> Result<Camera, Error> {
+        self.keys(
+            t,
+            "camera",
+            &["position", "look_at", "up", "fov", "width", "height"],
+        )?;
+        let position = self.required_vec3(t, "camera", "position")?;
+        let look_at = self.required_vec3(t, "camera", "look_at")?;
+        let up = self
+            .vec3(t, "camera", "up")?
+            .unwrap_or(Vec3::new(0.0, 1.0, 0.0));
+        let fov = self.number(t, "camera", "fov")?.unwrap_or(45.0);
+        let (width, height) = (self.size(t, "width")?, self.size(t, "height")?);
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(self.err(
+                "camera.fov",
+                &format!("must be in (0, 180) degrees, got {fov}"),
+            ));
+        }
+        if (look_at - position).normalized().is_none() {
+            return Err(self.err("camera.look_at", "coincides with camera.position"));
+        }
+        Camera::new(position, look_at, up, fov, width, height)
+            .ok_or_else(|| self.err("camera.up", "is parallel to the viewing direction"))
+    }
+
+    fn sky(&self, t: &Table) -> Result<Sky, Error> {
+        self.keys(t, "sky", &["colour", "horizon", "zenith"])?;
+        if let Some(c) = self.colour(t, "sky", "colour")? {
+            return Ok(Sky::Solid(c));
+        }
+        let horizon = self
+            .colour(t, "sky", "horizon")?
+            .ok_or_else(|| self.err("sky", "needs `colour`, or `horizon` and `zenith`"))?;
+        let zenith = self
+            .colour(t, "sky", "zenith")?
+            .ok_or_else(|| self.err("sky.zenith", "missing"))?;
+        Ok(Sky::Gradient { horizon, zenith })
+    }
+
+    fn light(&self, t: &Table) -> Result<Lighting, Error> {
+        self.keys(t, "light", &["direction", "colour", "ambient"])?;
+        let direction = self
+            .required_vec3(t, "light", "direction")?
+            .normalized()
+            .ok_or_else(|| self.err("light.direction", "must not be zero"))?;
+        let c = self
+            .colour(t, "light", "colour")?
+            .unwrap_or(Rgba::opaque(1.0, 1.0, 1.0));
+        let a = self
+            .colour(t, "light", "ambient")?
+            .unwrap_or(Rgba::opaque(0.1, 0.1, 0.1));
+        Ok(Lighting::Lambert {
+            direction,
+            colour: [c.r, c.g, c.b],
+            ambient: [a.r, a.g, a.b],
+        })
+    }
+
+    fn surface(&mut self, t: &Table, key: &str) -> Result<Surface, Error> {
+        let common = [
+            "type",
+            "colour",
+            "texture",
+            "wrap",
+            "border",
+            "uv_scale",
+            "uv_offset",
+            "uv_rotation",
+        ];
+        let kind = match t.get("type") {
+            Some(Value::String(s)) => s.as_str(),
+            _ => {
+                return Err(self.err(
+                    &format!("{key}.type"),
+                    "missing or not a string (plane, quad, sphere)",
+                ));
+            }
+        };
+        let geometry = match kind {
+            "plane" => {
+                self.keys(
+                    t,
+                    key,
+                    &[&common[..], &["point", "normal", "u_axis"]].concat(),
+                )?;
+                let point = self.required_vec3(t, key, "point")?;
+                let normal = self
+                    .required_vec3(t, key, "normal")?
+                    .normalized()
+                    .ok_or_else(|| self.err(&format!("{key}.normal"), "must not be zero"))?;
+                let hint = self
+                    .vec3(t, key, "u_axis")?
+                    .unwrap_or(if normal.x.abs() < 0.9 {
+                        Vec3::new(1.0, 0.0, 0.0)
+                    } else {
+                        Vec3::new(0.0, 0.0, 1.0)
+                    });
+                let u_axis = (hint - normal * hint.dot(normal))
+                    .normalized()
+                    .ok_or_else(|| {
+                        self.err(&format!("{key}.u_axis"), "is parallel to the normal")
+                    })?;
+                // v = u × n: with n = +y and u = +x, v = +z (texture z runs away).
+                let v_axis = u_axis.cross(normal);
+                Geometry::Plane {
+                    point,
+                    normal,
+                    u_axis,
+                    v_axis,
+                }
+            }
+            "quad" => {
+                self.keys(
+                    t,
+                    key,
+                    &[&common[..], &["origin", "edge_u", "edge_v"]].concat(),
+                )?;
+                let origin = self.required_vec3(t, key, "origin")?;
+                let edge_u = self.required_vec3(t, key, "edge_u")?;
+                let edge_v = self.required_vec3(t, key, "edge_v")?;
+                if edge_u.cross(edge_v).normalized().is_none() {
+                    return Err(self.err(
+                        &format!("{key}.edge_v"),
+                        "is parallel to edge_u (degenerate quad)",
+                    ));
+                }
+                Geometry::Quad {
+                    origin,
+                    edge_u,
+                    edge_v,
+                }
+            }
+            "sphere" => {
+                self.keys(t, key, &[&common[..], &["centre", "radius"]].concat())?;
+                let centre = self.required_vec3(t, key, "centre")?;
+                let radius = self
+                    .number(t, key, "radius")?
+                    .ok_or_else(|| self.err(&format!("{key}.radius"), "missing"))?;
+                if radius <= 0.0 {
+                    return Err(self.err(&format!("{key}.radius"), "must be positive"));
+                }
+                Geometry::Sphere { centre, radius }
+            }
+            other => {
+                return Err(self.err(
+                    &format!("{key}.type"),
+                    &format!("unknown shape `{other}` (plane, quad, sphere)"),
+                ));
+            }
+        };
+        let colour = self
+            .colour(t, key, "colour")?
+            .unwrap_or(Rgba::opaque(1.0, 1.0, 1.0));
+        let texture = match t.get("texture") {
+            None => None,
+            Some(Value::String(s)) => Some(self.texture(s, &format!("{key}.texture"))?),
+            Some(_) => return Err(self.err(&format!("{key}.texture"), "must be a string")),
+        };
+        let wrap = match t.get("wrap") {
+            None => WrapMode::Repeat,
+            Some(Value::String(s)) if s == "repeat" => WrapMode::Repeat,
+            Some(Value::String(s)) if s == "clamp" => WrapMode::Clamp,
+            Some(Value::String(s)) if s == "border" => {
+                WrapMode::Border(self.colour(t, key, "border")?.unwrap_or(Rgba::TRANSPARENT))
+            }
+            Some(_) => {
+                return Err(self.err(
+                    &format!("{key}.wrap"),
+                    "must be \"repeat\", \"clamp\" or \"border\"",
+                ));
+            }
+        };
+        let scale = self.numbers::<2>(t, key, "uv_scale")?.unwrap_or([1.0, 1.0]);
+        if scale.contains(&0.0) {
+            return Err(self.err(&format!("{key}.uv_scale"), "must not be zero"));
+        }
+        let uv_transform = UvTransform {
+            scale,
+            offset: self
+                .numbers::<2>(t, key, "uv_offset")?
+                .unwrap_or([0.0, 0.0]),
+            rotation_degrees: self.number(t, key, "uv_rotation")?.unwrap_or(0.0),
+        };
+        Ok(Surface {
+            geometry,
+            texture,
+            colour,
+            uv_transform,
+            wrap,
+        })
+    }
+
+    fn texture(&mut self, spec: &str, key: &str) -> Result<Texture, Error> {
+        if let Some(name) = spec.strip_prefix("builtin:") {
+            return builtin_texture(name).map_err(|e| self.err(key, &e.to_string()));
+        }
+        let file = self.path.parent().unwrap_or(Path::new(".")).join(spec);
+        if let Some(tree) = self.textures.get(&file) {
+            return Ok(Texture {
+                name: spec.into(),
+                tree: tree.clone(),
+            });
+        }
+        let ext = file
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        let tree =
+            match ext.as_deref() {
+                Some("qtx") => quadtex_io::read_qtx(&file).map_err(|source| Error::Texture {
+                    key: key.into(),
+                    source,
+                })?,
+                Some("png" | "jpg" | "jpeg") => {
+                    let grid = quadtex_io::load_texels(&file).map_err(|source| Error::Texture {
+                        key: key.into(),
+                        source,
+                    })?;
+                    QuadTree::from_texels(&grid, &BuildOptions::default())
+                        .map_err(|source| Error::Pack {
+                            key: key.into(),
+                            source,
+                        })?
+                        .0
+                }
+                Some("svg") => return Err(self.err(
+                    key,
+                    "SVG textures are not supported yet (pack them once the vector packer lands)",
+                )),
+                _ => {
+                    return Err(self.err(
+                        key,
+                        "unknown texture type (use .qtx, .png, .jpg or builtin:NAME)",
+                    ));
+                }
+            };
+        let tree = Arc::new(tree);
+        self.textures.insert(file, tree.clone());
+        Ok(Texture {
+            name: spec.into(),
+            tree,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+[camera]
+position = [0, 2, -10]
+look_at = [0, 0, 10]
+fov = 50
+width = 64
+height = 32
+
+[sky]
+horizon = [0.8, 0.5, 0.3]
+zenith = [0.1, 0.1, 0.3]
+
+[[shape]]
+type = "plane"
+point = [0, 0, 0]
+normal = [0, 1, 0]
+texture = "builtin:checker"
+uv_scale = [0.5, 0.5]
+"#;
+
+    fn parse(text: &str) -> Result<Scene, Error> {
+        parse_scene(text, Path::new("test.toml"))
+    }
+
+    #[test]
+    fn parses_a_good_scene() {
+        let s = parse(GOOD).unwrap();
+        assert_eq!((s.camera.width(), s.camera.height()), (64, 32));
+        assert_eq!(s.surfaces.len(), 1);
+    }
+
+    fn expect(text: &str, needles: &[&str]) {
+        let e = parse(text).unwrap_err().to_string();
+        for n in needles {
+            assert!(e.contains(n), "`{n}` not in: {e}");
+        }
+    }
+
+    #[test]
+    fn errors_name_file_line_and_key() {
+        expect(
+            &GOOD.replace("fov = 50", "fov = 50\nzoom = 2"),
+            &["test.toml:6:", "camera.zoom", "unknown key"],
+        );
+        expect(
+            &GOOD.replace("position = [0, 2, -10]", "position = [0, nan, -10]"),
+            &["test.toml:3:", "camera.position", "finite"],
+        );
+        expect(
+            &GOOD.replace("position = [0, 2, -10]", "position = [0, 2, 1e300]"),
+            &["camera.position", "limit"],
+        );
+        expect(
+            &GOOD.replace("width = 64", "width = 0"),
+            &["camera.width", "1..=65536"],
+        );
+        expect(
+            &GOOD.replace("look_at = [0, 0, 10]", "look_at = [0, 2, -10]"),
+            &["camera.look_at", "coincides"],
+        );
+        expect(
+            &GOOD.replace("fov = 50", "fov = 50\nup = [0, -2, 20]"),
+            &["camera.up", "parallel"],
+        );
+        expect(
+            &GOOD.replace("builtin:checker", "missing.qtx"),
+            &["shape[0].texture", "missing.qtx"],
+        );
+        expect(
+            &GOOD.replace("builtin:checker", "art.svg"),
+            &["shape[0].texture", "SVG"],
+        );
+        expect(
+            &GOOD.replace("type = \"plane\"", "type = \"torus\""),
+            &["test.toml:14:", "shape[0].type", "torus"],
+        );
+        expect(
+            &GOOD.replace("normal = [0, 1, 0]", "normal = [0, 0, 0]"),
+            &["shape[0].normal"],
+        );
+        expect(
+            &GOOD.replace("uv_scale = [0.5, 0.5]", "uv_scale = [0.5]"),
+            &["shape[0].uv_scale", "2 numbers"],
+        );
+        expect("[camera\n", &["test.toml:1:", "syntax"]);
+        expect(
+            &GOOD.replace("[[shape]]", "[[shapes]]"),
+            &["shapes", "unknown key"],
+        );
+    }
+}

@@ -1,0 +1,477 @@
+//! The renderer: one primary ray per pixel, the pixel's exact footprint on
+//! the hit surface, fragments, and the quadtree integral; parallel over rows
+//! with rayon and deterministic (each pixel is computed independently, and
+//! statistics are integer sums combined in row order).
+//!
+//! **Footprints.** The rays through the pixel's four corners are intersected
+//! with the *tangent plane* of the surface at the centre ray's hit, and mapped
+//! to UV by the surface's UV gradients at that hit. For planes and quads this
+//! is the exact projective footprint of the pixel square; for spheres it is
+//! first-order accurate (the error grows with the footprint's size relative
+//! to the radius, as with pbrt's ray differentials). A corner ray that misses
+//! the tangent plane (a pixel straddling the horizon) is replaced by the
+//! mirror image of the opposite corner through the centre hit, so the
+//! footprint keeps the visible half's size instead of becoming infinite.
+//!
+//! **Pixel filter.** A box over the pixel in *screen* space is not a uniform
+//! box over its footprint in texture space: under perspective the far end of
+//! a footprint gets less screen area per unit of texture. Each fragment is
+//! therefore weighted by the screen-space density at its centre, which on a
+//! (tangent) plane is `|n·(p−eye)| / |p−eye|³ ∝ 1/|p−eye|³`; the pixel colour
+//! is `Σ wᵢ·integralᵢ / Σ wᵢ·areaᵢ`. Within a fragment the density is taken as
+//! constant, so more strips (quality) approach the exact screen-space box.
+
+use std::time::Instant;
+
+use quadtex_core::{Fragment, Rgba, TraversalStats, WeightedColour};
+use rayon::prelude::*;
+
+use crate::footprint::{LevelOfDetail, fragments_of_quad, integrate};
+use crate::math::{Ray, Vec3};
+use crate::scene::{Hit, Lighting, Scene, Sky, Surface};
+use quadtex_io::LinearImage;
+
+/// How pixels sample textures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Filter {
+    /// Exact area integral over the pixel's footprint (the method).
+    Quadtree {
+        /// Strip quality (≥ 1; the area-mismatch target is `1/(4·quality)`).
+        quality: f64,
+        /// Level-of-detail rule.
+        lod: LevelOfDetail,
+    },
+    /// The texel under the pixel centre (finest level), no filtering.
+    Nearest,
+    /// Bilinear interpolation of the finest level at the pixel centre.
+    Bilinear,
+    /// `n × n` stratified sub-pixel rays per pixel, each a nearest lookup.
+    Supersample(u32),
+}
+
+impl Default for Filter {
+    fn default() -> Self {
+        Filter::Quadtree {
+            quality: 1.0,
+            lod: LevelOfDetail::ErrorBound(1.0 / 512.0),
+        }
+    }
+}
+
+/// Options of one render.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RenderOptions {
+    /// Override the camera's width (height follows unless also given).
+    pub width: Option<u32>,
+    /// Override the camera's height.
+    pub height: Option<u32>,
+    /// Texture filter.
+    pub filter: Filter,
+}
+
+/// What a render cost.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RenderSummary {
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Textured pixels (those whose ray hit a textured surface).
+    pub textured_pixels: u64,
+    /// Fragments integrated.
+    pub fragments: u64,
+    /// Tree queries (after wrap splitting) and nodes they visited.
+    pub traversal: TraversalStats,
+    /// Largest relative area mismatch between a footprint and its fragments.
+    pub max_mismatch: f64,
+    /// Sum of relative mismatches over textured pixels (for the mean).
+    pub sum_mismatch: f64,
+}
+
+impl std::fmt::Display for RenderSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let pixels = u64::from(self.width) * u64::from(self.height);
+        let tp = self.textured_pixels.max(1) as f64;
+        write!(
+            f,
+            "{}x{} in {:.3} s ({:.2} Mpixel/s); {:.2} fragments per textured pixel, {:.1} nodes per tree query; footprint area mismatch mean {:.2}%, max {:.1}%",
+            self.width,
+            self.height,
+            self.seconds,
+            pixels as f64 / self.seconds.max(1e-9) / 1e6,
+            self.fragments as f64 / tp,
+            self.traversal.nodes_visited as f64 / self.traversal.queries.max(1) as f64,
+            100.0 * self.sum_mismatch / tp,
+            100.0 * self.max_mismatch
+        )
+    }
+}
+
+#[derive(Default, Clone, Copy)]
+struct RowStats {
+    textured: u64,
+    fragments: u64,
+    traversal: TraversalStats,
+    max_mismatch: f64,
+    sum_mismatch: f64,
+}
+
+impl RowStats {
+    fn merge(&mut self, o: &RowStats) {
+        self.textured += o.textured;
+        self.fragments += o.fragments;
+        self.traversal.queries += o.traversal.queries;
+        self.traversal.nodes_visited += o.traversal.nodes_visited;
+        self.max_mismatch = self.max_mismatch.max(o.max_mismatch);
+        self.sum_mismatch += o.sum_mismatch;
+    }
+}
+
+/// Renders `scene`; `progress(done_rows, total_rows)` is called as rows finish
+/// (from worker threads, in no particular order).
+pub fn render(
+    scene: &Scene,
+    options: &RenderOptions,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<(LinearImage, RenderSummary), crate::Error> {
+    let (w, h) = match (options.width, options.height) {
+        (None, None) => (scene.camera.width(), scene.camera.height()),
+        (Some(w), None) => {
+            let h = (f64::from(w) * f64::from(scene.camera.height())
+                / f64::from(scene.camera.width()))
+            .round();
+            (w, (h as u32).max(1))
+        }
+        (None, Some(h)) => {
+            let w = (f64::from(h) * f64::from(scene.camera.width())
+                / f64::from(scene.camera.height()))
+            .round();
+            ((w as u32).max(1), h)
+        }
+        (Some(w), Some(h)) => (w, h),
+    };
+    if w == 0 || h == 0 || u64::from(w) * u64::from(h) > crate::MAX_PIXELS {
+        return Err(crate::Error::Resolution {
+            width: w,
+            height: h,
+        });
+    }
+    if let Filter::Supersample(n) = options.filter
+        && (n == 0 || n > 64)
+    {
+        return Err(crate::Error::Option(format!(
+            "supersample:{n}: the sample grid must be 1..=64 per side"
+        )));
+    }
+    let camera = scene.camera.with_size(w, h);
+    let scene = Scene {
+        camera,
+        ..scene.clone()
+    };
+    let start = Instant::now();
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let rows: Vec<(Vec<Rgba>, RowStats)> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut stats = RowStats::default();
+            let row = (0..w)
+                .map(|x| shade_pixel(&scene, options.filter, x, y, &mut stats))
+                .collect();
+            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(n, u64::from(h));
+            (row, stats)
+        })
+        .collect();
+    let mut total = RowStats::default();
+    let mut pixels = Vec::with_capacity(w as usize * h as usize);
+    for (row, stats) in rows {
+        pixels.extend(row);
+        total.merge(&stats);
+    }
+    let summary = RenderSummary {
+        width: w,
+        height: h,
+        seconds: start.elapsed().as_secs_f64(),
+        textured_pixels: total.textured,
+        fragments: total.fragments,
+        traversal: total.traversal,
+        max_mismatch: total.max_mismatch,
+        sum_mismatch: total.sum_mismatch,
+    };
+    Ok((
+        LinearImage {
+            width: w,
+            height: h,
+            pixels,
+        },
+        summary,
+    ))
+}
+
+fn nearest_hit<'a>(scene: &'a Scene, ray: &Ray) -> Option<(&'a Surface, Hit)> {
+    let mut best: Option<(&Surface, Hit)> = None;
+    for s in &scene.surfaces {
+        if let Some(hit) = s.geometry.intersect(ray, 1e-9)
+            && best.as_ref().is_none_or(|(_, b)| hit.t < b.t)
+        {
+            best = Some((s, hit));
+        }
+    }
+    best
+}
+
+fn sky(scene: &Scene, ray: &Ray) -> Rgba {
+    match scene.sky {
+        Sky::Solid(c) => c,
+        Sky::Gradient { horizon, zenith } => {
+            let t = ray.direction.y.clamp(0.0, 1.0).sqrt() as f32;
+            Rgba::new(
+                horizon.r + t * (zenith.r - horizon.r),
+                horizon.g + t * (zenith.g - horizon.g),
+                horizon.b + t * (zenith.b - horizon.b),
+                horizon.a + t * (zenith.a - horizon.a),
+            )
+        }
+    }
+}
+
+fn shade_pixel(scene: &Scene, filter: Filter, x: u32, y: u32, stats: &mut RowStats) -> Rgba {
+    let (px, py) = (f64::from(x), f64::from(y));
+    if let Filter::Supersample(n) = filter {
+        let mut acc = [0f32; 4];
+        for j in 0..n {
+            for i in 0..n {
+                let sx = px + (f64::from(i) + 0.5) / f64::from(n);
+                let sy = py + (f64::from(j) + 0.5) / f64::from(n);
+                let c = shade_ray(
+                    scene,
+                    Filter::Nearest,
+                    &scene.camera.ray(sx, sy),
+                    [sx, sy],
+                    stats,
+                );
+                for (a, v) in acc.iter_mut().zip(c.to_array()) {
+                    *a += v;
+                }
+            }
+        }
+        let s = 1.0 / (n * n) as f32;
+        return Rgba::new(acc[0] * s, acc[1] * s, acc[2] * s, acc[3] * s);
+    }
+    let (cx, cy) = (px + 0.5, py + 0.5);
+    shade_ray(scene, filter, &scene.camera.ray(cx, cy), [cx, cy], stats)
+}
+
+fn shade_ray(
+    scene: &Scene,
+    filter: Filter,
+    ray: &Ray,
+    pixel: [f64; 2],
+    stats: &mut RowStats,
+) -> Rgba {
+    let Some((surface, hit)) = nearest_hit(scene, ray) else {
+        return sky(scene, ray);
+    };
+    let base = match &surface.texture {
+        None => surface.colour,
+        Some(texture) => {
+            stats.textured += 1;
+            let tex = texture_colour(scene, surface, &texture.tree, &hit, filter, pixel, stats);
+            Rgba::new(
+                tex.r * surface.colour.r,
+                tex.g * surface.colour.g,
+                tex.b * surface.colour.b,
+                tex.a * surface.colour.a,
+            )
+        }
+    };
+    match scene.lighting {
+        Lighting::Unlit => base,
+        Lighting::Lambert {
+            direction,
+            colour,
+            ambient,
+        } => {
+            let n = if hit.normal.dot(ray.direction) > 0.0 {
+                -hit.normal
+            } else {
+                hit.normal
+            };
+            let cos = n.dot(direction).max(0.0);
+            let lit = cos > 0.0 && {
+                let shadow = Ray {
+                    origin: hit.point + n * 1e-6 * (1.0 + hit.t),
+                    direction,
+                };
+                nearest_hit(scene, &shadow).is_none()
+            };
+            let k = if lit { cos as f32 } else { 0.0 };
+            Rgba::new(
+                base.r * (ambient[0] + k * colour[0]),
+                base.g * (ambient[1] + k * colour[1]),
+                base.b * (ambient[2] + k * colour[2]),
+                base.a,
+            )
+        }
+    }
+}
+
+/// The texture-space point of world point `q` on the tangent plane at `hit`.
+fn texture_point(surface: &Surface, hit: &Hit, q: Vec3) -> [f64; 2] {
+    let d = q - hit.point;
+    surface
+        .uv_transform
+        .apply([hit.uv[0] + hit.du.dot(d), hit.uv[1] + hit.dv.dot(d)])
+}
+
+fn texture_colour(
+    scene: &Scene,
+    surface: &Surface,
+    tree: &quadtex_core::QuadTree,
+    hit: &Hit,
+    filter: Filter,
+    pixel: [f64; 2],
+    stats: &mut RowStats,
+) -> Rgba {
+    let centre = surface.uv_transform.apply(hit.uv);
+    let depth = tree.depth();
+    let cell = f64::from_bits((1023 - u64::from(depth)) << 52);
+    let lookup = |x: f64, z: f64, stats: &mut RowStats| {
+        let (fx, fz) = ((x / cell).floor() * cell, (z / cell).floor() * cell);
+        match Fragment::new(fx, fz, fx + cell, fz + cell) {
+            Ok(f) => integrate(tree, &f, depth, surface.wrap, &mut stats.traversal)
+                .mean_over(cell * cell),
+            Err(_) => Rgba::TRANSPARENT,
+        }
+    };
+    match filter {
+        Filter::Nearest | Filter::Supersample(_) => lookup(centre[0], centre[1], stats),
+        Filter::Bilinear => {
+            let (u, v) = (centre[0] / cell - 0.5, centre[1] / cell - 0.5);
+            let (u0, v0) = (u.floor(), v.floor());
+            let (fu, fv) = ((u - u0) as f32, (v - v0) as f32);
+            let at = |i: f64, j: f64, stats: &mut RowStats| {
+                lookup((i + 0.5) * cell, (j + 0.5) * cell, stats)
+            };
+            let (a, b) = (at(u0, v0, stats), at(u0 + 1.0, v0, stats));
+            let (c, d) = (at(u0, v0 + 1.0, stats), at(u0 + 1.0, v0 + 1.0, stats));
+            let mix = |a: f32, b: f32, c: f32, d: f32| {
+                let lo = a + fu * (b - a);
+                let hi = c + fu * (d - c);
+                lo + fv * (hi - lo)
+            };
+            Rgba::new(
+                mix(a.r, b.r, c.r, d.r),
+                mix(a.g, b.g, c.g, d.g),
+                mix(a.b, b.b, c.b, d.b),
+                mix(a.a, b.a, c.a, d.a),
+            )
+        }
+        Filter::Quadtree { quality, lod } => {
+            let quad = footprint(scene, surface, hit, pixel);
+            if let Some(c) = uniform_over(tree, &quad, surface.wrap) {
+                // The whole footprint lies in one terminal square: exact, one lookup.
+                stats.fragments += 1;
+                stats.traversal.queries += 1;
+                return c;
+            }
+            let frags = fragments_of_quad(&quad, quality);
+            stats.fragments += frags.rects.len() as u64;
+            stats.max_mismatch = stats.max_mismatch.max(frags.mismatch);
+            stats.sum_mismatch += frags.mismatch;
+            let (mut acc, mut area) = (WeightedColour::ZERO, 0.0);
+            let eye = scene.camera.position;
+            for f in &frags.rects {
+                let k = lod.level(f.width(), f.height(), depth);
+                // Screen-space density at the strip's centre: the pixel's box
+                // filter weighs texture area by 1/distance³ on a plane.
+                let mid = [0.5 * (f.x0() + f.x1()), 0.5 * (f.z0() + f.z1())];
+                let w = world_point(surface, hit, mid).map_or(1.0, |p| (p - eye).length().powi(-3));
+                acc += integrate(tree, f, k, surface.wrap, &mut stats.traversal) * w;
+                area += f.area() * w;
+            }
+            if area > 0.0 {
+                acc.mean_over(area)
+            } else {
+                lookup(centre[0], centre[1], stats)
+            }
+        }
+    }
+}
+
+/// The texture's colour over the whole footprint when one terminal square of
+/// the tree holds the footprint's bounding box (within one tile).
+fn uniform_over(
+    tree: &quadtex_core::QuadTree,
+    quad: &[[f64; 2]; 4],
+    wrap: crate::scene::WrapMode,
+) -> Option<Rgba> {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in quad {
+        for a in 0..2 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let (mut shift_x, mut shift_z) = (0.0, 0.0);
+    if wrap == crate::scene::WrapMode::Repeat {
+        (shift_x, shift_z) = (lo[0].floor(), lo[1].floor());
+    }
+    let f = Fragment::new(
+        lo[0] - shift_x,
+        lo[1] - shift_z,
+        hi[0] - shift_x,
+        hi[1] - shift_z,
+    )
+    .ok()?;
+    // Only a box inside the unit square (after the tile shift) qualifies.
+    if f.x1() > 1.0 || f.z1() > 1.0 || f.x0() < 0.0 || f.z0() < 0.0 || f.area() <= 0.0 {
+        return None;
+    }
+    tree.uniform_colour(&f).map(|c| c.to_rgba())
+}
+
+/// The world point on the tangent plane at `hit` whose texture coordinates
+/// are `t` (inverse of [`texture_point`]).
+fn world_point(surface: &Surface, hit: &Hit, t: [f64; 2]) -> Option<Vec3> {
+    let uv = surface.uv_transform.invert(t);
+    let (du, dv) = (uv[0] - hit.uv[0], uv[1] - hit.uv[1]);
+    // d = a·∇u + b·∇v with ∇u·d = du, ∇v·d = dv: a 2×2 Gram system.
+    let (g11, g12, g22) = (hit.du.dot(hit.du), hit.du.dot(hit.dv), hit.dv.dot(hit.dv));
+    let det = g11 * g22 - g12 * g12;
+    if det.abs() <= 1e-300 || det.is_nan() {
+        return None;
+    }
+    let a = (g22 * du - g12 * dv) / det;
+    let b = (g11 * dv - g12 * du) / det;
+    let p = hit.point + hit.du * a + hit.dv * b;
+    p.is_finite().then_some(p)
+}
+
+/// The pixel's footprint in texture space (module documentation).
+fn footprint(scene: &Scene, surface: &Surface, hit: &Hit, pixel: [f64; 2]) -> [[f64; 2]; 4] {
+    let corners = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]];
+    let mut world: [Option<Vec3>; 4] = [None; 4];
+    for (slot, c) in world.iter_mut().zip(corners) {
+        let ray = scene.camera.ray(pixel[0] + c[0], pixel[1] + c[1]);
+        let denom = ray.direction.dot(hit.normal);
+        if denom.abs() > 1e-12 {
+            let t = (hit.point - ray.origin).dot(hit.normal) / denom;
+            if t > 0.0 && t.is_finite() {
+                *slot = Some(ray.origin + ray.direction * t);
+            }
+        }
+    }
+    let mut out = [[0.0; 2]; 4];
+    for i in 0..4 {
+        let q = match (world[i], world[(i + 2) % 4]) {
+            (Some(q), _) => q,
+            (None, Some(opposite)) => hit.point * 2.0 - opposite,
+            (None, None) => hit.point,
+        };
+        out[i] = texture_point(surface, hit, q);
+    }
+    out
+}

@@ -1,0 +1,359 @@
+//! The scene model: a validated, ready-to-render description. Built by
+//! [`crate::load_scene`] from TOML or by [`crate::demo_scene`] in code.
+//!
+//! World space is right-handed with `y` up, in arbitrary units (metres in the
+//! examples). Every surface maps points to *UV* by an affine map (exact for
+//! planes and quads; the sphere's latitude-longitude map is linearised at the
+//! hit point for footprints), then UV to texture space by the surface's
+//! [`UvTransform`]; texture space is the crate-level convention of
+//! `quadtex-core` (unit square, `x` right, `z` up, repeating tiles).
+
+use std::sync::Arc;
+
+use quadtex_core::{QuadTree, Rgba};
+
+use crate::math::{Ray, Vec3};
+
+/// A pinhole camera.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Camera {
+    pub(crate) position: Vec3,
+    pub(crate) forward: Vec3,
+    pub(crate) right: Vec3,
+    pub(crate) up: Vec3,
+    pub(crate) tan_half_fov: f64,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+}
+
+impl Camera {
+    /// A camera at `position` looking at `look_at`; `up` fixes the roll;
+    /// `fov_y_degrees` is the vertical field of view. `None` when the view
+    /// is degenerate (coincident points, `up` parallel to the view, a field
+    /// of view outside `(0, 180)`, non-finite input, zero size).
+    pub fn new(
+        position: Vec3,
+        look_at: Vec3,
+        up: Vec3,
+        fov_y_degrees: f64,
+        width: u32,
+        height: u32,
+    ) -> Option<Camera> {
+        if !(position.is_finite() && look_at.is_finite() && up.is_finite()) {
+            return None;
+        }
+        if !(fov_y_degrees > 0.0 && fov_y_degrees < 180.0) || width == 0 || height == 0 {
+            return None;
+        }
+        let forward = (look_at - position).normalized()?;
+        let right = forward.cross(up).normalized()?;
+        let up = right.cross(forward);
+        let tan_half_fov = (fov_y_degrees.to_radians() / 2.0).tan();
+        Some(Camera {
+            position,
+            forward,
+            right,
+            up,
+            tan_half_fov,
+            width,
+            height,
+        })
+    }
+
+    /// The camera with another resolution (same field of view).
+    pub fn with_size(&self, width: u32, height: u32) -> Camera {
+        Camera {
+            width,
+            height,
+            ..self.clone()
+        }
+    }
+
+    /// Image width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Image height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The ray through image point `(px, py)`, in pixel units from the top-left
+    /// corner (pixel `(i, j)` covers `[i, i+1) × [j, j+1)`).
+    pub fn ray(&self, px: f64, py: f64) -> Ray {
+        let aspect = f64::from(self.width) / f64::from(self.height);
+        let sx = (2.0 * px / f64::from(self.width) - 1.0) * self.tan_half_fov * aspect;
+        let sy = (1.0 - 2.0 * py / f64::from(self.height)) * self.tan_half_fov;
+        let d = self.forward + self.right * sx + self.up * sy;
+        Ray {
+            origin: self.position,
+            direction: d * (1.0 / d.length()),
+        }
+    }
+}
+
+/// Surface shapes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// Infinite plane through `point`; UV = coordinates along `u_axis`,
+    /// `v_axis` (orthonormal, spanning the plane) in world units.
+    Plane {
+        /// A point on the plane (UV origin).
+        point: Vec3,
+        /// Unit normal.
+        normal: Vec3,
+        /// Unit direction of increasing u.
+        u_axis: Vec3,
+        /// Unit direction of increasing v.
+        v_axis: Vec3,
+    },
+    /// Parallelogram `origin + s·edge_u + t·edge_v`, `s, t ∈ [0,1]`; UV = `(s, t)`.
+    Quad {
+        /// Corner with UV (0,0).
+        origin: Vec3,
+        /// Edge to UV (1,0).
+        edge_u: Vec3,
+        /// Edge to UV (0,1).
+        edge_v: Vec3,
+    },
+    /// Sphere; UV = (longitude / 2π, latitude from the south pole / π).
+    Sphere {
+        /// Centre.
+        centre: Vec3,
+        /// Radius.
+        radius: f64,
+    },
+}
+
+/// Where a ray meets a surface, with what a footprint needs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Hit {
+    pub t: f64,
+    pub point: Vec3,
+    pub normal: Vec3,
+    pub uv: [f64; 2],
+    /// ∂uv/∂p along the tangent plane: uv(q) ≈ uv + [du·(q−p), dv·(q−p)].
+    pub du: Vec3,
+    pub dv: Vec3,
+}
+
+impl Geometry {
+    pub(crate) fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
+        match *self {
+            Geometry::Plane {
+                point,
+                normal,
+                u_axis,
+                v_axis,
+            } => {
+                let denom = ray.direction.dot(normal);
+                if denom.abs() < 1e-12 {
+                    return None;
+                }
+                let t = (point - ray.origin).dot(normal) / denom;
+                (t > t_min && t.is_finite()).then(|| {
+                    let p = ray.origin + ray.direction * t;
+                    let rel = p - point;
+                    Hit {
+                        t,
+                        point: p,
+                        normal,
+                        uv: [rel.dot(u_axis), rel.dot(v_axis)],
+                        du: u_axis,
+                        dv: v_axis,
+                    }
+                })
+            }
+            Geometry::Quad {
+                origin,
+                edge_u,
+                edge_v,
+            } => {
+                let normal = edge_u.cross(edge_v).normalized()?;
+                let denom = ray.direction.dot(normal);
+                if denom.abs() < 1e-12 {
+                    return None;
+                }
+                let t = (origin - ray.origin).dot(normal) / denom;
+                if !(t > t_min && t.is_finite()) {
+                    return None;
+                }
+                let p = ray.origin + ray.direction * t;
+                let (du, dv) = quad_gradients(edge_u, edge_v);
+                let rel = p - origin;
+                let uv = [rel.dot(du), rel.dot(dv)];
+                ((0.0..=1.0).contains(&uv[0]) && (0.0..=1.0).contains(&uv[1])).then_some(Hit {
+                    t,
+                    point: p,
+                    normal,
+                    uv,
+                    du,
+                    dv,
+                })
+            }
+            Geometry::Sphere { centre, radius } => {
+                let oc = ray.origin - centre;
+                let b = oc.dot(ray.direction);
+                let c = oc.dot(oc) - radius * radius;
+                let disc = b * b - c;
+                if disc < 0.0 {
+                    return None;
+                }
+                let s = disc.sqrt();
+                let t = if -b - s > t_min { -b - s } else { -b + s };
+                if t <= t_min || t.is_nan() {
+                    return None;
+                }
+                let p = ray.origin + ray.direction * t;
+                let n = (p - centre) * (1.0 / radius);
+                let phi = n.z.atan2(n.x);
+                let theta = n.y.clamp(-1.0, 1.0).acos();
+                let u = (phi + std::f64::consts::PI) / std::f64::consts::TAU;
+                let v = 1.0 - theta / std::f64::consts::PI;
+                // Gradients of (u, v) on the sphere at p (linearisation).
+                let rxz = (n.x * n.x + n.z * n.z).sqrt().max(1e-9);
+                let du = Vec3::new(-n.z, 0.0, n.x) * (1.0 / (std::f64::consts::TAU * radius * rxz));
+                let along = Vec3::new(-n.x * n.y, rxz * rxz, -n.z * n.y) * (1.0 / rxz);
+                let dv = along * (1.0 / (std::f64::consts::PI * radius));
+                Some(Hit {
+                    t,
+                    point: p,
+                    normal: n,
+                    uv: [u, v],
+                    du,
+                    dv,
+                })
+            }
+        }
+    }
+}
+
+/// Gradients of `(s, t)` for `p = s·a + t·b` restricted to the plane of `a, b`.
+fn quad_gradients(a: Vec3, b: Vec3) -> (Vec3, Vec3) {
+    let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
+    let det = aa * bb - ab * ab;
+    let du = (a * bb - b * ab) * (1.0 / det);
+    let dv = (b * aa - a * ab) * (1.0 / det);
+    (du, dv)
+}
+
+/// How texture space repeats beyond the unit square.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WrapMode {
+    /// Tiles repeat forever.
+    Repeat,
+    /// Edge colours extend outwards.
+    Clamp,
+    /// Outside the unit square: this colour.
+    Border(Rgba),
+}
+
+/// UV → texture space: `rotate(uv ⊙ scale) + offset`, rotation in degrees
+/// counter-clockwise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UvTransform {
+    /// Per-axis scale (tiles per UV unit).
+    pub scale: [f64; 2],
+    /// Offset added after scaling and rotation.
+    pub offset: [f64; 2],
+    /// Rotation in degrees.
+    pub rotation_degrees: f64,
+}
+
+impl Default for UvTransform {
+    fn default() -> Self {
+        UvTransform {
+            scale: [1.0, 1.0],
+            offset: [0.0, 0.0],
+            rotation_degrees: 0.0,
+        }
+    }
+}
+
+impl UvTransform {
+    /// Texture space back to UV (the inverse of [`UvTransform::apply`]).
+    pub(crate) fn invert(&self, t: [f64; 2]) -> [f64; 2] {
+        let (s, c) = self.rotation_degrees.to_radians().sin_cos();
+        let (x, z) = (t[0] - self.offset[0], t[1] - self.offset[1]);
+        [
+            (c * x + s * z) / self.scale[0],
+            (-s * x + c * z) / self.scale[1],
+        ]
+    }
+
+    pub(crate) fn apply(&self, uv: [f64; 2]) -> [f64; 2] {
+        let (s, c) = self.rotation_degrees.to_radians().sin_cos();
+        let (x, z) = (uv[0] * self.scale[0], uv[1] * self.scale[1]);
+        [
+            c * x - s * z + self.offset[0],
+            s * x + c * z + self.offset[1],
+        ]
+    }
+}
+
+/// A texture bound to a surface.
+#[derive(Debug, Clone)]
+pub struct Texture {
+    /// Where it came from (file name or built-in name), for reports.
+    pub name: String,
+    /// The packed tree.
+    pub tree: Arc<QuadTree>,
+}
+
+/// A renderable surface.
+#[derive(Debug, Clone)]
+pub struct Surface {
+    /// Shape.
+    pub geometry: Geometry,
+    /// Texture, or `None` for a flat colour.
+    pub texture: Option<Texture>,
+    /// Flat colour (untextured) or multiplier (textured), linear.
+    pub colour: Rgba,
+    /// UV to texture space.
+    pub uv_transform: UvTransform,
+    /// Beyond the unit square.
+    pub wrap: WrapMode,
+}
+
+/// The background seen by rays that hit nothing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sky {
+    /// One colour.
+    Solid(Rgba),
+    /// Blend from `horizon` (looking level) to `zenith` (looking up).
+    Gradient {
+        /// Colour at the horizon and below.
+        horizon: Rgba,
+        /// Colour straight up.
+        zenith: Rgba,
+    },
+}
+
+/// Shading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Lighting {
+    /// Texture colour as is.
+    Unlit,
+    /// Lambert with one directional light and hard shadows.
+    Lambert {
+        /// Unit direction *towards* the light.
+        direction: Vec3,
+        /// Light colour (linear, may exceed 1).
+        colour: [f32; 3],
+        /// Ambient colour added everywhere.
+        ambient: [f32; 3],
+    },
+}
+
+/// A complete scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// The camera.
+    pub camera: Camera,
+    /// The surfaces.
+    pub surfaces: Vec<Surface>,
+    /// The background.
+    pub sky: Sky,
+    /// The shading model.
+    pub lighting: Lighting,
+}

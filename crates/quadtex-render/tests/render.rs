@@ -1,0 +1,164 @@
+//! Rendering against references: a grazing checkerboard against a supersampled
+//! box-filtered reference, averages of uniform regions, the horizon, and
+//! determinism across thread counts.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+
+use quadtex_render::{Filter, RenderOptions, Scene, parse_scene, render};
+
+/// A checkerboard plane (1 m squares) seen at a grazing angle, unlit.
+fn grazing(width: u32, height: u32, eye_height: f64) -> Scene {
+    let text = format!(
+        r#"
+[camera]
+position = [0, {eye_height}, 0]
+look_at = [0, 0, 40]
+fov = 30
+width = {width}
+height = {height}
+
+[sky]
+colour = [0, 0, 0]
+
+[[shape]]
+type = "plane"
+point = [0, 0, 0]
+normal = [0, 1, 0]
+texture = "builtin:checker"
+uv_scale = [0.5, 0.5]
+"#
+    );
+    parse_scene(&text, Path::new("grazing.toml")).unwrap()
+}
+
+/// RMSE of the red channel over rows `from..` (row-major images of equal size).
+fn rmse(a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba], width: usize, from: usize) -> f64 {
+    let (a, b) = (&a[from * width..], &b[from * width..]);
+    let s: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| f64::from(p.r - q.r).powi(2))
+        .sum();
+    (s / a.len() as f64).sqrt()
+}
+
+#[test]
+fn grazing_checkerboard_matches_a_supersampled_box_reference() {
+    let scene = grazing(48, 32, 1.5);
+    let options = |filter| RenderOptions {
+        filter,
+        ..RenderOptions::default()
+    };
+    let (exact, _) = render(&scene, &options(Filter::default()), &|_, _| {}).unwrap();
+    // 32×32 = 1024 stratified samples per pixel: the same box pixel filter.
+    let (reference, _) = render(&scene, &options(Filter::Supersample(32)), &|_, _| {}).unwrap();
+    let (nearest, _) = render(&scene, &options(Filter::Nearest), &|_, _| {}).unwrap();
+    // Compare texture filtering where pixels lie wholly on the plane: the row
+    // straddling the horizon (y = 16·(1 − tan(atan(1.5/40))/tan 15°) = 13.76)
+    // is part sky, a silhouette the texture filter does not handle.
+    let horizon = 16.0 * (1.0 - (1.5f64 / 40.0) / 15f64.to_radians().tan());
+    let first = horizon.floor() as usize + 1;
+    assert_eq!(first, 14);
+    let e = rmse(&exact.pixels, &reference.pixels, 48, first);
+    let n = rmse(&nearest.pixels, &reference.pixels, 48, first);
+    // Tolerance: the reference's own noise (1024 samples per pixel of a
+    // two-level texture: σ ≤ 0.5·0.55/32 ≈ 0.0086 per pixel) plus the
+    // quadtree's own error against a 4096-sample reference (≈ 0.007: density
+    // taken constant within a strip, strips' area mismatch).
+    assert!(e < 0.013, "quadtree vs reference RMSE {e}");
+    assert!(
+        n > 3.0 * e,
+        "point sampling should alias far more: nearest {n} vs quadtree {e}"
+    );
+}
+
+#[test]
+fn horizon_converges_to_the_mean_grey() {
+    let scene = grazing(64, 48, 1.0);
+    let (img, summary) = render(&scene, &RenderOptions::default(), &|_, _| {}).unwrap();
+    assert!(summary.textured_pixels > 0);
+    // The horizon is at row 21.8 (pitch 1.43° below level, 15° half field of
+    // view). The two rows below it see footprints many squares long and wide,
+    // so they must show the mean (0.6 + 0.05)/2, not moiré.
+    let mean = (0.6 + 0.05) / 2.0;
+    for row in [22, 23] {
+        for x in 0..64 {
+            let p = img.pixels[row * 64 + x];
+            assert!(
+                (f64::from(p.r) - mean).abs() < 0.02,
+                "pixel ({x},{row}) = {}",
+                p.r
+            );
+        }
+    }
+}
+
+#[test]
+fn uniform_region_shows_the_texture_average() {
+    // Camera high above the plane looking down: every pixel covers whole checker tiles.
+    let text = r#"
+[camera]
+position = [0, 5000, 0]
+look_at = [0, 0, 0.001]
+up = [0, 0, 1]
+fov = 20
+width = 16
+height = 16
+
+[[shape]]
+type = "plane"
+point = [0, 0, 0]
+normal = [0, 1, 0]
+texture = "builtin:checker"
+"#;
+    let scene = parse_scene(text, Path::new("top.toml")).unwrap();
+    let (img, _) = render(&scene, &RenderOptions::default(), &|_, _| {}).unwrap();
+    for p in &img.pixels {
+        assert!((p.r - 0.325).abs() < 0.005, "{p:?}");
+    }
+}
+
+#[test]
+fn bit_identical_for_any_thread_count() {
+    let scene = grazing(40, 24, 1.2);
+    let run = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            render(&scene, &RenderOptions::default(), &|_, _| {})
+                .unwrap()
+                .0
+        })
+    };
+    let one = run(1);
+    for threads in [2, 8] {
+        let other = run(threads);
+        assert!(
+            one.pixels
+                .iter()
+                .zip(&other.pixels)
+                .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)),
+            "{threads} threads differ"
+        );
+    }
+}
+
+#[test]
+fn demo_scene_renders() {
+    let scene = quadtex_render::demo_scene().unwrap();
+    let (img, summary) = render(
+        &scene,
+        &RenderOptions {
+            width: Some(160),
+            height: Some(90),
+            ..RenderOptions::default()
+        },
+        &|_, _| {},
+    )
+    .unwrap();
+    assert_eq!((img.width, img.height), (160, 90));
+    assert!(summary.fragments > 0 && img.pixels.iter().all(|p| p.r.is_finite()));
+}
