@@ -273,7 +273,7 @@ impl Default for UvTransform {
 impl UvTransform {
     /// Texture space back to UV (the inverse of [`UvTransform::apply`]).
     pub(crate) fn invert(&self, t: [f64; 2]) -> [f64; 2] {
-        let (s, c) = self.rotation_degrees.to_radians().sin_cos();
+        let (s, c) = self.sin_cos();
         let (x, z) = (t[0] - self.offset[0], t[1] - self.offset[1]);
         [
             (c * x + s * z) / self.scale[0],
@@ -281,8 +281,13 @@ impl UvTransform {
         ]
     }
 
+    /// Sine and cosine of the rotation; exact and free for the common zero.
+    fn sin_cos(&self) -> (f64, f64) {
+        if self.rotation_degrees == 0.0 { (0.0, 1.0) } else { self.rotation_degrees.to_radians().sin_cos() }
+    }
+
     pub(crate) fn apply(&self, uv: [f64; 2]) -> [f64; 2] {
-        let (s, c) = self.rotation_degrees.to_radians().sin_cos();
+        let (s, c) = self.sin_cos();
         let (x, z) = (uv[0] * self.scale[0], uv[1] * self.scale[1]);
         [
             c * x - s * z + self.offset[0],
