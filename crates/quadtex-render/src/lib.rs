@@ -25,6 +25,10 @@ pub use scene::Scene;
 /// Most pixels one render may have (64 megapixels).
 pub const MAX_PIXELS: u64 = 1 << 26;
 
+/// Most triangles in one mesh (meshes are intersected without an
+/// acceleration structure, so keep them small).
+pub const MAX_TRIANGLES: usize = 20_000;
+
 /// Most surfaces a scene may hold.
 pub const MAX_SURFACES: usize = 10_000;
 

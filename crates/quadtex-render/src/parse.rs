@@ -401,10 +401,34 @@ impl Context<'_> {
                 }
                 Geometry::Sphere { centre, radius }
             }
+            "mesh" => {
+                self.keys(
+                    t,
+                    key,
+                    &[&common[..], &["file", "scale", "translate"]].concat(),
+                )?;
+                let file = match t.get("file") {
+                    Some(Value::String(f)) => self.path.parent().unwrap_or(Path::new(".")).join(f),
+                    _ => {
+                        return Err(self.err(
+                            &format!("{key}.file"),
+                            "missing or not a string (an .obj file)",
+                        ));
+                    }
+                };
+                let scale = self.number(t, key, "scale")?.unwrap_or(1.0);
+                let translate = self.vec3(t, key, "translate")?.unwrap_or_default();
+                Geometry::Mesh(Arc::new(self.mesh(
+                    &file,
+                    scale,
+                    translate,
+                    &format!("{key}.file"),
+                )?))
+            }
             other => {
                 return Err(self.err(
                     &format!("{key}.type"),
-                    &format!("unknown shape `{other}` (plane, quad, sphere)"),
+                    &format!("unknown shape `{other}` (plane, quad, sphere, mesh)"),
                 ));
             }
         };
@@ -448,6 +472,80 @@ impl Context<'_> {
             uv_transform,
             wrap,
         })
+    }
+
+    fn mesh(
+        &self,
+        file: &Path,
+        scale: f64,
+        translate: Vec3,
+        key: &str,
+    ) -> Result<crate::scene::Mesh, Error> {
+        let options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: true,
+            ..tobj::LoadOptions::default()
+        };
+        let (models, _) = tobj::load_obj(file, &options)
+            .map_err(|e| self.err(key, &format!("{}: {e}", file.display())))?;
+        let mut triangles = Vec::new();
+        for model in &models {
+            let m = &model.mesh;
+            if m.texcoords.is_empty() {
+                return Err(self.err(
+                    key,
+                    &format!(
+                        "{}: model `{}` has no texture coordinates (vt)",
+                        file.display(),
+                        model.name
+                    ),
+                ));
+            }
+            for tri in m.indices.chunks_exact(3) {
+                if triangles.len() >= crate::MAX_TRIANGLES {
+                    return Err(self.err(
+                        key,
+                        &format!(
+                            "{}: more than {} triangles",
+                            file.display(),
+                            crate::MAX_TRIANGLES
+                        ),
+                    ));
+                }
+                let mut p = [Vec3::default(); 3];
+                let mut uv = [[0.0; 2]; 3];
+                for (k, &i) in tri.iter().enumerate() {
+                    let i = i as usize;
+                    let (Some(pos), Some(tc)) = (
+                        m.positions.get(3 * i..3 * i + 3),
+                        m.texcoords.get(2 * i..2 * i + 2),
+                    ) else {
+                        return Err(
+                            self.err(key, &format!("{}: index {i} out of range", file.display()))
+                        );
+                    };
+                    p[k] = Vec3::new(f64::from(pos[0]), f64::from(pos[1]), f64::from(pos[2]))
+                        * scale
+                        + translate;
+                    uv[k] = [f64::from(tc[0]), f64::from(tc[1])];
+                }
+                if !p.iter().all(|v| v.is_finite()) || !uv.iter().flatten().all(|v| v.is_finite()) {
+                    return Err(self.err(
+                        key,
+                        &format!(
+                            "{}: non-finite vertex or texture coordinate",
+                            file.display()
+                        ),
+                    ));
+                }
+                // Degenerate triangles (zero area or collapsed UVs) are skipped.
+                if let Some(t) = crate::scene::Triangle::new(p, uv) {
+                    triangles.push(t);
+                }
+            }
+        }
+        crate::scene::Mesh::new(triangles)
+            .ok_or_else(|| self.err(key, &format!("{}: no usable triangles", file.display())))
     }
 
     fn texture(&mut self, spec: &str, key: &str) -> Result<Texture, Error> {

@@ -116,6 +116,11 @@ pub enum Geometry {
         /// Edge to UV (0,1).
         edge_v: Vec3,
     },
+    /// Triangle mesh with per-vertex UVs (from an OBJ file); UV inside a
+    /// triangle is the barycentric blend. Intersection tests every triangle
+    /// behind a bounding-box test: meant for small meshes (at most
+    /// [`crate::MAX_TRIANGLES`]).
+    Mesh(Arc<Mesh>),
     /// Sphere; UV = (longitude / 2π, latitude from the south pole / π).
     Sphere {
         /// Centre.
@@ -123,6 +128,143 @@ pub enum Geometry {
         /// Radius.
         radius: f64,
     },
+}
+
+/// One triangle, precomputed for intersection and texturing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Triangle {
+    p0: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    uv0: [f64; 2],
+    normal: Vec3,
+    /// Gradients of u and v in the triangle's plane (constant per triangle).
+    du: Vec3,
+    dv: Vec3,
+}
+
+impl Triangle {
+    /// A triangle from three vertices and their UVs; `None` when degenerate
+    /// (zero area, or UVs that collapse to a line).
+    pub fn new(p: [Vec3; 3], uv: [[f64; 2]; 3]) -> Option<Triangle> {
+        let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+        let normal = e1.cross(e2).normalized()?;
+        let (a1, b1) = (uv[1][0] - uv[0][0], uv[1][1] - uv[0][1]);
+        let (a2, b2) = (uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]);
+        if (a1 * b2 - a2 * b1).abs() < 1e-300 {
+            return None;
+        }
+        // ∇u = α·e1 + β·e2 with ∇u·e1 = a1, ∇u·e2 = a2 (likewise ∇v): a Gram system.
+        let (g11, g12, g22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let det = g11 * g22 - g12 * g12;
+        let solve = |x1: f64, x2: f64| {
+            let alpha = (g22 * x1 - g12 * x2) / det;
+            let beta = (g11 * x2 - g12 * x1) / det;
+            e1 * alpha + e2 * beta
+        };
+        Some(Triangle {
+            p0: p[0],
+            e1,
+            e2,
+            uv0: uv[0],
+            normal,
+            du: solve(a1, a2),
+            dv: solve(b1, b2),
+        })
+    }
+}
+
+/// A triangle mesh with its bounding box.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mesh {
+    triangles: Vec<Triangle>,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl Mesh {
+    /// A mesh from triangles; `None` when there are none.
+    pub fn new(triangles: Vec<Triangle>) -> Option<Mesh> {
+        let first = triangles.first()?;
+        let (mut lo, mut hi) = (first.p0, first.p0);
+        for t in &triangles {
+            for p in [t.p0, t.p0 + t.e1, t.p0 + t.e2] {
+                lo = Vec3::new(lo.x.min(p.x), lo.y.min(p.y), lo.z.min(p.z));
+                hi = Vec3::new(hi.x.max(p.x), hi.y.max(p.y), hi.z.max(p.z));
+            }
+        }
+        Some(Mesh { triangles, lo, hi })
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Always false (a mesh has at least one triangle).
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    fn hits_box(&self, ray: &Ray) -> bool {
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for (o, d, lo, hi) in [
+            (ray.origin.x, ray.direction.x, self.lo.x, self.hi.x),
+            (ray.origin.y, ray.direction.y, self.lo.y, self.hi.y),
+            (ray.origin.z, ray.direction.z, self.lo.z, self.hi.z),
+        ] {
+            let inv = 1.0 / d;
+            let (a, b) = ((lo - o) * inv, (hi - o) * inv);
+            let (a, b) = if a <= b { (a, b) } else { (b, a) };
+            // NaN (ray in a slab's plane, parallel) keeps the interval.
+            t0 = if a > t0 { a } else { t0 };
+            t1 = if b < t1 { b } else { t1 };
+        }
+        t0 <= t1 + 1e-9
+    }
+
+    fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
+        if !self.hits_box(ray) {
+            return None;
+        }
+        let mut best: Option<(f64, &Triangle, f64, f64)> = None;
+        for tri in &self.triangles {
+            // Möller–Trumbore.
+            let p = ray.direction.cross(tri.e2);
+            let det = tri.e1.dot(p);
+            if det.abs() < 1e-14 {
+                continue;
+            }
+            let inv = 1.0 / det;
+            let s = ray.origin - tri.p0;
+            let b1 = s.dot(p) * inv;
+            if !(0.0..=1.0).contains(&b1) {
+                continue;
+            }
+            let q = s.cross(tri.e1);
+            let b2 = ray.direction.dot(q) * inv;
+            if b2 < 0.0 || b1 + b2 > 1.0 {
+                continue;
+            }
+            let t = tri.e2.dot(q) * inv;
+            if t > t_min && best.is_none_or(|(bt, ..)| t < bt) {
+                best = Some((t, tri, b1, b2));
+            }
+        }
+        let (t, tri, b1, b2) = best?;
+        let point = ray.origin + ray.direction * t;
+        let d = point - tri.p0;
+        let uv = [tri.uv0[0] + tri.du.dot(d), tri.uv0[1] + tri.dv.dot(d)];
+        let _ = (b1, b2);
+        Some(Hit {
+            t,
+            point,
+            normal: tri.normal,
+            uv,
+            du: tri.du,
+            dv: tri.dv,
+        })
+    }
 }
 
 /// Where a ray meets a surface, with what a footprint needs.
@@ -191,6 +333,7 @@ impl Geometry {
                     dv,
                 })
             }
+            Geometry::Mesh(ref mesh) => mesh.intersect(ray, t_min),
             Geometry::Sphere { centre, radius } => {
                 let oc = ray.origin - centre;
                 let b = oc.dot(ray.direction);
@@ -283,7 +426,11 @@ impl UvTransform {
 
     /// Sine and cosine of the rotation; exact and free for the common zero.
     fn sin_cos(&self) -> (f64, f64) {
-        if self.rotation_degrees == 0.0 { (0.0, 1.0) } else { self.rotation_degrees.to_radians().sin_cos() }
+        if self.rotation_degrees == 0.0 {
+            (0.0, 1.0)
+        } else {
+            self.rotation_degrees.to_radians().sin_cos()
+        }
     }
 
     pub(crate) fn apply(&self, uv: [f64; 2]) -> [f64; 2] {

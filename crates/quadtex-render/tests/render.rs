@@ -162,3 +162,56 @@ fn demo_scene_renders() {
     assert_eq!((img.width, img.height), (160, 90));
     assert!(summary.fragments > 0 && img.pixels.iter().all(|p| p.r.is_finite()));
 }
+
+fn panel_scene(shape: &str) -> Scene {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes");
+    let text = format!(
+        "[camera]\nposition = [3, 5, 20]\nlook_at = [0, 2, 0]\nfov = 50\nwidth = 96\nheight = 48\n\n[[shape]]\n{shape}\ntexture = \"builtin:sign\"\nwrap = \"clamp\"\n"
+    );
+    parse_scene(&text, &Path::new(dir).join("panel.toml")).unwrap()
+}
+
+#[test]
+fn obj_mesh_renders_like_the_same_quad() {
+    let mesh = panel_scene("type = \"mesh\"\nfile = \"sign.obj\"");
+    let quad = panel_scene(
+        "type = \"quad\"\norigin = [-8, 0, 0]\nedge_u = [16, 0, 0]\nedge_v = [0, 4, 0]\nuv_scale = [1, 0.25]",
+    );
+    let (a, sa) = render(&mesh, &RenderOptions::default(), &|_, _| {}).unwrap();
+    let (b, _) = render(&quad, &RenderOptions::default(), &|_, _| {}).unwrap();
+    assert!(
+        sa.textured_pixels > 200,
+        "the panel must fill part of the frame: {}",
+        sa.textured_pixels
+    );
+    let worst = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| (p.r - q.r).abs().max((p.g - q.g).abs()))
+        .fold(0f32, f32::max);
+    assert!(worst < 1e-3, "mesh and quad differ by {worst}");
+}
+
+#[test]
+fn bad_meshes_name_the_problem() {
+    let dir = std::env::temp_dir().join(format!("quadtex-mesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("nouv.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let text = "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nwidth = 8\nheight = 8\n\n[[shape]]\ntype = \"mesh\"\nfile = \"nouv.obj\"\n";
+    let e = parse_scene(text, &dir.join("s.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("shape[0].file") && e.contains("no texture coordinates"),
+        "{e}"
+    );
+    let e = parse_scene(&text.replace("nouv.obj", "absent.obj"), &dir.join("s.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("shape[0].file") && e.contains("absent.obj"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
