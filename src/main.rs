@@ -25,7 +25,7 @@ USAGE:
   quadtex render SCENE.toml -o OUT.png|OUT.exr [RENDER OPTIONS]
       RENDER OPTIONS: [--width W] [--height H]
                       [--filter quadtree|nearest|bilinear|supersample:N]
-                      [--quality Q] [--level K]
+                      [--quality Q] [--level K] [--pixel-filter box|tent]
   quadtex bench [--size N] [--queries Q] [--runs R]
   quadtex sample runway|checker -o OUT.png [--size N]   (built-in art as a PNG)
   quadtex help
@@ -206,6 +206,15 @@ fn render(parser: &mut lexopt::Parser, demo: bool) -> Result<()> {
                 }
             }
             Long("level") => level = Some(parse_level(parser, "--level")?),
+            Long("pixel-filter") => {
+                options.pixel_filter = match parser.value()?.string()?.as_str() {
+                    "box" => quadtex_render::PixelFilter::Box,
+                    "tent" => quadtex_render::PixelFilter::Tent,
+                    other => {
+                        return Err(format!("--pixel-filter {other}: expected box or tent").into());
+                    }
+                }
+            }
             Value(v) if !demo && scene_path.is_none() => scene_path = Some(v.into()),
             other => return Err(other.unexpected().into()),
         }

@@ -19,7 +19,7 @@ use std::path::PathBuf;
 pub use demo::{demo_scene, sign_art};
 pub use footprint::LevelOfDetail;
 pub use parse::{load_scene, parse_scene};
-pub use render::{Filter, RenderOptions, RenderSummary, render};
+pub use render::{Filter, PixelFilter, RenderOptions, RenderSummary, render};
 pub use scene::Scene;
 
 /// Most pixels one render may have (64 megapixels).

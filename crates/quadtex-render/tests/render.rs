@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use quadtex_render::{Filter, RenderOptions, Scene, parse_scene, render};
+use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene, parse_scene, render};
 
 /// A checkerboard plane (1 m squares) seen at a grazing angle, unlit.
 fn grazing(width: u32, height: u32, eye_height: f64) -> Scene {
@@ -214,4 +214,25 @@ fn bad_meshes_name_the_problem() {
         "{e}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn tent_pixel_filter_matches_a_tent_weighted_supersampled_reference() {
+    let scene = grazing(48, 32, 1.5);
+    let options = |filter| RenderOptions {
+        filter,
+        pixel_filter: PixelFilter::Tent,
+        ..RenderOptions::default()
+    };
+    let (tent, _) = render(&scene, &options(Filter::default()), &|_, _| {}).unwrap();
+    // 64×64 samples: tent weights leave ~45% effective samples, so 1024 would
+    // be as noisy (σ ≈ 0.016) as the error we want to bound.
+    let (reference, _) = render(&scene, &options(Filter::Supersample(64)), &|_, _| {}).unwrap();
+    let (boxed, _) = render(&scene, &RenderOptions::default(), &|_, _| {}).unwrap();
+    // Rows whose 2×2-pixel support lies wholly below the horizon (y = 13.76).
+    let e = rmse(&tent.pixels, &reference.pixels, 48, 15);
+    assert!(e < 0.011, "tent vs tent reference RMSE {e}");
+    // The tent is a different filter: it must not simply equal the box.
+    let d = rmse(&tent.pixels, &boxed.pixels, 48, 15);
+    assert!(d > 0.005, "tent and box images should differ, RMSE {d}");
 }
