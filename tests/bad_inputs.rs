@@ -353,3 +353,66 @@ fn query_level_beyond_limit() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A scene case: the good scene with one substitution must fail naming `needles`.
+fn scene_case(case: &str, from: &str, to: &str, needles: &[&str]) {
+    let d = dir(case);
+    let good = "[camera]\nposition = [0, 2, -10]\nlook_at = [0, 0, 10]\nfov = 50\nwidth = 16\nheight = 8\n\n[[shape]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\ntexture = \"builtin:checker\"\n";
+    assert!(good.contains(from), "{from}");
+    let scene = d.join(format!("{case}.toml"));
+    std::fs::write(&scene, good.replace(from, to)).unwrap();
+    let out = d.join("out.png");
+    let mut all = vec![format!("{case}.toml")];
+    all.extend(needles.iter().map(|n| n.to_string()));
+    let refs: Vec<&str> = all.iter().map(String::as_str).collect();
+    expect_failure(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        &refs,
+        Some(&out),
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+macro_rules! scene_cases {
+    ($($name:ident: $from:expr => $to:expr, [$($needle:expr),*];)*) => {$(
+        #[test]
+        fn $name() {
+            scene_case(stringify!($name), $from, $to, &[$($needle),*]);
+        }
+    )*};
+}
+
+scene_cases! {
+    scene_nan_coordinate: "position = [0, 2, -10]" => "position = [0, nan, -10]", [":2:", "camera.position", "finite"];
+    scene_infinite_coordinate: "point = [0, 0, 0]" => "point = [0, inf, 0]", [":10:", "shape[0].point", "finite"];
+    scene_huge_coordinate: "look_at = [0, 0, 10]" => "look_at = [0, 0, 1e300]", [":3:", "camera.look_at", "limit"];
+    scene_zero_resolution: "width = 16" => "width = 0", [":5:", "camera.width"];
+    scene_degenerate_camera: "look_at = [0, 0, 10]" => "look_at = [0, 2, -10]", ["camera.look_at", "coincides"];
+    scene_unknown_key: "fov = 50" => "fov = 50\nzoom = 3", [":5:", "camera.zoom", "unknown key"];
+    scene_missing_texture_file: "builtin:checker" => "nowhere.qtx", ["shape[0].texture", "nowhere.qtx"];
+    scene_syntax_error: "[[shape]]" => "[[shape]", ["syntax"];
+}
+
+#[test]
+fn scene_file_missing() {
+    let d = dir("scene-missing");
+    let out = d.join("out.png");
+    expect_failure(
+        &[
+            "render",
+            d.join("absent.toml").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        &["absent.toml"],
+        Some(&out),
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

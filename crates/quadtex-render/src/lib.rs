@@ -55,13 +55,6 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
-    /// A texture failed to load.
-    Texture {
-        /// The scene key that names it.
-        key: String,
-        /// The underlying error.
-        source: quadtex_io::Error,
-    },
     /// A texture could not be packed.
     Pack {
         /// The scene key or built-in name.
@@ -98,7 +91,6 @@ impl fmt::Display for Error {
                 key,
                 message,
             } => write!(f, "{}: {key}: {message}", path.display()),
-            Error::Texture { key, source } => write!(f, "{key}: {source}"),
             Error::Pack { key, source } => write!(f, "{key}: {source}"),
             Error::Resolution { width, height } => {
                 write!(
@@ -115,7 +107,6 @@ impl std::error::Error for Error {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
             Error::Io { source, .. } => Some(source),
-            Error::Texture { source, .. } => Some(source),
             Error::Pack { source, .. } => Some(source),
             _ => None,
         }

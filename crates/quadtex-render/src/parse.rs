@@ -565,20 +565,14 @@ impl Context<'_> {
             .map(str::to_ascii_lowercase);
         let tree =
             match ext.as_deref() {
-                Some("qtx") => quadtex_io::read_qtx(&file).map_err(|source| Error::Texture {
-                    key: key.into(),
-                    source,
-                })?,
+                Some("qtx") => {
+                    quadtex_io::read_qtx(&file).map_err(|e| self.err(key, &e.to_string()))?
+                }
                 Some("png" | "jpg" | "jpeg") => {
-                    let grid = quadtex_io::load_texels(&file).map_err(|source| Error::Texture {
-                        key: key.into(),
-                        source,
-                    })?;
+                    let grid = quadtex_io::load_texels(&file)
+                        .map_err(|e| self.err(key, &e.to_string()))?;
                     QuadTree::from_texels(&grid, &BuildOptions::default())
-                        .map_err(|source| Error::Pack {
-                            key: key.into(),
-                            source,
-                        })?
+                        .map_err(|e| self.err(key, &format!("{}: {e}", file.display())))?
                         .0
                 }
                 Some("svg") => return Err(self.err(
