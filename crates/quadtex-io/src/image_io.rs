@@ -240,6 +240,44 @@ mod tests {
     }
 
     #[test]
+    fn exr_keeps_linear_floats_and_png_encodes_srgb() {
+        let pixels = vec![
+            Rgba::new(0.25, 2.5, 0.0, 1.0),
+            Rgba::new(0.1, 0.05, 0.0, 0.5),
+        ];
+        let image = LinearImage {
+            width: 2,
+            height: 1,
+            pixels,
+        };
+        let exr = temp("out.exr");
+        save_image(&exr, &image).unwrap();
+        let back = image::open(&exr).unwrap().to_rgba32f();
+        assert_eq!(
+            back.get_pixel(0, 0).0,
+            [0.25, 2.5, 0.0, 1.0],
+            "EXR stays linear, unclamped"
+        );
+        assert_eq!(
+            back.get_pixel(1, 0).0,
+            [0.1, 0.05, 0.0, 0.5],
+            "EXR stays premultiplied"
+        );
+        let png = temp("out.png");
+        save_image(&png, &image).unwrap();
+        let back = image::open(&png).unwrap().to_rgba8();
+        // Linear 0.25 is sRGB 137; premultiplied 0.1 at alpha 0.5 is straight 0.2 → 124.
+        assert_eq!(back.get_pixel(0, 0).0, [137, 255, 0, 255]);
+        assert_eq!(back.get_pixel(1, 0).0[0], 124);
+        assert!(matches!(
+            save_image(&temp("out.bmp"), &image),
+            Err(Error::UnsupportedExtension(_))
+        ));
+        std::fs::remove_file(&exr).unwrap();
+        std::fs::remove_file(&png).unwrap();
+    }
+
+    #[test]
     fn srgb_round_trips_every_8_bit_code() {
         for v in 0..=255u8 {
             let lin = srgb_to_linear(f32::from(v) / 255.0);
