@@ -606,28 +606,17 @@ fn world_point(surface: &Surface, hit: &Hit, t: [f64; 2]) -> Option<Vec3> {
     p.is_finite().then_some(p)
 }
 
-/// The pixel's footprint in texture space (module documentation).
+/// The pixel's footprint in texture space (module documentation). The
+/// texture map is affine on the tangent plane, so mirroring a missing corner
+/// through the centre can be done in texture space.
 fn footprint(scene: &Scene, surface: &Surface, hit: &Hit, pixel: [f64; 2]) -> [[f64; 2]; 4] {
-    let corners = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]];
-    let mut world: [Option<Vec3>; 4] = [None; 4];
-    for (slot, c) in world.iter_mut().zip(corners) {
-        let ray = scene.camera.ray(pixel[0] + c[0], pixel[1] + c[1]);
-        let denom = ray.direction.dot(hit.normal);
-        if denom.abs() > 1e-12 {
-            let t = (hit.point - ray.origin).dot(hit.normal) / denom;
-            if t > 0.0 && t.is_finite() {
-                *slot = Some(ray.origin + ray.direction * t);
-            }
-        }
-    }
-    let mut out = [[0.0; 2]; 4];
-    for i in 0..4 {
-        let q = match (world[i], world[(i + 2) % 4]) {
-            (Some(q), _) => q,
-            (None, Some(opposite)) => hit.point * 2.0 - opposite,
-            (None, None) => hit.point,
-        };
-        out[i] = texture_point(surface, hit, q);
-    }
-    out
+    let offsets = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]];
+    let corners =
+        offsets.map(|o| screen_to_texture(scene, surface, hit, pixel[0] + o[0], pixel[1] + o[1]));
+    let centre = surface.uv_transform.apply(hit.uv);
+    std::array::from_fn(|i| match (corners[i], corners[(i + 2) % 4]) {
+        (Some(t), _) => t,
+        (None, Some(opposite)) => [2.0 * centre[0] - opposite[0], 2.0 * centre[1] - opposite[1]],
+        (None, None) => centre,
+    })
 }
