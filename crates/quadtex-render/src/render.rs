@@ -113,12 +113,13 @@ impl std::fmt::Display for RenderSummary {
         let tp = self.textured_pixels.max(1) as f64;
         write!(
             f,
-            "{}x{} in {:.3} s ({:.2} Mpixel/s); {:.2} fragments per textured pixel, {:.1} nodes per tree query; footprint area mismatch mean {:.2}%, max {:.1}%",
+            "{}x{} in {:.3} s ({:.2} Mpixel/s); {:.2} fragments and {:.2} tree queries per textured pixel, {:.1} nodes per query; footprint area mismatch mean {:.2}%, max {:.1}%",
             self.width,
             self.height,
             self.seconds,
             pixels as f64 / self.seconds.max(1e-9) / 1e6,
             self.fragments as f64 / tp,
+            self.traversal.queries as f64 / tp,
             self.traversal.nodes_visited as f64 / self.traversal.queries.max(1) as f64,
             100.0 * self.sum_mismatch / tp,
             100.0 * self.max_mismatch
