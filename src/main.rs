@@ -24,7 +24,7 @@ USAGE:
   quadtex demo [-o demo.png] [RENDER OPTIONS]          (built-in airfield scene)
   quadtex render SCENE.toml -o OUT.png|OUT.exr [RENDER OPTIONS]
       RENDER OPTIONS: [--width W] [--height H]
-                      [--filter quadtree|nearest|bilinear|supersample:N]
+                      [--filter quadtree|nearest|bilinear|supersample:N|trilinear|ewa|sat]
                       [--quality Q] [--level K] [--pixel-filter box|tent]
   quadtex bench [--size N] [--queries Q] [--runs R]
   quadtex sample runway|checker -o OUT.png [--size N]   (built-in art as a PNG)
@@ -225,12 +225,17 @@ fn render(parser: &mut lexopt::Parser, demo: bool) -> Result<()> {
             lod: level.map_or(LevelOfDetail::ErrorBound(1.0 / 512.0), LevelOfDetail::Fixed),
         },
         "nearest" => Filter::Nearest,
+        "trilinear" => Filter::Trilinear,
+        "ewa" => Filter::Ewa {
+            max_anisotropy: 8.0,
+        },
+        "sat" => Filter::Sat { quality },
         "bilinear" => Filter::Bilinear,
         other => match other.strip_prefix("supersample:").map(str::parse::<u32>) {
             Some(Ok(n)) => Filter::Supersample(n),
             _ => {
                 return Err(format!(
-                    "--filter {other}: expected quadtree, nearest, bilinear or supersample:N"
+                    "--filter {other}: expected quadtree, nearest, bilinear, supersample:N, trilinear, ewa or sat"
                 )
                 .into());
             }

@@ -45,6 +45,11 @@ impl SummedAreaTable {
         }
     }
 
+    /// Width of the raster in texels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
     /// Bytes of memory the table occupies.
     pub fn memory_bytes(&self) -> u64 {
         (self.table.len() * std::mem::size_of::<[f64; 4]>()) as u64

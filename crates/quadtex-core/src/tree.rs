@@ -328,6 +328,30 @@ impl QuadTree {
         }
     }
 
+    /// The tree as a raster of `2^level × 2^level` cells (row 0 at the top),
+    /// each cell the colour of the square that holds it in the tree truncated
+    /// at `level` (deeper than the tree, cells repeat their square's colour).
+    /// For baselines that need a raster; refused above level 14 (a 128 MiB grid).
+    pub fn rasterise(&self, level: u8) -> Result<crate::TexelGrid, Error> {
+        if level > 14 {
+            return Err(Error::DepthTooLarge {
+                depth: level.into(),
+                max: 14,
+            });
+        }
+        let side = 1usize << level;
+        let mut texels = vec![Unorm16Rgba::default(); side * side];
+        self.for_each_leaf(level, |l, ix, iz, colour| {
+            let span = 1usize << (level - l);
+            let (x0, z0) = (ix as usize * span, iz as usize * span);
+            for z in z0..z0 + span {
+                let row = side - 1 - z;
+                texels[row * side + x0..row * side + x0 + span].fill(colour);
+            }
+        });
+        crate::TexelGrid::new(side as u32, side as u32, texels)
+    }
+
     #[inline]
     fn is_inner(&self, p: usize) -> bool {
         self.blocks[p / 64].bits >> (p % 64) & 1 == 1

@@ -304,6 +304,31 @@ fn uniform_colour_is_exact_where_it_answers() {
     );
 }
 
+#[test]
+fn rasterising_a_tree_gives_back_its_texels() {
+    arbtest::arbtest(|u| {
+        let grid = blocky_grid(u)?;
+        let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+        // At the grid's own resolution (the tree may stop above it) and finer.
+        let level = grid.natural_depth() + u.int_in_range(0..=2)?;
+        let back = tree.rasterise(level).unwrap();
+        let scale = back.width() / grid.width();
+        for row in 0..back.height() {
+            for col in 0..back.width() {
+                assert_eq!(back.texel(col, row), grid.texel(col / scale, row / scale));
+            }
+        }
+        Ok(())
+    })
+    .budget_ms(300);
+    let (tree, _) = QuadTree::from_texels(
+        &TexelGrid::from_fn(2, 2, |_, _| PALETTE[0]).unwrap(),
+        &BuildOptions::default(),
+    )
+    .unwrap();
+    assert!(tree.rasterise(15).is_err());
+}
+
 /// The erratum: eq. (2) as printed swaps variants 2 and 3.
 #[test]
 fn printed_f_init_is_wrong_and_the_corrected_one_is_right() {

@@ -48,10 +48,7 @@ pub(crate) fn builtin_texture(name: &str) -> Result<Texture, Error> {
             key: key.clone(),
             source,
         })?;
-    Ok(Texture {
-        name: key,
-        tree: Arc::new(tree),
-    })
+    Ok(Texture::new(key, Arc::new(tree)))
 }
 
 /// The demo scene, built in code with no files: a 45 m × 1800 m runway with

@@ -185,8 +185,8 @@ impl LevelOfDetail {
 /// the wrap mode. `Repeat` splits the fragment at tile borders into at most
 /// 3×3 pieces; whole tiles count in O(1) from the root's average, so the cost
 /// does not depend on how many tiles the fragment covers.
-pub fn integrate(
-    tree: &QuadTree,
+pub fn integrate<T: BoxIntegral + ?Sized>(
+    tree: &T,
     f: &Fragment,
     k: u8,
     wrap: WrapMode,
@@ -205,10 +205,10 @@ pub fn integrate(
                     }
                     let piece = if xa == 0.0 && xb == 1.0 && za == 0.0 && zb == 1.0 {
                         stats.queries += 1;
-                        WeightedColour::from_unorm16(tree.average(), 1.0)
+                        tree.whole_tile()
                     } else {
                         match Fragment::new(xa, za, xb, zb) {
-                            Ok(p) => tree.weighted_colour_counted(&p, k, stats),
+                            Ok(p) => tree.box_integral(&p, k, stats),
                             Err(_) => WeightedColour::ZERO,
                         }
                     };
@@ -218,7 +218,7 @@ pub fn integrate(
             acc
         }
         WrapMode::Border(colour) => {
-            let inside = tree.weighted_colour_counted(f, k, stats);
+            let inside = tree.box_integral(f, k, stats);
             let inside_area = f.clip_to_unit().map_or(0.0, |c| c.area());
             inside + WeightedColour::from_colour(colour, f.area() - inside_area)
         }
@@ -232,7 +232,7 @@ pub fn integrate(
             for &(xa, xb, wx) in xs.iter().flatten() {
                 for &(za, zb, wz) in zs.iter().flatten() {
                     if let Ok(p) = Fragment::new(xa, za, xb, zb) {
-                        acc += tree.weighted_colour_counted(&p, k, stats) * (wx * wz);
+                        acc += tree.box_integral(&p, k, stats) * (wx * wz);
                     }
                 }
             }
@@ -242,8 +242,45 @@ pub fn integrate(
 }
 
 /// Width of the edge strip clamp mode reads: one finest square.
-fn quadtex_core_edge(tree: &QuadTree) -> f64 {
-    f64::from_bits((1023 - u64::from(tree.depth())) << 52)
+fn quadtex_core_edge<T: BoxIntegral + ?Sized>(tree: &T) -> f64 {
+    tree.finest_cell()
+}
+
+/// An exact box filter over one tile of texture space: the quadtree, or a
+/// baseline over the same fragments (the summed-area table).
+pub trait BoxIntegral {
+    /// Integral over the fragment's overlap with the unit square, with the
+    /// traversal limited to level `k` where that means something.
+    fn box_integral(&self, f: &Fragment, k: u8, stats: &mut TraversalStats) -> WeightedColour;
+    /// Integral over the whole unit square.
+    fn whole_tile(&self) -> WeightedColour;
+    /// Side of the finest cell (the edge strip clamp mode reads).
+    fn finest_cell(&self) -> f64;
+}
+
+impl BoxIntegral for QuadTree {
+    fn box_integral(&self, f: &Fragment, k: u8, stats: &mut TraversalStats) -> WeightedColour {
+        self.weighted_colour_counted(f, k, stats)
+    }
+    fn whole_tile(&self) -> WeightedColour {
+        WeightedColour::from_unorm16(self.average(), 1.0)
+    }
+    fn finest_cell(&self) -> f64 {
+        f64::from_bits((1023 - u64::from(self.depth())) << 52)
+    }
+}
+
+impl BoxIntegral for quadtex_core::sat::SummedAreaTable {
+    fn box_integral(&self, f: &Fragment, _k: u8, stats: &mut TraversalStats) -> WeightedColour {
+        stats.queries += 1;
+        self.weighted_colour(f)
+    }
+    fn whole_tile(&self) -> WeightedColour {
+        Fragment::new(0.0, 0.0, 1.0, 1.0).map_or(WeightedColour::ZERO, |f| self.weighted_colour(&f))
+    }
+    fn finest_cell(&self) -> f64 {
+        1.0 / self.width() as f64
+    }
 }
 
 /// `[a, b)` cut at integers: up to three pieces `(lo, hi, count)` in local

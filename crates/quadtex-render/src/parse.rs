@@ -554,10 +554,7 @@ impl Context<'_> {
         }
         let file = self.path.parent().unwrap_or(Path::new(".")).join(spec);
         if let Some(tree) = self.textures.get(&file) {
-            return Ok(Texture {
-                name: spec.into(),
-                tree: tree.clone(),
-            });
+            return Ok(Texture::new(spec, tree.clone()));
         }
         let ext = file
             .extension()
@@ -588,10 +585,7 @@ impl Context<'_> {
             };
         let tree = Arc::new(tree);
         self.textures.insert(file, tree.clone());
-        Ok(Texture {
-            name: spec.into(),
-            tree,
-        })
+        Ok(Texture::new(spec, tree))
     }
 }
 

@@ -26,7 +26,7 @@ use std::time::Instant;
 use quadtex_core::{Fragment, Rgba, TraversalStats, WeightedColour};
 use rayon::prelude::*;
 
-use crate::footprint::{LevelOfDetail, fragments_of_quad, integrate};
+use crate::footprint::{BoxIntegral, LevelOfDetail, fragments_of_quad, integrate};
 use crate::math::{Ray, Vec3};
 use crate::scene::{Hit, Lighting, Scene, Sky, Surface};
 use quadtex_io::LinearImage;
@@ -47,6 +47,20 @@ pub enum Filter {
     Bilinear,
     /// `n × n` stratified sub-pixel rays per pixel, each a nearest lookup.
     Supersample(u32),
+    /// Baseline: trilinear mip-mapping after pbrt-v4 (level from the
+    /// footprint's longest axis), on the tree rasterised at ≤ 4096².
+    Trilinear,
+    /// Baseline: pbrt-v4's elliptically weighted average on the same pyramid.
+    Ewa {
+        /// Largest major/minor axis ratio (pbrt's default: 8).
+        max_anisotropy: f64,
+    },
+    /// Baseline: the same fragments as `Quadtree`, integrated exactly by a
+    /// summed-area table (f64) of the rasterised tree, no uniform fast path.
+    Sat {
+        /// Strip quality, as for `Quadtree`.
+        quality: f64,
+    },
 }
 
 impl Default for Filter {
@@ -182,6 +196,17 @@ pub fn render(
         return Err(crate::Error::Option(format!(
             "supersample:{n}: the sample grid must be 1..=64 per side"
         )));
+    }
+    if matches!(
+        options.filter,
+        Filter::Trilinear | Filter::Ewa { .. } | Filter::Sat { .. }
+    ) {
+        for s in &scene.surfaces {
+            if let Some(t) = &s.texture {
+                t.baselines()
+                    .map_err(|e| crate::Error::Option(format!("raster baseline: {e}")))?;
+            }
+        }
     }
     let camera = scene.camera.with_size(w, h);
     let scene = Scene {
@@ -432,11 +457,55 @@ fn texture_colour(
                 mix(a.a, b.a, c.a, d.a),
             )
         }
+        Filter::Trilinear | Filter::Ewa { .. } => {
+            let Ok(b) = texture.baselines() else {
+                return lookup(centre[0], centre[1], stats);
+            };
+            let q = footprint(scene, surface, hit, pixel);
+            let fp = quadtex_core::filters::Footprint {
+                centre,
+                d_dx: [
+                    0.5 * (q[1][0] - q[0][0] + q[2][0] - q[3][0]),
+                    0.5 * (q[1][1] - q[0][1] + q[2][1] - q[3][1]),
+                ],
+                d_dy: [
+                    0.5 * (q[3][0] - q[0][0] + q[2][0] - q[1][0]),
+                    0.5 * (q[3][1] - q[0][1] + q[2][1] - q[1][1]),
+                ],
+            };
+            let wrap = match surface.wrap {
+                crate::scene::WrapMode::Repeat => quadtex_core::filters::Wrap::Repeat,
+                _ => quadtex_core::filters::Wrap::Clamp,
+            };
+            match filter {
+                Filter::Ewa { max_anisotropy } => b.pyramid.ewa(&fp, max_anisotropy, wrap),
+                _ => b.pyramid.trilinear(&fp, wrap),
+            }
+        }
+        Filter::Sat { quality } => {
+            let Ok(b) = texture.baselines() else {
+                return lookup(centre[0], centre[1], stats);
+            };
+            let fp = Footprinting {
+                scene,
+                surface,
+                tree,
+                integrator: &b.sat,
+                fast_path: false,
+                hit,
+                quality,
+                lod: LevelOfDetail::Fixed(u8::MAX),
+            };
+            fp.mean(&footprint(scene, surface, hit, pixel), stats)
+                .unwrap_or_else(|| lookup(centre[0], centre[1], stats))
+        }
         Filter::Quadtree { quality, lod } => {
             let fp = Footprinting {
                 scene,
                 surface,
                 tree,
+                integrator: tree,
+                fast_path: true,
                 hit,
                 quality,
                 lod,
@@ -455,6 +524,10 @@ struct Footprinting<'a> {
     scene: &'a Scene,
     surface: &'a Surface,
     tree: &'a quadtex_core::QuadTree,
+    /// What integrates fragments: the tree, or a baseline.
+    integrator: &'a dyn BoxIntegral,
+    /// Answer footprints inside one terminal square from the tree directly.
+    fast_path: bool,
     hit: &'a Hit,
     quality: f64,
     lod: LevelOfDetail,
@@ -467,7 +540,11 @@ impl Footprinting<'_> {
     /// Mean colour over a texture-space quadrilateral under the pixel's box
     /// filter (fragments weighted by screen-space density).
     fn mean(&self, quad: &[[f64; 2]; 4], stats: &mut RowStats) -> Option<Rgba> {
-        if let Some(c) = uniform_over(self.tree, quad, self.surface.wrap) {
+        if let Some(c) = self
+            .fast_path
+            .then(|| uniform_over(self.tree, quad, self.surface.wrap))
+            .flatten()
+        {
             // The whole footprint lies in one terminal square: exact, one lookup.
             stats.fragments += 1;
             stats.traversal.queries += 1;
@@ -487,7 +564,13 @@ impl Footprinting<'_> {
             let mid = [0.5 * (f.x0() + f.x1()), 0.5 * (f.z0() + f.z1())];
             let w = world_point(self.surface, self.hit, mid)
                 .map_or(1.0, |p| (p - eye).length().powi(-3));
-            acc += integrate(self.tree, f, k, self.surface.wrap, &mut stats.traversal) * w;
+            acc += integrate(
+                self.integrator,
+                f,
+                k,
+                self.surface.wrap,
+                &mut stats.traversal,
+            ) * w;
             area += f.area() * w;
         }
         (area > 0.0).then(|| acc.mean_over(area))

@@ -444,12 +444,65 @@ impl UvTransform {
 }
 
 /// A texture bound to a surface.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct Texture {
     /// Where it came from (file name or built-in name), for reports.
     pub name: String,
     /// The packed tree.
     pub tree: Arc<QuadTree>,
+    /// Raster baselines (mip pyramid, summed-area table), built on first use.
+    baselines: Arc<std::sync::OnceLock<Result<Baselines, String>>>,
+}
+
+/// The raster forms a baseline filter needs, made from the tree's cells.
+pub(crate) struct Baselines {
+    pub pyramid: quadtex_core::filters::MipPyramid,
+    pub sat: quadtex_core::sat::SummedAreaTable,
+}
+
+/// The raster baselines see the tree rasterised at `2^clamp(depth, 10, 11)`
+/// cells: at least 1024², so small textures (a 2×2 checker) are as sharp as
+/// a raster user would make them, at most 2048² to bound memory (the SAT
+/// takes 32 bytes a cell). Deeper trees are box-downsampled for them.
+pub(crate) fn baseline_level(depth: u8) -> u8 {
+    depth.clamp(10, 11)
+}
+
+impl Texture {
+    /// A texture from its tree.
+    pub fn new(name: impl Into<String>, tree: Arc<QuadTree>) -> Texture {
+        Texture {
+            name: name.into(),
+            tree,
+            baselines: Arc::default(),
+        }
+    }
+
+    /// The raster baselines, built once (see [`baseline_level`]).
+    pub(crate) fn baselines(&self) -> Result<&Baselines, &str> {
+        self.baselines
+            .get_or_init(|| {
+                let grid = self
+                    .tree
+                    .rasterise(baseline_level(self.tree.depth()))
+                    .map_err(|e| format!("{}: {e}", self.name))?;
+                Ok(Baselines {
+                    pyramid: quadtex_core::filters::MipPyramid::new(&grid),
+                    sat: quadtex_core::sat::SummedAreaTable::new(&grid),
+                })
+            })
+            .as_ref()
+            .map_err(String::as_str)
+    }
+}
+
+impl std::fmt::Debug for Texture {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Texture")
+            .field("name", &self.name)
+            .field("nodes", &self.tree.node_count())
+            .finish()
+    }
 }
 
 /// A renderable surface.
