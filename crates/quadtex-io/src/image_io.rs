@@ -9,7 +9,7 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use image::{DynamicImage, ImageFormat, ImageReader};
-use quadtex_core::{Rgba, TexelGrid, Unorm16Rgba};
+use quadtex_core::{Rgba, TexelGrid};
 
 use crate::atomic::write_atomically;
 use crate::error::{Error, io};
@@ -68,15 +68,7 @@ pub fn load_texels_with_limits(path: &Path, limits: &Limits) -> Result<TexelGrid
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    let len = std::fs::metadata(path).map_err(io(path))?.len();
-    if len > limits.max_file_bytes {
-        return Err(Error::Limit {
-            path: path.into(),
-            limit: "max_file_bytes",
-            value: len,
-            max: limits.max_file_bytes,
-        });
-    }
+    limits.check_file_size(path, std::fs::metadata(path).map_err(io(path))?.len())?;
     let reader = ImageReader::open(path)
         .map_err(io(path))?
         .with_guessed_format()
@@ -193,14 +185,6 @@ pub fn save_image(path: &Path, image: &LinearImage) -> Result<(), Error> {
         ImageFormat::OpenExr
     };
     write_atomically(path, |w| dynamic.write_to(w, format).map_err(image_err))
-}
-
-/// The stored colour as 8-bit sRGB, for tests and reports.
-pub fn to_srgb8(c: Unorm16Rgba) -> [u8; 4] {
-    let p = c.to_rgba();
-    let inv = if p.a > 0.0 { 1.0 / p.a } else { 0.0 };
-    let enc = |c: f32| (linear_to_srgb(c * inv) * 255.0 + 0.5) as u8;
-    [enc(p.r), enc(p.g), enc(p.b), (p.a * 255.0 + 0.5) as u8]
 }
 
 #[cfg(test)]

@@ -19,7 +19,6 @@ pub use atomic::write_atomically;
 pub use error::Error;
 pub use image_io::{
     LinearImage, linear_to_srgb, load_texels, load_texels_with_limits, save_image, srgb_to_linear,
-    to_srgb8,
 };
 pub use limits::Limits;
 pub use qtx::{

@@ -14,6 +14,25 @@ pub struct Limits {
     pub max_depth: u8,
 }
 
+impl Limits {
+    /// Refuses a file of `len` bytes above [`Limits::max_file_bytes`].
+    pub(crate) fn check_file_size(
+        &self,
+        path: &std::path::Path,
+        len: u64,
+    ) -> Result<(), crate::Error> {
+        if len > self.max_file_bytes {
+            return Err(crate::Error::Limit {
+                path: path.to_path_buf(),
+                limit: "max_file_bytes",
+                value: len,
+                max: self.max_file_bytes,
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for Limits {
     fn default() -> Self {
         Limits {

@@ -84,15 +84,7 @@ pub fn read_qtx(path: &Path) -> Result<QuadTree, Error> {
 pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
     let mut file = File::open(path).map_err(io(path))?;
     let file_bytes = file.metadata().map_err(io(path))?.len();
-    if file_bytes > limits.max_file_bytes {
-        return Err(Error::Limit {
-            path: path.to_path_buf(),
-            limit: "max_file_bytes",
-            value: file_bytes,
-            max: limits.max_file_bytes,
-        });
-    }
-    // Check the header before reading the body, so a hostile size field
+    // Check the header (and the file's size against the limits) before reading the body, so a hostile size field
     // costs nothing.
     let mut header = [0u8; HEADER_BYTES];
     let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
@@ -203,9 +195,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
         value,
         max,
     };
-    if file_bytes > limits.max_file_bytes {
-        return Err(limit("max_file_bytes", file_bytes, limits.max_file_bytes));
-    }
+    limits.check_file_size(path, file_bytes)?;
     if h.len() < HEADER_BYTES {
         if h.len() >= 8 && h[0..8] != MAGIC {
             return Err(bad(
