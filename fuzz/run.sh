@@ -1,13 +1,16 @@
 #!/usr/bin/env bash
-# Runs every fuzz target for SECONDS seconds each (default 300) and prints the
-# executions each survived. Needs cargo-fuzz (`cargo install cargo-fuzz`);
+# Runs every fuzz target (or those named after SECONDS) for SECONDS seconds
+# each (default 300) and prints the executions each survived. Needs
+# cargo-fuzz (`cargo install cargo-fuzz --locked`);
 # RUSTC_BOOTSTRAP lets the stable toolchain accept the sanitizer flags.
 set -euo pipefail
 cd "$(dirname "$0")"
 seconds=${1:-300}
+shift || true
+targets=${*:-qtx query_line integral scene}
 export RUSTC_BOOTSTRAP=1
 cargo fuzz build -O
-for target in qtx query_line integral; do
+for target in $targets; do
   mkdir -p "corpus/$target"
   seeds=""
   [ -d "seeds/$target" ] && seeds="seeds/$target"

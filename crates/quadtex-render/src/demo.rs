@@ -31,7 +31,31 @@ pub(crate) fn builtin_grid(name: &str) -> Option<Result<TexelGrid, quadtex_core:
     })
 }
 
+/// A built-in texture, packed once per process and shared (with its lazily
+/// built raster baselines) by every scene that names it.
 pub(crate) fn builtin_texture(name: &str) -> Result<Texture, Error> {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    static CACHE: OnceLock<Mutex<HashMap<String, Texture>>> = OnceLock::new();
+    let cache = CACHE.get_or_init(Mutex::default);
+    // A poisoned lock only means another thread panicked mid-insert; the
+    // map itself is still a valid cache.
+    if let Some(t) = cache
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .get(name)
+    {
+        return Ok(t.clone());
+    }
+    let texture = pack_builtin(name)?;
+    cache
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .insert(name.to_string(), texture.clone());
+    Ok(texture)
+}
+
+fn pack_builtin(name: &str) -> Result<Texture, Error> {
     let key = format!("builtin:{name}");
     let grid = builtin_grid(name)
         .ok_or_else(|| {
