@@ -58,6 +58,9 @@ pub enum Error {
     /// The node arrays given to [`crate::QuadTree::from_parts`] do not describe a
     /// quadtree; the message says which invariant fails.
     MalformedTree(String),
+    /// Vector art that cannot be packed (non-finite point, colour not
+    /// premultiplied, bad group); the message says what.
+    BadVector(String),
 }
 
 impl fmt::Display for Error {
@@ -89,6 +92,7 @@ impl fmt::Display for Error {
                 write!(f, "tolerance must be finite and >= 0, got {t}")
             }
             Error::MalformedTree(why) => write!(f, "malformed quadtree: {why}"),
+            Error::BadVector(why) => write!(f, "bad vector art: {why}"),
         }
     }
 }

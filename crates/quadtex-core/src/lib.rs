@@ -35,9 +35,11 @@ pub mod sat;
 pub mod synth;
 mod tree;
 pub mod variant;
+pub mod vector;
 
 pub use build::{BuildOptions, BuildReport, TexelGrid};
 pub use colour::{Rgba, Unorm16Rgba, WeightedColour};
 pub use error::Error;
 pub use fragment::Fragment;
 pub use tree::{LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
+pub use vector::{FillRule, VectorArt, VectorOptions, VectorReport};

@@ -1,0 +1,804 @@
+//! Vector art packed straight into a quadtree, with exact coverage and no
+//! raster in between.
+//!
+//! [`VectorArt`] is a list of filled polygonal shapes in paint order (back to
+//! front), each with a fill rule, a linear premultiplied colour and the
+//! translucent groups it belongs to. Coordinates are texture space (`x` right,
+//! `z` up, see the crate conventions); art outside `[0,1)²` is clipped off and
+//! uncovered parts are transparent. Curves are the caller's to flatten (the
+//! SVG packer states its tolerance).
+//!
+//! ## How the tree is built
+//!
+//! Recursive subdivision from the root. Each square carries, per shape that
+//! may cover it, the shape's contours **clipped to the square**
+//! (Sutherland–Hodgman against its four sides). Clipping to a convex window
+//! keeps the winding number of every interior point (the parts outside are
+//! replaced by runs along the window's border), so the clipped contours
+//! describe the shape exactly inside the square. A contour that no longer
+//! enters the interior (all its edges lie on the border) is replaced by the
+//! constant winding it contributes (its signed area over the square's).
+//!
+//! * If no shape has an edge inside the square, every shape either covers it
+//!   entirely or not at all: the square is **terminal**, with the composite of
+//!   the covering shapes. An opaque shape covering the square hides all the
+//!   shapes below it, whose edges then do not split the square.
+//! * At the maximum level a square is a **leaf**: its colour is the exact
+//!   area-weighted composite of the regions inside it, found by a trapezoid
+//!   sweep (slabs between all vertex and crossing heights; within a slab the
+//!   edges do not cross, each gap between neighbouring edges is a trapezoid
+//!   covered by a known set of shapes).
+//! * Otherwise the square splits and its colour is the exact mean of its
+//!   children, rounded once to 16 bits.
+//!
+//! Memory and time grow with the length of the edges times `2^L` (the squares
+//! an edge crosses), never with `4^L`. Compositing is the premultiplied
+//! *over* operator in **linear light**; browsers composite in sRGB, so
+//! translucent overlaps differ from a browser's rendering (opaque art does
+//! not). A translucent group is composited in isolation and then faded by
+//! its opacity, as SVG specifies.
+
+use crate::Error;
+use crate::colour::{Rgba, Unorm16Rgba};
+use crate::tree::{self, MAX_NODES, QuadTree};
+
+/// Deepest level the vector packer accepts: `2^24` squares a side. (Input
+/// coordinates in `f32`, as SVG parsers give them, carry no more precision.)
+pub const MAX_VECTOR_LEVEL: u8 = 24;
+
+/// Most polygon vertices one [`VectorArt`] may hold.
+pub const MAX_VECTOR_POINTS: usize = 1 << 24;
+
+/// Which points a set of contours covers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FillRule {
+    /// Points with a non-zero winding number.
+    NonZero,
+    /// Points with an odd winding number.
+    EvenOdd,
+}
+
+impl FillRule {
+    fn covers(self, winding: i32) -> bool {
+        match self {
+            FillRule::NonZero => winding != 0,
+            FillRule::EvenOdd => winding & 1 != 0,
+        }
+    }
+}
+
+/// A translucent group (see [`VectorArt::group`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GroupId(u32);
+
+/// One filled shape.
+#[derive(Debug, Clone)]
+struct Shape {
+    contours: Vec<Contour>,
+    rule: FillRule,
+    colour: [f64; 4],
+    /// Enclosing translucent groups, outermost first.
+    groups: Vec<u32>,
+}
+
+type Point = [f64; 2];
+
+#[derive(Debug, Clone)]
+struct Contour {
+    points: Vec<Point>,
+    /// `[x_min, z_min, x_max, z_max]`.
+    bounds: [f64; 4],
+}
+
+/// Filled polygons in paint order, ready to pack (see the module docs).
+#[derive(Debug, Clone, Default)]
+pub struct VectorArt {
+    shapes: Vec<Shape>,
+    group_opacity: Vec<f64>,
+    /// Groups closed by a later shape outside them (groups are contiguous).
+    group_closed: Vec<bool>,
+    points: usize,
+}
+
+impl VectorArt {
+    /// Empty (transparent) art.
+    pub fn new() -> VectorArt {
+        VectorArt::default()
+    }
+
+    /// A new translucent group with `opacity ∈ [0,1]`. Its shapes are
+    /// composited together first, then faded; they must be added one after
+    /// the other (a group cannot be reopened once a shape outside it follows).
+    pub fn group(&mut self, opacity: f64) -> Result<GroupId, Error> {
+        if !(0.0..=1.0).contains(&opacity) {
+            return Err(Error::BadVector(format!(
+                "group opacity {opacity} is outside [0,1]"
+            )));
+        }
+        let id = u32::try_from(self.group_opacity.len())
+            .map_err(|_| Error::BadVector("too many groups".into()))?;
+        self.group_opacity.push(opacity);
+        self.group_closed.push(false);
+        Ok(GroupId(id))
+    }
+
+    /// Adds a filled shape on top of what is there. `contours` are closed
+    /// polygons (the last point joins the first); `colour` is linear and
+    /// premultiplied; `groups` lists the enclosing groups, outermost first.
+    /// Contours with fewer than three points cover nothing and are dropped.
+    pub fn fill(
+        &mut self,
+        contours: Vec<Vec<[f64; 2]>>,
+        rule: FillRule,
+        colour: Rgba,
+        groups: &[GroupId],
+    ) -> Result<(), Error> {
+        let c = colour.to_array().map(f64::from);
+        if c.iter().any(|v| !v.is_finite() || *v < 0.0)
+            || c[3] > 1.0
+            || c[..3].iter().any(|&v| v > c[3] + 1e-6)
+        {
+            return Err(Error::BadVector(format!(
+                "colour {c:?} is not premultiplied RGBA in [0,1]"
+            )));
+        }
+        for g in groups {
+            if g.0 as usize >= self.group_opacity.len() {
+                return Err(Error::BadVector(format!("unknown group {}", g.0)));
+            }
+        }
+        // Groups must be contiguous in paint order: a group left behind stays closed.
+        let previous: &[u32] = self.shapes.last().map_or(&[], |s| &s.groups);
+        let common = previous
+            .iter()
+            .zip(groups)
+            .take_while(|(a, b)| **a == b.0)
+            .count();
+        for &closed in &previous[common..] {
+            self.group_closed[closed as usize] = true;
+        }
+        if let Some(g) = groups[common..]
+            .iter()
+            .find(|g| self.group_closed[g.0 as usize])
+        {
+            return Err(Error::BadVector(format!(
+                "group {} reopened after a shape outside it",
+                g.0
+            )));
+        }
+        let mut kept = Vec::with_capacity(contours.len());
+        for points in contours {
+            if let Some(p) = points
+                .iter()
+                .find(|p| !(p[0].is_finite() && p[1].is_finite()))
+            {
+                return Err(Error::BadVector(format!("non-finite point {p:?}")));
+            }
+            if points.len() < 3 {
+                continue;
+            }
+            self.points += points.len();
+            if self.points > MAX_VECTOR_POINTS {
+                return Err(Error::BadVector(format!(
+                    "more than {MAX_VECTOR_POINTS} polygon points"
+                )));
+            }
+            let mut bounds = [
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ];
+            for p in &points {
+                bounds = [
+                    bounds[0].min(p[0]),
+                    bounds[1].min(p[1]),
+                    bounds[2].max(p[0]),
+                    bounds[3].max(p[1]),
+                ];
+            }
+            kept.push(Contour { points, bounds });
+        }
+        if c[3] == 0.0 || kept.is_empty() {
+            // Invisible; group bookkeeping above still applies.
+            self.shapes.push(Shape {
+                contours: Vec::new(),
+                rule,
+                colour: c,
+                groups: groups.iter().map(|g| g.0).collect(),
+            });
+            return Ok(());
+        }
+        self.shapes.push(Shape {
+            contours: kept,
+            rule,
+            colour: c,
+            groups: groups.iter().map(|g| g.0).collect(),
+        });
+        Ok(())
+    }
+
+    /// Shapes added so far.
+    pub fn len(&self) -> usize {
+        self.shapes.len()
+    }
+
+    /// True when no shape was added.
+    pub fn is_empty(&self) -> bool {
+        self.shapes.is_empty()
+    }
+
+    /// Polygon vertices held.
+    pub fn point_count(&self) -> usize {
+        self.points
+    }
+
+    /// The exact composite colour at point `p` (linear, premultiplied), by
+    /// winding numbers over the unclipped contours. Slow; for tests and
+    /// references. Points on an edge count as on its left or right
+    /// arbitrarily.
+    pub fn colour_at(&self, p: [f64; 2]) -> [f64; 4] {
+        if !(0.0..1.0).contains(&p[0]) || !(0.0..1.0).contains(&p[1]) {
+            return [0.0; 4];
+        }
+        let covered: Vec<u32> = (0..self.shapes.len() as u32)
+            .filter(|&s| {
+                let shape = &self.shapes[s as usize];
+                let w: i32 = shape.contours.iter().map(|c| winding(&c.points, p)).sum();
+                shape.rule.covers(w)
+            })
+            .collect();
+        self.composite(&covered, 0)
+    }
+
+    /// Composite of the shapes `list` (paint order) at group depth `depth`.
+    fn composite(&self, list: &[u32], depth: usize) -> [f64; 4] {
+        let mut out = [0.0; 4];
+        let mut i = 0;
+        while i < list.len() {
+            let shape = &self.shapes[list[i] as usize];
+            let (colour, next) = match shape.groups.get(depth) {
+                Some(&g) => {
+                    let mut j = i + 1;
+                    while j < list.len()
+                        && self.shapes[list[j] as usize].groups.get(depth) == Some(&g)
+                    {
+                        j += 1;
+                    }
+                    let inner = self.composite(&list[i..j], depth + 1);
+                    let o = self.group_opacity[g as usize];
+                    (inner.map(|v| v * o), j)
+                }
+                None => (shape.colour, i + 1),
+            };
+            let keep = 1.0 - colour[3];
+            for (o, c) in out.iter_mut().zip(colour) {
+                *o = c + *o * keep;
+            }
+            i = next;
+        }
+        out
+    }
+
+    /// True when shape `s` hides everything below it where it covers.
+    fn is_opaque(&self, s: u32) -> bool {
+        let shape = &self.shapes[s as usize];
+        shape.colour[3] >= 1.0 && shape.groups.is_empty()
+    }
+}
+
+/// Winding number of closed polygon `poly` around `p` (crossings of the ray
+/// to the right; half-open in `z`).
+fn winding(poly: &[Point], p: Point) -> i32 {
+    let mut w = 0;
+    for i in 0..poly.len() {
+        let a = poly[i];
+        let b = poly[(i + 1) % poly.len()];
+        if (a[1] <= p[1]) != (b[1] <= p[1]) {
+            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+            if x > p[0] {
+                // Downward edges wind positively (counter-clockwise contours are +1).
+                w += if b[1] < a[1] { 1 } else { -1 };
+            }
+        }
+    }
+    -w
+}
+
+/// Options of [`QuadTree::from_vector`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VectorOptions {
+    /// Deepest level (leaf squares of side `2^-max_level`), at most
+    /// [`MAX_VECTOR_LEVEL`].
+    pub max_level: u8,
+    /// Refuse to build trees with more nodes than this.
+    pub max_nodes: u64,
+}
+
+impl Default for VectorOptions {
+    fn default() -> Self {
+        VectorOptions {
+            max_level: 12,
+            max_nodes: MAX_NODES,
+        }
+    }
+}
+
+/// What vector packing did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct VectorReport {
+    /// Leaves at the maximum level whose colour came from the trapezoid sweep.
+    pub swept_leaves: u64,
+    /// Most edges inside one swept leaf.
+    pub max_leaf_edges: usize,
+}
+
+/// The part of one shape inside a square.
+#[derive(Debug, Clone)]
+struct Piece {
+    shape: u32,
+    /// Winding contributed by contours that no longer enter the square.
+    base: i32,
+    /// Clipped contours that still have edges inside the square.
+    contours: Vec<Vec<Point>>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Square {
+    x0: f64,
+    z0: f64,
+    side: f64,
+}
+
+impl Square {
+    fn x1(&self) -> f64 {
+        self.x0 + self.side
+    }
+    fn z1(&self) -> f64 {
+        self.z0 + self.side
+    }
+    fn child(&self, k: usize) -> Square {
+        let h = self.side / 2.0;
+        Square {
+            x0: self.x0 + if k & 1 == 1 { h } else { 0.0 },
+            z0: self.z0 + if k & 2 == 2 { h } else { 0.0 },
+            side: h,
+        }
+    }
+}
+
+struct VectorBuilder<'a> {
+    art: &'a VectorArt,
+    max_level: u8,
+    max_nodes: u64,
+    nodes: u64,
+    levels: Vec<Vec<(bool, Unorm16Rgba)>>,
+    report: VectorReport,
+    scratch: Vec<Point>,
+}
+
+impl QuadTree {
+    /// Packs vector art (see the [module documentation](crate::vector)).
+    pub fn from_vector(
+        art: &VectorArt,
+        options: &VectorOptions,
+    ) -> Result<(QuadTree, VectorReport), Error> {
+        if options.max_level > MAX_VECTOR_LEVEL {
+            return Err(Error::DepthTooLarge {
+                depth: options.max_level.into(),
+                max: MAX_VECTOR_LEVEL.into(),
+            });
+        }
+        let mut b = VectorBuilder {
+            art,
+            max_level: options.max_level,
+            max_nodes: options.max_nodes.min(MAX_NODES),
+            nodes: 1,
+            levels: vec![Vec::new(); usize::from(options.max_level) + 1],
+            report: VectorReport::default(),
+            scratch: Vec::new(),
+        };
+        let root = Square {
+            x0: 0.0,
+            z0: 0.0,
+            side: 1.0,
+        };
+        let mut pieces = Vec::new();
+        for (s, shape) in art.shapes.iter().enumerate() {
+            let whole = Piece {
+                shape: s as u32,
+                base: 0,
+                contours: shape.contours.iter().map(|c| c.points.clone()).collect(),
+            };
+            if let Some(p) = b.clip_piece(&whole, root, Some(&shape.contours)) {
+                pieces.push(p);
+            }
+        }
+        let (_, colour, terminal) = b.square(0, root, pieces)?;
+        b.levels[0].push((!terminal, colour));
+        while b.levels.last().is_some_and(Vec::is_empty) {
+            b.levels.pop();
+        }
+        Ok((tree::from_levels(b.levels)?, b.report))
+    }
+}
+
+fn quantise(c: [f64; 4]) -> Unorm16Rgba {
+    let q = c.map(|v| (v * 65535.0 + 0.5).clamp(0.0, 65535.0) as u16);
+    let a = q[3];
+    Unorm16Rgba([q[0].min(a), q[1].min(a), q[2].min(a), a])
+}
+
+impl VectorBuilder<'_> {
+    /// Returns the square's exact mean colour, its stored colour and whether
+    /// it is terminal; pushes its children's nodes.
+    fn square(
+        &mut self,
+        level: u8,
+        sq: Square,
+        pieces: Vec<Piece>,
+    ) -> Result<([f64; 4], Unorm16Rgba, bool), Error> {
+        let pieces = self.cull(pieces);
+        if pieces.iter().all(|p| p.contours.is_empty()) {
+            let covered: Vec<u32> = pieces.iter().map(|p| p.shape).collect();
+            let mean = self.art.composite(&covered, 0);
+            return Ok((mean, quantise(mean), true));
+        }
+        if level == self.max_level {
+            let mean = self.sweep(&pieces, sq);
+            return Ok((mean, quantise(mean), true));
+        }
+        self.nodes += 4;
+        if self.nodes > self.max_nodes {
+            return Err(Error::TooManyNodes {
+                nodes: self.nodes,
+                max: self.max_nodes,
+            });
+        }
+        let mut children = [(Unorm16Rgba::default(), true); 4];
+        let mut sum = [0.0; 4];
+        for (k, child) in children.iter_mut().enumerate() {
+            let csq = sq.child(k);
+            let cp: Vec<Piece> = pieces
+                .iter()
+                .filter_map(|p| self.clip_piece(p, csq, None))
+                .collect();
+            let (mean, colour, terminal) = self.square(level + 1, csq, cp)?;
+            for (s, m) in sum.iter_mut().zip(mean) {
+                *s += m / 4.0;
+            }
+            *child = (colour, terminal);
+        }
+        let next = &mut self.levels[usize::from(level) + 1];
+        for (c, terminal) in children {
+            next.push((!terminal, c));
+        }
+        Ok((sum, quantise(sum), false))
+    }
+
+    /// Drops shapes that do not reach the square and shapes hidden by an
+    /// opaque shape covering all of it.
+    fn cull(&self, mut pieces: Vec<Piece>) -> Vec<Piece> {
+        pieces.retain(|p| {
+            !p.contours.is_empty() || self.art.shapes[p.shape as usize].rule.covers(p.base)
+        });
+        if let Some(top) = pieces
+            .iter()
+            .rposition(|p| p.contours.is_empty() && self.art.is_opaque(p.shape))
+        {
+            pieces.drain(..top);
+        }
+        pieces
+    }
+
+    /// The piece clipped to `sq` (inside its parent square), or `None` when
+    /// it no longer reaches `sq` (winding 0 and no edges).
+    fn clip_piece(
+        &mut self,
+        piece: &Piece,
+        sq: Square,
+        bounds: Option<&[Contour]>,
+    ) -> Option<Piece> {
+        let mut out = Piece {
+            shape: piece.shape,
+            base: piece.base,
+            contours: Vec::new(),
+        };
+        for (i, contour) in piece.contours.iter().enumerate() {
+            let b = match bounds {
+                Some(c) => c[i].bounds,
+                None => bounds_of(contour),
+            };
+            if b[2] < sq.x0 || b[0] > sq.x1() || b[3] < sq.z0 || b[1] > sq.z1() {
+                continue; // wholly outside: winds 0 around every interior point
+            }
+            let clipped = clip_to_square(contour, sq, &mut self.scratch);
+            if clipped.len() < 3 {
+                continue;
+            }
+            if on_border(&clipped, sq) {
+                let w = signed_area(&clipped) / (sq.side * sq.side);
+                out.base += w.round() as i32;
+            } else {
+                out.contours.push(clipped);
+            }
+        }
+        (out.base != 0 || !out.contours.is_empty()).then_some(out)
+    }
+
+    /// Exact mean colour of a leaf by the trapezoid sweep.
+    fn sweep(&mut self, pieces: &[Piece], sq: Square) -> [f64; 4] {
+        struct Edge {
+            lo: Point,
+            hi: Point,
+            piece: usize,
+            /// Winding change when crossing the edge from left to right.
+            step: i32,
+        }
+        let mut edges = Vec::new();
+        for (pi, piece) in pieces.iter().enumerate() {
+            for c in &piece.contours {
+                for i in 0..c.len() {
+                    let (a, b) = (c[i], c[(i + 1) % c.len()]);
+                    if a[1] == b[1] {
+                        continue;
+                    }
+                    let (lo, hi, step) = if a[1] < b[1] { (a, b, -1) } else { (b, a, 1) };
+                    edges.push(Edge {
+                        lo,
+                        hi,
+                        piece: pi,
+                        step,
+                    });
+                }
+            }
+        }
+        self.report.swept_leaves += 1;
+        self.report.max_leaf_edges = self.report.max_leaf_edges.max(edges.len());
+        let mut heights = vec![sq.z0, sq.z1()];
+        for e in &edges {
+            heights.push(e.lo[1]);
+            heights.push(e.hi[1]);
+        }
+        for i in 0..edges.len() {
+            for j in i + 1..edges.len() {
+                let (e, f) = (&edges[i], &edges[j]);
+                if e.hi[1] <= f.lo[1] || f.hi[1] <= e.lo[1] {
+                    continue;
+                }
+                if let Some(z) = crossing_height(e.lo, e.hi, f.lo, f.hi) {
+                    heights.push(z);
+                }
+            }
+        }
+        heights.retain(|z| *z >= sq.z0 && *z <= sq.z1());
+        heights.sort_by(f64::total_cmp);
+        heights.dedup();
+        let mut winding: Vec<i32> = pieces.iter().map(|p| p.base).collect();
+        let mut crossings: Vec<(f64, usize, i32)> = Vec::new();
+        let mut covered: Vec<u32> = Vec::new();
+        let mut total = [0.0; 4];
+        for slab in heights.windows(2) {
+            let (z0, z1) = (slab[0], slab[1]);
+            let h = z1 - z0;
+            if h <= 0.0 {
+                continue;
+            }
+            let zm = 0.5 * (z0 + z1);
+            crossings.clear();
+            for e in &edges {
+                if e.lo[1] < zm && zm < e.hi[1] {
+                    let t = (zm - e.lo[1]) / (e.hi[1] - e.lo[1]);
+                    let x = (e.lo[0] + t * (e.hi[0] - e.lo[0])).clamp(sq.x0, sq.x1());
+                    crossings.push((x, e.piece, e.step));
+                }
+            }
+            crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
+            for (w, p) in winding.iter_mut().zip(pieces) {
+                *w = p.base;
+            }
+            let mut left = sq.x0;
+            let mut gap = |left: f64, right: f64, winding: &[i32], total: &mut [f64; 4]| {
+                let width = right - left;
+                if width <= 0.0 {
+                    return;
+                }
+                covered.clear();
+                for (p, w) in pieces.iter().zip(winding) {
+                    if self.art.shapes[p.shape as usize].rule.covers(*w) {
+                        covered.push(p.shape);
+                    }
+                }
+                let c = self.art.composite(&covered, 0);
+                for (t, v) in total.iter_mut().zip(c) {
+                    *t += v * width * h;
+                }
+            };
+            for &(x, piece, step) in &crossings {
+                gap(left, x, &winding, &mut total);
+                winding[piece] += step;
+                left = x;
+            }
+            gap(left, sq.x1(), &winding, &mut total);
+        }
+        let area = sq.side * sq.side;
+        total.map(|t| t / area)
+    }
+}
+
+/// Height at which segments `a–b` and `c–d` cross, if they cross properly.
+fn crossing_height(a: Point, b: Point, c: Point, d: Point) -> Option<f64> {
+    let r = [b[0] - a[0], b[1] - a[1]];
+    let s = [d[0] - c[0], d[1] - c[1]];
+    let denom = r[0] * s[1] - r[1] * s[0];
+    if denom == 0.0 {
+        return None;
+    }
+    let q = [c[0] - a[0], c[1] - a[1]];
+    let t = (q[0] * s[1] - q[1] * s[0]) / denom;
+    let u = (q[0] * r[1] - q[1] * r[0]) / denom;
+    (t > 0.0 && t < 1.0 && u > 0.0 && u < 1.0).then(|| a[1] + t * r[1])
+}
+
+fn bounds_of(points: &[Point]) -> [f64; 4] {
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for p in points {
+        b = [
+            b[0].min(p[0]),
+            b[1].min(p[1]),
+            b[2].max(p[0]),
+            b[3].max(p[1]),
+        ];
+    }
+    b
+}
+
+/// Twice-halved shoelace: positive for counter-clockwise contours.
+fn signed_area(points: &[Point]) -> f64 {
+    let n = points.len();
+    let mut a = 0.0;
+    for i in 0..n {
+        let (p, q) = (points[i], points[(i + 1) % n]);
+        a += p[0] * q[1] - q[0] * p[1];
+    }
+    0.5 * a
+}
+
+/// True when every edge of the (clipped) contour runs along the square's border.
+fn on_border(points: &[Point], sq: Square) -> bool {
+    let (x1, z1) = (sq.x1(), sq.z1());
+    let n = points.len();
+    (0..n).all(|i| {
+        let (p, q) = (points[i], points[(i + 1) % n]);
+        (p[0] == sq.x0 && q[0] == sq.x0)
+            || (p[0] == x1 && q[0] == x1)
+            || (p[1] == sq.z0 && q[1] == sq.z0)
+            || (p[1] == z1 && q[1] == z1)
+    })
+}
+
+/// Sutherland–Hodgman clipping of a closed polygon to `sq`; points on the
+/// border are set to the border's coordinate exactly, consecutive duplicates
+/// removed.
+fn clip_to_square(points: &[Point], sq: Square, scratch: &mut Vec<Point>) -> Vec<Point> {
+    let mut a = points.to_vec();
+    let planes = [
+        (0usize, sq.x0, true),
+        (0, sq.x1(), false),
+        (1, sq.z0, true),
+        (1, sq.z1(), false),
+    ];
+    for (axis, bound, keep_above) in planes {
+        scratch.clear();
+        let inside = |p: &Point| {
+            if keep_above {
+                p[axis] >= bound
+            } else {
+                p[axis] <= bound
+            }
+        };
+        let n = a.len();
+        if n == 0 {
+            break;
+        }
+        for i in 0..n {
+            let prev = a[(i + n - 1) % n];
+            let cur = a[i];
+            let (pin, cin) = (inside(&prev), inside(&cur));
+            if pin != cin {
+                let t = (bound - prev[axis]) / (cur[axis] - prev[axis]);
+                let mut x = prev;
+                x[axis] = bound;
+                x[1 - axis] = prev[1 - axis] + t * (cur[1 - axis] - prev[1 - axis]);
+                scratch.push(x);
+            }
+            if cin {
+                scratch.push(cur);
+            }
+        }
+        std::mem::swap(&mut a, scratch);
+    }
+    let (x1, z1) = (sq.x1(), sq.z1());
+    let mut out: Vec<Point> = Vec::with_capacity(a.len());
+    for p in a {
+        let p = [p[0].clamp(sq.x0, x1), p[1].clamp(sq.z0, z1)];
+        if out.last() != Some(&p) {
+            out.push(p);
+        }
+    }
+    while out.len() > 1 && out.first() == out.last() {
+        out.pop();
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rect(x0: f64, z0: f64, x1: f64, z1: f64) -> Vec<[f64; 2]> {
+        vec![[x0, z0], [x1, z0], [x1, z1], [x0, z1]]
+    }
+
+    #[test]
+    fn winding_of_counter_clockwise_square_is_one() {
+        let r = rect(0.0, 0.0, 1.0, 1.0);
+        assert_eq!(winding(&r, [0.5, 0.5]), 1);
+        assert_eq!(winding(&r, [1.5, 0.5]), 0);
+        let mut cw = r.clone();
+        cw.reverse();
+        assert_eq!(winding(&cw, [0.5, 0.5]), -1);
+        assert!(signed_area(&r) > 0.0);
+    }
+
+    #[test]
+    fn clipping_keeps_the_winding_inside() {
+        let sq = Square {
+            x0: 0.25,
+            z0: 0.25,
+            side: 0.25,
+        };
+        // A big square around `sq` clips to `sq`'s border: winding 1.
+        let c = clip_to_square(&rect(0.0, 0.0, 1.0, 1.0), sq, &mut Vec::new());
+        assert!(on_border(&c, sq));
+        assert_eq!((signed_area(&c) / (0.25 * 0.25)).round(), 1.0);
+        // A triangle whose hypotenuse is the square's diagonal keeps inner edges.
+        let sq = Square {
+            x0: 0.375,
+            z0: 0.375,
+            side: 0.25,
+        };
+        let t = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        let c = clip_to_square(&t, sq, &mut Vec::new());
+        assert!(!on_border(&c, sq));
+        assert!((signed_area(&c) - 0.25 * 0.25 / 2.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn half_covered_leaf_is_half_the_colour() {
+        let mut art = VectorArt::new();
+        art.fill(
+            vec![vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]],
+            FillRule::NonZero,
+            Rgba::opaque(1.0, 1.0, 1.0),
+            &[],
+        )
+        .unwrap();
+        let (t, report) = QuadTree::from_vector(
+            &art,
+            &VectorOptions {
+                max_level: 3,
+                ..VectorOptions::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(report.swept_leaves, 8, "the diagonal crosses 8 leaves");
+        let a = t.average().to_rgba().to_array();
+        assert!((f64::from(a[3]) - 0.5).abs() < 1e-4, "{a:?}");
+    }
+}
