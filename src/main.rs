@@ -19,7 +19,9 @@ quadtex: alias-free texture mapping with incomplete-quadtree textures
 
 USAGE:
   quadtex pack IMAGE -o OUT.qtx [--tolerance T] [--max-level L]
+  quadtex pack ART.svg -o OUT.qtx [--max-level L]     (exact vector packing, L <= 24, default 12)
   quadtex info FILE.qtx
+  quadtex info ART.svg [--levels 8,12,16]    (tree vs raster bytes per level)
   quadtex query FILE.qtx [--level K]      (fragments `x0 z0 x1 z1` on stdin)
   quadtex demo [-o demo.png] [RENDER OPTIONS]          (built-in airfield scene)
   quadtex render SCENE.toml -o OUT.png|OUT.exr [RENDER OPTIONS]
@@ -102,6 +104,20 @@ fn pack(parser: &mut lexopt::Parser) -> Result<()> {
     }
     let input = input.ok_or("pack: missing IMAGE")?;
     let output = output.ok_or("pack: missing -o OUT.qtx")?;
+    if is_svg(&input) {
+        if options.tolerance != 0.0 {
+            return Err(format!(
+                "{}: --tolerance applies to raster images; SVG art packs exactly",
+                input.display()
+            )
+            .into());
+        }
+        return pack_svg(
+            &input,
+            &output,
+            options.max_level.unwrap_or(DEFAULT_SVG_LEVEL),
+        );
+    }
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("decoding {}", input.display()));
@@ -143,6 +159,87 @@ fn pack(parser: &mut lexopt::Parser) -> Result<()> {
         },
         start.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+/// Max level of SVG art packed without `--max-level` (4096² effective).
+const DEFAULT_SVG_LEVEL: u8 = 12;
+
+fn is_svg(path: &std::path::Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
+}
+
+fn pack_svg(input: &std::path::Path, output: &std::path::Path, level: u8) -> Result<()> {
+    let progress = Progress::new();
+    let start = Instant::now();
+    progress.stage(&format!("packing {} at level {level}", input.display()));
+    let (tree, report) = quadtex_io::pack_svg(input, level, &quadtex_io::Limits::default())?;
+    progress.stage(&format!("writing {}", output.display()));
+    let side = 1u32 << level.min(31);
+    quadtex_io::write_qtx(output, &tree, Some((side, side)))?;
+    progress.finish();
+    let bytes = tree.memory_bytes();
+    let (raster, mips) = raster_bytes(side, side);
+    println!(
+        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept; {:.2} s",
+        input.display(),
+        output.display(),
+        tree.node_count(),
+        tree.depth(),
+        human_bytes(bytes),
+        bytes as f64 / tree.node_count() as f64,
+        raster as f64 / bytes as f64,
+        mips as f64 / bytes as f64,
+        report.swept_leaves,
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// `info ART.svg`: the art packed at several levels against rasters of the
+/// same effective resolution, and the deepest level that fits in 1 MiB.
+fn info_svg(path: &std::path::Path, levels: &[u8]) -> Result<()> {
+    let limits = quadtex_io::Limits::default();
+    println!("{}: exact vector packing", path.display());
+    println!(
+        "level  effective        nodes   tree bytes   RGBA8 raster  raster+mips  raster+mips/tree   pack s"
+    );
+    let mut rows = levels.to_vec();
+    rows.sort_unstable();
+    rows.dedup();
+    for level in rows {
+        let start = Instant::now();
+        let (tree, _) = quadtex_io::pack_svg(path, level, &limits)?;
+        let seconds = start.elapsed().as_secs_f64();
+        let bytes = tree.memory_bytes();
+        let side = 1u64 << level;
+        let raster = 4 * side * side;
+        let mips = raster * 4 / 3;
+        println!(
+            "{level:>5}  {:>9}  {:>11}  {:>11}  {:>13}  {:>11}  {:>16.1}  {:>7.2}",
+            format!("{side}²"),
+            tree.node_count(),
+            human_bytes(bytes),
+            human_bytes(raster),
+            human_bytes(mips),
+            mips as f64 / bytes as f64,
+            seconds
+        );
+    }
+    // Trees only grow with the level, so walk up until one exceeds 1 MiB.
+    let mut fits = None;
+    for level in 0..=quadtex_core::vector::MAX_VECTOR_LEVEL {
+        let (tree, _) = quadtex_io::pack_svg(path, level, &limits)?;
+        if tree.memory_bytes() > 1 << 20 {
+            break;
+        }
+        fits = Some(level);
+    }
+    match fits {
+        Some(l) => println!("deepest level within 1 MiB: {l} ({}² effective)", 1u64 << l),
+        None => println!("deepest level within 1 MiB: none (the root alone is larger)"),
+    }
     Ok(())
 }
 
@@ -322,18 +419,39 @@ fn sample(parser: &mut lexopt::Parser) -> Result<()> {
     Ok(())
 }
 
-fn single_path(parser: &mut lexopt::Parser, what: &str) -> Result<PathBuf> {
-    match parser.next()? {
-        Some(Value(v)) => Ok(v.into()),
-        Some(other) => Err(other.unexpected().into()),
-        None => Err(format!("{what}: missing FILE.qtx").into()),
-    }
-}
-
 fn info(parser: &mut lexopt::Parser) -> Result<()> {
-    let path = single_path(parser, "info")?;
-    if let Some(arg) = parser.next()? {
-        return Err(arg.unexpected().into());
+    let (mut path, mut levels) = (None::<PathBuf>, None::<Vec<u8>>);
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("levels") => {
+                let text = parser.value()?.string()?;
+                let mut v = Vec::new();
+                for part in text.split(',') {
+                    let l: u8 = part
+                        .trim()
+                        .parse()
+                        .map_err(|e| format!("--levels: `{part}`: {e}"))?;
+                    if l > quadtex_core::vector::MAX_VECTOR_LEVEL {
+                        return Err(format!(
+                            "--levels: {l} exceeds the vector packer's limit {}",
+                            quadtex_core::vector::MAX_VECTOR_LEVEL
+                        )
+                        .into());
+                    }
+                    v.push(l);
+                }
+                levels = Some(v);
+            }
+            Value(v) if path.is_none() => path = Some(v.into()),
+            other => return Err(other.unexpected().into()),
+        }
+    }
+    let path = path.ok_or("info: missing FILE")?;
+    if is_svg(&path) {
+        return info_svg(&path, levels.as_deref().unwrap_or(&[8, 10, 12, 14, 16]));
+    }
+    if levels.is_some() {
+        return Err("--levels applies to SVG art only".into());
     }
     let (tree, meta) = quadtex_io::read_qtx_with_limits(&path, &quadtex_io::Limits::default())?;
     let bytes = tree.memory_bytes();

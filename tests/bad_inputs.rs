@@ -416,3 +416,125 @@ fn scene_file_missing() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// An SVG case: pack `text` as `NAME.svg` with `extra` arguments; the error
+/// must name the file and contain `needle`; no `.qtx` appears.
+fn svg_case(case: &str, text: &str, extra: &[&str], needle: &str) {
+    let d = dir(case);
+    let svg = d.join(format!("{case}.svg"));
+    std::fs::write(&svg, text).unwrap();
+    let out = d.join("out.qtx");
+    let mut args = vec!["pack", svg.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    expect_failure(&args, "", &[&format!("{case}.svg"), needle], Some(&out));
+}
+
+const SVG_HEAD: &str = r#"<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" viewBox="0 0 10 10">"#;
+
+#[test]
+fn svg_malformed_xml() {
+    svg_case(
+        "svg-malformed",
+        &format!("{SVG_HEAD}<rect width=\"5\" height=\"5\"></svg>"),
+        &[],
+        "invalid SVG",
+    );
+}
+
+#[test]
+fn svg_not_svg_at_all() {
+    svg_case("svg-text", "hello, world", &[], "invalid SVG");
+}
+
+#[test]
+fn svg_gradient_is_unsupported() {
+    svg_case(
+        "svg-gradient",
+        &format!(
+            "{SVG_HEAD}<linearGradient id=\"g\"><stop offset=\"0\" stop-color=\"red\"/><stop offset=\"1\" stop-color=\"blue\"/></linearGradient><rect id=\"sky\" width=\"10\" height=\"10\" fill=\"url(#g)\"/></svg>"
+        ),
+        &[],
+        "unsupported: linearGradient (id \"sky\")",
+    );
+}
+
+#[test]
+fn svg_image_is_unsupported() {
+    svg_case(
+        "svg-image",
+        &format!(
+            "{SVG_HEAD}<image id=\"photo\" width=\"10\" height=\"10\" href=\"data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8DwHwAFBQIAX8jx0gAAAABJRU5ErkJggg==\"/></svg>"
+        ),
+        &[],
+        "unsupported: image",
+    );
+}
+
+#[test]
+fn svg_mask_is_unsupported() {
+    svg_case(
+        "svg-mask",
+        &format!(
+            "{SVG_HEAD}<mask id=\"m\"><rect width=\"5\" height=\"5\" fill=\"white\"/></mask><rect width=\"10\" height=\"10\" mask=\"url(#m)\"/></svg>"
+        ),
+        &[],
+        "unsupported: mask",
+    );
+}
+
+#[test]
+fn svg_use_bomb_is_refused_before_expansion() {
+    // Ten levels of ten `use` each: 10^10 elements once expanded.
+    let mut s = format!("{SVG_HEAD}<defs><rect id=\"l0\" width=\"1\" height=\"1\"/>");
+    for level in 1..=10 {
+        s.push_str(&format!("<g id=\"l{level}\">"));
+        for _ in 0..10 {
+            s.push_str(&format!("<use xlink:href=\"#l{}\"/>", level - 1));
+        }
+        s.push_str("</g>");
+    }
+    s.push_str("</defs><use xlink:href=\"#l10\"/></svg>");
+    svg_case("svg-use-bomb", &s, &[], "max_svg_elements exceeded");
+}
+
+#[test]
+fn svg_use_cycle() {
+    svg_case(
+        "svg-use-cycle",
+        &format!(
+            "{SVG_HEAD}<g id=\"a\"><use xlink:href=\"#b\"/></g><g id=\"b\"><use xlink:href=\"#a\"/></g></svg>"
+        ),
+        &[],
+        "cycle",
+    );
+}
+
+#[test]
+fn svg_level_beyond_limit() {
+    svg_case(
+        "svg-level",
+        &format!("{SVG_HEAD}<rect width=\"5\" height=\"5\"/></svg>"),
+        &["--max-level", "25"],
+        "exceeds the limit 24",
+    );
+}
+
+#[test]
+fn svg_with_tolerance() {
+    svg_case(
+        "svg-tolerance",
+        &format!("{SVG_HEAD}<rect width=\"5\" height=\"5\"/></svg>"),
+        &["--tolerance", "0.1"],
+        "--tolerance",
+    );
+}
+
+#[test]
+fn svg_zero_size() {
+    svg_case(
+        "svg-zero-size",
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="0" height="0"><rect width="5" height="5"/></svg>"#,
+        &[],
+        "invalid SVG",
+    );
+}

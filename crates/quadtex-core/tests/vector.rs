@@ -360,4 +360,3 @@ fn random_art(u: &mut Unstructured<'_>) -> ArbResult<VectorArt> {
     }
     Ok(art)
 }
-

@@ -42,6 +42,21 @@ pub enum Error {
     },
     /// An output file name whose extension selects no supported format.
     UnsupportedExtension(PathBuf),
+    /// An SVG document could not be parsed (the message gives the position).
+    Svg {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message.
+        message: String,
+    },
+    /// An SVG feature the exact packer does not support (gradients, patterns,
+    /// images, masks, clip paths, filters, blend modes).
+    UnsupportedSvg {
+        /// The file.
+        path: PathBuf,
+        /// The element or property, with its `id` when it has one.
+        element: String,
+    },
     /// The core library refused the data.
     Core {
         /// The file.
@@ -80,6 +95,12 @@ impl fmt::Display for Error {
                 "{}: unsupported output format (use .png or .exr)",
                 path.display()
             ),
+            Error::Svg { path, message } => {
+                write!(f, "{}: invalid SVG: {message}", path.display())
+            }
+            Error::UnsupportedSvg { path, element } => {
+                write!(f, "{}: unsupported: {element}", path.display())
+            }
             Error::Core { path, source } => write!(f, "{}: {source}", path.display()),
         }
     }

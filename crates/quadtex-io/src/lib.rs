@@ -2,7 +2,8 @@
 //!
 //! Everything of quadtex that touches files: decoding PNG and JPEG into the
 //! core's linear, premultiplied [`TexelGrid`]; writing rendered images
-//! (PNG in sRGB 8-bit, OpenEXR in linear float); and the `.qtx` tree file
+//! (PNG in sRGB 8-bit, OpenEXR in linear float); SVG art as vector art for
+//! the exact vector packer ([`svg`]); and the `.qtx` tree file
 //! (see `docs/format.md`). Every file is written atomically: to a temporary
 //! file in the same directory, then renamed over the target, so a reader never
 //! sees a half-written file and an interrupted run leaves none behind.
@@ -14,6 +15,7 @@ mod image_io;
 mod limits;
 mod qtx;
 mod query;
+pub mod svg;
 
 pub use atomic::write_atomically;
 pub use error::Error;
@@ -25,5 +27,6 @@ pub use qtx::{
     FORMAT_VERSION, MAGIC, QtxInfo, parse_qtx, read_qtx, read_qtx_with_limits, write_qtx,
 };
 pub use query::parse_query_line;
+pub use svg::{load_svg, pack_svg, parse_svg};
 
 pub use quadtex_core::TexelGrid;

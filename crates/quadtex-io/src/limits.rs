@@ -12,6 +12,9 @@ pub struct Limits {
     pub max_nodes: u64,
     /// Deepest tree level (default [`quadtex_core::MAX_DEPTH`], 30).
     pub max_depth: u8,
+    /// Most elements in an SVG document, counted with every `use` expanded
+    /// (default 100 000; `usvg` itself stops at 1 000 000).
+    pub max_svg_elements: u64,
 }
 
 impl Limits {
@@ -40,6 +43,7 @@ impl Default for Limits {
             max_file_bytes: 16 << 30,
             max_nodes: quadtex_core::MAX_NODES,
             max_depth: quadtex_core::MAX_DEPTH,
+            max_svg_elements: 100_000,
         }
     }
 }

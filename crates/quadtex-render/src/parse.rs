@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use quadtex_core::vector::MAX_VECTOR_LEVEL;
 use quadtex_core::{BuildOptions, QuadTree, Rgba};
 use toml::{Table, Value};
 
@@ -15,6 +16,9 @@ use crate::scene::{
     Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform, WrapMode,
 };
 use crate::{Error, MAX_SURFACES};
+
+/// Max level of SVG textures without `texture_level` (4096² effective).
+const DEFAULT_SVG_LEVEL: u8 = 12;
 
 /// Largest coordinate magnitude accepted in a scene (beyond it `f64`
 /// intersections lose the precision footprints need).
@@ -88,7 +92,7 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, Error> {
 struct Context<'a> {
     text: &'a str,
     path: &'a Path,
-    textures: HashMap<PathBuf, Arc<QuadTree>>,
+    textures: HashMap<(PathBuf, u8), Texture>,
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
@@ -321,6 +325,7 @@ impl Context<'_> {
             "type",
             "colour",
             "texture",
+            "texture_level",
             "wrap",
             "border",
             "uv_scale",
@@ -435,9 +440,23 @@ impl Context<'_> {
         let colour = self
             .colour(t, key, "colour")?
             .unwrap_or(Rgba::opaque(1.0, 1.0, 1.0));
+        let svg_level = match self.number(t, key, "texture_level")? {
+            None => DEFAULT_SVG_LEVEL,
+            Some(l) if l.fract() == 0.0 && (0.0..=f64::from(MAX_VECTOR_LEVEL)).contains(&l) => {
+                l as u8
+            }
+            Some(l) => {
+                return Err(self.err(
+                    &format!("{key}.texture_level"),
+                    &format!("{l}: must be an integer 0..={MAX_VECTOR_LEVEL}"),
+                ));
+            }
+        };
         let texture = match t.get("texture") {
             None => None,
-            Some(Value::String(s)) => Some(self.texture(s, &format!("{key}.texture"))?),
+            Some(Value::String(s)) => {
+                Some(self.texture(s, &format!("{key}.texture"), svg_level)?)
+            }
             Some(_) => return Err(self.err(&format!("{key}.texture"), "must be a string")),
         };
         let wrap = match t.get("wrap") {
@@ -548,44 +567,45 @@ impl Context<'_> {
             .ok_or_else(|| self.err(key, &format!("{}: no usable triangles", file.display())))
     }
 
-    fn texture(&mut self, spec: &str, key: &str) -> Result<Texture, Error> {
+    fn texture(&mut self, spec: &str, key: &str, svg_level: u8) -> Result<Texture, Error> {
         if let Some(name) = spec.strip_prefix("builtin:") {
             return builtin_texture(name).map_err(|e| self.err(key, &e.to_string()));
         }
         let file = self.path.parent().unwrap_or(Path::new(".")).join(spec);
-        if let Some(tree) = self.textures.get(&file) {
-            return Ok(Texture::new(spec, tree.clone()));
+        let cache_key = (file.clone(), svg_level);
+        if let Some(t) = self.textures.get(&cache_key) {
+            return Ok(t.clone());
         }
         let ext = file
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        let tree =
-            match ext.as_deref() {
-                Some("qtx") => {
-                    quadtex_io::read_qtx(&file).map_err(|e| self.err(key, &e.to_string()))?
-                }
-                Some("png" | "jpg" | "jpeg") => {
-                    let grid = quadtex_io::load_texels(&file)
-                        .map_err(|e| self.err(key, &e.to_string()))?;
-                    QuadTree::from_texels(&grid, &BuildOptions::default())
-                        .map_err(|e| self.err(key, &format!("{}: {e}", file.display())))?
-                        .0
-                }
-                Some("svg") => return Err(self.err(
+        let tree = match ext.as_deref() {
+            Some("qtx") => {
+                quadtex_io::read_qtx(&file).map_err(|e| self.err(key, &e.to_string()))?
+            }
+            Some("png" | "jpg" | "jpeg") => {
+                let grid =
+                    quadtex_io::load_texels(&file).map_err(|e| self.err(key, &e.to_string()))?;
+                QuadTree::from_texels(&grid, &BuildOptions::default())
+                    .map_err(|e| self.err(key, &format!("{}: {e}", file.display())))?
+                    .0
+            }
+            Some("svg") => {
+                quadtex_io::pack_svg(&file, svg_level, &quadtex_io::Limits::default())
+                    .map_err(|e| self.err(key, &e.to_string()))?
+                    .0
+            }
+            _ => {
+                return Err(self.err(
                     key,
-                    "SVG textures are not supported yet (pack them once the vector packer lands)",
-                )),
-                _ => {
-                    return Err(self.err(
-                        key,
-                        "unknown texture type (use .qtx, .png, .jpg or builtin:NAME)",
-                    ));
-                }
-            };
-        let tree = Arc::new(tree);
-        self.textures.insert(file, tree.clone());
-        Ok(Texture::new(spec, tree))
+                    "unknown texture type (use .qtx, .png, .jpg, .svg or builtin:NAME)",
+                ));
+            }
+        };
+        let texture = Texture::new(spec, Arc::new(tree));
+        self.textures.insert(cache_key, texture.clone());
+        Ok(texture)
     }
 }
 
@@ -663,7 +683,14 @@ uv_scale = [0.5, 0.5]
         );
         expect(
             &GOOD.replace("builtin:checker", "art.svg"),
-            &["shape[0].texture", "SVG"],
+            &["shape[0].texture", "art.svg"],
+        );
+        expect(
+            &GOOD.replace(
+                "texture = \"builtin:checker\"",
+                "texture = \"builtin:checker\"\ntexture_level = 40",
+            ),
+            &["shape[0].texture_level", "0..=24"],
         );
         expect(
             &GOOD.replace("type = \"plane\"", "type = \"torus\""),
