@@ -46,6 +46,10 @@ use crate::tree::{self, MAX_NODES, QuadTree};
 /// coordinates in `f32`, as SVG parsers give them, carry no more precision.)
 pub const MAX_VECTOR_LEVEL: u8 = 24;
 
+/// Largest coordinate magnitude accepted (far outside the unit square, where
+/// art is clipped off anyway; keeps clipping arithmetic finite).
+pub const MAX_VECTOR_COORDINATE: f64 = 1e12;
+
 /// Most polygon vertices one [`VectorArt`] may hold.
 pub const MAX_VECTOR_POINTS: usize = 1 << 24;
 
@@ -168,11 +172,12 @@ impl VectorArt {
         }
         let mut kept = Vec::with_capacity(contours.len());
         for points in contours {
-            if let Some(p) = points
-                .iter()
-                .find(|p| !(p[0].is_finite() && p[1].is_finite()))
-            {
-                return Err(Error::BadVector(format!("non-finite point {p:?}")));
+            if let Some(p) = points.iter().find(|p| {
+                !(p[0].abs() <= MAX_VECTOR_COORDINATE && p[1].abs() <= MAX_VECTOR_COORDINATE)
+            }) {
+                return Err(Error::BadVector(format!(
+                    "point {p:?} is not finite or beyond ±{MAX_VECTOR_COORDINATE:e}"
+                )));
             }
             if points.len() < 3 {
                 continue;

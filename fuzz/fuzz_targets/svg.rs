@@ -1,0 +1,19 @@
+//! Any bytes as an SVG file, packed at a small level under tight limits: an
+//! error naming the problem, or a valid tree. Never a panic.
+#![no_main]
+use libfuzzer_sys::fuzz_target;
+use quadtex_core::{QuadTree, VectorOptions};
+use quadtex_io::Limits;
+use std::path::Path;
+
+fuzz_target!(|data: &[u8]| {
+    let limits = Limits { max_svg_elements: 2_000, max_nodes: 100_000, ..Limits::default() };
+    let level = 6;
+    let Ok(art) = quadtex_io::parse_svg(data, Path::new("fuzz.svg"), level, &limits) else { return };
+    let options = VectorOptions { max_level: level, max_nodes: limits.max_nodes };
+    if let Ok((tree, _)) = QuadTree::from_vector(&art, &options) {
+        let c = tree.average().to_rgba().to_array();
+        assert!(c.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= 1.0), "{c:?}");
+        assert!(c[0] <= c[3] && c[1] <= c[3] && c[2] <= c[3], "{c:?}");
+    }
+});
