@@ -2,6 +2,7 @@
 //! benchmark the fragment integral, and render scenes.
 
 mod bench;
+mod compare;
 
 use std::error::Error;
 use std::io::{BufRead, BufWriter, IsTerminal, Write};
@@ -28,6 +29,9 @@ USAGE:
       RENDER OPTIONS: [--width W] [--height H]
                       [--filter quadtree|nearest|bilinear|supersample:N|trilinear|ewa|sat]
                       [--quality Q] [--level K] [--pixel-filter box|tent]
+  quadtex compare SCENE.toml -o DIR [COMPARE OPTIONS]   (every filter vs a reference: report.html)
+  quadtex demo --compare -o DIR [COMPARE OPTIONS]
+      COMPARE OPTIONS: [--width W] [--reference-spp N] [--frames F] [--no-flip]
   quadtex bench [--size N] [--queries Q] [--runs R]
   quadtex sample runway|checker -o OUT.png [--size N]   (built-in art as a PNG)
   quadtex help
@@ -60,6 +64,7 @@ fn run() -> Result<()> {
         "query" => query(&mut parser),
         "bench" => bench::run(&mut parser),
         "render" => render(&mut parser, false),
+        "compare" => compare::run(&mut parser),
         "demo" => render(&mut parser, true),
         "sample" => sample(&mut parser),
         "help" => {
@@ -273,7 +278,21 @@ fn render(parser: &mut lexopt::Parser, demo: bool) -> Result<()> {
     let (mut scene_path, mut output) = (None::<PathBuf>, None::<PathBuf>);
     let mut options = RenderOptions::default();
     let (mut quality, mut level, mut filter_name) = (1.0f64, None::<u8>, "quadtree".to_string());
+    let (mut comparing, mut compare_settings) = (false, compare::Settings::default());
     while let Some(arg) = parser.next()? {
+        if demo {
+            if arg == Long("compare") {
+                comparing = true;
+                continue;
+            }
+            if comparing
+                && let Some(name) = compare::long_name(&arg)
+                && compare::OPTIONS.contains(&name.as_str())
+            {
+                compare::parse_option(&name, parser, &mut compare_settings)?;
+                continue;
+            }
+        }
         match arg {
             Short('o') | Long("output") => output = Some(parser.value()?.into()),
             Long("width") => {
@@ -338,6 +357,15 @@ fn render(parser: &mut lexopt::Parser, demo: bool) -> Result<()> {
             }
         },
     };
+    if comparing {
+        let dir = output.ok_or("demo --compare: missing -o DIR")?;
+        return compare::compare_scene(
+            &quadtex_render::demo_scene()?,
+            "demo",
+            &dir,
+            &compare_settings,
+        );
+    }
     let (scene, output) = if demo {
         (
             quadtex_render::demo_scene()?,

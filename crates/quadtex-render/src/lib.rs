@@ -6,6 +6,7 @@
 //! ([`demo_scene`]); [`render`] turns one into a linear image.
 #![forbid(unsafe_code)]
 
+pub mod compare;
 mod demo;
 pub mod footprint;
 pub mod math;
@@ -19,7 +20,7 @@ use std::path::PathBuf;
 pub use demo::{demo_scene, sign_art};
 pub use footprint::LevelOfDetail;
 pub use parse::{load_scene, parse_scene};
-pub use render::{Filter, PixelFilter, RenderOptions, RenderSummary, render};
+pub use render::{Filter, PixelFilter, RenderOptions, RenderSummary, centre_distance, render};
 pub use scene::Scene;
 
 /// Most pixels one render may have (64 megapixels).

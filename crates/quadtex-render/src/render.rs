@@ -13,6 +13,13 @@
 //! mirror image of the opposite corner through the centre hit, so the
 //! footprint keeps the visible half's size instead of becoming infinite.
 //!
+//! **Silhouettes.** With the box pixel filter, a first pass records which
+//! surface each pixel centre sees. A pixel whose neighbours see something
+//! else (another surface, or the sky) is checked at its corners; if they
+//! disagree with its centre, the pixel is shaded as four quarters, each with
+//! its own footprint on whatever it sees, so a horizon pixel is part sky,
+//! part ground instead of all ground.
+//!
 //! **Pixel filter.** A box over the pixel in *screen* space is not a uniform
 //! box over its footprint in texture space: under perspective the far end of
 //! a footprint gets less screen area per unit of texture. Each fragment is
@@ -45,7 +52,9 @@ pub enum Filter {
     Nearest,
     /// Bilinear interpolation of the finest level at the pixel centre.
     Bilinear,
-    /// `n × n` stratified sub-pixel rays per pixel, each a nearest lookup.
+    /// `n × n` stratified sub-pixel rays per pixel (one jittered ray per
+    /// cell of an `n × n` grid; the cell centre when `n = 1`), each a nearest
+    /// lookup.
     Supersample(u32),
     /// Baseline: trilinear mip-mapping after pbrt-v4 (level from the
     /// footprint's longest axis), on the tree rasterised at ≤ 4096².
@@ -214,6 +223,41 @@ pub fn render(
         ..scene.clone()
     };
     let start = Instant::now();
+    // Which surface each pixel centre sees (0: none), to find the pixels a
+    // silhouette may cross: those whose 4-neighbours see something else.
+    let seen: Vec<usize> = if options.pixel_filter == PixelFilter::Box
+        && !matches!(options.filter, Filter::Supersample(_))
+    {
+        (0..h)
+            .into_par_iter()
+            .flat_map_iter(|y| {
+                let scene = &scene;
+                (0..w).map(move |x| {
+                    let ray = scene.camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    nearest_hit(scene, &ray).map_or(0, |(s, _)| {
+                        1 + scene
+                            .surfaces
+                            .iter()
+                            .position(|t| std::ptr::eq(t, s))
+                            .unwrap_or(0)
+                    })
+                })
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let straddles = |x: u32, y: u32| -> bool {
+        if seen.is_empty() {
+            return false;
+        }
+        let at = |x: u32, y: u32| seen[(y * w + x) as usize];
+        let me = at(x, y);
+        (x > 0 && at(x - 1, y) != me)
+            || (x + 1 < w && at(x + 1, y) != me)
+            || (y > 0 && at(x, y - 1) != me)
+            || (y + 1 < h && at(x, y + 1) != me)
+    };
     let done = std::sync::atomic::AtomicU64::new(0);
     let rows: Vec<(Vec<Rgba>, RowStats)> = (0..h)
         .into_par_iter()
@@ -225,8 +269,8 @@ pub fn render(
                         &scene,
                         options.filter,
                         options.pixel_filter,
-                        x,
-                        y,
+                        (x, y),
+                        straddles(x, y),
                         &mut stats,
                     )
                 })
@@ -289,12 +333,15 @@ fn sky(scene: &Scene, ray: &Ray) -> Rgba {
     }
 }
 
+/// The colour of pixel `(x, y)`; `near_silhouette` when a neighbour's
+/// centre sees another surface (or the sky), so the pixel may straddle an
+/// edge and is checked at its corners.
 fn shade_pixel(
     scene: &Scene,
     filter: Filter,
     pixel: PixelFilter,
-    x: u32,
-    y: u32,
+    (x, y): (u32, u32),
+    near_silhouette: bool,
     stats: &mut RowStats,
 ) -> Rgba {
     let (px, py) = (f64::from(x), f64::from(y));
@@ -303,10 +350,16 @@ fn shade_pixel(
         let mut weights = 0f32;
         for j in 0..n {
             for i in 0..n {
-                let (u, v) = (
-                    (f64::from(i) + 0.5) / f64::from(n),
-                    (f64::from(j) + 0.5) / f64::from(n),
-                );
+                // Stratified: one sample jittered within each of n×n cells
+                // (deterministic hash, so renders are reproducible).
+                let (u, v) = if n == 1 {
+                    (0.5, 0.5)
+                } else {
+                    (
+                        (f64::from(i) + jitter(x, y, i, j, 0)) / f64::from(n),
+                        (f64::from(j) + jitter(x, y, i, j, 1)) / f64::from(n),
+                    )
+                };
                 // Box: stratified over the pixel. Tent: over the 2×2 support, weighted.
                 let (sx, sy, w) = match pixel {
                     PixelFilter::Box => (px + u, py + v, 1.0),
@@ -324,7 +377,7 @@ fn shade_pixel(
                     Filter::Nearest,
                     PixelFilter::Box,
                     &scene.camera.ray(sx, sy),
-                    [sx, sy],
+                    ScreenArea::pixel(sx, sy),
                     stats,
                 );
                 for (a, v) in acc.iter_mut().zip(c.to_array()) {
@@ -337,14 +390,105 @@ fn shade_pixel(
         return Rgba::new(acc[0] * s, acc[1] * s, acc[2] * s, acc[3] * s);
     }
     let (cx, cy) = (px + 0.5, py + 0.5);
+    if pixel == PixelFilter::Box && near_silhouette {
+        return shade_area(scene, filter, ScreenArea::pixel(cx, cy), 0, stats);
+    }
     shade_ray(
         scene,
         filter,
         pixel,
         &scene.camera.ray(cx, cy),
-        [cx, cy],
+        ScreenArea::pixel(cx, cy),
         stats,
     )
+}
+
+/// A square of the screen: a pixel, or part of one at a silhouette.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ScreenArea {
+    /// Centre, in pixel units from the image's top-left corner.
+    centre: [f64; 2],
+    /// Half the side, in pixels (0.5 for a whole pixel).
+    half: f64,
+}
+
+impl ScreenArea {
+    fn pixel(cx: f64, cy: f64) -> ScreenArea {
+        ScreenArea {
+            centre: [cx, cy],
+            half: 0.5,
+        }
+    }
+}
+
+/// Times a pixel straddling a silhouette is halved. Once (2 × 2 quarters)
+/// measured best: on the grazing checkerboard it cuts the RMSE from 0.0139
+/// to 0.0031 at no visible cost; more splits did not lower the RMSE further
+/// and doubled the frame time (each quarter at the horizon carries a huge
+/// footprint).
+const SILHOUETTE_SPLITS: u32 = 1;
+
+/// Box-filtered colour of a screen square. When the rays through its
+/// corners and centre do not all see the same surface (or all see the sky),
+/// the square straddles a silhouette, such as the horizon: it is split in
+/// four and each quarter shaded on its own, so each side of the silhouette
+/// is integrated over its own part of the pixel.
+fn shade_area(
+    scene: &Scene,
+    filter: Filter,
+    area: ScreenArea,
+    splits: u32,
+    stats: &mut RowStats,
+) -> Rgba {
+    let [cx, cy] = area.centre;
+    let centre_ray = scene.camera.ray(cx, cy);
+    if splits < SILHOUETTE_SPLITS {
+        let seen = |x: f64, y: f64| {
+            nearest_hit(scene, &scene.camera.ray(x, y)).map(|(s, _)| s as *const Surface)
+        };
+        let h = area.half;
+        let middle = seen(cx, cy);
+        let straddles = [(-h, -h), (h, -h), (h, h), (-h, h)]
+            .iter()
+            .any(|&(dx, dy)| seen(cx + dx, cy + dy) != middle);
+        if straddles {
+            let q = h / 2.0;
+            let mut acc = [0f32; 4];
+            for (dx, dy) in [(-q, -q), (q, -q), (-q, q), (q, q)] {
+                let part = ScreenArea {
+                    centre: [cx + dx, cy + dy],
+                    half: q,
+                };
+                let c = shade_area(scene, filter, part, splits + 1, stats);
+                for (a, v) in acc.iter_mut().zip(c.to_array()) {
+                    *a += 0.25 * v;
+                }
+            }
+            return Rgba::new(acc[0], acc[1], acc[2], acc[3]);
+        }
+    }
+    shade_ray(scene, filter, PixelFilter::Box, &centre_ray, area, stats)
+}
+
+/// A deterministic pseudo-random number in `[0, 1)` for sample `(i, j)` of
+/// pixel `(x, y)`, axis `axis` (SplitMix64 finaliser).
+fn jitter(x: u32, y: u32, i: u32, j: u32, axis: u32) -> f64 {
+    let mut z = (u64::from(x) << 40 ^ u64::from(y) << 20 ^ u64::from(i) << 10 ^ u64::from(j))
+        .wrapping_mul(2)
+        .wrapping_add(u64::from(axis))
+        .wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// Distance from the camera to the first surface along the view's central
+/// ray, if it hits one.
+pub fn centre_distance(scene: &Scene) -> Option<f64> {
+    let c = &scene.camera;
+    let ray = c.ray(f64::from(c.width()) / 2.0, f64::from(c.height()) / 2.0);
+    nearest_hit(scene, &ray).map(|(_, h)| h.t)
 }
 
 fn shade_ray(
@@ -352,7 +496,7 @@ fn shade_ray(
     filter: Filter,
     pixel_filter: PixelFilter,
     ray: &Ray,
-    pixel: [f64; 2],
+    area: ScreenArea,
     stats: &mut RowStats,
 ) -> Rgba {
     let Some((surface, hit)) = nearest_hit(scene, ray) else {
@@ -362,7 +506,7 @@ fn shade_ray(
         None => surface.colour,
         Some(_) => {
             stats.textured += 1;
-            let tex = texture_colour(scene, surface, &hit, filter, pixel_filter, pixel, stats);
+            let tex = texture_colour(scene, surface, &hit, filter, pixel_filter, area, stats);
             Rgba::new(
                 tex.r * surface.colour.r,
                 tex.g * surface.colour.g,
@@ -416,7 +560,7 @@ fn texture_colour(
     hit: &Hit,
     filter: Filter,
     pixel_filter: PixelFilter,
-    pixel: [f64; 2],
+    area: ScreenArea,
     stats: &mut RowStats,
 ) -> Rgba {
     let Some(texture) = &surface.texture else {
@@ -461,7 +605,7 @@ fn texture_colour(
             let Ok(b) = texture.baselines() else {
                 return lookup(centre[0], centre[1], stats);
             };
-            let q = footprint(scene, surface, hit, pixel);
+            let q = footprint(scene, surface, hit, area);
             let fp = quadtex_core::filters::Footprint {
                 centre,
                 d_dx: [
@@ -496,7 +640,7 @@ fn texture_colour(
                 quality,
                 lod: LevelOfDetail::Fixed(u8::MAX),
             };
-            fp.mean(&footprint(scene, surface, hit, pixel), stats)
+            fp.mean(&footprint(scene, surface, hit, area), stats)
                 .unwrap_or_else(|| lookup(centre[0], centre[1], stats))
         }
         Filter::Quadtree { quality, lod } => {
@@ -511,8 +655,8 @@ fn texture_colour(
                 lod,
             };
             let mean = match pixel_filter {
-                PixelFilter::Box => fp.mean(&footprint(scene, surface, hit, pixel), stats),
-                PixelFilter::Tent => fp.tent(pixel, stats),
+                PixelFilter::Box => fp.mean(&footprint(scene, surface, hit, area), stats),
+                PixelFilter::Tent => fp.tent(area.centre, stats),
             };
             mean.unwrap_or_else(|| lookup(centre[0], centre[1], stats))
         }
@@ -693,10 +837,11 @@ fn world_point(surface: &Surface, hit: &Hit, t: [f64; 2]) -> Option<Vec3> {
 /// The pixel's footprint in texture space (module documentation). The
 /// texture map is affine on the tangent plane, so mirroring a missing corner
 /// through the centre can be done in texture space.
-fn footprint(scene: &Scene, surface: &Surface, hit: &Hit, pixel: [f64; 2]) -> [[f64; 2]; 4] {
-    let offsets = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]];
-    let corners =
-        offsets.map(|o| screen_to_texture(scene, surface, hit, pixel[0] + o[0], pixel[1] + o[1]));
+fn footprint(scene: &Scene, surface: &Surface, hit: &Hit, area: ScreenArea) -> [[f64; 2]; 4] {
+    let h = area.half;
+    let offsets = [[-h, -h], [h, -h], [h, h], [-h, h]];
+    let c = area.centre;
+    let corners = offsets.map(|o| screen_to_texture(scene, surface, hit, c[0] + o[0], c[1] + o[1]));
     let centre = surface.uv_transform.apply(hit.uv);
     std::array::from_fn(|i| match (corners[i], corners[(i + 2) % 4]) {
         (Some(t), _) => t,

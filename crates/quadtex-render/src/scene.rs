@@ -69,6 +69,19 @@ impl Camera {
         }
     }
 
+    /// The camera moved by `offset` (same orientation).
+    pub fn translated(&self, offset: Vec3) -> Camera {
+        Camera {
+            position: self.position + offset,
+            ..self.clone()
+        }
+    }
+
+    /// Unit view direction.
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
+
     /// Image width in pixels.
     pub fn width(&self) -> u32 {
         self.width
@@ -464,7 +477,7 @@ pub(crate) struct Baselines {
 /// cells: at least 1024², so small textures (a 2×2 checker) are as sharp as
 /// a raster user would make them, at most 2048² to bound memory (the SAT
 /// takes 32 bytes a cell). Deeper trees are box-downsampled for them.
-pub(crate) fn baseline_level(depth: u8) -> u8 {
+pub fn baseline_level(depth: u8) -> u8 {
     depth.clamp(10, 11)
 }
 

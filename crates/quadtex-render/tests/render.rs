@@ -273,3 +273,41 @@ fn quadtree_beats_trilinear_and_ewa_at_a_grazing_angle() {
         "RMSE vs 1024-sample reference: quadtree {quadtree:.4}, SAT {sat:.4}, trilinear {trilinear:.4}, EWA {ewa:.4}"
     );
 }
+
+/// Sanity check of the comparison harness: stratified supersampling
+/// converges to the reference as the sample count grows, and the quadtree
+/// (with its silhouette split) beats 64 samples on the whole frame,
+/// horizon included.
+#[test]
+fn supersampling_error_falls_as_samples_grow() {
+    use quadtex_render::compare;
+    let scene = grazing(64, 36, 1.5);
+    let go = |filter| {
+        render(
+            &scene,
+            &RenderOptions {
+                filter,
+                ..RenderOptions::default()
+            },
+            &|_, _| {},
+        )
+        .unwrap()
+        .0
+    };
+    let reference = go(Filter::Supersample(32));
+    let errors: Vec<f64> = [1, 2, 4, 8]
+        .iter()
+        .map(|&n| compare::rmse(&go(Filter::Supersample(n)), &reference).unwrap())
+        .collect();
+    assert!(
+        errors.windows(2).all(|w| w[1] < w[0]),
+        "supersampling errors for 1, 4, 16, 64 samples: {errors:?}"
+    );
+    let quadtree = compare::rmse(&go(Filter::default()), &reference).unwrap();
+    assert!(
+        quadtree < errors[3],
+        "quadtree {quadtree} vs 64 samples {}",
+        errors[3]
+    );
+    eprintln!("supersampling {errors:?}, quadtree {quadtree}");
+}

@@ -1,0 +1,423 @@
+//! `quadtex compare SCENE.toml -o DIR` (and `quadtex demo --compare -o DIR`):
+//! every contender filter against a converged reference on the same scene,
+//! with error, perceptual error, shimmer, time and memory, written as a
+//! static report (see `docs/compare.md`).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use lexopt::prelude::*;
+use quadtex_core::QuadTree;
+use quadtex_io::LinearImage;
+use quadtex_render::compare::{self, Contender, Figures, ReportInfo};
+use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
+
+type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
+
+/// Settings of one comparison.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    /// Frame width (height keeps the camera's aspect).
+    pub width: u32,
+    /// Reference samples per pixel side (`n × n` stratified).
+    pub reference_grid: u32,
+    /// Frames of the camera move for shimmer (0 or 1: no shimmer).
+    pub frames: u32,
+    /// Reference samples per pixel side for the shimmer frames.
+    pub shimmer_reference_grid: u32,
+    /// Compute FLIP.
+    pub flip: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            width: 480,
+            reference_grid: 32,
+            frames: 16,
+            shimmer_reference_grid: 16,
+            flip: true,
+        }
+    }
+}
+
+/// The long option's name, if `arg` is one (owned, so the parser is free).
+pub fn long_name(arg: &lexopt::Arg<'_>) -> Option<String> {
+    match arg {
+        Long(name) => Some((*name).to_string()),
+        _ => None,
+    }
+}
+
+/// The options shared by `compare` and `demo --compare`.
+pub const OPTIONS: [&str; 4] = ["width", "reference-spp", "frames", "no-flip"];
+
+/// Parses one of [`OPTIONS`]; returns `false` for any other name.
+pub fn parse_option(name: &str, parser: &mut lexopt::Parser, s: &mut Settings) -> Result<bool> {
+    let number = |parser: &mut lexopt::Parser, flag: &str, lo: u32, hi: u32| -> Result<u32> {
+        let v: u32 = parser
+            .value()?
+            .parse()
+            .map_err(|e| format!("{flag}: {e}"))?;
+        if !(lo..=hi).contains(&v) {
+            return Err(format!("{flag} must be in {lo}..={hi}, got {v}").into());
+        }
+        Ok(v)
+    };
+    match name {
+        "width" => s.width = number(parser, "--width", 16, 3840)?,
+        "reference-spp" => {
+            let spp = number(parser, "--reference-spp", 1, 4096)?;
+            s.reference_grid = (f64::from(spp).sqrt().round() as u32).max(1);
+        }
+        "frames" => s.frames = number(parser, "--frames", 0, 240)?,
+        "no-flip" => s.flip = false,
+        _ => return Ok(false),
+    }
+    Ok(true)
+}
+
+/// `quadtex compare SCENE.toml -o DIR [options]`.
+pub fn run(parser: &mut lexopt::Parser) -> Result<()> {
+    let (mut scene_path, mut output) = (None::<PathBuf>, None::<PathBuf>);
+    let mut settings = Settings::default();
+    while let Some(arg) = parser.next()? {
+        if let Some(name) = long_name(&arg)
+            && OPTIONS.contains(&name.as_str())
+        {
+            parse_option(&name, parser, &mut settings)?;
+            continue;
+        }
+        match arg {
+            Short('o') | Long("output") => output = Some(parser.value()?.into()),
+            Value(v) if scene_path.is_none() => scene_path = Some(v.into()),
+            other => return Err(other.unexpected().into()),
+        }
+    }
+    let path = scene_path.ok_or("compare: missing SCENE.toml")?;
+    let dir = output.ok_or("compare: missing -o DIR")?;
+    let scene = quadtex_render::load_scene(&path)?;
+    let name = path
+        .file_stem()
+        .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+    compare_scene(&scene, &name, &dir, &settings)
+}
+
+fn sized(scene: &Scene, width: u32) -> (u32, u32) {
+    let (cw, ch) = (scene.camera.width(), scene.camera.height());
+    let h = (f64::from(width) * f64::from(ch) / f64::from(cw))
+        .round()
+        .max(1.0) as u32;
+    (width, h)
+}
+
+fn render_one(
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    filter: Filter,
+    pixel_filter: PixelFilter,
+) -> Result<(LinearImage, quadtex_render::RenderSummary)> {
+    let options = RenderOptions {
+        width: Some(w),
+        height: Some(h),
+        filter,
+        pixel_filter,
+    };
+    Ok(quadtex_render::render(scene, &options, &|_, _| {})?)
+}
+
+/// The scene's distinct textures.
+fn textures(scene: &Scene) -> Vec<Arc<QuadTree>> {
+    let mut out: Vec<Arc<QuadTree>> = Vec::new();
+    for s in &scene.surfaces {
+        if let Some(t) = &s.texture
+            && !out.iter().any(|o| Arc::ptr_eq(o, &t.tree))
+        {
+            out.push(t.tree.clone());
+        }
+    }
+    out
+}
+
+/// Bytes of texture data a filter needs, in the form its users store it:
+/// the tree; an RGBA8 raster at the tree's full resolution (nearest,
+/// bilinear, supersampling); RGBA8 raster + mips at the baselines'
+/// resolution (trilinear, EWA); a summed-area table of 4 × u32 per texel.
+fn texture_bytes(trees: &[Arc<QuadTree>], filter: Filter) -> u64 {
+    trees
+        .iter()
+        .map(|t| {
+            let full = 4u64.saturating_mul(1u64 << (2 * u32::from(t.depth()).min(31)));
+            let b = quadtex_render::scene::baseline_level(t.depth());
+            let base = 1u64 << (2 * u32::from(b));
+            match filter {
+                Filter::Quadtree { .. } => t.memory_bytes(),
+                Filter::Nearest | Filter::Bilinear | Filter::Supersample(_) => full,
+                Filter::Trilinear | Filter::Ewa { .. } => 4 * base * 4 / 3,
+                Filter::Sat { .. } => 16 * base,
+            }
+        })
+        .sum()
+}
+
+fn lookups_per_pixel(filter: Filter, summary: &quadtex_render::RenderSummary) -> Option<f64> {
+    let textured = summary.textured_pixels.max(1) as f64;
+    match filter {
+        Filter::Quadtree { .. } | Filter::Sat { .. } => {
+            Some(summary.traversal.queries as f64 / textured)
+        }
+        Filter::Nearest => Some(1.0),
+        Filter::Bilinear => Some(4.0),
+        Filter::Trilinear => Some(8.0),
+        Filter::Supersample(n) => Some(f64::from(n * n)),
+        Filter::Ewa { .. } => None,
+    }
+}
+
+fn srgb8(img: &LinearImage) -> Vec<u8> {
+    let mut out = Vec::with_capacity(img.pixels.len() * 3);
+    for p in &img.pixels {
+        for v in [p.r, p.g, p.b] {
+            out.push((quadtex_io::linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8);
+        }
+    }
+    out
+}
+
+/// Mean FLIP (LDR, sRGB 8-bit, 67 pixels per degree) of `test` against `reference`.
+fn flip(reference: &LinearImage, test: &LinearImage) -> f64 {
+    let r = nv_flip::FlipImageRgb8::with_data(reference.width, reference.height, &srgb8(reference));
+    let t = nv_flip::FlipImageRgb8::with_data(test.width, test.height, &srgb8(test));
+    let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+    f64::from(nv_flip::FlipPool::from_image(&map).mean())
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    quadtex_io::write_atomically(path, |w| {
+        std::io::Write::write_all(w, text.as_bytes()).map_err(|source| quadtex_io::Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    })?;
+    Ok(())
+}
+
+/// Runs the comparison on `scene` and writes the report into `dir`.
+pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Result<()> {
+    let start = Instant::now();
+    std::fs::create_dir_all(dir.join("frames"))
+        .map_err(|e| format!("{}: {e}", dir.join("frames").display()))?;
+    let (w, h) = sized(scene, s.width);
+    let contenders = compare::default_contenders();
+    let trees = textures(scene);
+    let needs_tent = contenders
+        .iter()
+        .any(|c| c.pixel_filter == PixelFilter::Tent);
+    let n = s.reference_grid;
+    eprintln!(
+        "{name}: {w}x{h}; reference {} samples per pixel (box{})",
+        n * n,
+        if needs_tent { " and tent" } else { "" }
+    );
+    let (reference_box, _) = render_one(scene, w, h, Filter::Supersample(n), PixelFilter::Box)?;
+    let reference_tent = if needs_tent {
+        Some(render_one(scene, w, h, Filter::Supersample(n), PixelFilter::Tent)?.0)
+    } else {
+        None
+    };
+    let reference_for = |c: &Contender| match (c.pixel_filter, &reference_tent) {
+        (PixelFilter::Tent, Some(t)) => t,
+        _ => &reference_box,
+    };
+    // The camera move for shimmer: `frames` steps along the view direction,
+    // each 0.4% of the distance to what the centre of the view sees.
+    let shimmer_size = ((w / 2).max(16), (h / 2).max(9));
+    let step = quadtex_render::centre_distance(scene).unwrap_or(1.0) * 0.004;
+    let moved: Vec<Scene> = (0..s.frames)
+        .map(|t| Scene {
+            camera: scene
+                .camera
+                .translated(scene.camera.forward() * (step * f64::from(t))),
+            ..scene.clone()
+        })
+        .collect();
+    let shimmer_refs = |pf: PixelFilter| -> Result<Vec<LinearImage>> {
+        moved
+            .iter()
+            .map(|sc| {
+                Ok(render_one(
+                    sc,
+                    shimmer_size.0,
+                    shimmer_size.1,
+                    Filter::Supersample(s.shimmer_reference_grid),
+                    pf,
+                )?
+                .0)
+            })
+            .collect()
+    };
+    let (shimmer_box, shimmer_tent) = if s.frames >= 2 {
+        eprintln!(
+            "{name}: {} shimmer frames at {}x{}, references {} samples per pixel",
+            s.frames,
+            shimmer_size.0,
+            shimmer_size.1,
+            s.shimmer_reference_grid * s.shimmer_reference_grid
+        );
+        (
+            shimmer_refs(PixelFilter::Box)?,
+            if needs_tent {
+                shimmer_refs(PixelFilter::Tent)?
+            } else {
+                Vec::new()
+            },
+        )
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    let mut rows = Vec::new();
+    let mut frames = Vec::new();
+    for c in &contenders {
+        let (img, summary) = render_one(scene, w, h, c.filter, c.pixel_filter)?;
+        // Median of three timings for frames under half a second.
+        let mut times = vec![summary.seconds];
+        if summary.seconds < 0.5 {
+            for _ in 0..2 {
+                times.push(render_one(scene, w, h, c.filter, c.pixel_filter)?.1.seconds);
+            }
+        }
+        times.sort_by(f64::total_cmp);
+        let seconds = times[times.len() / 2];
+        let reference = reference_for(c);
+        let rmse = compare::rmse(&img, reference).ok_or("frame size mismatch")?;
+        let shimmer = if s.frames >= 2 {
+            let refs = match c.pixel_filter {
+                PixelFilter::Tent if needs_tent => &shimmer_tent,
+                _ => &shimmer_box,
+            };
+            let seq: Vec<LinearImage> = moved
+                .iter()
+                .map(|sc| {
+                    Ok(render_one(sc, shimmer_size.0, shimmer_size.1, c.filter, c.pixel_filter)?.0)
+                })
+                .collect::<Result<_>>()?;
+            compare::shimmer(&seq, refs)
+        } else {
+            None
+        };
+        let figures = Figures {
+            label: c.label.clone(),
+            rmse,
+            psnr: compare::psnr(rmse),
+            flip: s.flip.then(|| flip(reference, &img)),
+            shimmer,
+            seconds,
+            lookups_per_pixel: lookups_per_pixel(c.filter, &summary),
+            texture_bytes: texture_bytes(&trees, c.filter),
+        };
+        eprintln!(
+            "  {:<16} RMSE {:.4}  {:>7.0} ms/frame",
+            c.label,
+            rmse,
+            1000.0 * seconds
+        );
+        rows.push(figures);
+        frames.push(img);
+    }
+    // Grid: reference first, then one row per contender.
+    let window = ((w / 8).max(8), (h / 8).max(8));
+    let nearest = contenders
+        .iter()
+        .position(|c| c.filter == Filter::Nearest)
+        .map(|i| &frames[i]);
+    let pixel = |img: &LinearImage, x: u32, y: u32| img.pixels[(y * img.width + x) as usize];
+    let luma = |img: &LinearImage, x: u32, y: u32| {
+        let p = pixel(img, x.min(img.width - 1), y.min(img.height - 1));
+        f64::from(0.2126 * p.r + 0.7152 * p.g + 0.0722 * p.b)
+    };
+    let aliasing_at = compare::busiest_window(w, h, window.0, window.1, |x, y| {
+        let r = luma(&reference_box, x, y);
+        nearest.map_or(0.0, |n| (luma(n, x, y) - r).abs())
+    });
+    let contrast_at = compare::busiest_window(w, h, window.0, window.1, |x, y| {
+        let r = luma(&reference_box, x, y);
+        (luma(&reference_box, x + 1, y) - r).abs() + (luma(&reference_box, x, y + 1) - r).abs()
+    });
+    let shrink_by = w.div_ceil(320).max(1);
+    let row_of = |img: &LinearImage, reference: &LinearImage| {
+        vec![
+            compare::shrink(img, shrink_by),
+            compare::magnify(
+                &compare::crop(img, aliasing_at.0, aliasing_at.1, window.0, window.1),
+                3,
+            ),
+            compare::magnify(
+                &compare::crop(img, contrast_at.0, contrast_at.1, window.0, window.1),
+                3,
+            ),
+            compare::shrink(&compare::error_map(img, reference, 0.1), shrink_by),
+        ]
+    };
+    let mut grid_rows = vec![row_of(&reference_box, &reference_box)];
+    let mut labels = vec![format!("reference ({} spp)", n * n)];
+    for (c, img) in contenders.iter().zip(&frames) {
+        grid_rows.push(row_of(img, reference_for(c)));
+        labels.push(c.label.clone());
+    }
+    let grid = compare::grid(&grid_rows, 4);
+    quadtex_io::save_image(&dir.join("grid.png"), &grid)?;
+    quadtex_io::save_image(&dir.join("frames").join("reference.png"), &reference_box)?;
+    for (c, img) in contenders.iter().zip(&frames) {
+        let file = dir
+            .join("frames")
+            .join(format!("{}.png", compare::file_stem(&c.label)));
+        quadtex_io::save_image(&file, img)?;
+    }
+    let threads = rayon_threads();
+    let info = ReportInfo {
+        scene: name.to_string(),
+        width: w,
+        height: h,
+        reference: format!(
+            "{} stratified samples per pixel, nearest lookups of the full-depth tree, same pixel filter as the method (box; tent for the tent row)",
+            n * n
+        ),
+        motion: if s.frames >= 2 {
+            format!(
+                "{} frames at {}x{} moving {:.3} scene units per frame along the view, against {}-sample references",
+                s.frames,
+                shimmer_size.0,
+                shimmer_size.1,
+                step,
+                s.shimmer_reference_grid * s.shimmer_reference_grid
+            )
+        } else {
+            "not measured".into()
+        },
+        machine: format!("{threads} worker threads"),
+    };
+    let table = compare::markdown_table(&rows);
+    write_text(&dir.join("results.md"), &table)?;
+    write_text(&dir.join("results.csv"), &compare::csv(&rows))?;
+    write_text(
+        &dir.join("plot.svg"),
+        &compare::plot_svg(&rows, &format!("{name}: error against time per frame")),
+    )?;
+    write_text(
+        &dir.join("report.html"),
+        &compare::html_report(&info, &rows, &labels),
+    )?;
+    println!("{table}");
+    println!(
+        "wrote {} (report.html, grid.png, plot.svg, results.csv, results.md, frames/) in {:.1} s",
+        dir.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
+}
