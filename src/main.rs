@@ -358,6 +358,9 @@ fn render(parser: &mut lexopt::Parser, demo: bool) -> Result<()> {
         },
     };
     if comparing {
+        if let Some(w) = options.width {
+            compare_settings.width = w;
+        }
         let dir = output.ok_or("demo --compare: missing -o DIR")?;
         return compare::compare_scene(
             &quadtex_render::demo_scene()?,

@@ -175,3 +175,64 @@ fn info_reports_levels_and_ratios() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn compare_writes_report_grid_plot_and_tables() {
+    let dir = temp_dir("compare");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/checker.toml");
+    let out = run(
+        &[
+            "compare",
+            scene,
+            "-o",
+            dir.to_str().unwrap(),
+            "--width",
+            "64",
+            "--reference-spp",
+            "64",
+            "--frames",
+            "3",
+        ],
+        "",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in [
+        "report.html",
+        "grid.png",
+        "plot.svg",
+        "results.csv",
+        "results.md",
+        "frames/reference.png",
+        "frames/quadtree.png",
+        "frames/ewa-aniso-8.png",
+    ] {
+        assert!(dir.join(f).is_file(), "{f} missing");
+    }
+    let csv = std::fs::read_to_string(dir.join("results.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let rmse = |label: &str| -> f64 {
+        rows.iter().find(|r| r[0] == label).unwrap()[1]
+            .parse()
+            .unwrap()
+    };
+    // The headline holds even at this tiny size.
+    assert!(
+        rmse("quadtree") < rmse("trilinear") && rmse("quadtree") < rmse("EWA aniso 8"),
+        "{csv}"
+    );
+    for r in &rows {
+        // FLIP and shimmer were measured for every contender.
+        assert!(!r[3].is_empty() && !r[4].is_empty(), "{r:?}");
+    }
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(html.contains("<img src=\"plot.svg\"") && html.contains("EWA aniso 32"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
