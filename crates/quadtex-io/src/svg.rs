@@ -29,7 +29,7 @@
 
 use std::collections::HashMap;
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use quadtex_core::vector::GroupId;
 use quadtex_core::{FillRule, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
@@ -42,6 +42,26 @@ use crate::limits::Limits;
 /// The font text is set in (DejaVu Sans Bold, subset to printable ASCII and
 /// `°`; licence in `crates/quadtex-io/fonts/LICENSE`).
 const FONT: &[u8] = include_bytes!("../fonts/DejaVuSans-Bold-ascii.ttf");
+
+const FAMILY: &str = "DejaVu Sans";
+
+/// The font database: only the shipped font, under every generic family;
+/// built once per process.
+fn fonts() -> Arc<usvg::fontdb::Database> {
+    static FONTS: OnceLock<Arc<usvg::fontdb::Database>> = OnceLock::new();
+    FONTS
+        .get_or_init(|| {
+            let mut fonts = usvg::fontdb::Database::new();
+            fonts.load_font_data(FONT.to_vec());
+            fonts.set_serif_family(FAMILY);
+            fonts.set_sans_serif_family(FAMILY);
+            fonts.set_monospace_family(FAMILY);
+            fonts.set_cursive_family(FAMILY);
+            fonts.set_fantasy_family(FAMILY);
+            Arc::new(fonts)
+        })
+        .clone()
+}
 
 /// Reads an SVG file and packs it at `max_level`.
 pub fn pack_svg(
@@ -102,17 +122,9 @@ pub fn parse_svg(
     }
     let text = std::str::from_utf8(data).map_err(|e| svg_err(format!("not UTF-8: {e}")))?;
     count_elements(text, path, limits)?;
-    let mut fonts = usvg::fontdb::Database::new();
-    fonts.load_font_data(FONT.to_vec());
-    let family = "DejaVu Sans";
-    fonts.set_serif_family(family);
-    fonts.set_sans_serif_family(family);
-    fonts.set_monospace_family(family);
-    fonts.set_cursive_family(family);
-    fonts.set_fantasy_family(family);
     let options = usvg::Options {
-        font_family: family.into(),
-        fontdb: Arc::new(fonts),
+        font_family: FAMILY.into(),
+        fontdb: fonts(),
         ..usvg::Options::default()
     };
     let tree = usvg::Tree::from_str(text, &options).map_err(|e| svg_err(e.to_string()))?;
