@@ -15,6 +15,11 @@ pub struct Limits {
     /// Most elements in an SVG document, counted with every `use` expanded
     /// (default 100 000; `usvg` itself stops at 1 000 000).
     pub max_svg_elements: u64,
+    /// Most shapes in a scene (default 10 000).
+    pub max_scene_shapes: usize,
+    /// Most triangles in one mesh of a scene (default 20 000: meshes are
+    /// intersected without an acceleration structure).
+    pub max_mesh_triangles: usize,
 }
 
 impl Limits {
@@ -44,6 +49,8 @@ impl Default for Limits {
             max_nodes: quadtex_core::MAX_NODES,
             max_depth: quadtex_core::MAX_DEPTH,
             max_svg_elements: 100_000,
+            max_scene_shapes: 10_000,
+            max_mesh_triangles: 20_000,
         }
     }
 }

@@ -19,19 +19,12 @@ use std::path::PathBuf;
 
 pub use demo::{demo_scene, sign_art};
 pub use footprint::LevelOfDetail;
-pub use parse::{load_scene, parse_scene};
+pub use parse::{load_scene, load_scene_with_limits, parse_scene, parse_scene_with_limits};
 pub use render::{Filter, PixelFilter, RenderOptions, RenderSummary, centre_distance, render};
 pub use scene::Scene;
 
 /// Most pixels one render may have (64 megapixels).
 pub const MAX_PIXELS: u64 = 1 << 26;
-
-/// Most triangles in one mesh (meshes are intersected without an
-/// acceleration structure, so keep them small).
-pub const MAX_TRIANGLES: usize = 20_000;
-
-/// Most surfaces a scene may hold.
-pub const MAX_SURFACES: usize = 10_000;
 
 /// Everything that can go wrong while loading or rendering a scene.
 #[derive(Debug)]

@@ -10,12 +10,13 @@ use quadtex_core::vector::MAX_VECTOR_LEVEL;
 use quadtex_core::{BuildOptions, QuadTree, Rgba};
 use toml::{Table, Value};
 
+use crate::Error;
 use crate::demo::builtin_texture;
 use crate::math::Vec3;
 use crate::scene::{
     Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform, WrapMode,
 };
-use crate::{Error, MAX_SURFACES};
+use quadtex_io::Limits;
 
 /// Max level of SVG textures without `texture_level` (4096² effective).
 const DEFAULT_SVG_LEVEL: u8 = 12;
@@ -24,21 +25,52 @@ const DEFAULT_SVG_LEVEL: u8 = 12;
 /// intersections lose the precision footprints need).
 const MAX_COORDINATE: f64 = 1e9;
 
-/// Reads and validates a scene file; textures load relative to its folder.
+/// Reads and validates a scene file under the default limits; textures load
+/// relative to its folder.
 pub fn load_scene(path: &Path) -> Result<Scene, Error> {
+    load_scene_with_limits(path, &Limits::default())
+}
+
+/// Reads and validates a scene file under `limits` (scene file size, shapes,
+/// mesh triangles, and everything its textures read).
+pub fn load_scene_with_limits(path: &Path, limits: &Limits) -> Result<Scene, Error> {
+    let len = std::fs::metadata(path)
+        .map_err(|source| Error::Io {
+            path: path.into(),
+            source,
+        })?
+        .len();
+    if len > limits.max_file_bytes {
+        return Err(Error::Scene {
+            path: path.into(),
+            line: None,
+            key: "(file)".into(),
+            message: format!(
+                "{len} bytes, above max_file_bytes {}",
+                limits.max_file_bytes
+            ),
+        });
+    }
     let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
         path: path.into(),
         source,
     })?;
-    parse_scene(&text, path)
+    parse_scene_with_limits(&text, path, limits)
 }
 
-/// Parses scene text; `path` names it in errors and anchors relative paths.
+/// Parses scene text under the default limits; `path` names it in errors
+/// and anchors relative paths.
 pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, Error> {
+    parse_scene_with_limits(text, path, &Limits::default())
+}
+
+/// Parses scene text under `limits`.
+pub fn parse_scene_with_limits(text: &str, path: &Path, limits: &Limits) -> Result<Scene, Error> {
     let mut cx = Context {
         text,
         path,
         textures: HashMap::new(),
+        limits: *limits,
     };
     let root: Table = text.parse().map_err(|e: toml::de::Error| {
         let line = e.span().map(|s| line_of(text, s.start));
@@ -64,12 +96,13 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, Error> {
         Some(_) => return Err(cx.err("shape", "must be an array of tables: [[shape]]")),
         None => return Err(cx.err("shape", "the scene has no [[shape]]")),
     };
-    if shapes.len() > MAX_SURFACES {
+    if shapes.len() > cx.limits.max_scene_shapes {
         return Err(cx.err(
             "shape",
             &format!(
-                "{} shapes, more than the limit {MAX_SURFACES}",
-                shapes.len()
+                "{} shapes, more than max_scene_shapes {}",
+                shapes.len(),
+                cx.limits.max_scene_shapes
             ),
         ));
     }
@@ -93,6 +126,7 @@ struct Context<'a> {
     text: &'a str,
     path: &'a Path,
     textures: HashMap<(PathBuf, u8), Texture>,
+    limits: Limits,
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
@@ -521,13 +555,13 @@ impl Context<'_> {
                 ));
             }
             for tri in m.indices.chunks_exact(3) {
-                if triangles.len() >= crate::MAX_TRIANGLES {
+                if triangles.len() >= self.limits.max_mesh_triangles {
                     return Err(self.err(
                         key,
                         &format!(
-                            "{}: more than {} triangles",
+                            "{}: more than max_mesh_triangles {} triangles",
                             file.display(),
-                            crate::MAX_TRIANGLES
+                            self.limits.max_mesh_triangles
                         ),
                     ));
                 }
@@ -582,17 +616,19 @@ impl Context<'_> {
             .map(str::to_ascii_lowercase);
         let tree = match ext.as_deref() {
             Some("qtx") => {
-                quadtex_io::read_qtx(&file).map_err(|e| self.err(key, &e.to_string()))?
+                quadtex_io::read_qtx_with_limits(&file, &self.limits)
+                    .map_err(|e| self.err(key, &e.to_string()))?
+                    .0
             }
             Some("png" | "jpg" | "jpeg") => {
-                let grid =
-                    quadtex_io::load_texels(&file).map_err(|e| self.err(key, &e.to_string()))?;
+                let grid = quadtex_io::load_texels_with_limits(&file, &self.limits)
+                    .map_err(|e| self.err(key, &e.to_string()))?;
                 QuadTree::from_texels(&grid, &BuildOptions::default())
                     .map_err(|e| self.err(key, &format!("{}: {e}", file.display())))?
                     .0
             }
             Some("svg") => {
-                quadtex_io::pack_svg(&file, svg_level, &quadtex_io::Limits::default())
+                quadtex_io::pack_svg(&file, svg_level, &self.limits)
                     .map_err(|e| self.err(key, &e.to_string()))?
                     .0
             }
@@ -649,6 +685,22 @@ uv_scale = [0.5, 0.5]
         for n in needles {
             assert!(e.contains(n), "`{n}` not in: {e}");
         }
+    }
+
+    #[test]
+    fn limits_are_overridable() {
+        let limits = Limits {
+            max_scene_shapes: 0,
+            ..Limits::default()
+        };
+        let e = parse_scene_with_limits(GOOD, Path::new("small.toml"), &limits)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("small.toml") && e.contains("max_scene_shapes 0"),
+            "{e}"
+        );
+        assert!(parse_scene(GOOD, Path::new("ok.toml")).is_ok());
     }
 
     #[test]

@@ -132,7 +132,7 @@ pub enum Geometry {
     /// Triangle mesh with per-vertex UVs (from an OBJ file); UV inside a
     /// triangle is the barycentric blend. Intersection tests every triangle
     /// behind a bounding-box test: meant for small meshes (at most
-    /// [`crate::MAX_TRIANGLES`]).
+    /// `quadtex_io::Limits::max_mesh_triangles`).
     Mesh(Arc<Mesh>),
     /// Sphere; UV = (longitude / 2π, latitude from the south pole / π).
     Sphere {
