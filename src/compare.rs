@@ -15,6 +15,10 @@ use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
 type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
 
+/// Pixels whose footprint covers more finest cells than this are left out
+/// of the closed-form comparison (they lie near the horizon).
+const CLOSED_FORM_MAX_CELLS: u64 = 4096;
+
 /// Settings of one comparison.
 #[derive(Debug, Clone)]
 pub struct Settings {
@@ -227,6 +231,18 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
     } else {
         None
     };
+    // The closed form, where the scene is a single unlit textured plane.
+    let exact = compare::closed_form_plane(scene, w, h, CLOSED_FORM_MAX_CELLS);
+    let exact_note = exact.as_ref().and_then(|e| {
+        let (r, defined) = compare::rmse_where_defined(&reference_box, e)?;
+        Some(format!(
+            "; the closed-form integral (every checker cell clipped against every pixel in screen space) is defined on {:.0}% of the pixels, where the reference is within RMSE {r:.5} of it",
+            100.0 * defined
+        ))
+    });
+    if let Some(note) = &exact_note {
+        eprintln!("{name}: closed form{note}");
+    }
     let reference_for = |c: &Contender| match (c.pixel_filter, &reference_tent) {
         (PixelFilter::Tent, Some(t)) => t,
         _ => &reference_box,
@@ -311,6 +327,10 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
             label: c.label.clone(),
             rmse,
             psnr: compare::psnr(rmse),
+            rmse_exact: match (&exact, c.pixel_filter) {
+                (Some(e), PixelFilter::Box) => compare::rmse_where_defined(&img, e).map(|r| r.0),
+                _ => None,
+            },
             flip: s.flip.then(|| flip(reference, &img)),
             shimmer,
             seconds,
@@ -381,8 +401,9 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         width: w,
         height: h,
         reference: format!(
-            "{} stratified samples per pixel, nearest lookups of the full-depth tree, same pixel filter as the method (box; tent for the tent row)",
-            n * n
+            "{} stratified samples per pixel, nearest lookups of the full-depth tree, same pixel filter as the method (box; tent for the tent row){}",
+            n * n,
+            exact_note.clone().unwrap_or_default()
         ),
         motion: if s.frames >= 2 {
             format!(

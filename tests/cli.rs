@@ -229,8 +229,10 @@ fn compare_writes_report_grid_plot_and_tables() {
         "{csv}"
     );
     for r in &rows {
-        // FLIP and shimmer were measured for every contender.
-        assert!(!r[3].is_empty() && !r[4].is_empty(), "{r:?}");
+        // FLIP and shimmer were measured for every contender, and the
+        // closed form (a single unlit plane) for every box-filtered one.
+        assert!(!r[4].is_empty() && !r[5].is_empty(), "{r:?}");
+        assert_eq!(r[3].is_empty(), r[0].contains("tent"), "{r:?}");
     }
     let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
     assert!(html.contains("<img src=\"plot.svg\"") && html.contains("EWA aniso 32"));

@@ -292,6 +292,9 @@ pub struct Figures {
     pub rmse: f64,
     /// PSNR in dB.
     pub psnr: f64,
+    /// RMSE against the closed-form image where the scene has one (over the
+    /// pixels where it is defined).
+    pub rmse_exact: Option<f64>,
     /// Mean FLIP against the reference, when computed.
     pub flip: Option<f64>,
     /// Temporal shimmer over the camera move, when computed.
@@ -322,14 +325,15 @@ fn human(bytes: u64) -> String {
 /// The figures as a Markdown table.
 pub fn markdown_table(rows: &[Figures]) -> String {
     let mut s = String::from(
-        "| filter | RMSE | PSNR dB | FLIP | shimmer | ms/frame | lookups/px | texture memory |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| filter | RMSE | PSNR dB | RMSE vs closed form | FLIP | shimmer | ms/frame | lookups/px | texture memory |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "| {} | {:.4} | {:.1} | {} | {} | {:.0} | {} | {} |\n",
+            "| {} | {:.4} | {:.1} | {} | {} | {} | {:.0} | {} | {} |\n",
             r.label,
             r.rmse,
             r.psnr,
+            fmt_opt(r.rmse_exact, 4),
             fmt_opt(r.flip, 4),
             fmt_opt(r.shimmer, 4),
             1000.0 * r.seconds,
@@ -343,15 +347,16 @@ pub fn markdown_table(rows: &[Figures]) -> String {
 /// The figures as CSV (one header line).
 pub fn csv(rows: &[Figures]) -> String {
     let mut s = String::from(
-        "filter,rmse,psnr_db,flip,shimmer,seconds_per_frame,lookups_per_pixel,texture_bytes\n",
+        "filter,rmse,psnr_db,rmse_closed_form,flip,shimmer,seconds_per_frame,lookups_per_pixel,texture_bytes\n",
     );
     let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v}"));
     for r in rows {
         s.push_str(&format!(
-            "{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{}\n",
             r.label,
             r.rmse,
             r.psnr,
+            opt(r.rmse_exact),
             opt(r.flip),
             opt(r.shimmer),
             r.seconds,
@@ -467,7 +472,7 @@ pub struct ReportInfo {
 /// the grid, with the images beside it.
 pub fn html_report(info: &ReportInfo, rows: &[Figures], labels_in_grid: &[String]) -> String {
     let mut s = format!(
-        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>quadtex compare: {scene}</title>\n<style>body{{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}td:first-child,th:first-child{{text-align:left}}img{{max-width:100%;image-rendering:pixelated}}</style></head><body>\n<h1>quadtex compare: {scene}</h1>\n<p>{w}×{h} pixels. Reference: {reference}. Shimmer: {motion}. {machine}. Metrics in linear light; RMSE and FLIP against the reference; time is the median wall-clock time per frame in this run.</p>\n<h2>Error against time</h2>\n<p><img src=\"plot.svg\" alt=\"RMSE against milliseconds per frame\"></p>\n<h2>Figures</h2>\n<table><tr><th>filter</th><th>RMSE</th><th>PSNR dB</th><th>FLIP</th><th>shimmer</th><th>ms/frame</th><th>lookups/px</th><th>texture memory</th></tr>\n",
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>quadtex compare: {scene}</title>\n<style>body{{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}td:first-child,th:first-child{{text-align:left}}img{{max-width:100%;image-rendering:pixelated}}</style></head><body>\n<h1>quadtex compare: {scene}</h1>\n<p>{w}×{h} pixels. Reference: {reference}. Shimmer: {motion}. {machine}. Metrics in linear light; RMSE and FLIP against the reference; time is the median wall-clock time per frame in this run.</p>\n<h2>Error against time</h2>\n<p><img src=\"plot.svg\" alt=\"RMSE against milliseconds per frame\"></p>\n<h2>Figures</h2>\n<table><tr><th>filter</th><th>RMSE</th><th>PSNR dB</th><th>RMSE vs closed form</th><th>FLIP</th><th>shimmer</th><th>ms/frame</th><th>lookups/px</th><th>texture memory</th></tr>\n",
         scene = escape(&info.scene),
         w = info.width,
         h = info.height,
@@ -477,10 +482,11 @@ pub fn html_report(info: &ReportInfo, rows: &[Figures], labels_in_grid: &[String
     );
     for r in rows {
         s.push_str(&format!(
-            "<tr><td>{}</td><td>{:.4}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{:.0}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td>{:.4}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0}</td><td>{}</td><td>{}</td></tr>\n",
             escape(&r.label),
             r.rmse,
             r.psnr,
+            fmt_opt(r.rmse_exact, 4),
             fmt_opt(r.flip, 4),
             fmt_opt(r.shimmer, 4),
             1000.0 * r.seconds,
@@ -574,4 +580,245 @@ mod tests {
         assert_eq!(busiest_window(4, 4, 2, 2, |x, y| f64::from(x + y)), (2, 2));
         assert_eq!(file_stem("EWA aniso 8"), "ewa-aniso-8");
     }
+}
+
+/// The closed-form box-filtered image of a scene made of one unlit,
+/// textured, repeating **plane**: each pixel is the exact integral of the
+/// texture over the part of the pixel square that sees the plane. For every
+/// cell of the tree's finest grid (a texel of the checker) under the pixel's
+/// footprint, the cell is mapped to the screen (a convex quadrilateral, the
+/// projective image of a square) and clipped against the pixel square; the
+/// pixel is `Σ colour × area`. Pixels that see the sky, or whose footprint
+/// covers more than `max_cells` cells, are `None` (excluded). Returns `None`
+/// for scenes of any other kind.
+pub fn closed_form_plane(
+    scene: &crate::Scene,
+    width: u32,
+    height: u32,
+    max_cells: u64,
+) -> Option<Vec<Option<Rgba>>> {
+    use crate::scene::{Geometry, Lighting, WrapMode};
+    let [surface] = scene.surfaces.as_slice() else {
+        return None;
+    };
+    let (
+        Geometry::Plane {
+            point,
+            normal,
+            u_axis,
+            v_axis,
+        },
+        Some(texture),
+        Lighting::Unlit,
+        WrapMode::Repeat,
+    ) = (
+        &surface.geometry,
+        &surface.texture,
+        scene.lighting,
+        surface.wrap,
+    )
+    else {
+        return None;
+    };
+    let tree = &texture.tree;
+    if tree.depth() > 12 {
+        return None;
+    }
+    let cells_per_unit = 1u32 << tree.depth();
+    let cell = 1.0 / f64::from(cells_per_unit);
+    // Colour of every finest cell of one tile.
+    let mut colours = Vec::with_capacity((cells_per_unit * cells_per_unit) as usize);
+    for j in 0..cells_per_unit {
+        for i in 0..cells_per_unit {
+            let f = quadtex_core::Fragment::new(
+                f64::from(i) * cell,
+                f64::from(j) * cell,
+                f64::from(i + 1) * cell,
+                f64::from(j + 1) * cell,
+            )
+            .ok()?;
+            let c = tree.weighted_colour(&f, u8::MAX).mean_over(f.area());
+            colours.push(Rgba::new(
+                c.r * surface.colour.r,
+                c.g * surface.colour.g,
+                c.b * surface.colour.b,
+                c.a * surface.colour.a,
+            ));
+        }
+    }
+    let camera = scene.camera.with_size(width, height);
+    let project = |p: crate::math::Vec3| -> Option<[f64; 2]> {
+        let d = p - camera.position;
+        let z = d.dot(camera.forward);
+        if z <= 1e-9 {
+            return None;
+        }
+        let aspect = f64::from(width) / f64::from(height);
+        let sx = (d.dot(camera.right) / z / (camera.tan_half_fov * aspect) + 1.0)
+            * f64::from(width)
+            / 2.0;
+        let sy = (1.0 - d.dot(camera.up) / z / camera.tan_half_fov) * f64::from(height) / 2.0;
+        Some([sx, sy])
+    };
+    let to_texture = |sx: f64, sy: f64| -> Option<[f64; 2]> {
+        let ray = camera.ray(sx, sy);
+        let denom = ray.direction.dot(*normal);
+        if denom.abs() < 1e-12 {
+            return None;
+        }
+        let t = (*point - ray.origin).dot(*normal) / denom;
+        if !(t > 0.0 && t.is_finite()) {
+            return None;
+        }
+        let rel = ray.origin + ray.direction * t - *point;
+        Some(
+            surface
+                .uv_transform
+                .apply([rel.dot(*u_axis), rel.dot(*v_axis)]),
+        )
+    };
+    let to_world = |t: [f64; 2]| {
+        let uv = surface.uv_transform.invert(t);
+        *point + *u_axis * uv[0] + *v_axis * uv[1]
+    };
+    let mut out = Vec::with_capacity((width * height) as usize);
+    for y in 0..height {
+        for x in 0..width {
+            let (x0, y0) = (f64::from(x), f64::from(y));
+            let corners = [
+                (x0, y0),
+                (x0 + 1.0, y0),
+                (x0 + 1.0, y0 + 1.0),
+                (x0, y0 + 1.0),
+            ];
+            let tex: Option<Vec<[f64; 2]>> =
+                corners.iter().map(|&(sx, sy)| to_texture(sx, sy)).collect();
+            let Some(tex) = tex else {
+                out.push(None);
+                continue;
+            };
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for p in &tex {
+                for a in 0..2 {
+                    lo[a] = lo[a].min(p[a]);
+                    hi[a] = hi[a].max(p[a]);
+                }
+            }
+            let (i0, i1) = ((lo[0] / cell).floor(), (hi[0] / cell).ceil());
+            let (j0, j1) = ((lo[1] / cell).floor(), (hi[1] / cell).ceil());
+            if (i1 - i0) * (j1 - j0) > max_cells as f64 {
+                out.push(None);
+                continue;
+            }
+            let pixel = vec![
+                [x0, y0],
+                [x0 + 1.0, y0],
+                [x0 + 1.0, y0 + 1.0],
+                [x0, y0 + 1.0],
+            ];
+            let mut acc = [0f64; 4];
+            let mut covered = 0.0;
+            let mut ok = true;
+            let mut j = j0;
+            while j < j1 && ok {
+                let mut i = i0;
+                while i < i1 {
+                    let quad: Option<Vec<[f64; 2]>> = [
+                        [i * cell, j * cell],
+                        [(i + 1.0) * cell, j * cell],
+                        [(i + 1.0) * cell, (j + 1.0) * cell],
+                        [i * cell, (j + 1.0) * cell],
+                    ]
+                    .iter()
+                    .map(|&t| project(to_world(t)))
+                    .collect();
+                    let Some(quad) = quad else {
+                        ok = false;
+                        break;
+                    };
+                    let area = clip_convex_area(&pixel, &quad);
+                    if area > 0.0 {
+                        let ci = (i.rem_euclid(f64::from(cells_per_unit))) as usize;
+                        let cj = (j.rem_euclid(f64::from(cells_per_unit))) as usize;
+                        let c = colours[cj * cells_per_unit as usize + ci].to_array();
+                        for (a, v) in acc.iter_mut().zip(c) {
+                            *a += area * f64::from(v);
+                        }
+                        covered += area;
+                    }
+                    i += 1.0;
+                }
+                j += 1.0;
+            }
+            // The cells must tile the pixel (it sees only the plane).
+            if !ok || (covered - 1.0).abs() > 1e-6 {
+                out.push(None);
+                continue;
+            }
+            out.push(Some(Rgba::new(
+                acc[0] as f32,
+                acc[1] as f32,
+                acc[2] as f32,
+                acc[3] as f32,
+            )));
+        }
+    }
+    Some(out)
+}
+
+/// Area of the intersection of convex polygon `subject` with convex polygon
+/// `clip` (either orientation), by Sutherland–Hodgman.
+fn clip_convex_area(subject: &[[f64; 2]], clip: &[[f64; 2]]) -> f64 {
+    let signed = |p: &[[f64; 2]]| {
+        let n = p.len();
+        (0..n)
+            .map(|i| p[i][0] * p[(i + 1) % n][1] - p[(i + 1) % n][0] * p[i][1])
+            .sum::<f64>()
+            * 0.5
+    };
+    let orientation = signed(clip).signum();
+    let mut poly = subject.to_vec();
+    let n = clip.len();
+    for k in 0..n {
+        let (a, b) = (clip[k], clip[(k + 1) % n]);
+        let side = |p: [f64; 2]| {
+            orientation * ((b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]))
+        };
+        let mut next = Vec::with_capacity(poly.len() + 2);
+        for i in 0..poly.len() {
+            let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
+            let (sp, sq) = (side(p), side(q));
+            if sp >= 0.0 {
+                next.push(p);
+            }
+            if (sp >= 0.0) != (sq >= 0.0) {
+                let t = sp / (sp - sq);
+                next.push([p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]);
+            }
+        }
+        poly = next;
+        if poly.len() < 3 {
+            return 0.0;
+        }
+    }
+    signed(&poly).abs()
+}
+
+/// RMSE of `img` against the closed form over the pixels where it is defined,
+/// and the fraction of pixels defined.
+pub fn rmse_where_defined(img: &LinearImage, exact: &[Option<Rgba>]) -> Option<(f64, f64)> {
+    if exact.len() != img.pixels.len() {
+        return None;
+    }
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (p, e) in img.pixels.iter().zip(exact) {
+        if let Some(e) = e {
+            for (a, b) in [(p.r, e.r), (p.g, e.g), (p.b, e.b)] {
+                let d = f64::from(a) - f64::from(b);
+                sum += d * d;
+            }
+            n += 1;
+        }
+    }
+    (n > 0).then(|| ((sum / (3 * n) as f64).sqrt(), n as f64 / exact.len() as f64))
 }
