@@ -522,66 +522,6 @@ pub fn file_stem(label: &str) -> String {
         .collect()
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn image(values: &[f32]) -> LinearImage {
-        LinearImage {
-            width: values.len() as u32,
-            height: 1,
-            pixels: values.iter().map(|&v| Rgba::opaque(v, v, v)).collect(),
-        }
-    }
-
-    #[test]
-    fn rmse_and_psnr() {
-        let a = image(&[0.0, 0.5]);
-        let b = image(&[0.1, 0.5]);
-        let r = rmse(&a, &b).unwrap();
-        assert!((r - (0.01f64 / 2.0).sqrt()).abs() < 1e-7);
-        assert!((psnr(0.1) - 20.0).abs() < 1e-9);
-        assert!(rmse(&a, &image(&[0.0])).is_none());
-    }
-
-    #[test]
-    fn steady_error_does_not_shimmer_but_flicker_does() {
-        let refs = vec![image(&[0.5, 0.5]); 4];
-        let blurred = vec![image(&[0.4, 0.6]); 4];
-        assert_eq!(shimmer(&blurred, &refs), Some(0.0));
-        let flicker: Vec<_> = (0..4)
-            .map(|t| {
-                if t % 2 == 0 {
-                    image(&[0.4, 0.6])
-                } else {
-                    image(&[0.6, 0.4])
-                }
-            })
-            .collect();
-        assert!((shimmer(&flicker, &refs).unwrap() - 0.2).abs() < 1e-6);
-    }
-
-    #[test]
-    fn crops_grids_and_windows() {
-        let img = LinearImage {
-            width: 4,
-            height: 4,
-            pixels: (0..16).map(|i| Rgba::opaque(i as f32, 0.0, 0.0)).collect(),
-        };
-        let c = crop(&img, 1, 2, 2, 2);
-        assert_eq!(
-            c.pixels.iter().map(|p| p.r).collect::<Vec<_>>(),
-            vec![9.0, 10.0, 13.0, 14.0]
-        );
-        assert_eq!(magnify(&c, 3).width, 6);
-        assert_eq!(shrink(&img, 2).pixels[0].r, 2.5);
-        let g = grid(&[vec![c.clone(), c.clone()], vec![c]], 1);
-        assert_eq!((g.width, g.height), (7, 7));
-        assert_eq!(busiest_window(4, 4, 2, 2, |x, y| f64::from(x + y)), (2, 2));
-        assert_eq!(file_stem("EWA aniso 8"), "ewa-aniso-8");
-    }
-}
-
 /// The closed-form box-filtered image of a scene made of one unlit,
 /// textured, repeating **plane**: each pixel is the exact integral of the
 /// texture over the part of the pixel square that sees the plane. For every
@@ -821,4 +761,64 @@ pub fn rmse_where_defined(img: &LinearImage, exact: &[Option<Rgba>]) -> Option<(
         }
     }
     (n > 0).then(|| ((sum / (3 * n) as f64).sqrt(), n as f64 / exact.len() as f64))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(values: &[f32]) -> LinearImage {
+        LinearImage {
+            width: values.len() as u32,
+            height: 1,
+            pixels: values.iter().map(|&v| Rgba::opaque(v, v, v)).collect(),
+        }
+    }
+
+    #[test]
+    fn rmse_and_psnr() {
+        let a = image(&[0.0, 0.5]);
+        let b = image(&[0.1, 0.5]);
+        let r = rmse(&a, &b).unwrap();
+        assert!((r - (0.01f64 / 2.0).sqrt()).abs() < 1e-7);
+        assert!((psnr(0.1) - 20.0).abs() < 1e-9);
+        assert!(rmse(&a, &image(&[0.0])).is_none());
+    }
+
+    #[test]
+    fn steady_error_does_not_shimmer_but_flicker_does() {
+        let refs = vec![image(&[0.5, 0.5]); 4];
+        let blurred = vec![image(&[0.4, 0.6]); 4];
+        assert_eq!(shimmer(&blurred, &refs), Some(0.0));
+        let flicker: Vec<_> = (0..4)
+            .map(|t| {
+                if t % 2 == 0 {
+                    image(&[0.4, 0.6])
+                } else {
+                    image(&[0.6, 0.4])
+                }
+            })
+            .collect();
+        assert!((shimmer(&flicker, &refs).unwrap() - 0.2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn crops_grids_and_windows() {
+        let img = LinearImage {
+            width: 4,
+            height: 4,
+            pixels: (0..16).map(|i| Rgba::opaque(i as f32, 0.0, 0.0)).collect(),
+        };
+        let c = crop(&img, 1, 2, 2, 2);
+        assert_eq!(
+            c.pixels.iter().map(|p| p.r).collect::<Vec<_>>(),
+            vec![9.0, 10.0, 13.0, 14.0]
+        );
+        assert_eq!(magnify(&c, 3).width, 6);
+        assert_eq!(shrink(&img, 2).pixels[0].r, 2.5);
+        let g = grid(&[vec![c.clone(), c.clone()], vec![c]], 1);
+        assert_eq!((g.width, g.height), (7, 7));
+        assert_eq!(busiest_window(4, 4, 2, 2, |x, y| f64::from(x + y)), (2, 2));
+        assert_eq!(file_stem("EWA aniso 8"), "ewa-aniso-8");
+    }
 }
