@@ -191,7 +191,7 @@ fn srgb8(img: &LinearImage) -> Vec<u8> {
 }
 
 /// Mean FLIP (LDR, sRGB 8-bit, 67 pixels per degree) of `test` against `reference`.
-fn flip(reference: &LinearImage, test: &LinearImage) -> f64 {
+pub fn flip(reference: &LinearImage, test: &LinearImage) -> f64 {
     let r = nv_flip::FlipImageRgb8::with_data(reference.width, reference.height, &srgb8(reference));
     let t = nv_flip::FlipImageRgb8::with_data(test.width, test.height, &srgb8(test));
     let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);

@@ -3,6 +3,7 @@
 
 mod bench;
 mod compare;
+mod peers;
 
 use std::error::Error;
 use std::io::{BufRead, BufWriter, IsTerminal, Write};
@@ -32,6 +33,8 @@ USAGE:
   quadtex compare SCENE.toml -o DIR [COMPARE OPTIONS]   (every filter vs a reference: report.html)
   quadtex demo --compare -o DIR [COMPARE OPTIONS]
       COMPARE OPTIONS: [--width W] [--reference-spp N] [--frames F] [--no-flip]
+  quadtex footprints SCENE.toml -o DIR [--width W] [--passes P]   (dump lookups for a peer, time ours)
+  quadtex diff REFERENCE.exr TEST.exr                  (RMSE and FLIP)
   quadtex bench [--size N] [--queries Q] [--runs R]
   quadtex sample runway|checker -o OUT.png [--size N]   (built-in art as a PNG)
   quadtex help
@@ -65,6 +68,8 @@ fn run() -> Result<()> {
         "bench" => bench::run(&mut parser),
         "render" => render(&mut parser, false),
         "compare" => compare::run(&mut parser),
+        "footprints" => peers::footprints(&mut parser),
+        "diff" => peers::diff(&mut parser),
         "demo" => render(&mut parser, true),
         "sample" => sample(&mut parser),
         "help" => {

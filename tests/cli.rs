@@ -238,3 +238,83 @@ fn compare_writes_report_grid_plot_and_tables() {
     assert!(html.contains("<img src=\"plot.svg\"") && html.contains("EWA aniso 32"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn footprint_dump_round_trips_through_the_cli() {
+    let dir = temp_dir("footprints");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/checker.toml");
+    let out = run(
+        &[
+            "footprints",
+            scene,
+            "-o",
+            dir.to_str().unwrap(),
+            "--width",
+            "32",
+            "--passes",
+            "1",
+            "--reference-spp",
+            "1024",
+        ],
+        "",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let dump = quadtex_io::footprints::read_footprints(&dir.join("footprints.bin")).unwrap();
+    assert_eq!((dump.width, dump.height), (32, 18));
+    assert_eq!(dump.textures.len(), 1);
+    assert!(dir.join(&dump.textures[0].file).is_file());
+    let textured: Vec<_> = dump
+        .records
+        .iter()
+        .filter(|r| r.texture.is_some())
+        .collect();
+    assert!(
+        textured.len() > 32 * 18 / 3,
+        "{} textured pixels",
+        textured.len()
+    );
+    for r in textured {
+        // The centre lies inside its footprint's bounding box, and the
+        // derivatives span the quad (t runs down, as in OpenImageIO).
+        let (lo, hi) = r
+            .quad
+            .iter()
+            .fold(([f32::MAX; 2], [f32::MIN; 2]), |(lo, hi), p| {
+                (
+                    [lo[0].min(p[0]), lo[1].min(p[1])],
+                    [hi[0].max(p[0]), hi[1].max(p[1])],
+                )
+            });
+        let slack = 1e-3 * (1.0 + r.st[0].abs() + r.st[1].abs());
+        assert!(
+            r.st[0] >= lo[0] - slack && r.st[0] <= hi[0] + slack,
+            "{r:?}"
+        );
+        assert!(
+            r.st[1] >= lo[1] - slack && r.st[1] <= hi[1] + slack,
+            "{r:?}"
+        );
+        let dsdx = 0.5 * (r.quad[1][0] - r.quad[0][0] + r.quad[2][0] - r.quad[3][0]);
+        assert!(
+            (dsdx - r.derivatives[0]).abs() <= 1e-4 * (1.0 + dsdx.abs()),
+            "{r:?}"
+        );
+    }
+    // `diff` reads the EXRs back: quadtex against the reference is close.
+    let out = run(
+        &[
+            "diff",
+            dir.join("reference.exr").to_str().unwrap(),
+            dir.join("quadtex-quadtree.exr").to_str().unwrap(),
+        ],
+        "",
+    );
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    let rmse: f64 = text.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert!(rmse < 0.05, "{text}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

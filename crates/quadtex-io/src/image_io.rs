@@ -124,9 +124,65 @@ fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Err
             buf.pixels()
                 .map(|p| to_texel(p.0.map(|v| u16::from(v) * 257))),
         ),
+        // Float images (OpenEXR) are linear and premultiplied already.
+        DynamicImage::ImageRgba32F(buf) => texels.extend(buf.pixels().map(|p| {
+            let a = p[3].clamp(0.0, 1.0);
+            let c = |v: f32| if v.is_finite() { v.clamp(0.0, a) } else { 0.0 };
+            Rgba::new(c(p[0]), c(p[1]), c(p[2]), a).to_unorm16()
+        })),
+        DynamicImage::ImageRgb32F(buf) => texels.extend(buf.pixels().map(|p| {
+            let c = |v: f32| {
+                if v.is_finite() {
+                    v.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            };
+            Rgba::opaque(c(p[0]), c(p[1]), c(p[2])).to_unorm16()
+        })),
         other => texels.extend(other.to_rgba16().pixels().map(|p| to_texel(p.0))),
     }
     TexelGrid::new(w, h, texels)
+}
+
+/// Reads an image as a linear, premultiplied [`LinearImage`] without
+/// quantising: OpenEXR as stored, 8- and 16-bit formats decoded from sRGB.
+pub fn load_linear_image(path: &Path) -> Result<LinearImage, Error> {
+    let image_err = |e: image::ImageError| Error::Image {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let decoded = ImageReader::open(path)
+        .map_err(io(path))?
+        .with_guessed_format()
+        .map_err(io(path))?
+        .decode()
+        .map_err(image_err)?;
+    let (width, height) = (decoded.width(), decoded.height());
+    let pixels = match decoded {
+        DynamicImage::ImageRgba32F(buf) => buf
+            .pixels()
+            .map(|p| Rgba::new(p[0], p[1], p[2], p[3]))
+            .collect(),
+        DynamicImage::ImageRgb32F(buf) => buf
+            .pixels()
+            .map(|p| Rgba::opaque(p[0], p[1], p[2]))
+            .collect(),
+        other => texels_from_image(other)
+            .map_err(|source| Error::Core {
+                path: path.into(),
+                source,
+            })?
+            .texels()
+            .iter()
+            .map(|t| t.to_rgba())
+            .collect(),
+    };
+    Ok(LinearImage {
+        width,
+        height,
+        pixels,
+    })
 }
 
 /// Writes a rendered image atomically; the format follows the extension:

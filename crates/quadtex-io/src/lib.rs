@@ -11,6 +11,7 @@
 
 mod atomic;
 mod error;
+pub mod footprints;
 mod image_io;
 mod limits;
 mod qtx;
@@ -20,7 +21,8 @@ pub mod svg;
 pub use atomic::write_atomically;
 pub use error::Error;
 pub use image_io::{
-    LinearImage, linear_to_srgb, load_texels, load_texels_with_limits, save_image, srgb_to_linear,
+    LinearImage, linear_to_srgb, load_linear_image, load_texels, load_texels_with_limits,
+    save_image, srgb_to_linear,
 };
 pub use limits::Limits;
 pub use qtx::{

@@ -20,7 +20,10 @@ use std::path::PathBuf;
 pub use demo::{demo_scene, sign_art};
 pub use footprint::LevelOfDetail;
 pub use parse::{load_scene, load_scene_with_limits, parse_scene, parse_scene_with_limits};
-pub use render::{Filter, PixelFilter, RenderOptions, RenderSummary, centre_distance, render};
+pub use render::{
+    Filter, LookupTiming, PixelFilter, RenderOptions, RenderSummary, centre_distance,
+    footprint_records, render, texture_only, time_lookups,
+};
 pub use scene::Scene;
 
 /// Most pixels one render may have (64 megapixels).

@@ -849,3 +849,178 @@ fn footprint(scene: &Scene, surface: &Surface, hit: &Hit, area: ScreenArea) -> [
         (None, None) => centre,
     })
 }
+
+/// The centre hits of the textured pixels of `scene` at `width × height`:
+/// `(pixel index, surface index, hit)`, in raster order.
+fn textured_hits(scene: &Scene) -> Vec<(usize, usize, Hit)> {
+    let (w, h) = (scene.camera.width(), scene.camera.height());
+    let mut out = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let ray = scene.camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            if let Some((s, hit)) = nearest_hit(scene, &ray)
+                && s.texture.is_some()
+                && let Some(index) = scene.surfaces.iter().position(|t| std::ptr::eq(t, s))
+            {
+                out.push(((y * w + x) as usize, index, hit));
+            }
+        }
+    }
+    out
+}
+
+fn sized_scene(scene: &Scene, width: u32, height: u32) -> Result<Scene, crate::Error> {
+    if width == 0 || height == 0 || u64::from(width) * u64::from(height) > crate::MAX_PIXELS {
+        return Err(crate::Error::Resolution { width, height });
+    }
+    Ok(Scene {
+        camera: scene.camera.with_size(width, height),
+        ..scene.clone()
+    })
+}
+
+/// Texture lookups alone, timed: each textured pixel's centre hit is found
+/// first, then the texture filter runs over all of them on one thread,
+/// `passes` times (ray casting and shading excluded).
+#[derive(Debug, Clone)]
+pub struct LookupTiming {
+    /// The filtered texture colour per pixel (transparent where no textured
+    /// surface is seen), unshaded.
+    pub image: LinearImage,
+    /// Median nanoseconds per lookup over the passes.
+    pub ns_per_lookup: f64,
+    /// Lookups per pass (textured pixels).
+    pub lookups: u64,
+}
+
+/// Times `filter` on the textured pixels of `scene` (see [`LookupTiming`]).
+pub fn time_lookups(
+    scene: &Scene,
+    width: u32,
+    height: u32,
+    filter: Filter,
+    passes: u32,
+) -> Result<LookupTiming, crate::Error> {
+    let scene = sized_scene(scene, width, height)?;
+    if matches!(
+        filter,
+        Filter::Trilinear | Filter::Ewa { .. } | Filter::Sat { .. }
+    ) {
+        for s in &scene.surfaces {
+            if let Some(t) = &s.texture {
+                t.baselines()
+                    .map_err(|e| crate::Error::Option(format!("raster baseline: {e}")))?;
+            }
+        }
+    }
+    let hits = textured_hits(&scene);
+    let mut pixels = vec![Rgba::TRANSPARENT; (width * height) as usize];
+    let mut times = Vec::new();
+    let mut stats = RowStats::default();
+    for _ in 0..passes.max(1) {
+        let start = Instant::now();
+        for &(pixel, surface, hit) in &hits {
+            let (x, y) = (pixel as u32 % width, pixel as u32 / width);
+            let area = ScreenArea::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let s = &scene.surfaces[surface];
+            pixels[pixel] =
+                texture_colour(&scene, s, &hit, filter, PixelFilter::Box, area, &mut stats);
+        }
+        times.push(start.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    Ok(LookupTiming {
+        image: LinearImage {
+            width,
+            height,
+            pixels,
+        },
+        ns_per_lookup: 1e9 * median / hits.len().max(1) as f64,
+        lookups: hits.len() as u64,
+    })
+}
+
+/// The scene reduced to its textures: unlit, black transparent sky, white
+/// multipliers, untextured surfaces transparent. Rendered with
+/// supersampling it is the reference for [`time_lookups`] images.
+pub fn texture_only(scene: &Scene) -> Scene {
+    let mut s = scene.clone();
+    s.lighting = Lighting::Unlit;
+    s.sky = Sky::Solid(Rgba::TRANSPARENT);
+    for surface in &mut s.surfaces {
+        surface.colour = if surface.texture.is_some() {
+            Rgba::opaque(1.0, 1.0, 1.0)
+        } else {
+            Rgba::TRANSPARENT
+        };
+    }
+    s
+}
+
+/// Every pixel's lookup in OpenImageIO's conventions (see
+/// `quadtex_io::footprints`), with the index of each record's texture in
+/// `textures` (the scene's distinct trees, in order of first use).
+pub fn footprint_records(
+    scene: &Scene,
+    width: u32,
+    height: u32,
+) -> Result<(Vec<quadtex_io::footprints::FootprintRecord>, Vec<usize>), crate::Error> {
+    use quadtex_io::footprints::FootprintRecord;
+    let scene = sized_scene(scene, width, height)?;
+    let mut records = vec![
+        FootprintRecord {
+            texture: None,
+            st: [0.0; 2],
+            derivatives: [0.0; 4],
+            quad: [[0.0; 2]; 4],
+        };
+        (width * height) as usize
+    ];
+    // Distinct trees, by the first surface that uses each.
+    let mut first_users: Vec<usize> = Vec::new();
+    let tree_index = |surface: usize, first_users: &mut Vec<usize>| -> u32 {
+        let tree = scene.surfaces[surface].texture.as_ref().map(|t| &t.tree);
+        if let Some(i) = first_users.iter().position(|&u| {
+            scene.surfaces[u]
+                .texture
+                .as_ref()
+                .map(|t| &t.tree)
+                .zip(tree)
+                .is_some_and(|(a, b)| std::sync::Arc::ptr_eq(a, b))
+        }) {
+            return i as u32;
+        }
+        first_users.push(surface);
+        (first_users.len() - 1) as u32
+    };
+    for (pixel, surface, hit) in textured_hits(&scene) {
+        let (x, y) = (pixel as u32 % width, pixel as u32 / width);
+        let area = ScreenArea::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+        let s = &scene.surfaces[surface];
+        let q = footprint(&scene, s, &hit, area);
+        let centre = s.uv_transform.apply(hit.uv);
+        let st = |p: [f64; 2]| [p[0] as f32, (1.0 - p[1]) as f32];
+        let d_dx = [
+            0.5 * (q[1][0] - q[0][0] + q[2][0] - q[3][0]),
+            0.5 * (q[1][1] - q[0][1] + q[2][1] - q[3][1]),
+        ];
+        let d_dy = [
+            0.5 * (q[3][0] - q[0][0] + q[2][0] - q[1][0]),
+            0.5 * (q[3][1] - q[0][1] + q[2][1] - q[1][1]),
+        ];
+        records[pixel] = FootprintRecord {
+            texture: Some(tree_index(surface, &mut first_users)),
+            st: st(centre),
+            // t runs down: its derivatives change sign.
+            derivatives: [
+                d_dx[0] as f32,
+                -d_dx[1] as f32,
+                d_dy[0] as f32,
+                -d_dy[1] as f32,
+            ],
+            quad: q.map(st),
+        };
+    }
+    Ok((records, first_users))
+}
