@@ -30,7 +30,7 @@ rows=$(mktemp)
 for tsv in "$out/quadtex.tsv" "$out/oiio.tsv"; do
   tail -n +2 "$tsv" | while IFS=$'\t' read -r method ns bytes file; do
     read -r _ rmse _ flip < <("$qt" diff "$out/reference.exr" "$out/$file")
-    memory=$(awk -v b="$bytes" 'BEGIN { printf "%.2f MiB", b / 1048576 }')
+    memory=$(awk -v b="$bytes" 'BEGIN { if (b < 1048576) printf "%.1f KiB", b / 1024; else printf "%.2f MiB", b / 1048576 }')
     case "$method" in OIIO*) memory="$memory .tx, cache peak $peak" ;; esac
     printf '%s\t%s\t%s\t%s\t%s\n' "$method" "$ns" "$memory" "$rmse" "$flip" >>"$rows"
   done
