@@ -18,7 +18,8 @@
 //! else (another surface, or the sky) is checked at its corners; if they
 //! disagree with its centre, the pixel is shaded as four quarters, each with
 //! its own footprint on whatever it sees, so a horizon pixel is part sky,
-//! part ground instead of all ground.
+//! part ground instead of all ground. With the tent pixel filter, such
+//! pixels integrate each of the tent's 8×8 cells on what that cell sees.
 //!
 //! **Pixel filter.** A box over the pixel in *screen* space is not a uniform
 //! box over its footprint in texture space: under perspective the far end of
@@ -225,9 +226,7 @@ pub fn render(
     let start = Instant::now();
     // Which surface each pixel centre sees (0: none), to find the pixels a
     // silhouette may cross: those whose 4-neighbours see something else.
-    let seen: Vec<usize> = if options.pixel_filter == PixelFilter::Box
-        && !matches!(options.filter, Filter::Supersample(_))
-    {
+    let seen: Vec<usize> = if !matches!(options.filter, Filter::Supersample(_)) {
         (0..h)
             .into_par_iter()
             .flat_map_iter(|y| {
@@ -390,8 +389,13 @@ fn shade_pixel(
         return Rgba::new(acc[0] * s, acc[1] * s, acc[2] * s, acc[3] * s);
     }
     let (cx, cy) = (px + 0.5, py + 0.5);
-    if pixel == PixelFilter::Box && near_silhouette {
-        return shade_area(scene, filter, ScreenArea::pixel(cx, cy), 0, stats);
+    if near_silhouette {
+        match pixel {
+            PixelFilter::Box => {
+                return shade_area(scene, filter, ScreenArea::pixel(cx, cy), 0, stats);
+            }
+            PixelFilter::Tent => return tent_by_cells(scene, filter, [cx, cy], stats),
+        }
     }
     shade_ray(
         scene,
@@ -401,6 +405,36 @@ fn shade_pixel(
         ScreenArea::pixel(cx, cy),
         stats,
     )
+}
+
+/// The tent over the 2×2 pixels around `centre` near a silhouette: each of
+/// the 8×8 screen cells is box-filtered on whatever its centre sees (its own
+/// footprint on its own surface, or the sky), then weighted by the tent.
+fn tent_by_cells(scene: &Scene, filter: Filter, centre: [f64; 2], stats: &mut RowStats) -> Rgba {
+    let n = TENT_CELLS;
+    let step = 2.0 / n as f64;
+    let (mut acc, mut weights) = ([0f32; 4], 0f32);
+    for j in 0..n {
+        for i in 0..n {
+            let (dx, dy) = (
+                -1.0 + (i as f64 + 0.5) * step,
+                -1.0 + (j as f64 + 0.5) * step,
+            );
+            let cell = ScreenArea {
+                centre: [centre[0] + dx, centre[1] + dy],
+                half: step / 2.0,
+            };
+            // Cells are not split further: they are already 1/16 of a pixel.
+            let c = shade_area(scene, filter, cell, SILHOUETTE_SPLITS, stats);
+            let w = ((1.0 - dx.abs()) * (1.0 - dy.abs())) as f32;
+            for (a, v) in acc.iter_mut().zip(c.to_array()) {
+                *a += w * v;
+            }
+            weights += w;
+        }
+    }
+    let s = 1.0 / weights;
+    Rgba::new(acc[0] * s, acc[1] * s, acc[2] * s, acc[3] * s)
 }
 
 /// A square of the screen: a pixel, or part of one at a silhouette.
