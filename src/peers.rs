@@ -49,8 +49,8 @@ pub fn footprints(parser: &mut lexopt::Parser) -> Result<()> {
     }
     let path = scene_path.ok_or("footprints: missing SCENE.toml")?;
     let dir = dir.ok_or("footprints: missing -o DIR")?;
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let scene = quadtex_render::load_scene(&path)?;
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let height = ((f64::from(width) * f64::from(scene.camera.height())
         / f64::from(scene.camera.width()))
     .round() as u32)

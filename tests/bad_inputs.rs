@@ -538,3 +538,84 @@ fn svg_zero_size() {
         "invalid SVG",
     );
 }
+
+#[test]
+fn compare_width_out_of_range() {
+    let d = dir("compare-width");
+    let out = d.join("report");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/checker.toml");
+    expect_failure(
+        &[
+            "compare",
+            scene,
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "5",
+        ],
+        "",
+        &["--width must be in 16..=3840"],
+        Some(&out),
+    );
+}
+
+#[test]
+fn compare_missing_scene() {
+    let d = dir("compare-missing");
+    let out = d.join("report");
+    let scene = d.join("nope.toml");
+    expect_failure(
+        &[
+            "compare",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        &["nope.toml"],
+        Some(&out),
+    );
+}
+
+#[test]
+fn diff_of_images_of_different_sizes() {
+    let d = dir("diff-sizes");
+    let (a, b) = (d.join("a.exr"), d.join("b.exr"));
+    for (p, w) in [(&a, 4u32), (&b, 5)] {
+        let img = quadtex_io::LinearImage {
+            width: w,
+            height: 2,
+            pixels: vec![quadtex_core::Rgba::opaque(0.5, 0.5, 0.5); (w * 2) as usize],
+        };
+        quadtex_io::save_image(p, &img).unwrap();
+    }
+    expect_failure(
+        &["diff", a.to_str().unwrap(), b.to_str().unwrap()],
+        "",
+        &["a.exr is 4x2 but", "b.exr is 5x2"],
+        None,
+    );
+}
+
+#[test]
+fn footprints_of_a_scene_with_nan() {
+    let d = dir("footprints-nan");
+    let scene = d.join("nan.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\nposition = [0, nan, 0]\nlook_at = [0, 0, 1]\nfov = 40\nwidth = 64\nheight = 32\n[[shape]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\n",
+    )
+    .unwrap();
+    let out = d.join("fp");
+    expect_failure(
+        &[
+            "footprints",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        &["nan.toml:2", "camera.position"],
+        Some(&out),
+    );
+}
