@@ -386,6 +386,12 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         grid_rows.push(row_of(img, reference_for(c)));
         labels.push(c.label.clone());
     }
+    // Each row starts with its name.
+    for (row, label) in grid_rows.iter_mut().zip(&labels) {
+        if let Some(l) = compare::label(label) {
+            row.insert(0, l);
+        }
+    }
     let grid = compare::grid(&grid_rows, 4);
     quadtex_io::save_image(&dir.join("grid.png"), &grid)?;
     quadtex_io::save_image(&dir.join("frames").join("reference.png"), &reference_box)?;

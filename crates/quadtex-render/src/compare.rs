@@ -215,6 +215,43 @@ pub fn shrink(img: &LinearImage, k: u32) -> LinearImage {
     }
 }
 
+/// A 256 × 24 image of `text` in white on transparent, set with the SVG
+/// packer's shipped font and packed exactly (the report's grid labels).
+/// `None` if the text cannot be set.
+pub fn label(text: &str) -> Option<LinearImage> {
+    const LEVEL: u8 = 8;
+    const W: u32 = 256;
+    const H: u32 = 24;
+    let svg = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {H}"><text x="4" y="18" font-size="16" fill="white">{}</text></svg>"#,
+        escape(text)
+    );
+    let limits = quadtex_io::Limits::default();
+    let art = quadtex_io::parse_svg(
+        svg.as_bytes(),
+        std::path::Path::new("label.svg"),
+        LEVEL,
+        &limits,
+    )
+    .ok()?;
+    let options = quadtex_core::VectorOptions {
+        max_level: LEVEL,
+        ..quadtex_core::VectorOptions::default()
+    };
+    let (tree, _) = quadtex_core::QuadTree::from_vector(&art, &options).ok()?;
+    let grid = tree.rasterise(LEVEL).ok()?;
+    // The drawing's longer side spans the square: the label is the top rows.
+    let pixels = grid.texels()[..(W * H) as usize]
+        .iter()
+        .map(|t| t.to_rgba())
+        .collect();
+    Some(LinearImage {
+        width: W,
+        height: H,
+        pixels,
+    })
+}
+
 /// Tiles `rows` of images on a dark background with `gap` pixels between
 /// them, each row as tall as its tallest image.
 pub fn grid(rows: &[Vec<LinearImage>], gap: u32) -> LinearImage {
@@ -237,8 +274,19 @@ pub fn grid(rows: &[Vec<LinearImage>], gap: u32) -> LinearImage {
             for y in 0..img.height {
                 let dst = ((y0 + y) * width + x0) as usize;
                 let src = (y * img.width) as usize;
-                out[dst..dst + img.width as usize]
-                    .copy_from_slice(&img.pixels[src..src + img.width as usize]);
+                // Composite over the background, so transparent labels read.
+                for (o, p) in out[dst..dst + img.width as usize]
+                    .iter_mut()
+                    .zip(&img.pixels[src..src + img.width as usize])
+                {
+                    let keep = 1.0 - p.a;
+                    *o = Rgba::new(
+                        p.r + o.r * keep,
+                        p.g + o.g * keep,
+                        p.b + o.b * keep,
+                        p.a + o.a * keep,
+                    );
+                }
             }
             x0 += img.width + gap;
         }
@@ -800,6 +848,25 @@ mod tests {
             })
             .collect();
         assert!((shimmer(&flicker, &refs).unwrap() - 0.2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn labels_are_set_in_white_on_transparent() {
+        let l = label("quadtree").unwrap();
+        assert_eq!((l.width, l.height), (256, 24));
+        let inked = l.pixels.iter().filter(|p| p.a > 0.5).count();
+        assert!(inked > 100 && inked < 256 * 24 / 3, "{inked} inked pixels");
+        assert!(
+            l.pixels.iter().all(|p| (p.r - p.a).abs() < 1e-3),
+            "white, premultiplied"
+        );
+        // Nothing past the text's end.
+        assert!(
+            l.pixels
+                .iter()
+                .enumerate()
+                .all(|(i, p)| i % 256 < 120 || p.a == 0.0)
+        );
     }
 
     #[test]
