@@ -370,24 +370,43 @@ fn human(bytes: u64) -> String {
     }
 }
 
+/// Column headings of the figures table (Markdown and HTML).
+const HEADINGS: [&str; 9] = [
+    "filter",
+    "RMSE",
+    "PSNR dB",
+    "RMSE vs closed form",
+    "FLIP",
+    "shimmer",
+    "ms/frame",
+    "lookups/px",
+    "texture memory",
+];
+
+/// One contender's cells, formatted for display, in [`HEADINGS`] order.
+fn cells(r: &Figures) -> [String; 9] {
+    [
+        r.label.clone(),
+        format!("{:.4}", r.rmse),
+        format!("{:.1}", r.psnr),
+        fmt_opt(r.rmse_exact, 4),
+        fmt_opt(r.flip, 4),
+        fmt_opt(r.shimmer, 4),
+        format!("{:.0}", 1000.0 * r.seconds),
+        fmt_opt(r.lookups_per_pixel, 1),
+        human(r.texture_bytes),
+    ]
+}
+
 /// The figures as a Markdown table.
 pub fn markdown_table(rows: &[Figures]) -> String {
-    let mut s = String::from(
-        "| filter | RMSE | PSNR dB | RMSE vs closed form | FLIP | shimmer | ms/frame | lookups/px | texture memory |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    let mut s = format!(
+        "| {} |\n|---|{}\n",
+        HEADINGS.join(" | "),
+        "---:|".repeat(HEADINGS.len() - 1)
     );
     for r in rows {
-        s.push_str(&format!(
-            "| {} | {:.4} | {:.1} | {} | {} | {} | {:.0} | {} | {} |\n",
-            r.label,
-            r.rmse,
-            r.psnr,
-            fmt_opt(r.rmse_exact, 4),
-            fmt_opt(r.flip, 4),
-            fmt_opt(r.shimmer, 4),
-            1000.0 * r.seconds,
-            fmt_opt(r.lookups_per_pixel, 1),
-            human(r.texture_bytes)
-        ));
+        s.push_str(&format!("| {} |\n", cells(r).join(" | ")));
     }
     s
 }
@@ -520,7 +539,8 @@ pub struct ReportInfo {
 /// the grid, with the images beside it.
 pub fn html_report(info: &ReportInfo, rows: &[Figures], labels_in_grid: &[String]) -> String {
     let mut s = format!(
-        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>quadtex compare: {scene}</title>\n<style>body{{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}td:first-child,th:first-child{{text-align:left}}img{{max-width:100%;image-rendering:pixelated}}</style></head><body>\n<h1>quadtex compare: {scene}</h1>\n<p>{w}×{h} pixels. Reference: {reference}. Shimmer: {motion}. {machine}. Metrics in linear light; RMSE and FLIP against the reference; time is the median wall-clock time per frame in this run.</p>\n<h2>Error against time</h2>\n<p><img src=\"plot.svg\" alt=\"RMSE against milliseconds per frame\"></p>\n<h2>Figures</h2>\n<table><tr><th>filter</th><th>RMSE</th><th>PSNR dB</th><th>RMSE vs closed form</th><th>FLIP</th><th>shimmer</th><th>ms/frame</th><th>lookups/px</th><th>texture memory</th></tr>\n",
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>quadtex compare: {scene}</title>\n<style>body{{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}td:first-child,th:first-child{{text-align:left}}img{{max-width:100%;image-rendering:pixelated}}</style></head><body>\n<h1>quadtex compare: {scene}</h1>\n<p>{w}×{h} pixels. Reference: {reference}. Shimmer: {motion}. {machine}. Metrics in linear light; RMSE and FLIP against the reference; time is the median wall-clock time per frame in this run.</p>\n<h2>Error against time</h2>\n<p><img src=\"plot.svg\" alt=\"RMSE against milliseconds per frame\"></p>\n<h2>Figures</h2>\n<table><tr><th>{headings}</th></tr>\n",
+        headings = HEADINGS.join("</th><th>"),
         scene = escape(&info.scene),
         w = info.width,
         h = info.height,
@@ -529,18 +549,8 @@ pub fn html_report(info: &ReportInfo, rows: &[Figures], labels_in_grid: &[String
         machine = escape(&info.machine),
     );
     for r in rows {
-        s.push_str(&format!(
-            "<tr><td>{}</td><td>{:.4}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.0}</td><td>{}</td><td>{}</td></tr>\n",
-            escape(&r.label),
-            r.rmse,
-            r.psnr,
-            fmt_opt(r.rmse_exact, 4),
-            fmt_opt(r.flip, 4),
-            fmt_opt(r.shimmer, 4),
-            1000.0 * r.seconds,
-            fmt_opt(r.lookups_per_pixel, 1),
-            human(r.texture_bytes)
-        ));
+        let row = cells(r).map(|c| escape(&c));
+        s.push_str(&format!("<tr><td>{}</td></tr>\n", row.join("</td><td>")));
     }
     s.push_str("</table>\n<p>Also as <a href=\"results.csv\">CSV</a> and <a href=\"results.md\">Markdown</a>.</p>\n<h2>Images</h2>\n<p>One row each, top to bottom: ");
     s.push_str(&escape(&labels_in_grid.join(", ")));
