@@ -32,6 +32,20 @@ uv_scale = [0.5, 0.5]
     parse_scene(&text, Path::new("grazing.toml")).unwrap()
 }
 
+/// `scene` rendered with `filter` and otherwise default options.
+fn render_with(scene: &Scene, filter: Filter) -> quadtex_io::LinearImage {
+    render(
+        scene,
+        &RenderOptions {
+            filter,
+            ..RenderOptions::default()
+        },
+        &|_, _| {},
+    )
+    .unwrap()
+    .0
+}
+
 /// RMSE of the red channel over rows `from..` (row-major images of equal size).
 fn rmse(a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba], width: usize, from: usize) -> f64 {
     let (a, b) = (&a[from * width..], &b[from * width..]);
@@ -240,18 +254,7 @@ fn tent_pixel_filter_matches_a_tent_weighted_supersampled_reference() {
 #[test]
 fn quadtree_beats_trilinear_and_ewa_at_a_grazing_angle() {
     let scene = grazing(48, 32, 1.5);
-    let go = |filter| {
-        render(
-            &scene,
-            &RenderOptions {
-                filter,
-                ..RenderOptions::default()
-            },
-            &|_, _| {},
-        )
-        .unwrap()
-        .0
-    };
+    let go = |filter| render_with(&scene, filter);
     let reference = go(Filter::Supersample(32));
     let error = |filter| rmse(&go(filter).pixels, &reference.pixels, 48, 14);
     let quadtree = error(Filter::default());
@@ -282,18 +285,7 @@ fn quadtree_beats_trilinear_and_ewa_at_a_grazing_angle() {
 fn supersampling_error_falls_as_samples_grow() {
     use quadtex_render::compare;
     let scene = grazing(64, 36, 1.5);
-    let go = |filter| {
-        render(
-            &scene,
-            &RenderOptions {
-                filter,
-                ..RenderOptions::default()
-            },
-            &|_, _| {},
-        )
-        .unwrap()
-        .0
-    };
+    let go = |filter| render_with(&scene, filter);
     let reference = go(Filter::Supersample(32));
     let errors: Vec<f64> = [1, 2, 4, 8]
         .iter()
@@ -321,18 +313,7 @@ fn closed_form_checkerboard_validates_the_reference() {
     let (w, h) = (48u32, 32u32);
     let scene = grazing(w, h, 1.5);
     let exact = compare::closed_form_plane(&scene, w, h, 20_000).expect("a plane scene");
-    let go = |filter| {
-        render(
-            &scene,
-            &RenderOptions {
-                filter,
-                ..RenderOptions::default()
-            },
-            &|_, _| {},
-        )
-        .unwrap()
-        .0
-    };
+    let go = |filter| render_with(&scene, filter);
     let (reference, defined) =
         compare::rmse_where_defined(&go(Filter::Supersample(64)), &exact).unwrap();
     assert!(
