@@ -233,13 +233,7 @@ pub fn render(
                 let scene = &scene;
                 (0..w).map(move |x| {
                     let ray = scene.camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    nearest_hit(scene, &ray).map_or(0, |(s, _)| {
-                        1 + scene
-                            .surfaces
-                            .iter()
-                            .position(|t| std::ptr::eq(t, s))
-                            .unwrap_or(0)
-                    })
+                    nearest_index(scene, &ray).map_or(0, |(i, _)| i + 1)
                 })
             })
             .collect()
@@ -306,12 +300,17 @@ pub fn render(
 }
 
 fn nearest_hit<'a>(scene: &'a Scene, ray: &Ray) -> Option<(&'a Surface, Hit)> {
-    let mut best: Option<(&Surface, Hit)> = None;
-    for s in &scene.surfaces {
+    nearest_index(scene, ray).map(|(i, hit)| (&scene.surfaces[i], hit))
+}
+
+/// The index of the first surface `ray` meets, and where.
+fn nearest_index(scene: &Scene, ray: &Ray) -> Option<(usize, Hit)> {
+    let mut best: Option<(usize, Hit)> = None;
+    for (i, s) in scene.surfaces.iter().enumerate() {
         if let Some(hit) = s.geometry.intersect(ray, 1e-9)
             && best.as_ref().is_none_or(|(_, b)| hit.t < b.t)
         {
-            best = Some((s, hit));
+            best = Some((i, hit));
         }
     }
     best
@@ -477,9 +476,7 @@ fn shade_area(
     let [cx, cy] = area.centre;
     let centre_ray = scene.camera.ray(cx, cy);
     if splits < SILHOUETTE_SPLITS {
-        let seen = |x: f64, y: f64| {
-            nearest_hit(scene, &scene.camera.ray(x, y)).map(|(s, _)| s as *const Surface)
-        };
+        let seen = |x: f64, y: f64| nearest_index(scene, &scene.camera.ray(x, y)).map(|(i, _)| i);
         let h = area.half;
         let middle = seen(cx, cy);
         let straddles = [(-h, -h), (h, -h), (h, h), (-h, h)]
@@ -892,9 +889,8 @@ fn textured_hits(scene: &Scene) -> Vec<(usize, usize, Hit)> {
     for y in 0..h {
         for x in 0..w {
             let ray = scene.camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-            if let Some((s, hit)) = nearest_hit(scene, &ray)
-                && s.texture.is_some()
-                && let Some(index) = scene.surfaces.iter().position(|t| std::ptr::eq(t, s))
+            if let Some((index, hit)) = nearest_index(scene, &ray)
+                && scene.surfaces[index].texture.is_some()
             {
                 out.push(((y * w + x) as usize, index, hit));
             }
