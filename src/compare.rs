@@ -4,11 +4,9 @@
 //! static report (see `docs/compare.md`).
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::Instant;
 
 use lexopt::prelude::*;
-use quadtex_core::QuadTree;
 use quadtex_io::LinearImage;
 use quadtex_render::compare::{self, Contender, Figures, ReportInfo};
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
@@ -132,27 +130,16 @@ fn render_one(
     Ok(quadtex_render::render(scene, &options, &|_, _| {})?)
 }
 
-/// The scene's distinct textures.
-fn textures(scene: &Scene) -> Vec<Arc<QuadTree>> {
-    let mut out: Vec<Arc<QuadTree>> = Vec::new();
-    for s in &scene.surfaces {
-        if let Some(t) = &s.texture
-            && !out.iter().any(|o| Arc::ptr_eq(o, &t.tree))
-        {
-            out.push(t.tree.clone());
-        }
-    }
-    out
-}
-
 /// Bytes of texture data a filter needs, in the form its users store it:
 /// the tree; an RGBA8 raster at the tree's full resolution (nearest,
 /// bilinear, supersampling); RGBA8 raster + mips at the baselines'
 /// resolution (trilinear, EWA); a summed-area table of 4 × u32 per texel.
-fn texture_bytes(trees: &[Arc<QuadTree>], filter: Filter) -> u64 {
-    trees
+pub fn texture_bytes(scene: &Scene, filter: Filter) -> u64 {
+    scene
+        .distinct_textures()
         .iter()
-        .map(|t| {
+        .map(|(_, texture)| {
+            let t = &texture.tree;
             let full = 4u64.saturating_mul(1u64 << (2 * u32::from(t.depth()).min(31)));
             let b = quadtex_render::scene::baseline_level(t.depth());
             let base = 1u64 << (2 * u32::from(b));
@@ -215,7 +202,6 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         .map_err(|e| format!("{}: {e}", dir.join("frames").display()))?;
     let (w, h) = sized(scene, s.width);
     let contenders = compare::default_contenders();
-    let trees = textures(scene);
     let needs_tent = contenders
         .iter()
         .any(|c| c.pixel_filter == PixelFilter::Tent);
@@ -335,7 +321,7 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
             shimmer,
             seconds,
             lookups_per_pixel: lookups_per_pixel(c.filter, &summary),
-            texture_bytes: texture_bytes(&trees, c.filter),
+            texture_bytes: texture_bytes(scene, c.filter),
         };
         eprintln!(
             "  {:<16} RMSE {:.4}  {:>7.0} ms/frame",

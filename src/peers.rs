@@ -4,7 +4,6 @@
 //! `bench/peers/run.sh`; see `docs/footprints.md`.
 
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use lexopt::prelude::*;
 use quadtex_io::LinearImage;
@@ -57,14 +56,12 @@ pub fn footprints(parser: &mut lexopt::Parser) -> Result<()> {
         .max(1);
     let (records, users) = quadtex_render::footprint_records(&scene, width, height)?;
     let mut textures = Vec::new();
-    let mut tree_bytes = 0u64;
     for (i, &u) in users.iter().enumerate() {
         let surface = &scene.surfaces[u];
         let Some(texture) = &surface.texture else {
             continue;
         };
-        let tree: &Arc<quadtex_core::QuadTree> = &texture.tree;
-        tree_bytes += tree.memory_bytes();
+        let tree = &texture.tree;
         // The peer gets the same raster the in-project baselines use.
         let level = quadtex_render::scene::baseline_level(tree.depth());
         let grid = tree.rasterise(level)?;
@@ -125,18 +122,7 @@ pub fn footprints(parser: &mut lexopt::Parser) -> Result<()> {
         let t = quadtex_render::time_lookups(&scene, width, height, filter, passes)?;
         let file = format!("{stem}.exr");
         quadtex_io::save_image(&dir.join(&file), &t.image)?;
-        let bytes = match filter {
-            Filter::Quadtree { .. } => tree_bytes,
-            // RGBA8 raster + mips at the baselines' resolution, as a user stores it.
-            _ => users
-                .iter()
-                .filter_map(|&u| scene.surfaces[u].texture.as_ref())
-                .map(|t| {
-                    let l = quadtex_render::scene::baseline_level(t.tree.depth());
-                    4 * (1u64 << (2 * u32::from(l))) * 4 / 3
-                })
-                .sum(),
-        };
+        let bytes = crate::compare::texture_bytes(&scene, filter);
         table.push_str(&format!(
             "{label}\t{:.1}\t{bytes}\t{file}\n",
             t.ns_per_lookup

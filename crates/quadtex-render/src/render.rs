@@ -989,8 +989,8 @@ pub fn texture_only(scene: &Scene) -> Scene {
 }
 
 /// Every pixel's lookup in OpenImageIO's conventions (see
-/// `quadtex_io::footprints`), with the index of each record's texture in
-/// `textures` (the scene's distinct trees, in order of first use).
+/// `quadtex_io::footprints`), and for each texture index the records use
+/// the first surface carrying that texture (as [`Scene::distinct_textures`]).
 pub fn footprint_records(
     scene: &Scene,
     width: u32,
@@ -1007,22 +1007,13 @@ pub fn footprint_records(
         };
         (width * height) as usize
     ];
-    // Distinct trees, by the first surface that uses each.
-    let mut first_users: Vec<usize> = Vec::new();
-    let tree_index = |surface: usize, first_users: &mut Vec<usize>| -> u32 {
-        let tree = scene.surfaces[surface].texture.as_ref().map(|t| &t.tree);
-        if let Some(i) = first_users.iter().position(|&u| {
-            scene.surfaces[u]
-                .texture
-                .as_ref()
-                .map(|t| &t.tree)
-                .zip(tree)
-                .is_some_and(|(a, b)| std::sync::Arc::ptr_eq(a, b))
-        }) {
-            return i as u32;
-        }
-        first_users.push(surface);
-        (first_users.len() - 1) as u32
+    let distinct = scene.distinct_textures();
+    let tree_index = |surface: usize| -> Option<u32> {
+        let tree = &scene.surfaces[surface].texture.as_ref()?.tree;
+        distinct
+            .iter()
+            .position(|(_, t)| std::sync::Arc::ptr_eq(&t.tree, tree))
+            .map(|i| i as u32)
     };
     for (pixel, surface, hit) in textured_hits(&scene) {
         let (x, y) = (pixel as u32 % width, pixel as u32 / width);
@@ -1040,7 +1031,7 @@ pub fn footprint_records(
             0.5 * (q[3][1] - q[0][1] + q[2][1] - q[1][1]),
         ];
         records[pixel] = FootprintRecord {
-            texture: Some(tree_index(surface, &mut first_users)),
+            texture: tree_index(surface),
             st: st(centre),
             // t runs down: its derivatives change sign.
             derivatives: [
@@ -1052,5 +1043,6 @@ pub fn footprint_records(
             quad: q.map(st),
         };
     }
-    Ok((records, first_users))
+    let users = distinct.iter().map(|&(u, _)| u).collect();
+    Ok((records, users))
 }

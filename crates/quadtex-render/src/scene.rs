@@ -575,3 +575,19 @@ pub struct Scene {
     /// The shading model.
     pub lighting: Lighting,
 }
+
+impl Scene {
+    /// The scene's textures, each tree once, in order of first use, with the
+    /// index of the first surface that uses it.
+    pub fn distinct_textures(&self) -> Vec<(usize, &Texture)> {
+        let mut out: Vec<(usize, &Texture)> = Vec::new();
+        for (i, s) in self.surfaces.iter().enumerate() {
+            if let Some(t) = &s.texture
+                && !out.iter().any(|(_, o)| Arc::ptr_eq(&o.tree, &t.tree))
+            {
+                out.push((i, t));
+            }
+        }
+        out
+    }
+}
