@@ -106,14 +106,6 @@ pub fn run(parser: &mut lexopt::Parser) -> Result<()> {
     compare_scene(&scene, &name, &dir, &settings)
 }
 
-fn sized(scene: &Scene, width: u32) -> (u32, u32) {
-    let (cw, ch) = (scene.camera.width(), scene.camera.height());
-    let h = (f64::from(width) * f64::from(ch) / f64::from(cw))
-        .round()
-        .max(1.0) as u32;
-    (width, h)
-}
-
 fn render_one(
     scene: &Scene,
     w: u32,
@@ -200,7 +192,7 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
     let start = Instant::now();
     std::fs::create_dir_all(dir.join("frames"))
         .map_err(|e| format!("{}: {e}", dir.join("frames").display()))?;
-    let (w, h) = sized(scene, s.width);
+    let (w, h) = (s.width, scene.camera.height_for_width(s.width));
     let contenders = compare::default_contenders();
     let needs_tent = contenders
         .iter()
@@ -387,7 +379,7 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
             .join(format!("{}.png", compare::file_stem(&c.label)));
         quadtex_io::save_image(&file, img)?;
     }
-    let threads = rayon_threads();
+    let threads = available_threads();
     let info = ReportInfo {
         scene: name.to_string(),
         width: w,
@@ -431,6 +423,7 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
     Ok(())
 }
 
-fn rayon_threads() -> usize {
+/// Threads the renderer's pool uses by default (rayon: one per available core).
+fn available_threads() -> usize {
     std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
 }

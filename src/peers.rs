@@ -50,10 +50,7 @@ pub fn footprints(parser: &mut lexopt::Parser) -> Result<()> {
     let dir = dir.ok_or("footprints: missing -o DIR")?;
     let scene = quadtex_render::load_scene(&path)?;
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let height = ((f64::from(width) * f64::from(scene.camera.height())
-        / f64::from(scene.camera.width()))
-    .round() as u32)
-        .max(1);
+    let height = scene.camera.height_for_width(width);
     let (records, users) = quadtex_render::footprint_records(&scene, width, height)?;
     let mut textures = Vec::new();
     for (i, &u) in users.iter().enumerate() {

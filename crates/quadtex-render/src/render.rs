@@ -180,12 +180,7 @@ pub fn render(
 ) -> Result<(LinearImage, RenderSummary), crate::Error> {
     let (w, h) = match (options.width, options.height) {
         (None, None) => (scene.camera.width(), scene.camera.height()),
-        (Some(w), None) => {
-            let h = (f64::from(w) * f64::from(scene.camera.height())
-                / f64::from(scene.camera.width()))
-            .round();
-            (w, (h as u32).max(1))
-        }
+        (Some(w), None) => (w, scene.camera.height_for_width(w)),
         (None, Some(h)) => {
             let w = (f64::from(h) * f64::from(scene.camera.width())
                 / f64::from(scene.camera.height()))
@@ -194,12 +189,7 @@ pub fn render(
         }
         (Some(w), Some(h)) => (w, h),
     };
-    if w == 0 || h == 0 || u64::from(w) * u64::from(h) > crate::MAX_PIXELS {
-        return Err(crate::Error::Resolution {
-            width: w,
-            height: h,
-        });
-    }
+    let scene = sized_scene(scene, w, h)?;
     if let Filter::Supersample(n) = options.filter
         && (n == 0 || n > 64)
     {
@@ -207,22 +197,7 @@ pub fn render(
             "supersample:{n}: the sample grid must be 1..=64 per side"
         )));
     }
-    if matches!(
-        options.filter,
-        Filter::Trilinear | Filter::Ewa { .. } | Filter::Sat { .. }
-    ) {
-        for s in &scene.surfaces {
-            if let Some(t) = &s.texture {
-                t.baselines()
-                    .map_err(|e| crate::Error::Option(format!("raster baseline: {e}")))?;
-            }
-        }
-    }
-    let camera = scene.camera.with_size(w, h);
-    let scene = Scene {
-        camera,
-        ..scene.clone()
-    };
+    prepare_baselines(&scene, options.filter)?;
     let start = Instant::now();
     // Which surface each pixel centre sees (0: none), to find the pixels a
     // silhouette may cross: those whose 4-neighbours see something else.
@@ -899,6 +874,24 @@ fn textured_hits(scene: &Scene) -> Vec<(usize, usize, Hit)> {
     out
 }
 
+/// Builds the raster baselines a baseline filter needs, before any pixel
+/// asks for them (so a failure is one error, not one per pixel).
+fn prepare_baselines(scene: &Scene, filter: Filter) -> Result<(), crate::Error> {
+    if matches!(
+        filter,
+        Filter::Trilinear | Filter::Ewa { .. } | Filter::Sat { .. }
+    ) {
+        for s in &scene.surfaces {
+            if let Some(t) = &s.texture {
+                t.baselines()
+                    .map_err(|e| crate::Error::Option(format!("raster baseline: {e}")))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The scene with its camera at `width × height`, within [`crate::MAX_PIXELS`].
 fn sized_scene(scene: &Scene, width: u32, height: u32) -> Result<Scene, crate::Error> {
     if width == 0 || height == 0 || u64::from(width) * u64::from(height) > crate::MAX_PIXELS {
         return Err(crate::Error::Resolution { width, height });
@@ -932,17 +925,7 @@ pub fn time_lookups(
     passes: u32,
 ) -> Result<LookupTiming, crate::Error> {
     let scene = sized_scene(scene, width, height)?;
-    if matches!(
-        filter,
-        Filter::Trilinear | Filter::Ewa { .. } | Filter::Sat { .. }
-    ) {
-        for s in &scene.surfaces {
-            if let Some(t) = &s.texture {
-                t.baselines()
-                    .map_err(|e| crate::Error::Option(format!("raster baseline: {e}")))?;
-            }
-        }
-    }
+    prepare_baselines(&scene, filter)?;
     let hits = textured_hits(&scene);
     let mut pixels = vec![Rgba::TRANSPARENT; (width * height) as usize];
     let mut times = Vec::new();

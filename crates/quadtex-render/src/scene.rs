@@ -82,6 +82,12 @@ impl Camera {
         self.forward
     }
 
+    /// The image height that keeps this camera's aspect at `width` (at least 1).
+    pub fn height_for_width(&self, width: u32) -> u32 {
+        let h = (f64::from(width) * f64::from(self.height) / f64::from(self.width)).round();
+        (h as u32).max(1)
+    }
+
     /// Image width in pixels.
     pub fn width(&self) -> u32 {
         self.width
