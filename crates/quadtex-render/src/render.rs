@@ -161,6 +161,19 @@ struct RowStats {
 }
 
 impl RowStats {
+    /// Adds the statistics of the parts one pixel was shaded in as that one
+    /// pixel: all their cost, but one textured pixel and their mean mismatch.
+    fn merge_parts(&mut self, parts: &RowStats) {
+        if parts.textured > 0 {
+            self.textured += 1;
+            self.sum_mismatch += parts.sum_mismatch / parts.textured as f64;
+        }
+        self.fragments += parts.fragments;
+        self.traversal.queries += parts.traversal.queries;
+        self.traversal.nodes_visited += parts.traversal.nodes_visited;
+        self.max_mismatch = self.max_mismatch.max(parts.max_mismatch);
+    }
+
     fn merge(&mut self, o: &RowStats) {
         self.textured += o.textured;
         self.fragments += o.fragments;
@@ -388,6 +401,7 @@ fn tent_by_cells(scene: &Scene, filter: Filter, centre: [f64; 2], stats: &mut Ro
     let n = TENT_CELLS;
     let step = 2.0 / n as f64;
     let (mut acc, mut weights) = ([0f32; 4], 0f32);
+    let mut parts = RowStats::default();
     for j in 0..n {
         for i in 0..n {
             let (dx, dy) = (
@@ -399,7 +413,7 @@ fn tent_by_cells(scene: &Scene, filter: Filter, centre: [f64; 2], stats: &mut Ro
                 half: step / 2.0,
             };
             // Cells are not split further: they are already 1/16 of a pixel.
-            let c = shade_area(scene, filter, cell, SILHOUETTE_SPLITS, stats);
+            let c = shade_area(scene, filter, cell, SILHOUETTE_SPLITS, &mut parts);
             let w = ((1.0 - dx.abs()) * (1.0 - dy.abs())) as f32;
             for (a, v) in acc.iter_mut().zip(c.to_array()) {
                 *a += w * v;
@@ -407,6 +421,7 @@ fn tent_by_cells(scene: &Scene, filter: Filter, centre: [f64; 2], stats: &mut Ro
             weights += w;
         }
     }
+    stats.merge_parts(&parts);
     let s = 1.0 / weights;
     Rgba::new(acc[0] * s, acc[1] * s, acc[2] * s, acc[3] * s)
 }
@@ -460,16 +475,18 @@ fn shade_area(
         if straddles {
             let q = h / 2.0;
             let mut acc = [0f32; 4];
+            let mut parts = RowStats::default();
             for (dx, dy) in [(-q, -q), (q, -q), (-q, q), (q, q)] {
                 let part = ScreenArea {
                     centre: [cx + dx, cy + dy],
                     half: q,
                 };
-                let c = shade_area(scene, filter, part, splits + 1, stats);
+                let c = shade_area(scene, filter, part, splits + 1, &mut parts);
                 for (a, v) in acc.iter_mut().zip(c.to_array()) {
                     *a += 0.25 * v;
                 }
             }
+            stats.merge_parts(&parts);
             return Rgba::new(acc[0], acc[1], acc[2], acc[3]);
         }
     }
