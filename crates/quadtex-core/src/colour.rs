@@ -1,4 +1,5 @@
-use std::ops::{Add, AddAssign, Mul};
+use std::iter::Sum;
+use std::ops::{Add, AddAssign, Mul, Sub};
 
 /// A colour in linear light with premultiplied alpha, channels nominally in `[0,1]`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -40,6 +41,64 @@ impl Rgba {
         let a = q(self.a);
         // Premultiplied colour never exceeds alpha; keep that true after rounding.
         Unorm16Rgba([q(self.r).min(a), q(self.g).min(a), q(self.b).min(a), a])
+    }
+}
+
+/// Channel-wise sum: accumulating premultiplied colours (a weighted mean is
+/// `Σ wᵢ·cᵢ · (1/Σ wᵢ)`).
+impl Add for Rgba {
+    type Output = Rgba;
+    fn add(self, o: Rgba) -> Rgba {
+        Rgba::new(self.r + o.r, self.g + o.g, self.b + o.b, self.a + o.a)
+    }
+}
+
+impl AddAssign for Rgba {
+    fn add_assign(&mut self, o: Rgba) {
+        *self = *self + o;
+    }
+}
+
+/// Channel-wise difference.
+impl Sub for Rgba {
+    type Output = Rgba;
+    fn sub(self, o: Rgba) -> Rgba {
+        Rgba::new(self.r - o.r, self.g - o.g, self.b - o.b, self.a - o.a)
+    }
+}
+
+/// Every channel scaled by `s` (a premultiplied colour scales with its alpha).
+impl Mul<f32> for Rgba {
+    type Output = Rgba;
+    fn mul(self, s: f32) -> Rgba {
+        Rgba::new(self.r * s, self.g * s, self.b * s, self.a * s)
+    }
+}
+
+/// Channel-wise product: a texture colour modulated by a surface colour or
+/// a light.
+impl Mul for Rgba {
+    type Output = Rgba;
+    fn mul(self, o: Rgba) -> Rgba {
+        Rgba::new(self.r * o.r, self.g * o.g, self.b * o.b, self.a * o.a)
+    }
+}
+
+impl Sum for Rgba {
+    fn sum<I: Iterator<Item = Rgba>>(iter: I) -> Rgba {
+        iter.fold(Rgba::TRANSPARENT, Add::add)
+    }
+}
+
+impl Rgba {
+    /// `self + t·(other − self)`, channel by channel.
+    pub fn lerp(self, other: Rgba, t: f32) -> Rgba {
+        Rgba::new(
+            self.r + t * (other.r - self.r),
+            self.g + t * (other.g - self.g),
+            self.b + t * (other.b - self.b),
+            self.a + t * (other.a - self.a),
+        )
     }
 }
 

@@ -61,6 +61,16 @@ pub enum Error {
     /// Vector art that cannot be packed (non-finite point, colour not
     /// premultiplied, bad group); the message says what.
     BadVector(String),
+    /// A filter option out of its range: `name` is the option, `expected`
+    /// what it must be.
+    BadOption {
+        /// The option (`quality`, `error bound`).
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// What is accepted.
+        expected: &'static str,
+    },
 }
 
 impl fmt::Display for Error {
@@ -93,6 +103,11 @@ impl fmt::Display for Error {
             }
             Error::MalformedTree(why) => write!(f, "malformed quadtree: {why}"),
             Error::BadVector(why) => write!(f, "bad vector art: {why}"),
+            Error::BadOption {
+                name,
+                value,
+                expected,
+            } => write!(f, "{name} must be {expected}, got {value}"),
         }
     }
 }

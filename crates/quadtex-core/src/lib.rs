@@ -26,20 +26,26 @@
 
 mod colour;
 mod error;
+pub mod footprint;
 mod fragment;
 
 pub mod build;
-pub mod filters;
+pub mod mipmap;
 pub mod reference;
 pub mod sat;
 pub mod synth;
+pub mod texture;
 mod tree;
 pub mod variant;
 pub mod vector;
+pub mod wrap;
 
 pub use build::{BuildOptions, BuildReport, TexelGrid};
 pub use colour::{Rgba, Unorm16Rgba, WeightedColour};
 pub use error::Error;
+pub use footprint::Footprint;
 pub use fragment::Fragment;
+pub use texture::{FilterOptions, FilterStats, LevelOfDetail, Texture, Weighting};
 pub use tree::{LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
 pub use vector::{FillRule, VectorArt, VectorOptions, VectorReport};
+pub use wrap::{Wrap, WrapMode};

@@ -3,12 +3,12 @@
 use std::sync::Arc;
 
 use quadtex_core::synth::{self, Art, palette};
-use quadtex_core::{BuildOptions, QuadTree, Rgba, TexelGrid};
+use quadtex_core::{BuildOptions, QuadTree, Rgba, TexelGrid, Wrap};
 
 use crate::Error;
 use crate::math::Vec3;
 use crate::scene::{
-    Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform, WrapMode,
+    Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform,
 };
 
 /// The sign's art: white lettering on red in the band `z ∈ [0, 1/4)` of the
@@ -105,7 +105,7 @@ pub fn demo_scene() -> Result<Scene, Error> {
             texture: Some(runway),
             colour: white,
             uv_transform: UvTransform::default(),
-            wrap: WrapMode::Clamp,
+            wrap: Wrap::CLAMP,
         },
         Surface {
             geometry: Geometry::Plane {
@@ -120,7 +120,7 @@ pub fn demo_scene() -> Result<Scene, Error> {
                 scale: [1.0 / 20.0, 1.0 / 20.0],
                 ..UvTransform::default()
             },
-            wrap: WrapMode::Repeat,
+            wrap: Wrap::REPEAT,
         },
         Surface {
             geometry: Geometry::Quad {
@@ -134,7 +134,7 @@ pub fn demo_scene() -> Result<Scene, Error> {
                 scale: [1.0, 0.25],
                 ..UvTransform::default()
             },
-            wrap: WrapMode::Clamp,
+            wrap: Wrap::CLAMP,
         },
     ];
     let light = Vec3::new(-0.8, 0.25, 0.55)

@@ -1,29 +1,40 @@
 //! # quadtex-render
 //!
-//! A backward ray tracer whose textures are sampled by the exact area
-//! integral over each pixel's footprint (`quadtex-core`). Scenes come from
-//! TOML files ([`load_scene`], format in `docs/scenes.md`) or from code
-//! ([`demo_scene`]); [`render`] turns one into a linear image.
+//! quadtex's showcase: a backward ray tracer whose textures are filtered
+//! over each pixel's footprint by [`quadtex_core::Texture::filter`]. Scenes
+//! come from TOML files ([`load_scene`], format in `docs/scenes.md`) or from
+//! code ([`demo_scene`]); [`render`] turns one into a linear image.
+//!
+//! Modules: [`scene`] (the validated scene model), `parse` (TOML → scene),
+//! `view` (screen ↔ texture geometry, footprints), `shade` (one ray's
+//! colour), `pixel` (pixel strategies: supersampling, silhouettes, tent),
+//! `render` (the parallel loop), `stats` (what a render cost), `measure`
+//! (lookups and footprints for the comparison and peer benchmarks).
 #![forbid(unsafe_code)]
 
-pub mod compare;
 mod demo;
-pub mod footprint;
 pub mod math;
+mod measure;
+mod options;
 mod parse;
+mod pixel;
 mod render;
 pub mod scene;
+mod shade;
+mod stats;
+mod view;
 
 use std::fmt;
 use std::path::PathBuf;
 
 pub use demo::{demo_scene, sign_art};
-pub use footprint::LevelOfDetail;
-pub use parse::{load_scene, load_scene_with_limits, parse_scene, parse_scene_with_limits};
-pub use render::{
-    Filter, LookupTiming, PixelFilter, RenderOptions, RenderSummary, centre_distance,
-    footprint_records, render, texture_only, time_lookups,
+pub use measure::{
+    LookupTiming, PixelFootprint, centre_distance, pixel_footprints, texture_only, time_lookups,
 };
+pub use options::{Filter, PixelFilter, RenderOptions};
+pub use parse::{load_scene, load_scene_with_limits, parse_scene, parse_scene_with_limits};
+pub use render::render;
+pub use stats::RenderSummary;
 pub use scene::Scene;
 
 /// Most pixels one render may have (64 megapixels).

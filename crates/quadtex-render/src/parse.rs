@@ -7,14 +7,14 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use quadtex_core::vector::MAX_VECTOR_LEVEL;
-use quadtex_core::{BuildOptions, QuadTree, Rgba};
+use quadtex_core::{BuildOptions, QuadTree, Rgba, Wrap, WrapMode};
 use toml::{Table, Value};
 
 use crate::Error;
 use crate::demo::builtin_texture;
 use crate::math::Vec3;
 use crate::scene::{
-    Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform, WrapMode,
+    Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform,
 };
 use quadtex_io::Limits;
 
@@ -493,19 +493,31 @@ impl Context<'_> {
             }
             Some(_) => return Err(self.err(&format!("{key}.texture"), "must be a string")),
         };
-        let wrap = match t.get("wrap") {
-            None => WrapMode::Repeat,
-            Some(Value::String(s)) if s == "repeat" => WrapMode::Repeat,
-            Some(Value::String(s)) if s == "clamp" => WrapMode::Clamp,
-            Some(Value::String(s)) if s == "border" => {
-                WrapMode::Border(self.colour(t, key, "border")?.unwrap_or(Rgba::TRANSPARENT))
+        let mode = |v: &Value| match v {
+            Value::String(s) => WrapMode::from_name(s),
+            _ => None,
+        };
+        let bad_wrap = || {
+            self.err(
+                &format!("{key}.wrap"),
+                "must be \"repeat\", \"clamp\", \"mirror\", \"border\", or an array of two of them (x, z)",
+            )
+        };
+        let (x, z) = match t.get("wrap") {
+            None => (WrapMode::Repeat, WrapMode::Repeat),
+            Some(Value::Array(a)) => match a.as_slice() {
+                [x, z] => (mode(x).ok_or_else(bad_wrap)?, mode(z).ok_or_else(bad_wrap)?),
+                _ => return Err(bad_wrap()),
+            },
+            Some(v) => {
+                let m = mode(v).ok_or_else(bad_wrap)?;
+                (m, m)
             }
-            Some(_) => {
-                return Err(self.err(
-                    &format!("{key}.wrap"),
-                    "must be \"repeat\", \"clamp\" or \"border\"",
-                ));
-            }
+        };
+        let wrap = Wrap {
+            x,
+            z,
+            border: self.colour(t, key, "border")?.unwrap_or(Rgba::TRANSPARENT),
         };
         let scale = self.numbers::<2>(t, key, "uv_scale")?.unwrap_or([1.0, 1.0]);
         if scale.contains(&0.0) {

@@ -10,7 +10,7 @@
 
 use std::sync::Arc;
 
-use quadtex_core::{QuadTree, Rgba};
+use quadtex_core::{QuadTree, Rgba, Wrap};
 
 use crate::math::{Ray, Vec3};
 
@@ -95,6 +95,21 @@ impl Camera {
     /// Image height in pixels.
     pub fn height(&self) -> u32 {
         self.height
+    }
+
+    /// The image point (pixel units from the top-left corner) where world
+    /// point `p` projects, or `None` behind (or at) the camera's plane.
+    pub fn project(&self, p: Vec3) -> Option<[f64; 2]> {
+        let (width, height) = (f64::from(self.width), f64::from(self.height));
+        let d = p - self.position;
+        let z = d.dot(self.forward);
+        if z <= 1e-9 {
+            return None;
+        }
+        let aspect = width / height;
+        let sx = (d.dot(self.right) / z / (self.tan_half_fov * aspect) + 1.0) * width / 2.0;
+        let sy = (1.0 - d.dot(self.up) / z / self.tan_half_fov) * height / 2.0;
+        Some([sx, sy])
     }
 
     /// The ray through image point `(px, py)`, in pixel units from the top-left
@@ -399,17 +414,6 @@ fn quad_gradients(a: Vec3, b: Vec3) -> (Vec3, Vec3) {
     (du, dv)
 }
 
-/// How texture space repeats beyond the unit square.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum WrapMode {
-    /// Tiles repeat forever.
-    Repeat,
-    /// Edge colours extend outwards.
-    Clamp,
-    /// Outside the unit square: this colour.
-    Border(Rgba),
-}
-
 /// UV → texture space: `rotate(uv ⊙ scale) + offset`, rotation in degrees
 /// counter-clockwise.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -434,7 +438,7 @@ impl Default for UvTransform {
 
 impl UvTransform {
     /// Texture space back to UV (the inverse of [`UvTransform::apply`]).
-    pub(crate) fn invert(&self, t: [f64; 2]) -> [f64; 2] {
+    pub fn invert(&self, t: [f64; 2]) -> [f64; 2] {
         let (s, c) = self.sin_cos();
         let (x, z) = (t[0] - self.offset[0], t[1] - self.offset[1]);
         [
@@ -452,7 +456,8 @@ impl UvTransform {
         }
     }
 
-    pub(crate) fn apply(&self, uv: [f64; 2]) -> [f64; 2] {
+    /// UV to texture space.
+    pub fn apply(&self, uv: [f64; 2]) -> [f64; 2] {
         let (s, c) = self.sin_cos();
         let (x, z) = (uv[0] * self.scale[0], uv[1] * self.scale[1]);
         [
@@ -475,7 +480,7 @@ pub struct Texture {
 
 /// The raster forms a baseline filter needs, made from the tree's cells.
 pub(crate) struct Baselines {
-    pub pyramid: quadtex_core::filters::MipPyramid,
+    pub pyramid: quadtex_core::mipmap::MipPyramid,
     pub sat: quadtex_core::sat::SummedAreaTable,
 }
 
@@ -497,6 +502,11 @@ impl Texture {
         }
     }
 
+    /// The filtering view of this texture under `wrap` (shares the tree).
+    pub fn sampler(&self, wrap: Wrap) -> quadtex_core::Texture {
+        quadtex_core::Texture::new(Arc::clone(&self.tree), wrap)
+    }
+
     /// The raster baselines, built once (see [`baseline_level`]).
     pub(crate) fn baselines(&self) -> Result<&Baselines, &str> {
         self.baselines
@@ -506,7 +516,7 @@ impl Texture {
                     .rasterise(baseline_level(self.tree.depth()))
                     .map_err(|e| format!("{}: {e}", self.name))?;
                 Ok(Baselines {
-                    pyramid: quadtex_core::filters::MipPyramid::new(&grid),
+                    pyramid: quadtex_core::mipmap::MipPyramid::new(&grid),
                     sat: quadtex_core::sat::SummedAreaTable::new(&grid),
                 })
             })
@@ -535,8 +545,8 @@ pub struct Surface {
     pub colour: Rgba,
     /// UV to texture space.
     pub uv_transform: UvTransform,
-    /// Beyond the unit square.
-    pub wrap: WrapMode,
+    /// Beyond the unit square (per axis; see [`quadtex_core::Wrap`]).
+    pub wrap: Wrap,
 }
 
 /// The background seen by rays that hit nothing.
@@ -583,6 +593,24 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The index of the first surface `ray` meets, and where.
+    pub(crate) fn nearest_index(&self, ray: &Ray) -> Option<(usize, Hit)> {
+        let mut best: Option<(usize, Hit)> = None;
+        for (i, s) in self.surfaces.iter().enumerate() {
+            if let Some(hit) = s.geometry.intersect(ray, 1e-9)
+                && best.as_ref().is_none_or(|(_, b)| hit.t < b.t)
+            {
+                best = Some((i, hit));
+            }
+        }
+        best
+    }
+
+    /// The first surface `ray` meets, and where.
+    pub(crate) fn nearest_hit(&self, ray: &Ray) -> Option<(&Surface, Hit)> {
+        self.nearest_index(ray).map(|(i, hit)| (&self.surfaces[i], hit))
+    }
+
     /// The scene's textures, each tree once, in order of first use, with the
     /// index of the first surface that uses it.
     pub fn distinct_textures(&self) -> Vec<(usize, &Texture)> {

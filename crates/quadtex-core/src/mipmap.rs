@@ -25,28 +25,8 @@
 
 use crate::build::{TexelGrid, resample};
 use crate::colour::Rgba;
-
-/// A pixel's footprint in texture space, as a renderer's ray differentials
-/// give it: the centre and the change of `(x, z)` per pixel step along the
-/// screen's two axes (pbrt's `st`, `dst0`, `dst1`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Footprint {
-    /// Texture-space point at the pixel centre.
-    pub centre: [f64; 2],
-    /// `(∂x/∂screen_x, ∂z/∂screen_x)`.
-    pub d_dx: [f64; 2],
-    /// `(∂x/∂screen_y, ∂z/∂screen_y)`.
-    pub d_dy: [f64; 2],
-}
-
-/// How lookups beyond `[0,1)²` are answered.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Wrap {
-    /// The texture tiles the plane.
-    Repeat,
-    /// The edge texels extend outwards.
-    Clamp,
-}
+use crate::footprint::Footprint;
+use crate::wrap::Wrap;
 
 struct Level {
     side: usize,
@@ -117,11 +97,11 @@ impl MipPyramid {
     fn texel(&self, level: usize, col: i64, row: i64, wrap: Wrap) -> [f32; 4] {
         let l = &self.levels[level.min(self.levels.len() - 1)];
         let n = l.side as i64;
-        let fix = |i: i64| match wrap {
-            Wrap::Repeat => i.rem_euclid(n),
-            Wrap::Clamp => i.clamp(0, n - 1),
-        };
-        l.texels[(fix(row) * n + fix(col)) as usize]
+        // Rows run down from z = 1, so a row index folds like a column index.
+        match (wrap.x.fold_index(col, n), wrap.z.fold_index(row, n)) {
+            (Some(c), Some(r)) => l.texels[(r * n + c) as usize],
+            _ => wrap.border.to_array(),
+        }
     }
 
     /// Texel containing the point, finest level.
@@ -158,13 +138,14 @@ impl MipPyramid {
 
     /// pbrt-v4 trilinear mip-mapping.
     pub fn trilinear(&self, fp: &Footprint, wrap: Wrap) -> Rgba {
+        let (d_dx, d_dy) = fp.differentials();
         let width = 2.0
-            * [fp.d_dx[0], fp.d_dx[1], fp.d_dy[0], fp.d_dy[1]]
+            * [d_dx[0], d_dx[1], d_dy[0], d_dy[1]]
                 .iter()
                 .fold(0f64, |m, v| m.max(v.abs()));
         let n_levels = self.levels.len();
         let level = (n_levels - 1) as f64 + width.max(1e-8).log2();
-        let [x, z] = fp.centre;
+        let [x, z] = fp.centre();
         if level >= (n_levels - 1) as f64 {
             return self.bilinear(n_levels - 1, x, z, wrap);
         }
@@ -173,16 +154,13 @@ impl MipPyramid {
             return self.bilinear(0, x, z, wrap);
         }
         let t = (level - i as f64) as f32;
-        lerp(
-            t,
-            self.bilinear(i, x, z, wrap),
-            self.bilinear(i + 1, x, z, wrap),
-        )
+        self.bilinear(i, x, z, wrap)
+            .lerp(self.bilinear(i + 1, x, z, wrap), t)
     }
 
     /// pbrt-v4 elliptically weighted average.
     pub fn ewa(&self, fp: &Footprint, max_anisotropy: f64, wrap: Wrap) -> Rgba {
-        let (mut major, mut minor) = (fp.d_dx, fp.d_dy);
+        let (mut major, mut minor) = fp.differentials();
         let len = |v: [f64; 2]| v[0].hypot(v[1]);
         if len(major) < len(minor) {
             std::mem::swap(&mut major, &mut minor);
@@ -193,18 +171,16 @@ impl MipPyramid {
             minor = [minor[0] * scale, minor[1] * scale];
             minor_len *= scale;
         }
-        let [x, z] = fp.centre;
+        let centre = fp.centre();
+        let [x, z] = centre;
         if minor_len == 0.0 {
             return self.bilinear(0, x, z, wrap);
         }
         let lod = ((self.levels.len() - 1) as f64 + minor_len.log2()).max(0.0);
         let i = lod.floor() as usize;
         let t = (lod - i as f64) as f32;
-        lerp(
-            t,
-            self.ewa_level(i, fp.centre, major, minor, wrap),
-            self.ewa_level(i + 1, fp.centre, major, minor, wrap),
-        )
+        self.ewa_level(i, centre, major, minor, wrap)
+            .lerp(self.ewa_level(i + 1, centre, major, minor, wrap), t)
     }
 
     fn ewa_level(
@@ -261,26 +237,14 @@ impl MipPyramid {
     }
 }
 
-fn lerp(t: f32, a: Rgba, b: Rgba) -> Rgba {
-    Rgba::new(
-        a.r + t * (b.r - a.r),
-        a.g + t * (b.g - a.g),
-        a.b + t * (b.b - a.b),
-        a.a + t * (b.a - a.a),
-    )
-}
-
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
     use crate::synth::checkerboard;
 
     fn fp(x: f64, z: f64, dx: [f64; 2], dy: [f64; 2]) -> Footprint {
-        Footprint {
-            centre: [x, z],
-            d_dx: dx,
-            d_dy: dy,
-        }
+        Footprint::from_differentials([x, z], dx, dy).unwrap()
     }
 
     #[test]
@@ -294,8 +258,8 @@ mod tests {
                 1.0 - (f64::from(row) + 0.5) / 4.0,
             );
             let want = g.texel(col, row).to_rgba();
-            assert_eq!(p.nearest(x, z, Wrap::Clamp), want);
-            let b = p.bilinear(0, x, z, Wrap::Clamp);
+            assert_eq!(p.nearest(x, z, Wrap::CLAMP), want);
+            let b = p.bilinear(0, x, z, Wrap::CLAMP);
             assert!((b.r - want.r).abs() < 1e-6, "{b:?} vs {want:?}");
         }
     }
@@ -306,8 +270,8 @@ mod tests {
         let p = MipPyramid::new(&g);
         let mean = (0.6 + 0.05) / 2.0;
         let wide = fp(0.3, 0.6, [0.5, 0.0], [0.0, 0.5]);
-        assert!((p.trilinear(&wide, Wrap::Repeat).r - mean).abs() < 1e-3);
-        assert!((p.ewa(&wide, 8.0, Wrap::Repeat).r - mean).abs() < 1e-3);
+        assert!((p.trilinear(&wide, Wrap::REPEAT).r - mean).abs() < 1e-3);
+        assert!((p.ewa(&wide, 8.0, Wrap::REPEAT).r - mean).abs() < 1e-3);
     }
 
     #[test]
@@ -329,8 +293,8 @@ mod tests {
             [0.5 / 64.0, 0.0],
             [0.0, 8.0 / 64.0],
         );
-        let ewa = p.ewa(&f, 8.0, Wrap::Repeat).r;
-        let tri = p.trilinear(&f, Wrap::Repeat).r;
+        let ewa = p.ewa(&f, 8.0, Wrap::REPEAT).r;
+        let tri = p.trilinear(&f, Wrap::REPEAT).r;
         assert!(ewa > 0.9, "ewa {ewa}");
         assert!(tri < 0.8, "trilinear {tri}");
     }
@@ -340,7 +304,7 @@ mod tests {
         let g = TexelGrid::from_fn(3, 5, |_, _| Rgba::opaque(0.5, 0.25, 0.125)).unwrap();
         let p = MipPyramid::new(&g);
         assert_eq!(p.levels(), 4);
-        let c = p.nearest(0.9, 0.1, Wrap::Clamp);
+        let c = p.nearest(0.9, 0.1, Wrap::CLAMP);
         assert!((c.g - 0.25).abs() < 1e-4);
     }
 }

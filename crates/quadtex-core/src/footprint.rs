@@ -1,0 +1,450 @@
+//! A pixel's footprint in texture space, the projective map it defines, and
+//! its cover by axis-aligned strips (fragments).
+//!
+//! **Strips.** The quadrilateral is cut into `n` strips of equal height
+//! across its longer bounding-box axis; each strip becomes the rectangle
+//! spanning the quadrilateral's extent inside that strip. The rectangles
+//! cover the quadrilateral, so the *area mismatch* (union of rectangles minus
+//! the quad, over the quad) is never negative; it is computed exactly for
+//! every footprint and reported. `n` starts from the estimate
+//! `(bbox − quad)/(quad·target)` and doubles until the measured mismatch
+//! meets the target `1/(4·quality)`, at most [`MAX_STRIPS`]: an axis-aligned
+//! footprint is one exact fragment, an anisotropic diagonal one gets more.
+
+use crate::Error;
+use crate::fragment::Fragment;
+
+/// Most strips a footprint is cut into.
+pub const MAX_STRIPS: usize = 32;
+
+/// The texture-space image of one pixel square (or of any screen square):
+/// its four corners, in pixel order: the images of pixel corners
+/// `(0,0), (1,0), (1,1), (0,1)`, where pixel `x` runs right and `y` runs
+/// down the screen. Texture space follows the crate conventions (`x` right,
+/// `z` up, the texture's tile is `[0,1)²`); corners may lie anywhere in the
+/// plane, wrap modes decide what lies outside the tile.
+///
+/// On a planar surface seen through a pinhole camera, the map from the pixel
+/// square to texture space is a projective map (a homography), and four
+/// point pairs fix it: the corners alone determine how screen area is
+/// distributed over the footprint ([`Footprint::homography`]).
+///
+/// Invariant: every coordinate is finite. Degenerate footprints (zero area:
+/// a point, a segment) are allowed and filter to the texture at their centre.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Footprint {
+    corners: [[f64; 2]; 4],
+}
+
+/// Field names for errors, `corner[i].x` / `corner[i].z`.
+const CORNER_FIELDS: [[&str; 2]; 4] = [
+    ["corner[0].x", "corner[0].z"],
+    ["corner[1].x", "corner[1].z"],
+    ["corner[2].x", "corner[2].z"],
+    ["corner[3].x", "corner[3].z"],
+];
+
+impl Footprint {
+    /// A footprint from the texture-space images of the pixel's corners
+    /// `(0,0), (1,0), (1,1), (0,1)`; [`Error::NonFiniteCoordinate`] names a
+    /// NaN or infinite coordinate (`corner[2].z`).
+    pub fn from_corners(corners: [[f64; 2]; 4]) -> Result<Footprint, Error> {
+        for (corner, names) in corners.iter().zip(CORNER_FIELDS) {
+            for (&value, field) in corner.iter().zip(names) {
+                if !value.is_finite() {
+                    return Err(Error::NonFiniteCoordinate { field, value });
+                }
+            }
+        }
+        Ok(Footprint { corners })
+    }
+
+    /// The parallelogram a renderer's ray differentials give: the texture
+    /// point `st` at the pixel centre and its change per pixel step along the
+    /// screen's `x` (`d_dx`) and `y` (`d_dy`). Corner `(i, j)` is
+    /// `st + (i − ½)·d_dx + (j − ½)·d_dy`.
+    pub fn from_differentials(
+        st: [f64; 2],
+        d_dx: [f64; 2],
+        d_dy: [f64; 2],
+    ) -> Result<Footprint, Error> {
+        let at = |i: f64, j: f64| {
+            [
+                st[0] + (i - 0.5) * d_dx[0] + (j - 0.5) * d_dy[0],
+                st[1] + (i - 0.5) * d_dx[1] + (j - 0.5) * d_dy[1],
+            ]
+        };
+        Footprint::from_corners([at(0.0, 0.0), at(1.0, 0.0), at(1.0, 1.0), at(0.0, 1.0)])
+    }
+
+    /// The corners, in pixel order.
+    pub fn corners(&self) -> [[f64; 2]; 4] {
+        self.corners
+    }
+
+    /// Area enclosed (shoelace formula, absolute value; a self-intersecting
+    /// quad counts its lobes with opposite signs).
+    pub fn area(&self) -> f64 {
+        polygon_area(&self.corners)
+    }
+
+    /// Lower-left and upper-right corners of the bounding box.
+    pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &self.corners {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// The image of the pixel centre: the crossing of the diagonals (where a
+    /// projective map sends the square's centre), or the corners' mean when
+    /// the diagonals are parallel or the quad is degenerate.
+    pub fn centre(&self) -> [f64; 2] {
+        let [p0, p1, p2, p3] = self.corners;
+        let d1 = [p2[0] - p0[0], p2[1] - p0[1]];
+        let d2 = [p3[0] - p1[0], p3[1] - p1[1]];
+        let den = d1[0] * d2[1] - d1[1] * d2[0];
+        let mean = [
+            0.25 * (p0[0] + p1[0] + p2[0] + p3[0]),
+            0.25 * (p0[1] + p1[1] + p2[1] + p3[1]),
+        ];
+        if den == 0.0 || !den.is_finite() {
+            return mean;
+        }
+        // p0 + s·d1 = p1 + t·d2.
+        let r = [p1[0] - p0[0], p1[1] - p0[1]];
+        let s = (r[0] * d2[1] - r[1] * d2[0]) / den;
+        if !(0.0..=1.0).contains(&s) {
+            return mean;
+        }
+        [p0[0] + s * d1[0], p0[1] + s * d1[1]]
+    }
+
+    /// Central differences of the corners: the change of the texture point
+    /// per pixel step along screen `x` and `y` (what a mip-map lookup takes).
+    pub fn differentials(&self) -> ([f64; 2], [f64; 2]) {
+        let q = &self.corners;
+        (
+            [
+                0.5 * (q[1][0] - q[0][0] + q[2][0] - q[3][0]),
+                0.5 * (q[1][1] - q[0][1] + q[2][1] - q[3][1]),
+            ],
+            [
+                0.5 * (q[3][0] - q[0][0] + q[2][0] - q[1][0]),
+                0.5 * (q[3][1] - q[0][1] + q[2][1] - q[1][1]),
+            ],
+        )
+    }
+
+    /// The projective map from the pixel square `[0,1]²` onto this
+    /// footprint, if the corners define one that is one-to-one on the square
+    /// (a convex quad, corners in order; parallelograms give an affine map).
+    pub fn homography(&self) -> Option<Homography> {
+        Homography::square_to_quad(&self.corners)
+    }
+
+    /// The strips covering the footprint (module documentation);
+    /// `quality ≥ 1` tightens the area-mismatch target `1/(4·quality)`.
+    pub fn strips(&self, quality: f64) -> Strips {
+        strips_of_quad(&self.corners, quality)
+    }
+}
+
+/// The projective map from the pixel square to a footprint:
+/// `t(u, v) = (a·u + b·v + c, d·u + e·v + f) / (g·u + h·v + 1)` for
+/// `(u, v) ∈ [0,1]²` (Heckbert's square-to-quad construction).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Homography {
+    /// Row-major `[[a, b, c], [d, e, f], [g, h, 1]]`.
+    m: [[f64; 3]; 3],
+    /// The third row of the inverse's adjugate: `q(t) = r·(x, z, 1)` is
+    /// proportional to `1/w`, where `w = g·u + h·v + 1`.
+    inverse_w: [f64; 3],
+    /// `q` at the image of the square's centre, so densities are relative
+    /// to the centre's (near 1, whatever the footprint's scale).
+    q_centre: f64,
+}
+
+impl Homography {
+    /// The map sending `(0,0), (1,0), (1,1), (0,1)` to `p[0..4]`, if the
+    /// denominator `w` keeps one sign over the square (the map is then
+    /// continuous and one-to-one there).
+    pub fn square_to_quad(p: &[[f64; 2]; 4]) -> Option<Homography> {
+        let [p0, p1, p2, p3] = *p;
+        let sx = p0[0] - p1[0] + p2[0] - p3[0];
+        let sz = p0[1] - p1[1] + p2[1] - p3[1];
+        let (g, h) = if sx == 0.0 && sz == 0.0 {
+            (0.0, 0.0)
+        } else {
+            let (dx1, dx2) = (p1[0] - p2[0], p3[0] - p2[0]);
+            let (dz1, dz2) = (p1[1] - p2[1], p3[1] - p2[1]);
+            let den = dx1 * dz2 - dx2 * dz1;
+            if den == 0.0 {
+                return None;
+            }
+            ((sx * dz2 - dx2 * sz) / den, (dx1 * sz - sx * dz1) / den)
+        };
+        let m = [
+            [p1[0] - p0[0] + g * p1[0], p3[0] - p0[0] + h * p3[0], p0[0]],
+            [p1[1] - p0[1] + g * p1[1], p3[1] - p0[1] + h * p3[1], p0[1]],
+            [g, h, 1.0],
+        ];
+        // w at the square's corners: one sign, never zero.
+        let ws = [1.0, 1.0 + g, 1.0 + g + h, 1.0 + h];
+        if !ws.iter().all(|&w| w > 0.0) {
+            return None;
+        }
+        // Third row of adj(m): (d·h − e·g, b·g − a·h, a·e − b·d); then
+        // q(t(u, v)) = det(m)/w(u, v), which is nonzero iff det(m) is.
+        let [[a, b, c], [d, e, f], _] = m;
+        let inverse_w = [d * h - e * g, b * g - a * h, a * e - b * d];
+        let det = a * (e - f * h) - b * (d - f * g) + c * (d * h - e * g);
+        let finite = m.iter().flatten().chain(&inverse_w).all(|v| v.is_finite());
+        let q_centre = det / (1.0 + 0.5 * g + 0.5 * h);
+        (finite && det != 0.0 && det.is_finite() && q_centre.is_finite()).then_some(Homography {
+            m,
+            inverse_w,
+            q_centre,
+        })
+    }
+
+    /// The texture point of pixel-square point `(u, v)`.
+    pub fn apply(&self, u: f64, v: f64) -> [f64; 2] {
+        let m = &self.m;
+        let w = m[2][0] * u + m[2][1] * v + 1.0;
+        [
+            (m[0][0] * u + m[0][1] * v + m[0][2]) / w,
+            (m[1][0] * u + m[1][1] * v + m[1][2]) / w,
+        ]
+    }
+
+    /// The screen-space density at texture point `t` relative to its value
+    /// at the footprint's centre: the Jacobian determinant of the inverse
+    /// map, which for a projective map is `∝ 1/q(t)³` with `q` affine in `t`.
+    /// A box filter over the pixel weighs texture area by it. Constant for
+    /// an affine map.
+    pub fn screen_density(&self, t: [f64; 2]) -> f64 {
+        let r = &self.inverse_w;
+        let q = (r[0] * t[0] + r[1] * t[1] + r[2]) / self.q_centre;
+        (q * q * q).abs().recip()
+    }
+
+    /// True when the map is affine (the footprint is a parallelogram): the
+    /// screen density is then the same everywhere.
+    pub fn is_affine(&self) -> bool {
+        self.m[2][0] == 0.0 && self.m[2][1] == 0.0
+    }
+}
+
+/// A footprint's cover by axis-aligned rectangles.
+#[derive(Debug, Clone, Default)]
+pub struct Strips {
+    /// The rectangles (texture space, may span tiles).
+    pub rects: Vec<Fragment>,
+    /// Σ rectangle areas / quad area − 1 (≥ 0; 0 for a degenerate footprint).
+    pub mismatch: f64,
+}
+
+/// Area of a polygon by the shoelace formula (absolute value).
+pub(crate) fn polygon_area(p: &[[f64; 2]]) -> f64 {
+    let mut a = 0.0;
+    for i in 0..p.len() {
+        let (x0, z0) = (p[i][0], p[i][1]);
+        let (x1, z1) = (p[(i + 1) % p.len()][0], p[(i + 1) % p.len()][1]);
+        a += x0 * z1 - x1 * z0;
+    }
+    (a * 0.5).abs()
+}
+
+/// Extent along `axis` (0 = x, 1 = z) of the convex polygon within the slab
+/// `lo ≤ other-axis ≤ hi`.
+fn extent_in_slab(p: &[[f64; 2]], axis: usize, lo: f64, hi: f64) -> Option<(f64, f64)> {
+    let other = 1 - axis;
+    let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut take = |v: f64| {
+        min = min.min(v);
+        max = max.max(v);
+    };
+    for i in 0..p.len() {
+        let a = p[i];
+        let b = p[(i + 1) % p.len()];
+        if a[other] >= lo && a[other] <= hi {
+            take(a[axis]);
+        }
+        for cut in [lo, hi] {
+            if (a[other] - cut) * (b[other] - cut) < 0.0 {
+                let t = (cut - a[other]) / (b[other] - a[other]);
+                take(a[axis] + t * (b[axis] - a[axis]));
+            }
+        }
+    }
+    (min <= max).then_some((min, max))
+}
+
+fn strips_of_quad(quad: &[[f64; 2]; 4], quality: f64) -> Strips {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in quad {
+        for a in 0..2 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let size = [hi[0] - lo[0], hi[1] - lo[1]];
+    let bbox = size[0] * size[1];
+    let area = polygon_area(quad);
+    // NaN-safe: anything but a finite positive area is degenerate.
+    if bbox.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+        || area.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+        || !bbox.is_finite()
+    {
+        // Degenerate (a line or a point): its bounding box is the best we have.
+        return Strips {
+            rects: Fragment::new(lo[0], lo[1], hi[0], hi[1])
+                .into_iter()
+                .collect(),
+            mismatch: 0.0,
+        };
+    }
+    let excess = (bbox - area) / area;
+    let target = 0.25 / quality.max(1.0);
+    // Strips are stacked along the longer axis, each spanning the other.
+    let along = if size[1] >= size[0] { 1 } else { 0 };
+    // The excess falls roughly as 1/n; start from that estimate and double
+    // until the measured mismatch meets the target.
+    let mut n = if excess <= target {
+        1
+    } else {
+        ((excess / target).ceil() as usize).clamp(1, MAX_STRIPS)
+    };
+    loop {
+        let (rects, total) = cut_strips(quad, lo, hi, size, along, n);
+        let mismatch = (total / area - 1.0).max(0.0);
+        if mismatch <= target || n >= MAX_STRIPS {
+            return Strips { rects, mismatch };
+        }
+        n = (2 * n).min(MAX_STRIPS);
+    }
+}
+
+fn cut_strips(
+    quad: &[[f64; 2]; 4],
+    lo: [f64; 2],
+    hi: [f64; 2],
+    size: [f64; 2],
+    along: usize,
+    n: usize,
+) -> (Vec<Fragment>, f64) {
+    let across = 1 - along;
+    let mut rects = Vec::with_capacity(n);
+    let mut total = 0.0;
+    for i in 0..n {
+        let a = lo[along] + size[along] * i as f64 / n as f64;
+        let b = if i + 1 == n {
+            hi[along]
+        } else {
+            lo[along] + size[along] * (i + 1) as f64 / n as f64
+        };
+        if let Some((c0, c1)) = extent_in_slab(quad, across, a, b) {
+            let r = if along == 1 {
+                Fragment::new(c0, a, c1, b)
+            } else {
+                Fragment::new(a, c0, b, c1)
+            };
+            if let Ok(r) = r {
+                total += r.area();
+                rects.push(r);
+            }
+        }
+    }
+    (rects, total)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn quad(c: [[f64; 2]; 4]) -> Footprint {
+        Footprint::from_corners(c).unwrap()
+    }
+
+    #[test]
+    fn axis_aligned_quad_is_one_exact_fragment() {
+        let f = quad([[0.1, 0.2], [0.4, 0.2], [0.4, 0.3], [0.1, 0.3]]).strips(1.0);
+        assert_eq!(f.rects.len(), 1);
+        assert!(f.mismatch < 1e-12);
+        assert_eq!(f.rects[0], Fragment::new(0.1, 0.2, 0.4, 0.3).unwrap());
+    }
+
+    #[test]
+    fn diagonal_quad_mismatch_is_reported_and_bounded() {
+        let q = [[0.0, 0.0], [0.02, 0.0], [1.0, 0.98], [0.98, 0.98]];
+        let f = quad(q).strips(1.0);
+        assert!(f.rects.len() > 4, "{}", f.rects.len());
+        let total: f64 = f.rects.iter().map(Fragment::area).sum();
+        let area = polygon_area(&q);
+        assert!((f.mismatch - (total / area - 1.0)).abs() < 1e-12);
+        let square = quad([[0.5, 0.0], [1.0, 0.5], [0.5, 1.0], [0.0, 0.5]]);
+        let s = square.strips(1.0);
+        assert!(s.mismatch <= 0.25 + 1e-9, "{}", s.mismatch);
+        let s4 = square.strips(4.0);
+        assert!(s4.mismatch < s.mismatch && s4.rects.len() > s.rects.len());
+    }
+
+    #[test]
+    fn non_finite_corners_are_named() {
+        let e = Footprint::from_corners([[0.0, 0.0], [1.0, 0.0], [1.0, f64::NAN], [0.0, 1.0]])
+            .unwrap_err();
+        assert!(e.to_string().contains("corner[2].z"), "{e}");
+        assert!(Footprint::from_differentials([0.5, 0.5], [f64::INFINITY, 0.0], [0.0, 0.1]).is_err());
+    }
+
+    #[test]
+    fn homography_maps_corners_and_centre() {
+        let c = [[0.1, 0.1], [0.9, 0.2], [0.6, 0.7], [0.2, 0.5]];
+        let fp = quad(c);
+        let h = fp.homography().unwrap();
+        for (p, (u, v)) in c.iter().zip([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]) {
+            let t = h.apply(u, v);
+            assert!((t[0] - p[0]).abs() < 1e-12 && (t[1] - p[1]).abs() < 1e-12);
+        }
+        let m = h.apply(0.5, 0.5);
+        let centre = fp.centre();
+        assert!((m[0] - centre[0]).abs() < 1e-12 && (m[1] - centre[1]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn screen_density_is_the_inverse_jacobian() {
+        let fp = quad([[0.1, 0.1], [0.9, 0.2], [0.6, 0.7], [0.2, 0.5]]);
+        let h = fp.homography().unwrap();
+        // Numerical Jacobian of the forward map at a few points: the density
+        // ratio between two points must be the inverse ratio of |J|.
+        let jac = |u: f64, v: f64| {
+            let e = 1e-6;
+            let (a, b) = (h.apply(u + e, v), h.apply(u - e, v));
+            let (c, d) = (h.apply(u, v + e), h.apply(u, v - e));
+            let du = [(a[0] - b[0]) / (2.0 * e), (a[1] - b[1]) / (2.0 * e)];
+            let dv = [(c[0] - d[0]) / (2.0 * e), (c[1] - d[1]) / (2.0 * e)];
+            (du[0] * dv[1] - du[1] * dv[0]).abs()
+        };
+        let (p, q) = ((0.2, 0.3), (0.8, 0.9));
+        let ratio_density = h.screen_density(h.apply(p.0, p.1)) / h.screen_density(h.apply(q.0, q.1));
+        let ratio_jac = jac(q.0, q.1) / jac(p.0, p.1);
+        assert!((ratio_density / ratio_jac - 1.0).abs() < 1e-6, "{ratio_density} vs {ratio_jac}");
+    }
+
+    #[test]
+    fn parallelograms_are_affine_and_folded_quads_have_no_homography() {
+        let p = Footprint::from_differentials([0.5, 0.5], [0.25, 0.0], [0.0, 0.125]).unwrap();
+        let h = p.homography().unwrap();
+        assert!(h.is_affine());
+        assert_eq!(p.centre(), [0.5, 0.5]);
+        // Corners out of order (a bow tie) do not bound a projective image.
+        let bow = quad([[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]);
+        assert!(bow.homography().is_none());
+    }
+}

@@ -1,0 +1,66 @@
+//! What a render is asked to do: the texture filter, the pixel filter, the
+//! output size.
+
+use quadtex_core::FilterOptions;
+
+/// How pixels sample textures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Filter {
+    /// The method: each pixel's footprint filtered by
+    /// [`quadtex_core::Texture::filter`] with these options.
+    Quadtree(FilterOptions),
+    /// The texel under the pixel centre (finest level), no filtering.
+    Nearest,
+    /// Bilinear interpolation of the finest level at the pixel centre.
+    Bilinear,
+    /// `n × n` stratified sub-pixel rays per pixel (one jittered ray per
+    /// cell of an `n × n` grid; the cell centre when `n = 1`), each a nearest
+    /// lookup.
+    Supersample(u32),
+    /// Baseline: trilinear mip-mapping after pbrt-v4 (level from the
+    /// footprint's longest axis), on the tree rasterised at ≤ 4096².
+    Trilinear,
+    /// Baseline: pbrt-v4's elliptically weighted average on the same pyramid.
+    Ewa {
+        /// Largest major/minor axis ratio (pbrt's default: 8).
+        max_anisotropy: f64,
+    },
+    /// Baseline: the same strips as `Quadtree` (with these options' quality
+    /// and weighting), integrated exactly by a summed-area table (f64) of the
+    /// rasterised tree, no uniform shortcut.
+    Sat(FilterOptions),
+}
+
+impl Default for Filter {
+    fn default() -> Self {
+        Filter::Quadtree(FilterOptions::default())
+    }
+}
+
+/// The pixel's reconstruction filter in screen space.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PixelFilter {
+    /// Uniform over the pixel square.
+    #[default]
+    Box,
+    /// Tent `(1−|dx|)(1−|dy|)` over the 2×2-pixel square centred on the pixel:
+    /// wider support, less residual aliasing, slightly softer. The quadtree
+    /// path splits the support into 8×8 screen-space cells, filters each
+    /// cell's footprint and weights it by the tent at the cell's centre.
+    /// Measured on the grazing checkerboard: RMSE 0.007 against a
+    /// 4096-sample tent reference (4×4 cells: 0.017).
+    Tent,
+}
+
+/// Options of one render.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RenderOptions {
+    /// Override the camera's width (height follows unless also given).
+    pub width: Option<u32>,
+    /// Override the camera's height.
+    pub height: Option<u32>,
+    /// Texture filter.
+    pub filter: Filter,
+    /// Pixel filter (for `Quadtree` and `Supersample`).
+    pub pixel_filter: PixelFilter,
+}
