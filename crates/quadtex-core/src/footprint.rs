@@ -17,6 +17,10 @@ use crate::fragment::Fragment;
 /// Most strips a footprint is cut into.
 pub const MAX_STRIPS: usize = 32;
 
+/// Most pieces a strip is cut into so the screen density is nearly
+/// constant on each ([`Homography::density_pieces`]).
+pub const MAX_DENSITY_PIECES: usize = 16;
+
 /// The texture-space image of one pixel square (or of any screen square):
 /// its four corners, in pixel order: the images of pixel corners
 /// `(0,0), (1,0), (1,1), (0,1)`, where pixel `x` runs right and `y` runs
@@ -233,6 +237,42 @@ impl Homography {
         (q * q * q).abs().recip()
     }
 
+    /// How many pieces to cut `rect` into along `x` and `z` so that the
+    /// screen density varies by at most a factor `1 + tolerance` (to first
+    /// order) within each piece; at most [`MAX_DENSITY_PIECES`] in all.
+    pub fn density_pieces(&self, rect: &Fragment, tolerance: f64) -> (usize, usize) {
+        let r = &self.inverse_w;
+        let q = |x: f64, z: f64| (r[0] * x + r[1] * z + r[2]).abs();
+        let q_min = q(rect.x0(), rect.z0())
+            .min(q(rect.x1(), rect.z0()))
+            .min(q(rect.x0(), rect.z1()))
+            .min(q(rect.x1(), rect.z1()));
+        if !(q_min > 0.0) {
+            return (1, 1);
+        }
+        // ρ ∝ q⁻³: a relative change Δq/q changes ρ by about 3·Δq/q.
+        let count = |dq: f64| {
+            let k = (3.0 * dq / (q_min * tolerance)).ceil();
+            if k.is_finite() {
+                k.clamp(1.0, MAX_DENSITY_PIECES as f64) as usize
+            } else {
+                MAX_DENSITY_PIECES
+            }
+        };
+        let (mut nx, mut nz) = (
+            count(r[0].abs() * rect.width()),
+            count(r[1].abs() * rect.height()),
+        );
+        while nx * nz > MAX_DENSITY_PIECES {
+            if nx >= nz {
+                nx = nx.div_ceil(2)
+            } else {
+                nz = nz.div_ceil(2)
+            }
+        }
+        (nx, nz)
+    }
+
     /// True when the map is affine (the footprint is a parallelogram): the
     /// screen density is then the same everywhere.
     pub fn is_affine(&self) -> bool {
@@ -400,7 +440,9 @@ mod tests {
         let e = Footprint::from_corners([[0.0, 0.0], [1.0, 0.0], [1.0, f64::NAN], [0.0, 1.0]])
             .unwrap_err();
         assert!(e.to_string().contains("corner[2].z"), "{e}");
-        assert!(Footprint::from_differentials([0.5, 0.5], [f64::INFINITY, 0.0], [0.0, 0.1]).is_err());
+        assert!(
+            Footprint::from_differentials([0.5, 0.5], [f64::INFINITY, 0.0], [0.0, 0.1]).is_err()
+        );
     }
 
     #[test]
@@ -408,7 +450,10 @@ mod tests {
         let c = [[0.1, 0.1], [0.9, 0.2], [0.6, 0.7], [0.2, 0.5]];
         let fp = quad(c);
         let h = fp.homography().unwrap();
-        for (p, (u, v)) in c.iter().zip([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]) {
+        for (p, (u, v)) in c
+            .iter()
+            .zip([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])
+        {
             let t = h.apply(u, v);
             assert!((t[0] - p[0]).abs() < 1e-12 && (t[1] - p[1]).abs() < 1e-12);
         }
@@ -432,9 +477,13 @@ mod tests {
             (du[0] * dv[1] - du[1] * dv[0]).abs()
         };
         let (p, q) = ((0.2, 0.3), (0.8, 0.9));
-        let ratio_density = h.screen_density(h.apply(p.0, p.1)) / h.screen_density(h.apply(q.0, q.1));
+        let ratio_density =
+            h.screen_density(h.apply(p.0, p.1)) / h.screen_density(h.apply(q.0, q.1));
         let ratio_jac = jac(q.0, q.1) / jac(p.0, p.1);
-        assert!((ratio_density / ratio_jac - 1.0).abs() < 1e-6, "{ratio_density} vs {ratio_jac}");
+        assert!(
+            (ratio_density / ratio_jac - 1.0).abs() < 1e-6,
+            "{ratio_density} vs {ratio_jac}"
+        );
     }
 
     #[test]

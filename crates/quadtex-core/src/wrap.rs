@@ -291,7 +291,13 @@ fn split_repeat(a: f64, b: f64) -> [Option<Piece>; 3] {
 fn split_mirror(a: f64, b: f64) -> [Option<Piece>; 3] {
     let odd = |tile: f64| tile.rem_euclid(2.0) == 1.0;
     let reflect = |p: Option<Piece>, tile: f64| {
-        p.map(|(lo, hi, n)| if odd(tile) { (1.0 - hi, 1.0 - lo, n) } else { (lo, hi, n) })
+        p.map(|(lo, hi, n)| {
+            if odd(tile) {
+                (1.0 - hi, 1.0 - lo, n)
+            } else {
+                (lo, hi, n)
+            }
+        })
     };
     let (ta, tb) = (a.floor(), b.floor());
     let [left, middle, right] = split_repeat(a, b);
@@ -411,7 +417,10 @@ mod tests {
             for (mode, mirror) in [(Wrap::REPEAT, false), (Wrap::MIRROR, true)] {
                 let fast = integrate_wrapped(&tree, &f, 30, mode, &mut TraversalStats::default());
                 let slow = tile_by_tile(&tree, &f, mirror);
-                assert!(close(fast, slow, 1e-9), "{mode:?} {f:?}: {fast:?} vs {slow:?}");
+                assert!(
+                    close(fast, slow, 1e-9),
+                    "{mode:?} {f:?}: {fast:?} vs {slow:?}"
+                );
             }
         }
     }
@@ -421,7 +430,13 @@ mod tests {
         let tree = ramp_tree();
         let s = &mut TraversalStats::default();
         // [1, 1.25) mirrored is [0.75, 1).
-        let a = integrate_wrapped(&tree, &Fragment::new(1.0, 0.0, 1.25, 1.0).unwrap(), 30, Wrap::MIRROR, s);
+        let a = integrate_wrapped(
+            &tree,
+            &Fragment::new(1.0, 0.0, 1.25, 1.0).unwrap(),
+            30,
+            Wrap::MIRROR,
+            s,
+        );
         let b = tree.weighted_colour(&Fragment::new(0.75, 0.0, 1.0, 1.0).unwrap(), 30);
         assert!(close(a, b, 1e-12), "{a:?} vs {b:?}");
         // A point just right of 1 shows the texel just left of 1.
@@ -437,7 +452,13 @@ mod tests {
         let tree = checker_tree();
         let mut s = TraversalStats::default();
         let f = Fragment::new(1.0, 0.0, 2.0, 1.0).unwrap();
-        let b = integrate_wrapped(&tree, &f, 30, Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)), &mut s);
+        let b = integrate_wrapped(
+            &tree,
+            &f,
+            30,
+            Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)),
+            &mut s,
+        );
         assert!((b.0[1] - 1.0).abs() < 1e-9 && b.0[0].abs() < 1e-9);
         // Clamp: the right edge column alternates black/white: mean 1/2.
         let c = integrate_wrapped(&tree, &f, 30, Wrap::CLAMP, &mut s);
@@ -467,7 +488,12 @@ mod tests {
 
     #[test]
     fn names_round_trip() {
-        for m in [WrapMode::Repeat, WrapMode::Clamp, WrapMode::Mirror, WrapMode::Border] {
+        for m in [
+            WrapMode::Repeat,
+            WrapMode::Clamp,
+            WrapMode::Mirror,
+            WrapMode::Border,
+        ] {
             assert_eq!(WrapMode::from_name(m.name()), Some(m));
         }
         assert_eq!(WrapMode::from_name("wrap"), None);

@@ -29,11 +29,7 @@ pub fn default_contenders() -> Vec<Contender> {
     use PixelFilter::{Box, Tent};
     vec![
         Contender::new("quadtree", Filter::default(), Box),
-        Contender::new(
-            "quadtree q4",
-            Filter::Quadtree(quadtree_quality(4.0)),
-            Box,
-        ),
+        Contender::new("quadtree q4", Filter::Quadtree(quadtree_quality(4.0)), Box),
         Contender::new("quadtree tent", Filter::default(), Tent),
         Contender::new("nearest", Filter::Nearest, Box),
         Contender::new("bilinear", Filter::Bilinear, Box),
@@ -61,7 +57,5 @@ pub fn default_contenders() -> Vec<Contender> {
 
 /// Default filter options at strip quality `q` (≥ 1).
 fn quadtree_quality(q: f64) -> FilterOptions {
-    FilterOptions::default()
-        .with_quality(q)
-        .unwrap_or_default()
+    FilterOptions::default().with_quality(q).unwrap_or_default()
 }

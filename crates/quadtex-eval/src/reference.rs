@@ -2,9 +2,9 @@
 //! textured plane, independent of every contender.
 
 use quadtex_core::{Rgba, WrapMode};
+use quadtex_render::Scene;
 use quadtex_render::math::Vec3;
 use quadtex_render::scene::{Geometry, Lighting};
-use quadtex_render::Scene;
 
 /// The closed-form box-filtered image of a scene made of one unlit,
 /// textured, repeating **plane**: each pixel is the exact integral of the

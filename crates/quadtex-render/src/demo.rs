@@ -7,9 +7,7 @@ use quadtex_core::{BuildOptions, QuadTree, Rgba, TexelGrid, Wrap};
 
 use crate::Error;
 use crate::math::Vec3;
-use crate::scene::{
-    Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform,
-};
+use crate::scene::{Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform};
 
 /// The sign's art: white lettering on red in the band `z ∈ [0, 1/4)` of the
 /// unit square (a 4:1 sign; map it with a UV scale of `[1, 0.25]`).

@@ -34,8 +34,8 @@ pub use measure::{
 pub use options::{Filter, PixelFilter, RenderOptions};
 pub use parse::{load_scene, load_scene_with_limits, parse_scene, parse_scene_with_limits};
 pub use render::render;
-pub use stats::RenderSummary;
 pub use scene::Scene;
+pub use stats::RenderSummary;
 
 /// Most pixels one render may have (64 megapixels).
 pub const MAX_PIXELS: u64 = 1 << 26;

@@ -13,9 +13,7 @@ use toml::{Table, Value};
 use crate::Error;
 use crate::demo::builtin_texture;
 use crate::math::Vec3;
-use crate::scene::{
-    Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform,
-};
+use crate::scene::{Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform};
 use quadtex_io::Limits;
 
 /// Max level of SVG textures without `texture_level` (4096² effective).

@@ -129,7 +129,10 @@ pub fn render(
 /// Builds the raster baselines a baseline filter needs, before any pixel
 /// asks for them (so a failure is one error, not one per pixel).
 pub(crate) fn prepare_baselines(scene: &Scene, filter: Filter) -> Result<(), crate::Error> {
-    if matches!(filter, Filter::Trilinear | Filter::Ewa { .. } | Filter::Sat(_)) {
+    if matches!(
+        filter,
+        Filter::Trilinear | Filter::Ewa { .. } | Filter::Sat(_)
+    ) {
         for s in &scene.surfaces {
             if let Some(t) = &s.texture {
                 t.baselines()

@@ -608,7 +608,8 @@ impl Scene {
 
     /// The first surface `ray` meets, and where.
     pub(crate) fn nearest_hit(&self, ray: &Ray) -> Option<(&Surface, Hit)> {
-        self.nearest_index(ray).map(|(i, hit)| (&self.surfaces[i], hit))
+        self.nearest_index(ray)
+            .map(|(i, hit)| (&self.surfaces[i], hit))
     }
 
     /// The scene's textures, each tree once, in order of first use, with the

@@ -61,7 +61,16 @@ pub(crate) fn shade_ray(
         None => surface.colour,
         Some(sampler) => {
             stats.textured += 1;
-            let tex = texture_colour(frame, index, sampler, &hit, filter, pixel_filter, area, stats);
+            let tex = texture_colour(
+                frame,
+                index,
+                sampler,
+                &hit,
+                filter,
+                pixel_filter,
+                area,
+                stats,
+            );
             tex * surface.colour
         }
     };
@@ -142,7 +151,14 @@ pub(crate) fn texture_colour(
             let mean = match pixel_filter {
                 PixelFilter::Box => footprint().and_then(|fp| {
                     let tree = &**sampler.tree();
-                    filter_footprint(tree, Some(tree), surface.wrap, &fp, &options, &mut stats.filter)
+                    filter_footprint(
+                        tree,
+                        Some(tree),
+                        surface.wrap,
+                        &fp,
+                        &options,
+                        &mut stats.filter,
+                    )
                 }),
                 PixelFilter::Tent => tent(frame, index, sampler, hit, &options, area.centre, stats),
             };
@@ -205,9 +221,14 @@ fn tent(
                 -1.0 + (j as f64 + 0.5) * step,
             );
             let w = ((1.0 - dx.abs()) * (1.0 - dy.abs())) as f32;
-            if let Some(m) =
-                filter_footprint(tree, Some(tree), surface.wrap, &fp, options, &mut stats.filter)
-            {
+            if let Some(m) = filter_footprint(
+                tree,
+                Some(tree),
+                surface.wrap,
+                &fp,
+                options,
+                &mut stats.filter,
+            ) {
                 acc += m * w;
                 weights += w;
             }
