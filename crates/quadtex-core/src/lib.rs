@@ -49,3 +49,8 @@ pub use texture::{FilterOptions, FilterStats, LevelOfDetail, Texture, Weighting}
 pub use tree::{LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
 pub use vector::{FillRule, VectorArt, VectorOptions, VectorReport};
 pub use wrap::{Wrap, WrapMode};
+
+/// The README's Rust examples, run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+struct ReadmeDoctests;
