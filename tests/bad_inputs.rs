@@ -1,8 +1,10 @@
 //! The catalogue of bad inputs: one hostile input per test, run through the
 //! `quadtex` binary. Each must exit non-zero, name the problem (file, and
 //! field or line where one applies) on stderr after `Error: `, never panic,
-//! and leave no output file behind. The inputs are generated here from a
-//! valid file, so they stay in step with the format.
+//! and leave no output file behind. An option value the command line itself
+//! rejects (out of range, say) is a usage error instead: clap's
+//! `error: invalid value …` naming the problem, exit status 2. The inputs are
+//! generated here from a valid file, so they stay in step with the format.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
@@ -61,6 +63,25 @@ fn expect_failure(args: &[&str], stdin: &str, needles: &[&str], must_not_exist: 
     assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
     assert!(
         err.starts_with("Error: ") && !err.contains("panicked"),
+        "{args:?}: {err}"
+    );
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: `{n}` not in: {err}");
+    }
+    if let Some(p) = must_not_exist {
+        assert!(!p.exists(), "{} was written", p.display());
+    }
+}
+
+/// Runs `quadtex args…`; asserts a usage error (exit status 2) rejecting an
+/// option's value with every needle on stderr, no panic, and that
+/// `must_not_exist` was not created.
+fn expect_usage_error(args: &[&str], needles: &[&str], must_not_exist: Option<&Path>) {
+    let out = run(args, "");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+    assert!(
+        err.starts_with("error: invalid value ") && !err.contains("panicked"),
         "{args:?}: {err}"
     );
     for n in needles {
@@ -266,24 +287,40 @@ fn valid_png(d: &Path) -> PathBuf {
     p
 }
 
-fn pack_arg_case(case: &str, extra: &[&str], needle: &str) {
+/// Packs a valid PNG with `extra` arguments; `usage`: the command line
+/// rejects them (see [`expect_usage_error`]), else the pack fails.
+fn pack_arg_case(case: &str, extra: &[&str], usage: bool, needle: &str) {
     let d = dir(case);
     let png = valid_png(&d);
     let out = d.join("out.qtx");
     let mut args = vec!["pack", png.to_str().unwrap(), "-o", out.to_str().unwrap()];
     args.extend(extra);
-    expect_failure(&args, "", &[needle], Some(&out));
+    if usage {
+        expect_usage_error(&args, &[needle], Some(&out));
+    } else {
+        expect_failure(&args, "", &[needle], Some(&out));
+    }
     std::fs::remove_dir_all(&d).unwrap();
 }
 
 #[test]
 fn pack_level_beyond_limit() {
-    pack_arg_case("level99", &["--max-level", "99"], "--max-level 99 exceeds");
+    pack_arg_case(
+        "level99",
+        &["--max-level", "99"],
+        true,
+        "--max-level 99 exceeds",
+    );
 }
 
 #[test]
 fn pack_level_beyond_raster_grid() {
-    pack_arg_case("level20", &["--max-level", "20"], "exceeds the limit 15");
+    pack_arg_case(
+        "level20",
+        &["--max-level", "20"],
+        false,
+        "exceeds the limit 15",
+    );
 }
 
 #[test]
@@ -291,6 +328,7 @@ fn pack_negative_tolerance() {
     pack_arg_case(
         "tolneg",
         &["--tolerance", "-1"],
+        true,
         "--tolerance must be in [0, 1]",
     );
 }
@@ -300,6 +338,7 @@ fn pack_nan_tolerance() {
     pack_arg_case(
         "tolnan",
         &["--tolerance", "NaN"],
+        true,
         "--tolerance must be in [0, 1]",
     );
 }
@@ -345,10 +384,9 @@ fn query_level_beyond_limit() {
     let d = dir("qlevel");
     let p = d.join("ok.qtx");
     std::fs::write(&p, valid_qtx(&d)).unwrap();
-    expect_failure(
+    expect_usage_error(
         &["query", p.to_str().unwrap(), "--level", "300"],
-        "",
-        &["--level"],
+        &["--level 300 exceeds the maximum depth"],
         None,
     );
     std::fs::remove_dir_all(&d).unwrap();
@@ -544,7 +582,7 @@ fn compare_width_out_of_range() {
     let d = dir("compare-width");
     let out = d.join("report");
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/checker.toml");
-    expect_failure(
+    expect_usage_error(
         &[
             "compare",
             scene,
@@ -553,7 +591,6 @@ fn compare_width_out_of_range() {
             "--width",
             "5",
         ],
-        "",
         &["--width must be in 16..=3840"],
         Some(&out),
     );

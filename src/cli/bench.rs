@@ -5,13 +5,12 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use lexopt::prelude::*;
 use quadtex_core::reference::texel_sum;
 use quadtex_core::sat::SummedAreaTable;
 use quadtex_core::synth::{runway_art, scanline_fragments};
 use quadtex_core::{BuildOptions, Fragment, QuadTree, WeightedColour};
 
-use crate::{Result, human_bytes, raster_bytes};
+use super::{Result, human_bytes, raster_bytes};
 
 /// Median seconds per call of `f` over `runs` runs, each answering every fragment.
 fn time_per_query(
@@ -34,19 +33,44 @@ fn time_per_query(
     samples[samples.len() / 2]
 }
 
-pub fn run(parser: &mut lexopt::Parser) -> Result<()> {
-    let (mut size, mut queries, mut runs) = (4096u32, 100_000usize, 5usize);
-    while let Some(arg) = parser.next()? {
-        match arg {
-            Long("size") => size = parser.value()?.parse()?,
-            Long("queries") => queries = parser.value()?.parse()?,
-            Long("runs") => runs = parser.value()?.parse()?,
-            other => return Err(other.unexpected().into()),
-        }
-    }
+/// Fragment queries per second: the quadtree against a summed-area table.
+///
+/// Packs the built-in runway art (vector-like, lossless) and times fragment
+/// queries of several widths on the quadtree (exact and at the matched
+/// level), a summed-area table and a brute-force texel loop, on the same
+/// fragments in the same run; also prints memory and packing time. Prints a
+/// Markdown table (the one under "Measured" in the README).
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Texture side in texels: a power of two in 64..=16384.
+    #[arg(long, value_name = "N", default_value_t = 4096, value_parser = texture_size)]
+    size: u32,
+    /// Fragments per width.
+    #[arg(long, value_name = "Q", default_value_t = 100_000)]
+    queries: usize,
+    /// Timed runs per measurement (the median is reported; at least 1).
+    #[arg(long, value_name = "R", default_value_t = 5)]
+    runs: usize,
+}
+
+/// A value parser: a power of two in 64..=16384.
+fn texture_size(text: &str) -> std::result::Result<u32, String> {
+    let size = text.parse::<u32>().map_err(|e| e.to_string())?;
     if !size.is_power_of_two() || !(64..=16384).contains(&size) {
-        return Err(format!("--size must be a power of two in 64..=16384, got {size}").into());
+        return Err(format!(
+            "--size must be a power of two in 64..=16384, got {size}"
+        ));
     }
+    Ok(size)
+}
+
+/// Runs `quadtex bench`.
+pub fn run(args: Args) -> Result<()> {
+    let Args {
+        size,
+        queries,
+        runs,
+    } = args;
     let runs = runs.max(1);
     let grid = runway_art().rasterise(size, size)?;
     let mut pack_times = Vec::new();
@@ -136,4 +160,22 @@ pub fn run(parser: &mut lexopt::Parser) -> Result<()> {
         "\n(max abs error: largest per-channel difference of the mean colour over a fragment, exact quadtree vs SAT; both are exact, so it shows rounding only.)"
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texture_size_is_a_power_of_two_in_range() {
+        assert_eq!(texture_size("64"), Ok(64));
+        for bad in ["32", "100", "32768"] {
+            assert_eq!(
+                texture_size(bad),
+                Err(format!(
+                    "--size must be a power of two in 64..=16384, got {bad}"
+                ))
+            );
+        }
+    }
 }

@@ -6,12 +6,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use lexopt::prelude::*;
 use quadtex_io::LinearImage;
 use quadtex_render::compare::{self, Contender, Figures, ReportInfo};
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
-type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
+use super::{Result, in_range};
 
 /// Pixels whose footprint covers more finest cells than this are left out
 /// of the closed-form comparison (they lie near the horizon).
@@ -44,66 +43,79 @@ impl Default for Settings {
     }
 }
 
-/// The long option's name, if `arg` is one (owned, so the parser is free).
-pub fn long_name(arg: &lexopt::Arg<'_>) -> Option<String> {
-    match arg {
-        Long(name) => Some((*name).to_string()),
-        _ => None,
+/// Compare every filter against a converged reference on a scene (report.html).
+///
+/// Renders the scene with every contender filter and with a converged
+/// supersampled reference, in the same process, and writes into DIR:
+/// report.html, grid.png, plot.svg, results.csv, results.md and frames/
+/// (see docs/compare.md).
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The scene to compare the filters on.
+    #[arg(value_name = "SCENE.toml")]
+    scene: PathBuf,
+    /// The directory to write the report into (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// Frame width in pixels, in 16..=3840 (the height keeps the camera's aspect).
+    #[arg(
+        long,
+        value_name = "W",
+        default_value_t = Settings::default().width,
+        value_parser = in_range("--width", 16, 3840)
+    )]
+    width: u32,
+    #[command(flatten)]
+    options: CompareArgs,
+}
+
+/// The options `compare` shares with `demo --compare` (whose `--width` is
+/// the render option's).
+#[derive(Debug, clap::Args)]
+pub struct CompareArgs {
+    /// Reference samples per pixel, in 1..=4096 (rounded to a square grid).
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = Settings::default().reference_grid.pow(2),
+        value_parser = in_range("--reference-spp", 1, 4096)
+    )]
+    reference_spp: u32,
+    /// Frames of the camera move that measures shimmer, in 0..=240 (0 or 1: none).
+    #[arg(
+        long,
+        value_name = "F",
+        default_value_t = Settings::default().frames,
+        value_parser = in_range("--frames", 0, 240)
+    )]
+    frames: u32,
+    /// Skip FLIP (the perceptual error).
+    #[arg(long)]
+    no_flip: bool,
+}
+
+impl CompareArgs {
+    /// The settings for frames `width` pixels wide.
+    pub fn settings(&self, width: u32) -> Settings {
+        Settings {
+            width,
+            reference_grid: (f64::from(self.reference_spp).sqrt().round() as u32).max(1),
+            frames: self.frames,
+            flip: !self.no_flip,
+            ..Settings::default()
+        }
     }
 }
 
-/// The options shared by `compare` and `demo --compare`.
-pub const OPTIONS: [&str; 4] = ["width", "reference-spp", "frames", "no-flip"];
-
-/// Parses one of [`OPTIONS`]; returns `false` for any other name.
-pub fn parse_option(name: &str, parser: &mut lexopt::Parser, s: &mut Settings) -> Result<bool> {
-    let number = |parser: &mut lexopt::Parser, flag: &str, lo: u32, hi: u32| -> Result<u32> {
-        let v: u32 = parser
-            .value()?
-            .parse()
-            .map_err(|e| format!("{flag}: {e}"))?;
-        if !(lo..=hi).contains(&v) {
-            return Err(format!("{flag} must be in {lo}..={hi}, got {v}").into());
-        }
-        Ok(v)
-    };
-    match name {
-        "width" => s.width = number(parser, "--width", 16, 3840)?,
-        "reference-spp" => {
-            let spp = number(parser, "--reference-spp", 1, 4096)?;
-            s.reference_grid = (f64::from(spp).sqrt().round() as u32).max(1);
-        }
-        "frames" => s.frames = number(parser, "--frames", 0, 240)?,
-        "no-flip" => s.flip = false,
-        _ => return Ok(false),
-    }
-    Ok(true)
-}
-
-/// `quadtex compare SCENE.toml -o DIR [options]`.
-pub fn run(parser: &mut lexopt::Parser) -> Result<()> {
-    let (mut scene_path, mut output) = (None::<PathBuf>, None::<PathBuf>);
-    let mut settings = Settings::default();
-    while let Some(arg) = parser.next()? {
-        if let Some(name) = long_name(&arg)
-            && OPTIONS.contains(&name.as_str())
-        {
-            parse_option(&name, parser, &mut settings)?;
-            continue;
-        }
-        match arg {
-            Short('o') | Long("output") => output = Some(parser.value()?.into()),
-            Value(v) if scene_path.is_none() => scene_path = Some(v.into()),
-            other => return Err(other.unexpected().into()),
-        }
-    }
-    let path = scene_path.ok_or("compare: missing SCENE.toml")?;
-    let dir = output.ok_or("compare: missing -o DIR")?;
-    let scene = quadtex_render::load_scene(&path)?;
-    let name = path
+/// Runs `quadtex compare`.
+pub fn run(args: Args) -> Result<()> {
+    let settings = args.options.settings(args.width);
+    let scene = quadtex_render::load_scene(&args.scene)?;
+    let name = args
+        .scene
         .file_stem()
         .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
-    compare_scene(&scene, &name, &dir, &settings)
+    compare_scene(&scene, &name, &args.output, &settings)
 }
 
 fn render_one(

@@ -1,53 +1,55 @@
-//! `quadtex footprints` (dump every pixel's lookup for a peer filter, with
-//! quadtex's own lookups timed on the same footprints) and `quadtex diff`
-//! (RMSE and FLIP of one image against another). Used by
+//! `quadtex footprints`: dump every pixel's lookup for a peer filter, with
+//! quadtex's own lookups timed on the same footprints. Used by
 //! `bench/peers/run.sh`; see `docs/footprints.md`.
 
 use std::path::PathBuf;
 
-use lexopt::prelude::*;
 use quadtex_io::LinearImage;
 use quadtex_io::footprints::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
 use quadtex_render::scene::WrapMode;
 use quadtex_render::{Filter, PixelFilter, RenderOptions};
 
-type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
+use super::{Result, in_range};
 
-/// `quadtex footprints SCENE.toml -o DIR [--width W] [--passes P] [--reference-spp N]`.
-pub fn footprints(parser: &mut lexopt::Parser) -> Result<()> {
-    let (mut scene_path, mut dir) = (None::<PathBuf>, None::<PathBuf>);
-    let (mut width, mut passes, mut grid) = (480u32, 5u32, 32u32);
-    while let Some(arg) = parser.next()? {
-        match arg {
-            Short('o') | Long("output") => dir = Some(parser.value()?.into()),
-            Long("width") => {
-                width = parser
-                    .value()?
-                    .parse()
-                    .map_err(|e| format!("--width: {e}"))?
-            }
-            Long("passes") => {
-                passes = parser
-                    .value()?
-                    .parse()
-                    .map_err(|e| format!("--passes: {e}"))?
-            }
-            Long("reference-spp") => {
-                let spp: u32 = parser
-                    .value()?
-                    .parse()
-                    .map_err(|e| format!("--reference-spp: {e}"))?;
-                grid = (f64::from(spp.clamp(1, 4096)).sqrt().round() as u32).max(1);
-            }
-            Value(v) if scene_path.is_none() => scene_path = Some(v.into()),
-            other => return Err(other.unexpected().into()),
-        }
-    }
-    if !(16..=3840).contains(&width) || !(1..=100).contains(&passes) {
-        return Err("--width must be in 16..=3840 and --passes in 1..=100".into());
-    }
-    let path = scene_path.ok_or("footprints: missing SCENE.toml")?;
-    let dir = dir.ok_or("footprints: missing -o DIR")?;
+/// Dump every pixel's lookup for a peer filter and time quadtex's own.
+///
+/// Writes into DIR: footprints.bin (every pixel's texture lookup: centre,
+/// derivatives and footprint quad; format in docs/footprints.md), the scene's
+/// textures as texture-K.exr at the baselines' resolution, a supersampled
+/// reference.exr of the textures alone, and quadtex.tsv with quadtex's own
+/// quadtree, EWA and trilinear lookups timed on the same footprints (one
+/// thread, median of the passes) and their images. Used by
+/// bench/peers/run.sh.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The scene whose footprints to dump.
+    #[arg(value_name = "SCENE.toml")]
+    scene: PathBuf,
+    /// The directory to write into (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// Frame width in pixels, in 16..=3840 (the height keeps the camera's aspect).
+    #[arg(long, value_name = "W", default_value_t = 480, value_parser = in_range("--width", 16, 3840))]
+    width: u32,
+    /// Timing passes (the median is reported), in 1..=100.
+    #[arg(long, value_name = "P", default_value_t = 5, value_parser = in_range("--passes", 1, 100))]
+    passes: u32,
+    /// Samples per pixel of the reference, clamped to 1..=4096 and rounded
+    /// to a square grid.
+    #[arg(long, value_name = "N", default_value_t = 1024)]
+    reference_spp: u32,
+}
+
+/// Runs `quadtex footprints`.
+pub fn run(args: Args) -> Result<()> {
+    let Args {
+        scene: path,
+        output: dir,
+        width,
+        passes,
+        reference_spp,
+    } = args;
+    let grid = (f64::from(reference_spp.clamp(1, 4096)).sqrt().round() as u32).max(1);
     let scene = quadtex_render::load_scene(&path)?;
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let height = scene.camera.height_for_width(width);
@@ -119,7 +121,7 @@ pub fn footprints(parser: &mut lexopt::Parser) -> Result<()> {
         let t = quadtex_render::time_lookups(&scene, width, height, filter, passes)?;
         let file = format!("{stem}.exr");
         quadtex_io::save_image(&dir.join(&file), &t.image)?;
-        let bytes = crate::compare::texture_bytes(&scene, filter);
+        let bytes = super::compare::texture_bytes(&scene, filter);
         table.push_str(&format!(
             "{label}\t{:.1}\t{bytes}\t{file}\n",
             t.ns_per_lookup
@@ -140,34 +142,5 @@ pub fn footprints(parser: &mut lexopt::Parser) -> Result<()> {
         dir.display(),
         grid * grid
     );
-    Ok(())
-}
-
-/// `quadtex diff REFERENCE TEST`: `rmse <linear RGB> flip <mean>` on one line.
-pub fn diff(parser: &mut lexopt::Parser) -> Result<()> {
-    let mut paths = Vec::new();
-    while let Some(arg) = parser.next()? {
-        match arg {
-            Value(v) if paths.len() < 2 => paths.push(PathBuf::from(v)),
-            other => return Err(other.unexpected().into()),
-        }
-    }
-    let [reference, test] = paths.as_slice() else {
-        return Err("diff: expected REFERENCE and TEST images".into());
-    };
-    let a = quadtex_io::load_linear_image(reference)?;
-    let b = quadtex_io::load_linear_image(test)?;
-    let rmse = quadtex_render::compare::rmse(&a, &b).ok_or_else(|| {
-        format!(
-            "{} is {}x{} but {} is {}x{}",
-            reference.display(),
-            a.width,
-            a.height,
-            test.display(),
-            b.width,
-            b.height
-        )
-    })?;
-    println!("rmse {rmse:.6} flip {:.6}", crate::compare::flip(&a, &b));
     Ok(())
 }

@@ -1,0 +1,39 @@
+//! `quadtex diff`: RMSE and FLIP of one image against another.
+
+use std::path::PathBuf;
+
+use super::Result;
+
+/// RMSE and FLIP of one image against another.
+///
+/// Prints `rmse R flip F` on one line: the RMSE over linear RGB and the mean
+/// FLIP (LDR, sRGB 8-bit). The images (EXR, PNG, ...) must be the same size.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The reference image.
+    #[arg(value_name = "REFERENCE")]
+    reference: PathBuf,
+    /// The image to measure against it.
+    #[arg(value_name = "TEST")]
+    test: PathBuf,
+}
+
+/// Runs `quadtex diff`.
+pub fn run(args: Args) -> Result<()> {
+    let Args { reference, test } = args;
+    let a = quadtex_io::load_linear_image(&reference)?;
+    let b = quadtex_io::load_linear_image(&test)?;
+    let rmse = quadtex_render::compare::rmse(&a, &b).ok_or_else(|| {
+        format!(
+            "{} is {}x{} but {} is {}x{}",
+            reference.display(),
+            a.width,
+            a.height,
+            test.display(),
+            b.width,
+            b.height
+        )
+    })?;
+    println!("rmse {rmse:.6} flip {:.6}", super::compare::flip(&a, &b));
+    Ok(())
+}

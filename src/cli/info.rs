@@ -1,0 +1,151 @@
+//! `quadtex info`: a `.qtx` file's size, depth and nodes per level, or SVG
+//! art's tree against rasters of the same effective resolution.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use quadtex_core::vector::MAX_VECTOR_LEVEL;
+
+use super::{Result, human_bytes, is_svg, raster_bytes};
+
+/// Describe a .qtx file, or SVG art's tree against rasters per level.
+///
+/// For a .qtx file: its size, depth, nodes, memory, the raster it replaces
+/// and its nodes per level. For SVG art: the art packed at several levels
+/// against RGBA8 rasters of the same effective resolution, and the deepest
+/// level whose tree fits in 1 MiB.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The .qtx file or SVG art to describe.
+    #[arg(value_name = "FILE")]
+    path: PathBuf,
+    /// SVG art only: the levels to pack, comma-separated [default: 8,10,12,14,16].
+    #[arg(long, value_name = "L,L,...", value_delimiter = ',', value_parser = vector_level)]
+    levels: Option<Vec<u8>>,
+}
+
+/// A value parser: one of `--levels`, at most the vector packer's limit.
+fn vector_level(text: &str) -> std::result::Result<u8, String> {
+    let l: u8 = text
+        .trim()
+        .parse()
+        .map_err(|e| format!("--levels: `{text}`: {e}"))?;
+    if l > MAX_VECTOR_LEVEL {
+        return Err(format!(
+            "--levels: {l} exceeds the vector packer's limit {MAX_VECTOR_LEVEL}"
+        ));
+    }
+    Ok(l)
+}
+
+/// Runs `quadtex info`.
+pub fn run(args: Args) -> Result<()> {
+    let Args { path, levels } = args;
+    if is_svg(&path) {
+        return info_svg(&path, levels.as_deref().unwrap_or(&[8, 10, 12, 14, 16]));
+    }
+    if levels.is_some() {
+        return Err("--levels applies to SVG art only".into());
+    }
+    let (tree, meta) = quadtex_io::read_qtx_with_limits(&path, &quadtex_io::Limits::default())?;
+    let bytes = tree.memory_bytes();
+    println!(
+        "file:        {} ({})",
+        path.display(),
+        human_bytes(meta.file_bytes)
+    );
+    println!("depth:       {}", tree.depth());
+    println!("nodes:       {}", tree.node_count());
+    println!(
+        "memory:      {} ({:.3} bytes/node; colour 8 B/node as unorm16 RGBA)",
+        human_bytes(bytes),
+        bytes as f64 / tree.node_count() as f64
+    );
+    let (w, h) = if meta.source_width > 0 {
+        (meta.source_width, meta.source_height)
+    } else {
+        let side = 1u32.checked_shl(tree.depth().into()).unwrap_or(u32::MAX);
+        (side, side)
+    };
+    let (raster, mips) = raster_bytes(w, h);
+    println!(
+        "source:      {w}x{h}; RGBA8 raster {} ({:.1}x the tree), raster+mips {} ({:.1}x)",
+        human_bytes(raster),
+        raster as f64 / bytes as f64,
+        human_bytes(mips),
+        mips as f64 / bytes as f64
+    );
+    let avg = tree.average().to_rgba();
+    println!(
+        "average:     {} {} {} {} (linear, premultiplied)",
+        avg.r, avg.g, avg.b, avg.a
+    );
+    println!("level      nodes  terminals");
+    for l in tree.level_stats() {
+        println!("{:>5} {:>10} {:>10}", l.level, l.nodes, l.terminals);
+    }
+    Ok(())
+}
+
+/// `info ART.svg`: the art packed at several levels against rasters of the
+/// same effective resolution, and the deepest level that fits in 1 MiB.
+fn info_svg(path: &Path, levels: &[u8]) -> Result<()> {
+    let limits = quadtex_io::Limits::default();
+    println!("{}: exact vector packing", path.display());
+    println!(
+        "level  effective        nodes   tree bytes   RGBA8 raster  raster+mips  raster+mips/tree   pack s"
+    );
+    let mut rows = levels.to_vec();
+    rows.sort_unstable();
+    rows.dedup();
+    for level in rows {
+        let start = Instant::now();
+        let (tree, _) = quadtex_io::pack_svg(path, level, &limits)?;
+        let seconds = start.elapsed().as_secs_f64();
+        let bytes = tree.memory_bytes();
+        let side = 1u64 << level;
+        let raster = 4 * side * side;
+        let mips = raster * 4 / 3;
+        println!(
+            "{level:>5}  {:>9}  {:>11}  {:>11}  {:>13}  {:>11}  {:>16.1}  {:>7.2}",
+            format!("{side}²"),
+            tree.node_count(),
+            human_bytes(bytes),
+            human_bytes(raster),
+            human_bytes(mips),
+            mips as f64 / bytes as f64,
+            seconds
+        );
+    }
+    // Trees only grow with the level, so walk up until one exceeds 1 MiB.
+    let mut fits = None;
+    for level in 0..=MAX_VECTOR_LEVEL {
+        let (tree, _) = quadtex_io::pack_svg(path, level, &limits)?;
+        if tree.memory_bytes() > 1 << 20 {
+            break;
+        }
+        fits = Some(level);
+    }
+    match fits {
+        Some(l) => println!("deepest level within 1 MiB: {l} ({}² effective)", 1u64 << l),
+        None => println!("deepest level within 1 MiB: none (the root alone is larger)"),
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_are_trimmed_and_bounded() {
+        assert_eq!(vector_level(" 12"), Ok(12));
+        assert_eq!(
+            vector_level("25"),
+            Err(format!(
+                "--levels: 25 exceeds the vector packer's limit {MAX_VECTOR_LEVEL}"
+            ))
+        );
+        assert!(vector_level("x").is_err_and(|e| e.starts_with("--levels: `x`: ")));
+    }
+}

@@ -1,0 +1,184 @@
+//! `quadtex pack`: an image or SVG art into a `.qtx` quadtree texture.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use quadtex_core::{BuildOptions, QuadTree};
+
+use super::{Result, human_bytes, is_svg, level, raster_bytes};
+
+/// Max level of SVG art packed without `--max-level` (4096² effective).
+const DEFAULT_SVG_LEVEL: u8 = 12;
+
+/// Pack an image or SVG art into a quadtree texture.
+///
+/// Raster images (PNG, JPEG) are decoded to linear colour and packed,
+/// losslessly unless `--tolerance` allows merging. SVG art (`.svg`) is packed
+/// exactly: every cell's colour is the art's coverage integral, at most
+/// level 24, by default 12 (4096² effective).
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The image (PNG, JPEG) or SVG art to pack.
+    #[arg(value_name = "IMAGE")]
+    input: PathBuf,
+    /// The .qtx file to write.
+    #[arg(short, long, value_name = "OUT.qtx")]
+    output: PathBuf,
+    /// Largest per-channel deviation (linear, premultiplied, full scale 1) of
+    /// a cell from its terminal square's colour, in [0, 1]; 0 is lossless.
+    /// Raster images only.
+    #[arg(long, value_name = "T", allow_negative_numbers = true, value_parser = tolerance)]
+    tolerance: Option<f64>,
+    /// Depth of the finest cells (default: the image's natural depth; 12 for SVG art).
+    #[arg(long, value_name = "L", value_parser = level("--max-level"))]
+    max_level: Option<u8>,
+}
+
+/// A value parser: a tolerance in [0, 1].
+fn tolerance(text: &str) -> std::result::Result<f64, String> {
+    let t = text.parse::<f64>().map_err(|e| e.to_string())?;
+    if !(t.is_finite() && (0.0..=1.0).contains(&t)) {
+        return Err(format!("--tolerance must be in [0, 1], got {t}"));
+    }
+    Ok(t)
+}
+
+/// Runs `quadtex pack`.
+pub fn run(args: Args) -> Result<()> {
+    let Args {
+        input,
+        output,
+        tolerance,
+        max_level,
+    } = args;
+    let mut options = BuildOptions {
+        max_level,
+        ..BuildOptions::default()
+    };
+    if let Some(t) = tolerance {
+        options.tolerance = t;
+    }
+    if is_svg(&input) {
+        if options.tolerance != 0.0 {
+            return Err(format!(
+                "{}: --tolerance applies to raster images; SVG art packs exactly",
+                input.display()
+            )
+            .into());
+        }
+        return pack_svg(
+            &input,
+            &output,
+            options.max_level.unwrap_or(DEFAULT_SVG_LEVEL),
+        );
+    }
+    let progress = Progress::new();
+    let start = Instant::now();
+    progress.stage(&format!("decoding {}", input.display()));
+    let grid = quadtex_io::load_texels(&input)?;
+    progress.stage(&format!(
+        "packing {}x{} texels",
+        grid.width(),
+        grid.height()
+    ));
+    let (tree, report) =
+        QuadTree::from_texels(&grid, &options).map_err(|e| format!("{}: {e}", input.display()))?;
+    progress.stage(&format!("writing {}", output.display()));
+    quadtex_io::write_qtx(&output, &tree, Some((grid.width(), grid.height())))?;
+    progress.finish();
+    let terminals: u64 = tree.level_stats().iter().map(|l| l.terminals).sum();
+    let bytes = tree.memory_bytes();
+    let (raster, mips) = raster_bytes(grid.width(), grid.height());
+    let error = if report.max_error == 0.0 {
+        "lossless".to_string()
+    } else {
+        format!("max error {:.6} (L∞ per channel, linear)", report.max_error)
+    };
+    println!(
+        "packed {} -> {}: {} nodes ({} terminal), depth {}, {} ({:.2} B/node); RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {}{}; {:.2} s",
+        input.display(),
+        output.display(),
+        tree.node_count(),
+        terminals,
+        tree.depth(),
+        human_bytes(bytes),
+        bytes as f64 / tree.node_count() as f64,
+        raster as f64 / bytes as f64,
+        mips as f64 / bytes as f64,
+        error,
+        if report.resampled {
+            ", cells resampled (area-weighted) from a non-power-of-two raster"
+        } else {
+            ""
+        },
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn pack_svg(input: &Path, output: &Path, level: u8) -> Result<()> {
+    let progress = Progress::new();
+    let start = Instant::now();
+    progress.stage(&format!("packing {} at level {level}", input.display()));
+    let (tree, report) = quadtex_io::pack_svg(input, level, &quadtex_io::Limits::default())?;
+    progress.stage(&format!("writing {}", output.display()));
+    let side = 1u32 << level.min(31);
+    quadtex_io::write_qtx(output, &tree, Some((side, side)))?;
+    progress.finish();
+    let bytes = tree.memory_bytes();
+    let (raster, mips) = raster_bytes(side, side);
+    println!(
+        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept; {:.2} s",
+        input.display(),
+        output.display(),
+        tree.node_count(),
+        tree.depth(),
+        human_bytes(bytes),
+        bytes as f64 / tree.node_count() as f64,
+        raster as f64 / bytes as f64,
+        mips as f64 / bytes as f64,
+        report.swept_leaves,
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Stage messages on a spinner when stderr is a terminal, nothing otherwise.
+struct Progress(Option<indicatif::ProgressBar>);
+
+impl Progress {
+    fn new() -> Progress {
+        Progress(std::io::stderr().is_terminal().then(|| {
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.enable_steady_tick(std::time::Duration::from_millis(120));
+            bar
+        }))
+    }
+    fn stage(&self, message: &str) {
+        if let Some(bar) = &self.0 {
+            bar.set_message(message.to_string());
+        }
+    }
+    fn finish(&self) {
+        if let Some(bar) = &self.0 {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tolerance_must_be_a_fraction() {
+        assert_eq!(tolerance("0.25"), Ok(0.25));
+        assert_eq!(
+            tolerance("-1"),
+            Err("--tolerance must be in [0, 1], got -1".to_string())
+        );
+        assert!(tolerance("NaN").is_err_and(|e| e.contains("got NaN")));
+        assert!(tolerance("two").is_err());
+    }
+}

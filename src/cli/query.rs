@@ -1,0 +1,43 @@
+//! `quadtex query`: fragments on stdin, their integrated colours on stdout.
+
+use std::io::{BufRead, BufWriter, Write};
+use std::path::PathBuf;
+
+use super::{Result, level};
+
+/// Answer fragments from stdin with their integrated colour.
+///
+/// Reads one fragment `x0 z0 x1 z1` per line on stdin (texture space, the
+/// texture is the unit square; blank lines and lines starting with `#` are
+/// skipped) and writes one line `r g b a` per fragment: the integral of
+/// linear, premultiplied colour over the fragment's overlap with the unit
+/// square (divide by that area for the mean colour).
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The .qtx file to query.
+    #[arg(value_name = "FILE.qtx")]
+    path: PathBuf,
+    /// Integrate at this level (default: the tree's depth, exact).
+    #[arg(short = 'k', long, value_name = "K", value_parser = level("--level"))]
+    level: Option<u8>,
+}
+
+/// Runs `quadtex query`.
+pub fn run(args: Args) -> Result<()> {
+    let tree = quadtex_io::read_qtx(&args.path)?;
+    let k = args.level.unwrap_or(tree.depth());
+    let stdin = std::io::stdin().lock();
+    let mut out = BufWriter::new(std::io::stdout().lock());
+    for (i, line) in stdin.lines().enumerate() {
+        let line = line.map_err(|e| format!("stdin line {}: {e}", i + 1))?;
+        let Some(fragment) = quadtex_io::parse_query_line(&line)
+            .map_err(|e| format!("stdin line {}: {e}", i + 1))?
+        else {
+            continue;
+        };
+        let w = tree.weighted_colour(&fragment, k);
+        writeln!(out, "{} {} {} {}", w.0[0], w.0[1], w.0[2], w.0[3])?;
+    }
+    out.flush()?;
+    Ok(())
+}

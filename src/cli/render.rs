@@ -1,0 +1,253 @@
+//! `quadtex render` and `quadtex demo`: the same render options
+//! ([`RenderArgs`]); `demo` builds its scene in code and can run the
+//! comparison on it instead (`demo --compare`).
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+use quadtex_render::{Filter, LevelOfDetail, PixelFilter, RenderOptions, Scene};
+
+use super::{Result, compare, level};
+
+/// Render a scene file to PNG or EXR.
+///
+/// The scene format is described in docs/scenes.md. Prints the file written
+/// and a summary: time, fragments and tree queries per textured pixel, nodes
+/// per query and the footprint area mismatch.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The scene to render.
+    #[arg(value_name = "SCENE.toml")]
+    scene: PathBuf,
+    /// The image to write: .png (sRGB, 8-bit) or .exr (linear, float).
+    #[arg(short, long, value_name = "OUT.png|OUT.exr")]
+    output: PathBuf,
+    #[command(flatten)]
+    render: RenderArgs,
+}
+
+/// Render the built-in airfield scene, or compare every filter on it.
+///
+/// Without `--compare`: renders the scene to `-o` (default demo.png) with the
+/// render options. With `--compare`: as `quadtex compare`, on this scene,
+/// writing the report into the directory `-o`; `--width` is the comparison's
+/// frame width (16..=3840, default 480) and the other render options are not
+/// used.
+#[derive(Debug, clap::Args)]
+#[command(group(
+    clap::ArgGroup::new("compare_only")
+        .args(["reference_spp", "frames", "no_flip"])
+        .multiple(true)
+        .requires("compare")
+))]
+pub struct DemoArgs {
+    /// The image to write (.png or .exr) [default: demo.png]; with
+    /// `--compare`, the report's directory (required).
+    #[arg(short, long, value_name = "OUT")]
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    render: RenderArgs,
+    /// Run the comparison (every filter against a converged reference) instead.
+    #[arg(long)]
+    compare: bool,
+    #[command(flatten)]
+    compare_options: compare::CompareArgs,
+}
+
+/// The render options shared by `render` and `demo`.
+#[derive(Debug, clap::Args)]
+pub struct RenderArgs {
+    /// Image width in pixels (default: the camera's; the height follows the
+    /// camera's aspect unless also given).
+    #[arg(long, value_name = "W")]
+    width: Option<u32>,
+    /// Image height in pixels (default: the camera's).
+    #[arg(long, value_name = "H")]
+    height: Option<u32>,
+    /// Texture filter: quadtree (the method: the exact integral over each
+    /// pixel's footprint), nearest, bilinear, supersample:N (N×N nearest
+    /// rays per pixel), trilinear, ewa (anisotropy 8) or sat (summed-area
+    /// table).
+    #[arg(long, value_name = "FILTER", default_value = "quadtree", value_parser = filter_name)]
+    filter: FilterName,
+    /// Strip quality of quadtree and sat, in 1..=64 (the area-mismatch target is 1/(4·Q)).
+    #[arg(long, value_name = "Q", default_value_t = 1.0, value_parser = quality)]
+    quality: f64,
+    /// Quadtree only: integrate at this fixed level instead of choosing it
+    /// by an error bound of 1/512.
+    #[arg(long, value_name = "K", value_parser = level("--level"))]
+    level: Option<u8>,
+    /// Pixel filter, for quadtree and supersample: box (the pixel square) or
+    /// tent (over 2×2 pixels) [default: box].
+    #[arg(long, value_name = "box|tent", value_parser = pixel_filter)]
+    pixel_filter: Option<PixelFilter>,
+}
+
+/// A `--filter` name, before `--quality` and `--level` complete it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum FilterName {
+    Quadtree,
+    Nearest,
+    Bilinear,
+    Supersample(u32),
+    Trilinear,
+    Ewa,
+    Sat,
+}
+
+/// A value parser: `--filter`'s grammar.
+fn filter_name(text: &str) -> std::result::Result<FilterName, String> {
+    Ok(match text {
+        "quadtree" => FilterName::Quadtree,
+        "nearest" => FilterName::Nearest,
+        "trilinear" => FilterName::Trilinear,
+        "ewa" => FilterName::Ewa,
+        "sat" => FilterName::Sat,
+        "bilinear" => FilterName::Bilinear,
+        other => match other.strip_prefix("supersample:").map(str::parse::<u32>) {
+            Some(Ok(n)) => FilterName::Supersample(n),
+            _ => {
+                return Err(format!(
+                    "--filter {other}: expected quadtree, nearest, bilinear, supersample:N, trilinear, ewa or sat"
+                ));
+            }
+        },
+    })
+}
+
+/// A value parser: `--quality` in 1..=64.
+fn quality(text: &str) -> std::result::Result<f64, String> {
+    let quality = text.parse::<f64>().map_err(|e| e.to_string())?;
+    if !(1.0..=64.0).contains(&quality) {
+        return Err(format!("--quality must be in 1..=64, got {quality}"));
+    }
+    Ok(quality)
+}
+
+/// A value parser: `--pixel-filter box|tent`.
+fn pixel_filter(text: &str) -> std::result::Result<PixelFilter, String> {
+    match text {
+        "box" => Ok(PixelFilter::Box),
+        "tent" => Ok(PixelFilter::Tent),
+        other => Err(format!("--pixel-filter {other}: expected box or tent")),
+    }
+}
+
+impl RenderArgs {
+    /// The render options these arguments ask for.
+    fn options(&self) -> RenderOptions {
+        let (quality, level) = (self.quality, self.level);
+        RenderOptions {
+            width: self.width,
+            height: self.height,
+            filter: match self.filter {
+                FilterName::Quadtree => Filter::Quadtree {
+                    quality,
+                    lod: level.map_or(LevelOfDetail::ErrorBound(1.0 / 512.0), LevelOfDetail::Fixed),
+                },
+                FilterName::Nearest => Filter::Nearest,
+                FilterName::Trilinear => Filter::Trilinear,
+                FilterName::Ewa => Filter::Ewa {
+                    max_anisotropy: 8.0,
+                },
+                FilterName::Sat => Filter::Sat { quality },
+                FilterName::Bilinear => Filter::Bilinear,
+                FilterName::Supersample(n) => Filter::Supersample(n),
+            },
+            pixel_filter: self.pixel_filter.unwrap_or_default(),
+        }
+    }
+}
+
+/// Runs `quadtex render`.
+pub fn run(args: Args) -> Result<()> {
+    let options = args.render.options();
+    let scene = quadtex_render::load_scene(&args.scene)?;
+    render(&scene, &options, args.output)
+}
+
+/// Runs `quadtex demo`.
+pub fn run_demo(args: DemoArgs) -> Result<()> {
+    if args.compare {
+        let width = args
+            .render
+            .width
+            .unwrap_or(compare::Settings::default().width);
+        if !(16..=3840).contains(&width) {
+            return Err(format!("--width must be in 16..=3840, got {width}").into());
+        }
+        let settings = args.compare_options.settings(width);
+        let dir = args.output.ok_or("demo --compare: missing -o DIR")?;
+        return compare::compare_scene(&quadtex_render::demo_scene()?, "demo", &dir, &settings);
+    }
+    let options = args.render.options();
+    let output = args.output.unwrap_or_else(|| PathBuf::from("demo.png"));
+    render(&quadtex_render::demo_scene()?, &options, output)
+}
+
+/// Renders `scene` into `output` (.png or .exr) with a progress bar on a
+/// terminal, then prints the summary.
+fn render(scene: &Scene, options: &RenderOptions, output: PathBuf) -> Result<()> {
+    let ext = output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("png" | "exr")) {
+        return Err(format!("{}: output must end in .png or .exr", output.display()).into());
+    }
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let bar = indicatif::ProgressBar::new(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} rows {elapsed}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let progress = |done: u64, total: u64| {
+        if let Some(bar) = &bar {
+            bar.set_length(total);
+            bar.set_position(done);
+        }
+    };
+    let (image, summary) = quadtex_render::render(scene, options, &progress)?;
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    quadtex_io::save_image(&output, &image)?;
+    println!("wrote {}", output.display());
+    println!("{summary}");
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn filter_grammar() {
+        assert_eq!(filter_name("ewa"), Ok(FilterName::Ewa));
+        assert_eq!(filter_name("supersample:4"), Ok(FilterName::Supersample(4)));
+        for bad in ["supersample:", "supersample:x", "box", ""] {
+            assert!(
+                filter_name(bad)
+                    .is_err_and(|e| e.starts_with(&format!("--filter {bad}: expected"))),
+                "{bad}"
+            );
+        }
+    }
+
+    #[test]
+    fn quality_and_pixel_filter() {
+        assert_eq!(quality("64"), Ok(64.0));
+        assert_eq!(
+            quality("0.5"),
+            Err("--quality must be in 1..=64, got 0.5".to_string())
+        );
+        assert!(quality("NaN").is_err());
+        assert_eq!(pixel_filter("tent"), Ok(PixelFilter::Tent));
+        assert_eq!(
+            pixel_filter("gauss"),
+            Err("--pixel-filter gauss: expected box or tent".to_string())
+        );
+    }
+}
