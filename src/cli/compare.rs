@@ -7,7 +7,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use quadtex_io::LinearImage;
-use quadtex_render::compare::{self, Contender, Figures, ReportInfo};
+use quadtex_eval::contenders::{Contender, default_contenders};
+use quadtex_eval::metrics::{error_map, psnr, rmse, rmse_where_defined, shimmer};
+use quadtex_eval::montage::{self, busiest_window, crop, grid, magnify, shrink};
+use quadtex_eval::reference::closed_form_plane;
+use quadtex_eval::report::{Figures, ReportInfo, csv, file_stem, html_report, markdown_table, plot_svg};
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
 use super::{Result, in_range};
@@ -161,7 +165,7 @@ fn lookups_per_pixel(filter: Filter, summary: &quadtex_render::RenderSummary) ->
     let textured = summary.textured_pixels.max(1) as f64;
     match filter {
         Filter::Quadtree { .. } | Filter::Sat { .. } => {
-            Some(summary.traversal.queries as f64 / textured)
+            Some(summary.filter.traversal.queries as f64 / textured)
         }
         Filter::Nearest => Some(1.0),
         Filter::Bilinear => Some(4.0),
@@ -205,7 +209,7 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
     std::fs::create_dir_all(dir.join("frames"))
         .map_err(|e| format!("{}: {e}", dir.join("frames").display()))?;
     let (w, h) = (s.width, scene.camera.height_for_width(s.width));
-    let contenders = compare::default_contenders();
+    let contenders = default_contenders();
     let needs_tent = contenders
         .iter()
         .any(|c| c.pixel_filter == PixelFilter::Tent);
@@ -222,9 +226,9 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         None
     };
     // The closed form, where the scene is a single unlit textured plane.
-    let exact = compare::closed_form_plane(scene, w, h, CLOSED_FORM_MAX_CELLS);
+    let exact = closed_form_plane(scene, w, h, CLOSED_FORM_MAX_CELLS);
     let exact_note = exact.as_ref().and_then(|e| {
-        let (r, defined) = compare::rmse_where_defined(&reference_box, e)?;
+        let (r, defined) = rmse_where_defined(&reference_box, e)?;
         Some(format!(
             "; the closed-form integral (every checker cell clipped against every pixel in screen space) is defined on {:.0}% of the pixels, where the reference is within RMSE {r:.5} of it",
             100.0 * defined
@@ -297,7 +301,7 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         times.sort_by(f64::total_cmp);
         let seconds = times[times.len() / 2];
         let reference = reference_for(c);
-        let rmse = compare::rmse(&img, reference).ok_or("frame size mismatch")?;
+        let rmse = rmse(&img, reference).ok_or("frame size mismatch")?;
         let shimmer = if s.frames >= 2 {
             let refs = match c.pixel_filter {
                 PixelFilter::Tent if needs_tent => &shimmer_tent,
@@ -309,16 +313,16 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
                     Ok(render_one(sc, shimmer_size.0, shimmer_size.1, c.filter, c.pixel_filter)?.0)
                 })
                 .collect::<Result<_>>()?;
-            compare::shimmer(&seq, refs)
+            shimmer(&seq, refs)
         } else {
             None
         };
         let figures = Figures {
             label: c.label.clone(),
             rmse,
-            psnr: compare::psnr(rmse),
+            psnr: psnr(rmse),
             rmse_exact: match (&exact, c.pixel_filter) {
-                (Some(e), PixelFilter::Box) => compare::rmse_where_defined(&img, e).map(|r| r.0),
+                (Some(e), PixelFilter::Box) => rmse_where_defined(&img, e).map(|r| r.0),
                 _ => None,
             },
             flip: s.flip.then(|| flip(reference, &img)),
@@ -347,27 +351,27 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         let p = pixel(img, x.min(img.width - 1), y.min(img.height - 1));
         f64::from(0.2126 * p.r + 0.7152 * p.g + 0.0722 * p.b)
     };
-    let aliasing_at = compare::busiest_window(w, h, window.0, window.1, |x, y| {
+    let aliasing_at = busiest_window(w, h, window.0, window.1, |x, y| {
         let r = luma(&reference_box, x, y);
         nearest.map_or(0.0, |n| (luma(n, x, y) - r).abs())
     });
-    let contrast_at = compare::busiest_window(w, h, window.0, window.1, |x, y| {
+    let contrast_at = busiest_window(w, h, window.0, window.1, |x, y| {
         let r = luma(&reference_box, x, y);
         (luma(&reference_box, x + 1, y) - r).abs() + (luma(&reference_box, x, y + 1) - r).abs()
     });
     let shrink_by = w.div_ceil(320).max(1);
     let row_of = |img: &LinearImage, reference: &LinearImage| {
         vec![
-            compare::shrink(img, shrink_by),
-            compare::magnify(
-                &compare::crop(img, aliasing_at.0, aliasing_at.1, window.0, window.1),
+            shrink(img, shrink_by),
+            magnify(
+                &crop(img, aliasing_at.0, aliasing_at.1, window.0, window.1),
                 3,
             ),
-            compare::magnify(
-                &compare::crop(img, contrast_at.0, contrast_at.1, window.0, window.1),
+            magnify(
+                &crop(img, contrast_at.0, contrast_at.1, window.0, window.1),
                 3,
             ),
-            compare::shrink(&compare::error_map(img, reference, 0.1), shrink_by),
+            shrink(&error_map(img, reference, 0.1), shrink_by),
         ]
     };
     let mut grid_rows = vec![row_of(&reference_box, &reference_box)];
@@ -378,17 +382,17 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
     }
     // Each row starts with its name.
     for (row, label) in grid_rows.iter_mut().zip(&labels) {
-        if let Some(l) = compare::label(label) {
+        if let Some(l) = montage::label(label) {
             row.insert(0, l);
         }
     }
-    let grid = compare::grid(&grid_rows, 4);
+    let grid = grid(&grid_rows, 4);
     quadtex_io::save_image(&dir.join("grid.png"), &grid)?;
     quadtex_io::save_image(&dir.join("frames").join("reference.png"), &reference_box)?;
     for (c, img) in contenders.iter().zip(&frames) {
         let file = dir
             .join("frames")
-            .join(format!("{}.png", compare::file_stem(&c.label)));
+            .join(format!("{}.png", file_stem(&c.label)));
         quadtex_io::save_image(&file, img)?;
     }
     let threads = available_threads();
@@ -415,16 +419,16 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         },
         machine: format!("{threads} worker threads"),
     };
-    let table = compare::markdown_table(&rows);
+    let table = markdown_table(&rows);
     write_text(&dir.join("results.md"), &table)?;
-    write_text(&dir.join("results.csv"), &compare::csv(&rows))?;
+    write_text(&dir.join("results.csv"), &csv(&rows))?;
     write_text(
         &dir.join("plot.svg"),
-        &compare::plot_svg(&rows, &format!("{name}: error against time per frame")),
+        &plot_svg(&rows, &format!("{name}: error against time per frame")),
     )?;
     write_text(
         &dir.join("report.html"),
-        &compare::html_report(&info, &rows, &labels),
+        &html_report(&info, &rows, &labels),
     )?;
     println!("{table}");
     println!(

@@ -23,7 +23,7 @@ pub fn run(args: Args) -> Result<()> {
     let Args { reference, test } = args;
     let a = quadtex_io::load_linear_image(&reference)?;
     let b = quadtex_io::load_linear_image(&test)?;
-    let rmse = quadtex_render::compare::rmse(&a, &b).ok_or_else(|| {
+    let rmse = quadtex_eval::metrics::rmse(&a, &b).ok_or_else(|| {
         format!(
             "{} is {}x{} but {} is {}x{}",
             reference.display(),

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use quadtex_io::LinearImage;
 use quadtex_io::footprints::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
-use quadtex_render::scene::WrapMode;
+use quadtex_core::WrapMode;
 use quadtex_render::{Filter, PixelFilter, RenderOptions};
 
 use super::{Result, in_range};
@@ -53,7 +53,7 @@ pub fn run(args: Args) -> Result<()> {
     let scene = quadtex_render::load_scene(&path)?;
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let height = scene.camera.height_for_width(width);
-    let (records, users) = quadtex_render::footprint_records(&scene, width, height)?;
+    let (records, users) = quadtex_eval::peers::footprint_records(&scene, width, height)?;
     let mut textures = Vec::new();
     for (i, &u) in users.iter().enumerate() {
         let surface = &scene.surfaces[u];
@@ -73,10 +73,18 @@ pub fn run(args: Args) -> Result<()> {
         quadtex_io::save_image(&dir.join(&file), &image)?;
         textures.push(DumpTexture {
             file,
-            wrap: match surface.wrap {
-                WrapMode::Repeat => DumpWrap::Repeat,
-                WrapMode::Clamp => DumpWrap::Clamp,
-                WrapMode::Border(_) => DumpWrap::Black,
+            wrap: match (surface.wrap.x, surface.wrap.z, surface.wrap.border.a) {
+                (WrapMode::Repeat, WrapMode::Repeat, _) => DumpWrap::Repeat,
+                (WrapMode::Clamp, WrapMode::Clamp, _) => DumpWrap::Clamp,
+                (WrapMode::Border, WrapMode::Border, a) if a == 0.0 => DumpWrap::Black,
+                (x, z, _) => {
+                    return Err(format!(
+                        "surface {u}: wrap ({}, {}) has no equivalent in the peer dump (repeat, clamp or transparent border on both axes)",
+                        x.name(),
+                        z.name()
+                    )
+                    .into());
+                }
             },
         });
     }

@@ -5,7 +5,8 @@
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
-use quadtex_render::{Filter, LevelOfDetail, PixelFilter, RenderOptions, Scene};
+use quadtex_core::FilterOptions;
+use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
 use super::{Result, compare, level};
 
@@ -135,33 +136,34 @@ fn pixel_filter(text: &str) -> std::result::Result<PixelFilter, String> {
 
 impl RenderArgs {
     /// The render options these arguments ask for.
-    fn options(&self) -> RenderOptions {
-        let (quality, level) = (self.quality, self.level);
-        RenderOptions {
+    fn options(&self) -> Result<RenderOptions> {
+        let quality = FilterOptions::default().with_quality(self.quality)?;
+        let quadtree = match self.level {
+            Some(k) => quality.with_level(k),
+            None => quality,
+        };
+        Ok(RenderOptions {
             width: self.width,
             height: self.height,
             filter: match self.filter {
-                FilterName::Quadtree => Filter::Quadtree {
-                    quality,
-                    lod: level.map_or(LevelOfDetail::ErrorBound(1.0 / 512.0), LevelOfDetail::Fixed),
-                },
+                FilterName::Quadtree => Filter::Quadtree(quadtree),
                 FilterName::Nearest => Filter::Nearest,
                 FilterName::Trilinear => Filter::Trilinear,
                 FilterName::Ewa => Filter::Ewa {
                     max_anisotropy: 8.0,
                 },
-                FilterName::Sat => Filter::Sat { quality },
+                FilterName::Sat => Filter::Sat(quality),
                 FilterName::Bilinear => Filter::Bilinear,
                 FilterName::Supersample(n) => Filter::Supersample(n),
             },
             pixel_filter: self.pixel_filter.unwrap_or_default(),
-        }
+        })
     }
 }
 
 /// Runs `quadtex render`.
 pub fn run(args: Args) -> Result<()> {
-    let options = args.render.options();
+    let options = args.render.options()?;
     let scene = quadtex_render::load_scene(&args.scene)?;
     render(&scene, &options, args.output)
 }
@@ -180,7 +182,7 @@ pub fn run_demo(args: DemoArgs) -> Result<()> {
         let dir = args.output.ok_or("demo --compare: missing -o DIR")?;
         return compare::compare_scene(&quadtex_render::demo_scene()?, "demo", &dir, &settings);
     }
-    let options = args.render.options();
+    let options = args.render.options()?;
     let output = args.output.unwrap_or_else(|| PathBuf::from("demo.png"));
     render(&quadtex_render::demo_scene()?, &options, output)
 }
