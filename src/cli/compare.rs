@@ -6,12 +6,14 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use quadtex_io::LinearImage;
 use quadtex_eval::contenders::{Contender, default_contenders};
 use quadtex_eval::metrics::{error_map, psnr, rmse, rmse_where_defined, shimmer};
 use quadtex_eval::montage::{self, busiest_window, crop, grid, magnify, shrink};
 use quadtex_eval::reference::closed_form_plane;
-use quadtex_eval::report::{Figures, ReportInfo, csv, file_stem, html_report, markdown_table, plot_svg};
+use quadtex_eval::report::{
+    Figures, ReportInfo, csv, file_stem, html_report, markdown_table, plot_svg,
+};
+use quadtex_io::LinearImage;
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
 use super::{Result, in_range};

@@ -4,9 +4,9 @@
 
 use std::path::PathBuf;
 
+use quadtex_core::WrapMode;
 use quadtex_io::LinearImage;
 use quadtex_io::footprints::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
-use quadtex_core::WrapMode;
 use quadtex_render::{Filter, PixelFilter, RenderOptions};
 
 use super::{Result, in_range};
@@ -76,7 +76,7 @@ pub fn run(args: Args) -> Result<()> {
             wrap: match (surface.wrap.x, surface.wrap.z, surface.wrap.border.a) {
                 (WrapMode::Repeat, WrapMode::Repeat, _) => DumpWrap::Repeat,
                 (WrapMode::Clamp, WrapMode::Clamp, _) => DumpWrap::Clamp,
-                (WrapMode::Border, WrapMode::Border, a) if a == 0.0 => DumpWrap::Black,
+                (WrapMode::Border, WrapMode::Border, 0.0) => DumpWrap::Black,
                 (x, z, _) => {
                     return Err(format!(
                         "surface {u}: wrap ({}, {}) has no equivalent in the peer dump (repeat, clamp or transparent border on both axes)",

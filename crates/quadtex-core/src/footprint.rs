@@ -247,7 +247,7 @@ impl Homography {
             .min(q(rect.x1(), rect.z0()))
             .min(q(rect.x0(), rect.z1()))
             .min(q(rect.x1(), rect.z1()));
-        if !(q_min > 0.0) {
+        if q_min.is_nan() || q_min <= 0.0 {
             return (1, 1);
         }
         // ρ ∝ q⁻³: a relative change Δq/q changes ρ by about 3·Δq/q.

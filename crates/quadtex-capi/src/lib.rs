@@ -1,0 +1,323 @@
+//! # quadtex-capi
+//!
+//! The C API of quadtex: open a packed `.qtx` texture or pack an image or
+//! SVG file, filter pixel footprints, free the texture. The header
+//! `include/quadtex.h` is generated from this crate by cbindgen
+//! (`crates/quadtex-capi/check-header.sh` regenerates and compares it); the
+//! documentation below is what the header carries.
+//!
+//! Unsafe code is confined to `ptr.rs` (pointer conversions, each checked
+//! for NULL, alignment and size) and the `#[unsafe(no_mangle)]` attributes
+//! of the exported functions, whose bodies are safe Rust run under a guard
+//! that turns errors into statuses and panics into `QTX_STATUS_INTERNAL`.
+#![deny(unsafe_code)]
+
+mod error;
+mod ops;
+mod ptr;
+#[cfg(test)]
+mod tests;
+
+use std::ffi::{c_char, c_int};
+
+pub use error::QtxStatus;
+use error::{Failure, guard};
+use ptr::Out;
+
+/// Special values of a level argument (a C enum rather than a macro, so
+/// that the negative constant is a well-behaved expression).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum QtxLevel {
+    /// Passed as `level` in `QtxFilterOptions` or as `max_level` to
+    /// `qtx_pack`: choose automatically (the error bound picks the filter's
+    /// level; packing uses the image's natural depth, or level 12 for SVG).
+    Auto = -1,
+}
+
+/// Deepest level of a tree (a level-L square has side 2^-L of the texture).
+pub const QTX_MAX_DEPTH: c_int = 30;
+
+/// Deepest level SVG art can be packed at.
+pub const QTX_MAX_SVG_LEVEL: c_int = 24;
+
+/// The level SVG art is packed at when `qtx_pack` gets `QTX_LEVEL_AUTO`
+/// (4096 x 4096 effective texels).
+pub const QTX_DEFAULT_SVG_LEVEL: c_int = 12;
+
+/// A packed texture (an incomplete quadtree). Opaque: create it with
+/// `qtx_open` or `qtx_pack`, release it with `qtx_free`. Filtering does not
+/// modify it, so one texture may be filtered from several threads at once.
+pub struct QtxTexture {
+    texture: quadtex_core::Texture,
+}
+
+/// How texture space continues beyond the unit square along one axis
+/// (values for `QtxFilterOptions.wrap_x` and `.wrap_z`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum QtxWrapMode {
+    /// Tiles repeat: the texture at x is the texture at x - floor(x).
+    Repeat = 0,
+    /// The edge extends outwards: beyond an edge the texture is its
+    /// outermost finest cell along that edge, stretched.
+    Clamp = 1,
+    /// Tiles repeat reflected: [1, 2) is [0, 1) mirrored, period 2.
+    Mirror = 2,
+    /// Beyond the unit square the texture is `QtxFilterOptions.border`.
+    Border = 3,
+}
+
+/// How a footprint's points are weighted in its mean colour (values for
+/// `QtxFilterOptions.weighting`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum QtxWeighting {
+    /// Uniform over the pixel square (a screen-space box filter): texture
+    /// area is weighed by the screen area that sees it, from the projective
+    /// map the footprint's four corners fix. The right choice for a renderer.
+    Screen = 0,
+    /// Uniform over the footprint in texture space.
+    Texture = 1,
+}
+
+/// Options of `qtx_filter`. Start from `qtx_filter_options_default()` and
+/// change fields; every field is checked by `qtx_filter`, which names the
+/// field at fault.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QtxFilterOptions {
+    /// A `QtxWrapMode`: how the texture continues along x (default repeat).
+    pub wrap_x: c_int,
+    /// A `QtxWrapMode`: how the texture continues along z (default repeat).
+    pub wrap_z: c_int,
+    /// The colour beyond the unit square on a `QTX_WRAP_MODE_BORDER` axis:
+    /// linear, premultiplied RGBA, finite (default transparent 0, 0, 0, 0).
+    pub border: [f32; 4],
+    /// A `QtxWeighting` (default `QTX_WEIGHTING_SCREEN`).
+    pub weighting: c_int,
+    /// Strip quality, finite and >= 1: a footprint is covered by
+    /// axis-aligned strips over-covering it by at most 1/(4 quality) of its
+    /// area (default 1).
+    pub quality: f64,
+    /// When `level` is `QTX_LEVEL_AUTO`: the largest truncation error
+    /// allowed, relative to the texture's contrast, finite and > 0 (default
+    /// 1/512, half an 8-bit step). Checked even when `level` is fixed.
+    pub error_bound: f64,
+    /// `QTX_LEVEL_AUTO` (-1, the default) to choose the traversal level from
+    /// `error_bound`, or a fixed level in 0..=`QTX_MAX_DEPTH` (clamped to
+    /// the texture's depth).
+    pub level: c_int,
+}
+
+/// What `qtx_texture_info` reports.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QtxTextureInfo {
+    /// Depth of the tree: the level of its finest squares.
+    pub depth: u32,
+    /// Nodes in the tree.
+    pub node_count: u64,
+    /// Bytes the tree occupies in memory.
+    pub memory_bytes: u64,
+    /// The mean colour over the unit square (linear, premultiplied RGBA):
+    /// what a footprint covering many whole tiles of a repeating texture
+    /// filters to.
+    pub mean: [f32; 4],
+}
+
+/// The message describing why the last failed `qtx_*` call on this thread
+/// failed (it names the file, the option or the quad and corner at fault),
+/// or NULL if the last call succeeded. The string belongs to the library:
+/// it stays valid until the next `qtx_*` call on the same thread; copy it to
+/// keep it.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub extern "C" fn qtx_last_error() -> *const c_char {
+    error::last_error_ptr()
+}
+
+/// The default filter options: repeat on both axes, transparent border,
+/// screen weighting, quality 1, error bound 1/512, `QTX_LEVEL_AUTO`.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub extern "C" fn qtx_filter_options_default() -> QtxFilterOptions {
+    ops::default_options()
+}
+
+/// Opens a packed texture: a `.qtx` file written by `quadtex pack`. The file
+/// is read whole and validated; the texture repeats (the filter options
+/// choose the wrap).
+///
+/// `path` is a NUL-terminated file name (any bytes on Unix; UTF-8
+/// elsewhere). On success `*out` receives a texture to release with
+/// `qtx_free`; on failure `*out` is set to NULL (if `out` is not NULL).
+///
+/// Returns `QTX_STATUS_OK`; `QTX_STATUS_INVALID_ARGUMENT` (NULL or empty
+/// `path`, NULL `out`), `QTX_STATUS_IO`, `QTX_STATUS_FORMAT` (not a valid
+/// `.qtx` file: the message names the field), `QTX_STATUS_LIMIT`.
+///
+/// # Safety
+/// `path` is NULL or a NUL-terminated string; `out` is NULL or valid for
+/// writing a pointer.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_open(path: *const c_char, out: *mut *mut QtxTexture) -> QtxStatus {
+    guard(|| {
+        // SAFETY: `out` is NULL or writable, by this function's contract.
+        let mut out = unsafe { Out::new(out, "out") }?;
+        out.set(std::ptr::null_mut());
+        // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
+        let path = unsafe { ptr::path_arg(path, "path") }?;
+        out.set(ptr::into_raw(ops::open(&path)?));
+        Ok(())
+    })
+}
+
+/// Packs an image or SVG art into a texture, as `quadtex pack` does.
+///
+/// * PNG, JPEG or OpenEXR: cells within `tolerance` (in [0, 1]: the largest
+///   per-channel deviation, linear premultiplied, 0 = lossless) of their
+///   square's colour are merged; `max_level` in 0..=`QTX_MAX_DEPTH` limits
+///   the depth, `QTX_LEVEL_AUTO` (or any negative value) keeps the image's
+///   natural depth.
+/// * SVG (`.svg`, any case): packed exactly; `tolerance` must be 0;
+///   `max_level` in 0..=`QTX_MAX_SVG_LEVEL`, negative for
+///   `QTX_DEFAULT_SVG_LEVEL` (12).
+///
+/// `path` and `out` as for `qtx_open`. Returns `QTX_STATUS_OK`;
+/// `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance or level out of
+/// range), `QTX_STATUS_IO`, `QTX_STATUS_FORMAT` (an image that does not
+/// decode, SVG that does not parse), `QTX_STATUS_UNSUPPORTED` (SVG features
+/// not packed exactly: gradients, patterns, images, masks, clip paths,
+/// filters), `QTX_STATUS_LIMIT`.
+///
+/// # Safety
+/// As `qtx_open`.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_pack(
+    path: *const c_char,
+    tolerance: f64,
+    max_level: c_int,
+    out: *mut *mut QtxTexture,
+) -> QtxStatus {
+    guard(|| {
+        // SAFETY: `out` is NULL or writable, by this function's contract.
+        let mut out = unsafe { Out::new(out, "out") }?;
+        out.set(std::ptr::null_mut());
+        // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
+        let path = unsafe { ptr::path_arg(path, "path") }?;
+        out.set(ptr::into_raw(ops::pack(&path, tolerance, max_level)?));
+        Ok(())
+    })
+}
+
+/// Filters `n` pixel footprints: the mean colour of the texture over each.
+///
+/// A footprint is the texture-space image of a pixel square: its four
+/// corners, the images of the pixel corners (0,0), (1,0), (1,1), (0,1) in
+/// that order (pixel x right, y down the screen). Texture space is the unit
+/// square [0,1)^2 with x to the right and z up (an image's top row is at
+/// z near 1); corners may lie anywhere, the wrap modes say what lies outside.
+/// `quads` holds `8 n` doubles: quad i, corner c, axis a (0 = x, 1 = z) is
+/// `quads[8 i + 2 c + a]`.
+///
+/// `out_rgba` receives `4 n` floats: quad i's colour, linear light,
+/// premultiplied alpha, is `out_rgba[4 i .. 4 i + 3]` (r, g, b, a).
+/// `options` may be NULL for `qtx_filter_options_default()`.
+///
+/// Every quad and option is checked before anything is filtered: on failure
+/// `out_rgba` is untouched. Returns `QTX_STATUS_OK`, or
+/// `QTX_STATUS_INVALID_ARGUMENT`: NULL `texture`, NULL `quads` or
+/// `out_rgba` with `n > 0` (both may be NULL when `n` is 0), misaligned or
+/// overlapping buffers, an option out of range (the message names the field,
+/// `options.quality`), a NaN or infinite coordinate (the message names the
+/// quad and the field, `quad 3: coordinate corner[2].z is not finite (NaN)`).
+///
+/// # Safety
+/// `texture` is NULL or a live texture from `qtx_open` / `qtx_pack`;
+/// `quads` is NULL or points to `8 n` readable doubles; `out_rgba` is NULL
+/// or points to `4 n` writable floats; `options` is NULL or points to a
+/// `QtxFilterOptions`.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_filter(
+    texture: *const QtxTexture,
+    quads: *const f64,
+    n: usize,
+    options: *const QtxFilterOptions,
+    out_rgba: *mut f32,
+) -> QtxStatus {
+    guard(|| {
+        // SAFETY: `texture` is NULL or live, by this function's contract.
+        let texture = unsafe { ptr::ref_arg(texture, "texture") }?;
+        // SAFETY: `options` is NULL or a readable struct, by contract.
+        let options = unsafe { ptr::optional_ref_arg(options, "options") }?
+            .copied()
+            .unwrap_or_else(ops::default_options);
+        let too_many = || Failure::invalid(format!("n = {n} quads do not fit in memory"));
+        let (quad_len, out_len) = (
+            n.checked_mul(8).ok_or_else(too_many)?,
+            n.checked_mul(4).ok_or_else(too_many)?,
+        );
+        // Checked here, before slices exist: Rust must not see a mutable
+        // slice aliasing another.
+        if !quads.is_null()
+            && !out_rgba.is_null()
+            && ops::overlap(
+                quads.addr(),
+                quad_len.saturating_mul(8),
+                out_rgba.addr(),
+                out_len.saturating_mul(4),
+            )
+        {
+            return Err(Failure::invalid("quads and out_rgba overlap"));
+        }
+        // SAFETY: `quads` is NULL or holds 8 n readable doubles, by contract;
+        // it does not overlap `out_rgba` (checked).
+        let quads = unsafe { ptr::slice_arg(quads, quad_len, "quads") }?;
+        // SAFETY: `out_rgba` is NULL or holds 4 n writable floats, by
+        // contract; it does not overlap `quads` (checked).
+        let out = unsafe { ptr::slice_mut_arg(out_rgba, out_len, "out_rgba") }?;
+        ops::filter(texture, quads, &options, out)
+    })
+}
+
+/// Fills `*out` with the texture's depth, size and mean colour.
+///
+/// Returns `QTX_STATUS_OK`, or `QTX_STATUS_INVALID_ARGUMENT` if `texture`
+/// or `out` is NULL.
+///
+/// # Safety
+/// `texture` is NULL or a live texture; `out` is NULL or writable.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_texture_info(
+    texture: *const QtxTexture,
+    out: *mut QtxTextureInfo,
+) -> QtxStatus {
+    guard(|| {
+        // SAFETY: `out` is NULL or writable, by this function's contract.
+        let mut out = unsafe { Out::new(out, "out") }?;
+        // SAFETY: `texture` is NULL or live, by this function's contract.
+        let texture = unsafe { ptr::ref_arg(texture, "texture") }?;
+        out.set(ops::info(texture));
+        Ok(())
+    })
+}
+
+/// Releases a texture from `qtx_open` or `qtx_pack`. NULL is ignored.
+///
+/// # Safety
+/// `texture` is NULL or a texture not yet released, which no other thread
+/// is using; it must not be used afterwards.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_free(texture: *mut QtxTexture) {
+    // Dropping a tree does not panic; no guard is needed (nor wanted: freeing
+    // keeps the last error of the call before it).
+    // SAFETY: by this function's contract, `texture` is NULL or came from
+    // `ptr::into_raw` in `qtx_open` / `qtx_pack` and is released once.
+    unsafe { ptr::release(texture) }
+}

@@ -1,0 +1,234 @@
+//! What the exported functions do, in safe Rust: opening and packing
+//! textures, checking options and footprints, filtering.
+
+use std::path::{Path, PathBuf};
+
+use quadtex_core::vector::MAX_VECTOR_LEVEL;
+use quadtex_core::{
+    BuildOptions, FilterOptions, Footprint, MAX_DEPTH, QuadTree, Rgba, Texture, Weighting, Wrap,
+    WrapMode,
+};
+
+use crate::error::Failure;
+use crate::{
+    QTX_DEFAULT_SVG_LEVEL, QtxFilterOptions, QtxLevel, QtxTexture, QtxTextureInfo, QtxWeighting,
+    QtxWrapMode,
+};
+
+/// A C string's bytes as a path. On Unix a file name is any bytes, so any
+/// bytes are accepted; elsewhere the path must be UTF-8.
+pub(crate) fn bytes_to_path(bytes: &[u8], name: &str) -> Result<PathBuf, Failure> {
+    if bytes.is_empty() {
+        return Err(Failure::invalid(format!("{name} is empty")));
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        Ok(PathBuf::from(std::ffi::OsStr::from_bytes(bytes)))
+    }
+    #[cfg(not(unix))]
+    {
+        std::str::from_utf8(bytes).map(PathBuf::from).map_err(|e| {
+            Failure::invalid(format!(
+                "{name} is not valid UTF-8 (byte {})",
+                e.valid_up_to()
+            ))
+        })
+    }
+}
+
+/// Reads a `.qtx` file; repeat wrap (the filter options choose the wrap).
+pub(crate) fn open(path: &Path) -> Result<QtxTexture, Failure> {
+    let tree = quadtex_io::read_qtx(path)?;
+    Ok(QtxTexture::new(tree))
+}
+
+fn is_svg(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
+}
+
+/// Packs an image (PNG, JPEG, OpenEXR) or SVG art, as `quadtex pack` does:
+/// raster tolerance in `[0, 1]`, SVG exact (tolerance 0) at `max_level`
+/// (default 12, at most 24); raster `max_level` at most 30 (default: the
+/// image's natural depth).
+pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTexture, Failure> {
+    let shown = path.display();
+    let level = if max_level < 0 { None } else { Some(max_level) };
+    if is_svg(path) {
+        if tolerance != 0.0 {
+            return Err(Failure::invalid(format!(
+                "{shown}: tolerance ({tolerance}) applies to raster images; SVG art packs exactly, pass 0"
+            )));
+        }
+        let level = match level {
+            None => QTX_DEFAULT_SVG_LEVEL as u8,
+            Some(l) => u8::try_from(l)
+                .ok()
+                .filter(|&l| l <= MAX_VECTOR_LEVEL)
+                .ok_or_else(|| {
+                    Failure::invalid(format!(
+                        "{shown}: max_level {l} exceeds the vector packer's limit {MAX_VECTOR_LEVEL}"
+                    ))
+                })?,
+        };
+        let (tree, _) = quadtex_io::pack_svg(path, level, &quadtex_io::Limits::default())?;
+        return Ok(QtxTexture::new(tree));
+    }
+    if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
+        return Err(Failure::invalid(format!(
+            "{shown}: tolerance must be in [0, 1], got {tolerance}"
+        )));
+    }
+    let max_level = match level {
+        None => None,
+        Some(l) => Some(
+            u8::try_from(l)
+                .ok()
+                .filter(|&l| l <= MAX_DEPTH)
+                .ok_or_else(|| {
+                    Failure::invalid(format!(
+                        "{shown}: max_level {l} exceeds the maximum depth {MAX_DEPTH}"
+                    ))
+                })?,
+        ),
+    };
+    let grid = quadtex_io::load_texels(path)?;
+    let options = BuildOptions {
+        tolerance,
+        max_level,
+        ..BuildOptions::default()
+    };
+    let (tree, _) = QuadTree::from_texels(&grid, &options)
+        .map_err(|e| Failure::from(e).context(&shown.to_string()))?;
+    Ok(QtxTexture::new(tree))
+}
+
+/// The defaults: repeat on both axes, transparent border, screen weighting,
+/// quality 1, error bound 1/512, automatic level.
+pub(crate) fn default_options() -> QtxFilterOptions {
+    let defaults = FilterOptions::default();
+    QtxFilterOptions {
+        wrap_x: QtxWrapMode::Repeat as i32,
+        wrap_z: QtxWrapMode::Repeat as i32,
+        border: [0.0; 4],
+        weighting: QtxWeighting::Screen as i32,
+        quality: defaults.quality(),
+        error_bound: match defaults.level_of_detail() {
+            quadtex_core::LevelOfDetail::ErrorBound(e) => e,
+            quadtex_core::LevelOfDetail::Fixed(_) => 1.0 / 512.0,
+        },
+        level: QtxLevel::Auto as i32,
+    }
+}
+
+fn wrap_mode(value: i32, field: &str) -> Result<WrapMode, Failure> {
+    match value {
+        v if v == QtxWrapMode::Repeat as i32 => Ok(WrapMode::Repeat),
+        v if v == QtxWrapMode::Clamp as i32 => Ok(WrapMode::Clamp),
+        v if v == QtxWrapMode::Mirror as i32 => Ok(WrapMode::Mirror),
+        v if v == QtxWrapMode::Border as i32 => Ok(WrapMode::Border),
+        v => Err(Failure::invalid(format!(
+            "options.{field} must be a QtxWrapMode (0 repeat, 1 clamp, 2 mirror, 3 border), got {v}"
+        ))),
+    }
+}
+
+/// The C options checked and converted; every message names the field
+/// (`options.quality`).
+pub(crate) fn convert_options(o: &QtxFilterOptions) -> Result<(Wrap, FilterOptions), Failure> {
+    let x = wrap_mode(o.wrap_x, "wrap_x")?;
+    let z = wrap_mode(o.wrap_z, "wrap_z")?;
+    for (i, &c) in o.border.iter().enumerate() {
+        if !c.is_finite() {
+            return Err(Failure::invalid(format!(
+                "options.border[{i}] is not finite ({c})"
+            )));
+        }
+    }
+    let [r, g, b, a] = o.border;
+    let wrap = Wrap {
+        x,
+        z,
+        border: Rgba::new(r, g, b, a),
+    };
+    let weighting = match o.weighting {
+        v if v == QtxWeighting::Screen as i32 => Weighting::Screen,
+        v if v == QtxWeighting::Texture as i32 => Weighting::Texture,
+        v => {
+            return Err(Failure::invalid(format!(
+                "options.weighting must be a QtxWeighting (0 screen, 1 texture), got {v}"
+            )));
+        }
+    };
+    let option = |e: quadtex_core::Error| Failure::from(e).context("options");
+    let mut options = FilterOptions::default()
+        .with_weighting(weighting)
+        .with_quality(o.quality)
+        .map_err(option)?
+        .with_error_bound(o.error_bound)
+        .map_err(option)?;
+    if o.level != QtxLevel::Auto as i32 {
+        let level = u8::try_from(o.level)
+            .ok()
+            .filter(|&l| l <= MAX_DEPTH)
+            .ok_or_else(|| {
+                Failure::invalid(format!(
+                    "options.level must be QTX_LEVEL_AUTO (-1) or in 0..={MAX_DEPTH}, got {}",
+                    o.level
+                ))
+            })?;
+        options = options.with_level(level);
+    }
+    Ok((wrap, options))
+}
+
+/// Whether two buffers, given as address and length in bytes, share a byte.
+pub(crate) fn overlap(a: usize, a_bytes: usize, b: usize, b_bytes: usize) -> bool {
+    a_bytes > 0 && b_bytes > 0 && a < b.saturating_add(b_bytes) && b < a.saturating_add(a_bytes)
+}
+
+/// Filters the footprints in `quads` (8 numbers each) into `out` (4 each).
+/// Every quad is checked before any is filtered, so on failure `out` is
+/// untouched; the message names the quad and the corner (`quad 3:
+/// coordinate corner[2].z is not finite (NaN)`).
+pub(crate) fn filter(
+    texture: &QtxTexture,
+    quads: &[f64],
+    options: &QtxFilterOptions,
+    out: &mut [f32],
+) -> Result<(), Failure> {
+    let (wrap, options) = convert_options(options)?;
+    let footprints = quads
+        .chunks_exact(8)
+        .enumerate()
+        .map(|(i, q)| {
+            Footprint::from_corners([[q[0], q[1]], [q[2], q[3]], [q[4], q[5]], [q[6], q[7]]])
+                .map_err(|e| Failure::from(e).context(&format!("quad {i}")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let texture = texture.texture.with_wrap(wrap);
+    for (footprint, pixel) in footprints.iter().zip(out.chunks_exact_mut(4)) {
+        pixel.copy_from_slice(&texture.filter(footprint, &options).to_array());
+    }
+    Ok(())
+}
+
+/// Depth, size and mean colour of a texture.
+pub(crate) fn info(texture: &QtxTexture) -> QtxTextureInfo {
+    let tree = texture.texture.tree();
+    QtxTextureInfo {
+        depth: u32::from(tree.depth()),
+        node_count: tree.node_count(),
+        memory_bytes: tree.memory_bytes(),
+        mean: tree.average().to_rgba().to_array(),
+    }
+}
+
+impl QtxTexture {
+    pub(crate) fn new(tree: QuadTree) -> QtxTexture {
+        QtxTexture {
+            texture: Texture::new(tree, Wrap::REPEAT),
+        }
+    }
+}

@@ -1,0 +1,525 @@
+//! The C API called as C would call it: through the exported functions,
+//! with raw pointers, checking statuses and `qtx_last_error`.
+#![allow(
+    unsafe_code,
+    clippy::undocumented_unsafe_blocks,
+    clippy::multiple_unsafe_ops_per_block
+)]
+
+use std::ffi::{CStr, CString, c_char};
+use std::path::{Path, PathBuf};
+use std::ptr::{null, null_mut};
+
+use quadtex_core::{BuildOptions, QuadTree, Rgba, TexelGrid};
+
+use super::*;
+
+fn last_error() -> Option<String> {
+    let p = qtx_last_error();
+    (!p.is_null()).then(|| unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned())
+}
+
+/// The last error, which must exist and contain every one of `parts`.
+fn assert_error(parts: &[&str]) {
+    let message = last_error().unwrap_or_default();
+    for part in parts {
+        assert!(
+            message.contains(part),
+            "error `{message}` should mention `{part}`"
+        );
+    }
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("quadtex-capi-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn c_path(path: &Path) -> CString {
+    CString::new(path.as_os_str().as_encoded_bytes()).unwrap()
+}
+
+fn sample(name: &str) -> CString {
+    c_path(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../samples")
+            .join(name),
+    )
+}
+
+/// A 2×2 black and white checkerboard (mean 0.5 grey).
+fn checker_tree() -> QuadTree {
+    let grid = TexelGrid::from_fn(2, 2, |c, r| {
+        if (c + r) % 2 == 0 {
+            Rgba::opaque(1.0, 1.0, 1.0)
+        } else {
+            Rgba::opaque(0.0, 0.0, 0.0)
+        }
+    })
+    .unwrap();
+    QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0
+}
+
+/// A texture owned by C conventions (release with `qtx_free`).
+fn checker() -> *mut QtxTexture {
+    ptr::into_raw(QtxTexture::new(checker_tree()))
+}
+
+/// An axis-aligned footprint `[x0, x1] × [z0, z1]`, corners in pixel order
+/// (screen y down is texture z down).
+fn rect(x0: f64, z0: f64, x1: f64, z1: f64) -> [f64; 8] {
+    [x0, z1, x1, z1, x1, z0, x0, z0]
+}
+
+fn filter_one(texture: *const QtxTexture, quad: [f64; 8], options: &QtxFilterOptions) -> [f32; 4] {
+    let mut out = [f32::NAN; 4];
+    let status = unsafe { qtx_filter(texture, quad.as_ptr(), 1, options, out.as_mut_ptr()) };
+    assert_eq!(status, QtxStatus::Ok, "{:?}", last_error());
+    out
+}
+
+fn close(a: [f32; 4], b: [f32; 4], tolerance: f32) -> bool {
+    a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tolerance)
+}
+
+#[test]
+fn constants_match_the_core() {
+    assert_eq!(QTX_MAX_DEPTH, c_int::from(quadtex_core::MAX_DEPTH));
+    assert_eq!(
+        QTX_MAX_SVG_LEVEL,
+        c_int::from(quadtex_core::vector::MAX_VECTOR_LEVEL)
+    );
+    let d = qtx_filter_options_default();
+    let (wrap, options) = ops::convert_options(&d).unwrap();
+    assert_eq!(wrap, quadtex_core::Wrap::REPEAT);
+    assert_eq!(options, quadtex_core::FilterOptions::default());
+}
+
+#[test]
+fn null_pointers_are_refused() {
+    let path = sample("threshold.svg");
+    let mut out: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
+    assert_eq!(
+        unsafe { qtx_open(null(), &mut out) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["path is NULL"]);
+    assert!(out.is_null(), "out is cleared on failure");
+    assert_eq!(
+        unsafe { qtx_open(path.as_ptr(), null_mut()) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["out is NULL"]);
+    assert_eq!(
+        unsafe { qtx_pack(null(), 0.0, 4, &mut out) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["path is NULL"]);
+    assert_eq!(
+        unsafe { qtx_pack(path.as_ptr(), 0.0, 4, null_mut()) },
+        QtxStatus::InvalidArgument
+    );
+
+    let texture = checker();
+    let quad = rect(0.0, 0.0, 1.0, 1.0);
+    let mut rgba = [0.0f32; 4];
+    let filter = |t: *const QtxTexture, q: *const f64, n: usize, o: *mut f32| unsafe {
+        qtx_filter(t, q, n, null(), o)
+    };
+    assert_eq!(
+        filter(null(), quad.as_ptr(), 1, rgba.as_mut_ptr()),
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["texture is NULL"]);
+    assert_eq!(
+        filter(texture, null(), 1, rgba.as_mut_ptr()),
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["quads is NULL"]);
+    assert_eq!(
+        filter(texture, quad.as_ptr(), 1, null_mut()),
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["out_rgba is NULL"]);
+    // No quads: NULL buffers are fine.
+    assert_eq!(filter(texture, null(), 0, null_mut()), QtxStatus::Ok);
+    assert_eq!(last_error(), None);
+
+    let mut info = std::mem::MaybeUninit::<QtxTextureInfo>::uninit();
+    assert_eq!(
+        unsafe { qtx_texture_info(null(), info.as_mut_ptr()) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["texture is NULL"]);
+    assert_eq!(
+        unsafe { qtx_texture_info(texture, null_mut()) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["out is NULL"]);
+    unsafe {
+        qtx_free(texture);
+        qtx_free(null_mut());
+    }
+}
+
+#[test]
+fn non_finite_corners_name_the_quad_and_field() {
+    let texture = checker();
+    let mut quads = [rect(0.0, 0.0, 0.5, 0.5); 3];
+    quads[1][5] = f64::NAN; // quad 1, corner 2, z
+    let mut out = [7.0f32; 12];
+    let status = unsafe { qtx_filter(texture, quads.as_ptr().cast(), 3, null(), out.as_mut_ptr()) };
+    assert_eq!(status, QtxStatus::InvalidArgument);
+    assert_error(&["quad 1", "corner[2].z", "NaN"]);
+    assert!(out.iter().all(|&v| v == 7.0), "out untouched on failure");
+
+    quads[1][5] = 0.5;
+    quads[2][0] = f64::NEG_INFINITY; // quad 2, corner 0, x
+    let status = unsafe { qtx_filter(texture, quads.as_ptr().cast(), 3, null(), out.as_mut_ptr()) };
+    assert_eq!(status, QtxStatus::InvalidArgument);
+    assert_error(&["quad 2", "corner[0].x", "inf"]);
+    unsafe { qtx_free(texture) };
+}
+
+#[test]
+fn bad_options_name_the_field() {
+    let texture = checker();
+    let quad = rect(0.0, 0.0, 1.0, 1.0);
+    let d = qtx_filter_options_default();
+    let cases: [(QtxFilterOptions, &str); 9] = [
+        (QtxFilterOptions { wrap_x: 4, ..d }, "options.wrap_x"),
+        (QtxFilterOptions { wrap_z: -1, ..d }, "options.wrap_z"),
+        (
+            QtxFilterOptions {
+                border: [0.0, 0.0, f32::NAN, 1.0],
+                ..d
+            },
+            "options.border[2]",
+        ),
+        (QtxFilterOptions { weighting: 2, ..d }, "options.weighting"),
+        (QtxFilterOptions { quality: 0.5, ..d }, "quality"),
+        (
+            QtxFilterOptions {
+                quality: f64::NAN,
+                ..d
+            },
+            "quality",
+        ),
+        (
+            QtxFilterOptions {
+                error_bound: 0.0,
+                ..d
+            },
+            "error bound",
+        ),
+        (QtxFilterOptions { level: 31, ..d }, "options.level"),
+        (QtxFilterOptions { level: -2, ..d }, "options.level"),
+    ];
+    for (options, field) in cases {
+        let mut out = [0.0f32; 4];
+        let status = unsafe { qtx_filter(texture, quad.as_ptr(), 1, &options, out.as_mut_ptr()) };
+        assert_eq!(status, QtxStatus::InvalidArgument, "{field}");
+        assert_error(&[field]);
+    }
+    // In range: accepted.
+    for options in [
+        QtxFilterOptions {
+            level: 0,
+            weighting: QtxWeighting::Texture as c_int,
+            ..d
+        },
+        QtxFilterOptions {
+            wrap_x: QtxWrapMode::Mirror as c_int,
+            wrap_z: QtxWrapMode::Clamp as c_int,
+            quality: 8.0,
+            level: QTX_MAX_DEPTH,
+            ..d
+        },
+    ] {
+        filter_one(texture, quad, &options);
+    }
+    unsafe { qtx_free(texture) };
+}
+
+#[test]
+fn overlapping_and_misaligned_buffers_are_refused() {
+    let texture = checker();
+    let mut quads = [rect(0.0, 0.0, 1.0, 1.0); 2];
+    let base: *mut f64 = quads.as_mut_ptr().cast();
+    // The colours would overwrite the second quad while it is read.
+    let out = unsafe { base.add(8) }.cast::<f32>();
+    assert_eq!(
+        unsafe { qtx_filter(texture, base, 2, null(), out) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["overlap"]);
+
+    let bytes = [0u64; 9];
+    let misaligned = unsafe { bytes.as_ptr().cast::<u8>().add(1) }.cast::<f64>();
+    let mut rgba = [0.0f32; 4];
+    assert_eq!(
+        unsafe { qtx_filter(texture, misaligned, 1, null(), rgba.as_mut_ptr()) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["quads", "aligned"]);
+    // A count whose buffers cannot exist.
+    assert_eq!(
+        unsafe { qtx_filter(texture, base, usize::MAX / 4, null(), rgba.as_mut_ptr()) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["do not fit in memory"]);
+    unsafe { qtx_free(texture) };
+}
+
+#[test]
+fn filtering_matches_the_texture() {
+    let texture = checker();
+    let d = qtx_filter_options_default();
+    let mut info = std::mem::MaybeUninit::<QtxTextureInfo>::uninit();
+    assert_eq!(
+        unsafe { qtx_texture_info(texture, info.as_mut_ptr()) },
+        QtxStatus::Ok
+    );
+    let info = unsafe { info.assume_init() };
+    assert_eq!(info.depth, 1);
+    assert!(close(info.mean, [0.5, 0.5, 0.5, 1.0], 1e-4));
+    // Many whole tiles of a repeating texture: its mean.
+    let many = filter_one(texture, rect(-3.0, 2.0, 13.0, 18.0), &d);
+    assert!(close(many, info.mean, 1e-5), "{many:?}");
+    // One texel (top-left is white: row 0 is the top, z near 1).
+    let white = filter_one(texture, rect(0.0, 0.5, 0.5, 1.0), &d);
+    assert!(close(white, [1.0; 4], 1e-6), "{white:?}");
+    // A projective footprint inside the black texel (bottom-left).
+    let black = filter_one(texture, [0.1, 0.4, 0.4, 0.45, 0.45, 0.05, 0.05, 0.1], &d);
+    assert!(close(black, [0.0, 0.0, 0.0, 1.0], 1e-6), "{black:?}");
+    // Border wrap: beyond the unit square, the border colour.
+    let border = QtxFilterOptions {
+        wrap_x: QtxWrapMode::Border as c_int,
+        wrap_z: QtxWrapMode::Border as c_int,
+        border: [0.1, 0.2, 0.3, 0.5],
+        ..d
+    };
+    let outside = filter_one(texture, rect(2.0, 2.0, 3.0, 3.0), &border);
+    assert!(close(outside, [0.1, 0.2, 0.3, 0.5], 1e-6), "{outside:?}");
+    // Several at once, in order.
+    let quads = [rect(0.0, 0.5, 0.5, 1.0), rect(0.0, 0.0, 0.5, 0.5)];
+    let mut out = [0.0f32; 8];
+    let status = unsafe { qtx_filter(texture, quads.as_ptr().cast(), 2, null(), out.as_mut_ptr()) };
+    assert_eq!(status, QtxStatus::Ok);
+    assert_eq!(out, [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+    unsafe { qtx_free(texture) };
+}
+
+#[test]
+fn open_reads_qtx_files_and_reports_bad_ones() {
+    let dir = temp_dir("open");
+    let file = dir.join("checker.qtx");
+    quadtex_io::write_qtx(&file, &checker_tree(), Some((2, 2))).unwrap();
+    let mut texture = null_mut();
+    assert_eq!(
+        unsafe { qtx_open(c_path(&file).as_ptr(), &mut texture) },
+        QtxStatus::Ok
+    );
+    assert!(!texture.is_null());
+    assert_eq!(last_error(), None);
+    let white = filter_one(
+        texture,
+        rect(0.0, 0.5, 0.5, 1.0),
+        &qtx_filter_options_default(),
+    );
+    assert!(close(white, [1.0; 4], 1e-6));
+    unsafe { qtx_free(texture) };
+
+    let missing = dir.join("missing.qtx");
+    assert_eq!(
+        unsafe { qtx_open(c_path(&missing).as_ptr(), &mut texture) },
+        QtxStatus::Io
+    );
+    assert_error(&["missing.qtx"]);
+    assert!(texture.is_null());
+
+    let garbage = dir.join("garbage.qtx");
+    std::fs::write(&garbage, b"not a quadtree at all, just some bytes........").unwrap();
+    assert_eq!(
+        unsafe { qtx_open(c_path(&garbage).as_ptr(), &mut texture) },
+        QtxStatus::Format
+    );
+    assert_error(&["garbage.qtx", "magic"]);
+
+    let empty = CString::default();
+    assert_eq!(
+        unsafe { qtx_open(empty.as_ptr(), &mut texture) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["path is empty"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn non_utf8_paths_are_file_names_on_unix() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = temp_dir("non-utf8");
+    let file = dir.join(std::ffi::OsStr::from_bytes(b"tex-\xff.qtx"));
+    quadtex_io::write_qtx(&file, &checker_tree(), Some((2, 2))).unwrap();
+    let mut texture = null_mut();
+    assert_eq!(
+        unsafe { qtx_open(c_path(&file).as_ptr(), &mut texture) },
+        QtxStatus::Ok
+    );
+    unsafe { qtx_free(texture) };
+    let missing = dir.join(std::ffi::OsStr::from_bytes(b"gone-\xfe.qtx"));
+    assert_eq!(
+        unsafe { qtx_open(c_path(&missing).as_ptr(), &mut texture) },
+        QtxStatus::Io
+    );
+    assert_error(&["gone-\u{fffd}.qtx"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn pack_checks_its_arguments() {
+    let dir = temp_dir("pack");
+    let png = dir.join("checker.png");
+    quadtex_io::save_image(
+        &png,
+        &quadtex_io::LinearImage {
+            width: 4,
+            height: 4,
+            pixels: (0..16)
+                .map(|i| {
+                    let v = ((i % 4 + i / 4) % 2) as f32;
+                    Rgba::opaque(v, v, v)
+                })
+                .collect(),
+        },
+    )
+    .unwrap();
+    let png = c_path(&png);
+    let svg = sample("threshold.svg");
+    let mut texture = null_mut();
+    let cases: [(&CString, f64, c_int, &str); 6] = [
+        (&svg, 0.1, 4, "SVG art packs exactly"),
+        (&svg, 0.0, 25, "max_level 25"),
+        (&png, 2.0, -1, "tolerance must be in [0, 1]"),
+        (&png, f64::NAN, -1, "tolerance must be in [0, 1]"),
+        (&png, 0.0, 31, "max_level 31"),
+        (&png, -0.5, 3, "tolerance"),
+    ];
+    for (path, tolerance, level, message) in cases {
+        assert_eq!(
+            unsafe { qtx_pack(path.as_ptr(), tolerance, level, &mut texture) },
+            QtxStatus::InvalidArgument,
+            "{message}"
+        );
+        assert_error(&[message]);
+        assert!(texture.is_null());
+    }
+
+    // A raster image, lossless at its natural depth and capped.
+    assert_eq!(
+        unsafe { qtx_pack(png.as_ptr(), 0.0, QtxLevel::Auto as c_int, &mut texture) },
+        QtxStatus::Ok
+    );
+    let mut info = std::mem::MaybeUninit::<QtxTextureInfo>::uninit();
+    assert_eq!(
+        unsafe { qtx_texture_info(texture, info.as_mut_ptr()) },
+        QtxStatus::Ok
+    );
+    let info = unsafe { info.assume_init() };
+    assert_eq!(info.depth, 2);
+    assert!(
+        close(info.mean, [0.5, 0.5, 0.5, 1.0], 1e-4),
+        "{:?}",
+        info.mean
+    );
+    unsafe { qtx_free(texture) };
+
+    // SVG the exact packer refuses.
+    let gradient = dir.join("gradient.svg");
+    std::fs::write(
+        &gradient,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
+             <linearGradient id="g"><stop offset="0" stop-color="red"/><stop offset="1" stop-color="blue"/></linearGradient>
+             <rect id="r" width="10" height="10" fill="url(#g)"/></svg>"#,
+    )
+    .unwrap();
+    assert_eq!(
+        unsafe { qtx_pack(c_path(&gradient).as_ptr(), 0.0, 4, &mut texture) },
+        QtxStatus::Unsupported
+    );
+    assert_error(&["gradient.svg"]);
+    // Not an image at all.
+    let text = dir.join("notes.png");
+    std::fs::write(&text, "hello").unwrap();
+    assert_eq!(
+        unsafe { qtx_pack(c_path(&text).as_ptr(), 0.0, -1, &mut texture) },
+        QtxStatus::Format
+    );
+    assert_error(&["notes.png"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn pack_svg_sample() {
+    let mut texture = null_mut();
+    let svg = sample("threshold.svg");
+    assert_eq!(
+        unsafe { qtx_pack(svg.as_ptr(), 0.0, 6, &mut texture) },
+        QtxStatus::Ok,
+        "{:?}",
+        last_error()
+    );
+    let mut info = std::mem::MaybeUninit::<QtxTextureInfo>::uninit();
+    assert_eq!(
+        unsafe { qtx_texture_info(texture, info.as_mut_ptr()) },
+        QtxStatus::Ok
+    );
+    assert!(unsafe { info.assume_init() }.depth <= 6);
+    // Grass (#4a6b34) covers x < 21/90 from top to bottom.
+    let grass = filter_one(
+        texture,
+        rect(0.02, 0.1, 0.2, 0.9),
+        &qtx_filter_options_default(),
+    );
+    let lin = |v: u8| quadtex_io::srgb_to_linear(f32::from(v) / 255.0);
+    assert!(
+        close(grass, [lin(0x4a), lin(0x6b), lin(0x34), 1.0], 1e-4),
+        "{grass:?}"
+    );
+    unsafe { qtx_free(texture) };
+}
+
+#[test]
+fn panics_become_internal_errors() {
+    let status = error::guard(|| panic!("boom"));
+    assert_eq!(status, QtxStatus::Internal);
+    assert_error(&["internal error", "boom"]);
+    // Messages with NUL bytes survive as C strings.
+    let status = error::guard(|| Err(Failure::invalid("a\0b")));
+    assert_eq!(status, QtxStatus::InvalidArgument);
+    assert_eq!(last_error().as_deref(), Some("a?b"));
+}
+
+#[test]
+fn last_error_is_per_call_and_per_thread() {
+    let mut texture = null_mut();
+    assert_eq!(
+        unsafe { qtx_open(null::<c_char>(), &mut texture) },
+        QtxStatus::InvalidArgument
+    );
+    assert!(last_error().is_some());
+    std::thread::spawn(|| assert_eq!(last_error(), None))
+        .join()
+        .unwrap();
+    // qtx_free keeps it; a successful call clears it.
+    unsafe { qtx_free(null_mut()) };
+    assert!(last_error().is_some());
+    let t = checker();
+    filter_one(t, rect(0.0, 0.0, 1.0, 1.0), &qtx_filter_options_default());
+    assert_eq!(last_error(), None);
+    unsafe { qtx_free(t) };
+}
