@@ -126,7 +126,12 @@ fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Err
         ),
         // Float images (OpenEXR) are linear and premultiplied already.
         DynamicImage::ImageRgba32F(buf) => texels.extend(buf.pixels().map(|p| {
-            let a = p[3].clamp(0.0, 1.0);
+            // A NaN alpha is no coverage (and must not reach `clamp` as a bound).
+            let a = if p[3].is_nan() {
+                0.0
+            } else {
+                p[3].clamp(0.0, 1.0)
+            };
             let c = |v: f32| if v.is_finite() { v.clamp(0.0, a) } else { 0.0 };
             Rgba::new(c(p[0]), c(p[1]), c(p[2]), a).to_unorm16()
         })),
@@ -315,6 +320,39 @@ mod tests {
         ));
         std::fs::remove_file(&exr).unwrap();
         std::fs::remove_file(&png).unwrap();
+    }
+
+    #[test]
+    fn float_texels_with_nan_or_infinite_alpha_do_not_panic() {
+        let img = DynamicImage::ImageRgba32F(
+            image::ImageBuffer::from_raw(
+                3,
+                1,
+                vec![
+                    0.5,
+                    0.5,
+                    0.5,
+                    f32::NAN,
+                    2.0,
+                    0.5,
+                    f32::NAN,
+                    f32::INFINITY,
+                    0.1,
+                    0.2,
+                    0.3,
+                    -1.0,
+                ],
+            )
+            .unwrap(),
+        );
+        let g = texels_from_image(img).unwrap();
+        assert_eq!(g.texel(0, 0).to_rgba(), Rgba::TRANSPARENT);
+        let t = g.texel(1, 0).to_rgba();
+        assert!(
+            t.a == 1.0 && t.r == 1.0 && (t.g - 0.5).abs() < 1e-4 && t.b == 0.0,
+            "{t:?}"
+        );
+        assert_eq!(g.texel(2, 0).to_rgba(), Rgba::TRANSPARENT);
     }
 
     #[test]

@@ -1,0 +1,135 @@
+"""Alias-free texture filtering with incomplete-quadtree textures.
+
+Conventions (as in the Rust crates):
+
+* Texture space is the unit square ``[0, 1)²``, axis ``x`` to the right and
+  ``z`` *up*; row 0 of an image is the *top* of the texture.
+* Colours are linear light with premultiplied alpha, RGBA.
+* A footprint is the texture-space image of one pixel: its four corners, the
+  images of the pixel corners (0,0), (1,0), (1,1), (0,1), in that order.
+
+Errors: bad arguments raise ``ValueError`` (shape, value, names; the message
+names the offending index, e.g. ``quads[17]: coordinate corner[2].z is not
+finite (NaN)``) or ``TypeError`` (an array that does not hold real numbers);
+files the operating system refuses raise ``OSError`` (``FileNotFoundError``,
+``PermissionError``…, with ``filename`` set); malformed files raise
+``ValueError`` with quadtex's message, which names the file and the field.
+
+Batch calls release the GIL while they filter or integrate.
+"""
+
+import os
+from typing import Optional, Sequence, Tuple, Union, final
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["Texture", "open", "pack", "__version__"]
+__version__: str
+
+_StrPath = Union[str, bytes, "os.PathLike[str]", "os.PathLike[bytes]"]
+_WrapName = str  # "repeat" | "clamp" | "mirror" | "border"
+
+@final
+class Texture:
+    """A packed texture: an incomplete quadtree of linear, premultiplied
+    RGBA (16 bits a channel). Made by :func:`open` or :func:`pack`."""
+
+    @property
+    def depth(self) -> int:
+        """Level of the tree's finest squares (side ``2**-depth``)."""
+
+    @property
+    def node_count(self) -> int:
+        """Number of nodes in the tree."""
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes the tree occupies in memory."""
+
+    @property
+    def source_size(self) -> Optional[Tuple[int, int]]:
+        """``(width, height)`` of the raster packed (for SVG art the
+        effective raster, ``2**level`` on a side), or None if unknown."""
+
+    def filter(
+        self,
+        quads: npt.ArrayLike,
+        wrap: Union[_WrapName, Sequence[_WrapName]] = "repeat",
+        weighting: str = "screen",
+        border: Sequence[float] = (0.0, 0.0, 0.0, 0.0),
+        quality: float = 1.0,
+        error_bound: float = 0.001953125,  # 1/512
+        level: Optional[int] = None,
+    ) -> npt.NDArray[np.float32]:
+        """Mean colour over each footprint.
+
+        quads: ``(N, 4, 2)`` texture-space corners in pixel order (any real
+            dtype, converted to float64; any strides).
+        wrap: how texture space continues beyond the unit square, one name
+            for both axes or a pair ``(x, z)``: ``"repeat"``, ``"clamp"``,
+            ``"mirror"`` or ``"border"``.
+        weighting: ``"screen"`` (a box over the pixel: texture area weighted
+            by the screen area that sees it, from the projective map the
+            corners fix) or ``"texture"`` (a box over the footprint in
+            texture space). They agree for parallelograms.
+        border: linear premultiplied RGBA shown outside the unit square on
+            an axis whose wrap is ``"border"``.
+        quality: ``>= 1``; the strips covering a footprint over-cover it by
+            at most ``1/(4·quality)`` of its area.
+        error_bound: ``> 0``; each strip is integrated down to the coarsest
+            level whose truncation error is at most this, relative to the
+            texture's contrast.
+        level: if given (0..30), every strip is integrated down to this
+            level (clamped to the tree's depth) instead; ``error_bound`` is
+            then unused.
+
+        Returns ``(N, 4)`` float32 linear premultiplied RGBA.
+        """
+
+    def integrate(
+        self, rects: npt.ArrayLike, level: Optional[int] = None
+    ) -> npt.NDArray[np.float64]:
+        """Integral of colour over each rectangle's overlap with the unit
+        square, no wrap: what ``quadtex query`` prints.
+
+        rects: ``(N, 4)`` rows ``x0 z0 x1 z1`` with ``x0 <= x1``, ``z0 <= z1``.
+        level: traverse down to this level (0..30; default the tree's depth).
+
+        Returns ``(N, 4)`` float64 linear premultiplied RGBA × area; divide
+        by the rectangle's area for its mean colour.
+        """
+
+    def save(self, path: _StrPath) -> None:
+        """Writes a ``.qtx`` file atomically (a temporary file in the same
+        directory, renamed over ``path``)."""
+
+    def __repr__(self) -> str: ...
+
+def open(path: _StrPath) -> Texture:
+    """Reads a ``.qtx`` file (fully validated)."""
+
+def pack(
+    source: Union[_StrPath, npt.ArrayLike],
+    tolerance: float = 0.0,
+    max_level: Optional[int] = None,
+) -> Texture:
+    """Packs an image into a texture, as ``quadtex pack`` does.
+
+    source: a path to a PNG, JPEG or OpenEXR image or an SVG document, or an
+        array ``(H, W)`` or ``(H, W, C)`` with C = 1 (grey), 2 (grey, alpha),
+        3 (RGB) or 4 (RGBA), row 0 at the top:
+
+        * ``uint8`` / ``uint16``: sRGB-encoded, straight alpha, exactly as an
+          8- / 16-bit PNG is decoded (sRGB → linear, then premultiplied);
+        * floating point: linear light, *premultiplied* alpha, as an OpenEXR
+          file is read (alpha clamped to [0, 1], colour to [0, alpha]; without
+          alpha, colour clamped to [0, 1]); NaN or infinity is a ValueError.
+
+    tolerance: in [0, 1]; largest per-channel deviation (linear,
+        premultiplied) of a texel from its leaf's colour. 0 is lossless.
+        Raster images only (SVG art packs exactly).
+    max_level: depth of the tree's finest cells (0..30; a raster builds at
+        most 15). Default: the smallest level whose cells are no larger than
+        a texel for rasters, 12 for SVG.
+    """

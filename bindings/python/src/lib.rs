@@ -1,0 +1,388 @@
+//! # quadtex (Python)
+//!
+//! PyO3 bindings of `quadtex-core` and `quadtex-io`: pack an image (a file or
+//! a numpy array) into an incomplete-quadtree texture, open and save `.qtx`
+//! files, and filter footprints or integrate rectangles in batches.
+//!
+//! The Python-facing documentation is `quadtex.pyi` beside `Cargo.toml`
+//! (shipped in the wheel with `py.typed`); this crate's tests are Python
+//! (`tests/`, pytest).
+//!
+//! Batch calls validate their input with the GIL held (reading the numpy
+//! array), then release it while the texture work runs, chunk by chunk, so
+//! other Python threads run meanwhile and memory stays bounded.
+#![forbid(unsafe_code)]
+
+mod arrays;
+mod errors;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyString};
+use quadtex_core::{
+    BuildOptions, FilterOptions, Footprint, Fragment, MAX_DEPTH, QuadTree, Rgba, Weighting, Wrap,
+    WrapMode,
+};
+
+use crate::errors::{core_error, io_error};
+
+/// Footprints (or rectangles) converted and processed per GIL release.
+const CHUNK: usize = 1 << 16;
+
+/// Max level of SVG art packed without `max_level` (as `quadtex pack`).
+const DEFAULT_SVG_LEVEL: u8 = 12;
+
+/// A packed texture: an incomplete quadtree (linear light, premultiplied
+/// RGBA, 16 bits a channel). Made by `quadtex.open` or `quadtex.pack`.
+#[pyclass(frozen, module = "quadtex", name = "Texture")]
+struct Texture {
+    tree: Arc<QuadTree>,
+    /// Size of the raster it was packed from (kept in saved files).
+    source: Option<(u32, u32)>,
+}
+
+#[pymethods]
+impl Texture {
+    /// Mean colour over each footprint: `quads` is an `(N, 4, 2)` array of
+    /// the texture-space images of the pixel corners (0,0), (1,0), (1,1),
+    /// (0,1). Returns `(N, 4)` float32, linear premultiplied RGBA.
+    ///
+    /// wrap: "repeat", "clamp", "mirror" or "border", or a pair (x, z).
+    /// weighting: "screen" (box over the pixel) or "texture" (box over the
+    /// footprint). border: RGBA outside the unit square on a "border" axis.
+    /// quality (>= 1): strips over-cover by at most 1/(4 quality).
+    /// error_bound (> 0): level-of-detail truncation bound; level (0..30)
+    /// fixes the level instead. The GIL is released while filtering.
+    #[pyo3(
+        signature = (quads, wrap = None, weighting = "screen", border = None, quality = 1.0, error_bound = 1.0 / 512.0, level = None),
+        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), quality=1.0, error_bound=0.001953125, level=None)"
+    )]
+    #[allow(clippy::too_many_arguments)]
+    fn filter<'py>(
+        &self,
+        py: Python<'py>,
+        quads: &Bound<'py, PyAny>,
+        wrap: Option<&Bound<'py, PyAny>>,
+        weighting: &str,
+        border: Option<&Bound<'py, PyAny>>,
+        quality: f64,
+        error_bound: f64,
+        level: Option<i64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let border = match border {
+            Some(b) => {
+                let b = arrays::float64(b, "border", &[Some(4)], "(4,)")?.try_readonly()?;
+                let v = b.as_array();
+                [v[0], v[1], v[2], v[3]]
+            }
+            None => [0.0; 4],
+        };
+        let wrap = parse_wrap(wrap, border)?;
+        let options = filter_options(weighting, quality, error_bound, level)?;
+        let texture = quadtex_core::Texture::new(Arc::clone(&self.tree), wrap);
+        let quads = arrays::float64(quads, "quads", &[None, Some(4), Some(2)], "(N, 4, 2)")?;
+        let readonly = quads.try_readonly()?;
+        let view = arrays::view3(&readonly)?;
+        let n = view.shape()[0];
+        let mut out: Vec<f32> = Vec::with_capacity(4 * n);
+        let mut footprints = Vec::with_capacity(n.min(CHUNK));
+        for start in (0..n).step_by(CHUNK) {
+            footprints.clear();
+            for i in start..(start + CHUNK).min(n) {
+                let q = |c: usize, k: usize| view[[i, c, k]];
+                let corners = [0, 1, 2, 3].map(|c| [q(c, 0), q(c, 1)]);
+                let footprint = Footprint::from_corners(corners)
+                    .map_err(|e| PyValueError::new_err(format!("quads[{i}]: {e}")))?;
+                footprints.push(footprint);
+            }
+            let colours = py.detach(|| texture.filter_batch(&footprints, &options));
+            out.extend(colours.iter().flat_map(|c| c.to_array()));
+        }
+        PyArray1::from_vec(py, out)
+            .reshape([n, 4])
+            .map(Bound::into_any)
+    }
+
+    /// Integral of colour over each rectangle's overlap with the unit square
+    /// (linear premultiplied RGBA × area, no wrap), traversing to `level`
+    /// (the tree's depth when None): `rects` is `(N, 4)` rows `x0 z0 x1 z1`.
+    /// Returns `(N, 4)` float64, what `quadtex query` prints.
+    #[pyo3(signature = (rects, level = None))]
+    fn integrate<'py>(
+        &self,
+        py: Python<'py>,
+        rects: &Bound<'py, PyAny>,
+        level: Option<i64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let k = match level {
+            Some(level) => check_level(level, "level")?,
+            None => self.tree.depth(),
+        };
+        let rects = arrays::float64(rects, "rects", &[None, Some(4)], "(N, 4)")?;
+        let readonly = rects.try_readonly()?;
+        let view = arrays::view2(&readonly)?;
+        let n = view.shape()[0];
+        let tree = &*self.tree;
+        let mut out: Vec<f64> = Vec::with_capacity(4 * n);
+        let mut fragments = Vec::with_capacity(n.min(CHUNK));
+        for start in (0..n).step_by(CHUNK) {
+            fragments.clear();
+            for i in start..(start + CHUNK).min(n) {
+                let r = |c: usize| view[[i, c]];
+                let fragment = Fragment::new(r(0), r(1), r(2), r(3))
+                    .map_err(|e| PyValueError::new_err(format!("rects[{i}]: {e}")))?;
+                fragments.push(fragment);
+            }
+            py.detach(|| {
+                for f in &fragments {
+                    out.extend(tree.weighted_colour(f, k).0);
+                }
+            });
+        }
+        PyArray1::from_vec(py, out)
+            .reshape([n, 4])
+            .map(Bound::into_any)
+    }
+
+    /// Writes the texture to a `.qtx` file, atomically (a temporary file in
+    /// the same directory, renamed over `path`).
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let (tree, source) = (&*self.tree, self.source);
+        py.detach(|| quadtex_io::write_qtx(&path, tree, source))
+            .map_err(io_error)
+    }
+
+    /// Depth of the tree (level of its finest squares).
+    #[getter]
+    fn depth(&self) -> u8 {
+        self.tree.depth()
+    }
+
+    /// Number of nodes in the tree.
+    #[getter]
+    fn node_count(&self) -> u64 {
+        self.tree.node_count()
+    }
+
+    /// Bytes the tree occupies in memory.
+    #[getter]
+    fn nbytes(&self) -> u64 {
+        self.tree.memory_bytes()
+    }
+
+    /// `(width, height)` of the raster the texture was packed from (for SVG
+    /// art, the effective raster `2^level` on a side), or None.
+    #[getter]
+    fn source_size(&self) -> Option<(u32, u32)> {
+        self.source
+    }
+
+    fn __repr__(&self) -> String {
+        let source = self
+            .source
+            .map_or(String::new(), |(w, h)| format!(" source={w}x{h}"));
+        format!(
+            "<quadtex.Texture depth={} node_count={} nbytes={}{source}>",
+            self.tree.depth(),
+            self.tree.node_count(),
+            self.tree.memory_bytes()
+        )
+    }
+}
+
+/// Reads a `.qtx` file.
+#[pyfunction]
+fn open(py: Python<'_>, path: PathBuf) -> PyResult<Texture> {
+    let (tree, info) = py
+        .detach(|| quadtex_io::read_qtx_with_limits(&path, &quadtex_io::Limits::default()))
+        .map_err(io_error)?;
+    let source = (info.source_width > 0 && info.source_height > 0)
+        .then_some((info.source_width, info.source_height));
+    Ok(Texture {
+        tree: Arc::new(tree),
+        source,
+    })
+}
+
+/// Packs an image file (PNG, JPEG, EXR, SVG) or a numpy array into a texture.
+#[pyfunction]
+#[pyo3(signature = (source, tolerance = 0.0, max_level = None))]
+fn pack(
+    py: Python<'_>,
+    source: &Bound<'_, PyAny>,
+    tolerance: f64,
+    max_level: Option<i64>,
+) -> PyResult<Texture> {
+    if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
+        return Err(PyValueError::new_err(format!(
+            "tolerance must be in [0, 1], got {tolerance}"
+        )));
+    }
+    let max_level = max_level.map(|l| check_level(l, "max_level")).transpose()?;
+    let is_path = source.is_instance_of::<PyString>()
+        || source.is_instance_of::<PyBytes>()
+        || source.hasattr("__fspath__")?;
+    if is_path {
+        let path: PathBuf = source.extract()?;
+        return pack_file(py, path, tolerance, max_level);
+    }
+    let image = arrays::ImageArray::from_py(source)?;
+    let image = image.view()?;
+    let options = BuildOptions {
+        tolerance,
+        max_level,
+        ..BuildOptions::default()
+    };
+    let (tree, size) = py
+        .detach(|| {
+            let grid = image.to_texels()?;
+            let size = (grid.width(), grid.height());
+            QuadTree::from_texels(&grid, &options).map(|(tree, _)| (tree, size))
+        })
+        .map_err(|e| core_error(&e, None))?;
+    Ok(Texture {
+        tree: Arc::new(tree),
+        source: Some(size),
+    })
+}
+
+/// `pack` of a file, as `quadtex pack` does it.
+fn pack_file(
+    py: Python<'_>,
+    path: PathBuf,
+    tolerance: f64,
+    max_level: Option<u8>,
+) -> PyResult<Texture> {
+    let is_svg = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    if is_svg {
+        if tolerance != 0.0 {
+            return Err(PyValueError::new_err(format!(
+                "{}: tolerance applies to raster images; SVG art packs exactly",
+                path.display()
+            )));
+        }
+        let level = max_level.unwrap_or(DEFAULT_SVG_LEVEL);
+        let (tree, _) = py
+            .detach(|| quadtex_io::pack_svg(&path, level, &quadtex_io::Limits::default()))
+            .map_err(io_error)?;
+        let side = 1u32 << level.min(31);
+        return Ok(Texture {
+            tree: Arc::new(tree),
+            source: Some((side, side)),
+        });
+    }
+    let options = BuildOptions {
+        tolerance,
+        max_level,
+        ..BuildOptions::default()
+    };
+    let grid = py
+        .detach(|| quadtex_io::load_texels(&path))
+        .map_err(io_error)?;
+    let (tree, _) = py
+        .detach(|| QuadTree::from_texels(&grid, &options))
+        .map_err(|e| core_error(&e, Some(&path)))?;
+    Ok(Texture {
+        tree: Arc::new(tree),
+        source: Some((grid.width(), grid.height())),
+    })
+}
+
+/// A level in `0..=MAX_DEPTH`.
+fn check_level(level: i64, name: &str) -> PyResult<u8> {
+    u8::try_from(level)
+        .ok()
+        .filter(|&l| l <= MAX_DEPTH)
+        .ok_or_else(|| {
+            PyValueError::new_err(format!("{name} must be in 0..={MAX_DEPTH}, got {level}"))
+        })
+}
+
+/// `wrap`: a mode name for both axes, or a pair `(x, z)` of names.
+fn parse_wrap(wrap: Option<&Bound<'_, PyAny>>, border: [f64; 4]) -> PyResult<Wrap> {
+    let mode = |name: &str| {
+        WrapMode::from_name(name).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "unknown wrap mode {name:?} (expected \"repeat\", \"clamp\", \"mirror\" or \"border\")"
+            ))
+        })
+    };
+    let (x, z) = match wrap {
+        None => (WrapMode::Repeat, WrapMode::Repeat),
+        Some(w) if w.is_instance_of::<PyString>() => {
+            let m = mode(&w.extract::<String>()?)?;
+            (m, m)
+        }
+        Some(w) => match w.extract::<Vec<String>>().as_deref() {
+            Ok([x, z]) => (mode(x)?, mode(z)?),
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "wrap must be a mode name or a pair (x, z) of names, got {}",
+                    w.repr().map_or_else(|_| "?".into(), |r| r.to_string())
+                )));
+            }
+        },
+    };
+    if let Some(i) = border.iter().position(|v| !v.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "border[{i}] is not finite ({})",
+            border[i]
+        )));
+    }
+    let [r, g, b, a] = border.map(|v| v as f32);
+    Ok(Wrap {
+        x,
+        z,
+        border: Rgba::new(r, g, b, a),
+    })
+}
+
+fn filter_options(
+    weighting: &str,
+    quality: f64,
+    error_bound: f64,
+    level: Option<i64>,
+) -> PyResult<FilterOptions> {
+    let weighting = match weighting {
+        "screen" => Weighting::Screen,
+        "texture" => Weighting::Texture,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "unknown weighting {other:?} (expected \"screen\" or \"texture\")"
+            )));
+        }
+    };
+    let bad = |e: quadtex_core::Error| PyValueError::new_err(e.to_string());
+    let mut options = FilterOptions::default()
+        .with_weighting(weighting)
+        .with_quality(quality)
+        .map_err(bad)?
+        .with_error_bound(error_bound)
+        .map_err(bad)?;
+    if let Some(level) = level {
+        options = options.with_level(check_level(level, "level")?);
+    }
+    Ok(options)
+}
+
+/// Alias-free texture filtering with incomplete-quadtree textures.
+///
+/// `pack` an image (file or numpy array) or `open` a .qtx file to get a
+/// `Texture`; `Texture.filter` averages it over pixel footprints and
+/// `Texture.integrate` over rectangles. Colours are linear light,
+/// premultiplied alpha; texture space is the unit square, x right, z up.
+#[pymodule]
+#[pyo3(name = "quadtex")]
+fn quadtex_python(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Texture>()?;
+    m.add_function(wrap_pyfunction!(open, m)?)?;
+    m.add_function(wrap_pyfunction!(pack, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

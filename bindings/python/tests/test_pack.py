@@ -1,0 +1,149 @@
+"""quadtex.pack (arrays and files), open, save."""
+
+import os
+import pathlib
+
+import numpy as np
+import pytest
+
+import quadtex
+from conftest import REPO, exact_integral, srgb_to_linear, write_png
+
+WHOLE = np.array([[0.0, 0.0, 1.0, 1.0]])
+QUARTERS = np.array([[0, 0, 0.5, 0.5], [0.5, 0, 1, 0.5], [0, 0.5, 0.5, 1], [0.5, 0.5, 1, 1]])
+
+
+def test_float_array_integrates_analytically(random_texels, rng):
+    tex = quadtex.pack(random_texels)
+    assert (tex.depth, tex.source_size) == (4, (16, 16))
+    # Texel-aligned rectangles and arbitrary ones: Σ texel × overlap.
+    aligned = np.array([[3 / 16, 5 / 16, 11 / 16, 6 / 16], [0, 0, 1, 1], [0.25, 0.5, 0.75, 1]])
+    rects = np.vstack([aligned, QUARTERS])
+    got = tex.integrate(rects)
+    # Exact but for inner nodes' colours, rounded to 16 bits (half a step per unit area).
+    np.testing.assert_allclose(got[:, :3], exact_integral(random_texels, rects), atol=1e-5)
+    # Row 0 is the top of the texture: the top-left texel is at x < 1/16, z ≥ 15/16.
+    top_left = tex.integrate([[0, 15 / 16, 1 / 16, 1]])[0, :3] * 256
+    np.testing.assert_allclose(top_left, random_texels[0, 0], atol=1e-7)
+
+
+def test_float_arrays_are_linear_premultiplied():
+    px = np.array([0.2, 0.1, 0.05, 0.5], dtype=np.float32)
+    tex = quadtex.pack(np.broadcast_to(px, (4, 4, 4)))
+    np.testing.assert_allclose(tex.integrate(WHOLE)[0], px, atol=1e-5)
+    # Colour above alpha is clamped to alpha; alpha to [0, 1]; no alpha = opaque.
+    tex = quadtex.pack(np.full((2, 2, 4), [0.9, 0.3, -1.0, 0.5], dtype=np.float64))
+    np.testing.assert_allclose(tex.integrate(WHOLE)[0], [0.5, 0.3, 0.0, 0.5], atol=1e-5)
+    tex = quadtex.pack(np.full((2, 2, 3), [2.0, 0.25, 0.5], dtype=np.float16))
+    np.testing.assert_allclose(tex.integrate(WHOLE)[0], [1.0, 0.25, 0.5, 1.0], atol=1e-5)
+    grey = quadtex.pack(np.full((3, 5), 0.25))
+    np.testing.assert_allclose(grey.integrate(WHOLE)[0], [0.25, 0.25, 0.25, 1.0], atol=1e-5)
+
+
+def test_uint8_arrays_are_srgb_with_straight_alpha():
+    tex = quadtex.pack(np.full((4, 4, 3), 128, dtype=np.uint8))
+    want = srgb_to_linear(128 / 255)
+    np.testing.assert_allclose(tex.integrate(WHOLE)[0], [want, want, want, 1], atol=1e-5)
+    # Straight alpha: white at half coverage is premultiplied to (a, a, a, a).
+    tex = quadtex.pack(np.full((4, 4, 4), [255, 255, 255, 128], dtype=np.uint8))
+    np.testing.assert_allclose(tex.integrate(WHOLE)[0], [128 / 255] * 4, atol=1e-5)
+    tex = quadtex.pack(np.full((2, 2, 4), [64, 128, 255, 51], dtype=np.uint8))
+    a = 51 / 255
+    want = [*(srgb_to_linear(np.array([64, 128, 255]) / 255) * a), a]
+    np.testing.assert_allclose(tex.integrate(WHOLE)[0], want, atol=1e-5)
+
+
+@pytest.mark.parametrize("channels", [None, 1, 2, 3, 4])
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_arrays_pack_exactly_as_the_same_png(tmp_path, rng, channels, dtype):
+    shape = (12, 20) if channels is None else (12, 20, channels)
+    pixels = rng.integers(0, np.iinfo(dtype).max + 1, size=shape).astype(dtype)
+    path = tmp_path / "image.png"
+    write_png(path, pixels)
+    from_file = quadtex.pack(path)
+    from_array = quadtex.pack(pixels)
+    assert from_file.source_size == from_array.source_size == (20, 12)
+    assert (from_file.depth, from_file.node_count) == (from_array.depth, from_array.node_count)
+    rects = np.vstack([WHOLE, QUARTERS, [[0.1, 0.2, 0.7, 0.9], [0.33, 0.01, 0.34, 0.99]]])
+    np.testing.assert_array_equal(from_file.integrate(rects), from_array.integrate(rects))
+
+
+def test_pack_options(random_texels):
+    lossless = quadtex.pack(random_texels)
+    lossy = quadtex.pack(random_texels, tolerance=0.5)
+    assert lossy.node_count < lossless.node_count
+    coarse = quadtex.pack(random_texels, max_level=2)
+    assert coarse.depth <= 2
+    # Cells resampled by area: the whole-texture integral is unchanged.
+    np.testing.assert_allclose(
+        coarse.integrate(WHOLE), lossless.integrate(WHOLE), atol=1e-4
+    )
+
+
+def test_save_open_round_trip(tmp_path, random_texels, rng):
+    tex = quadtex.pack(random_texels)
+    path = tmp_path / "t.qtx"
+    tex.save(path)
+    assert sorted(os.listdir(tmp_path)) == ["t.qtx"], "no temporary file left behind"
+    back = quadtex.open(path)
+    assert (back.depth, back.node_count, back.nbytes, back.source_size) == (
+        tex.depth,
+        tex.node_count,
+        tex.nbytes,
+        tex.source_size,
+    )
+    quads = rng.uniform(-1, 2, size=(100, 4, 2))
+    np.testing.assert_array_equal(back.filter(quads), tex.filter(quads))
+    # str paths work too, and saving over an existing file replaces it.
+    quadtex.pack(np.zeros((2, 2))).save(str(path))
+    assert quadtex.open(str(path)).node_count == 1
+    assert repr(back).startswith("<quadtex.Texture depth=4 node_count=")
+    assert "source=16x16" in repr(back)
+
+
+def test_pack_svg_sample():
+    svg = REPO / "samples" / "sign.svg"
+    tex = quadtex.pack(svg, max_level=7)
+    assert tex.depth <= 7 and tex.source_size == (128, 128)
+    mean = tex.integrate(WHOLE)[0]
+    assert 0 < mean[3] <= 1 and np.all(mean[:3] <= mean[3] + 1e-9)
+    with pytest.raises(ValueError, match="tolerance applies to raster images"):
+        quadtex.pack(svg, tolerance=0.1)
+
+
+def test_file_errors(tmp_path):
+    missing = tmp_path / "missing.qtx"
+    with pytest.raises(FileNotFoundError) as e:
+        quadtex.open(missing)
+    assert e.value.filename == str(missing)
+    with pytest.raises(FileNotFoundError):
+        quadtex.pack(tmp_path / "missing.png")
+    junk = tmp_path / "junk.qtx"
+    junk.write_bytes(b"\x89QTX\r\n\x1a\n" + b"\x00" * 100)
+    with pytest.raises(ValueError, match=r"junk\.qtx: invalid \.qtx file: "):
+        quadtex.open(junk)
+    bad_png = tmp_path / "bad.png"
+    bad_png.write_bytes(b"not a png")
+    with pytest.raises(ValueError, match=r"bad\.png"):
+        quadtex.pack(bad_png)
+    with pytest.raises(OSError):
+        quadtex.pack(np.zeros((2, 2))).save(tmp_path / "no" / "such" / "dir.qtx")
+    bad_svg = tmp_path / "bad.svg"
+    bad_svg.write_text("<svg")
+    with pytest.raises(ValueError, match=r"bad\.svg"):
+        quadtex.pack(bad_svg)
+
+
+def test_paths_accept_pathlike(tmp_path):
+    class Custom:
+        def __init__(self, p):
+            self.p = p
+
+        def __fspath__(self):
+            return str(self.p)
+
+    path = tmp_path / "p.qtx"
+    tex = quadtex.pack(np.eye(2, dtype=np.uint8) * 255)
+    tex.save(Custom(path))
+    assert quadtex.open(Custom(path)).node_count == tex.node_count == 5
+    assert isinstance(pathlib.Path(path), os.PathLike)
