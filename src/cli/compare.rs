@@ -124,6 +124,7 @@ pub fn run(args: Args) -> Result<()> {
     compare_scene(&scene, &name, &args.output, &settings)
 }
 
+/// Renders a contender (jitter stream 0).
 fn render_one(
     scene: &Scene,
     w: u32,
@@ -131,11 +132,44 @@ fn render_one(
     filter: Filter,
     pixel_filter: PixelFilter,
 ) -> Result<(LinearImage, quadtex_render::RenderSummary)> {
+    render_seeded(scene, w, h, filter, pixel_filter, 0)
+}
+
+/// Renders a reference: supersampled from its own jitter stream, so no
+/// contender shares its samples.
+fn render_reference(
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    grid: u32,
+    pixel_filter: PixelFilter,
+) -> Result<LinearImage> {
+    let filter = Filter::Supersample(grid);
+    Ok(render_seeded(
+        scene,
+        w,
+        h,
+        filter,
+        pixel_filter,
+        quadtex_render::REFERENCE_SEED,
+    )?
+    .0)
+}
+
+fn render_seeded(
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    filter: Filter,
+    pixel_filter: PixelFilter,
+    seed: u64,
+) -> Result<(LinearImage, quadtex_render::RenderSummary)> {
     let options = RenderOptions {
         width: Some(w),
         height: Some(h),
         filter,
         pixel_filter,
+        seed,
     };
     Ok(quadtex_render::render(scene, &options, &|_, _| {})?)
 }
@@ -221,9 +255,9 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         n * n,
         if needs_tent { " and tent" } else { "" }
     );
-    let (reference_box, _) = render_one(scene, w, h, Filter::Supersample(n), PixelFilter::Box)?;
+    let reference_box = render_reference(scene, w, h, n, PixelFilter::Box)?;
     let reference_tent = if needs_tent {
-        Some(render_one(scene, w, h, Filter::Supersample(n), PixelFilter::Tent)?.0)
+        Some(render_reference(scene, w, h, n, PixelFilter::Tent)?)
     } else {
         None
     };
@@ -259,14 +293,13 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         moved
             .iter()
             .map(|sc| {
-                Ok(render_one(
+                render_reference(
                     sc,
                     shimmer_size.0,
                     shimmer_size.1,
-                    Filter::Supersample(s.shimmer_reference_grid),
+                    s.shimmer_reference_grid,
                     pf,
-                )?
-                .0)
+                )
             })
             .collect()
     };

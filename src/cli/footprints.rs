@@ -105,6 +105,7 @@ pub fn run(args: Args) -> Result<()> {
             height: Some(height),
             filter: Filter::Supersample(grid),
             pixel_filter: PixelFilter::Box,
+            seed: quadtex_render::REFERENCE_SEED,
         },
         &|_, _| {},
     )?;

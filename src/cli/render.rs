@@ -157,6 +157,7 @@ impl RenderArgs {
                 FilterName::Supersample(n) => Filter::Supersample(n),
             },
             pixel_filter: self.pixel_filter.unwrap_or_default(),
+            seed: 0,
         })
     }
 }

@@ -106,3 +106,37 @@ fn closed_form_checkerboard_validates_the_reference() {
         100.0 * defined
     );
 }
+
+/// A reference draws its own jitter stream: a contender with the
+/// reference's sample count is not the reference. Its error is that of two
+/// independent 64-sample images, about √2 × one image's 64-sample noise
+/// (measured as its distance from a 1024-sample reference).
+#[test]
+fn a_contender_with_the_references_sample_count_is_not_the_reference() {
+    let scene = grazing(48, 32, 1.5);
+    let go = |filter, seed| {
+        render(
+            &scene,
+            &RenderOptions {
+                filter,
+                seed,
+                ..RenderOptions::default()
+            },
+            &|_, _| {},
+        )
+        .unwrap()
+        .0
+    };
+    let reference = go(Filter::Supersample(8), quadtex_render::REFERENCE_SEED);
+    let contender = go(Filter::Supersample(8), 0);
+    let dense = go(Filter::Supersample(32), quadtex_render::REFERENCE_SEED);
+    let same_count = metrics::rmse(&contender, &reference).unwrap();
+    let noise = metrics::rmse(&contender, &dense).unwrap();
+    eprintln!("64 spp vs 64-spp reference {same_count:.5}; vs 1024-spp reference {noise:.5}");
+    assert!(same_count > 0.0, "the contender equals its reference");
+    let ratio = same_count / noise;
+    assert!(
+        (1.0..2.5).contains(&ratio),
+        "two independent 64-sample images differ by {same_count}, one differs from the truth by {noise} (ratio {ratio}, expected about 1.4)"
+    );
+}

@@ -31,7 +31,7 @@ pub use demo::{demo_scene, sign_art};
 pub use measure::{
     LookupTiming, PixelFootprint, centre_distance, pixel_footprints, texture_only, time_lookups,
 };
-pub use options::{Filter, PixelFilter, RenderOptions};
+pub use options::{Filter, PixelFilter, REFERENCE_SEED, RenderOptions};
 pub use parse::{load_scene, load_scene_with_limits, parse_scene, parse_scene_with_limits};
 pub use render::render;
 pub use scene::Scene;

@@ -52,6 +52,11 @@ pub enum PixelFilter {
     Tent,
 }
 
+/// The jitter stream references are rendered with
+/// ([`RenderOptions::seed`]); contenders keep the default 0, so a reference
+/// never shares its samples with a contender of the same sample count.
+pub const REFERENCE_SEED: u64 = 0x5EED_0000_0000_0001;
+
 /// Options of one render.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct RenderOptions {
@@ -63,4 +68,8 @@ pub struct RenderOptions {
     pub filter: Filter,
     /// Pixel filter (for `Quadtree` and `Supersample`).
     pub pixel_filter: PixelFilter,
+    /// The stream `Supersample` draws its jitter from (default 0). Two
+    /// renders with different seeds draw independent samples: a reference
+    /// must not share its seed with the contenders it judges.
+    pub seed: u64,
 }

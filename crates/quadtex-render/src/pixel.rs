@@ -32,6 +32,7 @@ pub(crate) fn shade_pixel(
     pixel: PixelFilter,
     (x, y): (u32, u32),
     near_silhouette: bool,
+    seed: u64,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
@@ -47,8 +48,8 @@ pub(crate) fn shade_pixel(
                     (0.5, 0.5)
                 } else {
                     (
-                        (f64::from(i) + jitter(x, y, i, j, 0)) / f64::from(n),
-                        (f64::from(j) + jitter(x, y, i, j, 1)) / f64::from(n),
+                        (f64::from(i) + jitter(seed, x, y, i, j, 0)) / f64::from(n),
+                        (f64::from(j) + jitter(seed, x, y, i, j, 1)) / f64::from(n),
                     )
                 };
                 // Box: stratified over the pixel. Tent: over the 2×2 support, weighted.
@@ -171,12 +172,14 @@ fn shade_area(
 }
 
 /// A deterministic pseudo-random number in `[0, 1)` for sample `(i, j)` of
-/// pixel `(x, y)`, axis `axis` (SplitMix64 finaliser).
-fn jitter(x: u32, y: u32, i: u32, j: u32, axis: u32) -> f64 {
+/// pixel `(x, y)`, axis `axis`, in stream `seed` (SplitMix64 finaliser; the
+/// seed is mixed in first, so seed 0 is the stream renders always had).
+fn jitter(seed: u64, x: u32, y: u32, i: u32, j: u32, axis: u32) -> f64 {
     let mut z = (u64::from(x) << 40 ^ u64::from(y) << 20 ^ u64::from(i) << 10 ^ u64::from(j))
         .wrapping_mul(2)
         .wrapping_add(u64::from(axis))
-        .wrapping_add(0x9E37_79B9_7F4A_7C15);
+        .wrapping_add(0x9E37_79B9_7F4A_7C15)
+        ^ seed.wrapping_mul(0xD6E8_FEB8_6659_FD93);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^= z >> 31;

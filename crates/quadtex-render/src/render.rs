@@ -92,6 +92,7 @@ pub fn render(
                         options.pixel_filter,
                         (x, y),
                         straddles(x, y),
+                        options.seed,
                         &mut pixel,
                     );
                     stats.merge_parts(&pixel);
