@@ -11,7 +11,7 @@ use quadtex_eval::metrics::{error_map, psnr, rmse, rmse_where_defined, shimmer};
 use quadtex_eval::montage::{self, busiest_window, crop, grid, magnify, shrink};
 use quadtex_eval::reference::closed_form_plane;
 use quadtex_eval::report::{
-    Figures, ReportInfo, csv, file_stem, html_report, markdown_table, plot_svg,
+    Figures, Provenance, ReportInfo, csv, file_stem, html_report, markdown_table, plot_svg,
 };
 use quadtex_io::LinearImage;
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
@@ -452,11 +452,11 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         } else {
             "not measured".into()
         },
-        machine: format!("{threads} worker threads"),
+        provenance: provenance(threads),
     };
     let table = markdown_table(&rows);
     write_text(&dir.join("results.md"), &table)?;
-    write_text(&dir.join("results.csv"), &csv(&rows))?;
+    write_text(&dir.join("results.csv"), &csv(&rows, &info.provenance))?;
     write_text(
         &dir.join("plot.svg"),
         &plot_svg(&rows, &format!("{name}: error against time per frame")),
@@ -477,4 +477,68 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
 /// Threads the renderer's pool uses by default (rayon: one per available core).
 fn available_threads() -> usize {
     std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
+}
+
+/// Where and how this run measures: the processor, threads, build profile,
+/// the commit the binary was built from (embedded by build.rs) and today's
+/// UTC date.
+fn provenance(threads: usize) -> Provenance {
+    let machine = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|text| {
+            text.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown".into());
+    let cores = std::thread::available_parallelism().map_or(0, usize::from);
+    Provenance {
+        machine: format!("{machine} ({cores} cores)"),
+        threads,
+        profile: if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        }
+        .into(),
+        commit: env!("QUADTEX_COMMIT").into(),
+        date: utc_date(std::time::SystemTime::now()),
+    }
+}
+
+/// `YYYY-MM-DD` of a time, in UTC (civil-from-days, proleptic Gregorian).
+fn utc_date(t: std::time::SystemTime) -> String {
+    let days = t
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() / 86_400) as i64;
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
+#[cfg(test)]
+mod provenance_tests {
+    use super::utc_date;
+    use std::time::{Duration, UNIX_EPOCH};
+
+    #[test]
+    fn utc_dates_of_known_days() {
+        assert_eq!(utc_date(UNIX_EPOCH), "1970-01-01");
+        assert_eq!(
+            utc_date(UNIX_EPOCH + Duration::from_secs(951_782_400)),
+            "2000-02-29"
+        );
+        assert_eq!(
+            utc_date(UNIX_EPOCH + Duration::from_secs(1_795_564_800)),
+            "2026-11-25"
+        );
+    }
 }

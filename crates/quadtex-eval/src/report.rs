@@ -83,15 +83,24 @@ pub fn markdown_table(rows: &[Figures]) -> String {
 }
 
 /// The figures as CSV (one header line).
-pub fn csv(rows: &[Figures]) -> String {
+pub fn csv(rows: &[Figures], provenance: &Provenance) -> String {
     let mut s = String::from(
-        "filter,rmse,psnr_db,rmse_closed_form,flip,shimmer,seconds_per_frame,lookups_per_pixel,texture_bytes\n",
+        "filter,rmse,psnr_db,rmse_closed_form,flip,shimmer,seconds_per_frame,lookups_per_pixel,texture_bytes,machine,threads,profile,commit,date\n",
     );
     let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v}"));
+    let p = provenance;
+    let tail = format!(
+        "{},{},{},{},{}",
+        csv_field(&p.machine),
+        p.threads,
+        csv_field(&p.profile),
+        csv_field(&p.commit),
+        csv_field(&p.date)
+    );
     for r in rows {
         s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{}\n",
-            r.label,
+            "{},{},{},{},{},{},{},{},{},{tail}\n",
+            csv_field(&r.label),
             r.rmse,
             r.psnr,
             opt(r.rmse_exact),
@@ -202,8 +211,44 @@ pub struct ReportInfo {
     pub reference: String,
     /// How shimmer was measured.
     pub motion: String,
-    /// Machine and thread count.
+    /// Where and how the figures were measured.
+    pub provenance: Provenance,
+}
+
+/// Where and how figures were measured, so each carries its provenance
+/// (the report's page and every CSV row).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Provenance {
+    /// The processor (model name), or `unknown`.
     pub machine: String,
+    /// Worker threads the renders used.
+    pub threads: usize,
+    /// Build profile of the binary (`release` or `debug`).
+    pub profile: String,
+    /// The commit the binary was built from (`+dirty` when the tree had
+    /// uncommitted changes), or `unknown`.
+    pub commit: String,
+    /// UTC date of the run, `YYYY-MM-DD`.
+    pub date: String,
+}
+
+impl Provenance {
+    /// One sentence for the report's page.
+    pub fn describe(&self) -> String {
+        format!(
+            "Measured on {} with {} worker threads, {} build of commit {}, on {}",
+            self.machine, self.threads, self.profile, self.commit, self.date
+        )
+    }
+}
+
+/// A CSV field, quoted when it holds a comma, quote or newline.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
 }
 
 /// The static report page (no scripts, no network): the table, the plot and
@@ -217,7 +262,7 @@ pub fn html_report(info: &ReportInfo, rows: &[Figures], labels_in_grid: &[String
         h = info.height,
         reference = escape(&info.reference),
         motion = escape(&info.motion),
-        machine = escape(&info.machine),
+        machine = escape(&info.provenance.describe()),
     );
     for r in rows {
         let row = cells(r).map(|c| escape(&c));
@@ -254,6 +299,35 @@ pub fn file_stem(label: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn csv_rows_carry_their_provenance() {
+        let p = Provenance {
+            machine: "AMD EPYC, 2 cores".into(),
+            threads: 2,
+            profile: "release".into(),
+            commit: "abc123".into(),
+            date: "2026-11-25".into(),
+        };
+        let row = Figures {
+            label: "quadtree".into(),
+            rmse: 0.5,
+            psnr: 6.0,
+            rmse_exact: None,
+            flip: None,
+            shimmer: None,
+            seconds: 1.0,
+            lookups_per_pixel: None,
+            texture_bytes: 10,
+        };
+        let text = csv(&[row], &p);
+        let line = text.lines().nth(1).unwrap();
+        assert!(
+            line.ends_with(",\"AMD EPYC, 2 cores\",2,release,abc123,2026-11-25"),
+            "{line}"
+        );
+        assert_eq!(text.lines().next().unwrap().split(',').count(), 14);
+    }
 
     #[test]
     fn file_stems_are_plain() {
