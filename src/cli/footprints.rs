@@ -38,7 +38,33 @@ pub struct Args {
     /// to a square grid.
     #[arg(long, value_name = "N", default_value_t = 1024)]
     reference_spp: u32,
+    /// Only time quadtex's lookups: print `method<TAB>ns_per_lookup` lines
+    /// to standard output and write nothing (bench/peers/run.sh alternates
+    /// such rounds with the peer's).
+    #[arg(long)]
+    timing_only: bool,
 }
+
+/// The quadtex lookups timed against the peer: label, file stem, filter.
+const TIMED: [(&str, &str, Filter); 3] = [
+    (
+        "quadtex quadtree",
+        "quadtex-quadtree",
+        Filter::Quadtree(quadtex_core::FilterOptions::DEFAULT),
+    ),
+    (
+        "quadtex EWA 8 (pbrt-v4 style)",
+        "quadtex-ewa8",
+        Filter::Ewa {
+            max_anisotropy: 8.0,
+        },
+    ),
+    (
+        "quadtex trilinear (pbrt-v4 style)",
+        "quadtex-trilinear",
+        Filter::Trilinear,
+    ),
+];
 
 /// Runs `quadtex footprints`.
 pub fn run(args: Args) -> Result<()> {
@@ -48,9 +74,18 @@ pub fn run(args: Args) -> Result<()> {
         width,
         passes,
         reference_spp,
+        timing_only,
     } = args;
     let grid = (f64::from(reference_spp.clamp(1, 4096)).sqrt().round() as u32).max(1);
     let scene = quadtex_render::load_scene(&path)?;
+    if timing_only {
+        let height = scene.camera.height_for_width(width);
+        for (label, _, filter) in TIMED {
+            let t = quadtex_render::time_lookups(&scene, width, height, filter, passes)?;
+            println!("{label}\t{:.1}", t.ns_per_lookup);
+        }
+        return Ok(());
+    }
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let height = scene.camera.height_for_width(width);
     let (records, users) = quadtex_eval::peers::footprint_records(&scene, width, height)?;
@@ -111,22 +146,7 @@ pub fn run(args: Args) -> Result<()> {
     )?;
     quadtex_io::save_image(&dir.join("reference.exr"), &reference)?;
     let mut table = String::from("method\tns_per_lookup\ttexture_bytes\tfile\n");
-    let runs: [(&str, &str, Filter); 3] = [
-        ("quadtex quadtree", "quadtex-quadtree", Filter::default()),
-        (
-            "quadtex EWA 8 (pbrt-v4 style)",
-            "quadtex-ewa8",
-            Filter::Ewa {
-                max_anisotropy: 8.0,
-            },
-        ),
-        (
-            "quadtex trilinear (pbrt-v4 style)",
-            "quadtex-trilinear",
-            Filter::Trilinear,
-        ),
-    ];
-    for (label, stem, filter) in runs {
+    for (label, stem, filter) in TIMED {
         let t = quadtex_render::time_lookups(&scene, width, height, filter, passes)?;
         let file = format!("{stem}.exr");
         quadtex_io::save_image(&dir.join(&file), &t.image)?;

@@ -102,18 +102,21 @@ pub struct FilterOptions {
 }
 
 impl Default for FilterOptions {
-    /// Screen weighting, quality 1 (strips over-cover by at most 25 %),
-    /// error bound 1/512.
+    /// [`FilterOptions::DEFAULT`].
     fn default() -> Self {
-        FilterOptions {
-            weighting: Weighting::Screen,
-            quality: 1.0,
-            lod: LevelOfDetail::default(),
-        }
+        FilterOptions::DEFAULT
     }
 }
 
 impl FilterOptions {
+    /// Screen weighting, quality 1 (strips over-cover by at most 25 %),
+    /// error bound 1/512.
+    pub const DEFAULT: FilterOptions = FilterOptions {
+        weighting: Weighting::Screen,
+        quality: 1.0,
+        lod: LevelOfDetail::ErrorBound(1.0 / 512.0),
+    };
+
     /// The defaults ([`FilterOptions::default`]).
     pub fn new() -> FilterOptions {
         FilterOptions::default()
