@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")"
 seconds=${1:-300}
 shift || true
-targets=${*:-qtx query_line integral scene svg}
+targets=${*:-qtx query_line integral scene svg obj exr}
 export RUSTC_BOOTSTRAP=1
 cargo fuzz build -O
 for target in $targets; do

@@ -656,3 +656,417 @@ fn footprints_of_a_scene_with_nan() {
         Some(&out),
     );
 }
+
+/// A unit square in the y = 0 plane, two triangles, with texture coordinates:
+/// the valid OBJ the mesh cases start from.
+const GOOD_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+
+/// Writes `NAME.obj` (`obj` bytes) and a scene `NAME.toml` whose one shape
+/// is that mesh, renders it; `None`: the render must succeed, else it must
+/// fail naming the scene, `shape[0].file`, the OBJ and every needle.
+fn mesh_run(case: &str, obj: &[u8], needles: Option<&[&str]>) {
+    let d = dir(case);
+    let obj_name = format!("{case}.obj");
+    std::fs::write(d.join(&obj_name), obj).unwrap();
+    let scene = d.join(format!("{case}.toml"));
+    std::fs::write(
+        &scene,
+        format!(
+            "[camera]\nposition = [0.5, 2, -1]\nlook_at = [0.5, 0, 0.5]\nfov = 50\nwidth = 16\nheight = 8\n\n[[shape]]\ntype = \"mesh\"\nfile = \"{obj_name}\"\ntexture = \"builtin:checker\"\n"
+        ),
+    )
+    .unwrap();
+    let out = d.join("out.png");
+    let args = [
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    match needles {
+        None => {
+            let o = run(&args, "");
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            assert!(out.exists());
+        }
+        Some(needles) => {
+            let mut all = vec![format!("{case}.toml"), "shape[0].file".into(), obj_name];
+            all.extend(needles.iter().map(|n| n.to_string()));
+            let refs: Vec<&str> = all.iter().map(String::as_str).collect();
+            expect_failure(&args, "", &refs, Some(&out));
+        }
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// The good OBJ with one line replaced (or, when `from` is empty, `to`
+/// appended).
+fn obj_with(from: &str, to: &str) -> Vec<u8> {
+    if from.is_empty() {
+        return format!("{GOOD_OBJ}{to}").into_bytes();
+    }
+    assert!(GOOD_OBJ.contains(from), "{from}");
+    GOOD_OBJ.replacen(from, to, 1).into_bytes()
+}
+
+#[test]
+fn obj_control_good_mesh_renders() {
+    // Not a bad input: the base the OBJ cases alter renders.
+    mesh_run("obj-good", GOOD_OBJ.as_bytes(), None);
+}
+
+macro_rules! obj_cases {
+    ($($name:ident: $bytes:expr => [$($needle:expr),*];)*) => {$(
+        #[test]
+        fn $name() {
+            mesh_run(stringify!($name), &$bytes, Some(&[$($needle),*]));
+        }
+    )*};
+}
+
+obj_cases! {
+    obj_nan_vertex: obj_with("v 1 0 0", "v nan 0 0") => ["non-finite vertex"];
+    obj_infinite_vertex: obj_with("v 1 0 1", "v 1 inf 1") => ["non-finite vertex"];
+    obj_overflowing_vertex: obj_with("v 0 0 1", "v 0 0 1e39") => ["non-finite vertex"];
+    obj_nan_texture_coordinate: obj_with("vt 1 1", "vt NaN 1") => ["texture coordinate"];
+    obj_face_index_out_of_range: obj_with("f 1/1 3/3 4/4", "f 1/1 3/3 9/4") => ["face vertex index out of bounds"];
+    obj_texcoord_index_out_of_range: obj_with("f 1/1 3/3 4/4", "f 1/1 3/3 4/9") => ["face texcoord index out of bounds"];
+    obj_zero_index: obj_with("f 1/1 2/2 3/3", "f 0/1 2/2 3/3") => ["face vertex index out of bounds"];
+    obj_negative_index_before_first: obj_with("f 1/1 3/3 4/4", "f -9/1 3/3 4/4") => ["face vertex index out of bounds"];
+    obj_huge_negative_texcoord_index: obj_with("f 1/1 3/3 4/4", "f 1/-4611686018427387905 3/3 4/4") => ["line 10: index -4611686018427387905 out of range"];
+    obj_index_beyond_64_bits: obj_with("f 1/1 3/3 4/4", "f 1/1 3/3 99999999999999999999/4") => ["face parse error"];
+    // OBJ has no header: a face naming vertex 10^8 declares a mesh of at least
+    // 10^8 vertices, which the file does not hold.
+    obj_face_declares_1e8_vertices: obj_with("f 1/1 3/3 4/4", "f 1/1 3/3 100000000/4") => ["line 10: index 100000000 out of range"];
+    obj_missing_vt: b"v 0 0 0\nv 1 0 0\nv 1 0 1\nf 1 2 3\n".as_slice() => ["no texture coordinates (vt)"];
+    obj_some_corners_without_vt: obj_with("f 1/1 3/3 4/4", "f 1/1 3 4/4") => ["some face corners have no texture coordinate"];
+    obj_truncated_vertex_line: obj_with("", "v 1 2") => ["position parse error"];
+    obj_truncated_texcoord_line: obj_with("vt 0 1", "vt 0") => ["texcoord parse error"];
+    obj_truncated_mid_file: GOOD_OBJ.as_bytes()[..GOOD_OBJ.find("v 1 0 1").unwrap() + 4] => ["position parse error"];
+    obj_non_numeric_coordinate: obj_with("v 1 0 0", "v one 0 0") => ["position parse error"];
+    obj_zero_w: obj_with("v 1 0 0", "v 1 0 0 0") => ["scaling (w) by zero"];
+    obj_binary_garbage: (0..4096u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8).collect::<Vec<u8>>() => ["read error"];
+    obj_empty_file: Vec::<u8>::new() => ["no usable triangles"];
+    obj_only_degenerate_triangles: b"v 0 0 0\nv 1 0 0\nv 2 0 0\nvt 0 0\nvt 1 0\nvt 1 1\nf 1/1 2/2 3/3\n".as_slice() => ["no usable triangles"];
+    // 25 000 identical faces, 0.3 MB: beyond max_mesh_triangles (20 000).
+    obj_many_faces_over_triangle_limit: obj_with("", &"f 1/1 2/2 3/3\n".repeat(25_000)) => ["max_mesh_triangles 20000"];
+    // One polygon of 10^6 corners, 4 MB: a fan of 10^6 triangles.
+    obj_million_corner_polygon: obj_with("", &format!("f 1/1{}\n", " 2/2 3/3 4/4".repeat(333_334))) => ["max_mesh_triangles 20000"];
+}
+
+#[test]
+fn obj_missing_file() {
+    let d = dir("obj-missing");
+    let scene = d.join("absent-mesh.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\nposition = [0, 2, -1]\nlook_at = [0, 0, 1]\nfov = 50\nwidth = 16\nheight = 8\n\n[[shape]]\ntype = \"mesh\"\nfile = \"absent.obj\"\n",
+    )
+    .unwrap();
+    let out = d.join("out.png");
+    expect_failure(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        &["absent-mesh.toml", "shape[0].file", "absent.obj"],
+        Some(&out),
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A small valid OpenEXR (32-bit float RGBA, `w × h`) written by quadtex.
+fn exr_bytes(w: u32, h: u32, pixel: impl Fn(u32) -> quadtex_core::Rgba) -> Vec<u8> {
+    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let d = dir(&format!("exr-src-{w}x{h}-{n}"));
+    let p = d.join("ok.exr");
+    let img = quadtex_io::LinearImage {
+        width: w,
+        height: h,
+        pixels: (0..w * h).map(pixel).collect(),
+    };
+    quadtex_io::save_image(&p, &img).unwrap();
+    let bytes = std::fs::read(&p).unwrap();
+    std::fs::remove_dir_all(&d).unwrap();
+    bytes
+}
+
+fn valid_exr() -> Vec<u8> {
+    exr_bytes(8, 8, |i| {
+        quadtex_core::Rgba::opaque((i % 8) as f32 / 8.0, 0.5, (i / 8) as f32 / 8.0)
+    })
+}
+
+/// Offset of the `dataWindow` attribute's value (four little-endian `i32`:
+/// x_min, y_min, x_max, y_max).
+fn exr_data_window(b: &[u8]) -> usize {
+    let key = b"dataWindow\0box2i\0";
+    let at = b.windows(key.len()).position(|w| w == key).unwrap();
+    at + key.len() + 4
+}
+
+/// The end of the EXR header (the byte after the attribute list's NUL), where
+/// the offset table starts.
+fn exr_header_end(b: &[u8]) -> usize {
+    // Attributes: name\0 type\0 size(i32) value; the list ends with a NUL.
+    let mut at = 8;
+    while b[at] != 0 {
+        let name_end = at + b[at..].iter().position(|&c| c == 0).unwrap();
+        let type_end = name_end + 1 + b[name_end + 1..].iter().position(|&c| c == 0).unwrap();
+        let size = i32::from_le_bytes(b[type_end + 1..type_end + 5].try_into().unwrap());
+        at = type_end + 5 + size as usize;
+    }
+    at + 1
+}
+
+fn set_data_window(b: &mut [u8], window: [i32; 4]) {
+    let at = exr_data_window(b);
+    for (k, v) in window.iter().enumerate() {
+        b[at + 4 * k..at + 4 * k + 4].copy_from_slice(&v.to_le_bytes());
+    }
+}
+
+#[test]
+fn exr_control_valid_file_packs() {
+    // Not a bad input: the base the EXR cases alter packs.
+    let d = dir("exr-good");
+    let p = d.join("good.exr");
+    std::fs::write(&p, valid_exr()).unwrap();
+    let out = d.join("out.qtx");
+    let o = run(
+        &["pack", p.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        "",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+macro_rules! exr_cases {
+    ($($name:ident: $mutate:expr => [$($needle:expr),*];)*) => {$(
+        #[test]
+        fn $name() {
+            let mut bytes = valid_exr();
+            #[allow(clippy::redundant_closure_call)]
+            ($mutate)(&mut bytes);
+            let file = format!("{}.exr", stringify!($name));
+            pack_case(stringify!($name), &file, &bytes, &[], &[&file, $($needle),*]);
+        }
+    )*};
+}
+
+exr_cases! {
+    exr_magic_only: |b: &mut Vec<u8>| b.truncate(4) => [];
+    exr_truncated_in_header: |b: &mut Vec<u8>| { let n = exr_data_window(b); b.truncate(n + 6); } => [];
+    exr_truncated_after_header: |b: &mut Vec<u8>| { let n = exr_header_end(b); b.truncate(n); } => [];
+    exr_truncated_in_offset_table: |b: &mut Vec<u8>| { let n = exr_header_end(b); b.truncate(n + 12); } => [];
+    exr_truncated_in_pixels: |b: &mut Vec<u8>| { let n = b.len(); b.truncate(n - n / 3); } => [];
+    exr_one_byte_short: |b: &mut Vec<u8>| { b.pop(); } => [];
+    exr_garbage_after_magic: |b: &mut Vec<u8>| {
+        let n = b.len();
+        for (i, v) in b[4..n].iter_mut().enumerate() {
+            *v = (i as u32).wrapping_mul(2_654_435_761).to_be_bytes()[0];
+        }
+    } => [];
+    exr_declares_100000_squared: |b: &mut Vec<u8>| set_data_window(b, [0, 0, 99_999, 99_999]) => ["OpenExr", "chunk count not matching data size"];
+    exr_declares_2_pow_31_wide: |b: &mut Vec<u8>| set_data_window(b, [i32::MIN, 0, i32::MAX, 7]) => [];
+    exr_inverted_data_window: |b: &mut Vec<u8>| set_data_window(b, [0, 0, -5, 7]) => [];
+    exr_declares_30000_squared_without_pixels: |b: &mut Vec<u8>| { set_data_window(b, [0, 0, 29_999, 29_999]); let n = exr_header_end(b); b.truncate(n + 64); } => [];
+    exr_offset_table_points_outside: |b: &mut Vec<u8>| {
+        let n = exr_header_end(b);
+        b[n..n + 8].copy_from_slice(&u64::MAX.to_le_bytes());
+    } => [];
+}
+
+/// Non-finite texels are not an error: they pack as documented (a NaN alpha is
+/// no coverage, non-finite colour channels are 0), never a panic or NaN.
+fn exr_non_finite_packs(case: &str, pixel: quadtex_core::Rgba) {
+    let d = dir(case);
+    let p = d.join(format!("{case}.exr"));
+    let bytes = exr_bytes(4, 4, |i| {
+        if i % 3 == 0 {
+            pixel
+        } else {
+            quadtex_core::Rgba::opaque(0.25, 0.5, 0.75)
+        }
+    });
+    std::fs::write(&p, bytes).unwrap();
+    let out = d.join("out.qtx");
+    let o = run(
+        &["pack", p.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        "",
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && !err.contains("panicked"), "{err}");
+    let q = run(
+        &["query", out.to_str().unwrap()],
+        "0 0 1 1\n0 0 0.25 0.25\n",
+    );
+    let text = String::from_utf8_lossy(&q.stdout).to_lowercase();
+    assert!(q.status.success(), "{}", String::from_utf8_lossy(&q.stderr));
+    assert!(
+        !text.contains("nan") && !text.contains("inf"),
+        "non-finite output: {text}"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn exr_nan_texels_pack_finite() {
+    exr_non_finite_packs(
+        "exr-nan",
+        quadtex_core::Rgba::new(f32::NAN, 0.5, f32::NAN, 1.0),
+    );
+}
+
+#[test]
+fn exr_nan_alpha_packs_finite() {
+    exr_non_finite_packs(
+        "exr-nan-alpha",
+        quadtex_core::Rgba::new(0.5, 0.5, 0.5, f32::NAN),
+    );
+}
+
+#[test]
+fn exr_infinite_texels_pack_finite() {
+    exr_non_finite_packs(
+        "exr-inf",
+        quadtex_core::Rgba::new(f32::INFINITY, f32::NEG_INFINITY, 0.5, f32::INFINITY),
+    );
+}
+
+#[test]
+fn hdr_radiance_is_unsupported() {
+    let mut bytes = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 2\n".to_vec();
+    bytes.extend([128u8, 64, 32, 129].repeat(4));
+    pack_case("hdr", "sky.hdr", &bytes, &[], &["sky.hdr", "not supported"]);
+}
+
+#[test]
+fn gif_is_unsupported() {
+    let mut bytes = b"GIF89a".to_vec();
+    bytes.extend([2, 0, 2, 0, 0, 0, 0, 0x3b]);
+    pack_case(
+        "gif",
+        "anim.gif",
+        &bytes,
+        &[],
+        &["anim.gif", "not supported"],
+    );
+}
+
+#[test]
+fn bmp_is_unsupported() {
+    let mut bytes = b"BM".to_vec();
+    bytes.extend([0u8; 52]);
+    pack_case("bmp", "old.bmp", &bytes, &[], &["old.bmp", "not supported"]);
+}
+
+/// A PNG chunk: length, type, data, CRC.
+fn png_chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+    let mut body = kind.to_vec();
+    body.extend(data);
+    let mut c = (data.len() as u32).to_be_bytes().to_vec();
+    c.extend(&body);
+    c.extend(crc32(&body).to_be_bytes());
+    c
+}
+
+#[test]
+fn png_ihdr_checksum_wrong() {
+    let mut png = png_header_only(4, 4);
+    png[29] ^= 0xff; // the IHDR CRC
+    pack_case("png-crc", "crc.png", &png, &[], &["crc.png"]);
+}
+
+#[test]
+fn png_invalid_bit_depth() {
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = 4u32.to_be_bytes().to_vec();
+    ihdr.extend(4u32.to_be_bytes());
+    ihdr.extend([3, 6, 0, 0, 0]); // 3-bit RGBA does not exist
+    png.extend(png_chunk(b"IHDR", &ihdr));
+    png.extend(png_chunk(b"IEND", &[]));
+    pack_case("png-depth", "depth.png", &png, &[], &["depth.png"]);
+}
+
+#[test]
+fn png_one_by_100000() {
+    pack_case(
+        "png-tall",
+        "tall.png",
+        &png_header_only(1, 100_000),
+        &[],
+        &["tall.png", "max_dimension"],
+    );
+}
+
+#[test]
+fn png_declares_30000_squared_without_pixels() {
+    // Within max_dimension: the decoder must fail on the missing data
+    // without first committing 3.6 GB.
+    pack_case(
+        "png-big-empty",
+        "big.png",
+        &png_header_only(30_000, 30_000),
+        &[],
+        &["big.png"],
+    );
+}
+
+#[test]
+fn png_corrupt_idat() {
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = 4u32.to_be_bytes().to_vec();
+    ihdr.extend(4u32.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]);
+    png.extend(png_chunk(b"IHDR", &ihdr));
+    png.extend(png_chunk(
+        b"IDAT",
+        b"\x78\x9c this is not deflate data at all",
+    ));
+    png.extend(png_chunk(b"IEND", &[]));
+    pack_case("png-idat", "idat.png", &png, &[], &["idat.png"]);
+}
+
+/// A baseline JPEG start: SOI, then a SOF0 declaring `w × h`, three components.
+fn jpeg_sof(w: u16, h: u16) -> Vec<u8> {
+    let mut j = vec![0xff, 0xd8, 0xff, 0xc0, 0, 17, 8];
+    j.extend(h.to_be_bytes());
+    j.extend(w.to_be_bytes());
+    j.extend([3, 1, 0x11, 0, 2, 0x11, 1, 3, 0x11, 1]);
+    j
+}
+
+#[test]
+fn jpeg_declares_65535_squared_without_scan() {
+    // Refused while reading the headers, before anything is allocated.
+    pack_case(
+        "jpeg-huge",
+        "huge.jpg",
+        &[jpeg_sof(65_535, 65_535), vec![0xff, 0xd9]].concat(),
+        &[],
+        &["huge.jpg", "Jpeg", "Premature End"],
+    );
+}
+
+#[test]
+fn jpeg_header_without_scan() {
+    let mut j = jpeg_sof(16, 16);
+    j.extend([0xff, 0xd9]);
+    pack_case("jpeg-noscan", "noscan.jpg", &j, &[], &["noscan.jpg"]);
+}
+
+#[test]
+fn jpeg_soi_then_eoi() {
+    pack_case(
+        "jpeg-empty",
+        "empty.jpeg",
+        &[0xff, 0xd8, 0xff, 0xd9],
+        &[],
+        &["empty.jpeg"],
+    );
+}

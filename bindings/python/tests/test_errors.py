@@ -1,9 +1,14 @@
 """Bad input raises ValueError / TypeError naming the index, field or shape."""
 
+import re
+import struct
+import zlib
+
 import numpy as np
 import pytest
 
 import quadtex
+from conftest import write_png
 
 UNIT = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
 
@@ -108,3 +113,187 @@ def test_bad_images():
 def test_texture_cannot_be_constructed_directly():
     with pytest.raises(TypeError):
         quadtex.Texture()
+
+
+# Files: the Python share of the bad-input catalogue (tests/bad_inputs.rs
+# holds the command line's). The operating system's refusals are OSError
+# subclasses with `filename` set; bad contents are ValueErrors naming the
+# file and the field.
+
+@pytest.fixture
+def qtx_bytes(tmp_path, tex):
+    path = tmp_path / "ok.qtx"
+    tex.save(path)
+    return path.read_bytes()
+
+
+def _png_chunk(kind, data):
+    body = kind + data
+    return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+
+def _png_header_only(w, h):
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + _png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0))
+        + _png_chunk(b"IDAT", b"")
+        + _png_chunk(b"IEND", b"")
+    )
+
+
+def test_open_missing_file(tmp_path):
+    path = tmp_path / "absent.qtx"
+    with pytest.raises(FileNotFoundError) as e:
+        quadtex.open(path)
+    assert e.value.filename == str(path)
+
+
+def test_open_a_directory(tmp_path):
+    with pytest.raises(OSError) as e:
+        quadtex.open(tmp_path)
+    assert str(tmp_path) in str(e.value)
+
+
+@pytest.mark.parametrize("cut", [0, 10, 63, 64, -20, -1])
+def test_open_truncated_qtx(tmp_path, qtx_bytes, cut):
+    path = tmp_path / "cut.qtx"
+    path.write_bytes(qtx_bytes[:cut])
+    with pytest.raises(ValueError, match=r"cut\.qtx: invalid \.qtx file: (header|length)"):
+        quadtex.open(path)
+
+
+def test_open_trailing_garbage(tmp_path, qtx_bytes):
+    path = tmp_path / "long.qtx"
+    path.write_bytes(qtx_bytes + b"extra")
+    with pytest.raises(ValueError, match=r"long\.qtx: invalid \.qtx file: length"):
+        quadtex.open(path)
+
+
+def test_open_bit_flipped_payload(tmp_path, qtx_bytes):
+    b = bytearray(qtx_bytes)
+    b[-9] ^= 0x01
+    path = tmp_path / "flip.qtx"
+    path.write_bytes(bytes(b))
+    with pytest.raises(ValueError, match=r"flip\.qtx: invalid \.qtx file: payload_crc"):
+        quadtex.open(path)
+
+
+def test_open_text_as_qtx(tmp_path):
+    path = tmp_path / "notes.qtx"
+    path.write_text("x0 z0 x1 z1\n0 0 1 1\n" * 5)
+    with pytest.raises(ValueError, match=r"notes\.qtx: invalid \.qtx file: magic"):
+        quadtex.open(path)
+
+
+def test_pack_missing_file(tmp_path):
+    path = tmp_path / "absent.png"
+    with pytest.raises(FileNotFoundError) as e:
+        quadtex.pack(path)
+    assert e.value.filename == str(path)
+
+
+@pytest.mark.parametrize(
+    "name, data",
+    [
+        ("notes.png", b"these are not pixels"),
+        ("empty.jpg", b""),
+        ("noidat.png", _png_header_only(4, 4)),
+        ("zero.png", _png_header_only(0, 0)),
+        ("idat.png", b"\x89PNG\r\n\x1a\n"
+         + _png_chunk(b"IHDR", struct.pack(">IIBBBBB", 4, 4, 8, 6, 0, 0, 0))
+         + _png_chunk(b"IDAT", b"\x78\x9c not deflate")
+         + _png_chunk(b"IEND", b"")),
+    ],
+)
+def test_pack_corrupt_image_bytes(tmp_path, name, data):
+    path = tmp_path / name
+    path.write_bytes(data)
+    with pytest.raises(ValueError, match=re.escape(str(path))):
+        quadtex.pack(path)
+
+
+def test_pack_truncated_png(tmp_path):
+    path = tmp_path / "whole.png"
+    write_png(path, np.arange(64 * 64 * 3, dtype=np.uint32).reshape(64, 64, 3).astype(np.uint8))
+    data = path.read_bytes()
+    for cut in (8, 33, len(data) // 4, len(data) // 2, len(data) * 3 // 4):
+        cut_path = tmp_path / f"cut{cut}.png"
+        cut_path.write_bytes(data[:cut])
+        with pytest.raises(ValueError, match=re.escape(f"cut{cut}.png")):
+            quadtex.pack(cut_path)
+
+
+def test_pack_png_declaring_100000_squared(tmp_path):
+    path = tmp_path / "huge.png"
+    path.write_bytes(_png_header_only(100_000, 100_000))
+    with pytest.raises(ValueError, match=r"huge\.png: max_dimension exceeded: 100000 > 32768"):
+        quadtex.pack(path)
+
+
+def test_pack_radiance_hdr_is_unsupported(tmp_path):
+    path = tmp_path / "sky.hdr"
+    path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 2\n" + bytes([128, 64, 32, 129]) * 4)
+    with pytest.raises(ValueError, match=r"sky\.hdr: .*not supported"):
+        quadtex.pack(path)
+
+
+SVG_HEAD = '<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" viewBox="0 0 10 10">'
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        ('<linearGradient id="g"><stop offset="0" stop-color="red"/><stop offset="1" stop-color="blue"/></linearGradient>'
+         '<rect id="sky" width="10" height="10" fill="url(#g)"/>', 'unsupported: linearGradient (id "sky")'),
+        ('<mask id="m"><rect width="5" height="5" fill="white"/></mask>'
+         '<rect width="10" height="10" mask="url(#m)"/>', "unsupported: mask"),
+        ('<filter id="f"><feGaussianBlur stdDeviation="2"/></filter>'
+         '<rect width="10" height="10" filter="url(#f)"/>', "unsupported: filter"),
+        ('<rect width="5" height="5"></svg', "invalid SVG"),
+        ('<g id="a"><use xlink:href="#b"/></g><g id="b"><use xlink:href="#a"/></g>', "cycle"),
+    ],
+)
+def test_pack_unsupported_or_broken_svg(tmp_path, body, message):
+    path = tmp_path / "art.svg"
+    path.write_text(SVG_HEAD + body + "</svg>")
+    with pytest.raises(ValueError, match=re.escape(str(path)) + ".*" + re.escape(message)):
+        quadtex.pack(path)
+
+
+def test_pack_svg_use_bomb(tmp_path):
+    s = SVG_HEAD + '<defs><rect id="l0" width="1" height="1"/>'
+    for level in range(1, 11):
+        s += f'<g id="l{level}">' + f'<use xlink:href="#l{level - 1}"/>' * 10 + "</g>"
+    s += '</defs><use xlink:href="#l10"/></svg>'
+    path = tmp_path / "bomb.svg"
+    path.write_text(s)
+    with pytest.raises(ValueError, match=r"bomb\.svg: max_svg_elements exceeded"):
+        quadtex.pack(path)
+
+
+def test_save_into_missing_folder(tmp_path, tex):
+    path = tmp_path / "no" / "such" / "folder" / "t.qtx"
+    with pytest.raises(FileNotFoundError):
+        tex.save(path)
+    assert not path.exists()
+
+
+def test_filter_nan_in_every_field(tex):
+    for corner in range(4):
+        for axis, name in ((0, "x"), (1, "z")):
+            quads = np.tile(np.array(UNIT), (3, 1, 1))
+            quads[2, corner, axis] = np.nan
+            with pytest.raises(ValueError, match=rf"^quads\[2\]: coordinate corner\[{corner}\]\.{name} is not finite \(NaN\)$"):
+                tex.filter(quads)
+
+
+def test_bad_wrap_types(tex):
+    q = np.array([UNIT])
+    for wrap in (3, ("repeat",)):
+        with pytest.raises((ValueError, TypeError), match="wrap"):
+            tex.filter(q, wrap=wrap)
+
+
+def test_integrate_nan_rect(tex):
+    with pytest.raises(ValueError, match=r"^rects\[0\]: coordinate x0 is not finite \(NaN\)$"):
+        tex.integrate([[np.nan, 0, 1, 1]])

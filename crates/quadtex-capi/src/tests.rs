@@ -523,3 +523,301 @@ fn last_error_is_per_call_and_per_thread() {
     assert_eq!(last_error(), None);
     unsafe { qtx_free(t) };
 }
+
+// The C entry points' share of the bad-input catalogue (tests/bad_inputs.rs
+// holds the command line's): each hostile input is a status and a message
+// naming the file and the problem, never a crash, and `out` stays NULL.
+
+/// Packs `bytes` written as `dir/name` and expects `status` with every one of
+/// `parts` (and the file's name) in the message.
+fn pack_bytes_fails(case: &str, name: &str, bytes: &[u8], status: QtxStatus, parts: &[&str]) {
+    let dir = temp_dir(case);
+    let file = dir.join(name);
+    std::fs::write(&file, bytes).unwrap();
+    let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
+    assert_eq!(
+        unsafe { qtx_pack(c_path(&file).as_ptr(), 0.0, -1, &mut texture) },
+        status,
+        "{:?}",
+        last_error()
+    );
+    assert!(texture.is_null(), "out is cleared on failure");
+    assert_error(&[name]);
+    assert_error(parts);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A valid `.qtx` file's bytes (the checkerboard).
+fn checker_qtx_bytes(case: &str) -> Vec<u8> {
+    let dir = temp_dir(case);
+    let file = dir.join("ok.qtx");
+    quadtex_io::write_qtx(&file, &checker_tree(), Some((2, 2))).unwrap();
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    bytes
+}
+
+fn open_bytes_fails(case: &str, bytes: &[u8], status: QtxStatus, parts: &[&str]) {
+    let dir = temp_dir(case);
+    let file = dir.join(format!("{case}.qtx"));
+    std::fs::write(&file, bytes).unwrap();
+    let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
+    assert_eq!(
+        unsafe { qtx_open(c_path(&file).as_ptr(), &mut texture) },
+        status,
+        "{:?}",
+        last_error()
+    );
+    assert!(texture.is_null(), "out is cleared on failure");
+    assert_error(&[&format!("{case}.qtx")]);
+    assert_error(parts);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn open_truncated_qtx_at_every_length() {
+    let bytes = checker_qtx_bytes("trunc-src");
+    for n in 0..bytes.len() {
+        open_bytes_fails(
+            "truncated",
+            &bytes[..n],
+            QtxStatus::Format,
+            &["invalid .qtx"],
+        );
+    }
+}
+
+#[test]
+fn open_bit_flipped_qtx() {
+    let mut bytes = checker_qtx_bytes("flip-src");
+    let n = bytes.len();
+    bytes[n - 6] ^= 0x10;
+    open_bytes_fails("flipped", &bytes, QtxStatus::Format, &["payload_crc"]);
+    let mut bytes = checker_qtx_bytes("flip-src2");
+    bytes[20] ^= 0x01;
+    open_bytes_fails("flipped-header", &bytes, QtxStatus::Format, &["header_crc"]);
+}
+
+#[test]
+fn open_a_directory() {
+    let dir = temp_dir("open-dir");
+    let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
+    let status = unsafe { qtx_open(c_path(&dir).as_ptr(), &mut texture) };
+    assert_ne!(status, QtxStatus::Ok);
+    assert_ne!(status, QtxStatus::Internal);
+    assert!(texture.is_null());
+    assert_error(&["open-dir"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn pack_missing_file() {
+    let dir = temp_dir("pack-missing");
+    let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
+    let missing = dir.join("absent.png");
+    assert_eq!(
+        unsafe { qtx_pack(c_path(&missing).as_ptr(), 0.0, -1, &mut texture) },
+        QtxStatus::Io
+    );
+    assert!(texture.is_null());
+    assert_error(&["absent.png"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &byte in data {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+/// A PNG whose IHDR declares `w × h`, then an empty IDAT and IEND.
+fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut body = kind.to_vec();
+        body.extend(data);
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        c.extend(&body);
+        c.extend(crc32(&body).to_be_bytes());
+        c
+    };
+    let mut ihdr = w.to_be_bytes().to_vec();
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]);
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(chunk(b"IHDR", &ihdr));
+    png.extend(chunk(b"IDAT", &[]));
+    png.extend(chunk(b"IEND", &[]));
+    png
+}
+
+#[test]
+fn pack_png_declaring_100000_squared() {
+    pack_bytes_fails(
+        "pack-huge",
+        "huge.png",
+        &png_header_only(100_000, 100_000),
+        QtxStatus::Limit,
+        &["max_dimension"],
+    );
+}
+
+#[test]
+fn pack_png_without_pixels() {
+    pack_bytes_fails(
+        "pack-empty-idat",
+        "empty.png",
+        &png_header_only(4, 4),
+        QtxStatus::Format,
+        &[],
+    );
+}
+
+#[test]
+fn pack_truncated_png() {
+    let dir = temp_dir("pack-trunc-src");
+    let png = dir.join("ok.png");
+    quadtex_io::save_image(
+        &png,
+        &quadtex_io::LinearImage {
+            width: 32,
+            height: 32,
+            pixels: vec![Rgba::opaque(0.2, 0.4, 0.6); 1024],
+        },
+    )
+    .unwrap();
+    let bytes = std::fs::read(&png).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    // (Cut inside IEND, the image is whole: that decodes.)
+    for n in [
+        8,
+        20,
+        33,
+        bytes.len() / 4,
+        bytes.len() / 2,
+        bytes.len() * 3 / 4,
+    ] {
+        pack_bytes_fails(
+            "pack-trunc",
+            "trunc.png",
+            &bytes[..n],
+            QtxStatus::Format,
+            &[],
+        );
+    }
+}
+
+#[test]
+fn pack_radiance_hdr_is_refused() {
+    let mut bytes = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 2\n".to_vec();
+    bytes.extend([128u8, 64, 32, 129].repeat(4));
+    pack_bytes_fails(
+        "pack-hdr",
+        "sky.hdr",
+        &bytes,
+        QtxStatus::Format,
+        &["not supported"],
+    );
+}
+
+#[test]
+fn pack_exr_with_non_finite_texels_is_finite() {
+    let dir = temp_dir("pack-exr-nan");
+    let exr = dir.join("nan.exr");
+    let pixels = (0..16)
+        .map(|i| match i % 4 {
+            0 => Rgba::new(f32::NAN, 0.5, 0.5, 1.0),
+            1 => Rgba::new(0.5, 0.5, 0.5, f32::NAN),
+            2 => Rgba::new(f32::INFINITY, f32::NEG_INFINITY, 0.5, f32::INFINITY),
+            _ => Rgba::opaque(0.25, 0.5, 0.75),
+        })
+        .collect();
+    quadtex_io::save_image(
+        &exr,
+        &quadtex_io::LinearImage {
+            width: 4,
+            height: 4,
+            pixels,
+        },
+    )
+    .unwrap();
+    let mut texture = null_mut();
+    assert_eq!(
+        unsafe { qtx_pack(c_path(&exr).as_ptr(), 0.0, -1, &mut texture) },
+        QtxStatus::Ok,
+        "{:?}",
+        last_error()
+    );
+    for quad in [rect(0.0, 0.0, 1.0, 1.0), rect(0.0, 0.75, 0.25, 1.0)] {
+        let c = filter_one(texture, quad, &qtx_filter_options_default());
+        assert!(c.iter().all(|v| v.is_finite()), "{c:?}");
+    }
+    unsafe { qtx_free(texture) };
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn pack_empty_path_and_no_image() {
+    let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
+    let empty = CString::default();
+    assert_eq!(
+        unsafe { qtx_pack(empty.as_ptr(), 0.0, -1, &mut texture) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["path is empty"]);
+    assert!(texture.is_null());
+    pack_bytes_fails("pack-empty", "empty.png", b"", QtxStatus::Format, &[]);
+}
+
+#[test]
+fn filter_rejects_every_non_finite_coordinate() {
+    let texture = checker();
+    for field in 0..8 {
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut quads = [rect(0.0, 0.0, 0.5, 0.5); 2];
+            quads[1][field] = bad;
+            let mut out = [7.0f32; 8];
+            let status =
+                unsafe { qtx_filter(texture, quads.as_ptr().cast(), 2, null(), out.as_mut_ptr()) };
+            assert_eq!(status, QtxStatus::InvalidArgument);
+            let axis = if field % 2 == 0 { "x" } else { "z" };
+            assert_error(&["quad 1", &format!("corner[{}].{axis}", field / 2)]);
+            assert!(out.iter().all(|&v| v == 7.0), "out untouched on failure");
+        }
+    }
+    unsafe { qtx_free(texture) };
+}
+
+#[test]
+fn texture_info_and_filter_after_failed_open_are_refused() {
+    // What C code that ignores the status would do: use the NULL `out`.
+    let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
+    let missing = CString::new("/nonexistent/quadtex/none.qtx").unwrap();
+    assert_eq!(
+        unsafe { qtx_open(missing.as_ptr(), &mut texture) },
+        QtxStatus::Io
+    );
+    assert!(texture.is_null());
+    let mut info = std::mem::MaybeUninit::<QtxTextureInfo>::uninit();
+    assert_eq!(
+        unsafe { qtx_texture_info(texture, info.as_mut_ptr()) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["texture is NULL"]);
+    let quad = rect(0.0, 0.0, 1.0, 1.0);
+    let mut rgba = [0.0f32; 4];
+    assert_eq!(
+        unsafe { qtx_filter(texture, quad.as_ptr(), 1, null(), rgba.as_mut_ptr()) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["texture is NULL"]);
+    unsafe { qtx_free(texture) };
+}

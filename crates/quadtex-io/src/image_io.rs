@@ -64,16 +64,44 @@ pub fn load_texels(path: &Path) -> Result<TexelGrid, Error> {
 
 /// As [`load_texels`] with explicit limits, checked before decoding.
 pub fn load_texels_with_limits(path: &Path, limits: &Limits) -> Result<TexelGrid, Error> {
+    limits.check_file_size(path, std::fs::metadata(path).map_err(io(path))?.len())?;
+    let open = || {
+        ImageReader::open(path)
+            .map_err(io(path))?
+            .with_guessed_format()
+            .map_err(io(path))
+    };
+    decode_texels(open, path, limits)
+}
+
+/// As [`load_texels_with_limits`] for a file already in memory; `path`
+/// only names it in errors.
+pub fn load_texels_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    limits: &Limits,
+) -> Result<TexelGrid, Error> {
+    limits.check_file_size(path, bytes.len() as u64)?;
+    let open = || {
+        ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(io(path))
+    };
+    decode_texels(open, path, limits)
+}
+
+/// Reads the dimensions from one reader `open` gives, checks them against
+/// `limits`, then decodes from a second.
+fn decode_texels<R: std::io::BufRead + std::io::Seek>(
+    open: impl Fn() -> Result<ImageReader<R>, Error>,
+    path: &Path,
+    limits: &Limits,
+) -> Result<TexelGrid, Error> {
     let image_err = |e: image::ImageError| Error::Image {
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    limits.check_file_size(path, std::fs::metadata(path).map_err(io(path))?.len())?;
-    let reader = ImageReader::open(path)
-        .map_err(io(path))?
-        .with_guessed_format()
-        .map_err(io(path))?;
-    let (w, h) = reader.into_dimensions().map_err(image_err)?;
+    let (w, h) = open()?.into_dimensions().map_err(image_err)?;
     for v in [w, h] {
         if v > limits.max_dimension {
             return Err(Error::Limit {
@@ -84,10 +112,7 @@ pub fn load_texels_with_limits(path: &Path, limits: &Limits) -> Result<TexelGrid
             });
         }
     }
-    let mut reader = ImageReader::open(path)
-        .map_err(io(path))?
-        .with_guessed_format()
-        .map_err(io(path))?;
+    let mut reader = open()?;
     let mut il = image::Limits::default();
     il.max_image_width = Some(limits.max_dimension);
     il.max_image_height = Some(limits.max_dimension);

@@ -21,8 +21,8 @@ pub mod svg;
 pub use atomic::write_atomically;
 pub use error::Error;
 pub use image_io::{
-    LinearImage, linear_to_srgb, load_linear_image, load_texels, load_texels_with_limits,
-    save_image, srgb_to_linear,
+    LinearImage, linear_to_srgb, load_linear_image, load_texels, load_texels_from_bytes,
+    load_texels_with_limits, save_image, srgb_to_linear,
 };
 pub use limits::Limits;
 pub use qtx::{

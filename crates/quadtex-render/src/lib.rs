@@ -32,7 +32,9 @@ pub use measure::{
     LookupTiming, PixelFootprint, centre_distance, pixel_footprints, texture_only, time_lookups,
 };
 pub use options::{Filter, PixelFilter, REFERENCE_SEED, RenderOptions};
-pub use parse::{load_scene, load_scene_with_limits, parse_scene, parse_scene_with_limits};
+pub use parse::{
+    load_scene, load_scene_with_limits, parse_obj, parse_scene, parse_scene_with_limits,
+};
 pub use render::render;
 pub use scene::Scene;
 pub use stats::RenderSummary;

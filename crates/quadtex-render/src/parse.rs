@@ -544,71 +544,18 @@ impl Context<'_> {
         translate: Vec3,
         key: &str,
     ) -> Result<crate::scene::Mesh, Error> {
-        let options = tobj::LoadOptions {
-            triangulate: true,
-            single_index: true,
-            ..tobj::LoadOptions::default()
-        };
-        let (models, _) = tobj::load_obj(file, &options)
-            .map_err(|e| self.err(key, &format!("{}: {e}", file.display())))?;
-        let mut triangles = Vec::new();
-        for model in &models {
-            let m = &model.mesh;
-            if m.texcoords.is_empty() {
-                return Err(self.err(
-                    key,
-                    &format!(
-                        "{}: model `{}` has no texture coordinates (vt)",
-                        file.display(),
-                        model.name
-                    ),
-                ));
-            }
-            for tri in m.indices.chunks_exact(3) {
-                if triangles.len() >= self.limits.max_mesh_triangles {
-                    return Err(self.err(
-                        key,
-                        &format!(
-                            "{}: more than max_mesh_triangles {} triangles",
-                            file.display(),
-                            self.limits.max_mesh_triangles
-                        ),
-                    ));
-                }
-                let mut p = [Vec3::default(); 3];
-                let mut uv = [[0.0; 2]; 3];
-                for (k, &i) in tri.iter().enumerate() {
-                    let i = i as usize;
-                    let (Some(pos), Some(tc)) = (
-                        m.positions.get(3 * i..3 * i + 3),
-                        m.texcoords.get(2 * i..2 * i + 2),
-                    ) else {
-                        return Err(
-                            self.err(key, &format!("{}: index {i} out of range", file.display()))
-                        );
-                    };
-                    p[k] = Vec3::new(f64::from(pos[0]), f64::from(pos[1]), f64::from(pos[2]))
-                        * scale
-                        + translate;
-                    uv[k] = [f64::from(tc[0]), f64::from(tc[1])];
-                }
-                if !p.iter().all(|v| v.is_finite()) || !uv.iter().flatten().all(|v| v.is_finite()) {
-                    return Err(self.err(
-                        key,
-                        &format!(
-                            "{}: non-finite vertex or texture coordinate",
-                            file.display()
-                        ),
-                    ));
-                }
-                // Degenerate triangles (zero area or collapsed UVs) are skipped.
-                if let Some(t) = crate::scene::Triangle::new(p, uv) {
-                    triangles.push(t);
-                }
-            }
+        let fail = |message: String| self.err(key, &format!("{}: {message}", file.display()));
+        let len = std::fs::metadata(file)
+            .map_err(|e| fail(e.to_string()))?
+            .len();
+        if len > self.limits.max_file_bytes {
+            return Err(fail(format!(
+                "{len} bytes, above max_file_bytes {}",
+                self.limits.max_file_bytes
+            )));
         }
-        crate::scene::Mesh::new(triangles)
-            .ok_or_else(|| self.err(key, &format!("{}: no usable triangles", file.display())))
+        let bytes = std::fs::read(file).map_err(|e| fail(e.to_string()))?;
+        parse_obj_with(&bytes, scale, translate, &self.limits).map_err(fail)
     }
 
     fn texture(&mut self, spec: &str, key: &str, svg_level: u8) -> Result<Texture, Error> {
@@ -653,6 +600,111 @@ impl Context<'_> {
         self.textures.insert(cache_key, texture.clone());
         Ok(texture)
     }
+}
+
+/// Parses Wavefront OBJ bytes into a mesh under `limits` (its triangle
+/// count): every face corner needs a texture coordinate (`vt`), every
+/// coordinate must be finite; degenerate triangles are skipped. Materials are
+/// not read (`mtllib` is ignored). The error is a message (the caller adds
+/// the file's name).
+pub fn parse_obj(bytes: &[u8], limits: &Limits) -> Result<crate::scene::Mesh, String> {
+    parse_obj_with(bytes, 1.0, Vec3::default(), limits)
+}
+
+/// Refuses a face (`f`) or line (`l`) element naming an index of magnitude
+/// beyond the file's line count (every vertex, texture coordinate and normal
+/// takes a line, so it cannot exist). `tobj` computes offsets from such
+/// indices with arithmetic that overflows (a panic in debug builds).
+fn check_obj_indices(bytes: &[u8]) -> Result<(), String> {
+    let lines = bytes.split(|&b| b == b'\n').count() as u64;
+    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let Ok(line) = std::str::from_utf8(line) else {
+            continue; // tobj reports the invalid text.
+        };
+        let mut words = line.split_whitespace();
+        if !matches!(words.next(), Some("f" | "l")) {
+            continue;
+        }
+        for index in words.flat_map(|w| w.split('/')) {
+            match index.parse::<i64>() {
+                Ok(i) if i.unsigned_abs() > lines => {
+                    return Err(format!(
+                        "line {}: index {i} out of range (the file has {lines} lines)",
+                        n + 1
+                    ));
+                }
+                _ => {}
+            }
+        }
+    }
+    Ok(())
+}
+
+/// As [`parse_obj`], with `scale` then `translate` applied.
+fn parse_obj_with(
+    bytes: &[u8],
+    scale: f64,
+    translate: Vec3,
+    limits: &Limits,
+) -> Result<crate::scene::Mesh, String> {
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..tobj::LoadOptions::default()
+    };
+    check_obj_indices(bytes)?;
+    // Materials are not used: no material library is read.
+    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| e.to_string())?;
+    let mut triangles = Vec::new();
+    // Models without faces (vertices only, or an empty file) add nothing.
+    for model in models.iter().filter(|m| !m.mesh.indices.is_empty()) {
+        let m = &model.mesh;
+        if m.texcoords.is_empty() {
+            return Err(format!(
+                "model `{}` has no texture coordinates (vt)",
+                model.name
+            ));
+        }
+        if m.texcoords.len() / 2 != m.positions.len() / 3 {
+            return Err(format!(
+                "model `{}`: some face corners have no texture coordinate (vt)",
+                model.name
+            ));
+        }
+        for tri in m.indices.chunks_exact(3) {
+            if triangles.len() >= limits.max_mesh_triangles {
+                return Err(format!(
+                    "more than max_mesh_triangles {} triangles",
+                    limits.max_mesh_triangles
+                ));
+            }
+            let mut p = [Vec3::default(); 3];
+            let mut uv = [[0.0; 2]; 3];
+            for (k, &i) in tri.iter().enumerate() {
+                let i = i as usize;
+                let (Some(pos), Some(tc)) = (
+                    m.positions.get(3 * i..3 * i + 3),
+                    m.texcoords.get(2 * i..2 * i + 2),
+                ) else {
+                    return Err(format!("index {i} out of range"));
+                };
+                p[k] = Vec3::new(f64::from(pos[0]), f64::from(pos[1]), f64::from(pos[2])) * scale
+                    + translate;
+                uv[k] = [f64::from(tc[0]), f64::from(tc[1])];
+            }
+            if !p.iter().all(|v| v.is_finite()) || !uv.iter().flatten().all(|v| v.is_finite()) {
+                return Err("non-finite vertex or texture coordinate".into());
+            }
+            // Degenerate triangles (zero area or collapsed UVs) are skipped.
+            if let Some(t) = crate::scene::Triangle::new(p, uv) {
+                triangles.push(t);
+            }
+        }
+    }
+    crate::scene::Mesh::new(triangles).ok_or_else(|| "no usable triangles".into())
 }
 
 #[cfg(test)]
