@@ -52,18 +52,19 @@ echo
 echo "| method | ns / lookup, median (min–max) | texture memory | RMSE | FLIP | time vs OIIO aniso 16, median (min–max) | RMSE vs OIIO aniso 16 |"
 echo "|---|---:|---:|---:|---:|---:|---:|"
 base_method="OIIO aniso 16 bilinear"
-# Per method: sorted per-round times and per-round ratios to the base.
-stats() { # method -> "median min max" of ns, then "median min max" of ratios
-  awk -F'\t' -v m="$1" -v b="$base_method" '
-    $2 == b { base[$1] = $3 }
-    $2 == m { ns[$1] = $3 }
-    END {
-      n = 0
-      for (r in ns) { t[++n] = ns[r]; q[n] = ns[r] / base[r] }
-      asort(t); asort(q)
-      mid = int((n + 1) / 2)
-      printf "%.0f %.0f %.0f %.2f %.2f %.2f\n", t[mid], t[1], t[n], q[mid], q[1], q[n]
-    }' "$times"
+# "median min max" of a column of numbers on stdin (POSIX tools only).
+spread() {
+  sort -g | awk '{ v[NR] = $1 } END { printf "%s %s %s\n", v[int((NR + 1) / 2)], v[1], v[NR] }'
+}
+# Per method: the spread of its per-round ns, then of its per-round ratio
+# to the base method's time in the same round.
+stats() {
+  local t q
+  t=$(awk -F'\t' -v m="$1" '$2 == m { printf "%.0f\n", $3 }' "$times" | spread)
+  q=$(awk -F'\t' -v m="$1" -v b="$base_method" '
+    $2 == b { base[$1] = $3 } $2 == m { ns[$1] = $3 }
+    END { for (r in ns) printf "%.2f\n", ns[r] / base[r] }' "$times" | spread)
+  echo "$t $q"
 }
 base_rmse=""
 rows=$(mktemp)
