@@ -240,29 +240,32 @@ impl Homography {
     /// How many pieces to cut `rect` into along `x` and `z` so that the
     /// screen density varies by at most a factor `1 + tolerance` (to first
     /// order) within each piece; at most [`MAX_DENSITY_PIECES`] in all.
+    #[inline]
     pub fn density_pieces(&self, rect: &Fragment, tolerance: f64) -> (usize, usize) {
         let r = &self.inverse_w;
-        let q = |x: f64, z: f64| (r[0] * x + r[1] * z + r[2]).abs();
-        let q_min = q(rect.x0(), rect.z0())
-            .min(q(rect.x1(), rect.z0()))
-            .min(q(rect.x0(), rect.z1()))
-            .min(q(rect.x1(), rect.z1()));
+        // q is affine: over the rectangle it ranges ±(|r₀|·w + |r₁|·h)/2
+        // around its value at the centre (which keeps one sign over Q).
+        let (dq_x, dq_z) = (r[0].abs() * rect.width(), r[1].abs() * rect.height());
+        let centre =
+            r[0] * 0.5 * (rect.x0() + rect.x1()) + r[1] * 0.5 * (rect.z0() + rect.z1()) + r[2];
+        let q_min = centre.abs() - 0.5 * (dq_x + dq_z);
         if q_min.is_nan() || q_min <= 0.0 {
             return (1, 1);
         }
         // ρ ∝ q⁻³: a relative change Δq/q changes ρ by about 3·Δq/q.
+        let limit = q_min * tolerance / 3.0;
+        if dq_x <= limit && dq_z <= limit {
+            return (1, 1);
+        }
         let count = |dq: f64| {
-            let k = (3.0 * dq / (q_min * tolerance)).ceil();
+            let k = (dq / limit).ceil();
             if k.is_finite() {
                 k.clamp(1.0, MAX_DENSITY_PIECES as f64) as usize
             } else {
                 MAX_DENSITY_PIECES
             }
         };
-        let (mut nx, mut nz) = (
-            count(r[0].abs() * rect.width()),
-            count(r[1].abs() * rect.height()),
-        );
+        let (mut nx, mut nz) = (count(dq_x), count(dq_z));
         while nx * nz > MAX_DENSITY_PIECES {
             if nx >= nz {
                 nx = nx.div_ceil(2)

@@ -191,6 +191,7 @@ struct AxisCut {
 }
 
 impl AxisCut {
+    #[inline(always)]
     fn new(mode: WrapMode, a: f64, b: f64, edge: f64) -> AxisCut {
         let (pieces, border_length) = match mode {
             WrapMode::Repeat => (split_repeat(a, b), 0.0),
@@ -212,6 +213,7 @@ impl AxisCut {
     }
 
     /// Length of `[a, b)` that reads the texture.
+    #[inline]
     fn texture_length(&self) -> f64 {
         self.pieces
             .iter()
@@ -230,6 +232,7 @@ impl AxisCut {
 /// border's share is its exact area times the border colour. With
 /// [`WrapMode::Repeat`] or [`WrapMode::Mirror`] on both axes the cost is at
 /// most nine box queries, whatever the number of tiles.
+#[inline]
 pub fn integrate_wrapped<T: BoxIntegral + ?Sized>(
     source: &T,
     f: &Fragment,
@@ -272,6 +275,7 @@ pub fn integrate_wrapped<T: BoxIntegral + ?Sized>(
 /// `[a, b)` cut at integers: up to three pieces `(lo, hi, count)` in local
 /// tile coordinates: the left partial tile, the whole tiles (`[0,1)` ×
 /// count), the right partial tile.
+#[inline(always)]
 fn split_repeat(a: f64, b: f64) -> [Option<Piece>; 3] {
     let (ta, tb) = (a.floor(), b.floor());
     if ta == tb || b == tb && tb - ta == 1.0 {
