@@ -38,6 +38,8 @@ pub struct Args {
     /// to a square grid.
     #[arg(long, value_name = "N", default_value_t = 1024)]
     reference_spp: u32,
+    #[command(flatten)]
+    memory: super::MemoryArgs,
 }
 
 /// Runs `quadtex footprints`.
@@ -48,9 +50,11 @@ pub fn run(args: Args) -> Result<()> {
         width,
         passes,
         reference_spp,
+        memory,
     } = args;
     let grid = (f64::from(reference_spp.clamp(1, 4096)).sqrt().round() as u32).max(1);
-    let scene = quadtex_render::load_scene(&path)?;
+    let limits = memory.limits();
+    let scene = quadtex_render::load_scene_with_limits(&path, &limits)?;
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let height = scene.camera.height_for_width(width);
     let (records, users) = quadtex_eval::peers::footprint_records(&scene, width, height)?;
@@ -63,6 +67,12 @@ pub fn run(args: Args) -> Result<()> {
         let tree = &texture.tree;
         // The peer gets the same raster the in-project baselines use.
         let level = quadtex_render::scene::baseline_level(tree.depth());
+        quadtex_core::memory::check_budget(
+            || format!("rasterising texture {i} at level {level}"),
+            quadtex_core::QuadTree::rasterise_bytes(level),
+            Some(limits.max_memory),
+            "raise --memory-limit",
+        )?;
         let grid = tree.rasterise(level)?;
         let image = LinearImage {
             width: grid.width(),
