@@ -51,6 +51,8 @@ pub struct Args {
     /// Timed runs per measurement (the median is reported; at least 1).
     #[arg(long, value_name = "R", default_value_t = 5)]
     runs: usize,
+    #[command(flatten)]
+    memory: super::MemoryArgs,
 }
 
 /// A value parser: a power of two in 64..=16384.
@@ -70,14 +72,28 @@ pub fn run(args: Args) -> Result<()> {
         size,
         queries,
         runs,
+        memory,
     } = args;
+    let budget = memory.bytes();
+    let side = u64::from(size);
+    // The raster (8 bytes a texel) and a lossless tree of it (at most 4/3 nodes a texel).
+    quadtex_core::memory::check_budget(
+        || format!("benchmarking a {size}x{size} texture"),
+        8 * side * side + quadtex_core::memory::BUILD_BYTES_PER_NODE * side * side * 4 / 3,
+        Some(budget),
+        "lower --size, or raise --memory-limit",
+    )?;
     let runs = runs.max(1);
     let grid = runway_art().rasterise(size, size)?;
     let mut pack_times = Vec::new();
     let mut tree = None;
     for _ in 0..3 {
         let start = Instant::now();
-        let (t, _) = QuadTree::from_texels(&grid, &BuildOptions::default())?;
+        let options = BuildOptions {
+            max_bytes: Some(budget),
+            ..BuildOptions::default()
+        };
+        let (t, _) = QuadTree::from_texels(&grid, &options)?;
         pack_times.push(start.elapsed().as_secs_f64());
         tree = Some(t);
     }

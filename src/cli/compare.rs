@@ -73,6 +73,8 @@ pub struct Args {
     width: u32,
     #[command(flatten)]
     options: CompareArgs,
+    #[command(flatten)]
+    memory: super::MemoryArgs,
 }
 
 /// The options `compare` shares with `demo --compare` (whose `--width` is
@@ -116,7 +118,7 @@ impl CompareArgs {
 /// Runs `quadtex compare`.
 pub fn run(args: Args) -> Result<()> {
     let settings = args.options.settings(args.width);
-    let scene = quadtex_render::load_scene(&args.scene)?;
+    let scene = quadtex_render::load_scene_with_limits(&args.scene, &args.memory.limits())?;
     let name = args
         .scene
         .file_stem()

@@ -43,6 +43,8 @@ pub struct Args {
     /// such rounds with the peer's).
     #[arg(long)]
     timing_only: bool,
+    #[command(flatten)]
+    memory: super::MemoryArgs,
 }
 
 /// The quadtex lookups timed against the peer: label, file stem, filter.
@@ -75,9 +77,11 @@ pub fn run(args: Args) -> Result<()> {
         passes,
         reference_spp,
         timing_only,
+        memory,
     } = args;
     let grid = (f64::from(reference_spp.clamp(1, 4096)).sqrt().round() as u32).max(1);
-    let scene = quadtex_render::load_scene(&path)?;
+    let limits = memory.limits();
+    let scene = quadtex_render::load_scene_with_limits(&path, &limits)?;
     if timing_only {
         let height = scene.camera.height_for_width(width);
         for (label, _, filter) in TIMED {
@@ -98,6 +102,12 @@ pub fn run(args: Args) -> Result<()> {
         let tree = &texture.tree;
         // The peer gets the same raster the in-project baselines use.
         let level = quadtex_render::scene::baseline_level(tree.depth());
+        quadtex_core::memory::check_budget(
+            || format!("rasterising texture {i} at level {level}"),
+            quadtex_core::QuadTree::rasterise_bytes(level),
+            Some(limits.max_memory),
+            "raise --memory-limit",
+        )?;
         let grid = tree.rasterise(level)?;
         let image = LinearImage {
             width: grid.width(),

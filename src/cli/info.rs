@@ -22,6 +22,8 @@ pub struct Args {
     /// SVG art only: the levels to pack, comma-separated [default: 8,10,12,14,16].
     #[arg(long, value_name = "L,L,...", value_delimiter = ',', value_parser = vector_level)]
     levels: Option<Vec<u8>>,
+    #[command(flatten)]
+    memory: super::MemoryArgs,
 }
 
 /// A value parser: one of `--levels`, at most the vector packer's limit.
@@ -40,14 +42,23 @@ fn vector_level(text: &str) -> std::result::Result<u8, String> {
 
 /// Runs `quadtex info`.
 pub fn run(args: Args) -> Result<()> {
-    let Args { path, levels } = args;
+    let Args {
+        path,
+        levels,
+        memory,
+    } = args;
+    let limits = memory.limits();
     if is_svg(&path) {
-        return info_svg(&path, levels.as_deref().unwrap_or(&[8, 10, 12, 14, 16]));
+        return info_svg(
+            &path,
+            levels.as_deref().unwrap_or(&[8, 10, 12, 14, 16]),
+            &limits,
+        );
     }
     if levels.is_some() {
         return Err("--levels applies to SVG art only".into());
     }
-    let (tree, meta) = quadtex_io::read_qtx_with_limits(&path, &quadtex_io::Limits::default())?;
+    let (tree, meta) = quadtex_io::read_qtx_with_limits(&path, &limits)?;
     let bytes = tree.memory_bytes();
     println!(
         "file:        {} ({})",
@@ -89,8 +100,7 @@ pub fn run(args: Args) -> Result<()> {
 
 /// `info ART.svg`: the art packed at several levels against rasters of the
 /// same effective resolution, and the deepest level that fits in 1 MiB.
-fn info_svg(path: &Path, levels: &[u8]) -> Result<()> {
-    let limits = quadtex_io::Limits::default();
+fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<()> {
     println!("{}: exact vector packing", path.display());
     println!(
         "level  effective        nodes   tree bytes   RGBA8 raster  raster+mips  raster+mips/tree   pack s"
@@ -100,7 +110,7 @@ fn info_svg(path: &Path, levels: &[u8]) -> Result<()> {
     rows.dedup();
     for level in rows {
         let start = Instant::now();
-        let (tree, _) = quadtex_io::pack_svg(path, level, &limits)?;
+        let (tree, _) = quadtex_io::pack_svg(path, level, limits)?;
         let seconds = start.elapsed().as_secs_f64();
         let bytes = tree.memory_bytes();
         let side = 1u64 << level;
@@ -120,7 +130,7 @@ fn info_svg(path: &Path, levels: &[u8]) -> Result<()> {
     // Trees only grow with the level, so walk up until one exceeds 1 MiB.
     let mut fits = None;
     for level in 0..=MAX_VECTOR_LEVEL {
-        let (tree, _) = quadtex_io::pack_svg(path, level, &limits)?;
+        let (tree, _) = quadtex_io::pack_svg(path, level, limits)?;
         if tree.memory_bytes() > 1 << 20 {
             break;
         }

@@ -99,6 +99,76 @@ fn in_range(
     }
 }
 
+/// The memory budget, shared (flattened) by every command that loads or
+/// builds textures.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct MemoryArgs {
+    /// Memory budget for reading, decoding and packing textures: a size
+    /// such as 512M, 4G, 1.5GiB or plain bytes (units are binary: K = KiB =
+    /// 1024 bytes). Each step estimates its peak first and stops with an
+    /// error naming the estimate when it is above the budget, instead of
+    /// running out of memory. Default: the smallest of the cgroup memory
+    /// limit, the address space left under `ulimit -v` and 3/4 of physical
+    /// memory.
+    #[arg(long, value_name = "SIZE", value_parser = memory_size)]
+    memory_limit: Option<u64>,
+}
+
+impl MemoryArgs {
+    /// The file limits with this budget.
+    fn limits(&self) -> quadtex_io::Limits {
+        let mut limits = quadtex_io::Limits::default();
+        if let Some(bytes) = self.memory_limit {
+            limits.max_memory = bytes;
+        }
+        limits
+    }
+
+    /// The budget in bytes (given or detected).
+    fn bytes(&self) -> u64 {
+        self.limits().max_memory
+    }
+}
+
+/// Gives every texture of `scene` the memory budget for its raster baselines.
+fn budget_scene(scene: &mut quadtex_render::Scene, bytes: u64) {
+    for s in &mut scene.surfaces {
+        s.texture = s.texture.take().map(|t| t.with_memory_budget(bytes));
+    }
+}
+
+/// A value parser: a size in bytes, `512M`, `4G`, `1.5GiB`, `100000` (binary
+/// units; `B`, `K`/`KB`/`KiB`, `M`…, `G`…, `T`…, case-insensitive).
+fn memory_size(text: &str) -> std::result::Result<u64, String> {
+    let t = text.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let shift = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        "t" | "tb" | "tib" => 40,
+        other => {
+            return Err(format!(
+                "--memory-limit: unknown unit `{other}` in `{text}` (use B, K, M, G or T)"
+            ));
+        }
+    };
+    let value: f64 = number.parse().map_err(|_| {
+        format!("--memory-limit: `{text}` is not a size such as 512M, 4G or 1.5GiB")
+    })?;
+    let bytes = value * (1u64 << shift) as f64;
+    if !(bytes >= 1.0 && bytes < 2f64.powi(63)) {
+        return Err(format!(
+            "--memory-limit: `{text}` must be at least one byte and below 8 EiB"
+        ));
+    }
+    Ok(bytes.round() as u64)
+}
+
 /// Whether `path` names SVG art (by its extension).
 fn is_svg(path: &Path) -> bool {
     path.extension()
@@ -184,6 +254,39 @@ mod tests {
             Cli::try_parse_from(["quadtex", "demo", "--compare", "--frames", "3", "-o", "d"])
                 .is_ok()
         );
+    }
+
+    #[test]
+    fn memory_sizes_parse() {
+        assert_eq!(memory_size("512M"), Ok(512 << 20));
+        assert_eq!(memory_size("4G"), Ok(4 << 30));
+        assert_eq!(memory_size("4g"), Ok(4 << 30));
+        assert_eq!(memory_size("1.5GiB"), Ok(3 << 29));
+        assert_eq!(memory_size("2 GB"), Ok(2 << 30));
+        assert_eq!(memory_size("100000"), Ok(100_000));
+        assert_eq!(memory_size("64KiB"), Ok(64 << 10));
+        assert_eq!(memory_size("1T"), Ok(1 << 40));
+        for bad in ["", "G", "0", "0.1", "-1G", "4X", "1e3", "nanG", "1..5G"] {
+            assert!(memory_size(bad).is_err(), "{bad} accepted");
+        }
+        assert!(memory_size("4X").is_err_and(|e| e.contains("unknown unit `x`")));
+    }
+
+    #[test]
+    fn memory_limit_is_on_every_texture_command() {
+        for cmd in [
+            "pack",
+            "info",
+            "query",
+            "render",
+            "demo",
+            "compare",
+            "footprints",
+            "bench",
+        ] {
+            let help = parse_error(&[cmd, "--help"]).to_string();
+            assert!(help.contains("--memory-limit <SIZE>"), "{cmd}: {help}");
+        }
     }
 
     #[test]

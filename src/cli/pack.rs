@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use quadtex_core::{BuildOptions, QuadTree};
 
-use super::{Result, human_bytes, is_svg, level, raster_bytes};
+use super::{MemoryArgs, Result, human_bytes, is_svg, level, raster_bytes};
 
 /// Max level of SVG art packed without `--max-level` (4096² effective).
 const DEFAULT_SVG_LEVEL: u8 = 12;
@@ -33,6 +33,8 @@ pub struct Args {
     /// Depth of the finest cells (default: the image's natural depth; 12 for SVG art).
     #[arg(long, value_name = "L", value_parser = level("--max-level"))]
     max_level: Option<u8>,
+    #[command(flatten)]
+    memory: MemoryArgs,
 }
 
 /// A value parser: a tolerance in [0, 1].
@@ -51,9 +53,13 @@ pub fn run(args: Args) -> Result<()> {
         output,
         tolerance,
         max_level,
+        memory,
     } = args;
+    let limits = memory.limits();
     let mut options = BuildOptions {
         max_level,
+        max_nodes: limits.max_nodes,
+        max_bytes: Some(limits.max_memory),
         ..BuildOptions::default()
     };
     if let Some(t) = tolerance {
@@ -71,12 +77,13 @@ pub fn run(args: Args) -> Result<()> {
             &input,
             &output,
             options.max_level.unwrap_or(DEFAULT_SVG_LEVEL),
+            &limits,
         );
     }
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("decoding {}", input.display()));
-    let grid = quadtex_io::load_texels(&input)?;
+    let grid = quadtex_io::load_texels_with_limits(&input, &limits)?;
     progress.stage(&format!(
         "packing {}x{} texels",
         grid.width(),
@@ -117,11 +124,11 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-fn pack_svg(input: &Path, output: &Path, level: u8) -> Result<()> {
+fn pack_svg(input: &Path, output: &Path, level: u8, limits: &quadtex_io::Limits) -> Result<()> {
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("packing {} at level {level}", input.display()));
-    let (tree, report) = quadtex_io::pack_svg(input, level, &quadtex_io::Limits::default())?;
+    let (tree, report) = quadtex_io::pack_svg(input, level, limits)?;
     progress.stage(&format!("writing {}", output.display()));
     let side = 1u32 << level.min(31);
     quadtex_io::write_qtx(output, &tree, Some((side, side)))?;

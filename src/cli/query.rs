@@ -20,11 +20,13 @@ pub struct Args {
     /// Integrate at this level (default: the tree's depth, exact).
     #[arg(short = 'k', long, value_name = "K", value_parser = level("--level"))]
     level: Option<u8>,
+    #[command(flatten)]
+    memory: super::MemoryArgs,
 }
 
 /// Runs `quadtex query`.
 pub fn run(args: Args) -> Result<()> {
-    let tree = quadtex_io::read_qtx(&args.path)?;
+    let (tree, _) = quadtex_io::read_qtx_with_limits(&args.path, &args.memory.limits())?;
     let k = args.level.unwrap_or(tree.depth());
     let stdin = std::io::stdin().lock();
     let mut out = BufWriter::new(std::io::stdout().lock());

@@ -25,6 +25,8 @@ pub struct Args {
     output: PathBuf,
     #[command(flatten)]
     render: RenderArgs,
+    #[command(flatten)]
+    memory: super::MemoryArgs,
 }
 
 /// Render the built-in airfield scene, or compare every filter on it.
@@ -53,6 +55,8 @@ pub struct DemoArgs {
     compare: bool,
     #[command(flatten)]
     compare_options: compare::CompareArgs,
+    #[command(flatten)]
+    memory: super::MemoryArgs,
 }
 
 /// The render options shared by `render` and `demo`.
@@ -165,12 +169,14 @@ impl RenderArgs {
 /// Runs `quadtex render`.
 pub fn run(args: Args) -> Result<()> {
     let options = args.render.options()?;
-    let scene = quadtex_render::load_scene(&args.scene)?;
+    let scene = quadtex_render::load_scene_with_limits(&args.scene, &args.memory.limits())?;
     render(&scene, &options, args.output)
 }
 
 /// Runs `quadtex demo`.
 pub fn run_demo(args: DemoArgs) -> Result<()> {
+    let mut scene = quadtex_render::demo_scene()?;
+    super::budget_scene(&mut scene, args.memory.bytes());
     if args.compare {
         let width = args
             .render
@@ -181,11 +187,11 @@ pub fn run_demo(args: DemoArgs) -> Result<()> {
         }
         let settings = args.compare_options.settings(width);
         let dir = args.output.ok_or("demo --compare: missing -o DIR")?;
-        return compare::compare_scene(&quadtex_render::demo_scene()?, "demo", &dir, &settings);
+        return compare::compare_scene(&scene, "demo", &dir, &settings);
     }
     let options = args.render.options()?;
     let output = args.output.unwrap_or_else(|| PathBuf::from("demo.png"));
-    render(&quadtex_render::demo_scene()?, &options, output)
+    render(&scene, &options, output)
 }
 
 /// Renders `scene` into `output` (.png or .exr) with a progress bar on a

@@ -17,7 +17,11 @@
 
 use crate::Error;
 use crate::colour::{Rgba, Unorm16Rgba};
+use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push, try_vec};
 use crate::tree::{self, MAX_DEPTH, MAX_NODES, QuadTree};
+
+/// The settings that shrink a raster build, for [`Error::MemoryBudget`].
+const RASTER_KNOBS: &str = "lower --max-level, raise --tolerance, or raise --memory-limit";
 
 /// Deepest cell grid the raster builder allocates: `2^15 × 2^15` cells, 8 GiB.
 /// (Vector art packs deeper without a grid; see the SVG packer.)
@@ -125,6 +129,11 @@ pub struct BuildOptions {
     pub max_level: Option<u8>,
     /// Refuse to build trees with more nodes than this.
     pub max_nodes: u64,
+    /// Memory budget in bytes (`None`: no budget). Before allocating, the
+    /// builder refuses with [`Error::MemoryBudget`] when the texels plus the
+    /// cell grid ([`raster_grid_bytes`]) exceed it; while building, when
+    /// those plus [`crate::memory::BUILD_BYTES_PER_NODE`] per node so far do.
+    pub max_bytes: Option<u64>,
 }
 
 impl Default for BuildOptions {
@@ -133,6 +142,7 @@ impl Default for BuildOptions {
             tolerance: 0.0,
             max_level: None,
             max_nodes: MAX_NODES,
+            max_bytes: None,
         }
     }
 }
@@ -201,6 +211,9 @@ struct Builder<'a> {
     nodes: u64,
     max_nodes: u64,
     max_error: u16,
+    /// Bytes held before the tree grows (texels, cell grid).
+    fixed_bytes: u64,
+    max_bytes: Option<u64>,
 }
 
 impl Builder<'_> {
@@ -251,9 +264,16 @@ impl Builder<'_> {
                 max: self.max_nodes,
             });
         }
+        let (nodes, depth) = (self.nodes, self.depth);
+        check_budget(
+            || format!("packing at level {depth} (stopped after {nodes} nodes)"),
+            self.fixed_bytes + nodes * BUILD_BYTES_PER_NODE,
+            self.max_bytes,
+            RASTER_KNOBS,
+        )?;
         let next = &mut self.levels[usize::from(level) + 1];
         for (c, term) in children {
-            next.push((!term, c));
+            try_push(next, (!term, c), "tree level")?;
         }
         Ok((stats, mean, false))
     }
@@ -278,9 +298,21 @@ impl QuadTree {
         }
         let side = 1usize << depth;
         let resampled = grid.width as usize != side || grid.height as usize != side;
+        let fixed_bytes = raster_grid_bytes(grid.width, grid.height, depth);
+        check_budget(
+            || {
+                format!(
+                    "packing {}x{} texels at level {depth} ({side}x{side} cells)",
+                    grid.width, grid.height
+                )
+            },
+            fixed_bytes + BUILD_BYTES_PER_NODE,
+            options.max_bytes,
+            RASTER_KNOBS,
+        )?;
         let owned;
         let cells: &[Unorm16Rgba] = if resampled {
-            owned = resample(grid, side);
+            owned = try_resample(grid, side)?;
             &owned
         } else {
             &grid.texels
@@ -295,6 +327,8 @@ impl QuadTree {
             nodes: 1,
             max_nodes: options.max_nodes,
             max_error: 0,
+            fixed_bytes,
+            max_bytes: options.max_bytes,
         };
         let (_, root, terminal) = b.square(0, 0, 0)?;
         b.levels[0].push((!terminal, root));
@@ -310,13 +344,39 @@ impl QuadTree {
     }
 }
 
-/// Exact area-weighted resampling of the texels onto a `side × side` cell grid.
+/// Bytes a raster build at `depth` holds before its tree grows: the
+/// `width × height` texels (8 bytes each), and unless they are the cells
+/// themselves the `2^depth × 2^depth` cell grid (8 bytes a cell) plus the
+/// resampler's horizontal pass (`height × 2^depth` cells of 16 bytes). The
+/// tree adds [`crate::memory::BUILD_BYTES_PER_NODE`] a node, at most
+/// `4^(depth+1)/3` nodes (a lossless tree of noise).
+pub fn raster_grid_bytes(width: u32, height: u32, depth: u8) -> u64 {
+    let texels = 8 * u64::from(width) * u64::from(height);
+    let side = 1u64 << depth.min(31);
+    if u64::from(width) == side && u64::from(height) == side {
+        return texels;
+    }
+    texels
+        .saturating_add(8u64.saturating_mul(side).saturating_mul(side))
+        .saturating_add(16u64.saturating_mul(u64::from(height)).saturating_mul(side))
+}
+
+/// [`try_resample`] for callers that check sizes first (the mip pyramid):
+/// an allocation failure aborts, as `vec!` does.
 pub(crate) fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
+    match try_resample(grid, side) {
+        Ok(cells) => cells,
+        Err(_) => std::alloc::handle_alloc_error(std::alloc::Layout::new::<[f32; 4]>()),
+    }
+}
+
+/// Exact area-weighted resampling of the texels onto a `side × side` cell grid.
+fn try_resample(grid: &TexelGrid, side: usize) -> Result<Vec<Unorm16Rgba>, Error> {
     let xw = weights_1d(grid.width as usize, side);
     let zw = weights_1d(grid.height as usize, side);
     // Horizontal pass into f32 rows, then vertical pass with rounding once.
     let w = grid.width as usize;
-    let mut rows = vec![[0f32; 4]; grid.height as usize * side];
+    let mut rows = try_vec(grid.height as usize * side, [0f32; 4], "resampling rows")?;
     for row in 0..grid.height as usize {
         let src = &grid.texels[row * w..(row + 1) * w];
         for (cx, taps) in xw.iter().enumerate() {
@@ -329,7 +389,7 @@ pub(crate) fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
             rows[row * side + cx] = acc;
         }
     }
-    let mut out = vec![Unorm16Rgba::default(); side * side];
+    let mut out = try_vec(side * side, Unorm16Rgba::default(), "cell grid")?;
     for (cz, taps) in zw.iter().enumerate() {
         for cx in 0..side {
             let mut acc = [0f32; 4];
@@ -343,7 +403,7 @@ pub(crate) fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
             out[cz * side + cx] = Unorm16Rgba([q[0].min(a), q[1].min(a), q[2].min(a), a]);
         }
     }
-    out
+    Ok(out)
 }
 
 /// For each of `cells` equal cells of `[0,1)`, the texels (of `texels` equal
@@ -424,6 +484,60 @@ mod tests {
             report.max_error > 0.0 && report.max_error <= 0.002,
             "{report:?}"
         );
+    }
+
+    #[test]
+    fn grid_estimate_counts_texels_cells_and_resampling_rows() {
+        assert_eq!(raster_grid_bytes(64, 64, 6), 8 * 64 * 64);
+        // The 1×20000 column on 32768² cells: texels + cells + rows.
+        assert_eq!(
+            raster_grid_bytes(1, 20000, 15),
+            8 * 20000 + 8 * (1 << 30) + 16 * 20000 * 32768
+        );
+        let g = TexelGrid::from_fn(1, 20000, |_, r| {
+            Rgba::opaque((r % 7) as f32 / 7.0, 0.0, 0.0)
+        })
+        .unwrap();
+        let opts = BuildOptions {
+            max_bytes: Some(1 << 30),
+            ..BuildOptions::default()
+        };
+        let e = QuadTree::from_texels(&g, &opts).unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "packing 1x20000 texels at level 15 (32768x32768 cells) needs an estimated 17.8 GiB, above the memory budget of 1.0 GiB"
+            ),
+            "{e}"
+        );
+    }
+
+    /// A noisy 256² image: the up-front part is the texels; the build stops
+    /// once the nodes so far exceed the rest of the budget, and a budget of
+    /// the texels plus `BUILD_BYTES_PER_NODE` a node of the finished tree
+    /// (within 4× of its `memory_bytes`) fits.
+    #[test]
+    fn budget_bounds_the_tree_while_building() {
+        let g = TexelGrid::from_fn(256, 256, |c, r| {
+            let h = (c.wrapping_mul(2_654_435_761) ^ r.wrapping_mul(40503)) % 1000;
+            Rgba::opaque(h as f32 / 1000.0, 0.5, 0.5)
+        })
+        .unwrap();
+        let (tree, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+        let fixed = raster_grid_bytes(256, 256, 8);
+        let needed = fixed + BUILD_BYTES_PER_NODE * tree.node_count();
+        assert!(needed - fixed <= 4 * tree.memory_bytes());
+        let fits = BuildOptions {
+            max_bytes: Some(needed),
+            ..BuildOptions::default()
+        };
+        assert!(QuadTree::from_texels(&g, &fits).is_ok());
+        let half = BuildOptions {
+            max_bytes: Some(fixed + (needed - fixed) / 2),
+            ..BuildOptions::default()
+        };
+        let e = QuadTree::from_texels(&g, &half).unwrap_err();
+        assert!(matches!(e, Error::MemoryBudget { .. }), "{e}");
+        assert!(e.to_string().contains("stopped after"), "{e}");
     }
 
     #[test]

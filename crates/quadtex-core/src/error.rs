@@ -71,6 +71,29 @@ pub enum Error {
         /// What is accepted.
         expected: &'static str,
     },
+    /// A build or read would need more memory than the caller's budget
+    /// (see [`crate::memory`]); nothing large was allocated. Shown as
+    /// `WHAT needs an estimated 9.3 GiB, above the memory budget of
+    /// 4.0 GiB (KNOBS)`.
+    MemoryBudget {
+        /// What was attempted (`packing at level 20`).
+        what: String,
+        /// The estimated peak, in bytes.
+        estimate: u64,
+        /// The budget, in bytes.
+        budget: u64,
+        /// The settings that lower the estimate or raise the budget
+        /// (`lower --max-level, or set --memory-limit`).
+        knobs: &'static str,
+    },
+    /// The allocator refused memory the input asked for (the budget was
+    /// not set or the estimate was low); nothing was built.
+    AllocationFailed {
+        /// What was being allocated.
+        what: String,
+        /// The size of the refused allocation, in bytes.
+        bytes: u64,
+    },
 }
 
 impl fmt::Display for Error {
@@ -108,6 +131,22 @@ impl fmt::Display for Error {
                 value,
                 expected,
             } => write!(f, "{name} must be {expected}, got {value}"),
+            Error::MemoryBudget {
+                what,
+                estimate,
+                budget,
+                knobs,
+            } => write!(
+                f,
+                "{what} needs an estimated {}, above the memory budget of {} ({knobs})",
+                crate::memory::format_bytes(*estimate),
+                crate::memory::format_bytes(*budget)
+            ),
+            Error::AllocationFailed { what, bytes } => write!(
+                f,
+                "out of memory: {what} needed {} more and the system refused it (lower --max-level, or set --memory-limit to refuse such work up front)",
+                crate::memory::format_bytes(*bytes)
+            ),
         }
     }
 }

@@ -30,6 +30,7 @@ pub mod footprint;
 mod fragment;
 
 pub mod build;
+pub mod memory;
 pub mod mipmap;
 pub mod reference;
 pub mod sat;

@@ -171,10 +171,14 @@ impl QuadTree {
                 )));
             }
         }
-        let mut padded = Vec::with_capacity(PAD + colours.len());
+        let mut padded = crate::memory::try_with_capacity(PAD + colours.len(), "tree colours")?;
         padded.extend([Unorm16Rgba::default(); PAD]);
         padded.extend(colours);
-        let mut blocks = vec![RankBlock::default(); padded.len().div_ceil(64)];
+        let mut blocks = crate::memory::try_vec(
+            padded.len().div_ceil(64),
+            RankBlock::default(),
+            "tree inner flags",
+        )?;
         for i in 0..n {
             if is_inner(i) {
                 let p = i as usize + PAD;
@@ -211,12 +215,12 @@ impl QuadTree {
             top_level,
             top: Vec::new(),
         };
-        tree.top = tree.build_top_table();
+        tree.top = tree.build_top_table()?;
         Ok(tree)
     }
 
-    fn build_top_table(&self) -> Vec<u32> {
-        let mut top = vec![0u32; top_table_len(self.top_level)];
+    fn build_top_table(&self) -> Result<Vec<u32>, Error> {
+        let mut top = crate::memory::try_vec(top_table_len(self.top_level), 0u32, "top table")?;
         top[0] = PAD as u32;
         for l in 1..=self.top_level {
             let side = 1usize << l;
@@ -232,7 +236,7 @@ impl QuadTree {
                 }
             }
         }
-        top
+        Ok(top)
     }
 
     /// Checks that every inner colour is the average of its children to
@@ -331,7 +335,9 @@ impl QuadTree {
     /// The tree as a raster of `2^level × 2^level` cells (row 0 at the top),
     /// each cell the colour of the square that holds it in the tree truncated
     /// at `level` (deeper than the tree, cells repeat their square's colour).
-    /// For baselines that need a raster; refused above level 14 (a 128 MiB grid).
+    /// For baselines that need a raster; refused above level 14 (a 2 GiB
+    /// grid); [`QuadTree::rasterise_bytes`] is its size, to check against a
+    /// budget first.
     pub fn rasterise(&self, level: u8) -> Result<crate::TexelGrid, Error> {
         if level > 14 {
             return Err(Error::DepthTooLarge {
@@ -340,7 +346,7 @@ impl QuadTree {
             });
         }
         let side = 1usize << level;
-        let mut texels = vec![Unorm16Rgba::default(); side * side];
+        let mut texels = crate::memory::try_vec(side * side, Unorm16Rgba::default(), "raster")?;
         self.for_each_leaf(level, |l, ix, iz, colour| {
             let span = 1usize << (level - l);
             let (x0, z0) = (ix as usize * span, iz as usize * span);
@@ -350,6 +356,11 @@ impl QuadTree {
             }
         });
         crate::TexelGrid::new(side as u32, side as u32, texels)
+    }
+
+    /// Bytes [`QuadTree::rasterise`] allocates at `level` (8 a cell).
+    pub fn rasterise_bytes(level: u8) -> u64 {
+        8u64 << (2 * u32::from(level.min(31)))
     }
 
     #[inline]
@@ -605,9 +616,13 @@ fn top_table_len(top_level: u8) -> usize {
 pub(crate) fn from_levels(levels: Vec<Vec<(bool, Unorm16Rgba)>>) -> Result<QuadTree, Error> {
     let depth = (levels.len() - 1) as u8;
     let n: usize = levels.iter().map(Vec::len).sum();
-    let mut colours = Vec::with_capacity(PAD + n);
+    let mut colours = crate::memory::try_with_capacity(PAD + n, "tree colours")?;
     colours.extend([Unorm16Rgba::default(); PAD]);
-    let mut blocks = vec![RankBlock::default(); (PAD + n).div_ceil(64)];
+    let mut blocks = crate::memory::try_vec(
+        (PAD + n).div_ceil(64),
+        RankBlock::default(),
+        "tree inner flags",
+    )?;
     let mut level_starts = Vec::with_capacity(levels.len() + 1);
     for level in levels {
         level_starts.push(colours.len());

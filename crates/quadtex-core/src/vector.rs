@@ -40,7 +40,11 @@
 
 use crate::Error;
 use crate::colour::{Rgba, Unorm16Rgba};
+use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
 use crate::tree::{self, MAX_NODES, QuadTree};
+
+/// The settings that shrink a vector build, for [`Error::MemoryBudget`].
+const VECTOR_KNOBS: &str = "lower --max-level, or raise --memory-limit";
 
 /// Deepest level the vector packer accepts: `2^24` squares a side. (Input
 /// coordinates in `f32`, as SVG parsers give them, carry no more precision.)
@@ -238,6 +242,70 @@ impl VectorArt {
         self.points
     }
 
+    /// An upper estimate of the nodes [`QuadTree::from_vector`] builds at
+    /// `max_level`, per level (entry `L` counts the nodes of level `L`),
+    /// without building anything; its cost is the number of points times
+    /// the number of levels.
+    ///
+    /// A square splits only where an edge passes through its interior. At
+    /// level `L` a contour visits at most one square more than the grid
+    /// lines (spaced `2^-L`) its edges cross, so the squares split at level
+    /// `L` are at most the sum of that over all contours (and at most
+    /// `4^L`); each split square has four children. Edges lying on a grid
+    /// line split nothing and are not counted. It overestimates where
+    /// shapes overlap or are hidden by opaque shapes; for a single outline
+    /// it is close (the star of `samples/` at levels 8–16: within 10%).
+    pub fn estimate_level_nodes(&self, max_level: u8) -> Vec<u64> {
+        let max_level = max_level.min(MAX_VECTOR_LEVEL);
+        let mut nodes = vec![1u64];
+        for level in 0..max_level {
+            let n = 1i64 << level;
+            let scale = n as f64;
+            let cell = |v: f64| ((v.clamp(0.0, 1.0) * scale) as i64).min(n - 1);
+            let on_grid = |v: f64| {
+                let g = v.clamp(0.0, 1.0) * scale;
+                g == g.floor()
+            };
+            let mut split = 0u64;
+            for contour in self.shapes.iter().flat_map(|s| &s.contours) {
+                let b = contour.bounds;
+                if b[2] < 0.0 || b[0] > 1.0 || b[3] < 0.0 || b[1] > 1.0 {
+                    continue;
+                }
+                let pts = &contour.points;
+                let Some(&last) = pts.last() else { continue };
+                let (mut px, mut pz) = (cell(last[0]), cell(last[1]));
+                let mut prev = last;
+                let mut visits = 1u64;
+                for &p in pts {
+                    let (x, z) = (cell(p[0]), cell(p[1]));
+                    let along_grid =
+                        (p[0] == prev[0] && on_grid(p[0])) || (p[1] == prev[1] && on_grid(p[1]));
+                    if along_grid {
+                        // Splits nothing; the next edge may start in a square not yet counted.
+                        visits += u64::from((x, z) != (px, pz));
+                    } else {
+                        visits += (x - px).unsigned_abs() + (z - pz).unsigned_abs();
+                    }
+                    (px, pz, prev) = (x, z, p);
+                }
+                split = split.saturating_add(visits);
+            }
+            nodes.push(4 * split.min(1u64 << (2 * level)));
+        }
+        nodes
+    }
+
+    /// An upper estimate of the peak bytes [`QuadTree::from_vector`] holds
+    /// at `max_level` beyond the art itself: [`VectorArt::estimate_level_nodes`]
+    /// summed, at [`crate::memory::BUILD_BYTES_PER_NODE`] a node.
+    pub fn estimate_build_bytes(&self, max_level: u8) -> u64 {
+        self.estimate_level_nodes(max_level)
+            .iter()
+            .fold(0u64, |a, &n| a.saturating_add(n))
+            .saturating_mul(BUILD_BYTES_PER_NODE)
+    }
+
     /// The exact composite colour at point `p` (linear, premultiplied), by
     /// winding numbers over the unclipped contours. Slow; for tests and
     /// references. Points on an edge count as on its left or right
@@ -318,6 +386,12 @@ pub struct VectorOptions {
     pub max_level: u8,
     /// Refuse to build trees with more nodes than this.
     pub max_nodes: u64,
+    /// Memory budget in bytes (`None`: no budget). Before building, the
+    /// packer refuses with [`Error::MemoryBudget`] when
+    /// [`VectorArt::estimate_build_bytes`] exceeds it (in a time
+    /// proportional to the points times the levels); while building, when
+    /// [`crate::memory::BUILD_BYTES_PER_NODE`] per node so far does.
+    pub max_bytes: Option<u64>,
 }
 
 impl Default for VectorOptions {
@@ -325,6 +399,7 @@ impl Default for VectorOptions {
         VectorOptions {
             max_level: 12,
             max_nodes: MAX_NODES,
+            max_bytes: None,
         }
     }
 }
@@ -376,6 +451,7 @@ struct VectorBuilder<'a> {
     art: &'a VectorArt,
     max_level: u8,
     max_nodes: u64,
+    max_bytes: Option<u64>,
     nodes: u64,
     levels: Vec<Vec<(bool, Unorm16Rgba)>>,
     report: VectorReport,
@@ -394,10 +470,20 @@ impl QuadTree {
                 max: MAX_VECTOR_LEVEL.into(),
             });
         }
+        if options.max_bytes.is_some() {
+            let level = options.max_level;
+            check_budget(
+                || format!("packing at level {level}"),
+                art.estimate_build_bytes(level),
+                options.max_bytes,
+                VECTOR_KNOBS,
+            )?;
+        }
         let mut b = VectorBuilder {
             art,
             max_level: options.max_level,
             max_nodes: options.max_nodes.min(MAX_NODES),
+            max_bytes: options.max_bytes,
             nodes: 1,
             levels: vec![Vec::new(); usize::from(options.max_level) + 1],
             report: VectorReport::default(),
@@ -460,6 +546,13 @@ impl VectorBuilder<'_> {
                 max: self.max_nodes,
             });
         }
+        let (nodes, max_level) = (self.nodes, self.max_level);
+        check_budget(
+            || format!("packing at level {max_level} (stopped after {nodes} nodes)"),
+            nodes * BUILD_BYTES_PER_NODE,
+            self.max_bytes,
+            VECTOR_KNOBS,
+        )?;
         let mut children = [(Unorm16Rgba::default(), true); 4];
         let mut sum = [0.0; 4];
         for (k, child) in children.iter_mut().enumerate() {
@@ -476,7 +569,7 @@ impl VectorBuilder<'_> {
         }
         let next = &mut self.levels[usize::from(level) + 1];
         for (c, terminal) in children {
-            next.push((!terminal, c));
+            try_push(next, (!terminal, c), "tree level")?;
         }
         Ok((sum, quantise(sum), false))
     }
@@ -782,6 +875,123 @@ mod tests {
         let c = clip_to_square(&t, sq, &mut Vec::new());
         assert!(!on_border(&c, sq));
         assert!((signed_area(&c) - 0.25 * 0.25 / 2.0).abs() < 1e-15);
+    }
+
+    fn disc(cx: f64, cz: f64, r: f64, n: usize) -> Vec<[f64; 2]> {
+        (0..n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / n as f64;
+                [cx + r * a.cos(), cz + r * a.sin()]
+            })
+            .collect()
+    }
+
+    /// The estimate bounds the nodes built from above, and closely (within
+    /// 1.6× for these outlines); the byte estimate is within 6× of the
+    /// finished tree's `memory_bytes` (30 bytes a node for the build's peak
+    /// against ~8.3 for the tree).
+    #[test]
+    fn node_estimate_bounds_the_tree_closely() {
+        let mut art = VectorArt::new();
+        let white = Rgba::opaque(1.0, 1.0, 1.0);
+        // A full-canvas background (its edges lie on grid lines: no splits), a
+        // disc, a triangle and a translucent square partly outside the canvas.
+        art.fill(
+            vec![rect(0.0, 0.0, 1.0, 1.0)],
+            FillRule::NonZero,
+            Rgba::opaque(0.2, 0.2, 0.2),
+            &[],
+        )
+        .unwrap();
+        art.fill(
+            vec![disc(0.4, 0.5, 0.3, 400)],
+            FillRule::NonZero,
+            white,
+            &[],
+        )
+        .unwrap();
+        art.fill(
+            vec![vec![[0.1, 0.1], [0.9, 0.2], [0.5, 0.95]]],
+            FillRule::EvenOdd,
+            white,
+            &[],
+        )
+        .unwrap();
+        let g = art.group(0.5).unwrap();
+        art.fill(
+            vec![rect(0.7, -0.2, 1.3, 0.4)],
+            FillRule::NonZero,
+            white,
+            &[g],
+        )
+        .unwrap();
+        for level in [4u8, 8, 10, 12] {
+            let (tree, _) = QuadTree::from_vector(
+                &art,
+                &VectorOptions {
+                    max_level: level,
+                    ..VectorOptions::default()
+                },
+            )
+            .unwrap();
+            let built: Vec<u64> = tree.level_stats().iter().map(|l| l.nodes).collect();
+            let estimate = art.estimate_level_nodes(level);
+            for (l, (&b, &e)) in built.iter().zip(&estimate).enumerate() {
+                assert!(e >= b, "level {l} of {level}: estimate {e} < built {b}");
+            }
+            let (b, e) = (
+                tree.node_count() as f64,
+                estimate.iter().sum::<u64>() as f64,
+            );
+            assert!(e <= 1.6 * b, "level {level}: estimate {e} vs {b} nodes");
+            let bytes = art.estimate_build_bytes(level) as f64;
+            let tree_bytes = tree.memory_bytes() as f64;
+            assert!(
+                bytes >= tree_bytes && bytes <= 6.0 * tree_bytes,
+                "level {level}: {bytes} vs {tree_bytes}"
+            );
+        }
+    }
+
+    #[test]
+    fn budget_refuses_before_building() {
+        let mut art = VectorArt::new();
+        art.fill(
+            vec![disc(0.5, 0.5, 0.4, 1000)],
+            FillRule::NonZero,
+            Rgba::opaque(1.0, 0.0, 0.0),
+            &[],
+        )
+        .unwrap();
+        let options = VectorOptions {
+            max_level: 24,
+            max_bytes: Some(1 << 30),
+            ..VectorOptions::default()
+        };
+        let start = std::time::Instant::now();
+        let e = QuadTree::from_vector(&art, &options).unwrap_err();
+        assert!(start.elapsed() < std::time::Duration::from_secs(5));
+        let Error::MemoryBudget {
+            estimate, budget, ..
+        } = &e
+        else {
+            panic!("{e}")
+        };
+        // The disc's outline, 2.5 units long, crosses ~2.5 · 2^24 squares at level 24 alone.
+        assert!(*estimate > 4 * 30 * (2 << 24), "{e}");
+        assert_eq!(*budget, 1 << 30);
+        assert!(
+            e.to_string()
+                .starts_with("packing at level 24 needs an estimated"),
+            "{e}"
+        );
+        // A budget the estimate fits builds.
+        let fits = VectorOptions {
+            max_level: 8,
+            max_bytes: Some(art.estimate_build_bytes(8)),
+            ..VectorOptions::default()
+        };
+        assert!(QuadTree::from_vector(&art, &fits).is_ok());
     }
 
     #[test]

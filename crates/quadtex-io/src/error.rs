@@ -57,6 +57,23 @@ pub enum Error {
         /// The element or property, with its `id` when it has one.
         element: String,
     },
+    /// Reading, decoding or packing the file would need more memory than
+    /// [`crate::Limits::max_memory`]; nothing large was allocated. Shown as
+    /// `FILE: WHAT needs an estimated 9.3 GiB, above the memory budget of
+    /// 4.0 GiB (KNOBS)`. (The core's own [`quadtex_core::Error::MemoryBudget`]
+    /// is turned into this variant.)
+    MemoryBudget {
+        /// The file.
+        path: PathBuf,
+        /// What was attempted (`packing at level 20`, `decoding 1x20000 texels`).
+        what: String,
+        /// The estimated peak, in bytes.
+        estimate: u64,
+        /// The budget, in bytes.
+        budget: u64,
+        /// The settings that lower the estimate or raise the budget.
+        knobs: &'static str,
+    },
     /// The core library refused the data.
     Core {
         /// The file.
@@ -101,6 +118,19 @@ impl fmt::Display for Error {
             Error::UnsupportedSvg { path, element } => {
                 write!(f, "{}: unsupported: {element}", path.display())
             }
+            Error::MemoryBudget {
+                path,
+                what,
+                estimate,
+                budget,
+                knobs,
+            } => write!(
+                f,
+                "{}: {what} needs an estimated {}, above the memory budget of {} ({knobs})",
+                path.display(),
+                quadtex_core::memory::format_bytes(*estimate),
+                quadtex_core::memory::format_bytes(*budget)
+            ),
             Error::Core { path, source } => write!(f, "{}: {source}", path.display()),
         }
     }
@@ -113,6 +143,29 @@ impl std::error::Error for Error {
             Error::Core { source, .. } => Some(source),
             _ => None,
         }
+    }
+}
+
+/// Wraps a core error for `path`; a core memory-budget refusal becomes
+/// [`Error::MemoryBudget`].
+pub(crate) fn core(path: &std::path::Path) -> impl FnOnce(quadtex_core::Error) -> Error + '_ {
+    move |source| match source {
+        quadtex_core::Error::MemoryBudget {
+            what,
+            estimate,
+            budget,
+            knobs,
+        } => Error::MemoryBudget {
+            path: path.to_path_buf(),
+            what,
+            estimate,
+            budget,
+            knobs,
+        },
+        source => Error::Core {
+            path: path.to_path_buf(),
+            source,
+        },
     }
 }
 

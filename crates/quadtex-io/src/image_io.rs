@@ -101,7 +101,10 @@ fn decode_texels<R: std::io::BufRead + std::io::Seek>(
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    let (w, h) = open()?.into_dimensions().map_err(image_err)?;
+    let decoder = open()?.into_decoder().map_err(image_err)?;
+    let (w, h) = image::ImageDecoder::dimensions(&decoder);
+    let decoded_bytes = image::ImageDecoder::total_bytes(&decoder);
+    drop(decoder);
     for v in [w, h] {
         if v > limits.max_dimension {
             return Err(Error::Limit {
@@ -113,22 +116,39 @@ fn decode_texels<R: std::io::BufRead + std::io::Seek>(
         }
     }
     let mut reader = open()?;
+    // The decoder's buffer and the texels (8 bytes each) live together.
+    let texel_bytes = 8 * u64::from(w) * u64::from(h);
+    limits.check_memory(
+        path,
+        || format!("decoding {w}x{h} texels"),
+        decoded_bytes.saturating_add(texel_bytes),
+        "use a smaller image, or raise --memory-limit",
+    )?;
     let mut il = image::Limits::default();
     il.max_image_width = Some(limits.max_dimension);
     il.max_image_height = Some(limits.max_dimension);
-    il.max_alloc = Some(limits.max_file_bytes.max(1 << 30).saturating_mul(8));
+    il.max_alloc = Some(
+        limits
+            .max_file_bytes
+            .max(1 << 30)
+            .saturating_mul(8)
+            .min(limits.max_memory),
+    );
     reader.limits(il);
     let decoded = reader.decode().map_err(image_err)?;
-    texels_from_image(decoded).map_err(|source| Error::Core {
-        path: path.into(),
-        source,
-    })
+    texels_from_image(decoded).map_err(crate::error::core(path))
 }
 
 fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Error> {
     let lut = decode_table();
     let (w, h) = (image.width(), image.height());
-    let mut texels = Vec::with_capacity(w as usize * h as usize);
+    let mut texels = Vec::new();
+    texels
+        .try_reserve_exact(w as usize * h as usize)
+        .map_err(|_| quadtex_core::Error::AllocationFailed {
+            what: format!("decoding {w}x{h} texels"),
+            bytes: 8 * u64::from(w) * u64::from(h),
+        })?;
     let to_texel = |p: [u16; 4]| {
         let a = f32::from(p[3]) / 65535.0;
         Rgba::new(

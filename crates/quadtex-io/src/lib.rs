@@ -24,7 +24,7 @@ pub use image_io::{
     LinearImage, linear_to_srgb, load_linear_image, load_texels, load_texels_from_bytes,
     load_texels_with_limits, save_image, srgb_to_linear,
 };
-pub use limits::Limits;
+pub use limits::{FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE, default_memory_budget};
 pub use qtx::{
     FORMAT_VERSION, MAGIC, QtxInfo, parse_qtx, read_qtx, read_qtx_with_limits, write_qtx,
 };

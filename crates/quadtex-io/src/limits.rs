@@ -1,3 +1,5 @@
+use std::sync::OnceLock;
+
 /// Resource limits applied while reading files, checked before any
 /// allocation they bound. The defaults suit this project's 24 GiB machines;
 /// embedders lower them (`Limits { max_nodes: 1 << 20, ..Limits::default() }`).
@@ -20,7 +22,27 @@ pub struct Limits {
     /// Most triangles in one mesh of a scene (default 20 000: meshes are
     /// intersected without an acceleration structure).
     pub max_mesh_triangles: usize,
+    /// Memory budget in bytes for one decode, build or read (default
+    /// [`default_memory_budget`]: the smallest of the cgroup's memory limit,
+    /// the address space left under `RLIMIT_AS`, and 3/4 of physical
+    /// memory). Each builder and reader estimates its peak before
+    /// allocating and refuses work above the budget with
+    /// [`crate::Error::MemoryBudget`] (the command line's `--memory-limit`
+    /// sets it). Estimates: decoding an image, the decoder's buffer plus 8
+    /// bytes a texel; packing a raster, see
+    /// [`quadtex_core::build::raster_grid_bytes`]; packing SVG, see
+    /// [`quadtex_core::VectorArt::estimate_build_bytes`]; reading a `.qtx`,
+    /// [`QTX_READ_BYTES_PER_NODE`] a node.
+    pub max_memory: u64,
 }
+
+/// Peak bytes per node while reading a `.qtx`: the file's bytes (8.125 a
+/// node), the colours decoded from them (8) and the tree's padded copy (8.25).
+pub const QTX_READ_BYTES_PER_NODE: u64 = 25;
+
+/// The memory budget when neither a cgroup limit, an address-space limit
+/// nor `/proc/meminfo` can be read: 4 GiB.
+pub const FALLBACK_MEMORY_BUDGET: u64 = 4 << 30;
 
 impl Limits {
     /// Refuses a file of `len` bytes above [`Limits::max_file_bytes`].
@@ -39,6 +61,26 @@ impl Limits {
         }
         Ok(())
     }
+
+    /// Refuses `estimate` bytes for `what` above [`Limits::max_memory`].
+    pub(crate) fn check_memory(
+        &self,
+        path: &std::path::Path,
+        what: impl FnOnce() -> String,
+        estimate: u64,
+        knobs: &'static str,
+    ) -> Result<(), crate::Error> {
+        if estimate > self.max_memory {
+            return Err(crate::Error::MemoryBudget {
+                path: path.to_path_buf(),
+                what: what(),
+                estimate,
+                budget: self.max_memory,
+                knobs,
+            });
+        }
+        Ok(())
+    }
 }
 
 impl Default for Limits {
@@ -51,6 +93,122 @@ impl Default for Limits {
             max_svg_elements: 100_000,
             max_scene_shapes: 10_000,
             max_mesh_triangles: 20_000,
+            max_memory: default_memory_budget(),
         }
+    }
+}
+
+/// The default memory budget, detected once per process: the smallest of
+///
+/// * the cgroup's limit (v2 `memory.max` of the process's cgroup or of the
+///   root, v1 `memory/memory.limit_in_bytes`; `max` or a huge v1 value is no
+///   limit),
+/// * the address space left under `RLIMIT_AS` (the soft limit in
+///   `/proc/self/limits` less the process's current `VmSize`),
+/// * 3/4 of physical memory (`MemTotal` in `/proc/meminfo`),
+///
+/// or [`FALLBACK_MEMORY_BUDGET`] when none of them can be read (not Linux).
+pub fn default_memory_budget() -> u64 {
+    static BUDGET: OnceLock<u64> = OnceLock::new();
+    *BUDGET.get_or_init(detect_memory_budget)
+}
+
+fn read(path: &str) -> Option<String> {
+    std::fs::read_to_string(path).ok()
+}
+
+fn detect_memory_budget() -> u64 {
+    let cgroup = cgroup_limit();
+    let address_space = read("/proc/self/limits")
+        .and_then(|t| parse_address_space_limit(&t))
+        .map(|limit| {
+            let used = read("/proc/self/status")
+                .and_then(|t| parse_kib_field(&t, "VmSize:"))
+                .unwrap_or(0);
+            limit.saturating_sub(used)
+        });
+    let physical = read("/proc/meminfo")
+        .and_then(|t| parse_kib_field(&t, "MemTotal:"))
+        .map(|total| total / 4 * 3);
+    [cgroup, address_space, physical]
+        .into_iter()
+        .flatten()
+        .min()
+        .unwrap_or(FALLBACK_MEMORY_BUDGET)
+}
+
+/// The cgroup (v2, then v1) memory limit of this process, if any.
+fn cgroup_limit() -> Option<u64> {
+    let mut candidates = Vec::new();
+    if let Some(own) = read("/proc/self/cgroup").and_then(|t| {
+        t.lines()
+            .find_map(|l| l.strip_prefix("0::").map(str::to_string))
+    }) {
+        let own = own.trim().trim_start_matches('/');
+        if !own.is_empty() {
+            candidates.push(format!("/sys/fs/cgroup/{own}/memory.max"));
+        }
+    }
+    candidates.push("/sys/fs/cgroup/memory.max".into());
+    candidates.push("/sys/fs/cgroup/memory/memory.limit_in_bytes".into());
+    candidates
+        .iter()
+        .filter_map(|p| read(p))
+        .filter_map(|t| parse_cgroup_limit(&t))
+        .min()
+}
+
+/// A cgroup memory limit file's value: bytes, or `None` for `max` (v2) or a
+/// value of 2⁶² or more (v1's "unlimited" is near 2⁶³).
+fn parse_cgroup_limit(text: &str) -> Option<u64> {
+    let v = text.trim().parse::<u64>().ok()?;
+    (v < 1 << 62).then_some(v)
+}
+
+/// The soft "Max address space" limit in `/proc/self/limits`, in bytes;
+/// `None` when unlimited or absent.
+fn parse_address_space_limit(text: &str) -> Option<u64> {
+    let line = text.lines().find(|l| l.starts_with("Max address space"))?;
+    let soft = line["Max address space".len()..]
+        .split_whitespace()
+        .next()?;
+    soft.parse::<u64>().ok()
+}
+
+/// A `NAME:  1234 kB` field of `/proc/meminfo` or `/proc/self/status`, in bytes.
+fn parse_kib_field(text: &str, name: &str) -> Option<u64> {
+    let rest = text.lines().find_map(|l| l.strip_prefix(name))?;
+    let kib = rest.split_whitespace().next()?.parse::<u64>().ok()?;
+    kib.checked_mul(1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn proc_files_parse() {
+        let limits = "Limit                     Soft Limit           Hard Limit           Units     \n\
+                      Max cpu time              unlimited            unlimited            seconds   \n\
+                      Max address space         4294967296           unlimited            bytes     \n";
+        assert_eq!(parse_address_space_limit(limits), Some(4 << 30));
+        let unlimited = limits.replace("4294967296", "unlimited ");
+        assert_eq!(parse_address_space_limit(&unlimited), None);
+        let meminfo = "MemTotal:       24576000 kB\nMemFree:         1000 kB\n";
+        assert_eq!(
+            parse_kib_field(meminfo, "MemTotal:"),
+            Some(24_576_000 * 1024)
+        );
+        assert_eq!(parse_kib_field(meminfo, "VmSize:"), None);
+        assert_eq!(parse_cgroup_limit("max\n"), None);
+        assert_eq!(parse_cgroup_limit("1073741824\n"), Some(1 << 30));
+        assert_eq!(parse_cgroup_limit("9223372036854771712\n"), None);
+    }
+
+    #[test]
+    fn default_budget_is_positive_and_stable() {
+        let b = default_memory_budget();
+        assert!(b > 0);
+        assert_eq!(Limits::default().max_memory, b);
     }
 }

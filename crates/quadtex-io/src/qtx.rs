@@ -90,9 +90,20 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
     let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
     check_header(&header[..got], file_bytes, path, limits)?;
     let mut bytes = header.to_vec();
-    bytes.reserve_exact((file_bytes as usize).saturating_sub(HEADER_BYTES));
+    let body = (file_bytes as usize).saturating_sub(HEADER_BYTES);
+    bytes
+        .try_reserve_exact(body)
+        .map_err(|_| out_of_memory(path, "file", body))?;
     file.read_to_end(&mut bytes).map_err(io(path))?;
     parse_qtx(&bytes, path, limits)
+}
+
+/// The error for an allocation of `bytes` for `what` the allocator refused.
+fn out_of_memory(path: &Path, what: &str, bytes: usize) -> Error {
+    crate::error::core(path)(quadtex_core::Error::AllocationFailed {
+        what: format!("reading {what}"),
+        bytes: bytes as u64,
+    })
 }
 
 fn read_up_to(file: &mut File, buf: &mut [u8]) -> std::io::Result<usize> {
@@ -128,7 +139,12 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
     }
     let nodes = header.nodes;
     let (bits, colour_bytes) = data.split_at(nodes.div_ceil(8) as usize);
-    let mut words = vec![0u64; nodes.div_ceil(64) as usize];
+    let n_words = nodes.div_ceil(64) as usize;
+    let mut words = Vec::new();
+    words
+        .try_reserve_exact(n_words)
+        .map_err(|_| out_of_memory(path, "inner flags", 8 * n_words))?;
+    words.resize(n_words, 0u64);
     for (i, &b) in bits.iter().enumerate() {
         words[i / 8] |= u64::from(b) << (8 * (i % 8));
     }
@@ -145,16 +161,19 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
             format!("{counted} inner flags set, header says {}", header.inner),
         ));
     }
-    let colours = colour_bytes
-        .chunks_exact(8)
-        .map(|c| {
-            Unorm16Rgba(std::array::from_fn(|k| {
-                u16::from_le_bytes([c[2 * k], c[2 * k + 1]])
-            }))
-        })
-        .collect();
-    let tree = QuadTree::from_parts(header.depth, &words, colours)
-        .map_err(|e| bad("nodes", e.to_string()))?;
+    let mut colours = Vec::new();
+    colours
+        .try_reserve_exact(nodes as usize)
+        .map_err(|_| out_of_memory(path, "colours", 8 * nodes as usize))?;
+    colours.extend(colour_bytes.chunks_exact(8).map(|c| {
+        Unorm16Rgba(std::array::from_fn(|k| {
+            u16::from_le_bytes([c[2 * k], c[2 * k + 1]])
+        }))
+    }));
+    let tree = QuadTree::from_parts(header.depth, &words, colours).map_err(|e| match e {
+        quadtex_core::Error::AllocationFailed { .. } => crate::error::core(path)(e),
+        e => bad("nodes", e.to_string()),
+    })?;
     Ok((
         tree,
         QtxInfo {
@@ -275,6 +294,12 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
             ),
         ));
     }
+    limits.check_memory(
+        path,
+        || format!("reading a tree of {nodes} nodes"),
+        nodes.saturating_mul(crate::limits::QTX_READ_BYTES_PER_NODE),
+        "raise --memory-limit, or repack at a lower --max-level",
+    )?;
     Ok(Header {
         depth,
         nodes,

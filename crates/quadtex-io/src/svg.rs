@@ -75,12 +75,10 @@ pub fn pack_svg(
         &VectorOptions {
             max_level,
             max_nodes: limits.max_nodes,
+            max_bytes: Some(limits.max_memory),
         },
     )
-    .map_err(|source| Error::Core {
-        path: path.to_path_buf(),
-        source,
-    })
+    .map_err(crate::error::core(path))
 }
 
 /// Reads an SVG file into vector art flattened for `max_level`.

@@ -580,7 +580,12 @@ impl Context<'_> {
             Some("png" | "jpg" | "jpeg") => {
                 let grid = quadtex_io::load_texels_with_limits(&file, &self.limits)
                     .map_err(|e| self.err(key, &e.to_string()))?;
-                QuadTree::from_texels(&grid, &BuildOptions::default())
+                let options = BuildOptions {
+                    max_nodes: self.limits.max_nodes,
+                    max_bytes: Some(self.limits.max_memory),
+                    ..BuildOptions::default()
+                };
+                QuadTree::from_texels(&grid, &options)
                     .map_err(|e| self.err(key, &format!("{}: {e}", file.display())))?
                     .0
             }
@@ -596,7 +601,7 @@ impl Context<'_> {
                 ));
             }
         };
-        let texture = Texture::new(spec, Arc::new(tree));
+        let texture = Texture::new(spec, Arc::new(tree)).with_memory_budget(self.limits.max_memory);
         self.textures.insert(cache_key, texture.clone());
         Ok(texture)
     }

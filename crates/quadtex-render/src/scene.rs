@@ -476,6 +476,8 @@ pub struct Texture {
     pub tree: Arc<QuadTree>,
     /// Raster baselines (mip pyramid, summed-area table), built on first use.
     baselines: Arc<std::sync::OnceLock<Result<Baselines, String>>>,
+    /// Bytes the baselines may take ([`baseline_bytes`]), `None`: no budget.
+    memory_budget: Option<u64>,
 }
 
 /// The raster forms a baseline filter needs, made from the tree's cells.
@@ -492,6 +494,15 @@ pub fn baseline_level(depth: u8) -> u8 {
     depth.clamp(10, 11)
 }
 
+/// Bytes the raster baselines of one texture take at `level`: the raster
+/// (8 bytes a cell), the mip pyramid (16 bytes a cell, 4/3 for the levels)
+/// and the summed-area table (32 bytes a cell); 256 MiB at level 11.
+pub fn baseline_bytes(level: u8) -> u64 {
+    let side = 1u64 << level.min(20);
+    let cells = side * side;
+    8 * cells + 16 * cells * 4 / 3 + 32 * (side + 1) * (side + 1)
+}
+
 impl Texture {
     /// A texture from its tree.
     pub fn new(name: impl Into<String>, tree: Arc<QuadTree>) -> Texture {
@@ -499,7 +510,16 @@ impl Texture {
             name: name.into(),
             tree,
             baselines: Arc::default(),
+            memory_budget: None,
         }
+    }
+
+    /// The same texture, refusing to build raster baselines whose
+    /// [`baseline_bytes`] exceed `bytes` (scenes loaded under
+    /// `quadtex_io::Limits` get its `max_memory`).
+    pub fn with_memory_budget(mut self, bytes: u64) -> Texture {
+        self.memory_budget = Some(bytes);
+        self
     }
 
     /// The filtering view of this texture under `wrap` (shares the tree).
@@ -511,6 +531,14 @@ impl Texture {
     pub(crate) fn baselines(&self) -> Result<&Baselines, &str> {
         self.baselines
             .get_or_init(|| {
+                let level = baseline_level(self.tree.depth());
+                quadtex_core::memory::check_budget(
+                    || format!("rasterising at level {level} for the raster baselines"),
+                    baseline_bytes(level),
+                    self.memory_budget,
+                    "use the quadtree filter, or raise --memory-limit",
+                )
+                .map_err(|e| format!("{}: {e}", self.name))?;
                 let grid = self
                     .tree
                     .rasterise(baseline_level(self.tree.depth()))

@@ -1,0 +1,152 @@
+//! The memory budget (`--memory-limit`, `Limits::max_memory`): work whose
+//! estimated peak is above the budget stops up front with an error naming
+//! the estimate, the budget and the knobs, exit status 1 and no output.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use common::{run, temp_dir};
+use quadtex_core::Rgba;
+use quadtex_io::{LinearImage, save_image};
+
+fn star() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("samples/star.svg")
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// Runs `args`, expects exit status 1 with the budget error and returns stderr.
+fn refused(args: &[&str]) -> String {
+    let start = Instant::now();
+    let out = run(args, "");
+    let elapsed = start.elapsed();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+    assert!(
+        stderr.contains("needs an estimated") && stderr.contains("above the memory budget of"),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("panicked") && !stderr.contains("backtrace"),
+        "{stderr}"
+    );
+    // Refused before any large allocation: well within a generous bound even in debug builds.
+    assert!(
+        elapsed < Duration::from_secs(30),
+        "{args:?} took {elapsed:?}"
+    );
+    stderr
+}
+
+#[test]
+fn deep_svg_pack_is_refused_up_front() {
+    let dir = temp_dir("mem-star");
+    let out = dir.join("x.qtx");
+    let stderr = refused(&[
+        "pack",
+        &star(),
+        "--max-level",
+        "20",
+        "--memory-limit",
+        "1G",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(stderr.contains("star.svg: packing at level 20"), "{stderr}");
+    assert!(
+        stderr.contains("above the memory budget of 1.0 GiB"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("--max-level") && stderr.contains("--memory-limit"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        0,
+        "no temporary files left"
+    );
+}
+
+#[test]
+fn tall_png_is_refused_before_its_cell_grid_is_allocated() {
+    let dir = temp_dir("mem-tall");
+    let png = dir.join("tall.png");
+    let image = LinearImage {
+        width: 1,
+        height: 20000,
+        pixels: (0..20000)
+            .map(|i| Rgba::opaque((i % 256) as f32 / 255.0, 0.5, 0.25))
+            .collect(),
+    };
+    save_image(&png, &image).unwrap();
+    let out = dir.join("tall.qtx");
+    let stderr = refused(&[
+        "pack",
+        png.to_str().unwrap(),
+        "--memory-limit",
+        "1G",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    // 32768² cells of 8 bytes plus the resampler's 20000 × 32768 rows of 16: 17.8 GiB.
+    assert!(
+        stderr.contains(
+            "packing 1x20000 texels at level 15 (32768x32768 cells) needs an estimated 17.8 GiB"
+        ),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn small_work_fits_a_small_budget_and_tiny_budgets_refuse_reading() {
+    let dir = temp_dir("mem-small");
+    let qtx = dir.join("star.qtx");
+    let out = run(
+        &[
+            "pack",
+            &star(),
+            "--max-level",
+            "8",
+            "--memory-limit",
+            "64M",
+            "-o",
+            qtx.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let info = run(
+        &["info", qtx.to_str().unwrap(), "--memory-limit", "64M"],
+        "",
+    );
+    assert!(
+        info.status.success(),
+        "{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    let stderr = refused(&["info", qtx.to_str().unwrap(), "--memory-limit", "64K"]);
+    assert!(stderr.contains("reading a tree of"), "{stderr}");
+    let stderr = refused(&["query", qtx.to_str().unwrap(), "--memory-limit", "64K"]);
+    assert!(stderr.contains("raise --memory-limit"), "{stderr}");
+}
+
+#[test]
+fn bad_sizes_are_usage_errors() {
+    let out = run(
+        &["pack", &star(), "-o", "x.qtx", "--memory-limit", "4X"],
+        "",
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown unit"));
+}
