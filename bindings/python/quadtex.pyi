@@ -102,7 +102,9 @@ class Texture:
 
     def save(self, path: _StrPath) -> None:
         """Writes a ``.qtx`` file atomically (a temporary file in the same
-        directory, renamed over ``path``)."""
+        directory, renamed over ``path``). A symbolic link is followed (the
+        file it names is replaced; the link stays); a device or FIFO is
+        written in place."""
 
     def __repr__(self) -> str: ...
 

@@ -3,6 +3,7 @@
 //! the same fragments in the same run, plus memory and packing time.
 
 use std::hint::black_box;
+use std::io::Write;
 use std::time::Instant;
 
 use quadtex_core::reference::texel_sum;
@@ -10,6 +11,7 @@ use quadtex_core::sat::SummedAreaTable;
 use quadtex_core::synth::{runway_art, scanline_fragments};
 use quadtex_core::{BuildOptions, Fragment, QuadTree, WeightedColour};
 
+use super::output::Text;
 use super::{Result, human_bytes, raster_bytes};
 
 /// Median seconds per call of `f` over `runs` runs, each answering every fragment.
@@ -45,14 +47,27 @@ pub struct Args {
     /// Texture side in texels: a power of two in 64..=16384.
     #[arg(long, value_name = "N", default_value_t = 4096, value_parser = texture_size)]
     size: u32,
-    /// Fragments per width.
-    #[arg(long, value_name = "Q", default_value_t = 100_000)]
+    /// Fragments per width (at least 1).
+    #[arg(long, value_name = "Q", default_value_t = 100_000, value_parser = at_least_one("--queries"))]
     queries: usize,
     /// Timed runs per measurement (the median is reported; at least 1).
-    #[arg(long, value_name = "R", default_value_t = 5)]
+    #[arg(long, value_name = "R", default_value_t = 5, value_parser = at_least_one("--runs"))]
     runs: usize,
     #[command(flatten)]
     memory: super::MemoryArgs,
+}
+
+/// A value parser: a count of at least 1; `flag` names the option in the error.
+fn at_least_one(
+    flag: &'static str,
+) -> impl Fn(&str) -> std::result::Result<usize, String> + Clone + Send + Sync + 'static {
+    move |text| {
+        let v = text.parse::<usize>().map_err(|e| e.to_string())?;
+        if v == 0 {
+            return Err(format!("{flag} must be at least 1, got 0"));
+        }
+        Ok(v)
+    }
 }
 
 /// A value parser: a power of two in 64..=16384.
@@ -83,7 +98,6 @@ pub fn run(args: Args) -> Result<()> {
         Some(budget),
         "lower --size, or raise --memory-limit",
     )?;
-    let runs = runs.max(1);
     let grid = runway_art().rasterise(size, size)?;
     let mut pack_times = Vec::new();
     let mut tree = None;
@@ -104,52 +118,64 @@ pub fn run(args: Args) -> Result<()> {
     let tree_bytes = tree.memory_bytes();
     let depth = tree.depth();
 
-    println!(
+    let mut out = Text::stdout();
+    writeln!(
+        out,
         "## quadtex bench: runway markings and lettering, {size}x{size} texels (vector-like, lossless)\n"
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "Pack time (median of 3): {:.3} s; {} nodes, depth {depth}\n",
         pack_times[1],
         tree.node_count()
-    );
-    println!("| storage | bytes | tree is smaller by |");
-    println!("|---|---:|---:|");
-    println!(
+    )?;
+    writeln!(out, "| storage | bytes | tree is smaller by |")?;
+    writeln!(out, "|---|---:|---:|")?;
+    writeln!(
+        out,
         "| quadtree ({:.2} B/node) | {} | 1 |",
         tree_bytes as f64 / tree.node_count() as f64,
         human_bytes(tree_bytes)
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "| RGBA8 raster | {} | {:.1}x |",
         human_bytes(raster),
         raster as f64 / tree_bytes as f64
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "| RGBA8 raster + mips | {} | {:.1}x |",
         human_bytes(mips),
         mips as f64 / tree_bytes as f64
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "| summed-area table (f64 RGBA) | {} | {:.1}x |",
         human_bytes(sat.memory_bytes()),
         sat.memory_bytes() as f64 / tree_bytes as f64
-    );
-    println!();
-    println!(
+    )?;
+    writeln!(out)?;
+    writeln!(
+        out,
         "Median ns per fragment over {runs} runs, {queries} fragments per width in scanline order (same run, same fragments):\n"
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "| width (texels) | quadtree k={depth} (exact) | quadtree matched k | SAT (exact) | texel loop | matched / SAT | exact / SAT | max abs error vs SAT |"
-    );
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
+    )?;
+    writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|")?;
     for width in [1.0, 4.0, 16.0, 256.0] {
         let frags = scanline_fragments(size, width, queries, 7);
         let matched = depth.saturating_sub(width.log2().floor() as u8);
         let full = time_per_query(runs, &frags, |f| tree.weighted_colour(f, depth));
         let lod = time_per_query(runs, &frags, |f| tree.weighted_colour(f, matched));
         let sat_t = time_per_query(runs, &frags, |f| sat.weighted_colour(f));
-        // The texel loop is O(width²): cap its work.
-        let brute_n = (20_000_000.0 / (width * width)).clamp(100.0, queries as f64) as usize;
+        // The texel loop is O(width²): cap its work (but time at least 100
+        // fragments, or all of them when there are fewer).
+        let brute_n = ((20_000_000.0 / (width * width)) as usize)
+            .max(100)
+            .min(frags.len());
         let brute = time_per_query(1, &frags[..brute_n], |f| texel_sum(&grid, f));
         let max_err = frags
             .iter()
@@ -161,7 +187,8 @@ pub fn run(args: Args) -> Result<()> {
                     .fold(0.0, f64::max)
             })
             .fold(0.0, f64::max);
-        println!(
+        writeln!(
+            out,
             "| {width} | {:.0} | {:.0} (k={matched}) | {:.0} | {:.0} | {:.2} | {:.2} | {:.1e} |",
             full * 1e9,
             lod * 1e9,
@@ -170,17 +197,29 @@ pub fn run(args: Args) -> Result<()> {
             lod / sat_t,
             full / sat_t,
             max_err
-        );
+        )?;
     }
-    println!(
+    writeln!(
+        out,
         "\n(max abs error: largest per-channel difference of the mean colour over a fragment, exact quadtree vs SAT; both are exact, so it shows rounding only.)"
-    );
+    )?;
+    out.flush()?;
     Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn counts_must_be_positive() {
+        assert_eq!(at_least_one("--queries")("10"), Ok(10));
+        assert_eq!(
+            at_least_one("--queries")("0"),
+            Err("--queries must be at least 1, got 0".to_string())
+        );
+        assert!(at_least_one("--runs")("-1").is_err());
+    }
 
     #[test]
     fn texture_size_is_a_power_of_two_in_range() {

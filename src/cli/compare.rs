@@ -3,6 +3,7 @@
 //! with error, perceptual error, shimmer, time and memory, written as a
 //! static report (see `docs/compare.md`).
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -16,6 +17,7 @@ use quadtex_eval::report::{
 use quadtex_io::LinearImage;
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
+use super::output::Text;
 use super::{Result, in_range};
 
 /// Pixels whose footprint covers more finest cells than this are left out
@@ -467,12 +469,14 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         &dir.join("report.html"),
         &html_report(&info, &rows, &labels),
     )?;
-    println!("{table}");
-    println!(
+    let mut out = Text::stdout();
+    writeln!(out, "{table}")?;
+    writeln!(
+        out,
         "wrote {} (report.html, grid.png, plot.svg, results.csv, results.md, frames/) in {:.1} s",
         dir.display(),
         start.elapsed().as_secs_f64()
-    );
+    )?;
     Ok(())
 }
 

@@ -1,8 +1,10 @@
 //! `quadtex diff`: RMSE and FLIP of one image against another.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use super::Result;
+use super::output::Text;
 
 /// RMSE and FLIP of one image against another.
 ///
@@ -34,6 +36,9 @@ pub fn run(args: Args) -> Result<()> {
             b.height
         )
     })?;
-    println!("rmse {rmse:.6} flip {:.6}", super::compare::flip(&a, &b));
+    let flip = super::compare::flip(&a, &b);
+    let mut out = Text::stdout();
+    writeln!(out, "rmse {rmse:.6} flip {flip:.6}")?;
+    out.flush()?;
     Ok(())
 }

@@ -2,6 +2,7 @@
 //! quadtex's own lookups timed on the same footprints. Used by
 //! `bench/peers/run.sh`; see `docs/footprints.md`.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use quadtex_core::WrapMode;
@@ -9,6 +10,7 @@ use quadtex_io::LinearImage;
 use quadtex_io::footprints::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
 use quadtex_render::{Filter, PixelFilter, RenderOptions};
 
+use super::output::Text;
 use super::{Result, in_range};
 
 /// Dump every pixel's lookup for a peer filter and time quadtex's own.
@@ -176,10 +178,12 @@ pub fn run(args: Args) -> Result<()> {
             source,
         })
     })?;
-    println!(
+    let mut out = Text::stdout();
+    writeln!(
+        out,
         "wrote {}: footprints.bin ({width}x{height}), texture-*.exr, reference.exr ({} spp), quadtex.tsv and images",
         dir.display(),
         grid * grid
-    );
+    )?;
     Ok(())
 }

@@ -1,11 +1,13 @@
 //! `quadtex info`: a `.qtx` file's size, depth and nodes per level, or SVG
 //! art's tree against rasters of the same effective resolution.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use quadtex_core::vector::MAX_VECTOR_LEVEL;
 
+use super::output::Text;
 use super::{Result, human_bytes, is_svg, raster_bytes};
 
 /// Describe a .qtx file, or SVG art's tree against rasters per level.
@@ -60,18 +62,21 @@ pub fn run(args: Args) -> Result<()> {
     }
     let (tree, meta) = quadtex_io::read_qtx_with_limits(&path, &limits)?;
     let bytes = tree.memory_bytes();
-    println!(
+    let mut out = Text::stdout();
+    writeln!(
+        out,
         "file:        {} ({})",
         path.display(),
         human_bytes(meta.file_bytes)
-    );
-    println!("depth:       {}", tree.depth());
-    println!("nodes:       {}", tree.node_count());
-    println!(
+    )?;
+    writeln!(out, "depth:       {}", tree.depth())?;
+    writeln!(out, "nodes:       {}", tree.node_count())?;
+    writeln!(
+        out,
         "memory:      {} ({:.3} bytes/node; colour 8 B/node as unorm16 RGBA)",
         human_bytes(bytes),
         bytes as f64 / tree.node_count() as f64
-    );
+    )?;
     let (w, h) = if meta.source_width > 0 {
         (meta.source_width, meta.source_height)
     } else {
@@ -79,32 +84,37 @@ pub fn run(args: Args) -> Result<()> {
         (side, side)
     };
     let (raster, mips) = raster_bytes(w, h);
-    println!(
+    writeln!(
+        out,
         "source:      {w}x{h}; RGBA8 raster {} ({:.1}x the tree), raster+mips {} ({:.1}x)",
         human_bytes(raster),
         raster as f64 / bytes as f64,
         human_bytes(mips),
         mips as f64 / bytes as f64
-    );
+    )?;
     let avg = tree.average().to_rgba();
-    println!(
+    writeln!(
+        out,
         "average:     {} {} {} {} (linear, premultiplied)",
         avg.r, avg.g, avg.b, avg.a
-    );
-    println!("level      nodes  terminals");
+    )?;
+    writeln!(out, "level      nodes  terminals")?;
     for l in tree.level_stats() {
-        println!("{:>5} {:>10} {:>10}", l.level, l.nodes, l.terminals);
+        writeln!(out, "{:>5} {:>10} {:>10}", l.level, l.nodes, l.terminals)?;
     }
+    out.flush()?;
     Ok(())
 }
 
 /// `info ART.svg`: the art packed at several levels against rasters of the
 /// same effective resolution, and the deepest level that fits in 1 MiB.
 fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<()> {
-    println!("{}: exact vector packing", path.display());
-    println!(
+    let mut out = Text::stdout();
+    writeln!(out, "{}: exact vector packing", path.display())?;
+    writeln!(
+        out,
         "level  effective        nodes   tree bytes   RGBA8 raster  raster+mips  raster+mips/tree   pack s"
-    );
+    )?;
     let mut rows = levels.to_vec();
     rows.sort_unstable();
     rows.dedup();
@@ -116,7 +126,8 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
         let side = 1u64 << level;
         let raster = 4 * side * side;
         let mips = raster * 4 / 3;
-        println!(
+        writeln!(
+            out,
             "{level:>5}  {:>9}  {:>11}  {:>11}  {:>13}  {:>11}  {:>16.1}  {:>7.2}",
             format!("{side}²"),
             tree.node_count(),
@@ -125,7 +136,7 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
             human_bytes(mips),
             mips as f64 / bytes as f64,
             seconds
-        );
+        )?;
     }
     // Trees only grow with the level, so walk up until one exceeds 1 MiB.
     let mut fits = None;
@@ -137,9 +148,17 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
         fits = Some(level);
     }
     match fits {
-        Some(l) => println!("deepest level within 1 MiB: {l} ({}² effective)", 1u64 << l),
-        None => println!("deepest level within 1 MiB: none (the root alone is larger)"),
-    }
+        Some(l) => writeln!(
+            out,
+            "deepest level within 1 MiB: {l} ({}² effective)",
+            1u64 << l
+        ),
+        None => writeln!(
+            out,
+            "deepest level within 1 MiB: none (the root alone is larger)"
+        ),
+    }?;
+    out.flush()?;
     Ok(())
 }
 

@@ -7,6 +7,7 @@ mod compare;
 mod diff;
 mod footprints;
 mod info;
+mod output;
 mod pack;
 mod query;
 mod render;
@@ -26,6 +27,12 @@ pub type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
 /// queries them, renders scenes with them and compares the result against
 /// the filters users would otherwise pick. `quadtex help COMMAND` (or
 /// `quadtex COMMAND --help`) describes each command.
+///
+/// Files named by `-o` are replaced atomically (written to a temporary file
+/// next to them, then renamed); a symbolic link is followed and stays a
+/// link; a device or FIFO (such as /dev/null) is written in place. `-o -`
+/// writes to standard output (pack, render, demo, sample), and the summary
+/// then goes to standard error.
 #[derive(Debug, Parser)]
 #[command(name = "quadtex", version)]
 pub struct Cli {
@@ -54,7 +61,10 @@ enum Command {
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         None => {
-            Cli::command().print_help()?;
+            use std::io::Write;
+            let mut out = output::Text::stdout();
+            write!(out, "{}", Cli::command().render_help())?;
+            out.flush()?;
             Ok(())
         }
         Some(Command::Pack(args)) => pack::run(args),

@@ -1,11 +1,12 @@
 //! `quadtex pack`: an image or SVG art into a `.qtx` quadtree texture.
 
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use quadtex_core::{BuildOptions, QuadTree};
 
+use super::output::Output;
 use super::{MemoryArgs, Result, human_bytes, is_svg, level, raster_bytes};
 
 /// Max level of SVG art packed without `--max-level` (4096² effective).
@@ -22,9 +23,10 @@ pub struct Args {
     /// The image (PNG, JPEG) or SVG art to pack.
     #[arg(value_name = "IMAGE")]
     input: PathBuf,
-    /// The .qtx file to write.
+    /// The .qtx file to write; `-` writes it to standard output (the
+    /// summary then goes to standard error).
     #[arg(short, long, value_name = "OUT.qtx")]
-    output: PathBuf,
+    output: Output,
     /// Largest per-channel deviation (linear, premultiplied, full scale 1) of
     /// a cell from its terminal square's colour, in [0, 1]; 0 is lossless.
     /// Raster images only.
@@ -91,8 +93,8 @@ pub fn run(args: Args) -> Result<()> {
     ));
     let (tree, report) =
         QuadTree::from_texels(&grid, &options).map_err(|e| format!("{}: {e}", input.display()))?;
-    progress.stage(&format!("writing {}", output.display()));
-    quadtex_io::write_qtx(&output, &tree, Some((grid.width(), grid.height())))?;
+    progress.stage(&format!("writing {output}"));
+    output.write_qtx(&tree, Some((grid.width(), grid.height())))?;
     progress.finish();
     let terminals: u64 = tree.level_stats().iter().map(|l| l.terminals).sum();
     let bytes = tree.memory_bytes();
@@ -102,10 +104,12 @@ pub fn run(args: Args) -> Result<()> {
     } else {
         format!("max error {:.6} (L∞ per channel, linear)", report.max_error)
     };
-    println!(
+    let mut text = output.text();
+    writeln!(
+        text,
         "packed {} -> {}: {} nodes ({} terminal), depth {}, {} ({:.2} B/node); RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {}{}; {:.2} s",
         input.display(),
-        output.display(),
+        output,
         tree.node_count(),
         terminals,
         tree.depth(),
@@ -120,25 +124,28 @@ pub fn run(args: Args) -> Result<()> {
             ""
         },
         start.elapsed().as_secs_f64()
-    );
+    )?;
+    text.flush()?;
     Ok(())
 }
 
-fn pack_svg(input: &Path, output: &Path, level: u8, limits: &quadtex_io::Limits) -> Result<()> {
+fn pack_svg(input: &Path, output: &Output, level: u8, limits: &quadtex_io::Limits) -> Result<()> {
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("packing {} at level {level}", input.display()));
     let (tree, report) = quadtex_io::pack_svg(input, level, limits)?;
-    progress.stage(&format!("writing {}", output.display()));
+    progress.stage(&format!("writing {output}"));
     let side = 1u32 << level.min(31);
-    quadtex_io::write_qtx(output, &tree, Some((side, side)))?;
+    output.write_qtx(&tree, Some((side, side)))?;
     progress.finish();
     let bytes = tree.memory_bytes();
     let (raster, mips) = raster_bytes(side, side);
-    println!(
+    let mut text = output.text();
+    writeln!(
+        text,
         "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept; {:.2} s",
         input.display(),
-        output.display(),
+        output,
         tree.node_count(),
         tree.depth(),
         human_bytes(bytes),
@@ -147,7 +154,8 @@ fn pack_svg(input: &Path, output: &Path, level: u8, limits: &quadtex_io::Limits)
         mips as f64 / bytes as f64,
         report.swept_leaves,
         start.elapsed().as_secs_f64()
-    );
+    )?;
+    text.flush()?;
     Ok(())
 }
 

@@ -3,6 +3,7 @@
 use std::io::{BufRead, BufWriter, Write};
 use std::path::PathBuf;
 
+use super::output::Text;
 use super::{Result, level};
 
 /// Answer fragments from stdin with their integrated colour.
@@ -29,7 +30,7 @@ pub fn run(args: Args) -> Result<()> {
     let (tree, _) = quadtex_io::read_qtx_with_limits(&args.path, &args.memory.limits())?;
     let k = args.level.unwrap_or(tree.depth());
     let stdin = std::io::stdin().lock();
-    let mut out = BufWriter::new(std::io::stdout().lock());
+    let mut out = BufWriter::new(Text::stdout());
     for (i, line) in stdin.lines().enumerate() {
         let line = line.map_err(|e| format!("stdin line {}: {e}", i + 1))?;
         let Some(fragment) = quadtex_io::parse_query_line(&line)

@@ -2,31 +2,45 @@
 //! ([`RenderArgs`]); `demo` builds its scene in code and can run the
 //! comparison on it instead (`demo --compare`).
 
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 
 use quadtex_core::FilterOptions;
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
+use super::output::{FormatArg, Output};
 use super::{Result, compare, level};
 
 /// Render a scene file to PNG or EXR.
 ///
 /// The scene format is described in docs/scenes.md. Prints the file written
 /// and a summary: time, fragments and tree queries per textured pixel, nodes
-/// per query and the footprint area mismatch.
+/// per query and the footprint area mismatch (on standard error with `-o -`).
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The scene to render.
     #[arg(value_name = "SCENE.toml")]
     scene: PathBuf,
-    /// The image to write: .png (sRGB, 8-bit) or .exr (linear, float).
-    #[arg(short, long, value_name = "OUT.png|OUT.exr")]
-    output: PathBuf,
+    /// The image to write: .png (sRGB, 8-bit) or .exr (linear, float); `-`
+    /// writes it to standard output (PNG unless `--format exr`).
+    #[arg(short, long, value_name = "OUT.png|OUT.exr|-")]
+    output: Output,
     #[command(flatten)]
     render: RenderArgs,
     #[command(flatten)]
     memory: super::MemoryArgs,
+    #[command(flatten)]
+    format: FormatFlag,
+}
+
+/// `--format` of `render`, `demo` and `sample`.
+#[derive(Debug, clap::Args)]
+pub struct FormatFlag {
+    /// Image format: needed only when `-o` is `-` (default png) or a name
+    /// without .png/.exr (a FIFO, a device); must agree with a .png/.exr
+    /// extension.
+    #[arg(long, value_name = "png|exr", value_enum)]
+    pub format: Option<FormatArg>,
 }
 
 /// Render the built-in airfield scene, or compare every filter on it.
@@ -44,12 +58,15 @@ pub struct Args {
         .requires("compare")
 ))]
 pub struct DemoArgs {
-    /// The image to write (.png or .exr) [default: demo.png]; with
-    /// `--compare`, the report's directory (required).
+    /// The image to write (.png or .exr; `-` for standard output) [default:
+    /// demo.png, or demo.exr with `--format exr`]; with `--compare`, the
+    /// report's directory (required).
     #[arg(short, long, value_name = "OUT")]
-    output: Option<PathBuf>,
+    output: Option<Output>,
     #[command(flatten)]
     render: RenderArgs,
+    #[command(flatten)]
+    format: FormatFlag,
     /// Run the comparison (every filter against a converged reference) instead.
     #[arg(long)]
     compare: bool,
@@ -169,8 +186,9 @@ impl RenderArgs {
 /// Runs `quadtex render`.
 pub fn run(args: Args) -> Result<()> {
     let options = args.render.options()?;
+    let format = args.output.image_format(args.format.format)?;
     let scene = quadtex_render::load_scene_with_limits(&args.scene, &args.memory.limits())?;
-    render(&scene, &options, args.output)
+    render(&scene, &options, &args.output, format)
 }
 
 /// Runs `quadtex demo`.
@@ -186,24 +204,39 @@ pub fn run_demo(args: DemoArgs) -> Result<()> {
             return Err(format!("--width must be in 16..=3840, got {width}").into());
         }
         let settings = args.compare_options.settings(width);
-        let dir = args.output.ok_or("demo --compare: missing -o DIR")?;
+        let dir = match args.output {
+            Some(Output::File(dir)) => dir,
+            Some(Output::Stdout) => {
+                return Err("demo --compare writes a directory: -o - is not possible".into());
+            }
+            None => return Err("demo --compare: missing -o DIR".into()),
+        };
+        if args.format.format.is_some() {
+            return Err("demo --compare: --format applies to the rendered image only".into());
+        }
         return compare::compare_scene(&scene, "demo", &dir, &settings);
     }
     let options = args.render.options()?;
-    let output = args.output.unwrap_or_else(|| PathBuf::from("demo.png"));
-    render(&scene, &options, output)
+    let output = args.output.unwrap_or_else(|| {
+        let ext = args
+            .format
+            .format
+            .map_or("png", |f| quadtex_io::ImageFormat::from(f).extension());
+        Output::File(PathBuf::from(format!("demo.{ext}")))
+    });
+    let format = output.image_format(args.format.format)?;
+    render(&scene, &options, &output, format)
 }
 
-/// Renders `scene` into `output` (.png or .exr) with a progress bar on a
-/// terminal, then prints the summary.
-fn render(scene: &Scene, options: &RenderOptions, output: PathBuf) -> Result<()> {
-    let ext = output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    if !matches!(ext.as_deref(), Some("png" | "exr")) {
-        return Err(format!("{}: output must end in .png or .exr", output.display()).into());
-    }
+/// Renders `scene` into `output` as `format` with a progress bar on a
+/// terminal, then prints the summary (to standard error when the image went
+/// to standard output).
+fn render(
+    scene: &Scene,
+    options: &RenderOptions,
+    output: &Output,
+    format: quadtex_io::ImageFormat,
+) -> Result<()> {
     let bar = std::io::stderr().is_terminal().then(|| {
         let bar = indicatif::ProgressBar::new(0);
         bar.set_style(
@@ -222,9 +255,11 @@ fn render(scene: &Scene, options: &RenderOptions, output: PathBuf) -> Result<()>
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
-    quadtex_io::save_image(&output, &image)?;
-    println!("wrote {}", output.display());
-    println!("{summary}");
+    output.save_image(&image, format)?;
+    let mut text = output.text();
+    writeln!(text, "wrote {output}")?;
+    writeln!(text, "{summary}")?;
+    text.flush()?;
     Ok(())
 }
 

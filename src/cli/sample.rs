@@ -1,7 +1,9 @@
 //! `quadtex sample`: built-in art as a PNG.
 
-use std::path::PathBuf;
+use std::io::Write;
 
+use super::output::Output;
+use super::render::FormatFlag;
 use super::{Result, in_range};
 
 /// Write built-in art as a PNG (or EXR).
@@ -13,12 +15,15 @@ pub struct Args {
     /// The art to write.
     #[arg(value_enum, value_name = "ART")]
     art: Art,
-    /// The image to write.
-    #[arg(short, long, value_name = "OUT.png")]
-    output: PathBuf,
+    /// The image to write (.png or .exr); `-` writes it to standard output
+    /// (PNG unless `--format exr`; the summary then goes to standard error).
+    #[arg(short, long, value_name = "OUT.png|-")]
+    output: Output,
     /// Side in pixels, in 1..=32768.
     #[arg(long, value_name = "N", default_value_t = 1024, value_parser = in_range("--size", 1, 32768))]
     size: u32,
+    #[command(flatten)]
+    format: FormatFlag,
 }
 
 /// The built-in art.
@@ -32,21 +37,29 @@ enum Art {
 
 /// Runs `quadtex sample`.
 pub fn run(args: Args) -> Result<()> {
-    let Args { art, output, size } = args;
+    let Args {
+        art,
+        output,
+        size,
+        format,
+    } = args;
+    let format = output.image_format(format.format)?;
     let grid = match art {
         Art::Runway => quadtex_core::synth::runway_art().rasterise(size, size)?,
         Art::Checker => quadtex_core::synth::checkerboard(8, size)?,
     };
     let pixels = grid.texels().iter().map(|t| t.to_rgba()).collect();
     drop(grid);
-    quadtex_io::save_image(
-        &output,
+    output.save_image(
         &quadtex_io::LinearImage {
             width: size,
             height: size,
             pixels,
         },
+        format,
     )?;
-    println!("wrote {} ({size}x{size})", output.display());
+    let mut text = output.text();
+    writeln!(text, "wrote {output} ({size}x{size})")?;
+    text.flush()?;
     Ok(())
 }

@@ -149,7 +149,9 @@ impl Texture {
     }
 
     /// Writes the texture to a `.qtx` file, atomically (a temporary file in
-    /// the same directory, renamed over `path`).
+    /// the same directory, renamed over `path`). A symbolic link is followed
+    /// (the file it names is replaced; the link stays); a device or FIFO is
+    /// written in place.
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let (tree, source) = (&*self.tree, self.source);
         py.detach(|| quadtex_io::write_qtx(&path, tree, source))

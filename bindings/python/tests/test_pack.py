@@ -101,6 +101,19 @@ def test_save_open_round_trip(tmp_path, random_texels, rng):
     assert "source=16x16" in repr(back)
 
 
+def test_save_through_a_symlink_keeps_the_link(tmp_path, random_texels):
+    tex = quadtex.pack(random_texels)
+    (tmp_path / "real").mkdir()
+    link = tmp_path / "link.qtx"
+    link.symlink_to("real/t.qtx")  # dangling: save creates real/t.qtx
+    tex.save(link)
+    tex.save(link)  # existing: replaced through the link
+    assert link.is_symlink()
+    assert os.readlink(link) == "real/t.qtx"
+    assert quadtex.open(tmp_path / "real" / "t.qtx").node_count == tex.node_count
+    assert sorted(os.listdir(tmp_path / "real")) == ["t.qtx"]
+
+
 def test_pack_svg_sample():
     svg = REPO / "samples" / "sign.svg"
     tex = quadtex.pack(svg, max_level=7)

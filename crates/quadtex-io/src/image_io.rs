@@ -5,13 +5,14 @@
 //! ignored) with straight alpha; it is decoded to linear light and then
 //! premultiplied, so later averaging is physically meaningful.
 
+use std::io::Write;
 use std::path::Path;
 use std::sync::OnceLock;
 
-use image::{DynamicImage, ImageFormat, ImageReader};
+use image::{DynamicImage, ImageReader};
 use quadtex_core::{Rgba, TexelGrid};
 
-use crate::atomic::write_atomically;
+use crate::atomic::{Target, put, resolve, write_atomically};
 use crate::error::{Error, io};
 use crate::limits::Limits;
 
@@ -235,32 +236,126 @@ pub fn load_linear_image(path: &Path) -> Result<LinearImage, Error> {
     })
 }
 
+/// The file format of a rendered image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ImageFormat {
+    /// PNG: sRGB-encoded, straight alpha, 8 bits per channel.
+    Png,
+    /// OpenEXR: linear, premultiplied, 32-bit float RGBA.
+    Exr,
+}
+
+impl ImageFormat {
+    /// The format a file name's extension selects: `.png` or `.exr` (any case).
+    pub fn from_path(path: &Path) -> Option<ImageFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "png" => Some(ImageFormat::Png),
+            "exr" => Some(ImageFormat::Exr),
+            _ => None,
+        }
+    }
+
+    /// The format's usual extension, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "png",
+            ImageFormat::Exr => "exr",
+        }
+    }
+
+    fn encoder_format(self) -> image::ImageFormat {
+        match self {
+            ImageFormat::Png => image::ImageFormat::Png,
+            ImageFormat::Exr => image::ImageFormat::OpenExr,
+        }
+    }
+}
+
 /// Writes a rendered image atomically; the format follows the extension:
 /// `.png` (sRGB-encoded, straight alpha, 8 bits per channel) or `.exr`
 /// (linear, premultiplied, 32-bit float RGBA).
+///
+/// `path` is handled as [`write_atomically`] describes: a symbolic link is
+/// followed and stays a link; a device, FIFO or socket is written in place.
 pub fn save_image(path: &Path, image: &LinearImage) -> Result<(), Error> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let image_err = |e: image::ImageError| Error::Image {
+    let format =
+        ImageFormat::from_path(path).ok_or_else(|| Error::UnsupportedExtension(path.into()))?;
+    save_image_as(path, image, format)
+}
+
+/// As [`save_image`], in `format` whatever the extension (for a device or
+/// FIFO, say, whose name has none).
+pub fn save_image_as(path: &Path, image: &LinearImage, format: ImageFormat) -> Result<(), Error> {
+    let dynamic = to_dynamic(path, image, format)?;
+    if matches!(resolve(path), Ok(Target::Regular(_))) {
+        // A seekable temporary file: the encoder streams into it.
+        write_atomically(path, |w| {
+            dynamic
+                .write_to(w, format.encoder_format())
+                .map_err(image_error(path))
+        })
+    } else {
+        // Encoded whole first: a pipe cannot seek (which the EXR encoder
+        // needs), and an encoder error then writes nothing.
+        let bytes = encode(path, &dynamic, format)?;
+        write_atomically(path, |w| put(w, path, &bytes))
+    }
+}
+
+/// Encodes `image` as `format` and writes it to a stream (standard output,
+/// a pipe, a socket…), then flushes it; `name` names the stream in errors
+/// (for example `standard output`). The image is encoded in memory first,
+/// so an encoder error writes nothing, and EXR (whose encoder seeks) works
+/// on streams that cannot seek.
+pub fn write_image(
+    w: &mut dyn Write,
+    name: &Path,
+    image: &LinearImage,
+    format: ImageFormat,
+) -> Result<(), Error> {
+    let bytes = encode(name, &to_dynamic(name, image, format)?, format)?;
+    put(w, name, &bytes)?;
+    w.flush().map_err(io(name))
+}
+
+fn image_error(path: &Path) -> impl Fn(image::ImageError) -> Error + '_ {
+    move |e| Error::Image {
         path: path.to_path_buf(),
         message: e.to_string(),
-    };
-    let n = image.width as usize * image.height as usize;
-    if image.pixels.len() != n {
-        return Err(Error::Image {
-            path: path.into(),
-            message: format!(
-                "{} pixels for a {}x{} image",
-                image.pixels.len(),
-                image.width,
-                image.height
-            ),
-        });
     }
-    let dynamic = match ext.as_deref() {
-        Some("png") => {
+}
+
+/// The whole encoded file in memory.
+fn encode(path: &Path, dynamic: &DynamicImage, format: ImageFormat) -> Result<Vec<u8>, Error> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    dynamic
+        .write_to(&mut bytes, format.encoder_format())
+        .map_err(image_error(path))?;
+    Ok(bytes.into_inner())
+}
+
+/// `image` in the encoder's pixel layout for `format`.
+fn to_dynamic(
+    path: &Path,
+    image: &LinearImage,
+    format: ImageFormat,
+) -> Result<DynamicImage, Error> {
+    let n = image.width as usize * image.height as usize;
+    let wrong_size = || Error::Image {
+        path: path.into(),
+        message: format!(
+            "{} pixels for a {}x{} image",
+            image.pixels.len(),
+            image.width,
+            image.height
+        ),
+    };
+    if image.pixels.len() != n {
+        return Err(wrong_size());
+    }
+    let dynamic = match format {
+        ImageFormat::Png => {
             let mut bytes = Vec::with_capacity(4 * n);
             for p in &image.pixels {
                 let inv = if p.a > 0.0 { 1.0 / p.a } else { 0.0 };
@@ -275,22 +370,13 @@ pub fn save_image(path: &Path, image: &LinearImage) -> Result<(), Error> {
             image::RgbaImage::from_raw(image.width, image.height, bytes)
                 .map(DynamicImage::ImageRgba8)
         }
-        Some("exr") => {
+        ImageFormat::Exr => {
             let floats = image.pixels.iter().flat_map(|p| p.to_array()).collect();
             image::Rgba32FImage::from_raw(image.width, image.height, floats)
                 .map(DynamicImage::ImageRgba32F)
         }
-        _ => return Err(Error::UnsupportedExtension(path.into())),
     };
-    let Some(dynamic) = dynamic else {
-        return Err(Error::UnsupportedExtension(path.into()));
-    };
-    let format = if ext.as_deref() == Some("png") {
-        ImageFormat::Png
-    } else {
-        ImageFormat::OpenExr
-    };
-    write_atomically(path, |w| dynamic.write_to(w, format).map_err(image_err))
+    dynamic.ok_or_else(wrong_size)
 }
 
 #[cfg(test)]
@@ -398,6 +484,47 @@ mod tests {
             "{t:?}"
         );
         assert_eq!(g.texel(2, 0).to_rgba(), Rgba::TRANSPARENT);
+    }
+
+    #[test]
+    fn streams_and_fifos_get_whole_encoded_files() {
+        let image = LinearImage {
+            width: 3,
+            height: 2,
+            pixels: vec![Rgba::new(0.5, 0.25, 0.0, 1.0); 6],
+        };
+        for format in [ImageFormat::Png, ImageFormat::Exr] {
+            let mut out = Vec::new();
+            write_image(&mut out, Path::new("standard output"), &image, format).unwrap();
+            let back = image::load_from_memory(&out).unwrap();
+            assert_eq!((back.width(), back.height()), (3, 2), "{format:?}");
+        }
+        assert_eq!(
+            ImageFormat::from_path(Path::new("a/B.EXR")),
+            Some(ImageFormat::Exr)
+        );
+        assert_eq!(ImageFormat::from_path(Path::new("a/b")), None);
+        // EXR into a FIFO (which cannot seek): encoded in memory, then written.
+        let fifo = temp("pipe");
+        let _ = std::fs::remove_file(&fifo);
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            return;
+        }
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(&fifo).unwrap())
+        };
+        save_image_as(&fifo, &image, ImageFormat::Exr).unwrap();
+        let bytes = reader.join().unwrap();
+        let back = image::load_from_memory(&bytes).unwrap().to_rgba32f();
+        assert_eq!(back.get_pixel(2, 1).0, [0.5, 0.25, 0.0, 1.0]);
+        // A FIFO's name has no extension: save_image cannot pick a format.
+        assert!(matches!(
+            save_image(&fifo, &image),
+            Err(Error::UnsupportedExtension(_))
+        ));
+        std::fs::remove_file(&fifo).unwrap();
     }
 
     #[test]

@@ -6,7 +6,11 @@
 //! the exact vector packer ([`svg`]); and the `.qtx` tree file
 //! (see `docs/format.md`). Every file is written atomically: to a temporary
 //! file in the same directory, then renamed over the target, so a reader never
-//! sees a half-written file and an interrupted run leaves none behind.
+//! sees a half-written file and an interrupted run leaves none behind. A
+//! symbolic link is followed (the file it names is replaced; the link stays);
+//! a device, FIFO or socket is written in place ([`write_atomically`]);
+//! [`write_image`] and [`write_qtx_to`] write to any stream, such as
+//! standard output.
 #![forbid(unsafe_code)]
 
 mod atomic;
@@ -21,12 +25,14 @@ pub mod svg;
 pub use atomic::write_atomically;
 pub use error::Error;
 pub use image_io::{
-    LinearImage, linear_to_srgb, load_linear_image, load_texels, load_texels_from_bytes,
-    load_texels_with_limits, save_image, srgb_to_linear,
+    ImageFormat, LinearImage, linear_to_srgb, load_linear_image, load_texels,
+    load_texels_from_bytes, load_texels_with_limits, save_image, save_image_as, srgb_to_linear,
+    write_image,
 };
 pub use limits::{FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE, default_memory_budget};
 pub use qtx::{
     FORMAT_VERSION, MAGIC, QtxInfo, parse_qtx, read_qtx, read_qtx_with_limits, write_qtx,
+    write_qtx_to,
 };
 pub use query::parse_query_line;
 pub use svg::{load_svg, pack_svg, parse_svg};

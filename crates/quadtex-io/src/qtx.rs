@@ -1,7 +1,7 @@
 //! The `.qtx` file: a quadtree texture, byte layout in `docs/format.md`.
 
 use std::fs::File;
-use std::io::Read;
+use std::io::{Read, Write};
 use std::path::Path;
 
 use quadtex_core::{QuadTree, Unorm16Rgba};
@@ -33,7 +33,36 @@ pub struct QtxInfo {
 
 /// Writes `tree` to `path` atomically. `source` is the raster size it came
 /// from, if any, kept for reports.
+///
+/// `path` is handled as [`write_atomically`] describes: a symbolic link is
+/// followed and stays a link; a device, FIFO or socket is written in place.
 pub fn write_qtx(path: &Path, tree: &QuadTree, source: Option<(u32, u32)>) -> Result<(), Error> {
+    let [header, bits, colours, crc] = encode_qtx(tree, source);
+    write_atomically(path, |w| {
+        put(w, path, &header)?;
+        put(w, path, &bits)?;
+        put(w, path, &colours)?;
+        put(w, path, &crc)
+    })
+}
+
+/// Writes `tree` as a `.qtx` file to a stream (standard output, a pipe, a
+/// socket…), then flushes it; `name` names the stream in errors (for
+/// example `standard output`). The bytes are those [`write_qtx`] writes.
+pub fn write_qtx_to(
+    w: &mut dyn Write,
+    name: &Path,
+    tree: &QuadTree,
+    source: Option<(u32, u32)>,
+) -> Result<(), Error> {
+    for part in encode_qtx(tree, source) {
+        put(w, name, &part)?;
+    }
+    w.flush().map_err(io(name))
+}
+
+/// The file's four parts: header, inner-node bits, colours, payload CRC.
+fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 4] {
     let n = tree.node_count();
     let bit_bytes = n.div_ceil(8) as usize;
     let mut bits = vec![0u8; bit_bytes];
@@ -66,12 +95,12 @@ pub fn write_qtx(path: &Path, tree: &QuadTree, source: Option<(u32, u32)>) -> Re
     hasher.update(&bits);
     hasher.update(&colours);
     let payload_crc = hasher.finalize();
-    write_atomically(path, |w| {
-        put(w, path, &header)?;
-        put(w, path, &bits)?;
-        put(w, path, &colours)?;
-        put(w, path, &payload_crc.to_le_bytes())
-    })
+    [
+        header.to_vec(),
+        bits,
+        colours,
+        payload_crc.to_le_bytes().to_vec(),
+    ]
 }
 
 /// Reads a `.qtx` file under the default [`Limits`].
