@@ -4,56 +4,21 @@
 //! footprints against dense sampling of the pixel square mapped through
 //! the homography.
 
+mod common;
+
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
+use common::{PALETTE, blocky_grid};
 use quadtex_core::{
     BuildOptions, FilterOptions, Footprint, QuadTree, Rgba, TexelGrid, Texture, Weighting, Wrap,
     WrapMode,
 };
 
-const PALETTE: [Rgba; 5] = [
-    Rgba::opaque(1.0, 0.0, 0.0),
-    Rgba::opaque(0.0, 0.5, 1.0),
-    Rgba::new(0.1, 0.2, 0.3, 0.5),
-    Rgba::TRANSPARENT,
-    Rgba::opaque(0.25, 0.25, 0.25),
-];
-
 /// A random blocky texture of up to 16×16 cells (an incomplete tree).
 fn blocky_tree(u: &mut Unstructured<'_>) -> ArbResult<QuadTree> {
-    let side = 1usize << u.int_in_range(0..=4u32)?;
-    let mut texels = vec![PALETTE[0]; side * side];
-    fill(u, &mut texels, side, 0, 0, side)?;
-    let grid = TexelGrid::from_fn(side as u32, side as u32, |c, r| {
-        texels[r as usize * side + c as usize]
-    })
-    .unwrap();
+    let grid = blocky_grid(u, 4)?;
     Ok(QuadTree::from_texels(&grid, &BuildOptions::default())
         .unwrap()
         .0)
-}
-
-fn fill(
-    u: &mut Unstructured<'_>,
-    t: &mut [Rgba],
-    side: usize,
-    x: usize,
-    y: usize,
-    n: usize,
-) -> ArbResult<()> {
-    if n == 1 || u.ratio(1, 3)? {
-        let c = PALETTE[u.choose_index(PALETTE.len())?];
-        for row in y..y + n {
-            for col in x..x + n {
-                t[row * side + col] = c;
-            }
-        }
-        return Ok(());
-    }
-    let h = n / 2;
-    for (dx, dy) in [(0, 0), (h, 0), (0, h), (h, h)] {
-        fill(u, t, side, x + dx, y + dy, h)?;
-    }
-    Ok(())
 }
 
 fn coord(u: &mut Unstructured<'_>) -> ArbResult<f64> {

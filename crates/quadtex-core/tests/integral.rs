@@ -2,60 +2,14 @@
 //! The fast fragment integral against slow, obvious references, on random
 //! incomplete trees and random fragments (arbtest).
 
+mod common;
+
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
+use common::{PALETTE, blocky_grid};
 use quadtex_core::reference::{paper_traversal, texel_sum, truncated_tree_sum};
 use quadtex_core::sat::SummedAreaTable;
 use quadtex_core::variant::f_init;
 use quadtex_core::{BuildOptions, Fragment, QuadTree, Rgba, TexelGrid, WeightedColour};
-
-const PALETTE: [Rgba; 5] = [
-    Rgba::opaque(1.0, 0.0, 0.0),
-    Rgba::opaque(0.0, 0.5, 1.0),
-    Rgba::new(0.1, 0.2, 0.3, 0.5),
-    Rgba::TRANSPARENT,
-    Rgba::opaque(0.25, 0.25, 0.25),
-];
-
-/// A blocky random power-of-two grid: each square is uniform or split, so the
-/// tree is incomplete with terminals at every level.
-fn blocky_grid(u: &mut Unstructured<'_>) -> ArbResult<TexelGrid> {
-    let depth = u.int_in_range(0..=5u32)?;
-    let side = 1usize << depth;
-    let mut texels = vec![PALETTE[0]; side * side];
-    fill(u, &mut texels, side, 0, 0, side)?;
-    Ok(TexelGrid::from_fn(side as u32, side as u32, |c, r| {
-        texels[r as usize * side + c as usize]
-    })
-    .unwrap())
-}
-
-fn fill(
-    u: &mut Unstructured<'_>,
-    t: &mut [Rgba],
-    side: usize,
-    x: usize,
-    y: usize,
-    n: usize,
-) -> ArbResult<()> {
-    if n == 1 || u.ratio(1, 3)? {
-        let c = if u.ratio(1, 8)? {
-            Rgba::opaque(u.int_in_range(0..=255u8)? as f32 / 255.0, 0.3, 0.7)
-        } else {
-            PALETTE[u.choose_index(PALETTE.len())?]
-        };
-        for row in y..y + n {
-            for col in x..x + n {
-                t[row * side + col] = c;
-            }
-        }
-        return Ok(());
-    }
-    let h = n / 2;
-    for (dx, dy) in [(0, 0), (h, 0), (0, h), (h, h)] {
-        fill(u, t, side, x + dx, y + dy, h)?;
-    }
-    Ok(())
-}
 
 /// A random grid of any size (non-power-of-two included).
 fn any_grid(u: &mut Unstructured<'_>) -> ArbResult<TexelGrid> {
@@ -105,7 +59,7 @@ fn close(a: WeightedColour, b: WeightedColour, tol: f64) -> bool {
 #[test]
 fn fast_traversal_equals_truncated_tree_sum_and_paper_recursion() {
     arbtest::arbtest(|u| {
-        let grid = blocky_grid(u)?;
+        let grid = blocky_grid(u, 5)?;
         let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
         for _ in 0..20 {
             let f = fragment(u)?;
@@ -132,7 +86,7 @@ fn fast_traversal_equals_truncated_tree_sum_and_paper_recursion() {
 #[test]
 fn full_depth_equals_sum_over_texels_for_power_of_two_grids() {
     arbtest::arbtest(|u| {
-        let grid = blocky_grid(u)?;
+        let grid = blocky_grid(u, 5)?;
         let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
         let sat = SummedAreaTable::new(&grid);
         for _ in 0..20 {
@@ -187,7 +141,7 @@ fn any_size_image_integrates_to_its_texels_at_cell_resolution() {
 #[test]
 fn additive_when_split_in_two() {
     arbtest::arbtest(|u| {
-        let grid = blocky_grid(u)?;
+        let grid = blocky_grid(u, 5)?;
         let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
         let f = fragment(u)?;
         let k = u.int_in_range(0..=tree.depth())?;
@@ -238,7 +192,7 @@ fn constant_texture_gives_colour_times_clipped_area() {
 #[test]
 fn bounded_by_extreme_texels_times_area() {
     arbtest::arbtest(|u| {
-        let grid = blocky_grid(u)?;
+        let grid = blocky_grid(u, 5)?;
         let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
         let (mut lo, mut hi) = ([f64::MAX; 4], [f64::MIN; 4]);
         for t in grid.texels() {
@@ -266,7 +220,7 @@ fn bounded_by_extreme_texels_times_area() {
 #[test]
 fn uniform_colour_is_exact_where_it_answers() {
     arbtest::arbtest(|u| {
-        let grid = blocky_grid(u)?;
+        let grid = blocky_grid(u, 5)?;
         let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
         let f = fragment(u)?;
         if let Some(c) = tree.uniform_colour(&f) {
@@ -307,7 +261,7 @@ fn uniform_colour_is_exact_where_it_answers() {
 #[test]
 fn rasterising_a_tree_gives_back_its_texels() {
     arbtest::arbtest(|u| {
-        let grid = blocky_grid(u)?;
+        let grid = blocky_grid(u, 5)?;
         let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
         // At the grid's own resolution (the tree may stop above it) and finer.
         let level = grid.natural_depth() + u.int_in_range(0..=2)?;

@@ -1,0 +1,54 @@
+//! Random incomplete trees shared by the property tests.
+#![allow(dead_code, clippy::unwrap_used)]
+
+use arbtest::arbitrary::{Result as ArbResult, Unstructured};
+use quadtex_core::{Rgba, TexelGrid};
+
+pub const PALETTE: [Rgba; 5] = [
+    Rgba::opaque(1.0, 0.0, 0.0),
+    Rgba::opaque(0.0, 0.5, 1.0),
+    Rgba::new(0.1, 0.2, 0.3, 0.5),
+    Rgba::TRANSPARENT,
+    Rgba::opaque(0.25, 0.25, 0.25),
+];
+
+/// A blocky random power-of-two grid: each square is uniform or split, so the
+/// tree is incomplete with terminals at every level.
+pub fn blocky_grid(u: &mut Unstructured<'_>, max_depth: u32) -> ArbResult<TexelGrid> {
+    let depth = u.int_in_range(0..=max_depth)?;
+    let side = 1usize << depth;
+    let mut texels = vec![PALETTE[0]; side * side];
+    fill(u, &mut texels, side, 0, 0, side)?;
+    Ok(TexelGrid::from_fn(side as u32, side as u32, |c, r| {
+        texels[r as usize * side + c as usize]
+    })
+    .unwrap())
+}
+
+pub fn fill(
+    u: &mut Unstructured<'_>,
+    t: &mut [Rgba],
+    side: usize,
+    x: usize,
+    y: usize,
+    n: usize,
+) -> ArbResult<()> {
+    if n == 1 || u.ratio(1, 3)? {
+        let c = if u.ratio(1, 8)? {
+            Rgba::opaque(u.int_in_range(0..=255u8)? as f32 / 255.0, 0.3, 0.7)
+        } else {
+            PALETTE[u.choose_index(PALETTE.len())?]
+        };
+        for row in y..y + n {
+            for col in x..x + n {
+                t[row * side + col] = c;
+            }
+        }
+        return Ok(());
+    }
+    let h = n / 2;
+    for (dx, dy) in [(0, 0), (h, 0), (0, h), (h, h)] {
+        fill(u, t, side, x + dx, y + dy, h)?;
+    }
+    Ok(())
+}
