@@ -237,6 +237,8 @@ fn pack(
     let options = BuildOptions {
         tolerance,
         max_level,
+        // The detected memory budget, as the CLI's default.
+        max_bytes: Some(quadtex_io::Limits::default().max_memory),
         ..BuildOptions::default()
     };
     let (tree, size) = py
@@ -282,6 +284,8 @@ fn pack_file(
     let options = BuildOptions {
         tolerance,
         max_level,
+        // The detected memory budget, as the CLI's default.
+        max_bytes: Some(quadtex_io::Limits::default().max_memory),
         ..BuildOptions::default()
     };
     let grid = py

@@ -97,6 +97,8 @@ pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTex
     let options = BuildOptions {
         tolerance,
         max_level,
+        // The detected memory budget, as the CLI's default.
+        max_bytes: Some(quadtex_io::Limits::default().max_memory),
         ..BuildOptions::default()
     };
     let (tree, _) = QuadTree::from_texels(&grid, &options)
