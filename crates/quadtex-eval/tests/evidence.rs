@@ -2,49 +2,12 @@
 //! and the closed-form reference agrees with a dense supersampled one.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::path::Path;
+#[path = "../../quadtex-render/tests/common/scenes.rs"]
+mod scenes;
 
 use quadtex_eval::{metrics, reference};
-use quadtex_render::{Filter, RenderOptions, Scene, parse_scene, render};
-
-/// A checkerboard plane (1 m squares) seen at a grazing angle, unlit.
-fn grazing(width: u32, height: u32, eye_height: f64) -> Scene {
-    let text = format!(
-        r#"
-[camera]
-position = [0, {eye_height}, 0]
-look_at = [0, 0, 40]
-fov = 30
-width = {width}
-height = {height}
-
-[sky]
-colour = [0, 0, 0]
-
-[[shape]]
-type = "plane"
-point = [0, 0, 0]
-normal = [0, 1, 0]
-texture = "builtin:checker"
-uv_scale = [0.5, 0.5]
-"#
-    );
-    parse_scene(&text, Path::new("grazing.toml")).unwrap()
-}
-
-/// `scene` rendered with `filter` and otherwise default options.
-fn render_with(scene: &Scene, filter: Filter) -> quadtex_io::LinearImage {
-    render(
-        scene,
-        &RenderOptions {
-            filter,
-            ..RenderOptions::default()
-        },
-        &|_, _| {},
-    )
-    .unwrap()
-    .0
-}
+use quadtex_render::{Filter, RenderOptions, render};
+use scenes::{grazing, render_with};
 
 /// Sanity check of the comparison harness: stratified supersampling
 /// converges to the reference as the sample count grows, and the quadtree

@@ -3,48 +3,13 @@
 //! determinism across thread counts.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+#[path = "common/scenes.rs"]
+mod scenes;
+
 use std::path::Path;
 
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene, parse_scene, render};
-
-/// A checkerboard plane (1 m squares) seen at a grazing angle, unlit.
-fn grazing(width: u32, height: u32, eye_height: f64) -> Scene {
-    let text = format!(
-        r#"
-[camera]
-position = [0, {eye_height}, 0]
-look_at = [0, 0, 40]
-fov = 30
-width = {width}
-height = {height}
-
-[sky]
-colour = [0, 0, 0]
-
-[[shape]]
-type = "plane"
-point = [0, 0, 0]
-normal = [0, 1, 0]
-texture = "builtin:checker"
-uv_scale = [0.5, 0.5]
-"#
-    );
-    parse_scene(&text, Path::new("grazing.toml")).unwrap()
-}
-
-/// `scene` rendered with `filter` and otherwise default options.
-fn render_with(scene: &Scene, filter: Filter) -> quadtex_io::LinearImage {
-    render(
-        scene,
-        &RenderOptions {
-            filter,
-            ..RenderOptions::default()
-        },
-        &|_, _| {},
-    )
-    .unwrap()
-    .0
-}
+use scenes::{grazing, render_with};
 
 /// RMSE of the red channel over rows `from..` (row-major images of equal size).
 fn rmse(a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba], width: usize, from: usize) -> f64 {
