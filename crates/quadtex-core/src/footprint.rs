@@ -154,7 +154,8 @@ impl Footprint {
     /// The strips covering the footprint (module documentation);
     /// `quality ≥ 1` tightens the area-mismatch target `1/(4·quality)`.
     pub fn strips(&self, quality: f64) -> Strips {
-        strips_of_quad(&self.corners, quality)
+        let (lo, hi) = self.bounds();
+        strips_of_quad(&self.corners, lo, hi, quality)
     }
 }
 
@@ -328,14 +329,7 @@ fn extent_in_slab(p: &[[f64; 2]], axis: usize, lo: f64, hi: f64) -> Option<(f64,
     (min <= max).then_some((min, max))
 }
 
-fn strips_of_quad(quad: &[[f64; 2]; 4], quality: f64) -> Strips {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in quad {
-        for a in 0..2 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
+fn strips_of_quad(quad: &[[f64; 2]; 4], lo: [f64; 2], hi: [f64; 2], quality: f64) -> Strips {
     let size = [hi[0] - lo[0], hi[1] - lo[1]];
     let bbox = size[0] * size[1];
     let area = polygon_area(quad);
