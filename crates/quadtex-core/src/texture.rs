@@ -393,26 +393,18 @@ pub fn filter_footprint<T: BoxIntegral + ?Sized>(
         if nx * nz > 1 {
             stats.fragments += (nx * nz - 1) as u64;
         }
+        // Cut k of n along [lo, hi): exact at both ends.
+        let cut = |lo: f64, hi: f64, k: usize, n: usize| {
+            if k == n {
+                hi
+            } else {
+                lo + (hi - lo) * k as f64 / n as f64
+            }
+        };
         for j in 0..nz {
+            let (z0, z1) = (cut(f.z0(), f.z1(), j, nz), cut(f.z0(), f.z1(), j + 1, nz));
             for i in 0..nx {
-                let at = |lo: f64, hi: f64, i: usize, n: usize| {
-                    if i + 1 == n {
-                        hi
-                    } else {
-                        lo + (hi - lo) * i as f64 / n as f64
-                    }
-                };
-                let x0 = if i == 0 {
-                    f.x0()
-                } else {
-                    at(f.x0(), f.x1(), i, nx)
-                };
-                let z0 = if j == 0 {
-                    f.z0()
-                } else {
-                    at(f.z0(), f.z1(), j, nz)
-                };
-                let (x1, z1) = (at(f.x0(), f.x1(), i + 1, nx), at(f.z0(), f.z1(), j + 1, nz));
+                let (x0, x1) = (cut(f.x0(), f.x1(), i, nx), cut(f.x0(), f.x1(), i + 1, nx));
                 let Ok(piece) = Fragment::new(x0, z0, x1, z1) else {
                     continue;
                 };
