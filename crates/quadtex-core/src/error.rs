@@ -61,6 +61,10 @@ pub enum Error {
     /// Vector art that cannot be packed (non-finite point, colour not
     /// premultiplied, bad group); the message says what.
     BadVector(String),
+    /// A polygon or projection the exact pixel integral cannot take (not
+    /// convex, too many vertices, a non-finite vertex, a singular map); the
+    /// message says what.
+    BadPolygon(String),
     /// A filter option out of its range: `name` is the option, `expected`
     /// what it must be.
     BadOption {
@@ -126,6 +130,7 @@ impl fmt::Display for Error {
             }
             Error::MalformedTree(why) => write!(f, "malformed quadtree: {why}"),
             Error::BadVector(why) => write!(f, "bad vector art: {why}"),
+            Error::BadPolygon(why) => write!(f, "bad polygon: {why}"),
             Error::BadOption {
                 name,
                 value,

@@ -277,6 +277,11 @@ impl Homography {
         (nx, nz)
     }
 
+    /// The matrix `[[a, b, c], [d, e, f], [g, h, 1]]` acting on `(u, v, 1)`.
+    pub(crate) fn matrix(&self) -> [[f64; 3]; 3] {
+        self.m
+    }
+
     /// True when the map is affine (the footprint is a parallelogram): the
     /// screen density is then the same everywhere.
     pub fn is_affine(&self) -> bool {

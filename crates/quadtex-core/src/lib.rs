@@ -26,12 +26,14 @@
 
 mod colour;
 mod error;
+pub mod exact;
 pub mod footprint;
 mod fragment;
 
 pub mod build;
 pub mod memory;
 pub mod mipmap;
+pub mod polygon;
 pub mod reference;
 pub mod sat;
 pub mod synth;
@@ -44,8 +46,10 @@ pub mod wrap;
 pub use build::{BuildOptions, BuildReport, TexelGrid};
 pub use colour::{Rgba, Unorm16Rgba, WeightedColour};
 pub use error::Error;
+pub use exact::{PixelFilter, Projection, RegionIntegral};
 pub use footprint::Footprint;
 pub use fragment::Fragment;
+pub use polygon::ConvexPolygon;
 pub use texture::{FilterOptions, FilterStats, LevelOfDetail, Texture, Weighting};
 pub use tree::{LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
 pub use vector::{FillRule, VectorArt, VectorOptions, VectorReport};

@@ -1,38 +1,36 @@
 //! The filtering API: a [`Texture`] (a packed tree and its [`Wrap`]) answers
 //! "what is the mean colour over this footprint?" for a [`Footprint`] under
-//! [`FilterOptions`].
+//! [`FilterOptions`], and, for renderers that know more than four corners,
+//! "what is the filtered integral over this screen region?"
+//! ([`Texture::integrate_region`]).
 //!
-//! The pipeline, for one footprint:
+//! [`Texture::filter`], for one footprint:
 //! 1. **Uniform shortcut.** If the footprint's bounding box (folded into one
 //!    tile by the wrap) lies inside one terminal square of the tree, every
 //!    point of the footprint has that square's colour: one descent, exact.
-//! 2. **Strips.** Otherwise the footprint is covered by axis-aligned strips
-//!    ([`Footprint::strips`]), over-covering it by at most `1/(4·quality)` of
-//!    its area (up to [`crate::footprint::MAX_STRIPS`] strips; the measured
-//!    excess is reported in [`FilterStats`]).
-//! 3. **Level of detail.** Each strip is integrated exactly over the tree
-//!    truncated at a level `k` chosen by [`LevelOfDetail`].
-//! 4. **Weighting.** [`Weighting::Texture`] averages the strips' integrals by
-//!    area (a box over the footprint, as the seed paper does).
-//!    [`Weighting::Screen`] (the default) weighs each strip by the
-//!    screen-space density at its centre, from the projective map the four
-//!    corners fix ([`crate::footprint::Homography`]): a box over the *pixel*.
-//!    The density is taken as constant within a strip; for a parallelogram
-//!    it is constant everywhere and both weightings agree.
-//! 5. A footprint of zero area filters to the texel at its centre.
+//! 2. **Exact polygon integral.** Otherwise the tree's squares are clipped
+//!    against the footprint quad and each piece is weighted by the screen
+//!    area that sees it, through the projective map the four corners fix
+//!    ([`Weighting::Screen`], a box over the *pixel*), or by its texture
+//!    area ([`Weighting::Texture`], a box over the footprint, as the seed
+//!    paper does). See [`crate::exact`]: the result is exact up to the
+//!    squares the [`LevelOfDetail`] takes at their mean, whose error is
+//!    bounded and reported in [`FilterStats`].
+//! 3. A footprint of zero area filters to the texel at its centre.
 //!
-//! What is exact: each strip's integral (up to float rounding and half a
-//! 16-bit step on inner nodes, see [`QuadTree::weighted_colour`]), wrap
-//! included. What is approximate, with bounds: the strips' over-cover
-//! (reported), the truncation at level `k` (bounded by the error bound), and
-//! the screen density held constant per strip.
+//! [`filter_footprint`] is the older rectangle pipeline (axis-aligned strips
+//! over-covering the footprint, each weighted by the screen density at its
+//! centre), kept for baselines that can only integrate rectangles (the
+//! summed-area table).
 
 use std::sync::Arc;
 
 use crate::Error;
 use crate::colour::{Rgba, WeightedColour};
+use crate::exact::{self, PixelFilter, Projection, RegionIntegral};
 use crate::footprint::Footprint;
 use crate::fragment::Fragment;
+use crate::polygon::ConvexPolygon;
 use crate::tree::{QuadTree, TraversalStats};
 use crate::wrap::{BoxIntegral, Wrap, WrapMode, integrate_wrapped};
 
@@ -48,12 +46,17 @@ pub enum Weighting {
     Texture,
 }
 
-/// How deep the traversal of each fragment goes.
+/// Where the traversal may take a non-terminal square at its mean.
 ///
-/// For a fragment of sides `w × h` (texture units) the traversal may stop at
-/// level `k` only where the squares it treats as whole are partially
-/// covered; their area is at most `2(w+h)·2^-k`, so the mean colour is off
-/// by at most `2(w+h)·2^-k/(w·h)` of the texture's contrast.
+/// For [`Texture::filter`] and [`Texture::integrate_region`]
+/// ([`crate::exact`]): `ErrorBound(ε)` aims the bound on each pixel's error
+/// (relative to full contrast) at `ε`; `Fixed(k)` descends every square to
+/// level `k` or to a terminal square (the tree's depth: exact).
+///
+/// For the strip pipeline ([`filter_footprint`]): a fragment of sides
+/// `w × h` may stop at level `k` only where the squares it treats as whole
+/// are partially covered; their area is at most `2(w+h)·2^-k`, so the mean
+/// colour is off by at most `2(w+h)·2^-k/(w·h)` of the texture's contrast.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LevelOfDetail {
     /// The smallest level whose truncation bound is `≤ epsilon` (relative to
@@ -190,10 +193,16 @@ pub struct FilterStats {
     pub fragments: u64,
     /// Tree queries (after wrap splitting) and nodes they visited.
     pub traversal: TraversalStats,
-    /// Largest relative area excess of a footprint's strips.
+    /// Largest relative area excess of a footprint's strips (strip
+    /// pipeline only).
     pub max_mismatch: f64,
     /// Sum of the footprints' relative area excess (mean = sum / footprints).
     pub sum_mismatch: f64,
+    /// Largest error bound of a filtered colour, relative to full contrast
+    /// (exact pipeline: [`crate::exact`]).
+    pub max_error_bound: f64,
+    /// Sum of the filtered colours' error bounds (mean = sum / footprints).
+    pub sum_error_bound: f64,
 }
 
 impl FilterStats {
@@ -205,6 +214,14 @@ impl FilterStats {
         self.traversal.nodes_visited += other.traversal.nodes_visited;
         self.max_mismatch = self.max_mismatch.max(other.max_mismatch);
         self.sum_mismatch += other.sum_mismatch;
+        self.max_error_bound = self.max_error_bound.max(other.max_error_bound);
+        self.sum_error_bound += other.sum_error_bound;
+    }
+
+    /// Records one filtered colour's relative error bound.
+    pub fn record_bound(&mut self, relative: f64) {
+        self.max_error_bound = self.max_error_bound.max(relative);
+        self.sum_error_bound += relative;
     }
 }
 
@@ -274,15 +291,57 @@ impl Texture {
         options: &FilterOptions,
         stats: &mut FilterStats,
     ) -> Rgba {
-        filter_footprint(
-            &*self.tree,
-            Some(&self.tree),
-            self.wrap,
-            footprint,
-            options,
-            stats,
+        let unit = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
+        let screen = match options.weighting {
+            Weighting::Screen => Projection::for_pixel(footprint, [0.0, 0.0]),
+            Weighting::Texture => None,
+        };
+        let result = match screen {
+            Some(projection) => self.integrate_region(
+                &projection,
+                &unit,
+                PixelFilter::Box,
+                [0.5, 0.5],
+                options,
+                stats,
+            ),
+            // Texture weighting, or corners no projective map of the square
+            // reaches (a bow tie, a degenerate quad): uniform over the hull.
+            None => self.integrate_region(
+                &Projection::identity(),
+                &ConvexPolygon::hull(&footprint.corners()),
+                PixelFilter::Box,
+                [0.0, 0.0],
+                options,
+                stats,
+            ),
+        };
+        match result.mean() {
+            Some(c) if result.weight > 0.0 => {
+                stats.record_bound(result.error_bound / result.weight);
+                c
+            }
+            _ => self.nearest_counted(footprint.centre(), &mut stats.traversal),
+        }
+    }
+
+    /// The integral of the texture over screen region `region` seen through
+    /// `projection` (screen → texture), weighted by `filter` centred at
+    /// `centre` (pixel units), with its error bound: see [`crate::exact`].
+    /// A renderer sums these over the visible parts of a pixel's filter
+    /// support (one per surface) and divides by the total weight.
+    pub fn integrate_region(
+        &self,
+        projection: &Projection,
+        region: &ConvexPolygon,
+        filter: PixelFilter,
+        centre: [f64; 2],
+        options: &FilterOptions,
+        stats: &mut FilterStats,
+    ) -> RegionIntegral {
+        exact::integrate_region(
+            &self.tree, self.wrap, projection, region, filter, centre, options, stats,
         )
-        .unwrap_or_else(|| self.nearest_counted(footprint.centre(), &mut stats.traversal))
     }
 
     /// [`Texture::filter`] over a slice, on the calling thread; `out[i]` is
@@ -420,6 +479,17 @@ pub fn filter_footprint<T: BoxIntegral + ?Sized>(
 /// holds the footprint's bounding box (folded into one tile by the wrap).
 fn uniform_over(tree: &QuadTree, footprint: &Footprint, wrap: Wrap) -> Option<Rgba> {
     let (lo, hi) = footprint.bounds();
+    uniform_colour_in(tree, lo, hi, wrap)
+}
+
+/// The colour over the box `[lo, hi]` when one terminal square of the tree
+/// holds it (folded into one tile by the wrap).
+pub(crate) fn uniform_colour_in(
+    tree: &QuadTree,
+    lo: [f64; 2],
+    hi: [f64; 2],
+    wrap: Wrap,
+) -> Option<Rgba> {
     let (x0, x1) = fold_interval(wrap.x, lo[0], hi[0])?;
     let (z0, z1) = fold_interval(wrap.z, lo[1], hi[1])?;
     let f = Fragment::new(x0, z0, x1, z1).ok()?;

@@ -87,6 +87,9 @@ pub struct QuadTree {
     /// with `z` rows from the bottom): the padded index of the node covering
     /// that cell at level `l`, or of its terminal ancestor.
     top: Vec<u32>,
+    /// The colour's first moments about the centre, computed when first
+    /// needed ([`QuadTree::first_moments`]).
+    moments: std::sync::OnceLock<[f64; 2]>,
 }
 
 impl QuadTree {
@@ -214,6 +217,7 @@ impl QuadTree {
             level_starts,
             top_level,
             top: Vec::new(),
+            moments: std::sync::OnceLock::new(),
         };
         tree.top = tree.build_top_table()?;
         Ok(tree)
@@ -307,6 +311,31 @@ impl QuadTree {
     /// The nodes in breadth-first order: `(inner, colour)`.
     pub fn nodes(&self) -> impl ExactSizeIterator<Item = (bool, Unorm16Rgba)> + '_ {
         (PAD..self.colours.len()).map(|i| (self.is_inner(i), self.colours[i]))
+    }
+
+    /// The largest, over channels, of `|∫ colour·(x − ½)|` and
+    /// `|∫ colour·(z − ½)|` over the unit square: how far the colour leans
+    /// to one side (0 for a checkerboard). The error of weighing whole tiles
+    /// by a smoothly varying density is proportional to it
+    /// ([`crate::exact`]). One pass over the leaves, the first time.
+    pub fn first_moments(&self) -> [f64; 2] {
+        *self.moments.get_or_init(|| {
+            let (mut mx, mut mz) = ([0f64; 4], [0f64; 4]);
+            self.for_each_leaf(self.depth, |level, ix, iz, c| {
+                let side = unit_side(level);
+                let a = side * side / 65535.0;
+                let (x, z) = (
+                    (f64::from(ix) + 0.5) * side - 0.5,
+                    (f64::from(iz) + 0.5) * side - 0.5,
+                );
+                for ch in 0..4 {
+                    mx[ch] += f64::from(c.0[ch]) * a * x;
+                    mz[ch] += f64::from(c.0[ch]) * a * z;
+                }
+            });
+            let max = |m: [f64; 4]| m.iter().fold(0f64, |a, v| a.max(v.abs()));
+            [max(mx), max(mz)]
+        })
     }
 
     /// Calls `f(level, ix, iz, colour)` for every square a traversal to level

@@ -1,0 +1,992 @@
+//! Exact pixels: the integral of a texture over a screen region under a
+//! projective map, weighted by a pixel filter, with a stated error bound.
+//!
+//! **What is computed.** A region `V` of the screen (a convex polygon, in
+//! pixel units) sees a planar surface whose texture point is
+//! `t = P(s)`, a projective map ([`Projection`]). For a pixel filter `k`
+//! centred at `c` ([`PixelFilter`]) the result is
+//!
+//! ```text
+//!   ∫∫_V colour(P(s)) · k(s − c) ds     and     ∫∫_V k(s − c) ds,
+//! ```
+//!
+//! whose ratio is the filtered colour. The texture is piecewise constant on
+//! the tree's terminal squares, so the first integral is
+//! `Σ_S colour(S) · ∫∫_{P⁻¹(S ∩ Q)} k`, `Q = P(V)`: clip the square against
+//! `Q`, map the clipped polygon back to the screen (a projective map sends
+//! segments to segments on its visible side), integrate `k` over it: the
+//! box's area by the shoelace formula, the tent's and Mitchell's cubic
+//! pieces by Green's theorem ([`crate::polygon`]). Squares inside `Q` need
+//! only their four mapped corners; squares outside cost nothing.
+//!
+//! **Where it stops early, and the bound.** Descending to every terminal
+//! square would be exact and slow. Two kinds of square are taken at their
+//! stored mean instead, each adding a bound on its error (colour channels
+//! in `[0,1]`, so a square's colour range `Δc ≤ 1`; `ρ = |det J(P⁻¹)|` is
+//! the screen area per texture area, `|k| ≤ k_max`, `|∇k| ≤ L_k`):
+//! * a square inside `Q`: the error is a covariance of colour and weight,
+//!   at most `½·Δc·a_S·(k_max·(ρ_max − ρ_min) + ρ_max·L_k·diam(S))`, with
+//!   `ρ`'s extremes at the square's corners (`ρ ∝ w⁻³`, `w` affine);
+//! * a square on `Q`'s boundary, taken whole over its clipped part `P`: at
+//!   most `Δc · k_max · area(P⁻¹(P))`.
+//!
+//! The bound `ε` of [`LevelOfDetail::ErrorBound`] is shared half and half:
+//! inner squares are taken whole when their bound is `≤ ε/2` of their own
+//! weight, boundary squares when their screen area is below
+//! `(ε/2)·area(V)·diam(S)/perimeter(V)` (a band along the boundary). The
+//! bound actually incurred, summed over the squares taken whole, is
+//! returned with every result ([`RegionIntegral::error_bound`]): that sum
+//! is rigorous; the rule that aims it at `ε` is a heuristic.
+//! [`LevelOfDetail::Fixed`] instead descends every square to that level
+//! (or to a terminal square): with the tree's depth, the result is exact up
+//! to float rounding and half a 16-bit step on nothing (only terminal
+//! colours are used) — the slow, obvious reference the tests use.
+//!
+//! **Wrap.** Repeat and mirror tiles are grouped in blocks of tiles; a block
+//! inside `Q` has the tree's root mean, with the covariance bound above
+//! summed over its tiles (`Δc·(k_max·(ρ_max−ρ_min)·(n_x+n_z) + …)`: it shrinks
+//! as the block grows, so far, many-tile regions cost `O(log)` blocks). Clamp
+//! stretches the outermost cells outwards, border shows the border colour.
+//!
+//! **Visibility.** The projection's denominator `w` must be positive over
+//! the region (the surface in front of the camera). A region reaching the
+//! horizon `w = 0` is clipped at a sliver of width `10⁻⁹` pixel beyond which
+//! the texture's mean colour is taken (bounded, and reported).
+
+use crate::Error;
+use crate::colour::{Rgba, WeightedColour};
+use crate::footprint::Footprint;
+use crate::polygon::{ConvexPolygon, Cubic, separable_integral};
+use crate::texture::{FilterOptions, FilterStats, LevelOfDetail, uniform_colour_in};
+use crate::tree::{QuadTree, unit_side};
+use crate::wrap::{Wrap, WrapMode};
+
+type Mat3 = [[f64; 3]; 3];
+
+/// Whole-tile blocks of more tiles than this are taken at the tile mean
+/// whatever their bound (reported): descending into that many trees costs
+/// more than it is worth.
+const MAX_TILES_DESCENDED: f64 = 16.0;
+
+/// A projective map from the screen to texture space,
+/// `texture_from_screen`: `t = (M·(s, 1))` divided by its third
+/// coordinate `w`. The surface is in front of the camera where `w > 0`.
+///
+/// Invariant: finite, invertible (both directions are kept).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Projection {
+    texture_from_screen: Mat3,
+    screen_from_texture: Mat3,
+}
+
+impl Projection {
+    /// The map with matrix `texture_from_screen` (row-major, acting on
+    /// `(x, y, 1)`); scaled by a positive factor for range, which changes
+    /// nothing. [`Error::BadPolygon`] when it is not finite or singular.
+    pub fn new(texture_from_screen: [[f64; 3]; 3]) -> Result<Projection, Error> {
+        let scale = texture_from_screen
+            .iter()
+            .flatten()
+            .fold(0f64, |m, v| m.max(v.abs()));
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(Error::BadPolygon(
+                "projection matrix is not finite or is zero".into(),
+            ));
+        }
+        let m = texture_from_screen.map(|row| row.map(|v| v / scale));
+        let (adj, det) = adjugate(&m);
+        if !(det.is_finite() && det.abs() > 1e-300) {
+            return Err(Error::BadPolygon("projection matrix is singular".into()));
+        }
+        let inv_scale = adj.iter().flatten().fold(0f64, |a, v| a.max(v.abs()));
+        // adj(M) = det·M⁻¹: any positive multiple represents the inverse map;
+        // the sign is chosen so that w > 0 on the visible side both ways.
+        let sign = det.signum();
+        let inv = adj.map(|row| row.map(|v| sign * v / inv_scale));
+        Ok(Projection {
+            texture_from_screen: m,
+            screen_from_texture: inv,
+        })
+    }
+
+    /// The identity (screen and texture coordinates coincide): filtering a
+    /// texture-space region uniformly in texture space.
+    pub fn identity() -> Projection {
+        let id = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        Projection {
+            texture_from_screen: id,
+            screen_from_texture: id,
+        }
+    }
+
+    /// The map sending the screen square `[x, x+1] × [y, y+1]` (pixel
+    /// `(x, y)` when `origin = [x, y]`) onto `footprint`, corner to corner in
+    /// pixel order; `None` unless the footprint is a convex quad the square
+    /// maps onto one-to-one ([`Footprint::homography`]).
+    pub fn for_pixel(footprint: &Footprint, origin: [f64; 2]) -> Option<Projection> {
+        let m = footprint.homography()?.matrix();
+        // M·T with T translating (x, y) to (u, v) = (x − origin.x, y − origin.y).
+        let t = [
+            [1.0, 0.0, -origin[0]],
+            [0.0, 1.0, -origin[1]],
+            [0.0, 0.0, 1.0],
+        ];
+        Projection::new(mul(&m, &t)).ok()
+    }
+
+    /// The matrix taking screen points to texture points.
+    pub fn texture_from_screen(&self) -> [[f64; 3]; 3] {
+        self.texture_from_screen
+    }
+
+    /// The denominator `w` at screen point `s` (positive where the surface
+    /// is in front of the camera).
+    pub fn w(&self, s: [f64; 2]) -> f64 {
+        let r = &self.texture_from_screen[2];
+        r[0] * s[0] + r[1] * s[1] + r[2]
+    }
+
+    /// The texture point seen at screen point `s`, if `w > 0` there.
+    pub fn texture_point(&self, s: [f64; 2]) -> Option<[f64; 2]> {
+        (self.w(s) > 0.0).then(|| apply(&self.texture_from_screen, s))
+    }
+
+    /// The screen point where texture point `t` is seen.
+    pub fn screen_point(&self, t: [f64; 2]) -> [f64; 2] {
+        apply(&self.screen_from_texture, t)
+    }
+}
+
+/// A pixel reconstruction filter, separable, `k(dx, dy) = k₁(dx)·k₁(dy)`
+/// with `(dx, dy)` in pixels from the pixel's centre; each integrates to 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum PixelFilter {
+    /// 1 on the pixel square `[−½, ½]²`.
+    #[default]
+    Box,
+    /// `k₁(x) = 1 − |x|` on `[−1, 1]`: bilinear on each of 4 unit cells.
+    Tent,
+    /// Mitchell–Netravali with `B = C = ⅓` on `[−2, 2]`: bicubic on each of
+    /// 16 unit cells, negative lobes (results may leave `[0, 1]`).
+    Mitchell,
+}
+
+impl PixelFilter {
+    /// Half the side of the support, in pixels.
+    pub fn radius(self) -> f64 {
+        match self {
+            PixelFilter::Box => 0.5,
+            PixelFilter::Tent => 1.0,
+            PixelFilter::Mitchell => 2.0,
+        }
+    }
+
+    /// The name as the CLI spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelFilter::Box => "box",
+            PixelFilter::Tent => "tent",
+            PixelFilter::Mitchell => "mitchell",
+        }
+    }
+
+    /// `k(dx, dy)`.
+    pub fn weight(self, dx: f64, dy: f64) -> f64 {
+        self.k1(dx) * self.k1(dy)
+    }
+
+    /// `k₁(x)`.
+    pub fn k1(self, x: f64) -> f64 {
+        if x.abs() >= self.radius() {
+            return if self == PixelFilter::Box && x.abs() == 0.5 {
+                1.0
+            } else {
+                0.0
+            };
+        }
+        let c = self.cubic(x.floor() as i32);
+        c[0] + x * (c[1] + x * (c[2] + x * c[3]))
+    }
+
+    /// The filter's support around `centre`.
+    pub fn support(self, centre: [f64; 2]) -> ConvexPolygon {
+        let r = self.radius();
+        ConvexPolygon::rect(centre[0] - r, centre[1] - r, centre[0] + r, centre[1] + r)
+    }
+
+    /// Largest `|k|`.
+    fn k_max(self) -> f64 {
+        match self {
+            PixelFilter::Box | PixelFilter::Tent => 1.0,
+            PixelFilter::Mitchell => (8.0 / 9.0) * (8.0 / 9.0),
+        }
+    }
+
+    /// A bound on `|∇k|` (0 for the box, constant on its support).
+    fn lipschitz(self) -> f64 {
+        match self {
+            PixelFilter::Box => 0.0,
+            PixelFilter::Tent => std::f64::consts::SQRT_2,
+            // max|k₁'| = 8/7 (at x = 4/7) times max|k₁| = 8/9, per axis.
+            PixelFilter::Mitchell => std::f64::consts::SQRT_2 * (8.0 / 7.0) * (8.0 / 9.0),
+        }
+    }
+
+    /// `k₁` on the unit cell `[i, i+1)` as a cubic in `x`.
+    fn cubic(self, i: i32) -> Cubic {
+        const S: f64 = 1.0 / 6.0;
+        match (self, i) {
+            (PixelFilter::Box, _) => [1.0, 0.0, 0.0, 0.0],
+            (PixelFilter::Tent, -1) => [1.0, 1.0, 0.0, 0.0],
+            (PixelFilter::Tent, 0) => [1.0, -1.0, 0.0, 0.0],
+            // (7|x|³ − 12x² + 16/3)/6 and (−7/3|x|³ + 12x² − 20|x| + 32/3)/6.
+            (PixelFilter::Mitchell, 0) => [16.0 / 3.0 * S, 0.0, -12.0 * S, 7.0 * S],
+            (PixelFilter::Mitchell, -1) => [16.0 / 3.0 * S, 0.0, -12.0 * S, -7.0 * S],
+            (PixelFilter::Mitchell, 1) => [32.0 / 3.0 * S, -20.0 * S, 12.0 * S, -7.0 / 3.0 * S],
+            (PixelFilter::Mitchell, -2) => [32.0 / 3.0 * S, 20.0 * S, 12.0 * S, 7.0 / 3.0 * S],
+            _ => [0.0; 4],
+        }
+    }
+
+    /// `∫∫ k(s − centre) ds` over screen polygon `p` (either orientation).
+    fn integral(self, p: &ConvexPolygon, centre: [f64; 2]) -> f64 {
+        if self == PixelFilter::Box {
+            return p.area();
+        }
+        let sign = p.signed_area().signum();
+        let rel = p.map(|s| [s[0] - centre[0], s[1] - centre[1]]);
+        let r = self.radius();
+        let (lo, hi) = rel.bounds();
+        let (i0, i1) = (lo[0].max(-r).floor() as i32, hi[0].min(r).ceil() as i32);
+        let (j0, j1) = (lo[1].max(-r).floor() as i32, hi[1].min(r).ceil() as i32);
+        let mut total = 0.0;
+        for j in j0..j1 {
+            for i in i0..i1 {
+                let (x, y) = (f64::from(i), f64::from(j));
+                let cell = rel.clip_rect(x, y, x + 1.0, y + 1.0);
+                if !cell.is_empty() {
+                    total += separable_integral(cell.vertices(), &self.cubic(i), &self.cubic(j));
+                }
+            }
+        }
+        sign * total
+    }
+}
+
+/// What [`crate::Texture::integrate_region`] returns.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RegionIntegral {
+    /// `∫ colour · k` over the region (linear, premultiplied; units of
+    /// colour × screen area).
+    pub colour: WeightedColour,
+    /// `∫ k` over the region.
+    pub weight: f64,
+    /// A bound on `|colour − exact|` per channel, in the same units: what
+    /// taking squares at their mean cost (module documentation).
+    pub error_bound: f64,
+}
+
+impl RegionIntegral {
+    /// Adds another region's integral.
+    pub fn add(&mut self, other: &RegionIntegral) {
+        self.colour += other.colour;
+        self.weight += other.weight;
+        self.error_bound += other.error_bound;
+    }
+
+    /// `colour / weight`, `None` when the weight is zero.
+    pub fn mean(&self) -> Option<Rgba> {
+        (self.weight != 0.0 && self.weight.is_finite()).then(|| {
+            let s = 1.0 / self.weight;
+            let c = self.colour.0;
+            Rgba::new(
+                (c[0] * s) as f32,
+                (c[1] * s) as f32,
+                (c[2] * s) as f32,
+                (c[3] * s) as f32,
+            )
+        })
+    }
+}
+
+/// The integral (module documentation) over screen region `region` under
+/// `projection`, with `filter` centred at `centre`. The region is first
+/// clipped to the filter's support.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn integrate_region(
+    tree: &QuadTree,
+    wrap: Wrap,
+    projection: &Projection,
+    region: &ConvexPolygon,
+    filter: PixelFilter,
+    centre: [f64; 2],
+    options: &FilterOptions,
+    stats: &mut FilterStats,
+) -> RegionIntegral {
+    stats.footprints += 1;
+    stats.fragments += 1;
+    stats.traversal.queries += 1;
+    let mut out = RegionIntegral::default();
+    let mut region = match filter {
+        PixelFilter::Box => *region,
+        _ => region.intersect(&filter.support(centre)),
+    };
+    if region.is_empty() {
+        return out;
+    }
+    // Keep to where the surface is in front, w ≥ w_min: a sliver 1e-9 pixel
+    // wide before the horizon line, beyond which the texture is taken at
+    // its mean (the texture there is infinitely minified).
+    let r = projection.texture_from_screen[2];
+    let grad = r[0].hypot(r[1]);
+    let w_min = 1e-9 * grad;
+    if region
+        .vertices()
+        .iter()
+        .any(|&s| projection.w(s) < w_min.max(f64::MIN_POSITIVE))
+    {
+        let floor = w_min.max(f64::MIN_POSITIVE);
+        // Between the horizon (w = 0) and w = floor; beyond the horizon the
+        // surface is not seen at all.
+        let sliver = region
+            .clip(r[0], r[1], r[2])
+            .clip(-r[0], -r[1], floor - r[2]);
+        region = region.clip(r[0], r[1], r[2] - floor);
+        if !sliver.is_empty() {
+            let c = tree.average().to_rgba();
+            let wgt = filter.integral(&sliver, centre);
+            out.colour += WeightedColour::from_colour(c, wgt);
+            out.weight += wgt;
+            out.error_bound += filter.k_max() * sliver.area();
+        }
+        if region.is_empty() {
+            return out;
+        }
+    }
+    let area = region.area();
+    if !(area > 0.0 && area.is_finite()) {
+        return out;
+    }
+    let texture_region = ConvexPolygon::from_trusted(
+        region
+            .map(|s| apply(&projection.texture_from_screen, s))
+            .vertices(),
+    );
+    if texture_region
+        .vertices()
+        .iter()
+        .flatten()
+        .any(|v| !v.is_finite())
+    {
+        return out;
+    }
+    // One terminal square under the whole region: its colour, exactly.
+    let (lo, hi) = texture_region.bounds();
+    if let Some(c) = uniform_colour_in(tree, lo, hi, wrap) {
+        let wgt = filter.integral(&region, centre);
+        out.colour += WeightedColour::from_colour(c, wgt);
+        out.weight += wgt;
+        return out;
+    }
+    let epsilon = match options.level_of_detail() {
+        LevelOfDetail::ErrorBound(e) => e,
+        LevelOfDetail::Fixed(_) => 0.0,
+    };
+    let fixed = match options.level_of_detail() {
+        LevelOfDetail::Fixed(k) => Some(k.min(tree.depth())),
+        LevelOfDetail::ErrorBound(_) => None,
+    };
+    let mut walk = Walk {
+        tree,
+        wrap,
+        filter,
+        centre,
+        screen_from_texture: projection.screen_from_texture,
+        region: texture_region,
+        edges: edges_of(&texture_region),
+        fixed,
+        inner_eps: 0.5 * epsilon,
+        boundary_coef: 0.5 * epsilon * area / region.perimeter().max(f64::MIN_POSITIVE),
+        k_max: filter.k_max(),
+        lipschitz: filter.lipschitz(),
+        out,
+        visited: 0,
+        edge_means: [None; 4],
+    };
+    walk.run(lo, hi);
+    stats.traversal.nodes_visited += walk.visited;
+    walk.out
+}
+
+/// An edge line `n·p + c ≥ 0` (inside).
+type Line = [f64; 3];
+
+fn edges_of(p: &ConvexPolygon) -> ([Line; crate::polygon::MAX_VERTICES], usize) {
+    let v = p.vertices();
+    let mut lines = [[0.0; 3]; crate::polygon::MAX_VERTICES];
+    for i in 0..v.len() {
+        let (a, b) = (v[i], v[(i + 1) % v.len()]);
+        let (nx, nz) = (-(b[1] - a[1]), b[0] - a[0]);
+        lines[i] = [nx, nz, -(nx * a[0] + nz * a[1])];
+    }
+    (lines, v.len())
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Class {
+    Outside,
+    Inside,
+    /// Crossed by the edges in the bit mask.
+    Boundary(u32),
+}
+
+/// Where the rectangle `[x0, x1] × [z0, z1]` lies against the polygon with
+/// `edges`.
+#[inline]
+fn classify(
+    edges: &([Line; crate::polygon::MAX_VERTICES], usize),
+    x0: f64,
+    z0: f64,
+    x1: f64,
+    z1: f64,
+) -> Class {
+    let mut crossing = 0u32;
+    for (i, e) in edges.0[..edges.1].iter().enumerate() {
+        let base = e[2];
+        let (ax0, ax1) = (e[0] * x0, e[0] * x1);
+        let (bz0, bz1) = (e[1] * z0, e[1] * z1);
+        let min = ax0.min(ax1) + bz0.min(bz1) + base;
+        if min >= 0.0 {
+            continue;
+        }
+        let max = ax0.max(ax1) + bz0.max(bz1) + base;
+        if max <= 0.0 {
+            return Class::Outside;
+        }
+        crossing |= 1 << i;
+    }
+    if crossing == 0 {
+        Class::Inside
+    } else {
+        Class::Boundary(crossing)
+    }
+}
+
+/// One axis of texture space, cut where the wrap changes what it shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Segment {
+    /// Tiles `i0..=i1` (the unit tile alone, `0..=0`, for clamp and border).
+    Tiles(i64, i64),
+    /// Beyond the low edge (clamp, border).
+    Low,
+    /// Beyond the high edge.
+    High,
+}
+
+fn segments(mode: WrapMode, lo: f64, hi: f64) -> [Option<Segment>; 3] {
+    match mode {
+        WrapMode::Repeat | WrapMode::Mirror => {
+            let (a, b) = (lo.floor(), hi.floor());
+            // Far beyond i64: the region is absurdly far out; treat as none.
+            if !(a.abs() < 9.0e15 && b.abs() < 9.0e15) {
+                return [None; 3];
+            }
+            let b = if b > a && b == hi { b - 1.0 } else { b };
+            [Some(Segment::Tiles(a as i64, b as i64)), None, None]
+        }
+        WrapMode::Clamp | WrapMode::Border => [
+            (lo < 0.0).then_some(Segment::Low),
+            (lo < 1.0 && hi > 0.0).then_some(Segment::Tiles(0, 0)),
+            (hi > 1.0).then_some(Segment::High),
+        ],
+    }
+}
+
+/// How tile `i` of an axis maps to the tree: texture = `sign·local + offset`.
+#[inline]
+fn tile_map(mode: WrapMode, i: i64) -> (f64, f64) {
+    match mode {
+        WrapMode::Mirror if i.rem_euclid(2) == 1 => (-1.0, (i + 1) as f64),
+        _ => (1.0, i as f64),
+    }
+}
+
+/// A tile's view of the region: the region and its edges in the tile's
+/// local coordinates, and the map from local coordinates to the screen.
+struct TileFrame {
+    edges: ([Line; crate::polygon::MAX_VERTICES], usize),
+    to_screen: Mat3,
+    det: f64,
+}
+
+struct Walk<'a> {
+    tree: &'a QuadTree,
+    wrap: Wrap,
+    filter: PixelFilter,
+    centre: [f64; 2],
+    screen_from_texture: Mat3,
+    region: ConvexPolygon,
+    edges: ([Line; crate::polygon::MAX_VERTICES], usize),
+    fixed: Option<u8>,
+    inner_eps: f64,
+    boundary_coef: f64,
+    k_max: f64,
+    lipschitz: f64,
+    out: RegionIntegral,
+    visited: u64,
+    /// Mean colour along each edge (x low, x high, z low, z high), for
+    /// clamp stripes over many tiles, computed when first needed.
+    edge_means: [Option<[f64; 4]>; 4],
+}
+
+impl Walk<'_> {
+    fn run(&mut self, lo: [f64; 2], hi: [f64; 2]) {
+        let xs = segments(self.wrap.x, lo[0], hi[0]);
+        let zs = segments(self.wrap.z, lo[1], hi[1]);
+        for zs in zs.into_iter().flatten() {
+            for xs in xs.into_iter().flatten() {
+                match (xs, zs) {
+                    (Segment::Tiles(i0, i1), Segment::Tiles(j0, j1)) => self.block(i0, i1, j0, j1),
+                    _ => self.outside(xs, zs),
+                }
+            }
+        }
+    }
+
+    /// Adds `colour` over the screen polygon `piece`; `approximate` pieces
+    /// (a non-terminal square taken whole over part of it) add their bound.
+    #[inline]
+    fn add(&mut self, colour: [f64; 4], piece: &ConvexPolygon, approximate: bool) {
+        let w = self.filter.integral(piece, self.centre);
+        for (a, c) in self.out.colour.0.iter_mut().zip(colour) {
+            *a += c * w;
+        }
+        self.out.weight += w;
+        if approximate {
+            self.out.error_bound += self.k_max * piece.area();
+        }
+    }
+
+    fn to_screen_poly(&self, p: &ConvexPolygon, m: &Mat3) -> ConvexPolygon {
+        p.map(|t| apply(m, t))
+    }
+
+    /// Blocks of whole tiles `[i0, i1] × [j0, j1]` (both axes tiled).
+    fn block(&mut self, i0: i64, i1: i64, j0: i64, j1: i64) {
+        let (x0, x1) = (i0 as f64, (i1 + 1) as f64);
+        let (z0, z1) = (j0 as f64, (j1 + 1) as f64);
+        let class = classify(&self.edges, x0, z0, x1, z1);
+        if class == Class::Outside {
+            return;
+        }
+        if i0 == i1 && j0 == j1 {
+            self.tile(i0, j0);
+            return;
+        }
+        self.visited += 1;
+        let m = self.screen_from_texture;
+        let corners = [[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
+        let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(&m, t)));
+        let root = colour_of(self.tree.average());
+        let root_terminal = !self.tree.node(QuadTree::ROOT).0;
+        let accept = match class {
+            Class::Inside => {
+                let (nx, nz) = ((i1 - i0 + 1) as f64, (j1 - j0 + 1) as f64);
+                let bound = if root_terminal {
+                    0.0
+                } else {
+                    self.k_max * self.block_bound(&m, &corners, nx, nz)
+                        + 0.5 * self.lipschitz * diameter(&quad) / nx.max(nz) * quad.area()
+                };
+                // Splitting a block does not shrink its bound (module
+                // documentation); only descending into tiles does, which is
+                // worth it for a few tiles, not for many.
+                let ok = match self.fixed {
+                    Some(_) => bound == 0.0,
+                    None => bound <= self.inner_eps * quad.area() || nx * nz > MAX_TILES_DESCENDED,
+                };
+                if ok {
+                    self.add(root, &quad, false);
+                    self.out.error_bound += bound;
+                }
+                ok
+            }
+            _ => {
+                // Cut by the region's boundary: whole tiles keep the tile
+                // mean (up to the covariance above); only the tiles the cut
+                // crosses differ, a band one tile wide along it.
+                let (nx, nz) = ((i1 - i0 + 1) as f64, (j1 - j0 + 1) as f64);
+                let (_, det) = adjugate(&m);
+                let (rmin, rmax) = density_range_det(&m, det.abs(), &corners);
+                let tile = diameter(&quad) / nx.max(nz) * (rmax / rmin).max(1.0).sqrt();
+                let ok = root_terminal || (self.fixed.is_none() && tile <= self.boundary_coef);
+                if ok {
+                    let piece = self.region.clip_rect(x0, z0, x1, z1);
+                    let piece = self.to_screen_poly(&piece, &m);
+                    self.add(root, &piece, false);
+                    if !root_terminal {
+                        self.out.error_bound += self.k_max
+                            * (piece.perimeter() * tile
+                                + self.block_bound(&m, &corners, nx, nz).min(piece.area()));
+                    }
+                }
+                ok
+            }
+        };
+        if accept {
+            return;
+        }
+        if i1 - i0 >= j1 - j0 {
+            let mid = i0 + (i1 - i0) / 2;
+            self.block(i0, mid, j0, j1);
+            self.block(mid + 1, i1, j0, j1);
+        } else {
+            let mid = j0 + (j1 - j0) / 2;
+            self.block(i0, i1, j0, mid);
+            self.block(i0, i1, mid + 1, j1);
+        }
+    }
+
+    /// A bound on `|Σ_tiles Σ_leaves (c − c̄)(∫ρ − a·ρ̄)|` over a block of
+    /// `nx × nz` whole tiles with texture-space `corners`: expanding `ρ` to
+    /// first order about each tile's centre, the first-order terms are the
+    /// tile's first moments `m` dotted with `Σ ∇ρ(centres)`, which telescopes
+    /// along rows and columns to the density's range `D` across the block;
+    /// the remainder is bounded by the Hessian `|∂²ρ| ≤ 12ρ|∇w|²/w²`.
+    fn block_bound(&self, m: &Mat3, corners: &[[f64; 2]; 4], nx: f64, nz: f64) -> f64 {
+        let (_, det) = adjugate(m);
+        let det = det.abs();
+        let w_min = corners
+            .iter()
+            .map(|t| (m[2][0] * t[0] + m[2][1] * t[1] + m[2][2]).abs())
+            .fold(f64::INFINITY, f64::min);
+        let (rmin, rmax) = density_range_det(m, det, corners);
+        let d = rmax - rmin;
+        let g2 = m[2][0] * m[2][0] + m[2][1] * m[2][1];
+        let hessian = 12.0 * rmax * g2 / (w_min * w_min);
+        let [mx, mz] = self.tree.first_moments();
+        // Per tile: the colour's spread times the remainder over a unit
+        // tile (|δ|² ≤ ½), plus the moments times the Hessian for the error
+        // of the telescoped sum of gradients.
+        (mx * nz + mz * nx) * (d + hessian) + nx * nz * hessian * (0.25 + mx + mz)
+    }
+
+    /// One tile: the tree, in the tile's local coordinates.
+    fn tile(&mut self, i: i64, j: i64) {
+        let (sx, ox) = tile_map(self.wrap.x, i);
+        let (sz, oz) = tile_map(self.wrap.z, j);
+        // local = sign·(texture − offset)
+        let local = ConvexPolygon::from_trusted(
+            self.region
+                .map(|t| [sx * (t[0] - ox), sz * (t[1] - oz)])
+                .vertices(),
+        );
+        let a = [[sx, 0.0, ox], [0.0, sz, oz], [0.0, 0.0, 1.0]];
+        let to_screen = mul(&self.screen_from_texture, &a);
+        let (_, det) = adjugate(&to_screen);
+        let frame = TileFrame {
+            edges: edges_of(&local),
+            to_screen,
+            det: det.abs(),
+        };
+        self.node(&frame, QuadTree::ROOT, 0, 0, 0);
+    }
+
+    fn node(&mut self, f: &TileFrame, p: usize, level: u8, ix: u32, iz: u32) {
+        let side = unit_side(level);
+        let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
+        let (x1, z1) = (x0 + side, z0 + side);
+        let class = classify(&f.edges, x0, z0, x1, z1);
+        if class == Class::Outside {
+            return;
+        }
+        self.visited += 1;
+        let (inner, stored) = self.tree.node(p);
+        let colour = colour_of(stored);
+        let corners = [[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
+        let m = &f.to_screen;
+        match class {
+            Class::Inside => {
+                let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(m, t)));
+                if !inner {
+                    self.add(colour, &quad, false);
+                    return;
+                }
+                let (rmin, rmax) = density_range_det(m, f.det, &corners);
+                let bound = 0.5
+                    * side
+                    * side
+                    * (self.k_max * (rmax - rmin) + rmax * self.lipschitz * diameter(&quad));
+                let ok = match self.fixed {
+                    Some(k) => level >= k || bound == 0.0,
+                    None => bound <= self.inner_eps * quad.area(),
+                };
+                if ok {
+                    self.add(colour, &quad, false);
+                    self.out.error_bound += bound;
+                    return;
+                }
+            }
+            Class::Boundary(crossing) => {
+                let take = !inner
+                    || match self.fixed {
+                        Some(k) => level >= k,
+                        None => {
+                            let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(m, t)));
+                            quad.area() <= self.boundary_coef * diameter(&quad)
+                        }
+                    };
+                if take {
+                    let mut piece = ConvexPolygon::rect(x0, z0, x1, z1);
+                    for e in 0..f.edges.1 {
+                        if crossing >> e & 1 == 1 {
+                            let l = f.edges.0[e];
+                            piece = piece.clip(l[0], l[1], l[2]);
+                        }
+                    }
+                    let piece = piece.map(|t| apply(m, t));
+                    self.add(colour, &piece, inner);
+                    return;
+                }
+            }
+            Class::Outside => return,
+        }
+        let first = self.tree.children_of(p);
+        for c in 0..4u32 {
+            self.node(
+                f,
+                first + c as usize,
+                level + 1,
+                2 * ix + (c & 1),
+                2 * iz + (c >> 1),
+            );
+        }
+    }
+
+    /// A part of the plane beyond a clamp or border edge.
+    fn outside(&mut self, xs: Segment, zs: Segment) {
+        let range = |s: Segment| match s {
+            Segment::Tiles(a, b) => (a as f64, (b + 1) as f64),
+            Segment::Low => (f64::NEG_INFINITY, 0.0),
+            Segment::High => (1.0, f64::INFINITY),
+        };
+        let (x0, x1) = range(xs);
+        let (z0, z1) = range(zs);
+        let piece = self.region.clip_rect(x0, z0, x1, z1);
+        if piece.is_empty() {
+            return;
+        }
+        self.visited += 1;
+        let m = self.screen_from_texture;
+        let x_out = !matches!(xs, Segment::Tiles(..));
+        let z_out = !matches!(zs, Segment::Tiles(..));
+        if (x_out && self.wrap.x == WrapMode::Border) || (z_out && self.wrap.z == WrapMode::Border)
+        {
+            let b = self.wrap.border.to_array().map(f64::from);
+            self.add(b, &self.to_screen_poly(&piece, &m), false);
+            return;
+        }
+        if x_out && z_out {
+            let c = self.corner_colour(xs == Segment::High, zs == Segment::High);
+            self.add(c, &self.to_screen_poly(&piece, &m), false);
+            return;
+        }
+        // A clamp stripe: the colour varies along the other axis only.
+        let (axis, high, other) = if x_out {
+            (0, xs == Segment::High, zs)
+        } else {
+            (1, zs == Segment::High, xs)
+        };
+        if let Segment::Tiles(j0, j1) = other {
+            self.stripe(axis, high, j0, j1, &piece);
+        }
+    }
+
+    /// Tiles `j0..=j1` along the stripe beyond edge (`axis`, `high`).
+    fn stripe(&mut self, axis: usize, high: bool, j0: i64, j1: i64, piece: &ConvexPolygon) {
+        let (b0, b1) = (j0 as f64, (j1 + 1) as f64);
+        let part = clip_axis(piece, 1 - axis, b0, b1);
+        if part.is_empty() {
+            return;
+        }
+        self.visited += 1;
+        let m = self.screen_from_texture;
+        let screen = self.to_screen_poly(&part, &m);
+        if j0 == j1 {
+            let mode = if axis == 0 { self.wrap.z } else { self.wrap.x };
+            let (sign, offset) = tile_map(mode, j0);
+            self.edge_node(axis, high, QuadTree::ROOT, 0, 0, sign, offset, &part);
+            return;
+        }
+        if self.fixed.is_none() && screen.area() <= self.boundary_coef * diameter(&screen) {
+            let c = self.edge_mean(axis, high);
+            self.add(c, &screen, true);
+            return;
+        }
+        let mid = j0 + (j1 - j0) / 2;
+        self.stripe(axis, high, j0, mid, &part);
+        self.stripe(axis, high, mid + 1, j1, &part);
+    }
+
+    /// The edge cells of node `p` (index `k` along the edge at `level`) over
+    /// the stripe part `part`, the edge's tile mapped by `sign`, `offset`.
+    #[allow(clippy::too_many_arguments)]
+    fn edge_node(
+        &mut self,
+        axis: usize,
+        high: bool,
+        p: usize,
+        level: u8,
+        k: u32,
+        sign: f64,
+        offset: f64,
+        part: &ConvexPolygon,
+    ) {
+        let side = unit_side(level);
+        let (l0, l1) = (f64::from(k) * side, f64::from(k + 1) * side);
+        let (t0, t1) = if sign > 0.0 {
+            (offset + l0, offset + l1)
+        } else {
+            (offset - l1, offset - l0)
+        };
+        let piece = clip_axis(part, 1 - axis, t0, t1);
+        if piece.is_empty() {
+            return;
+        }
+        self.visited += 1;
+        let (inner, stored) = self.tree.node(p);
+        let m = self.screen_from_texture;
+        let screen = self.to_screen_poly(&piece, &m);
+        let take = !inner
+            || match self.fixed {
+                Some(f) => level >= f,
+                None => screen.area() <= self.boundary_coef * diameter(&screen),
+            };
+        if take {
+            self.add(colour_of(stored), &screen, inner);
+            return;
+        }
+        let first = self.tree.children_of(p);
+        let h = u32::from(high);
+        for c in 0..2u32 {
+            // Children on the edge: the outer half across the edge, both along it.
+            let child = if axis == 0 { h + 2 * c } else { c + 2 * h };
+            self.edge_node(
+                axis,
+                high,
+                first + child as usize,
+                level + 1,
+                2 * k + c,
+                sign,
+                offset,
+                &piece,
+            );
+        }
+    }
+
+    /// The mean colour along edge (`axis`, `high`): the stretched cells of a
+    /// clamp stripe, averaged over one tile.
+    fn edge_mean(&mut self, axis: usize, high: bool) -> [f64; 4] {
+        let slot = 2 * axis + usize::from(high);
+        if let Some(c) = self.edge_means[slot] {
+            return c;
+        }
+        let mut acc = [0.0; 4];
+        let mut stack = vec![(QuadTree::ROOT, 0u8)];
+        while let Some((p, level)) = stack.pop() {
+            let (inner, stored) = self.tree.node(p);
+            if !inner {
+                let c = colour_of(stored);
+                for (a, v) in acc.iter_mut().zip(c) {
+                    *a += v * unit_side(level);
+                }
+                continue;
+            }
+            let first = self.tree.children_of(p);
+            let h = usize::from(high);
+            for c in 0..2usize {
+                let child = if axis == 0 { h + 2 * c } else { c + 2 * h };
+                stack.push((first + child, level + 1));
+            }
+        }
+        self.edge_means[slot] = Some(acc);
+        acc
+    }
+
+    /// The colour of the tree's corner cell (`x` high?, `z` high?).
+    fn corner_colour(&self, x_high: bool, z_high: bool) -> [f64; 4] {
+        let mut p = QuadTree::ROOT;
+        loop {
+            let (inner, stored) = self.tree.node(p);
+            if !inner {
+                return colour_of(stored);
+            }
+            p = self.tree.children_of(p) + usize::from(x_high) + 2 * usize::from(z_high);
+        }
+    }
+}
+
+/// The part of `p` with coordinate `axis` in `[lo, hi]`.
+fn clip_axis(p: &ConvexPolygon, axis: usize, lo: f64, hi: f64) -> ConvexPolygon {
+    if axis == 0 {
+        p.clip_rect(lo, f64::NEG_INFINITY, hi, f64::INFINITY)
+    } else {
+        p.clip_rect(f64::NEG_INFINITY, lo, f64::INFINITY, hi)
+    }
+}
+
+#[inline]
+fn colour_of(c: crate::Unorm16Rgba) -> [f64; 4] {
+    c.0.map(|v| f64::from(v) * (1.0 / 65535.0))
+}
+
+/// Longest diagonal of a quad (or the bounding box's diagonal of a polygon).
+#[inline]
+fn diameter(p: &ConvexPolygon) -> f64 {
+    let (lo, hi) = p.bounds();
+    (hi[0] - lo[0]).hypot(hi[1] - lo[1])
+}
+
+/// Extremes of the screen density `|det m| / w³` over `corners`.
+#[inline]
+fn density_range_det(m: &Mat3, det: f64, corners: &[[f64; 2]; 4]) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, 0f64);
+    for t in corners {
+        let w = (m[2][0] * t[0] + m[2][1] * t[1] + m[2][2]).abs();
+        let rho = det / (w * w * w);
+        lo = lo.min(rho);
+        hi = hi.max(rho);
+    }
+    (lo, hi)
+}
+
+#[inline]
+fn apply(m: &Mat3, p: [f64; 2]) -> [f64; 2] {
+    let w = m[2][0] * p[0] + m[2][1] * p[1] + m[2][2];
+    [
+        (m[0][0] * p[0] + m[0][1] * p[1] + m[0][2]) / w,
+        (m[1][0] * p[0] + m[1][1] * p[1] + m[1][2]) / w,
+    ]
+}
+
+fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
+    let mut c = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            c[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    c
+}
+
+/// The adjugate (transposed cofactors) and the determinant.
+fn adjugate(m: &Mat3) -> (Mat3, f64) {
+    let [[a, b, c], [d, e, f], [g, h, i]] = *m;
+    let adj = [
+        [e * i - f * h, c * h - b * i, b * f - c * e],
+        [f * g - d * i, a * i - c * g, c * d - a * f],
+        [d * h - e * g, b * g - a * h, a * e - b * d],
+    ];
+    let det = a * adj[0][0] + b * adj[1][0] + c * adj[2][0];
+    (adj, det)
+}

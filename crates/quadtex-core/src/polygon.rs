@@ -1,0 +1,411 @@
+//! Small convex polygons in the plane: clipping by half-planes
+//! (Sutherland–Hodgman), area, and the exact integral of a separable
+//! piecewise-polynomial weight over them (Green's theorem).
+//!
+//! Polygons live on the stack (at most [`MAX_VERTICES`] vertices): the exact
+//! pixel integral clips one per visited square. Coordinates are `f64` in
+//! whatever plane the caller works in (screen pixels, texture units).
+
+use crate::Error;
+
+/// Most vertices a [`ConvexPolygon`] holds. A convex polygon clipped by a
+/// half-plane gains at most one vertex; a pixel region clipped by a tree
+/// square, then by a filter's cell, stays far below this.
+pub const MAX_VERTICES: usize = 24;
+
+/// A convex polygon, vertices in counter-clockwise order (positive
+/// shoelace area in its own coordinates: with `y` down on the screen this
+/// is clockwise as seen on the screen, which does not matter here).
+///
+/// Invariants (checked by [`ConvexPolygon::new`]): finite coordinates, at
+/// most [`MAX_VERTICES`] vertices, convex. Fewer than three vertices, or
+/// collinear ones, make an empty polygon of zero area.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConvexPolygon {
+    n: usize,
+    v: [[f64; 2]; MAX_VERTICES],
+}
+
+impl Default for ConvexPolygon {
+    fn default() -> Self {
+        ConvexPolygon::EMPTY
+    }
+}
+
+impl ConvexPolygon {
+    /// No vertices.
+    pub const EMPTY: ConvexPolygon = ConvexPolygon {
+        n: 0,
+        v: [[0.0; 2]; MAX_VERTICES],
+    };
+
+    /// A convex polygon from its vertices in either orientation.
+    /// [`Error::NonFiniteCoordinate`] names a NaN or infinite coordinate
+    /// (`vertex[i].x`); [`Error::BadPolygon`] a polygon with too many
+    /// vertices or one that is not convex.
+    pub fn new(vertices: &[[f64; 2]]) -> Result<ConvexPolygon, Error> {
+        if vertices.len() > MAX_VERTICES {
+            return Err(Error::BadPolygon(format!(
+                "{} vertices, at most {MAX_VERTICES}",
+                vertices.len()
+            )));
+        }
+        for (i, p) in vertices.iter().enumerate() {
+            for (a, &value) in p.iter().enumerate() {
+                if !value.is_finite() {
+                    let axis = if a == 0 { 'x' } else { 'y' };
+                    return Err(Error::BadPolygon(format!(
+                        "vertex[{i}].{axis} is {value}, not a finite number"
+                    )));
+                }
+            }
+        }
+        let mut p = ConvexPolygon::EMPTY;
+        p.n = vertices.len();
+        p.v[..p.n].copy_from_slice(vertices);
+        if p.signed_area() < 0.0 {
+            p.v[..p.n].reverse();
+        }
+        if !p.is_convex() {
+            return Err(Error::BadPolygon("the polygon is not convex".into()));
+        }
+        Ok(p)
+    }
+
+    /// The axis-aligned rectangle `[x0, x1] × [y0, y1]` (empty if reversed).
+    pub fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> ConvexPolygon {
+        if !(x0 < x1 && y0 < y1) {
+            return ConvexPolygon::EMPTY;
+        }
+        let mut p = ConvexPolygon::EMPTY;
+        p.n = 4;
+        p.v[..4].copy_from_slice(&[[x0, y0], [x1, y0], [x1, y1], [x0, y1]]);
+        p
+    }
+
+    /// Vertices from a trusted source (already convex, finite), made
+    /// counter-clockwise.
+    pub(crate) fn from_trusted(vertices: &[[f64; 2]]) -> ConvexPolygon {
+        let mut p = ConvexPolygon::EMPTY;
+        p.n = vertices.len().min(MAX_VERTICES);
+        p.v[..p.n].copy_from_slice(&vertices[..p.n]);
+        if p.signed_area() < 0.0 {
+            p.v[..p.n].reverse();
+        }
+        p
+    }
+
+    /// The vertices.
+    pub fn vertices(&self) -> &[[f64; 2]] {
+        &self.v[..self.n]
+    }
+
+    /// True with fewer than three vertices.
+    pub fn is_empty(&self) -> bool {
+        self.n < 3
+    }
+
+    /// Shoelace area, signed (positive for counter-clockwise).
+    pub fn signed_area(&self) -> f64 {
+        signed_area(self.vertices())
+    }
+
+    /// Area (`≥ 0`).
+    pub fn area(&self) -> f64 {
+        self.signed_area().abs()
+    }
+
+    /// Sum of the edge lengths.
+    pub fn perimeter(&self) -> f64 {
+        let v = self.vertices();
+        (0..v.len())
+            .map(|i| {
+                let (a, b) = (v[i], v[(i + 1) % v.len()]);
+                (b[0] - a[0]).hypot(b[1] - a[1])
+            })
+            .sum()
+    }
+
+    /// Lower-left and upper-right corners of the bounding box.
+    pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in self.vertices() {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// The part where `a·x + b·y + c ≥ 0`.
+    #[inline]
+    pub fn clip(&self, a: f64, b: f64, c: f64) -> ConvexPolygon {
+        let mut out = ConvexPolygon::EMPTY;
+        let v = self.vertices();
+        let n = v.len();
+        if n == 0 {
+            return out;
+        }
+        let side = |p: [f64; 2]| a * p[0] + b * p[1] + c;
+        let mut prev = v[n - 1];
+        let mut s_prev = side(prev);
+        for &p in v {
+            let s = side(p);
+            if (s >= 0.0) != (s_prev >= 0.0) && out.n < MAX_VERTICES {
+                let t = s_prev / (s_prev - s);
+                out.v[out.n] = [
+                    prev[0] + t * (p[0] - prev[0]),
+                    prev[1] + t * (p[1] - prev[1]),
+                ];
+                out.n += 1;
+            }
+            if s >= 0.0 && out.n < MAX_VERTICES {
+                out.v[out.n] = p;
+                out.n += 1;
+            }
+            prev = p;
+            s_prev = s;
+        }
+        out
+    }
+
+    /// The part inside the axis-aligned box `[x0, x1] × [y0, y1]`.
+    #[inline]
+    pub fn clip_rect(&self, x0: f64, y0: f64, x1: f64, y1: f64) -> ConvexPolygon {
+        let (lo, hi) = self.bounds();
+        let mut p = *self;
+        if lo[0] < x0 {
+            p = p.clip(1.0, 0.0, -x0);
+        }
+        if hi[0] > x1 {
+            p = p.clip(-1.0, 0.0, x1);
+        }
+        if lo[1] < y0 {
+            p = p.clip(0.0, 1.0, -y0);
+        }
+        if hi[1] > y1 {
+            p = p.clip(0.0, -1.0, y1);
+        }
+        p
+    }
+
+    /// The part inside convex polygon `other`.
+    pub fn intersect(&self, other: &ConvexPolygon) -> ConvexPolygon {
+        let mut p = *self;
+        let v = other.vertices();
+        for i in 0..v.len() {
+            let (a, b) = (v[i], v[(i + 1) % v.len()]);
+            // Left of a→b is inside for a counter-clockwise polygon.
+            let (nx, ny) = (-(b[1] - a[1]), b[0] - a[0]);
+            p = p.clip(nx, ny, -(nx * a[0] + ny * a[1]));
+            if p.is_empty() {
+                return ConvexPolygon::EMPTY;
+            }
+        }
+        p
+    }
+
+    /// The polygon with every vertex mapped by `f` (which must keep it
+    /// convex, as an affine or a projective map on its visible side does).
+    pub fn map(&self, f: impl Fn([f64; 2]) -> [f64; 2]) -> ConvexPolygon {
+        let mut out = *self;
+        for p in &mut out.v[..out.n] {
+            *p = f(*p);
+        }
+        out
+    }
+
+    /// The convex hull of `points` (finite), counter-clockwise (Andrew's
+    /// monotone chain); at most [`MAX_VERTICES`] points are read.
+    pub fn hull(points: &[[f64; 2]]) -> ConvexPolygon {
+        let mut pts: Vec<[f64; 2]> = points.iter().take(MAX_VERTICES).copied().collect();
+        pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+        pts.dedup();
+        if pts.len() < 3 {
+            return ConvexPolygon::EMPTY;
+        }
+        let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+            (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+        };
+        let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * pts.len());
+        for pass in 0..2 {
+            let start = hull.len();
+            let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
+                Box::new(pts.iter())
+            } else {
+                Box::new(pts.iter().rev())
+            };
+            for &p in iter {
+                while hull.len() >= start + 2
+                    && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+                {
+                    hull.pop();
+                }
+                hull.push(p);
+            }
+            hull.pop();
+        }
+        ConvexPolygon::from_trusted(&hull)
+    }
+
+    fn is_convex(&self) -> bool {
+        let v = self.vertices();
+        let n = v.len();
+        if n < 4 {
+            return true;
+        }
+        let scale = v
+            .iter()
+            .flatten()
+            .fold(0f64, |m, c| m.max(c.abs()))
+            .max(f64::MIN_POSITIVE);
+        let tolerance = -1e-12 * scale * scale;
+        (0..n).all(|i| {
+            let (a, b, c) = (v[i], v[(i + 1) % n], v[(i + 2) % n]);
+            (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]) >= tolerance
+        })
+    }
+}
+
+/// Shoelace area of a polygon, signed.
+pub(crate) fn signed_area(v: &[[f64; 2]]) -> f64 {
+    let n = v.len();
+    if n < 3 {
+        return 0.0;
+    }
+    let mut a = 0.0;
+    let mut prev = v[n - 1];
+    for &p in v {
+        a += prev[0] * p[1] - p[0] * prev[1];
+        prev = p;
+    }
+    0.5 * a
+}
+
+/// A cubic `c[0] + c[1]·x + c[2]·x² + c[3]·x³`.
+pub(crate) type Cubic = [f64; 4];
+
+/// 4-point Gauss–Legendre nodes and weights on `[0, 1]`: exact for
+/// polynomials of degree ≤ 7.
+const GAUSS4: [(f64, f64); 4] = [
+    (0.069_431_844_202_973_71, 0.173_927_422_568_726_93),
+    (0.330_009_478_207_571_87, 0.326_072_577_431_273_07),
+    (0.669_990_521_792_428_1, 0.326_072_577_431_273_07),
+    (0.930_568_155_797_026_3, 0.173_927_422_568_726_93),
+];
+
+/// `∫∫_P f(x)·g(y) dx dy` over polygon `P`, for cubics `f` and `g`, by
+/// Green's theorem: `∮ F(x)·g(y) dy` with `F' = f`, each edge integrated by
+/// 4-point Gauss–Legendre (degree 4 + 3 = 7: exact up to rounding). Positive
+/// for a counter-clockwise polygon.
+pub(crate) fn separable_integral(p: &[[f64; 2]], f: &Cubic, g: &Cubic) -> f64 {
+    let n = p.len();
+    if n < 3 {
+        return 0.0;
+    }
+    let big_f = |x: f64| x * (f[0] + x * (f[1] / 2.0 + x * (f[2] / 3.0 + x * f[3] / 4.0)));
+    let small_g = |y: f64| g[0] + y * (g[1] + y * (g[2] + y * g[3]));
+    let mut total = 0.0;
+    let mut a = p[n - 1];
+    for &b in p {
+        let dy = b[1] - a[1];
+        if dy != 0.0 {
+            let mut edge = 0.0;
+            for (t, w) in GAUSS4 {
+                let (x, y) = (a[0] + t * (b[0] - a[0]), a[1] + t * dy);
+                edge += w * big_f(x) * small_g(y);
+            }
+            total += edge * dy;
+        }
+        a = b;
+    }
+    total
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn clipping_a_square_by_a_diagonal_halves_it() {
+        let sq = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
+        let half = sq.clip(-1.0, -1.0, 1.0); // x + y ≤ 1
+        assert!((half.area() - 0.5).abs() < 1e-15);
+        assert!(sq.clip(1.0, 0.0, -2.0).is_empty());
+        assert_eq!(sq.clip_rect(-1.0, -1.0, 2.0, 2.0), sq);
+        let q = sq.clip_rect(0.25, 0.5, 0.75, 3.0);
+        assert!((q.area() - 0.25).abs() < 1e-15);
+    }
+
+    #[test]
+    fn new_checks_convexity_and_orientation() {
+        let cw = ConvexPolygon::new(&[[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]]).unwrap();
+        assert!(cw.signed_area() > 0.0);
+        assert!(ConvexPolygon::new(&[[0.0, 0.0], [2.0, 0.0], [0.5, 0.5], [0.0, 2.0]]).is_err());
+        let e = ConvexPolygon::new(&[[0.0, f64::NAN], [1.0, 0.0], [0.0, 1.0]]).unwrap_err();
+        assert!(e.to_string().contains("vertex[0]"), "{e}");
+    }
+
+    #[test]
+    fn hull_of_a_bow_tie_is_its_square() {
+        let h = ConvexPolygon::hull(&[[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]);
+        assert_eq!(h.vertices().len(), 4);
+        assert!((h.area() - 1.0).abs() < 1e-15);
+        assert!(ConvexPolygon::hull(&[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]).is_empty());
+    }
+
+    #[test]
+    fn intersection_of_two_squares() {
+        let a = ConvexPolygon::rect(0.0, 0.0, 2.0, 2.0);
+        let b = ConvexPolygon::new(&[[1.0, -1.0], [3.0, 1.0], [1.0, 3.0], [-1.0, 1.0]]).unwrap();
+        // |x−1| + |y−1| ≤ 2 holds all of the square [0,2]².
+        assert!((a.intersect(&b).area() - 4.0).abs() < 1e-14);
+        // The diamond |x−1| + |y−1| ≤ 1 inside it: area 2.
+        let c = ConvexPolygon::new(&[[1.0, 0.0], [2.0, 1.0], [1.0, 2.0], [0.0, 1.0]]).unwrap();
+        assert!((a.intersect(&c).area() - 2.0).abs() < 1e-14);
+        assert!((c.intersect(&a).area() - 2.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn green_matches_a_product_of_one_dimensional_integrals_on_rectangles() {
+        // ∫₀²∫₋₁¹ (1 + 2x − x³)(3 − y + y²) = [x + x² − x⁴/4]₋₁¹ · [3y − y²/2 + y³/3]₀²
+        let f = [1.0, 2.0, 0.0, -1.0];
+        let g = [3.0, -1.0, 1.0, 0.0];
+        let r = ConvexPolygon::rect(-1.0, 0.0, 1.0, 2.0);
+        let fx = |x: f64| x + x * x - x.powi(4) / 4.0;
+        let gy = |y: f64| 3.0 * y - y * y / 2.0 + y.powi(3) / 3.0;
+        let expected = (fx(1.0) - fx(-1.0)) * (gy(2.0) - gy(0.0));
+        let got = separable_integral(r.vertices(), &f, &g);
+        assert!((got - expected).abs() < 1e-12, "{got} vs {expected}");
+    }
+
+    #[test]
+    fn green_matches_dense_sampling_on_a_triangle() {
+        let f = [0.5, -1.0, 2.0, 0.7];
+        let g = [1.0, 0.3, -0.2, 0.9];
+        let tri = ConvexPolygon::new(&[[0.0, 0.0], [1.0, 0.2], [0.3, 0.9]]).unwrap();
+        let n = 2000;
+        let mut sum = 0.0;
+        for j in 0..n {
+            for i in 0..n {
+                let (x, y) = ((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64);
+                // Point-in-triangle by edge signs.
+                let v = tri.vertices();
+                let ok = (0..3).all(|k| {
+                    let (a, b) = (v[k], v[(k + 1) % 3]);
+                    (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]) >= 0.0
+                });
+                if ok {
+                    let fx = f[0] + x * (f[1] + x * (f[2] + x * f[3]));
+                    let gy = g[0] + y * (g[1] + y * (g[2] + y * g[3]));
+                    sum += fx * gy;
+                }
+            }
+        }
+        let sampled = sum / (n * n) as f64;
+        let exact = separable_integral(tri.vertices(), &f, &g);
+        assert!((sampled - exact).abs() < 2e-3, "{sampled} vs {exact}");
+    }
+}

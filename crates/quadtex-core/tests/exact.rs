@@ -1,0 +1,323 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+//! The exact pixel integral against slow, obvious references: the pixel
+//! square cut by the preimages of every finest cell's edges (lines, under
+//! a projective map) for the box; dense weighted sampling for the tent and
+//! Mitchell filters; the reported error bound against the exact value.
+
+mod common;
+
+use arbtest::arbitrary::{Result as ArbResult, Unstructured};
+use common::{PALETTE, blocky_grid};
+use quadtex_core::{
+    BuildOptions, ConvexPolygon, FilterOptions, FilterStats, Footprint, PixelFilter, Projection,
+    QuadTree, Rgba, Texture, Wrap, WrapMode,
+};
+
+fn blocky_tree(u: &mut Unstructured<'_>) -> ArbResult<QuadTree> {
+    let grid = blocky_grid(u, 4)?;
+    Ok(QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0)
+}
+
+fn wrap(u: &mut Unstructured<'_>) -> ArbResult<Wrap> {
+    let modes = [
+        WrapMode::Repeat,
+        WrapMode::Clamp,
+        WrapMode::Mirror,
+        WrapMode::Border,
+    ];
+    Ok(Wrap {
+        x: *u.choose(&modes)?,
+        z: *u.choose(&modes)?,
+        border: PALETTE[u.choose_index(PALETTE.len())?],
+    })
+}
+
+fn unit(u: &mut Unstructured<'_>, lo: f64, hi: f64) -> ArbResult<f64> {
+    Ok(lo + (hi - lo) * f64::from(u.int_in_range(0..=10_000u32)?) / 10_000.0)
+}
+
+/// A convex footprint: a grazing trapezoid (strong perspective), rotated,
+/// anywhere in `[-2, 3]²`.
+fn footprint(u: &mut Unstructured<'_>) -> ArbResult<Footprint> {
+    let (cx, cz) = (unit(u, -2.0, 3.0)?, unit(u, -2.0, 3.0)?);
+    let near = unit(u, 0.02, 0.6)?;
+    let far = near * unit(u, 0.5, 8.0)?;
+    let depth = unit(u, 0.02, 1.5)?;
+    let angle = unit(u, 0.0, std::f64::consts::TAU)?;
+    let (s, c) = angle.sin_cos();
+    let rot = |p: [f64; 2]| [cx + c * p[0] - s * p[1], cz + s * p[0] + c * p[1]];
+    Ok(Footprint::from_corners([
+        rot([-near / 2.0, 0.0]),
+        rot([near / 2.0, 0.0]),
+        rot([far / 2.0, depth]),
+        rot([-far / 2.0, depth]),
+    ])
+    .unwrap())
+}
+
+/// Heckbert's square-to-quad coefficients, written out again here.
+fn coefficients(p: [[f64; 2]; 4]) -> [f64; 8] {
+    let [p0, p1, p2, p3] = p;
+    let sx = p0[0] - p1[0] + p2[0] - p3[0];
+    let sz = p0[1] - p1[1] + p2[1] - p3[1];
+    let (dx1, dx2, dz1, dz2) = (p1[0] - p2[0], p3[0] - p2[0], p1[1] - p2[1], p3[1] - p2[1]);
+    let den = dx1 * dz2 - dx2 * dz1;
+    let g = (sx * dz2 - dx2 * sz) / den;
+    let h = (dx1 * sz - sx * dz1) / den;
+    [
+        p1[0] - p0[0] + g * p1[0],
+        p3[0] - p0[0] + h * p3[0],
+        p0[0],
+        p1[1] - p0[1] + g * p1[1],
+        p3[1] - p0[1] + h * p3[1],
+        p0[1],
+        g,
+        h,
+    ]
+}
+
+/// The box-filtered pixel, slowly: every finest cell under the footprint's
+/// bounding box, its preimage in the pixel square cut out by four
+/// half-planes (`x ≥ c ⇔ (a−c·g)u + (b−c·h)v + (x₀−c) ≥ 0` where `w > 0`),
+/// times the colour `Texture::nearest` gives at the cell's centre.
+fn brute_force_box(texture: &Texture, fp: &Footprint) -> Rgba {
+    let [a, b, c, d, e, f, g, h] = coefficients(fp.corners());
+    let cell = 1.0 / f64::from(1u32 << texture.tree().depth());
+    let (lo, hi) = fp.bounds();
+    let (i0, i1) = ((lo[0] / cell).floor() as i64, (hi[0] / cell).ceil() as i64);
+    let (j0, j1) = ((lo[1] / cell).floor() as i64, (hi[1] / cell).ceil() as i64);
+    let square = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
+    let mut acc = [0f64; 4];
+    for j in j0..j1 {
+        for i in i0..i1 {
+            let (x0, x1) = (i as f64 * cell, (i + 1) as f64 * cell);
+            let (z0, z1) = (j as f64 * cell, (j + 1) as f64 * cell);
+            let piece = square
+                .clip(a - x0 * g, b - x0 * h, c - x0)
+                .clip(x1 * g - a, x1 * h - b, x1 - c)
+                .clip(d - z0 * g, e - z0 * h, f - z0)
+                .clip(z1 * g - d, z1 * h - e, z1 - f);
+            let area = piece.area();
+            if area > 0.0 {
+                let colour = texture.nearest([(x0 + x1) / 2.0, (z0 + z1) / 2.0]);
+                for (s, v) in acc.iter_mut().zip(colour.to_array()) {
+                    *s += area * f64::from(v);
+                }
+            }
+        }
+    }
+    Rgba::new(acc[0] as f32, acc[1] as f32, acc[2] as f32, acc[3] as f32)
+}
+
+fn max_diff(a: Rgba, b: Rgba) -> f64 {
+    (a - b)
+        .to_array()
+        .iter()
+        .fold(0f64, |m, v| m.max(f64::from(v.abs())))
+}
+
+/// At full depth the box-filtered pixel is the brute-force sum over cells
+/// to float precision, for every wrap; the default level of detail stays
+/// within the bound it reports.
+#[test]
+fn box_pixels_match_the_cell_by_cell_sum_and_the_bound_holds() {
+    arbtest::arbtest(|u| {
+        let texture = Texture::new(blocky_tree(u)?, wrap(u)?);
+        let fp = footprint(u)?;
+        if fp.homography().is_none() {
+            return Ok(());
+        }
+        let truth = brute_force_box(&texture, &fp);
+        let exact = texture.filter(&fp, &FilterOptions::default().with_level(30));
+        assert!(
+            max_diff(exact, truth) < 2e-6,
+            "{exact:?} vs {truth:?} for {fp:?} under {:?}",
+            texture.wrap()
+        );
+        let mut stats = FilterStats::default();
+        let fast = texture.filter_counted(&fp, &FilterOptions::default(), &mut stats);
+        let err = max_diff(fast, truth);
+        assert!(
+            err <= stats.max_error_bound + 2e-6,
+            "{err} above the reported bound {}",
+            stats.max_error_bound
+        );
+        Ok(())
+    })
+    .budget_ms(4_000);
+}
+
+/// The tent and Mitchell integrals over a projected support match dense
+/// sampling of the support weighted by the filter; a fully visible support
+/// weighs exactly 1.
+#[test]
+fn tent_and_mitchell_match_weighted_sampling() {
+    arbtest::arbtest(|u| {
+        let texture = Texture::new(blocky_tree(u)?, wrap(u)?);
+        let fp = footprint(u)?;
+        if fp.homography().is_none() {
+            return Ok(());
+        }
+        // The footprint is pixel (10, 20); the filters reach its neighbours.
+        let Some(projection) = Projection::for_pixel(&fp, [10.0, 20.0]) else {
+            return Ok(());
+        };
+        let centre = [10.5, 20.5];
+        for filter in [PixelFilter::Tent, PixelFilter::Mitchell] {
+            let support = filter.support(centre);
+            if support
+                .vertices()
+                .iter()
+                .any(|&s| projection.w(s) <= 1e-6 * projection.w(centre))
+            {
+                continue; // the support reaches the horizon: not this test
+            }
+            let options = FilterOptions::default().with_level(30);
+            let r = texture.integrate_region(
+                &projection,
+                &support,
+                filter,
+                centre,
+                &options,
+                &mut FilterStats::default(),
+            );
+            assert!(
+                (r.weight - 1.0).abs() < 1e-9,
+                "{filter:?} weight {}",
+                r.weight
+            );
+            let n = 300;
+            let side = 2.0 * filter.radius();
+            let (mut acc, mut wsum) = ([0f64; 4], 0.0);
+            for j in 0..n {
+                for i in 0..n {
+                    let dx = -filter.radius() + side * (f64::from(i) + 0.5) / f64::from(n);
+                    let dy = -filter.radius() + side * (f64::from(j) + 0.5) / f64::from(n);
+                    let w = filter.weight(dx, dy);
+                    let t = projection
+                        .texture_point([centre[0] + dx, centre[1] + dy])
+                        .unwrap();
+                    for (a, v) in acc.iter_mut().zip(texture.nearest(t).to_array()) {
+                        *a += w * f64::from(v);
+                    }
+                    wsum += w;
+                }
+            }
+            let sampled = Rgba::new(
+                (acc[0] / wsum) as f32,
+                (acc[1] / wsum) as f32,
+                (acc[2] / wsum) as f32,
+                (acc[3] / wsum) as f32,
+            );
+            let exact = r.mean().unwrap();
+            // Midpoint sampling on a 300² grid: edges cut ~300 samples each.
+            assert!(
+                max_diff(exact, sampled) < 0.02,
+                "{filter:?}: {exact:?} vs sampled {sampled:?}"
+            );
+        }
+        Ok(())
+    })
+    .budget_ms(4_000);
+}
+
+/// The filters' one-dimensional kernels integrate to 1 and have the stated
+/// values: the tent peaks at 1, Mitchell at 8/9 and is negative near ±1.5.
+#[test]
+fn kernels_are_normalised() {
+    for filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
+        let r = filter.radius();
+        let n = 200_000;
+        let sum: f64 = (0..n)
+            .map(|i| filter.k1(-r + 2.0 * r * (f64::from(i) + 0.5) / f64::from(n)))
+            .sum::<f64>()
+            * 2.0
+            * r
+            / f64::from(n);
+        assert!((sum - 1.0).abs() < 1e-6, "{filter:?}: {sum}");
+    }
+    assert_eq!(PixelFilter::Tent.k1(0.0), 1.0);
+    assert!((PixelFilter::Mitchell.k1(0.0) - 8.0 / 9.0).abs() < 1e-15);
+    assert!(PixelFilter::Mitchell.k1(1.5) < 0.0);
+    // Continuity at the cell boundaries.
+    for x in [-1.0f64, 1.0] {
+        let m = PixelFilter::Mitchell;
+        assert!((m.k1(x - 1e-12) - m.k1(x + 1e-12)).abs() < 1e-9);
+    }
+}
+
+/// A footprint over a million repeating tiles costs a bounded number of
+/// nodes (whole tiles are taken in blocks) and gives the tile mean within
+/// the reported bound.
+#[test]
+fn a_million_tiles_cost_little() {
+    let grid =
+        quadtex_core::TexelGrid::from_fn(4, 4, |c, r| PALETTE[((c + 2 * r) % 5) as usize]).unwrap();
+    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0;
+    let mean = tree.average().to_rgba();
+    let texture = Texture::new(tree, Wrap::REPEAT);
+    let corners = [
+        [0.3, 0.1],
+        [1000.3, 0.2],
+        [1400.0, 2000.0],
+        [-600.0, 1900.0],
+    ];
+    let mut nodes = Vec::new();
+    for scale in [1.0, 10.0, 100.0] {
+        let fp = Footprint::from_corners(corners.map(|p| p.map(|v| v * scale))).unwrap();
+        let mut stats = FilterStats::default();
+        let c = texture.filter_counted(&fp, &FilterOptions::default(), &mut stats);
+        eprintln!(
+            "×{scale}: {} nodes, bound {}, colour {c:?} vs mean {mean:?}",
+            stats.traversal.nodes_visited, stats.max_error_bound
+        );
+        assert!(max_diff(c, mean) <= stats.max_error_bound + 1e-4);
+        assert!(stats.max_error_bound < 0.01, "{stats:?}");
+        nodes.push(stats.traversal.nodes_visited);
+    }
+    // 10⁴ times the tiles, not 10⁴ times the cost.
+    assert!(nodes[2] < 2 * nodes[0], "{nodes:?}");
+}
+
+/// A region reaching past the horizon (`w ≤ 0`) is clipped there; what lies
+/// a hair before it takes the texture's mean, within the bound.
+#[test]
+fn regions_reaching_the_horizon_stay_finite() {
+    let grid = quadtex_core::TexelGrid::from_fn(2, 2, |c, r| {
+        if (c + r) % 2 == 0 {
+            Rgba::opaque(1.0, 1.0, 1.0)
+        } else {
+            Rgba::TRANSPARENT
+        }
+    })
+    .unwrap();
+    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0;
+    let texture = Texture::new(tree, Wrap::REPEAT);
+    // A ground plane: texture x = s_x / s_y·k, z = 1/s_y (w = s_y, the
+    // horizon at screen y = 0).
+    let projection = Projection::new([[3.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.0, 1.0, 0.0]]).unwrap();
+    let pixel = ConvexPolygon::rect(0.0, -0.5, 1.0, 0.5);
+    let mut stats = FilterStats::default();
+    let r = texture.integrate_region(
+        &projection,
+        &pixel,
+        PixelFilter::Box,
+        [0.5, 0.0],
+        &FilterOptions::default(),
+        &mut stats,
+    );
+    // Only the lower half sees the plane.
+    assert!((r.weight - 0.5).abs() < 1e-6, "{r:?}");
+    let mean = r.mean().unwrap();
+    assert!(
+        f64::from((mean.a - 0.5).abs()) < 2e-3 + r.error_bound / r.weight,
+        "{mean:?} {r:?}"
+    );
+    assert!(stats.traversal.nodes_visited < 200_000, "{stats:?}");
+}
