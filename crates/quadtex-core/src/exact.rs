@@ -248,8 +248,9 @@ impl PixelFilter {
         }
     }
 
-    /// `∫∫ k(s − centre) ds` over screen polygon `p` (either orientation).
-    fn integral(self, p: &ConvexPolygon, centre: [f64; 2]) -> f64 {
+    /// `∫∫ k(s − centre) ds` over screen polygon `p` (either orientation),
+    /// exactly (Green's theorem on each unit cell of the filter).
+    pub fn integral(self, p: &ConvexPolygon, centre: [f64; 2]) -> f64 {
         if self == PixelFilter::Box {
             return p.area();
         }
@@ -328,18 +329,28 @@ pub(crate) fn integrate_region(
     stats.traversal.queries += 1;
     let mut out = RegionIntegral::default();
     let mut region = match filter {
-        PixelFilter::Box => *region,
+        PixelFilter::Box => region.clone(),
         _ => region.intersect(&filter.support(centre)),
     };
     if region.is_empty() {
         return out;
     }
-    // Keep to where the surface is in front, w ≥ w_min: a sliver 1e-9 pixel
-    // wide before the horizon line, beyond which the texture is taken at
-    // its mean (the texture there is infinitely minified).
+    // Keep to where the surface is in front, w ≥ w_min. The sliver between
+    // the horizon (w = 0) and w_min, where the texture is minified without
+    // bound, is taken at the texture's mean with its whole weight as the
+    // bound: its width is an eighth of the error budget over the region's
+    // diameter (1e-9 pixel under a fixed level).
     let r = projection.texture_from_screen[2];
     let grad = r[0].hypot(r[1]);
-    let w_min = 1e-9 * grad;
+    let sliver_width = match options.level_of_detail() {
+        LevelOfDetail::ErrorBound(e) => {
+            let (lo, hi) = region.bounds();
+            let diam = (hi[0] - lo[0]).hypot(hi[1] - lo[1]).max(f64::MIN_POSITIVE);
+            (e * region.area() / (8.0 * diam)).max(1e-9)
+        }
+        LevelOfDetail::Fixed(_) => 1e-9,
+    };
+    let w_min = sliver_width * grad;
     if region
         .vertices()
         .iter()
@@ -397,15 +408,20 @@ pub(crate) fn integrate_region(
         LevelOfDetail::ErrorBound(_) => None,
     };
     let mut walk = Walk {
+        frames: Vec::new(),
+        pending: Vec::new(),
+        queue: std::collections::BinaryHeap::new(),
+        queued_bound: 0.0,
+        target: epsilon * filter.k_max() * area,
+        budget: SQUARE_BUDGET,
         tree,
         wrap,
         filter,
         centre,
         screen_from_texture: projection.screen_from_texture,
-        region: texture_region,
         edges: edges_of(&texture_region),
+        region: texture_region,
         fixed,
-        inner_eps: 0.5 * epsilon,
         boundary_coef: 0.5 * epsilon * area / region.perimeter().max(f64::MIN_POSITIVE),
         k_max: filter.k_max(),
         lipschitz: filter.lipschitz(),
@@ -519,7 +535,55 @@ struct TileFrame {
     det: f64,
 }
 
+/// Most squares and blocks one region evaluates under an error bound: past
+/// it the largest remaining errors are left unrefined and the bound reported
+/// is what was reached (a fixed level has no budget).
+pub const SQUARE_BUDGET: u64 = 1024;
+
+/// What taking a square or block whole adds: `Σ colour·k`, `Σ k`, bound.
+#[derive(Debug, Clone, Copy)]
+struct Contribution {
+    colour: [f64; 4],
+    weight: f64,
+    bound: f64,
+}
+
+/// A part of the texture plane the walk may refine.
+#[derive(Debug, Clone, Copy)]
+enum Item {
+    /// Whole tiles `[i0, i1] × [j0, j1]`.
+    Block { i0: i64, i1: i64, j0: i64, j1: i64 },
+    /// Tree node `node` at `(level, ix, iz)` of tile frame `frame`.
+    Node {
+        frame: u32,
+        node: u32,
+        level: u8,
+        ix: u32,
+        iz: u32,
+    },
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    item: Item,
+    taken: Contribution,
+}
+
+enum Outcome {
+    Outside,
+    Final(Contribution),
+    /// What taking it whole adds, and the item to refine it from.
+    Refinable(Contribution, Item),
+}
+
 struct Walk<'a> {
+    frames: Vec<TileFrame>,
+    pending: Vec<Pending>,
+    /// `(bound bits, index into pending)`: positive floats order as their bits.
+    queue: std::collections::BinaryHeap<(u64, u32)>,
+    queued_bound: f64,
+    target: f64,
+    budget: u64,
     tree: &'a QuadTree,
     wrap: Wrap,
     filter: PixelFilter,
@@ -528,7 +592,6 @@ struct Walk<'a> {
     region: ConvexPolygon,
     edges: ([Line; crate::polygon::MAX_VERTICES], usize),
     fixed: Option<u8>,
-    inner_eps: f64,
     boundary_coef: f64,
     k_max: f64,
     lipschitz: f64,
@@ -546,11 +609,14 @@ impl Walk<'_> {
         for zs in zs.into_iter().flatten() {
             for xs in xs.into_iter().flatten() {
                 match (xs, zs) {
-                    (Segment::Tiles(i0, i1), Segment::Tiles(j0, j1)) => self.block(i0, i1, j0, j1),
+                    (Segment::Tiles(i0, i1), Segment::Tiles(j0, j1)) => {
+                        self.offer(Item::Block { i0, i1, j0, j1 })
+                    }
                     _ => self.outside(xs, zs),
                 }
             }
         }
+        self.refine();
     }
 
     /// Adds `colour` over the screen polygon `piece`; `approximate` pieces
@@ -571,17 +637,124 @@ impl Walk<'_> {
         p.map(|t| apply(m, t))
     }
 
-    /// Blocks of whole tiles `[i0, i1] × [j0, j1]` (both axes tiled).
-    fn block(&mut self, i0: i64, i1: i64, j0: i64, j1: i64) {
+    /// Offers `item`: a part taken exactly is added now, one that could be
+    /// refined waits in the queue with what taking it whole contributes.
+    fn offer(&mut self, item: Item) {
+        match self.evaluate(item) {
+            Outcome::Outside => {}
+            Outcome::Final(c) => self.add_contribution(&c),
+            Outcome::Refinable(c, item) => {
+                self.queued_bound += c.bound;
+                let index = self.pending.len() as u32;
+                self.pending.push(Pending { item, taken: c });
+                self.queue.push((c.bound.to_bits(), index));
+            }
+        }
+    }
+
+    fn add_contribution(&mut self, c: &Contribution) {
+        for (a, v) in self.out.colour.0.iter_mut().zip(c.colour) {
+            *a += v;
+        }
+        self.out.weight += c.weight;
+        self.out.error_bound += c.bound;
+    }
+
+    /// Refines the queued part with the largest bound first, until the
+    /// bound is met or the budget spent (under a fixed level: until nothing
+    /// above that level is left), then takes what is left whole.
+    fn refine(&mut self) {
+        while let Some(&(_, index)) = self.queue.peek() {
+            if self.fixed.is_none()
+                && (self.queued_bound + self.out.error_bound <= self.target
+                    || self.visited >= self.budget)
+            {
+                break;
+            }
+            self.queue.pop();
+            let Pending { item, taken } = self.pending[index as usize];
+            self.queued_bound -= taken.bound;
+            match item {
+                Item::Block { i0, i1, j0, j1 } => {
+                    let (mi, mj) = (i0 + (i1 - i0) / 2, j0 + (j1 - j0) / 2);
+                    let xs: &[(i64, i64)] = if i1 > i0 { &[(i0, mi), (mi + 1, i1)] } else { &[(i0, i1)] };
+                    let zs: &[(i64, i64)] = if j1 > j0 { &[(j0, mj), (mj + 1, j1)] } else { &[(j0, j1)] };
+                    for &(a, b) in zs {
+                        for &(c, d) in xs {
+                            self.offer(Item::Block {
+                                i0: c,
+                                i1: d,
+                                j0: a,
+                                j1: b,
+                            });
+                        }
+                    }
+                }
+                Item::Node {
+                    frame,
+                    node,
+                    level,
+                    ix,
+                    iz,
+                } => {
+                    let first = self.tree.children_of(node as usize);
+                    for c in 0..4u32 {
+                        self.offer(Item::Node {
+                            frame,
+                            node: (first + c as usize) as u32,
+                            level: level + 1,
+                            ix: 2 * ix + (c & 1),
+                            iz: 2 * iz + (c >> 1),
+                        });
+                    }
+                }
+            }
+        }
+        if std::env::var_os("QT_CORE_DEBUG").is_some() && self.visited >= self.budget {
+            eprintln!("refine: final bound {} queued {} (items {}) visited {} frames {} target {}", self.out.error_bound, self.queued_bound, self.queue.len(), self.visited, self.frames.len(), self.target);
+            let mut top: Vec<_> = self.queue.iter().map(|&(_, i)| self.pending[i as usize]).collect();
+            top.sort_by(|a, b| b.taken.bound.total_cmp(&a.taken.bound));
+            for p in top.iter().take(5) { eprintln!("  {:?} {:?}", p.item, p.taken); }
+        }
+        while let Some((_, index)) = self.queue.pop() {
+            let taken = self.pending[index as usize].taken;
+            self.add_contribution(&taken);
+        }
+    }
+
+    fn contribution(&self, colour: [f64; 4], piece: &ConvexPolygon, bound: f64) -> Contribution {
+        let weight = self.filter.integral(piece, self.centre);
+        Contribution {
+            colour: colour.map(|c| c * weight),
+            weight,
+            bound,
+        }
+    }
+
+    fn evaluate(&mut self, item: Item) -> Outcome {
+        match item {
+            Item::Block { i0, i1, j0, j1 } => self.evaluate_block(i0, i1, j0, j1),
+            Item::Node {
+                frame,
+                node,
+                level,
+                ix,
+                iz,
+            } => self.evaluate_node(frame as usize, node as usize, level, ix, iz),
+        }
+    }
+
+    /// Tiles `[i0, i1] × [j0, j1]` (both axes tiled).
+    fn evaluate_block(&mut self, i0: i64, i1: i64, j0: i64, j1: i64) -> Outcome {
         let (x0, x1) = (i0 as f64, (i1 + 1) as f64);
         let (z0, z1) = (j0 as f64, (j1 + 1) as f64);
         let class = classify(&self.edges, x0, z0, x1, z1);
         if class == Class::Outside {
-            return;
+            return Outcome::Outside;
         }
         if i0 == i1 && j0 == j1 {
-            self.tile(i0, j0);
-            return;
+            let frame = self.tile_frame(i0, j0);
+            return self.evaluate_node(frame, QuadTree::ROOT, 0, 0, 0);
         }
         self.visited += 1;
         let m = self.screen_from_texture;
@@ -589,61 +762,46 @@ impl Walk<'_> {
         let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(&m, t)));
         let root = colour_of(self.tree.average());
         let root_terminal = !self.tree.node(QuadTree::ROOT).0;
-        let accept = match class {
+        let (nx, nz) = ((i1 - i0 + 1) as f64, (j1 - j0 + 1) as f64);
+        match class {
             Class::Inside => {
-                let (nx, nz) = ((i1 - i0 + 1) as f64, (j1 - j0 + 1) as f64);
-                let bound = if root_terminal {
-                    0.0
-                } else {
-                    self.k_max * self.block_bound(&m, &corners, nx, nz)
-                        + 0.5 * self.lipschitz * diameter(&quad) / nx.max(nz) * quad.area()
-                };
-                // Splitting a block does not shrink its bound (module
-                // documentation); only descending into tiles does, which is
-                // worth it for a few tiles, not for many.
-                let ok = match self.fixed {
-                    Some(_) => bound == 0.0,
-                    None => bound <= self.inner_eps * quad.area() || nx * nz > MAX_TILES_DESCENDED,
-                };
-                if ok {
-                    self.add(root, &quad, false);
-                    self.out.error_bound += bound;
+                if root_terminal {
+                    return Outcome::Final(self.contribution(root, &quad, 0.0));
                 }
-                ok
+                let (linear, curved) = self.block_bound(&m, &corners, nx, nz);
+                let bound = (self.k_max * (linear + curved)
+                    + 0.5 * self.lipschitz * diameter(&quad) / nx.max(nz) * quad.area())
+                .min(self.k_max * quad.area());
+                let c = self.contribution(root, &quad, bound);
+                // In the linear regime, splitting a block does not shrink its
+                // bound (module documentation); only descending into tiles
+                // does, worth it for a few tiles, not for many.
+                if self.fixed.is_none() && nx * nz > MAX_TILES_DESCENDED && curved <= linear {
+                    Outcome::Final(c)
+                } else {
+                    Outcome::Refinable(c, Item::Block { i0, i1, j0, j1 })
+                }
             }
             _ => {
                 // Cut by the region's boundary: whole tiles keep the tile
                 // mean (up to the covariance above); only the tiles the cut
                 // crosses differ, a band one tile wide along it.
-                let (nx, nz) = ((i1 - i0 + 1) as f64, (j1 - j0 + 1) as f64);
+                let piece_tex = self.region.clip_rect(x0, z0, x1, z1);
+                let piece = self.to_screen_poly(&piece_tex, &m);
+                if root_terminal {
+                    return Outcome::Final(self.contribution(root, &piece, 0.0));
+                }
                 let (_, det) = adjugate(&m);
                 let (rmin, rmax) = density_range_det(&m, det.abs(), &corners);
                 let tile = diameter(&quad) / nx.max(nz) * (rmax / rmin).max(1.0).sqrt();
-                let ok = root_terminal || (self.fixed.is_none() && tile <= self.boundary_coef);
-                if ok {
-                    let piece = self.region.clip_rect(x0, z0, x1, z1);
-                    let piece = self.to_screen_poly(&piece, &m);
-                    self.add(root, &piece, false);
-                    if !root_terminal {
-                        self.out.error_bound += self.k_max
-                            * (piece.perimeter() * tile
-                                + self.block_bound(&m, &corners, nx, nz).min(piece.area()));
-                    }
-                }
-                ok
+                let band = cut_length(&piece_tex, [x0, z0, x1, z1], &m) * tile;
+                let (linear, curved) = self.block_bound(&m, &corners, nx, nz);
+                let bound = self.k_max * (band + linear + curved).min(piece.area());
+                Outcome::Refinable(
+                    self.contribution(root, &piece, bound),
+                    Item::Block { i0, i1, j0, j1 },
+                )
             }
-        };
-        if accept {
-            return;
-        }
-        if i1 - i0 >= j1 - j0 {
-            let mid = i0 + (i1 - i0) / 2;
-            self.block(i0, mid, j0, j1);
-            self.block(mid + 1, i1, j0, j1);
-        } else {
-            let mid = j0 + (j1 - j0) / 2;
-            self.block(i0, i1, j0, mid);
-            self.block(i0, i1, mid + 1, j1);
         }
     }
 
@@ -653,7 +811,8 @@ impl Walk<'_> {
     /// tile's first moments `m` dotted with `Σ ∇ρ(centres)`, which telescopes
     /// along rows and columns to the density's range `D` across the block;
     /// the remainder is bounded by the Hessian `|∂²ρ| ≤ 12ρ|∇w|²/w²`.
-    fn block_bound(&self, m: &Mat3, corners: &[[f64; 2]; 4], nx: f64, nz: f64) -> f64 {
+    /// Returned as the first-order part and the remainder.
+    fn block_bound(&self, m: &Mat3, corners: &[[f64; 2]; 4], nx: f64, nz: f64) -> (f64, f64) {
         let (_, det) = adjugate(m);
         let det = det.abs();
         let w_min = corners
@@ -668,11 +827,15 @@ impl Walk<'_> {
         // Per tile: the colour's spread times the remainder over a unit
         // tile (|δ|² ≤ ½), plus the moments times the Hessian for the error
         // of the telescoped sum of gradients.
-        (mx * nz + mz * nx) * (d + hessian) + nx * nz * hessian * (0.25 + mx + mz)
+        (
+            (mx * nz + mz * nx) * d,
+            (mx * nz + mz * nx) * hessian + nx * nz * hessian * (0.25 + mx + mz),
+        )
     }
 
-    /// One tile: the tree, in the tile's local coordinates.
-    fn tile(&mut self, i: i64, j: i64) {
+    /// The frame of tile `(i, j)`: the region in the tile's local
+    /// coordinates and the map from them to the screen.
+    fn tile_frame(&mut self, i: i64, j: i64) -> usize {
         let (sx, ox) = tile_map(self.wrap.x, i);
         let (sz, oz) = tile_map(self.wrap.z, j);
         // local = sign·(texture − offset)
@@ -684,82 +847,72 @@ impl Walk<'_> {
         let a = [[sx, 0.0, ox], [0.0, sz, oz], [0.0, 0.0, 1.0]];
         let to_screen = mul(&self.screen_from_texture, &a);
         let (_, det) = adjugate(&to_screen);
-        let frame = TileFrame {
+        self.frames.push(TileFrame {
             edges: edges_of(&local),
             to_screen,
             det: det.abs(),
-        };
-        self.node(&frame, QuadTree::ROOT, 0, 0, 0);
+        });
+        self.frames.len() - 1
     }
 
-    fn node(&mut self, f: &TileFrame, p: usize, level: u8, ix: u32, iz: u32) {
+    fn evaluate_node(&mut self, frame: usize, p: usize, level: u8, ix: u32, iz: u32) -> Outcome {
+        let f = &self.frames[frame];
         let side = unit_side(level);
         let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
         let (x1, z1) = (x0 + side, z0 + side);
         let class = classify(&f.edges, x0, z0, x1, z1);
         if class == Class::Outside {
-            return;
+            return Outcome::Outside;
         }
         self.visited += 1;
         let (inner, stored) = self.tree.node(p);
         let colour = colour_of(stored);
         let corners = [[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
-        let m = &f.to_screen;
-        match class {
+        let m = f.to_screen;
+        let refinable = inner && self.fixed.is_none_or(|k| level < k);
+        let here = Item::Node {
+            frame: frame as u32,
+            node: p as u32,
+            level,
+            ix,
+            iz,
+        };
+        let piece = match class {
             Class::Inside => {
-                let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(m, t)));
-                if !inner {
-                    self.add(colour, &quad, false);
-                    return;
-                }
-                let (rmin, rmax) = density_range_det(m, f.det, &corners);
-                let bound = 0.5
-                    * side
-                    * side
-                    * (self.k_max * (rmax - rmin) + rmax * self.lipschitz * diameter(&quad));
-                let ok = match self.fixed {
-                    Some(k) => level >= k || bound == 0.0,
-                    None => bound <= self.inner_eps * quad.area(),
+                let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(&m, t)));
+                let bound = if inner {
+                    let (rmin, rmax) = density_range_det(&m, f.det, &corners);
+                    0.5 * side
+                        * side
+                        * (self.k_max * (rmax - rmin) + rmax * self.lipschitz * diameter(&quad))
+                } else {
+                    0.0
                 };
-                if ok {
-                    self.add(colour, &quad, false);
-                    self.out.error_bound += bound;
-                    return;
-                }
+                let c = self.contribution(colour, &quad, bound);
+                return if refinable && bound > 0.0 {
+                    Outcome::Refinable(c, here)
+                } else {
+                    Outcome::Final(c)
+                };
             }
             Class::Boundary(crossing) => {
-                let take = !inner
-                    || match self.fixed {
-                        Some(k) => level >= k,
-                        None => {
-                            let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(m, t)));
-                            quad.area() <= self.boundary_coef * diameter(&quad)
-                        }
-                    };
-                if take {
-                    let mut piece = ConvexPolygon::rect(x0, z0, x1, z1);
-                    for e in 0..f.edges.1 {
-                        if crossing >> e & 1 == 1 {
-                            let l = f.edges.0[e];
-                            piece = piece.clip(l[0], l[1], l[2]);
-                        }
+                let mut piece = ConvexPolygon::rect(x0, z0, x1, z1);
+                for e in 0..f.edges.1 {
+                    if crossing >> e & 1 == 1 {
+                        let l = f.edges.0[e];
+                        piece = piece.clip(l[0], l[1], l[2]);
                     }
-                    let piece = piece.map(|t| apply(m, t));
-                    self.add(colour, &piece, inner);
-                    return;
                 }
+                piece.map(|t| apply(&m, t))
             }
-            Class::Outside => return,
-        }
-        let first = self.tree.children_of(p);
-        for c in 0..4u32 {
-            self.node(
-                f,
-                first + c as usize,
-                level + 1,
-                2 * ix + (c & 1),
-                2 * iz + (c >> 1),
-            );
+            Class::Outside => return Outcome::Outside,
+        };
+        let bound = if inner { self.k_max * piece.area() } else { 0.0 };
+        let c = self.contribution(colour, &piece, bound);
+        if refinable {
+            Outcome::Refinable(c, here)
+        } else {
+            Outcome::Final(c)
         }
     }
 
@@ -926,6 +1079,27 @@ impl Walk<'_> {
     }
 }
 
+/// Screen length of the edges of `piece` (a region clipped to the box
+/// `[x0, z0, x1, z1]`) that are not on the box's sides: where the region's
+/// boundary cuts the box.
+fn cut_length(piece: &ConvexPolygon, [x0, z0, x1, z1]: [f64; 4], m: &Mat3) -> f64 {
+    let v = piece.vertices();
+    let n = v.len();
+    let tol = 1e-9 * (x1 - x0).max(z1 - z0);
+    let on = |a: f64, b: f64, c: f64| (a - c).abs() <= tol && (b - c).abs() <= tol;
+    let mut total = 0.0;
+    for i in 0..n {
+        let (a, b) = (v[i], v[(i + 1) % n]);
+        if on(a[0], b[0], x0) || on(a[0], b[0], x1) || on(a[1], b[1], z0) || on(a[1], b[1], z1) {
+            continue;
+        }
+        let (p, q) = (apply(m, a), apply(m, b));
+        let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+        total += (dx * dx + dy * dy).sqrt();
+    }
+    total
+}
+
 /// The part of `p` with coordinate `axis` in `[lo, hi]`.
 fn clip_axis(p: &ConvexPolygon, axis: usize, lo: f64, hi: f64) -> ConvexPolygon {
     if axis == 0 {
@@ -944,7 +1118,8 @@ fn colour_of(c: crate::Unorm16Rgba) -> [f64; 4] {
 #[inline]
 fn diameter(p: &ConvexPolygon) -> f64 {
     let (lo, hi) = p.bounds();
-    (hi[0] - lo[0]).hypot(hi[1] - lo[1])
+    let (dx, dy) = (hi[0] - lo[0], hi[1] - lo[1]);
+    (dx * dx + dy * dy).sqrt()
 }
 
 /// Extremes of the screen density `|det m| / w³` over `corners`.

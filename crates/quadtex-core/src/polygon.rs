@@ -6,12 +6,14 @@
 //! pixel integral clips one per visited square. Coordinates are `f64` in
 //! whatever plane the caller works in (screen pixels, texture units).
 
+use arrayvec::ArrayVec;
+
 use crate::Error;
 
 /// Most vertices a [`ConvexPolygon`] holds. A convex polygon clipped by a
 /// half-plane gains at most one vertex; a pixel region clipped by a tree
 /// square, then by a filter's cell, stays far below this.
-pub const MAX_VERTICES: usize = 24;
+pub const MAX_VERTICES: usize = 16;
 
 /// A convex polygon, vertices in counter-clockwise order (positive
 /// shoelace area in its own coordinates: with `y` down on the screen this
@@ -20,10 +22,9 @@ pub const MAX_VERTICES: usize = 24;
 /// Invariants (checked by [`ConvexPolygon::new`]): finite coordinates, at
 /// most [`MAX_VERTICES`] vertices, convex. Fewer than three vertices, or
 /// collinear ones, make an empty polygon of zero area.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ConvexPolygon {
-    n: usize,
-    v: [[f64; 2]; MAX_VERTICES],
+    v: ArrayVec<[f64; 2], MAX_VERTICES>,
 }
 
 impl Default for ConvexPolygon {
@@ -35,8 +36,7 @@ impl Default for ConvexPolygon {
 impl ConvexPolygon {
     /// No vertices.
     pub const EMPTY: ConvexPolygon = ConvexPolygon {
-        n: 0,
-        v: [[0.0; 2]; MAX_VERTICES],
+        v: ArrayVec::new_const(),
     };
 
     /// A convex polygon from its vertices in either orientation.
@@ -61,10 +61,9 @@ impl ConvexPolygon {
             }
         }
         let mut p = ConvexPolygon::EMPTY;
-        p.n = vertices.len();
-        p.v[..p.n].copy_from_slice(vertices);
+        p.v.extend(vertices.iter().copied());
         if p.signed_area() < 0.0 {
-            p.v[..p.n].reverse();
+            p.v.reverse();
         }
         if !p.is_convex() {
             return Err(Error::BadPolygon("the polygon is not convex".into()));
@@ -78,8 +77,7 @@ impl ConvexPolygon {
             return ConvexPolygon::EMPTY;
         }
         let mut p = ConvexPolygon::EMPTY;
-        p.n = 4;
-        p.v[..4].copy_from_slice(&[[x0, y0], [x1, y0], [x1, y1], [x0, y1]]);
+        p.v.extend([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]);
         p
     }
 
@@ -87,22 +85,21 @@ impl ConvexPolygon {
     /// counter-clockwise.
     pub(crate) fn from_trusted(vertices: &[[f64; 2]]) -> ConvexPolygon {
         let mut p = ConvexPolygon::EMPTY;
-        p.n = vertices.len().min(MAX_VERTICES);
-        p.v[..p.n].copy_from_slice(&vertices[..p.n]);
+        p.v.extend(vertices.iter().take(MAX_VERTICES).copied());
         if p.signed_area() < 0.0 {
-            p.v[..p.n].reverse();
+            p.v.reverse();
         }
         p
     }
 
     /// The vertices.
     pub fn vertices(&self) -> &[[f64; 2]] {
-        &self.v[..self.n]
+        &self.v
     }
 
     /// True with fewer than three vertices.
     pub fn is_empty(&self) -> bool {
-        self.n < 3
+        self.v.len() < 3
     }
 
     /// Shoelace area, signed (positive for counter-clockwise).
@@ -115,13 +112,61 @@ impl ConvexPolygon {
         self.signed_area().abs()
     }
 
+    /// The centroid (the vertices' mean for a degenerate polygon).
+    pub fn centroid(&self) -> [f64; 2] {
+        let v = self.vertices();
+        let n = v.len();
+        if n == 0 {
+            return [0.0, 0.0];
+        }
+        let o = v[0];
+        let (mut cx, mut cy, mut a2) = (0.0, 0.0, 0.0);
+        for i in 1..n.saturating_sub(1) {
+            let (p, q) = ([v[i][0] - o[0], v[i][1] - o[1]], [v[i + 1][0] - o[0], v[i + 1][1] - o[1]]);
+            let cross = p[0] * q[1] - q[0] * p[1];
+            a2 += cross;
+            cx += cross * (p[0] + q[0]);
+            cy += cross * (p[1] + q[1]);
+        }
+        if a2 == 0.0 {
+            let m = v.iter().fold([0.0, 0.0], |m, p| [m[0] + p[0], m[1] + p[1]]);
+            return [m[0] / n as f64, m[1] / n as f64];
+        }
+        [o[0] + cx / (3.0 * a2), o[1] + cy / (3.0 * a2)]
+    }
+
+    /// The parts of this polygon outside convex polygon `other`, as convex
+    /// pieces (at most one per edge of `other`).
+    pub fn subtract(&self, other: &ConvexPolygon, mut out: impl FnMut(ConvexPolygon)) {
+        let v = other.vertices();
+        if other.is_empty() {
+            out(self.clone());
+            return;
+        }
+        let mut rest = self.clone();
+        for i in 0..v.len() {
+            let (a, b) = (v[i], v[(i + 1) % v.len()]);
+            let (nx, ny) = (-(b[1] - a[1]), b[0] - a[0]);
+            let c = -(nx * a[0] + ny * a[1]);
+            let outside = rest.clip(-nx, -ny, -c);
+            if outside.area() > 0.0 {
+                out(outside);
+            }
+            rest = rest.clip(nx, ny, c);
+            if rest.is_empty() {
+                return;
+            }
+        }
+    }
+
     /// Sum of the edge lengths.
     pub fn perimeter(&self) -> f64 {
         let v = self.vertices();
         (0..v.len())
             .map(|i| {
                 let (a, b) = (v[i], v[(i + 1) % v.len()]);
-                (b[0] - a[0]).hypot(b[1] - a[1])
+                let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                (dx * dx + dy * dy).sqrt()
             })
             .sum()
     }
@@ -142,31 +187,7 @@ impl ConvexPolygon {
     #[inline]
     pub fn clip(&self, a: f64, b: f64, c: f64) -> ConvexPolygon {
         let mut out = ConvexPolygon::EMPTY;
-        let v = self.vertices();
-        let n = v.len();
-        if n == 0 {
-            return out;
-        }
-        let side = |p: [f64; 2]| a * p[0] + b * p[1] + c;
-        let mut prev = v[n - 1];
-        let mut s_prev = side(prev);
-        for &p in v {
-            let s = side(p);
-            if (s >= 0.0) != (s_prev >= 0.0) && out.n < MAX_VERTICES {
-                let t = s_prev / (s_prev - s);
-                out.v[out.n] = [
-                    prev[0] + t * (p[0] - prev[0]),
-                    prev[1] + t * (p[1] - prev[1]),
-                ];
-                out.n += 1;
-            }
-            if s >= 0.0 && out.n < MAX_VERTICES {
-                out.v[out.n] = p;
-                out.n += 1;
-            }
-            prev = p;
-            s_prev = s;
-        }
+        self.clip_into(a, b, c, &mut out);
         out
     }
 
@@ -174,25 +195,57 @@ impl ConvexPolygon {
     #[inline]
     pub fn clip_rect(&self, x0: f64, y0: f64, x1: f64, y1: f64) -> ConvexPolygon {
         let (lo, hi) = self.bounds();
-        let mut p = *self;
-        if lo[0] < x0 {
-            p = p.clip(1.0, 0.0, -x0);
+        // Clip in place between two buffers: a polygon moved is its whole
+        // capacity copied.
+        let mut a = self.clone();
+        let mut b = ConvexPolygon::EMPTY;
+        let planes = [
+            (lo[0] < x0, [1.0, 0.0, -x0]),
+            (hi[0] > x1, [-1.0, 0.0, x1]),
+            (lo[1] < y0, [0.0, 1.0, -y0]),
+            (hi[1] > y1, [0.0, -1.0, y1]),
+        ];
+        for (needed, [pa, pb, pc]) in planes {
+            if needed {
+                a.clip_into(pa, pb, pc, &mut b);
+                std::mem::swap(&mut a, &mut b);
+            }
         }
-        if hi[0] > x1 {
-            p = p.clip(-1.0, 0.0, x1);
+        a
+    }
+
+    /// [`ConvexPolygon::clip`] into `out` (cleared first).
+    #[inline]
+    fn clip_into(&self, a: f64, b: f64, c: f64, out: &mut ConvexPolygon) {
+        out.v.clear();
+        let v = self.vertices();
+        let n = v.len();
+        if n == 0 {
+            return;
         }
-        if lo[1] < y0 {
-            p = p.clip(0.0, 1.0, -y0);
+        let side = |p: [f64; 2]| a * p[0] + b * p[1] + c;
+        let mut prev = v[n - 1];
+        let mut s_prev = side(prev);
+        for &p in v {
+            let s = side(p);
+            if (s >= 0.0) != (s_prev >= 0.0) {
+                let t = s_prev / (s_prev - s);
+                let _ = out.v.try_push([
+                    prev[0] + t * (p[0] - prev[0]),
+                    prev[1] + t * (p[1] - prev[1]),
+                ]);
+            }
+            if s >= 0.0 {
+                let _ = out.v.try_push(p);
+            }
+            prev = p;
+            s_prev = s;
         }
-        if hi[1] > y1 {
-            p = p.clip(0.0, -1.0, y1);
-        }
-        p
     }
 
     /// The part inside convex polygon `other`.
     pub fn intersect(&self, other: &ConvexPolygon) -> ConvexPolygon {
-        let mut p = *self;
+        let mut p = self.clone();
         let v = other.vertices();
         for i in 0..v.len() {
             let (a, b) = (v[i], v[(i + 1) % v.len()]);
@@ -209,11 +262,9 @@ impl ConvexPolygon {
     /// The polygon with every vertex mapped by `f` (which must keep it
     /// convex, as an affine or a projective map on its visible side does).
     pub fn map(&self, f: impl Fn([f64; 2]) -> [f64; 2]) -> ConvexPolygon {
-        let mut out = *self;
-        for p in &mut out.v[..out.n] {
-            *p = f(*p);
+        ConvexPolygon {
+            v: self.v.iter().map(|&p| f(p)).collect(),
         }
-        out
     }
 
     /// The convex hull of `points` (finite), counter-clockwise (Andrew's
@@ -346,6 +397,16 @@ mod tests {
         assert!(ConvexPolygon::new(&[[0.0, 0.0], [2.0, 0.0], [0.5, 0.5], [0.0, 2.0]]).is_err());
         let e = ConvexPolygon::new(&[[0.0, f64::NAN], [1.0, 0.0], [0.0, 1.0]]).unwrap_err();
         assert!(e.to_string().contains("vertex[0]"), "{e}");
+    }
+
+    #[test]
+    fn subtraction_leaves_the_difference() {
+        let a = ConvexPolygon::rect(0.0, 0.0, 2.0, 2.0);
+        let b = ConvexPolygon::rect(1.0, 1.0, 3.0, 3.0);
+        let mut area = 0.0;
+        a.subtract(&b, |p| area += p.area());
+        assert!((area - 3.0).abs() < 1e-14);
+        assert_eq!(a.centroid(), [1.0, 1.0]);
     }
 
     #[test]

@@ -319,5 +319,6 @@ fn regions_reaching_the_horizon_stay_finite() {
         f64::from((mean.a - 0.5).abs()) < 2e-3 + r.error_bound / r.weight,
         "{mean:?} {r:?}"
     );
+    eprintln!("horizon: {r:?} {stats:?}");
     assert!(stats.traversal.nodes_visited < 200_000, "{stats:?}");
 }

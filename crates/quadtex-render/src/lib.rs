@@ -13,6 +13,7 @@
 #![forbid(unsafe_code)]
 
 mod demo;
+mod exact;
 pub mod math;
 mod measure;
 mod options;

@@ -37,20 +37,11 @@ impl Default for Filter {
     }
 }
 
-/// The pixel's reconstruction filter in screen space.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum PixelFilter {
-    /// Uniform over the pixel square.
-    #[default]
-    Box,
-    /// Tent `(1−|dx|)(1−|dy|)` over the 2×2-pixel square centred on the pixel:
-    /// wider support, less residual aliasing, slightly softer. The quadtree
-    /// path splits the support into 8×8 screen-space cells, filters each
-    /// cell's footprint and weights it by the tent at the cell's centre.
-    /// Measured on the grazing checkerboard: RMSE 0.007 against a
-    /// 4096-sample tent reference (4×4 cells: 0.017).
-    Tent,
-}
+/// The pixel's reconstruction filter in screen space (box, tent, Mitchell):
+/// the core's [`quadtex_core::PixelFilter`]. The quadtree filter integrates
+/// it exactly over each planar primitive's part of the support
+/// ([`crate::exact`] in the source); supersampling weighs its samples by it.
+pub use quadtex_core::PixelFilter;
 
 /// The jitter stream references are rendered with
 /// ([`RenderOptions::seed`]); contenders keep the default 0, so a reference

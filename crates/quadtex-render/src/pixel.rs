@@ -1,20 +1,38 @@
-//! Pixel strategies: one footprint per pixel, stratified supersampling, and
-//! the split of pixels that straddle a silhouette.
+//! Pixel strategies: the exact pixel ([`crate::exact`]), stratified
+//! supersampling, and the tangent-plane path for pixels that involve a
+//! sphere.
 //!
-//! **Silhouettes.** With the box pixel filter, a first pass records which
-//! surface each pixel centre sees. A pixel whose neighbours see something
-//! else (another surface, or the sky) is checked at its corners; if they
-//! disagree with its centre, the pixel is shaded as four quarters, each with
-//! its own footprint on whatever it sees, so a horizon pixel is part sky,
-//! part ground instead of all ground. With the tent pixel filter, such
-//! pixels integrate each of the tent's 8×8 cells on what that cell sees.
+//! **Spheres.** A sphere is not planar, so its pixels use the tangent plane
+//! at the centre ray's hit (first order in the footprint's size over the
+//! radius). With the box filter a pixel whose neighbourhood sees something
+//! else is checked at its corners; if they disagree with its centre, it is
+//! shaded as four quarters, each with its own footprint on whatever it
+//! sees. With the tent and Mitchell filters the whole support is taken on
+//! the centre's tangent plane (no silhouette split: an approximation).
 
 use quadtex_core::Rgba;
 
+use crate::exact::{Seen, exact_pixel};
 use crate::options::{Filter, PixelFilter};
-use crate::shade::{Frame, TENT_CELLS, shade_ray};
+use crate::shade::{Frame, shade_ray};
 use crate::stats::PixelStats;
 use crate::view::ScreenArea;
+
+/// What the pixel centres within reach of a pixel's filter support see.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Neighbourhood<'a> {
+    /// The primitives seen, each once.
+    pub primitives: &'a [Seen],
+    /// Whether some centre sees the sky.
+    pub sky: bool,
+}
+
+impl Neighbourhood<'_> {
+    /// True when the centres do not all see the same thing.
+    pub fn mixed(&self) -> bool {
+        self.primitives.len() + usize::from(self.sky) > 1
+    }
+}
 
 /// Times a pixel straddling a silhouette is halved. Once (2 × 2 quarters)
 /// measured best: on the grazing checkerboard it cuts the RMSE from 0.0139
@@ -31,12 +49,26 @@ pub(crate) fn shade_pixel(
     filter: Filter,
     pixel: PixelFilter,
     (x, y): (u32, u32),
-    near_silhouette: bool,
+    near: &Neighbourhood<'_>,
     seed: u64,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
     let (px, py) = (f64::from(x), f64::from(y));
+    if let Filter::Quadtree(options) = filter
+        && let Some(c) = exact_pixel(
+            frame,
+            &options,
+            pixel,
+            (x, y),
+            near.primitives,
+            near.sky,
+            stats,
+        )
+    {
+        return c;
+    }
+    let near_silhouette = near.mixed();
     if let Filter::Supersample(n) = filter {
         let mut acc = Rgba::TRANSPARENT;
         let mut weights = 0f32;
@@ -52,18 +84,10 @@ pub(crate) fn shade_pixel(
                         (f64::from(j) + jitter(seed, x, y, i, j, 1)) / f64::from(n),
                     )
                 };
-                // Box: stratified over the pixel. Tent: over the 2×2 support, weighted.
-                let (sx, sy, w) = match pixel {
-                    PixelFilter::Box => (px + u, py + v, 1.0),
-                    PixelFilter::Tent => {
-                        let (dx, dy) = (2.0 * u - 1.0, 2.0 * v - 1.0);
-                        (
-                            px + 0.5 + dx,
-                            py + 0.5 + dy,
-                            ((1.0 - dx.abs()) * (1.0 - dy.abs())) as f32,
-                        )
-                    }
-                };
+                // Stratified over the filter's support, weighted by it.
+                let r = pixel.radius();
+                let (dx, dy) = ((2.0 * u - 1.0) * r, (2.0 * v - 1.0) * r);
+                let (sx, sy, w) = (px + 0.5 + dx, py + 0.5 + dy, pixel.weight(dx, dy) as f32);
                 let c = shade_ray(
                     frame,
                     Filter::Nearest,
@@ -79,13 +103,8 @@ pub(crate) fn shade_pixel(
         return acc * (1.0 / weights);
     }
     let (cx, cy) = (px + 0.5, py + 0.5);
-    if near_silhouette {
-        match pixel {
-            PixelFilter::Box => {
-                return shade_area(frame, filter, ScreenArea::pixel(cx, cy), 0, stats);
-            }
-            PixelFilter::Tent => return tent_by_cells(frame, filter, [cx, cy], stats),
-        }
+    if near_silhouette && pixel == PixelFilter::Box {
+        return shade_area(frame, filter, ScreenArea::pixel(cx, cy), 0, stats);
     }
     shade_ray(
         frame,
@@ -95,40 +114,6 @@ pub(crate) fn shade_pixel(
         ScreenArea::pixel(cx, cy),
         stats,
     )
-}
-
-/// The tent over the 2×2 pixels around `centre` near a silhouette: each of
-/// the 8×8 screen cells is box-filtered on whatever its centre sees (its own
-/// footprint on its own surface, or the sky), then weighted by the tent.
-fn tent_by_cells(
-    frame: &Frame<'_>,
-    filter: Filter,
-    centre: [f64; 2],
-    stats: &mut PixelStats,
-) -> Rgba {
-    let n = TENT_CELLS;
-    let step = 2.0 / n as f64;
-    let (mut acc, mut weights) = (Rgba::TRANSPARENT, 0f32);
-    let mut parts = PixelStats::default();
-    for j in 0..n {
-        for i in 0..n {
-            let (dx, dy) = (
-                -1.0 + (i as f64 + 0.5) * step,
-                -1.0 + (j as f64 + 0.5) * step,
-            );
-            let cell = ScreenArea {
-                centre: [centre[0] + dx, centre[1] + dy],
-                half: step / 2.0,
-            };
-            // Cells are not split further: they are already 1/16 of a pixel.
-            let c = shade_area(frame, filter, cell, SILHOUETTE_SPLITS, &mut parts);
-            let w = ((1.0 - dx.abs()) * (1.0 - dy.abs())) as f32;
-            acc += c * w;
-            weights += w;
-        }
-    }
-    stats.merge_parts(&parts);
-    acc * (1.0 / weights)
 }
 
 /// Box-filtered colour of a screen square. When the rays through its

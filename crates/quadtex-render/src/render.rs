@@ -17,7 +17,8 @@ use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
 use crate::options::{Filter, RenderOptions};
-use crate::pixel::shade_pixel;
+use crate::exact::{Seen, seen_id};
+use crate::pixel::{Neighbourhood, shade_pixel};
 use crate::scene::Scene;
 use crate::shade::Frame;
 use crate::stats::{PixelStats, RenderSummary};
@@ -51,47 +52,71 @@ pub fn render(
     prepare_baselines(&scene, options.filter)?;
     let frame = Frame::new(&scene);
     let start = Instant::now();
-    // Which surface each pixel centre sees (0: none), to find the pixels a
-    // silhouette may cross: those whose 4-neighbours see something else.
-    let seen: Vec<usize> = if !matches!(options.filter, Filter::Supersample(_)) {
-        (0..h)
+    // Which primitive each pixel centre sees (0: the sky), on a grid padded
+    // by the widest filter's reach so pixels at the image's edge see what
+    // lies beyond it.
+    let pad = PAD as i64;
+    let (gw, gh) = (i64::from(w) + 2 * pad, i64::from(h) + 2 * pad);
+    let seen: Vec<Seen> = if !matches!(options.filter, Filter::Supersample(_)) {
+        (0..gh)
             .into_par_iter()
-            .flat_map_iter(|y| {
+            .flat_map_iter(|gy| {
                 let scene = &scene;
-                (0..w).map(move |x| {
-                    let ray = scene.camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    scene.nearest_index(&ray).map_or(0, |(i, _)| i + 1)
+                (0..gw).map(move |gx| {
+                    let ray = scene.camera.ray(
+                        (gx - pad) as f64 + 0.5,
+                        (gy - pad) as f64 + 0.5,
+                    );
+                    scene
+                        .nearest_index(&ray)
+                        .map_or(0, |(i, hit)| seen_id(i, hit.triangle))
                 })
             })
             .collect()
     } else {
         Vec::new()
     };
-    let straddles = |x: u32, y: u32| -> bool {
+    // Centres within reach of the support: a change there may cross it.
+    let reach = (options.pixel_filter.radius() + 0.5).ceil() as i64;
+    let neighbourhood = |x: u32, y: u32, ids: &mut Vec<Seen>| -> bool {
+        ids.clear();
+        let mut sky = false;
         if seen.is_empty() {
             return false;
         }
-        let at = |x: u32, y: u32| seen[(y * w + x) as usize];
-        let me = at(x, y);
-        (x > 0 && at(x - 1, y) != me)
-            || (x + 1 < w && at(x + 1, y) != me)
-            || (y > 0 && at(x, y - 1) != me)
-            || (y + 1 < h && at(x, y + 1) != me)
+        for dy in -reach..=reach {
+            for dx in -reach..=reach {
+                let (gx, gy) = (i64::from(x) + pad + dx, i64::from(y) + pad + dy);
+                let id = seen[(gy * gw + gx) as usize];
+                if id == 0 {
+                    sky = true;
+                } else if !ids.contains(&id) {
+                    ids.push(id);
+                }
+            }
+        }
+        sky
     };
     let done = std::sync::atomic::AtomicU64::new(0);
     let rows: Vec<(Vec<Rgba>, PixelStats)> = (0..h)
         .into_par_iter()
         .map(|y| {
             let mut stats = PixelStats::default();
+            let mut ids = Vec::new();
             let row = (0..w)
                 .map(|x| {
                     let mut pixel = PixelStats::default();
+                    let sky = neighbourhood(x, y, &mut ids);
+                    let near = Neighbourhood {
+                        primitives: &ids,
+                        sky,
+                    };
                     let c = shade_pixel(
                         &frame,
                         options.filter,
                         options.pixel_filter,
                         (x, y),
-                        straddles(x, y),
+                        &near,
                         options.seed,
                         &mut pixel,
                     );
@@ -101,6 +126,7 @@ pub fn render(
                 .collect();
             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(n, u64::from(h));
+            if std::env::var_os("QT_ROWS").is_some() { eprintln!("row {y} nodes {} queries {}", stats.filter.traversal.nodes_visited, stats.filter.traversal.queries); }
             (row, stats)
         })
         .collect();
@@ -126,6 +152,10 @@ pub fn render(
         summary,
     ))
 }
+
+/// Pixels of padding around the image in the visibility pass: the reach of
+/// the widest pixel filter (Mitchell, radius 2, plus half a pixel).
+const PAD: u32 = 3;
 
 /// Builds the raster baselines a baseline filter needs, before any pixel
 /// asks for them (so a failure is one error, not one per pixel).

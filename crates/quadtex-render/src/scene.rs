@@ -261,8 +261,8 @@ impl Mesh {
         if !self.hits_box(ray) {
             return None;
         }
-        let mut best: Option<(f64, &Triangle, f64, f64)> = None;
-        for tri in &self.triangles {
+        let mut best: Option<(f64, &Triangle, u32)> = None;
+        for (index, tri) in self.triangles.iter().enumerate() {
             // Möller–Trumbore.
             let p = ray.direction.cross(tri.e2);
             let det = tri.e1.dot(p);
@@ -282,14 +282,13 @@ impl Mesh {
             }
             let t = tri.e2.dot(q) * inv;
             if t > t_min && best.is_none_or(|(bt, ..)| t < bt) {
-                best = Some((t, tri, b1, b2));
+                best = Some((t, tri, index as u32));
             }
         }
-        let (t, tri, b1, b2) = best?;
+        let (t, tri, index) = best?;
         let point = ray.origin + ray.direction * t;
         let d = point - tri.p0;
         let uv = [tri.uv0[0] + tri.du.dot(d), tri.uv0[1] + tri.dv.dot(d)];
-        let _ = (b1, b2);
         Some(Hit {
             t,
             point,
@@ -297,6 +296,7 @@ impl Mesh {
             uv,
             du: tri.du,
             dv: tri.dv,
+            triangle: index,
         })
     }
 }
@@ -311,9 +311,90 @@ pub(crate) struct Hit {
     /// ∂uv/∂p along the tangent plane: uv(q) ≈ uv + [du·(q−p), dv·(q−p)].
     pub du: Vec3,
     pub dv: Vec3,
+    /// The mesh triangle hit (0 for other shapes).
+    pub triangle: u32,
+}
+
+/// A planar primitive as the exact pixel integral sees it: its plane, its
+/// affine UV map, and the region of the plane it covers.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Planar {
+    /// A point of the plane, where UV is `uv`.
+    pub point: Vec3,
+    /// UV at `point`.
+    pub uv: [f64; 2],
+    /// Unit normal.
+    pub normal: Vec3,
+    /// Gradients of u and v along the plane.
+    pub du: Vec3,
+    pub dv: Vec3,
+    /// Where on the plane the primitive lies.
+    pub extent: Extent,
+}
+
+/// The part of its plane a planar primitive covers.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Extent {
+    /// All of it.
+    Plane,
+    /// `0 ≤ u, v ≤ 1` (a quad's UV are its edge parameters).
+    UnitUv,
+    /// Barycentric `b1 = g1·(q − point) ≥ 0`, `b2 = g2·(q − point) ≥ 0`,
+    /// `b1 + b2 ≤ 1`.
+    Triangle { g1: Vec3, g2: Vec3 },
 }
 
 impl Geometry {
+    /// The planar primitive `triangle` of this shape (for a mesh; any
+    /// index for planes and quads); `None` for spheres.
+    pub(crate) fn planar(&self, triangle: u32) -> Option<Planar> {
+        match *self {
+            Geometry::Plane {
+                point,
+                normal,
+                u_axis,
+                v_axis,
+            } => Some(Planar {
+                point,
+                uv: [0.0, 0.0],
+                normal,
+                du: u_axis,
+                dv: v_axis,
+                extent: Extent::Plane,
+            }),
+            Geometry::Quad {
+                origin,
+                edge_u,
+                edge_v,
+            } => {
+                let normal = edge_u.cross(edge_v).normalized()?;
+                let (du, dv) = quad_gradients(edge_u, edge_v);
+                Some(Planar {
+                    point: origin,
+                    uv: [0.0, 0.0],
+                    normal,
+                    du,
+                    dv,
+                    extent: Extent::UnitUv,
+                })
+            }
+            Geometry::Mesh(ref mesh) => {
+                let tri = mesh.triangles.get(triangle as usize)?;
+                let (g1, g2) = quad_gradients(tri.e1, tri.e2);
+                Some(Planar {
+                    point: tri.p0,
+                    uv: tri.uv0,
+                    normal: tri.normal,
+                    du: tri.du,
+                    dv: tri.dv,
+                    extent: Extent::Triangle { g1, g2 },
+                })
+            }
+            Geometry::Sphere { .. } => None,
+        }
+    }
+
+
     pub(crate) fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
         match *self {
             Geometry::Plane {
@@ -337,6 +418,7 @@ impl Geometry {
                         uv: [rel.dot(u_axis), rel.dot(v_axis)],
                         du: u_axis,
                         dv: v_axis,
+                        triangle: 0,
                     }
                 })
             }
@@ -365,6 +447,7 @@ impl Geometry {
                     uv,
                     du,
                     dv,
+                    triangle: 0,
                 })
             }
             Geometry::Mesh(ref mesh) => mesh.intersect(ray, t_min),
@@ -399,6 +482,7 @@ impl Geometry {
                     uv: [u, v],
                     du,
                     dv,
+                    triangle: 0,
                 })
             }
         }

@@ -33,7 +33,8 @@ impl<'a> Frame<'a> {
     }
 }
 
-fn sky(scene: &Scene, ray: &Ray) -> Rgba {
+/// The sky's colour along `ray`.
+pub(crate) fn sky(scene: &Scene, ray: &Ray) -> Rgba {
     match scene.sky {
         Sky::Solid(c) => c,
         Sky::Gradient { horizon, zenith } => {
@@ -74,39 +75,40 @@ pub(crate) fn shade_ray(
             tex * surface.colour
         }
     };
+    let k = lambert(scene, hit.normal, hit.point, ray);
+    Rgba::new(base.r * k[0], base.g * k[1], base.b * k[2], base.a)
+}
+
+/// The lighting factor per colour channel at `point` (normal `normal`)
+/// seen along `ray`: ambient plus the sun's `cos` unless shadowed; 1 when
+/// the scene is unlit.
+pub(crate) fn lambert(scene: &Scene, normal: crate::math::Vec3, point: crate::math::Vec3, ray: &Ray) -> [f32; 3] {
     match scene.lighting {
-        Lighting::Unlit => base,
+        Lighting::Unlit => [1.0; 3],
         Lighting::Lambert {
             direction,
             colour,
             ambient,
         } => {
-            let n = if hit.normal.dot(ray.direction) > 0.0 {
-                -hit.normal
+            let n = if normal.dot(ray.direction) > 0.0 {
+                -normal
             } else {
-                hit.normal
+                normal
             };
             let cos = n.dot(direction).max(0.0);
             let lit = cos > 0.0 && {
+                let distance = (point - ray.origin).length();
                 let shadow = Ray {
-                    origin: hit.point + n * 1e-6 * (1.0 + hit.t),
+                    origin: point + n * 1e-6 * (1.0 + distance),
                     direction,
                 };
                 scene.nearest_hit(&shadow).is_none()
             };
             let k = if lit { cos as f32 } else { 0.0 };
-            Rgba::new(
-                base.r * (ambient[0] + k * colour[0]),
-                base.g * (ambient[1] + k * colour[1]),
-                base.b * (ambient[2] + k * colour[2]),
-                base.a,
-            )
+            [0, 1, 2].map(|i| ambient[i] + k * colour[i])
         }
     }
 }
-
-/// Screen-space cells per side of the tent's 2×2-pixel support.
-pub(crate) const TENT_CELLS: usize = 8;
 
 /// The filtered texture colour of surface `index` at `hit` for the screen
 /// square `area`.
@@ -149,22 +151,38 @@ pub(crate) fn texture_colour(
         }
         Filter::Quadtree(options) => {
             let mean = match pixel_filter {
-                PixelFilter::Box => footprint().and_then(|fp| {
-                    let tree = &**sampler.tree();
-                    filter_footprint(
-                        tree,
-                        Some(tree),
-                        surface.wrap,
-                        &fp,
-                        &options,
-                        &mut stats.filter,
-                    )
-                }),
-                PixelFilter::Tent => tent(frame, index, sampler, hit, &options, area.centre, stats),
+                PixelFilter::Box => footprint()
+                    .map(|fp| sampler.filter_counted(&fp, &options, &mut stats.filter)),
+                _ => tangent_filtered(frame, index, sampler, hit, &options, pixel_filter, area),
             };
             mean.unwrap_or_else(|| sampler.nearest_counted(centre, &mut stats.filter.traversal))
         }
     }
+}
+
+/// The texture under `filter` over its whole support around `area`'s
+/// centre, seen on the tangent plane at `hit` (first order for a sphere).
+fn tangent_filtered(
+    frame: &Frame<'_>,
+    index: usize,
+    sampler: &Texture,
+    hit: &Hit,
+    options: &quadtex_core::FilterOptions,
+    filter: PixelFilter,
+    area: ScreenArea,
+) -> Option<Rgba> {
+    let planar = crate::scene::Planar {
+        point: hit.point,
+        uv: hit.uv,
+        normal: hit.normal,
+        du: hit.du,
+        dv: hit.dv,
+        extent: crate::scene::Extent::Plane,
+    };
+    let view = crate::exact::View::new(frame.scene, index, &planar)?;
+    let support = filter.support(area.centre);
+    view.texture_integral(sampler, &support, filter, area.centre, options)
+        .mean()
 }
 
 fn surface_baselines(surface: &Surface) -> Result<&crate::scene::Baselines, &str> {
@@ -172,67 +190,4 @@ fn surface_baselines(surface: &Surface) -> Result<&crate::scene::Baselines, &str
         Some(t) => t.baselines(),
         None => Err("untextured"),
     }
-}
-
-/// Mean colour under a tent over the 2×2 pixels around `centre`: equal
-/// screen-space cells on the tangent plane at `hit`, each filtered, weighted
-/// by the tent at the cell's centre.
-fn tent(
-    frame: &Frame<'_>,
-    index: usize,
-    sampler: &Texture,
-    hit: &Hit,
-    options: &quadtex_core::FilterOptions,
-    centre: [f64; 2],
-    stats: &mut PixelStats,
-) -> Option<Rgba> {
-    let scene = frame.scene;
-    let surface = &scene.surfaces[index];
-    let n = TENT_CELLS;
-    let step = 2.0 / n as f64;
-    let mut grid = [[None::<[f64; 2]>; TENT_CELLS + 1]; TENT_CELLS + 1];
-    for (j, row) in grid.iter_mut().enumerate() {
-        for (i, slot) in row.iter_mut().enumerate() {
-            let (sx, sy) = (
-                centre[0] - 1.0 + i as f64 * step,
-                centre[1] - 1.0 + j as f64 * step,
-            );
-            *slot = view::screen_to_texture(scene, surface, hit, sx, sy);
-        }
-    }
-    let tree = &**sampler.tree();
-    let (mut acc, mut weights) = (Rgba::TRANSPARENT, 0f32);
-    for j in 0..n {
-        for i in 0..n {
-            let corners = [
-                grid[j][i],
-                grid[j][i + 1],
-                grid[j + 1][i + 1],
-                grid[j + 1][i],
-            ];
-            let [Some(a), Some(b), Some(c), Some(d)] = corners else {
-                continue;
-            };
-            let Ok(fp) = quadtex_core::Footprint::from_corners([a, b, c, d]) else {
-                continue;
-            };
-            let (dx, dy) = (
-                -1.0 + (i as f64 + 0.5) * step,
-                -1.0 + (j as f64 + 0.5) * step,
-            );
-            let w = ((1.0 - dx.abs()) * (1.0 - dy.abs())) as f32;
-            if let Some(m) = filter_footprint(
-                tree,
-                Some(tree),
-                surface.wrap,
-                &fp,
-                options,
-                &mut stats.filter,
-            ) {
-                acc += m * w;
-                weights += w;
-            }
-        }
-    }
-    (weights > 0.0).then(|| acc * (1.0 / weights))
 }

@@ -26,7 +26,7 @@ impl std::fmt::Display for RenderSummary {
         let s = &self.filter;
         write!(
             f,
-            "{}x{} in {:.3} s ({:.2} Mpixel/s); {:.2} fragments and {:.2} tree queries per textured pixel, {:.1} nodes per query; footprint area mismatch mean {:.2}%, max {:.1}%",
+            "{}x{} in {:.3} s ({:.2} Mpixel/s); {:.2} fragments and {:.2} tree queries per textured pixel, {:.1} nodes per query; footprint area mismatch mean {:.2}%, max {:.1}%; error bound per textured pixel mean {:.2e}, max {:.2e}",
             self.width,
             self.height,
             self.seconds,
@@ -35,7 +35,9 @@ impl std::fmt::Display for RenderSummary {
             s.traversal.queries as f64 / tp,
             s.traversal.nodes_visited as f64 / s.traversal.queries.max(1) as f64,
             100.0 * s.sum_mismatch / s.footprints.max(1) as f64,
-            100.0 * s.max_mismatch
+            100.0 * s.max_mismatch,
+            s.sum_error_bound / tp,
+            s.max_error_bound
         )
     }
 }

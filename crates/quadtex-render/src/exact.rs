@@ -1,0 +1,389 @@
+//! Exact pixels: the pixel filter's support resolved in screen space into
+//! the parts each planar primitive shows, each integrated over the texture
+//! exactly ([`quadtex_core::Texture::integrate_region`]).
+//!
+//! **Primitives.** Planes, quads and each mesh triangle are planar: the map
+//! from screen to texture over one of them is a single projective map
+//! ([`View`]), exact, not a tangent-plane approximation; where it covers the
+//! screen is the support clipped by a few half-planes (in front of the
+//! camera; inside the quad's or triangle's edges).
+//!
+//! **Visibility.** The render loop records which primitive each pixel
+//! centre sees. Where every centre within reach of the filter's support
+//! sees the same primitive and its screen region holds the whole support,
+//! the pixel is one integral. Otherwise the candidates are the primitives
+//! those centres see; they are ordered front to back by comparing depths at
+//! the centroid of each pair's screen overlap (planar primitives that do
+//! not cross each other inside the pixel have one depth order there), and
+//! the support is clipped against them in that order: each primitive gets
+//! what the ones in front left, the sky the rest. Limits, stated: a
+//! primitive no centre in reach sees (thinner than a pixel and between
+//! centres) is missed; primitives that intersect inside the pixel are
+//! ordered at one point. Spheres are not planar: pixels that involve one
+//! are left to the tangent-plane path ([`crate::pixel`]).
+//!
+//! **Shading.** Lambert lighting is constant over a planar piece except for
+//! shadows, taken at the piece's centroid. The sky's gradient is integrated
+//! by the midpoint rule on quarter-pixel cells clipped to the sky's part.
+
+use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Projection, Rgba};
+
+use crate::math::{Ray, Vec3};
+use crate::scene::{Extent, Lighting, Planar, Scene};
+use crate::shade::{Frame, lambert, sky};
+use crate::stats::PixelStats;
+
+/// What a pixel centre sees: `0` for the sky, else
+/// `(surface + 1) << 32 | triangle`.
+pub(crate) type Seen = u64;
+
+/// The id of primitive `triangle` of surface `surface`.
+pub(crate) fn seen_id(surface: usize, triangle: u32) -> Seen {
+    ((surface as u64 + 1) << 32) | u64::from(triangle)
+}
+
+/// A planar primitive seen from the camera: rows `(a, b, c)` of affine
+/// functions of the screen point `(px, py, 1)`.
+#[derive(Debug, Clone)]
+pub(crate) struct View {
+    surface: usize,
+    /// `w`, positive where the primitive's plane is in front of the camera
+    /// (proportional to `1/depth`).
+    w: [f64; 3],
+    /// The plane's depth numerator: ray parameter `t = depth / w(s)`.
+    depth: f64,
+    /// Half-planes `row · (px, py, 1) ≥ 0` bounding the primitive.
+    bounds: [[f64; 3]; 4],
+    bound_count: usize,
+    projection: Projection,
+    normal: Vec3,
+}
+
+impl View {
+    /// The view of `planar`, a part of surface `surface`; `None` when the
+    /// camera lies in its plane (it is then seen edge-on: nothing).
+    pub fn new(scene: &Scene, surface: usize, planar: &Planar) -> Option<View> {
+        let cam = &scene.camera;
+        let (width, height) = (f64::from(cam.width), f64::from(cam.height));
+        let aspect = width / height;
+        let t = cam.tan_half_fov;
+        // The ray direction through (px, py), affine: d = d0 + dx·px + dy·py.
+        let dx = cam.right * (2.0 * t * aspect / width);
+        let dy = cam.up * (-2.0 * t / height);
+        let d0 = cam.forward + cam.right * (-t * aspect) + cam.up * t;
+        let c = cam.position;
+        let n = planar.normal;
+        let np = n.dot(planar.point - c);
+        if !(np.abs() > 1e-12 * (1.0 + planar.point.length() + c.length())) {
+            return None;
+        }
+        let sign = np.signum();
+        let row = |g: Vec3| [g.dot(dx), g.dot(dy), g.dot(d0)];
+        let nd = row(n);
+        let w = nd.map(|v| sign * v);
+        // f(q) = f_p + g·(q − p) along the ray: [f(C)·(n·d) + np·(g·d)] / (n·d).
+        let affine = |f_p: f64, g: Vec3| {
+            let f_c = f_p + g.dot(c - planar.point);
+            let gd = row(g);
+            [0, 1, 2].map(|k| sign * (f_c * nd[k] + np * gd[k]))
+        };
+        let u = affine(planar.uv[0], planar.du);
+        let v = affine(planar.uv[1], planar.dv);
+        let minus = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let (bounds, bound_count) = match planar.extent {
+            Extent::Plane => ([[0.0; 3]; 4], 0),
+            Extent::UnitUv => ([u, minus(w, u), v, minus(w, v)], 4),
+            Extent::Triangle { g1, g2 } => {
+                let b1 = affine(0.0, g1);
+                let b2 = affine(0.0, g2);
+                ([b1, b2, minus(minus(w, b1), b2), [0.0; 3]], 3)
+            }
+        };
+        let transform = scene.surfaces[surface].uv_transform;
+        let o = transform.apply([0.0, 0.0]);
+        let ex = transform.apply([1.0, 0.0]);
+        let ez = transform.apply([0.0, 1.0]);
+        let (a00, a10) = (ex[0] - o[0], ex[1] - o[1]);
+        let (a01, a11) = (ez[0] - o[0], ez[1] - o[1]);
+        let tex_x = [0, 1, 2].map(|k| a00 * u[k] + a01 * v[k] + o[0] * w[k]);
+        let tex_z = [0, 1, 2].map(|k| a10 * u[k] + a11 * v[k] + o[1] * w[k]);
+        let projection = Projection::new([tex_x, tex_z, w]).ok()?;
+        Some(View {
+            surface,
+            w,
+            depth: np.abs(),
+            bounds,
+            bound_count,
+            projection,
+            normal: n,
+        })
+    }
+
+    /// The part of `support` where this primitive lies (in front of the
+    /// camera, inside its edges), ignoring occlusion.
+    pub fn region(&self, support: &ConvexPolygon) -> ConvexPolygon {
+        let mut p = support.clip(self.w[0], self.w[1], self.w[2]);
+        for b in &self.bounds[..self.bound_count] {
+            if p.is_empty() {
+                break;
+            }
+            p = p.clip(b[0], b[1], b[2]);
+        }
+        p
+    }
+
+    /// The texture's integral over this primitive's part of `support`
+    /// (occlusion ignored), under `filter` centred at `centre`.
+    pub fn texture_integral(
+        &self,
+        sampler: &quadtex_core::Texture,
+        support: &ConvexPolygon,
+        filter: PixelFilter,
+        centre: [f64; 2],
+        options: &FilterOptions,
+    ) -> quadtex_core::RegionIntegral {
+        sampler.integrate_region(
+            &self.projection,
+            &self.region(support),
+            filter,
+            centre,
+            options,
+            &mut quadtex_core::FilterStats::default(),
+        )
+    }
+
+    /// Ray parameter (for the camera's unnormalised ray through `s`) of
+    /// the plane at screen point `s`.
+    fn depth_at(&self, s: [f64; 2]) -> f64 {
+        let w = self.w[0] * s[0] + self.w[1] * s[1] + self.w[2];
+        if w > 0.0 { self.depth / w } else { f64::INFINITY }
+    }
+}
+
+/// The filtered colour of pixel `(x, y)` whose neighbourhood's centres see
+/// `candidates` (and the sky if `sky`), or `None` when a candidate is not
+/// planar (a sphere): the caller then takes the tangent-plane path.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn exact_pixel(
+    frame: &Frame<'_>,
+    options: &FilterOptions,
+    filter: PixelFilter,
+    (x, y): (u32, u32),
+    candidates: &[Seen],
+    sees_sky: bool,
+    stats: &mut PixelStats,
+) -> Option<Rgba> {
+    let scene = frame.scene;
+    let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+    let support = filter.support(centre);
+    let mut views = Vec::with_capacity(candidates.len());
+    for &id in candidates {
+        let surface = (id >> 32) as usize - 1;
+        let planar = scene.surfaces.get(surface)?.geometry.planar(id as u32)?;
+        if let Some(v) = View::new(scene, surface, &planar) {
+            views.push(v);
+        }
+    }
+    let mut acc = [0f64; 4];
+    let mut weight = 0.0;
+    let mut bound = 0.0;
+    let mut parts = PixelStats::default();
+    let mut add = |c: [f64; 4], w: f64, b: f64| {
+        for (a, v) in acc.iter_mut().zip(c) {
+            *a += v;
+        }
+        weight += w;
+        bound += b;
+    };
+    // One primitive over the whole support: one integral.
+    if let [view] = views.as_slice()
+        && !sees_sky
+    {
+        let region = view.region(&support);
+        if region.area() >= support.area() * (1.0 - 1e-12) {
+            let (c, w, b) = shade_piece(frame, view, &region, filter, centre, options, &mut parts);
+            add(c, w, b);
+            stats.merge_parts(&parts);
+            stats.filter.record_bound(b / w.abs().max(1e-300));
+            if std::env::var_os("QT_DEBUG").is_some() && b / w > 0.05 {
+                eprintln!("single pixel {x},{y} bound {b} weight {w} nodes {}", parts.filter.traversal.nodes_visited);
+            }
+            return Some(mean(acc, weight));
+        }
+    }
+    let regions: Vec<ConvexPolygon> = views.iter().map(|v| v.region(&support)).collect();
+    let order = front_to_back(&views, &regions);
+    let mut remaining = vec![support];
+    for i in order {
+        let mut next = Vec::with_capacity(remaining.len() + 4);
+        for r in &remaining {
+            let piece = r.intersect(&regions[i]);
+            if piece.area() > 0.0 {
+                let (c, w, b) =
+                    shade_piece(frame, &views[i], &piece, filter, centre, options, &mut parts);
+                add(c, w, b);
+            }
+            r.subtract(&regions[i], |p| next.push(p));
+        }
+        remaining = next;
+    }
+    for r in &remaining {
+        let (c, w) = sky_integral(scene, r, filter, centre);
+        add(c, w, 0.0);
+    }
+    stats.merge_parts(&parts);
+    stats.filter.record_bound(bound / weight.abs().max(1e-300));
+    if std::env::var_os("QT_DEBUG").is_some() && bound / weight > 0.05 {
+        eprintln!("pixel {x},{y} bound {bound} weight {weight} candidates {} sky {sees_sky} nodes {}", candidates.len(), parts.filter.traversal.nodes_visited);
+    }
+    Some(mean(acc, weight))
+}
+
+fn mean(acc: [f64; 4], weight: f64) -> Rgba {
+    if weight == 0.0 {
+        return Rgba::TRANSPARENT;
+    }
+    let s = 1.0 / weight;
+    Rgba::new(
+        (acc[0] * s) as f32,
+        (acc[1] * s) as f32,
+        (acc[2] * s) as f32,
+        (acc[3] * s) as f32,
+    )
+}
+
+/// Indices of `views` front to back: repeatedly the one no other remaining
+/// view is in front of where their regions overlap (the nearest at its own
+/// centroid if occlusion is cyclic).
+fn front_to_back(views: &[View], regions: &[ConvexPolygon]) -> Vec<usize> {
+    let mut left: Vec<usize> = (0..views.len())
+        .filter(|&i| !regions[i].is_empty())
+        .collect();
+    let mut order = Vec::with_capacity(left.len());
+    while !left.is_empty() {
+        let in_front_of = |i: usize, j: usize| {
+            let overlap = regions[i].intersect(&regions[j]);
+            if overlap.area() <= 0.0 {
+                return false;
+            }
+            let c = overlap.centroid();
+            views[j].depth_at(c) < views[i].depth_at(c)
+        };
+        let pick = left
+            .iter()
+            .position(|&i| !left.iter().any(|&j| j != i && in_front_of(i, j)))
+            .unwrap_or_else(|| {
+                let depth = |&i: &usize| views[i].depth_at(regions[i].centroid());
+                let best = left
+                    .iter()
+                    .map(depth)
+                    .enumerate()
+                    .fold((0, f64::INFINITY), |b, (k, d)| if d < b.1 { (k, d) } else { b });
+                best.0
+            });
+        order.push(left.remove(pick));
+    }
+    order
+}
+
+/// `(Σ colour·k, Σ k, bound)` of surface `view` over screen `piece`.
+fn shade_piece(
+    frame: &Frame<'_>,
+    view: &View,
+    piece: &ConvexPolygon,
+    filter: PixelFilter,
+    centre: [f64; 2],
+    options: &FilterOptions,
+    stats: &mut PixelStats,
+) -> ([f64; 4], f64, f64) {
+    let scene = frame.scene;
+    let surface = &scene.surfaces[view.surface];
+    let tint = surface.colour.to_array().map(f64::from);
+    let (mut c, w, b) = match frame.sampler(view.surface) {
+        Some(sampler) => {
+            stats.textured = 1;
+            let r = sampler.integrate_region(
+                &view.projection,
+                piece,
+                filter,
+                centre,
+                options,
+                &mut stats.filter,
+            );
+            let mut c = r.colour.0;
+            for (v, t) in c.iter_mut().zip(tint) {
+                *v *= t;
+            }
+            (c, r.weight, r.error_bound)
+        }
+        None => {
+            let w = filter.integral(piece, centre);
+            (tint.map(|t| t * w), w, 0.0)
+        }
+    };
+    if let Lighting::Lambert { .. } = scene.lighting {
+        let s = piece.centroid();
+        let ray = scene.camera.ray(s[0], s[1]);
+        let t = view.depth_at(s);
+        if t.is_finite() {
+            // The camera's ray is normalised; depth_at is per unnormalised d.
+            let d = unnormalised_direction(scene, s);
+            let point = scene.camera.position + d * t;
+            let k = lambert(scene, view.normal, point, &ray);
+            for (v, f) in c.iter_mut().zip(k) {
+                *v *= f64::from(f);
+            }
+        }
+    }
+    (c, w, b)
+}
+
+fn unnormalised_direction(scene: &Scene, s: [f64; 2]) -> Vec3 {
+    let cam = &scene.camera;
+    let (width, height) = (f64::from(cam.width), f64::from(cam.height));
+    let aspect = width / height;
+    let sx = (2.0 * s[0] / width - 1.0) * cam.tan_half_fov * aspect;
+    let sy = (1.0 - 2.0 * s[1] / height) * cam.tan_half_fov;
+    cam.forward + cam.right * sx + cam.up * sy
+}
+
+/// Cells per pixel side for the sky's midpoint rule.
+const SKY_CELLS: f64 = 4.0;
+
+/// `(Σ sky·k, Σ k)` over screen piece `piece`.
+fn sky_integral(
+    scene: &Scene,
+    piece: &ConvexPolygon,
+    filter: PixelFilter,
+    centre: [f64; 2],
+) -> ([f64; 4], f64) {
+    let colour_at = |s: [f64; 2]| -> [f64; 4] {
+        let ray: Ray = scene.camera.ray(s[0], s[1]);
+        sky(scene, &ray).to_array().map(f64::from)
+    };
+    if let crate::scene::Sky::Solid(c) = scene.sky {
+        let w = filter.integral(piece, centre);
+        return (c.to_array().map(|v| f64::from(v) * w), w);
+    }
+    let (lo, hi) = piece.bounds();
+    let step = 1.0 / SKY_CELLS;
+    let (mut acc, mut weight) = ([0.0; 4], 0.0);
+    let mut y0 = (lo[1] * SKY_CELLS).floor() * step;
+    while y0 < hi[1] {
+        let mut x0 = (lo[0] * SKY_CELLS).floor() * step;
+        while x0 < hi[0] {
+            let cell = piece.clip_rect(x0, y0, x0 + step, y0 + step);
+            if cell.area() > 0.0 {
+                let w = filter.integral(&cell, centre);
+                let c = colour_at(cell.centroid());
+                for (a, v) in acc.iter_mut().zip(c) {
+                    *a += v * w;
+                }
+                weight += w;
+            }
+            x0 += step;
+        }
+        y0 += step;
+    }
+    (acc, weight)
+}
