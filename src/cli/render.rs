@@ -92,16 +92,31 @@ pub struct RenderArgs {
     /// table).
     #[arg(long, value_name = "FILTER", default_value = "quadtree", value_parser = filter_name)]
     filter: FilterName,
-    /// Strip quality of quadtree and sat, in 1..=64 (the area-mismatch target is 1/(4·Q)).
+    /// Strip quality of sat (the summed-area table integrates axis-aligned
+    /// strips covering the footprint), in 1..=64 (the area-mismatch target
+    /// is 1/(4·Q)). The quadtree filter integrates the footprint exactly
+    /// and ignores it.
     #[arg(long, value_name = "Q", default_value_t = 1.0, value_parser = quality)]
     quality: f64,
-    /// Quadtree only: integrate at this fixed level instead of choosing it
-    /// by an error bound of 1/512.
+    /// Quadtree only: the error bound each pixel aims at, relative to full
+    /// contrast (default 1/512): squares are refined, largest error first,
+    /// until the pixel's bound is below it or the budget is spent. The
+    /// render summary reports the bounds reached.
+    #[arg(long, value_name = "E", value_parser = positive("--error-bound"))]
+    error_bound: Option<f64>,
+    /// Quadtree only: most squares evaluated per pixel region under the
+    /// error bound (default 64); pixels at the horizon are the ones that
+    /// reach it.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    budget: Option<u64>,
+    /// Quadtree only: refine every square to this fixed level (or a
+    /// terminal square), whatever the bound (the tree's depth: exact, slow).
     #[arg(long, value_name = "K", value_parser = level("--level"))]
     level: Option<u8>,
-    /// Pixel filter, for quadtree and supersample: box (the pixel square) or
-    /// tent (over 2×2 pixels) [default: box].
-    #[arg(long, value_name = "box|tent", value_parser = pixel_filter)]
+    /// Pixel filter, for quadtree and supersample: box (the pixel square),
+    /// tent (over 2×2 pixels) or mitchell (Mitchell–Netravali B = C = 1/3,
+    /// over 4×4 pixels) [default: box].
+    #[arg(long, value_name = "box|tent|mitchell", value_parser = pixel_filter)]
     pixel_filter: Option<PixelFilter>,
 }
 
@@ -146,12 +161,27 @@ fn quality(text: &str) -> std::result::Result<f64, String> {
     Ok(quality)
 }
 
-/// A value parser: `--pixel-filter box|tent`.
+/// A value parser: `--pixel-filter box|tent|mitchell`.
 fn pixel_filter(text: &str) -> std::result::Result<PixelFilter, String> {
     match text {
         "box" => Ok(PixelFilter::Box),
         "tent" => Ok(PixelFilter::Tent),
-        other => Err(format!("--pixel-filter {other}: expected box or tent")),
+        "mitchell" => Ok(PixelFilter::Mitchell),
+        other => Err(format!(
+            "--pixel-filter {other}: expected box, tent or mitchell"
+        )),
+    }
+}
+
+/// A value parser: a finite number `> 0` for `flag`.
+fn positive(flag: &'static str) -> impl Fn(&str) -> std::result::Result<f64, String> + Clone {
+    move |text| {
+        let v = text.parse::<f64>().map_err(|e| format!("{flag} {text}: {e}"))?;
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(format!("{flag} must be a finite number > 0, got {text}"))
+        }
     }
 }
 
@@ -159,10 +189,16 @@ impl RenderArgs {
     /// The render options these arguments ask for.
     fn options(&self) -> Result<RenderOptions> {
         let quality = FilterOptions::default().with_quality(self.quality)?;
-        let quadtree = match self.level {
-            Some(k) => quality.with_level(k),
-            None => quality,
-        };
+        let mut quadtree = FilterOptions::default();
+        if let Some(e) = self.error_bound {
+            quadtree = quadtree.with_error_bound(e)?;
+        }
+        if let Some(n) = self.budget {
+            quadtree = quadtree.with_budget(n)?;
+        }
+        if let Some(k) = self.level {
+            quadtree = quadtree.with_level(k);
+        }
         Ok(RenderOptions {
             width: self.width,
             height: self.height,

@@ -413,7 +413,7 @@ pub(crate) fn integrate_region(
         queue: std::collections::BinaryHeap::new(),
         queued_bound: 0.0,
         target: epsilon * filter.k_max() * area,
-        budget: SQUARE_BUDGET,
+        budget: options.budget(),
         tree,
         wrap,
         filter,
@@ -538,7 +538,7 @@ struct TileFrame {
 /// Most squares and blocks one region evaluates under an error bound: past
 /// it the largest remaining errors are left unrefined and the bound reported
 /// is what was reached (a fixed level has no budget).
-pub const SQUARE_BUDGET: u64 = 1024;
+pub const SQUARE_BUDGET: u64 = 64;
 
 /// What taking a square or block whole adds: `Σ colour·k`, `Σ k`, bound.
 #[derive(Debug, Clone, Copy)]
@@ -709,12 +709,6 @@ impl Walk<'_> {
                     }
                 }
             }
-        }
-        if std::env::var_os("QT_CORE_DEBUG").is_some() && self.visited >= self.budget {
-            eprintln!("refine: final bound {} queued {} (items {}) visited {} frames {} target {}", self.out.error_bound, self.queued_bound, self.queue.len(), self.visited, self.frames.len(), self.target);
-            let mut top: Vec<_> = self.queue.iter().map(|&(_, i)| self.pending[i as usize]).collect();
-            top.sort_by(|a, b| b.taken.bound.total_cmp(&a.taken.bound));
-            for p in top.iter().take(5) { eprintln!("  {:?} {:?}", p.item, p.taken); }
         }
         while let Some((_, index)) = self.queue.pop() {
             let taken = self.pending[index as usize].taken;

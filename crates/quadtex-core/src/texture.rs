@@ -102,6 +102,7 @@ pub struct FilterOptions {
     weighting: Weighting,
     quality: f64,
     lod: LevelOfDetail,
+    budget: u64,
 }
 
 impl Default for FilterOptions {
@@ -118,6 +119,7 @@ impl FilterOptions {
         weighting: Weighting::Screen,
         quality: 1.0,
         lod: LevelOfDetail::ErrorBound(1.0 / 512.0),
+        budget: crate::exact::SQUARE_BUDGET,
     };
 
     /// The defaults ([`FilterOptions::default`]).
@@ -166,6 +168,25 @@ impl FilterOptions {
             lod: LevelOfDetail::Fixed(level),
             ..self
         }
+    }
+
+    /// With at most `budget` squares and tile blocks evaluated per region
+    /// under an error bound (`≥ 1`; see [`crate::exact`]): past it the
+    /// largest remaining errors stay and the bound reached is reported.
+    pub fn with_budget(self, budget: u64) -> Result<FilterOptions, Error> {
+        if budget == 0 {
+            return Err(Error::BadOption {
+                name: "budget",
+                value: 0.0,
+                expected: "at least 1",
+            });
+        }
+        Ok(FilterOptions { budget, ..self })
+    }
+
+    /// The square budget per region.
+    pub fn budget(&self) -> u64 {
+        self.budget
     }
 
     /// The weighting.

@@ -126,7 +126,6 @@ pub fn render(
                 .collect();
             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(n, u64::from(h));
-            if std::env::var_os("QT_ROWS").is_some() { eprintln!("row {y} nodes {} queries {}", stats.filter.traversal.nodes_visited, stats.filter.traversal.queries); }
             (row, stats)
         })
         .collect();
