@@ -176,7 +176,9 @@ fn pixel_filter(text: &str) -> std::result::Result<PixelFilter, String> {
 /// A value parser: a finite number `> 0` for `flag`.
 fn positive(flag: &'static str) -> impl Fn(&str) -> std::result::Result<f64, String> + Clone {
     move |text| {
-        let v = text.parse::<f64>().map_err(|e| format!("{flag} {text}: {e}"))?;
+        let v = text
+            .parse::<f64>()
+            .map_err(|e| format!("{flag} {text}: {e}"))?;
         if v.is_finite() && v > 0.0 {
             Ok(v)
         } else {
@@ -325,9 +327,13 @@ mod tests {
         );
         assert!(quality("NaN").is_err());
         assert_eq!(pixel_filter("tent"), Ok(PixelFilter::Tent));
+        assert_eq!(pixel_filter("mitchell"), Ok(PixelFilter::Mitchell));
         assert_eq!(
             pixel_filter("gauss"),
-            Err("--pixel-filter gauss: expected box or tent".to_string())
+            Err("--pixel-filter gauss: expected box, tent or mitchell".to_string())
         );
+        assert!(positive("--error-bound")("0").is_err());
+        assert!(positive("--error-bound")("inf").is_err());
+        assert_eq!(positive("--error-bound")("0.001"), Ok(0.001));
     }
 }

@@ -677,8 +677,16 @@ impl Walk<'_> {
             match item {
                 Item::Block { i0, i1, j0, j1 } => {
                     let (mi, mj) = (i0 + (i1 - i0) / 2, j0 + (j1 - j0) / 2);
-                    let xs: &[(i64, i64)] = if i1 > i0 { &[(i0, mi), (mi + 1, i1)] } else { &[(i0, i1)] };
-                    let zs: &[(i64, i64)] = if j1 > j0 { &[(j0, mj), (mj + 1, j1)] } else { &[(j0, j1)] };
+                    let xs: &[(i64, i64)] = if i1 > i0 {
+                        &[(i0, mi), (mi + 1, i1)]
+                    } else {
+                        &[(i0, i1)]
+                    };
+                    let zs: &[(i64, i64)] = if j1 > j0 {
+                        &[(j0, mj), (mj + 1, j1)]
+                    } else {
+                        &[(j0, j1)]
+                    };
                     for &(a, b) in zs {
                         for &(c, d) in xs {
                             self.offer(Item::Block {
@@ -901,7 +909,11 @@ impl Walk<'_> {
             }
             Class::Outside => return Outcome::Outside,
         };
-        let bound = if inner { self.k_max * piece.area() } else { 0.0 };
+        let bound = if inner {
+            self.k_max * piece.area()
+        } else {
+            0.0
+        };
         let c = self.contribution(colour, &piece, bound);
         if refinable {
             Outcome::Refinable(c, here)

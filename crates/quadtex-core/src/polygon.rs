@@ -122,7 +122,10 @@ impl ConvexPolygon {
         let o = v[0];
         let (mut cx, mut cy, mut a2) = (0.0, 0.0, 0.0);
         for i in 1..n.saturating_sub(1) {
-            let (p, q) = ([v[i][0] - o[0], v[i][1] - o[1]], [v[i + 1][0] - o[0], v[i + 1][1] - o[1]]);
+            let (p, q) = (
+                [v[i][0] - o[0], v[i][1] - o[1]],
+                [v[i + 1][0] - o[0], v[i + 1][1] - o[1]],
+            );
             let cross = p[0] * q[1] - q[0] * p[1];
             a2 += cross;
             cx += cross * (p[0] + q[0]);

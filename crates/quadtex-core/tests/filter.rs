@@ -103,7 +103,10 @@ fn parallelograms_weigh_the_same_in_screen_and_texture_space() {
         let screen = texture.filter(&fp, &exact);
         let flat = texture.filter(&fp, &exact.with_weighting(Weighting::Texture));
         assert!(max_diff(screen, flat) <= 1e-5, "{screen:?} vs {flat:?}");
-        let (mut s1, mut s2) = (quadtex_core::FilterStats::default(), quadtex_core::FilterStats::default());
+        let (mut s1, mut s2) = (
+            quadtex_core::FilterStats::default(),
+            quadtex_core::FilterStats::default(),
+        );
         let a = texture.filter_counted(&fp, &FilterOptions::default(), &mut s1);
         let b = texture.filter_counted(
             &fp,

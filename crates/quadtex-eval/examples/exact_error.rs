@@ -9,7 +9,9 @@ use quadtex_render::{Filter, PixelFilter, RenderOptions, load_scene, render};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
-    let path = args.get(1).ok_or("usage: exact_error SCENE WIDTH [BOUND] [BUDGET]")?;
+    let path = args
+        .get(1)
+        .ok_or("usage: exact_error SCENE WIDTH [BOUND] [BUDGET]")?;
     let width: u32 = args.get(2).map_or(Ok(480), |w| w.parse())?;
     let mut options = FilterOptions::default();
     if let Some(b) = args.get(3) {
@@ -30,7 +32,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // IMAGE=path.exr judges an image rendered elsewhere (another build).
     let (image, summary) = match std::env::var("IMAGE") {
         Ok(p) => {
-            let (_, s) = render(&scene, &RenderOptions { width: Some(1), height: Some(1), ..render_options }, &|_, _| {})?;
+            let (_, s) = render(
+                &scene,
+                &RenderOptions {
+                    width: Some(1),
+                    height: Some(1),
+                    ..render_options
+                },
+                &|_, _| {},
+            )?;
             (quadtex_io::load_linear_image(std::path::Path::new(&p))?, s)
         }
         Err(_) => render(&scene, &render_options, &|_, _| {})?,
@@ -77,12 +87,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Ok(spec) = std::env::var("PIXEL") {
         let (px, py): (u32, u32) = {
             let mut it = spec.split(',').map(|v| v.parse::<u32>());
-            (it.next().ok_or("PIXEL=x,y")??, it.next().ok_or("PIXEL=x,y")??)
+            (
+                it.next().ok_or("PIXEL=x,y")??,
+                it.next().ok_or("PIXEL=x,y")??,
+            )
         };
         let cam = scene.camera.with_size(width, height);
         let surface = &scene.surfaces[0];
-        let sampler = surface.texture.as_ref().ok_or("untextured")?.sampler(surface.wrap);
-        if let quadtex_render::scene::Geometry::Plane { point, normal, u_axis, v_axis } = surface.geometry {
+        let sampler = surface
+            .texture
+            .as_ref()
+            .ok_or("untextured")?
+            .sampler(surface.wrap);
+        if let quadtex_render::scene::Geometry::Plane {
+            point,
+            normal,
+            u_axis,
+            v_axis,
+        } = surface.geometry
+        {
             let n = 1024;
             let mut acc = [0f64; 3];
             for j in 0..n {
@@ -94,7 +117,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let t = (point - ray.origin).dot(normal) / denom;
                     let c = if t > 0.0 && t.is_finite() {
                         let rel = ray.origin + ray.direction * t - point;
-                        sampler.nearest(surface.uv_transform.apply([rel.dot(u_axis), rel.dot(v_axis)]))
+                        sampler.nearest(
+                            surface
+                                .uv_transform
+                                .apply([rel.dot(u_axis), rel.dot(v_axis)]),
+                        )
                     } else {
                         quadtex_core::Rgba::TRANSPARENT
                     };

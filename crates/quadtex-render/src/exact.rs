@@ -29,9 +29,13 @@
 use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Projection, Rgba};
 
 use crate::math::{Ray, Vec3};
-use crate::scene::{Extent, Lighting, Planar, Scene};
+use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
 use crate::shade::{Frame, lambert, sky};
 use crate::stats::PixelStats;
+
+/// Meshes up to this many triangles have every triangle tried at a
+/// silhouette pixel (larger ones: the triangles the centres see).
+const MAX_MESH_SCAN: usize = 256;
 
 /// What a pixel centre sees: `0` for the sky, else
 /// `(surface + 1) << 32 | triangle`.
@@ -74,7 +78,7 @@ impl View {
         let c = cam.position;
         let n = planar.normal;
         let np = n.dot(planar.point - c);
-        if !(np.abs() > 1e-12 * (1.0 + planar.point.length() + c.length())) {
+        if np.abs() <= 1e-12 * (1.0 + planar.point.length() + c.length()) || np.is_nan() {
             return None;
         }
         let sign = np.signum();
@@ -156,7 +160,11 @@ impl View {
     /// the plane at screen point `s`.
     fn depth_at(&self, s: [f64; 2]) -> f64 {
         let w = self.w[0] * s[0] + self.w[1] * s[1] + self.w[2];
-        if w > 0.0 { self.depth / w } else { f64::INFINITY }
+        if w > 0.0 {
+            self.depth / w
+        } else {
+            f64::INFINITY
+        }
     }
 }
 
@@ -176,7 +184,7 @@ pub(crate) fn exact_pixel(
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
     let support = filter.support(centre);
-    let mut views = Vec::with_capacity(candidates.len());
+    let mut views = Vec::with_capacity(candidates.len() + scene.surfaces.len());
     for &id in candidates {
         let surface = (id >> 32) as usize - 1;
         let planar = scene.surfaces.get(surface)?.geometry.planar(id as u32)?;
@@ -208,6 +216,44 @@ pub(crate) fn exact_pixel(
             return Some(mean(acc, weight));
         }
     }
+    // The centres in reach may all miss a primitive that still reaches into
+    // the support (a quad's corner, a triangle's tip near a vertex): every
+    // plane and quad of the scene is a candidate here, and every triangle
+    // of a (small) mesh one of the centres sees.
+    for (surface, s) in scene.surfaces.iter().enumerate() {
+        let seen_here = |t: u32| candidates.contains(&seen_id(surface, t));
+        match &s.geometry {
+            Geometry::Plane { .. } | Geometry::Quad { .. } if !seen_here(0) => {
+                if let Some(v) = s
+                    .geometry
+                    .planar(0)
+                    .and_then(|p| View::new(scene, surface, &p))
+                {
+                    views.push(v);
+                }
+            }
+            Geometry::Mesh(mesh)
+                if mesh.len() <= MAX_MESH_SCAN
+                    && candidates
+                        .iter()
+                        .any(|&id| (id >> 32) as usize == surface + 1) =>
+            {
+                for t in 0..mesh.len() as u32 {
+                    if seen_here(t) {
+                        continue;
+                    }
+                    if let Some(v) = s
+                        .geometry
+                        .planar(t)
+                        .and_then(|p| View::new(scene, surface, &p))
+                    {
+                        views.push(v);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
     let regions: Vec<ConvexPolygon> = views.iter().map(|v| v.region(&support)).collect();
     let order = front_to_back(&views, &regions);
     let mut remaining = vec![support];
@@ -216,8 +262,9 @@ pub(crate) fn exact_pixel(
         for r in &remaining {
             let piece = r.intersect(&regions[i]);
             if piece.area() > 0.0 {
-                let (c, w, b) =
-                    shade_piece(frame, &views[i], &piece, filter, centre, options, &mut parts);
+                let (c, w, b) = shade_piece(
+                    frame, &views[i], &piece, filter, centre, options, &mut parts,
+                );
                 add(c, w, b);
             }
             r.subtract(&regions[i], |p| next.push(p));
@@ -268,11 +315,14 @@ fn front_to_back(views: &[View], regions: &[ConvexPolygon]) -> Vec<usize> {
             .position(|&i| !left.iter().any(|&j| j != i && in_front_of(i, j)))
             .unwrap_or_else(|| {
                 let depth = |&i: &usize| views[i].depth_at(regions[i].centroid());
-                let best = left
-                    .iter()
-                    .map(depth)
-                    .enumerate()
-                    .fold((0, f64::INFINITY), |b, (k, d)| if d < b.1 { (k, d) } else { b });
+                let best =
+                    left.iter()
+                        .map(depth)
+                        .enumerate()
+                        .fold(
+                            (0, f64::INFINITY),
+                            |b, (k, d)| if d < b.1 { (k, d) } else { b },
+                        );
                 best.0
             });
         order.push(left.remove(pick));

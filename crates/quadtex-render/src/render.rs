@@ -16,8 +16,8 @@ use quadtex_core::Rgba;
 use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
-use crate::options::{Filter, RenderOptions};
 use crate::exact::{Seen, seen_id};
+use crate::options::{Filter, RenderOptions};
 use crate::pixel::{Neighbourhood, shade_pixel};
 use crate::scene::Scene;
 use crate::shade::Frame;
@@ -63,10 +63,9 @@ pub fn render(
             .flat_map_iter(|gy| {
                 let scene = &scene;
                 (0..gw).map(move |gx| {
-                    let ray = scene.camera.ray(
-                        (gx - pad) as f64 + 0.5,
-                        (gy - pad) as f64 + 0.5,
-                    );
+                    let ray = scene
+                        .camera
+                        .ray((gx - pad) as f64 + 0.5, (gy - pad) as f64 + 0.5);
                     scene
                         .nearest_index(&ray)
                         .map_or(0, |(i, hit)| seen_id(i, hit.triangle))

@@ -394,7 +394,6 @@ impl Geometry {
         }
     }
 
-
     pub(crate) fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
         match *self {
             Geometry::Plane {

@@ -82,7 +82,12 @@ pub(crate) fn shade_ray(
 /// The lighting factor per colour channel at `point` (normal `normal`)
 /// seen along `ray`: ambient plus the sun's `cos` unless shadowed; 1 when
 /// the scene is unlit.
-pub(crate) fn lambert(scene: &Scene, normal: crate::math::Vec3, point: crate::math::Vec3, ray: &Ray) -> [f32; 3] {
+pub(crate) fn lambert(
+    scene: &Scene,
+    normal: crate::math::Vec3,
+    point: crate::math::Vec3,
+    ray: &Ray,
+) -> [f32; 3] {
     match scene.lighting {
         Lighting::Unlit => [1.0; 3],
         Lighting::Lambert {
@@ -151,8 +156,9 @@ pub(crate) fn texture_colour(
         }
         Filter::Quadtree(options) => {
             let mean = match pixel_filter {
-                PixelFilter::Box => footprint()
-                    .map(|fp| sampler.filter_counted(&fp, &options, &mut stats.filter)),
+                PixelFilter::Box => {
+                    footprint().map(|fp| sampler.filter_counted(&fp, &options, &mut stats.filter))
+                }
                 _ => tangent_filtered(frame, index, sampler, hit, &options, pixel_filter, area),
             };
             mean.unwrap_or_else(|| sampler.nearest_counted(centre, &mut stats.filter.traversal))
