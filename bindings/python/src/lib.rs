@@ -54,12 +54,15 @@ impl Texture {
     /// wrap: "repeat", "clamp", "mirror" or "border", or a pair (x, z).
     /// weighting: "screen" (box over the pixel) or "texture" (box over the
     /// footprint). border: RGBA outside the unit square on a "border" axis.
-    /// quality (>= 1): strips over-cover by at most 1/(4 quality).
-    /// error_bound (> 0): level-of-detail truncation bound; level (0..30)
-    /// fixes the level instead. The GIL is released while filtering.
+    /// quality (>= 1): checked and kept for compatibility; the exact
+    /// polygon integral has no strips and does not use it.
+    /// error_bound (> 0): the bound each footprint's error aims at (squares
+    /// are refined, largest error first, until it is met or `budget`
+    /// squares are spent); level (0..30) refines every square to that level
+    /// instead. The GIL is released while filtering.
     #[pyo3(
-        signature = (quads, wrap = None, weighting = "screen", border = None, quality = 1.0, error_bound = 1.0 / 512.0, level = None),
-        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), quality=1.0, error_bound=0.001953125, level=None)"
+        signature = (quads, wrap = None, weighting = "screen", border = None, quality = 1.0, error_bound = 1.0 / 512.0, level = None, budget = 64),
+        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), quality=1.0, error_bound=0.001953125, level=None, budget=64)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn filter<'py>(
@@ -72,6 +75,7 @@ impl Texture {
         quality: f64,
         error_bound: f64,
         level: Option<i64>,
+        budget: u64,
     ) -> PyResult<Bound<'py, PyAny>> {
         let border = match border {
             Some(b) => {
@@ -82,7 +86,9 @@ impl Texture {
             None => [0.0; 4],
         };
         let wrap = parse_wrap(wrap, border)?;
-        let options = filter_options(weighting, quality, error_bound, level)?;
+        let options = filter_options(weighting, quality, error_bound, level)?
+            .with_budget(budget)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
         let texture = quadtex_core::Texture::new(Arc::clone(&self.tree), wrap);
         let quads = arrays::float64(quads, "quads", &[None, Some(4), Some(2)], "(N, 4, 2)")?;
         let readonly = quads.try_readonly()?;

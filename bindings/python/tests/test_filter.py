@@ -124,8 +124,10 @@ def test_parallelograms_screen_equals_texture(random_texels, rng):
     v = rng.normal(scale=0.2, size=(n, 2))
     quads = np.stack([p0, p0 + u, p0 + u + v, p0 + v], axis=1)
     for wrap in ("repeat", "mirror", "clamp", ("border", "repeat")):
-        screen = tex.filter(quads, weighting="screen", wrap=wrap)
-        texture = tex.filter(quads, weighting="texture", wrap=wrap)
+        # Exact at full depth (the default error bound lets each differ
+        # from the exact value by up to its bound).
+        screen = tex.filter(quads, weighting="screen", wrap=wrap, level=30)
+        texture = tex.filter(quads, weighting="texture", wrap=wrap, level=30)
         np.testing.assert_allclose(screen, texture, atol=2e-6)
 
 
@@ -141,6 +143,19 @@ def test_projective_screen_weighting_favours_the_near_side():
     # area centroid, z ≈ 0.6); the pixel sees mostly the narrow side (the
     # pixel centre maps to z ≈ 0.19).
     assert texture > screen + 0.1, (screen, texture)
+
+
+def test_budget_refines_towards_the_exact_value(random_texels):
+    tex = quadtex.pack(random_texels)
+    # A long grazing footprint: many squares along its edges.
+    quad = np.array([[[0.30, 0.05], [0.32, 0.05], [0.95, 0.95], [0.05, 0.95]]])
+    exact = tex.filter(quad, level=30)
+    coarse = tex.filter(quad, budget=4, error_bound=1e-6)
+    fine = tex.filter(quad, budget=100_000, error_bound=1e-6)
+    assert np.abs(fine - exact).max() < 1e-5
+    assert np.abs(coarse - exact).max() > np.abs(fine - exact).max()
+    with pytest.raises(ValueError, match="budget"):
+        tex.filter(quad, budget=0)
 
 
 def test_wrap_modes(random_texels):

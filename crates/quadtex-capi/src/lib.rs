@@ -96,17 +96,19 @@ pub struct QtxFilterOptions {
     pub border: [f32; 4],
     /// A `QtxWeighting` (default `QTX_WEIGHTING_SCREEN`).
     pub weighting: c_int,
-    /// Strip quality, finite and >= 1: a footprint is covered by
-    /// axis-aligned strips over-covering it by at most 1/(4 quality) of its
-    /// area (default 1).
+    /// Finite and >= 1, checked; kept for layout compatibility: the exact
+    /// polygon integral has no strips and does not use it (its budget of
+    /// squares per footprint is the library's default, 64).
     pub quality: f64,
-    /// When `level` is `QTX_LEVEL_AUTO`: the largest truncation error
-    /// allowed, relative to the texture's contrast, finite and > 0 (default
-    /// 1/512, half an 8-bit step). Checked even when `level` is fixed.
+    /// When `level` is `QTX_LEVEL_AUTO`: the error bound each footprint aims
+    /// at, relative to the texture's contrast, finite and > 0 (default
+    /// 1/512, half an 8-bit step): squares are refined, largest error
+    /// first, until it is met or 64 squares are spent. Checked even when
+    /// `level` is fixed.
     pub error_bound: f64,
-    /// `QTX_LEVEL_AUTO` (-1, the default) to choose the traversal level from
-    /// `error_bound`, or a fixed level in 0..=`QTX_MAX_DEPTH` (clamped to
-    /// the texture's depth).
+    /// `QTX_LEVEL_AUTO` (-1, the default) to refine by `error_bound`, or a
+    /// fixed level in 0..=`QTX_MAX_DEPTH` (clamped to the texture's depth)
+    /// every square is refined to.
     pub level: c_int,
 }
 

@@ -29,7 +29,11 @@ pub fn default_contenders() -> Vec<Contender> {
     use PixelFilter::{Box, Tent};
     vec![
         Contender::new("quadtree", Filter::default(), Box),
-        Contender::new("quadtree q4", Filter::Quadtree(quadtree_quality(4.0)), Box),
+        Contender::new(
+            "quadtree b1024",
+            Filter::Quadtree(quadtree_budget(1024)),
+            Box,
+        ),
         Contender::new("quadtree tent", Filter::default(), Tent),
         Contender::new("nearest", Filter::Nearest, Box),
         Contender::new("bilinear", Filter::Bilinear, Box),
@@ -55,7 +59,7 @@ pub fn default_contenders() -> Vec<Contender> {
     ]
 }
 
-/// Default filter options at strip quality `q` (≥ 1).
-fn quadtree_quality(q: f64) -> FilterOptions {
-    FilterOptions::default().with_quality(q).unwrap_or_default()
+/// Default filter options with a budget of `n` squares per region (≥ 1).
+fn quadtree_budget(n: u64) -> FilterOptions {
+    FilterOptions::default().with_budget(n).unwrap_or_default()
 }

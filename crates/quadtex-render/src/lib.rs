@@ -1,13 +1,16 @@
 //! # quadtex-render
 //!
 //! quadtex's showcase: a backward ray tracer whose textures are filtered
-//! over each pixel's footprint by [`quadtex_core::Texture::filter`]. Scenes
+//! exactly over each pixel's filter support, split among the planar
+//! primitives that show in it, by [`quadtex_core::Texture::integrate_region`]
+//! (spheres: over the tangent plane's footprint). Scenes
 //! come from TOML files ([`load_scene`], format in `docs/scenes.md`) or from
 //! code ([`demo_scene`]); [`render`] turns one into a linear image.
 //!
 //! Modules: [`scene`] (the validated scene model), `parse` (TOML → scene),
-//! `view` (screen ↔ texture geometry, footprints), `shade` (one ray's
-//! colour), `pixel` (pixel strategies: supersampling, silhouettes, tent),
+//! `view` (screen ↔ texture geometry, footprints), `exact` (exact pixels:
+//! planar primitives' projective maps, visibility by clipping), `shade` (one
+//! ray's colour), `pixel` (pixel strategies: exact, supersampling, spheres),
 //! `render` (the parallel loop), `stats` (what a render cost), `measure`
 //! (lookups and footprints for the comparison and peer benchmarks).
 #![forbid(unsafe_code)]

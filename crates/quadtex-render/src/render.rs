@@ -3,12 +3,12 @@
 //! computed independently, and statistics are integer sums combined in row
 //! order).
 //!
-//! **Pixel filter.** A box over the pixel in *screen* space is not a uniform
-//! box over its footprint in texture space: under perspective the far end of
-//! a footprint gets less screen area per unit of texture. The texture filter
-//! ([`quadtex_core::Texture::filter`], [`quadtex_core::Weighting::Screen`])
-//! weighs each strip of the footprint by the screen-space density of the
-//! projective map its four corners fix.
+//! **Pixel filter.** A box (tent, Mitchell) over the pixel in *screen*
+//! space is not a uniform box over its footprint in texture space: under
+//! perspective the far end of a footprint gets less screen area per unit of
+//! texture. The quadtree filter integrates the pixel filter exactly over
+//! each planar primitive's visible part of the support
+//! ([`quadtex_core::Texture::integrate_region`], `crate::exact`).
 
 use std::time::Instant;
 

@@ -1,5 +1,7 @@
-//! Screen ↔ texture geometry: where a screen point lands in texture space,
-//! and a pixel's footprint.
+//! Screen ↔ texture geometry for the tangent-plane path (spheres and the
+//! raster baselines): where a screen point lands in texture space, and a
+//! pixel's footprint. Planar primitives under the quadtree filter use their
+//! exact projective maps instead (`crate::exact`).
 //!
 //! **Footprints.** The rays through the pixel's four corners are intersected
 //! with the *tangent plane* of the surface at the centre ray's hit, and mapped
