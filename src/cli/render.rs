@@ -14,8 +14,8 @@ use super::{Result, compare, level};
 /// Render a scene file to PNG or EXR.
 ///
 /// The scene format is described in docs/scenes.md. Prints the file written
-/// and a summary: time, fragments and tree queries per textured pixel, nodes
-/// per query and the footprint area mismatch (on standard error with `-o -`).
+/// and a summary: time, regions and tree queries per textured pixel, nodes
+/// per query and the error bounds reached (on standard error with `-o -`).
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The scene to render.

@@ -56,9 +56,10 @@
 use crate::Error;
 use crate::colour::{Rgba, WeightedColour};
 use crate::footprint::Footprint;
+use crate::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET};
 use crate::polygon::{ConvexPolygon, Cubic, separable_integral};
-use crate::texture::{FilterOptions, FilterStats, LevelOfDetail, uniform_colour_in};
 use crate::tree::{QuadTree, unit_side};
+use crate::wrap::uniform_colour_in;
 use crate::wrap::{Wrap, WrapMode};
 
 type Mat3 = [[f64; 3]; 3];
@@ -535,10 +536,8 @@ struct TileFrame {
     det: f64,
 }
 
-/// Most squares and blocks one region evaluates under an error bound: past
-/// it the largest remaining errors are left unrefined and the bound reported
-/// is what was reached (a fixed level has no budget).
-pub const SQUARE_BUDGET: u64 = 64;
+/// The default budget of squares ([`crate::FilterOptions::budget`]).
+pub const DEFAULT_SQUARE_BUDGET: u64 = SQUARE_BUDGET;
 
 /// What taking a square or block whole adds: `Σ colour·k`, `Σ k`, bound.
 #[derive(Debug, Clone, Copy)]

@@ -33,6 +33,7 @@ mod fragment;
 pub mod build;
 pub mod memory;
 pub mod mipmap;
+pub mod options;
 pub mod polygon;
 pub mod reference;
 pub mod sat;

@@ -25,226 +25,15 @@
 
 use std::sync::Arc;
 
-use crate::Error;
 use crate::colour::{Rgba, WeightedColour};
 use crate::exact::{self, PixelFilter, Projection, RegionIntegral};
 use crate::footprint::Footprint;
 use crate::fragment::Fragment;
+pub use crate::options::{FilterOptions, FilterStats, LevelOfDetail, Weighting};
 use crate::polygon::ConvexPolygon;
 use crate::tree::{QuadTree, TraversalStats};
-use crate::wrap::{BoxIntegral, Wrap, WrapMode, integrate_wrapped};
-
-/// How a footprint's points are weighted in its mean colour.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub enum Weighting {
-    /// Uniform over the pixel square (a screen-space box filter): texture
-    /// area is weighed by the screen area that sees it, from the projective
-    /// map the footprint's corners fix. The right choice for a renderer.
-    #[default]
-    Screen,
-    /// Uniform over the footprint in texture space, as the seed paper does.
-    Texture,
-}
-
-/// Where the traversal may take a non-terminal square at its mean.
-///
-/// For [`Texture::filter`] and [`Texture::integrate_region`]
-/// ([`crate::exact`]): `ErrorBound(ε)` aims the bound on each pixel's error
-/// (relative to full contrast) at `ε`; `Fixed(k)` descends every square to
-/// level `k` or to a terminal square (the tree's depth: exact).
-///
-/// For the strip pipeline ([`filter_footprint`]): a fragment of sides
-/// `w × h` may stop at level `k` only where the squares it treats as whole
-/// are partially covered; their area is at most `2(w+h)·2^-k`, so the mean
-/// colour is off by at most `2(w+h)·2^-k/(w·h)` of the texture's contrast.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum LevelOfDetail {
-    /// The smallest level whose truncation bound is `≤ epsilon` (relative to
-    /// the texture's contrast), capped by the tree's depth.
-    ErrorBound(f64),
-    /// Always this level (clamped to the tree's depth).
-    Fixed(u8),
-}
-
-impl Default for LevelOfDetail {
-    /// `ErrorBound(1/512)`: half an 8-bit step at full contrast.
-    fn default() -> Self {
-        LevelOfDetail::ErrorBound(1.0 / 512.0)
-    }
-}
-
-impl LevelOfDetail {
-    /// The level for a fragment of `w × h` texture units in a tree of `depth`.
-    pub fn level(&self, w: f64, h: f64, depth: u8) -> u8 {
-        match *self {
-            LevelOfDetail::Fixed(k) => k.min(depth),
-            LevelOfDetail::ErrorBound(eps) => {
-                if !(w > 0.0 && h > 0.0) {
-                    return depth;
-                }
-                let needed = (2.0 * (w + h) / (w * h * eps)).log2().ceil();
-                if needed.is_finite() {
-                    needed.clamp(0.0, f64::from(depth)) as u8
-                } else {
-                    depth
-                }
-            }
-        }
-    }
-}
-
-/// Options of [`Texture::filter`]: weighting, strip quality, level of detail.
-///
-/// Invariants (checked by the `with_*` constructors): quality is finite and
-/// `≥ 1`; an error bound is finite and `> 0`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FilterOptions {
-    weighting: Weighting,
-    quality: f64,
-    lod: LevelOfDetail,
-    budget: u64,
-}
-
-impl Default for FilterOptions {
-    /// [`FilterOptions::DEFAULT`].
-    fn default() -> Self {
-        FilterOptions::DEFAULT
-    }
-}
-
-impl FilterOptions {
-    /// Screen weighting, quality 1 (strips over-cover by at most 25 %),
-    /// error bound 1/512.
-    pub const DEFAULT: FilterOptions = FilterOptions {
-        weighting: Weighting::Screen,
-        quality: 1.0,
-        lod: LevelOfDetail::ErrorBound(1.0 / 512.0),
-        budget: crate::exact::SQUARE_BUDGET,
-    };
-
-    /// The defaults ([`FilterOptions::default`]).
-    pub fn new() -> FilterOptions {
-        FilterOptions::default()
-    }
-
-    /// With this weighting.
-    pub fn with_weighting(self, weighting: Weighting) -> FilterOptions {
-        FilterOptions { weighting, ..self }
-    }
-
-    /// With strip quality `quality` (≥ 1; the strips' area-excess target is
-    /// `1/(4·quality)`).
-    pub fn with_quality(self, quality: f64) -> Result<FilterOptions, Error> {
-        if !(quality.is_finite() && quality >= 1.0) {
-            return Err(Error::BadOption {
-                name: "quality",
-                value: quality,
-                expected: "a finite number >= 1",
-            });
-        }
-        Ok(FilterOptions { quality, ..self })
-    }
-
-    /// With the level of detail chosen by the error bound `epsilon`
-    /// (finite, `> 0`; relative to the texture's contrast).
-    pub fn with_error_bound(self, epsilon: f64) -> Result<FilterOptions, Error> {
-        if !(epsilon.is_finite() && epsilon > 0.0) {
-            return Err(Error::BadOption {
-                name: "error bound",
-                value: epsilon,
-                expected: "a finite number > 0",
-            });
-        }
-        Ok(FilterOptions {
-            lod: LevelOfDetail::ErrorBound(epsilon),
-            ..self
-        })
-    }
-
-    /// With every fragment traversed down to level `level` (clamped to the
-    /// tree's depth), whatever its size.
-    pub fn with_level(self, level: u8) -> FilterOptions {
-        FilterOptions {
-            lod: LevelOfDetail::Fixed(level),
-            ..self
-        }
-    }
-
-    /// With at most `budget` squares and tile blocks evaluated per region
-    /// under an error bound (`≥ 1`; see [`crate::exact`]): past it the
-    /// largest remaining errors stay and the bound reached is reported.
-    pub fn with_budget(self, budget: u64) -> Result<FilterOptions, Error> {
-        if budget == 0 {
-            return Err(Error::BadOption {
-                name: "budget",
-                value: 0.0,
-                expected: "at least 1",
-            });
-        }
-        Ok(FilterOptions { budget, ..self })
-    }
-
-    /// The square budget per region.
-    pub fn budget(&self) -> u64 {
-        self.budget
-    }
-
-    /// The weighting.
-    pub fn weighting(&self) -> Weighting {
-        self.weighting
-    }
-
-    /// The strip quality.
-    pub fn quality(&self) -> f64 {
-        self.quality
-    }
-
-    /// The level-of-detail rule.
-    pub fn level_of_detail(&self) -> LevelOfDetail {
-        self.lod
-    }
-}
-
-/// What filtering cost, summed over calls (for reports).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct FilterStats {
-    /// Footprints filtered.
-    pub footprints: u64,
-    /// Fragments integrated (1 for a footprint the uniform shortcut answers).
-    pub fragments: u64,
-    /// Tree queries (after wrap splitting) and nodes they visited.
-    pub traversal: TraversalStats,
-    /// Largest relative area excess of a footprint's strips (strip
-    /// pipeline only).
-    pub max_mismatch: f64,
-    /// Sum of the footprints' relative area excess (mean = sum / footprints).
-    pub sum_mismatch: f64,
-    /// Largest error bound of a filtered colour, relative to full contrast
-    /// (exact pipeline: [`crate::exact`]).
-    pub max_error_bound: f64,
-    /// Sum of the filtered colours' error bounds (mean = sum / footprints).
-    pub sum_error_bound: f64,
-}
-
-impl FilterStats {
-    /// Adds `other`'s counts to these.
-    pub fn merge(&mut self, other: &FilterStats) {
-        self.footprints += other.footprints;
-        self.fragments += other.fragments;
-        self.traversal.queries += other.traversal.queries;
-        self.traversal.nodes_visited += other.traversal.nodes_visited;
-        self.max_mismatch = self.max_mismatch.max(other.max_mismatch);
-        self.sum_mismatch += other.sum_mismatch;
-        self.max_error_bound = self.max_error_bound.max(other.max_error_bound);
-        self.sum_error_bound += other.sum_error_bound;
-    }
-
-    /// Records one filtered colour's relative error bound.
-    pub fn record_bound(&mut self, relative: f64) {
-        self.max_error_bound = self.max_error_bound.max(relative);
-        self.sum_error_bound += relative;
-    }
-}
+use crate::wrap::uniform_colour_in;
+use crate::wrap::{BoxIntegral, Wrap, integrate_wrapped};
 
 /// A packed texture ready to filter: the tree (shared) and how texture space
 /// continues beyond the unit square.
@@ -313,7 +102,7 @@ impl Texture {
         stats: &mut FilterStats,
     ) -> Rgba {
         let unit = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
-        let screen = match options.weighting {
+        let screen = match options.weighting() {
             Weighting::Screen => Projection::for_pixel(footprint, [0.0, 0.0]),
             Weighting::Texture => None,
         };
@@ -446,24 +235,26 @@ pub fn filter_footprint<T: BoxIntegral + ?Sized>(
         stats.traversal.queries += 1;
         return Some(c);
     }
-    let strips = footprint.strips(options.quality);
+    let strips = footprint.strips(options.quality());
     stats.fragments += strips.rects.len() as u64;
     stats.max_mismatch = stats.max_mismatch.max(strips.mismatch);
     stats.sum_mismatch += strips.mismatch;
-    let density = match options.weighting {
+    let density = match options.weighting() {
         Weighting::Screen => footprint.homography().filter(|h| !h.is_affine()),
         Weighting::Texture => None,
     };
     let depth = source.finest_level();
     let (mut acc, mut area) = (WeightedColour::ZERO, 0.0);
     let mut add = |f: &Fragment, w: f64, traversal: &mut TraversalStats| {
-        let k = options.lod.level(f.width(), f.height(), depth);
+        let k = options
+            .level_of_detail()
+            .level(f.width(), f.height(), depth);
         acc += integrate_wrapped(source, f, k, wrap, traversal) * w;
         area += f.area() * w;
     };
     // The density may vary a lot along a strip (a footprint wider than deep
     // at a grazing angle): cut it until it is nearly constant on each piece.
-    let tolerance = 0.25 / options.quality;
+    let tolerance = 0.25 / options.quality();
     for f in &strips.rects {
         let Some(h) = density else {
             add(f, 1.0, &mut stats.traversal);
@@ -501,83 +292,4 @@ pub fn filter_footprint<T: BoxIntegral + ?Sized>(
 fn uniform_over(tree: &QuadTree, footprint: &Footprint, wrap: Wrap) -> Option<Rgba> {
     let (lo, hi) = footprint.bounds();
     uniform_colour_in(tree, lo, hi, wrap)
-}
-
-/// The colour over the box `[lo, hi]` when one terminal square of the tree
-/// holds it (folded into one tile by the wrap).
-pub(crate) fn uniform_colour_in(
-    tree: &QuadTree,
-    lo: [f64; 2],
-    hi: [f64; 2],
-    wrap: Wrap,
-) -> Option<Rgba> {
-    let (x0, x1) = fold_interval(wrap.x, lo[0], hi[0])?;
-    let (z0, z1) = fold_interval(wrap.z, lo[1], hi[1])?;
-    let f = Fragment::new(x0, z0, x1, z1).ok()?;
-    if f.area() <= 0.0 {
-        return None;
-    }
-    tree.uniform_colour(&f).map(|c| c.to_rgba())
-}
-
-/// `[lo, hi]` moved into `[0,1]` when it lies in one tile the wrap folds
-/// there without a seam; `None` otherwise.
-fn fold_interval(mode: WrapMode, lo: f64, hi: f64) -> Option<(f64, f64)> {
-    let (a, b) = match mode {
-        WrapMode::Repeat => {
-            let t = lo.floor();
-            (lo - t, hi - t)
-        }
-        WrapMode::Mirror => {
-            let t = lo.floor();
-            if t.rem_euclid(2.0) == 1.0 {
-                (1.0 - (hi - t), 1.0 - (lo - t))
-            } else {
-                (lo - t, hi - t)
-            }
-        }
-        WrapMode::Clamp | WrapMode::Border => (lo, hi),
-    };
-    (a >= 0.0 && b <= 1.0).then_some((a, b))
-}
-
-#[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used)]
-    use super::*;
-
-    #[test]
-    fn level_of_detail_rule() {
-        let lod = LevelOfDetail::ErrorBound(1.0 / 512.0);
-        // A fragment of 1/64 on a side needs k with 4·2^-k/(1/64) ≤ 1/512 → k ≥ 6 + 11.
-        assert_eq!(lod.level(1.0 / 64.0, 1.0 / 64.0, 30), 17);
-        assert_eq!(lod.level(1.0 / 64.0, 1.0 / 64.0, 12), 12);
-        assert_eq!(LevelOfDetail::Fixed(5).level(0.1, 0.1, 3), 3);
-    }
-
-    #[test]
-    fn options_refuse_bad_values() {
-        let o = FilterOptions::new();
-        assert!(o.with_quality(0.5).is_err());
-        assert!(o.with_quality(f64::NAN).is_err());
-        assert!(o.with_error_bound(0.0).is_err());
-        assert!(o.with_error_bound(f64::INFINITY).is_err());
-        let e = o.with_quality(-1.0).unwrap_err().to_string();
-        assert!(e.contains("quality"), "{e}");
-        assert_eq!(o.with_quality(4.0).unwrap().quality(), 4.0);
-    }
-
-    #[test]
-    fn mirror_intervals_fold() {
-        assert_eq!(
-            fold_interval(WrapMode::Mirror, 1.25, 1.5),
-            Some((0.5, 0.75))
-        );
-        assert_eq!(
-            fold_interval(WrapMode::Repeat, 1.25, 1.5),
-            Some((0.25, 0.5))
-        );
-        assert_eq!(fold_interval(WrapMode::Repeat, 0.75, 1.25), None);
-        assert_eq!(fold_interval(WrapMode::Clamp, 0.75, 1.25), None);
-    }
 }

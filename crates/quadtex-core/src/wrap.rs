@@ -318,6 +318,44 @@ fn split_clamp(a: f64, b: f64, edge: f64) -> [Option<Piece>; 3] {
     [below, inside, above]
 }
 
+/// The colour over the box `[lo, hi]` when one terminal square of the tree
+/// holds it (folded into one tile by the wrap).
+pub(crate) fn uniform_colour_in(
+    tree: &QuadTree,
+    lo: [f64; 2],
+    hi: [f64; 2],
+    wrap: Wrap,
+) -> Option<Rgba> {
+    let (x0, x1) = fold_interval(wrap.x, lo[0], hi[0])?;
+    let (z0, z1) = fold_interval(wrap.z, lo[1], hi[1])?;
+    let f = Fragment::new(x0, z0, x1, z1).ok()?;
+    if f.area() <= 0.0 {
+        return None;
+    }
+    tree.uniform_colour(&f).map(|c| c.to_rgba())
+}
+
+/// `[lo, hi]` moved into `[0,1]` when it lies in one tile the wrap folds
+/// there without a seam; `None` otherwise.
+fn fold_interval(mode: WrapMode, lo: f64, hi: f64) -> Option<(f64, f64)> {
+    let (a, b) = match mode {
+        WrapMode::Repeat => {
+            let t = lo.floor();
+            (lo - t, hi - t)
+        }
+        WrapMode::Mirror => {
+            let t = lo.floor();
+            if t.rem_euclid(2.0) == 1.0 {
+                (1.0 - (hi - t), 1.0 - (lo - t))
+            } else {
+                (lo - t, hi - t)
+            }
+        }
+        WrapMode::Clamp | WrapMode::Border => (lo, hi),
+    };
+    (a >= 0.0 && b <= 1.0).then_some((a, b))
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -501,5 +539,19 @@ mod tests {
             assert_eq!(WrapMode::from_name(m.name()), Some(m));
         }
         assert_eq!(WrapMode::from_name("wrap"), None);
+    }
+
+    #[test]
+    fn mirror_intervals_fold() {
+        assert_eq!(
+            fold_interval(WrapMode::Mirror, 1.25, 1.5),
+            Some((0.5, 0.75))
+        );
+        assert_eq!(
+            fold_interval(WrapMode::Repeat, 1.25, 1.5),
+            Some((0.25, 0.5))
+        );
+        assert_eq!(fold_interval(WrapMode::Repeat, 0.75, 1.25), None);
+        assert_eq!(fold_interval(WrapMode::Clamp, 0.75, 1.25), None);
     }
 }

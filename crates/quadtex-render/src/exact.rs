@@ -28,9 +28,9 @@
 
 use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Projection, Rgba};
 
+use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
-use crate::shade::{Frame, lambert, sky};
 use crate::stats::PixelStats;
 
 /// Meshes up to this many triangles have every triangle tried at a
@@ -168,6 +168,41 @@ impl View {
     }
 }
 
+/// The views of a scene's planes and quads, built once per frame (mesh
+/// triangles are built when a pixel needs them).
+#[derive(Debug)]
+pub(crate) struct SurfaceViews {
+    views: Vec<Option<View>>,
+}
+
+impl SurfaceViews {
+    pub fn new(scene: &Scene) -> SurfaceViews {
+        let views = scene
+            .surfaces
+            .iter()
+            .enumerate()
+            .map(|(i, s)| match s.geometry {
+                Geometry::Plane { .. } | Geometry::Quad { .. } => {
+                    s.geometry.planar(0).and_then(|p| View::new(scene, i, &p))
+                }
+                _ => None,
+            })
+            .collect();
+        SurfaceViews { views }
+    }
+
+    /// The view of primitive `triangle` of surface `surface`.
+    fn get(&self, scene: &Scene, surface: usize, triangle: u32) -> Option<View> {
+        match self.views.get(surface)? {
+            Some(v) => Some(v.clone()),
+            None => {
+                let planar = scene.surfaces.get(surface)?.geometry.planar(triangle)?;
+                View::new(scene, surface, &planar)
+            }
+        }
+    }
+}
+
 /// The filtered colour of pixel `(x, y)` whose neighbourhood's centres see
 /// `candidates` (and the sky if `sky`), or `None` when a candidate is not
 /// planar (a sphere): the caller then takes the tangent-plane path.
@@ -179,6 +214,7 @@ pub(crate) fn exact_pixel(
     (x, y): (u32, u32),
     candidates: &[Seen],
     sees_sky: bool,
+    cache: &SurfaceViews,
     stats: &mut PixelStats,
 ) -> Option<Rgba> {
     let scene = frame.scene;
@@ -187,8 +223,9 @@ pub(crate) fn exact_pixel(
     let mut views = Vec::with_capacity(candidates.len() + scene.surfaces.len());
     for &id in candidates {
         let surface = (id >> 32) as usize - 1;
-        let planar = scene.surfaces.get(surface)?.geometry.planar(id as u32)?;
-        if let Some(v) = View::new(scene, surface, &planar) {
+        // A sphere (not planar) leaves the pixel to the tangent-plane path.
+        scene.surfaces.get(surface)?.geometry.planar(id as u32)?;
+        if let Some(v) = cache.get(scene, surface, id as u32) {
             views.push(v);
         }
     }
@@ -224,11 +261,7 @@ pub(crate) fn exact_pixel(
         let seen_here = |t: u32| candidates.contains(&seen_id(surface, t));
         match &s.geometry {
             Geometry::Plane { .. } | Geometry::Quad { .. } if !seen_here(0) => {
-                if let Some(v) = s
-                    .geometry
-                    .planar(0)
-                    .and_then(|p| View::new(scene, surface, &p))
-                {
+                if let Some(v) = cache.get(scene, surface, 0) {
                     views.push(v);
                 }
             }

@@ -17,6 +17,7 @@
 
 mod demo;
 mod exact;
+mod frame;
 pub mod math;
 mod measure;
 mod options;

@@ -12,9 +12,10 @@
 
 use quadtex_core::Rgba;
 
-use crate::exact::{Seen, exact_pixel};
+use crate::exact::{Seen, SurfaceViews, exact_pixel};
+use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter};
-use crate::shade::{Frame, shade_ray};
+use crate::shade::shade_ray;
 use crate::stats::PixelStats;
 use crate::view::ScreenArea;
 
@@ -25,6 +26,8 @@ pub(crate) struct Neighbourhood<'a> {
     pub primitives: &'a [Seen],
     /// Whether some centre sees the sky.
     pub sky: bool,
+    /// The scene's planar views, built once per frame.
+    pub views: &'a SurfaceViews,
 }
 
 impl Neighbourhood<'_> {
@@ -63,6 +66,7 @@ pub(crate) fn shade_pixel(
             (x, y),
             near.primitives,
             near.sky,
+            near.views,
             stats,
         )
     {

@@ -16,11 +16,11 @@ use quadtex_core::Rgba;
 use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
-use crate::exact::{Seen, seen_id};
+use crate::exact::{Seen, SurfaceViews, seen_id};
+use crate::frame::Frame;
 use crate::options::{Filter, RenderOptions};
 use crate::pixel::{Neighbourhood, shade_pixel};
 use crate::scene::Scene;
-use crate::shade::Frame;
 use crate::stats::{PixelStats, RenderSummary};
 
 /// Renders `scene`; `progress(done_rows, total_rows)` is called as rows finish
@@ -51,6 +51,7 @@ pub fn render(
     }
     prepare_baselines(&scene, options.filter)?;
     let frame = Frame::new(&scene);
+    let views = SurfaceViews::new(&scene);
     let start = Instant::now();
     // Which primitive each pixel centre sees (0: the sky), on a grid padded
     // by the widest filter's reach so pixels at the image's edge see what
@@ -109,6 +110,7 @@ pub fn render(
                     let near = Neighbourhood {
                         primitives: &ids,
                         sky,
+                        views: &views,
                     };
                     let c = shade_pixel(
                         &frame,

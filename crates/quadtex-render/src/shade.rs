@@ -4,45 +4,12 @@
 use quadtex_core::texture::filter_footprint;
 use quadtex_core::{Rgba, Texture};
 
+use crate::frame::{Frame, lambert, sky};
 use crate::math::Ray;
 use crate::options::{Filter, PixelFilter};
-use crate::scene::{Hit, Lighting, Scene, Sky, Surface};
+use crate::scene::{Hit, Surface};
 use crate::stats::PixelStats;
 use crate::view::{self, ScreenArea};
-
-/// A scene ready to shade: each surface's texture bound to its wrap once,
-/// so shading a pixel does not touch reference counts.
-pub(crate) struct Frame<'a> {
-    pub scene: &'a Scene,
-    samplers: Vec<Option<Texture>>,
-}
-
-impl<'a> Frame<'a> {
-    pub fn new(scene: &'a Scene) -> Frame<'a> {
-        let samplers = scene
-            .surfaces
-            .iter()
-            .map(|s| s.texture.as_ref().map(|t| t.sampler(s.wrap)))
-            .collect();
-        Frame { scene, samplers }
-    }
-
-    /// The filtering view of surface `index`'s texture.
-    pub fn sampler(&self, index: usize) -> Option<&Texture> {
-        self.samplers.get(index)?.as_ref()
-    }
-}
-
-/// The sky's colour along `ray`.
-pub(crate) fn sky(scene: &Scene, ray: &Ray) -> Rgba {
-    match scene.sky {
-        Sky::Solid(c) => c,
-        Sky::Gradient { horizon, zenith } => {
-            let t = ray.direction.y.clamp(0.0, 1.0).sqrt() as f32;
-            horizon.lerp(zenith, t)
-        }
-    }
-}
 
 /// The colour seen along `ray`, whose pixel (or part) is `area`.
 pub(crate) fn shade_ray(
@@ -77,42 +44,6 @@ pub(crate) fn shade_ray(
     };
     let k = lambert(scene, hit.normal, hit.point, ray);
     Rgba::new(base.r * k[0], base.g * k[1], base.b * k[2], base.a)
-}
-
-/// The lighting factor per colour channel at `point` (normal `normal`)
-/// seen along `ray`: ambient plus the sun's `cos` unless shadowed; 1 when
-/// the scene is unlit.
-pub(crate) fn lambert(
-    scene: &Scene,
-    normal: crate::math::Vec3,
-    point: crate::math::Vec3,
-    ray: &Ray,
-) -> [f32; 3] {
-    match scene.lighting {
-        Lighting::Unlit => [1.0; 3],
-        Lighting::Lambert {
-            direction,
-            colour,
-            ambient,
-        } => {
-            let n = if normal.dot(ray.direction) > 0.0 {
-                -normal
-            } else {
-                normal
-            };
-            let cos = n.dot(direction).max(0.0);
-            let lit = cos > 0.0 && {
-                let distance = (point - ray.origin).length();
-                let shadow = Ray {
-                    origin: point + n * 1e-6 * (1.0 + distance),
-                    direction,
-                };
-                scene.nearest_hit(&shadow).is_none()
-            };
-            let k = if lit { cos as f32 } else { 0.0 };
-            [0, 1, 2].map(|i| ambient[i] + k * colour[i])
-        }
-    }
 }
 
 /// The filtered texture colour of surface `index` at `hit` for the screen

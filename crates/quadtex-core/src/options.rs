@@ -1,0 +1,249 @@
+//! What a filter call is asked to do ([`FilterOptions`]: weighting, level
+//! of detail, budget) and what it cost ([`FilterStats`]).
+
+use crate::Error;
+use crate::tree::TraversalStats;
+
+/// Most squares and blocks one region evaluates under an error bound by
+/// default: past it the largest remaining errors are left unrefined and the
+/// bound reported is what was reached (a fixed level has no budget).
+pub const SQUARE_BUDGET: u64 = 64;
+
+/// How a footprint's points are weighted in its mean colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Weighting {
+    /// Uniform over the pixel square (a screen-space box filter): texture
+    /// area is weighed by the screen area that sees it, from the projective
+    /// map the footprint's corners fix. The right choice for a renderer.
+    #[default]
+    Screen,
+    /// Uniform over the footprint in texture space, as the seed paper does.
+    Texture,
+}
+
+/// Where the traversal may take a non-terminal square at its mean.
+///
+/// For [`crate::Texture::filter`] and [`crate::Texture::integrate_region`]
+/// ([`crate::exact`]): `ErrorBound(ε)` aims the bound on each pixel's error
+/// (relative to full contrast) at `ε`; `Fixed(k)` descends every square to
+/// level `k` or to a terminal square (the tree's depth: exact).
+///
+/// For the strip pipeline ([`crate::texture::filter_footprint`]): a fragment of sides
+/// `w × h` may stop at level `k` only where the squares it treats as whole
+/// are partially covered; their area is at most `2(w+h)·2^-k`, so the mean
+/// colour is off by at most `2(w+h)·2^-k/(w·h)` of the texture's contrast.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LevelOfDetail {
+    /// The smallest level whose truncation bound is `≤ epsilon` (relative to
+    /// the texture's contrast), capped by the tree's depth.
+    ErrorBound(f64),
+    /// Always this level (clamped to the tree's depth).
+    Fixed(u8),
+}
+
+impl Default for LevelOfDetail {
+    /// `ErrorBound(1/512)`: half an 8-bit step at full contrast.
+    fn default() -> Self {
+        LevelOfDetail::ErrorBound(1.0 / 512.0)
+    }
+}
+
+impl LevelOfDetail {
+    /// The level for a fragment of `w × h` texture units in a tree of `depth`.
+    pub fn level(&self, w: f64, h: f64, depth: u8) -> u8 {
+        match *self {
+            LevelOfDetail::Fixed(k) => k.min(depth),
+            LevelOfDetail::ErrorBound(eps) => {
+                if !(w > 0.0 && h > 0.0) {
+                    return depth;
+                }
+                let needed = (2.0 * (w + h) / (w * h * eps)).log2().ceil();
+                if needed.is_finite() {
+                    needed.clamp(0.0, f64::from(depth)) as u8
+                } else {
+                    depth
+                }
+            }
+        }
+    }
+}
+
+/// Options of [`crate::Texture::filter`]: weighting, strip quality, level of detail.
+///
+/// Invariants (checked by the `with_*` constructors): quality is finite and
+/// `≥ 1`; an error bound is finite and `> 0`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterOptions {
+    weighting: Weighting,
+    quality: f64,
+    lod: LevelOfDetail,
+    budget: u64,
+}
+
+impl Default for FilterOptions {
+    /// [`FilterOptions::DEFAULT`].
+    fn default() -> Self {
+        FilterOptions::DEFAULT
+    }
+}
+
+impl FilterOptions {
+    /// Screen weighting, quality 1 (strips over-cover by at most 25 %),
+    /// error bound 1/512.
+    pub const DEFAULT: FilterOptions = FilterOptions {
+        weighting: Weighting::Screen,
+        quality: 1.0,
+        lod: LevelOfDetail::ErrorBound(1.0 / 512.0),
+        budget: SQUARE_BUDGET,
+    };
+
+    /// The defaults ([`FilterOptions::default`]).
+    pub fn new() -> FilterOptions {
+        FilterOptions::default()
+    }
+
+    /// With this weighting.
+    pub fn with_weighting(self, weighting: Weighting) -> FilterOptions {
+        FilterOptions { weighting, ..self }
+    }
+
+    /// With strip quality `quality` (≥ 1; the strips' area-excess target is
+    /// `1/(4·quality)`).
+    pub fn with_quality(self, quality: f64) -> Result<FilterOptions, Error> {
+        if !(quality.is_finite() && quality >= 1.0) {
+            return Err(Error::BadOption {
+                name: "quality",
+                value: quality,
+                expected: "a finite number >= 1",
+            });
+        }
+        Ok(FilterOptions { quality, ..self })
+    }
+
+    /// With the level of detail chosen by the error bound `epsilon`
+    /// (finite, `> 0`; relative to the texture's contrast).
+    pub fn with_error_bound(self, epsilon: f64) -> Result<FilterOptions, Error> {
+        if !(epsilon.is_finite() && epsilon > 0.0) {
+            return Err(Error::BadOption {
+                name: "error bound",
+                value: epsilon,
+                expected: "a finite number > 0",
+            });
+        }
+        Ok(FilterOptions {
+            lod: LevelOfDetail::ErrorBound(epsilon),
+            ..self
+        })
+    }
+
+    /// With every fragment traversed down to level `level` (clamped to the
+    /// tree's depth), whatever its size.
+    pub fn with_level(self, level: u8) -> FilterOptions {
+        FilterOptions {
+            lod: LevelOfDetail::Fixed(level),
+            ..self
+        }
+    }
+
+    /// With at most `budget` squares and tile blocks evaluated per region
+    /// under an error bound (`≥ 1`; see [`crate::exact`]): past it the
+    /// largest remaining errors stay and the bound reached is reported.
+    pub fn with_budget(self, budget: u64) -> Result<FilterOptions, Error> {
+        if budget == 0 {
+            return Err(Error::BadOption {
+                name: "budget",
+                value: 0.0,
+                expected: "at least 1",
+            });
+        }
+        Ok(FilterOptions { budget, ..self })
+    }
+
+    /// The square budget per region.
+    pub fn budget(&self) -> u64 {
+        self.budget
+    }
+
+    /// The weighting.
+    pub fn weighting(&self) -> Weighting {
+        self.weighting
+    }
+
+    /// The strip quality.
+    pub fn quality(&self) -> f64 {
+        self.quality
+    }
+
+    /// The level-of-detail rule.
+    pub fn level_of_detail(&self) -> LevelOfDetail {
+        self.lod
+    }
+}
+
+/// What filtering cost, summed over calls (for reports).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FilterStats {
+    /// Footprints filtered.
+    pub footprints: u64,
+    /// Fragments integrated (1 for a footprint the uniform shortcut answers).
+    pub fragments: u64,
+    /// Tree queries (after wrap splitting) and nodes they visited.
+    pub traversal: TraversalStats,
+    /// Largest relative area excess of a footprint's strips (strip
+    /// pipeline only).
+    pub max_mismatch: f64,
+    /// Sum of the footprints' relative area excess (mean = sum / footprints).
+    pub sum_mismatch: f64,
+    /// Largest error bound of a filtered colour, relative to full contrast
+    /// (exact pipeline: [`crate::exact`]).
+    pub max_error_bound: f64,
+    /// Sum of the filtered colours' error bounds (mean = sum / footprints).
+    pub sum_error_bound: f64,
+}
+
+impl FilterStats {
+    /// Adds `other`'s counts to these.
+    pub fn merge(&mut self, other: &FilterStats) {
+        self.footprints += other.footprints;
+        self.fragments += other.fragments;
+        self.traversal.queries += other.traversal.queries;
+        self.traversal.nodes_visited += other.traversal.nodes_visited;
+        self.max_mismatch = self.max_mismatch.max(other.max_mismatch);
+        self.sum_mismatch += other.sum_mismatch;
+        self.max_error_bound = self.max_error_bound.max(other.max_error_bound);
+        self.sum_error_bound += other.sum_error_bound;
+    }
+
+    /// Records one filtered colour's relative error bound.
+    pub fn record_bound(&mut self, relative: f64) {
+        self.max_error_bound = self.max_error_bound.max(relative);
+        self.sum_error_bound += relative;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn level_of_detail_rule() {
+        let lod = LevelOfDetail::ErrorBound(1.0 / 512.0);
+        // A fragment of 1/64 on a side needs k with 4·2^-k/(1/64) ≤ 1/512 → k ≥ 6 + 11.
+        assert_eq!(lod.level(1.0 / 64.0, 1.0 / 64.0, 30), 17);
+        assert_eq!(lod.level(1.0 / 64.0, 1.0 / 64.0, 12), 12);
+        assert_eq!(LevelOfDetail::Fixed(5).level(0.1, 0.1, 3), 3);
+    }
+
+    #[test]
+    fn options_refuse_bad_values() {
+        let o = FilterOptions::new();
+        assert!(o.with_quality(0.5).is_err());
+        assert!(o.with_quality(f64::NAN).is_err());
+        assert!(o.with_error_bound(0.0).is_err());
+        assert!(o.with_error_bound(f64::INFINITY).is_err());
+        let e = o.with_quality(-1.0).unwrap_err().to_string();
+        assert!(e.contains("quality"), "{e}");
+        assert_eq!(o.with_quality(4.0).unwrap().quality(), 4.0);
+    }
+}

@@ -1,0 +1,72 @@
+//! A scene ready to shade ([`Frame`]) and what every shading path shares:
+//! the sky's colour and the lighting.
+
+use quadtex_core::{Rgba, Texture};
+
+use crate::math::{Ray, Vec3};
+use crate::scene::{Lighting, Scene, Sky};
+
+/// A scene ready to shade: each surface's texture bound to its wrap once,
+/// so shading a pixel does not touch reference counts.
+pub(crate) struct Frame<'a> {
+    pub scene: &'a Scene,
+    samplers: Vec<Option<Texture>>,
+}
+
+impl<'a> Frame<'a> {
+    pub fn new(scene: &'a Scene) -> Frame<'a> {
+        let samplers = scene
+            .surfaces
+            .iter()
+            .map(|s| s.texture.as_ref().map(|t| t.sampler(s.wrap)))
+            .collect();
+        Frame { scene, samplers }
+    }
+
+    /// The filtering view of surface `index`'s texture.
+    pub fn sampler(&self, index: usize) -> Option<&Texture> {
+        self.samplers.get(index)?.as_ref()
+    }
+}
+
+/// The sky's colour along `ray`.
+pub(crate) fn sky(scene: &Scene, ray: &Ray) -> Rgba {
+    match scene.sky {
+        Sky::Solid(c) => c,
+        Sky::Gradient { horizon, zenith } => {
+            let t = ray.direction.y.clamp(0.0, 1.0).sqrt() as f32;
+            horizon.lerp(zenith, t)
+        }
+    }
+}
+
+/// The lighting factor per colour channel at `point` (normal `normal`)
+/// seen along `ray`: ambient plus the sun's `cos` unless shadowed; 1 when
+/// the scene is unlit.
+pub(crate) fn lambert(scene: &Scene, normal: Vec3, point: Vec3, ray: &Ray) -> [f32; 3] {
+    match scene.lighting {
+        Lighting::Unlit => [1.0; 3],
+        Lighting::Lambert {
+            direction,
+            colour,
+            ambient,
+        } => {
+            let n = if normal.dot(ray.direction) > 0.0 {
+                -normal
+            } else {
+                normal
+            };
+            let cos = n.dot(direction).max(0.0);
+            let lit = cos > 0.0 && {
+                let distance = (point - ray.origin).length();
+                let shadow = Ray {
+                    origin: point + n * 1e-6 * (1.0 + distance),
+                    direction,
+                };
+                scene.nearest_hit(&shadow).is_none()
+            };
+            let k = if lit { cos as f32 } else { 0.0 };
+            [0, 1, 2].map(|i| ambient[i] + k * colour[i])
+        }
+    }
+}
