@@ -34,7 +34,7 @@ fn render_to_stdout_is_a_png_and_the_summary_goes_to_stderr() {
     assert_eq!(width, 64);
     let err = stderr(&out);
     assert!(err.contains("wrote standard output"), "{err}");
-    assert!(err.contains("fragments"), "summary missing: {err}");
+    assert!(err.contains("regions"), "summary missing: {err}");
     // It decodes.
     let dir = temp_dir("stdout-png");
     let file = dir.join("out.png");
