@@ -880,16 +880,29 @@ impl Walk<'_> {
         };
         let piece = match class {
             Class::Inside => {
-                let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(&m, t)));
+                let mapped = corners.map(|t| apply(&m, t));
                 let bound = if inner {
                     let (rmin, rmax) = density_range_det(&m, f.det, &corners);
-                    0.5 * side
-                        * side
-                        * (self.k_max * (rmax - rmin) + rmax * self.lipschitz * diameter(&quad))
+                    let diam = if self.lipschitz > 0.0 {
+                        quad_diameter(&mapped)
+                    } else {
+                        0.0
+                    };
+                    0.5 * side * side * (self.k_max * (rmax - rmin) + rmax * self.lipschitz * diam)
                 } else {
                     0.0
                 };
-                let c = self.contribution(colour, &quad, bound);
+                // The box's weight is the quad's area: no polygon needed.
+                let c = if self.filter == PixelFilter::Box {
+                    let weight = crate::polygon::signed_area(&mapped).abs();
+                    Contribution {
+                        colour: colour.map(|v| v * weight),
+                        weight,
+                        bound,
+                    }
+                } else {
+                    self.contribution(colour, &ConvexPolygon::from_trusted(&mapped), bound)
+                };
                 return if refinable && bound > 0.0 {
                     Outcome::Refinable(c, here)
                 } else {
@@ -1117,6 +1130,20 @@ fn clip_axis(p: &ConvexPolygon, axis: usize, lo: f64, hi: f64) -> ConvexPolygon 
 #[inline]
 fn colour_of(c: crate::Unorm16Rgba) -> [f64; 4] {
     c.0.map(|v| f64::from(v) * (1.0 / 65535.0))
+}
+
+/// The bounding box's diagonal of four points.
+#[inline]
+fn quad_diameter(p: &[[f64; 2]; 4]) -> f64 {
+    let (mut lo, mut hi) = (p[0], p[0]);
+    for q in &p[1..] {
+        for a in 0..2 {
+            lo[a] = lo[a].min(q[a]);
+            hi[a] = hi[a].max(q[a]);
+        }
+    }
+    let (dx, dy) = (hi[0] - lo[0], hi[1] - lo[1]);
+    (dx * dx + dy * dy).sqrt()
 }
 
 /// Longest diagonal of a quad (or the bounding box's diagonal of a polygon).
