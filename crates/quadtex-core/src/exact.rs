@@ -536,6 +536,11 @@ struct TileFrame {
     det: f64,
 }
 
+/// Most squares a region evaluates under a fixed level
+/// ([`LevelOfDetail::Fixed`]) before it stops refining and reports its
+/// bound: about 80 MiB of pending parts at most.
+pub const FIXED_LEVEL_CAP: u64 = 1 << 20;
+
 /// The default budget of squares ([`crate::FilterOptions::budget`]).
 pub const DEFAULT_SQUARE_BUDGET: u64 = SQUARE_BUDGET;
 
@@ -664,10 +669,17 @@ impl Walk<'_> {
     /// above that level is left), then takes what is left whole.
     fn refine(&mut self) {
         while let Some(&(_, index)) = self.queue.peek() {
-            if self.fixed.is_none()
-                && (self.queued_bound + self.out.error_bound <= self.target
-                    || self.visited >= self.budget)
-            {
+            let done = match self.fixed {
+                None => {
+                    self.queued_bound + self.out.error_bound <= self.target
+                        || self.visited >= self.budget
+                }
+                // A fixed level over a region reaching the horizon (or a
+                // million tiles) would never finish: stop at a hard cap and
+                // report the bound reached.
+                Some(_) => self.visited >= FIXED_LEVEL_CAP,
+            };
+            if done {
                 break;
             }
             self.queue.pop();

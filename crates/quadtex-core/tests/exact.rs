@@ -322,3 +322,34 @@ fn regions_reaching_the_horizon_stay_finite() {
     eprintln!("horizon: {r:?} {stats:?}");
     assert!(stats.traversal.nodes_visited < 200_000, "{stats:?}");
 }
+
+/// A fixed level over a region reaching the horizon cannot refine
+/// everything: it stops at the cap with a finite colour and its bound.
+#[test]
+fn a_fixed_level_at_the_horizon_stops_at_the_cap() {
+    let grid = quadtex_core::TexelGrid::from_fn(2, 2, |c, r| {
+        if (c + r) % 2 == 0 {
+            Rgba::opaque(1.0, 1.0, 1.0)
+        } else {
+            Rgba::TRANSPARENT
+        }
+    })
+    .unwrap();
+    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0;
+    let texture = Texture::new(tree, Wrap::REPEAT);
+    let projection = Projection::new([[3.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.0, 1.0, 0.0]]).unwrap();
+    let mut stats = FilterStats::default();
+    let r = texture.integrate_region(
+        &projection,
+        &ConvexPolygon::rect(0.0, -0.5, 1.0, 0.5),
+        PixelFilter::Box,
+        [0.5, 0.0],
+        &FilterOptions::default().with_level(30),
+        &mut stats,
+    );
+    assert!(stats.traversal.nodes_visited <= quadtex_core::exact::FIXED_LEVEL_CAP + 8);
+    let mean = r.mean().unwrap();
+    assert!(mean.a.is_finite() && r.error_bound.is_finite(), "{r:?}");
+}
