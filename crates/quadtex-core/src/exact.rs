@@ -64,6 +64,10 @@ use crate::wrap::{Wrap, WrapMode};
 
 type Mat3 = [[f64; 3]; 3];
 
+/// Largest screen coordinate a region may have (`2^50` pixels); beyond it
+/// the integral is empty (the caller falls back to a point lookup).
+pub const MAX_SCREEN_COORDINATE: f64 = (1u64 << 50) as f64;
+
 /// Whole-tile blocks of more tiles than this are taken at the tile mean
 /// whatever their bound (reported): descending into that many trees costs
 /// more than it is worth.
@@ -333,7 +337,13 @@ pub(crate) fn integrate_region(
         PixelFilter::Box => region.clone(),
         _ => region.intersect(&filter.support(centre)),
     };
-    if region.is_empty() {
+    let (rlo, rhi) = region.bounds();
+    if region.is_empty()
+        || rlo
+            .iter()
+            .chain(&rhi)
+            .any(|v| v.is_nan() || v.abs() > MAX_SCREEN_COORDINATE)
+    {
         return out;
     }
     // Keep to where the surface is in front, w ≥ w_min. The sliver between
@@ -432,7 +442,16 @@ pub(crate) fn integrate_region(
     };
     walk.run(lo, hi);
     stats.traversal.nodes_visited += walk.visited;
-    walk.out
+    finite_or_nothing(walk.out)
+}
+
+/// The integral if every figure is finite; nothing otherwise (a map that
+/// overflows `f64` somewhere on the region: the caller falls back).
+fn finite_or_nothing(r: RegionIntegral) -> RegionIntegral {
+    let finite = r.weight.is_finite()
+        && r.error_bound.is_finite()
+        && r.colour.0.iter().all(|v| v.is_finite());
+    if finite { r } else { RegionIntegral::default() }
 }
 
 /// An edge line `n·p + c ≥ 0` (inside).
@@ -654,6 +673,16 @@ impl Walk<'_> {
                 self.queue.push((c.bound.to_bits(), index));
             }
         }
+    }
+
+    /// True once the region has evaluated its budget of squares (under a
+    /// fixed level: the hard cap).
+    fn over_budget(&self) -> bool {
+        self.visited
+            >= match self.fixed {
+                None => self.budget,
+                Some(_) => FIXED_LEVEL_CAP,
+            }
     }
 
     fn add_contribution(&mut self, c: &Contribution) {
@@ -1001,6 +1030,12 @@ impl Walk<'_> {
             self.edge_node(axis, high, QuadTree::ROOT, 0, 0, sign, offset, &part);
             return;
         }
+        if self.over_budget() {
+            // Out of budget: the texture's mean, the whole weight as bound.
+            let c = colour_of(self.tree.average());
+            self.add(c, &screen, true);
+            return;
+        }
         if self.fixed.is_none() && screen.area() <= self.boundary_coef * diameter(&screen) {
             let c = self.edge_mean(axis, high);
             self.add(c, &screen, true);
@@ -1041,6 +1076,7 @@ impl Walk<'_> {
         let m = self.screen_from_texture;
         let screen = self.to_screen_poly(&piece, &m);
         let take = !inner
+            || self.over_budget()
             || match self.fixed {
                 Some(f) => level >= f,
                 None => screen.area() <= self.boundary_coef * diameter(&screen),

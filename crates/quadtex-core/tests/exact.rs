@@ -353,3 +353,48 @@ fn a_fixed_level_at_the_horizon_stops_at_the_cap() {
     let mean = r.mean().unwrap();
     assert!(mean.a.is_finite() && r.error_bound.is_finite(), "{r:?}");
 }
+
+/// Any projection and region, however extreme (huge or tiny scales, the
+/// horizon inside the region, far-away tiles), gives a finite answer or
+/// nothing, within the budget, and never panics.
+#[test]
+fn extreme_projections_never_panic() {
+    arbtest::arbtest(|u| {
+        let texture = Texture::new(blocky_tree(u)?, wrap(u)?);
+        let scale = |u: &mut Unstructured<'_>| -> ArbResult<f64> {
+            let e = u.int_in_range(-40..=40i32)?;
+            let m = unit(u, -1.0, 1.0)?;
+            Ok(m * 10f64.powi(e))
+        };
+        let mut m = [[0.0; 3]; 3];
+        for row in &mut m {
+            for v in row.iter_mut() {
+                *v = scale(u)?;
+            }
+        }
+        let Ok(projection) = Projection::new(m) else {
+            return Ok(());
+        };
+        let (x, y) = (scale(u)?, scale(u)?);
+        let (w, h) = (scale(u)?.abs(), scale(u)?.abs());
+        let region = ConvexPolygon::rect(x, y, x + w, y + h);
+        for filter in [PixelFilter::Box, PixelFilter::Tent] {
+            let mut stats = FilterStats::default();
+            let r = texture.integrate_region(
+                &projection,
+                &region,
+                filter,
+                [x + w / 2.0, y + h / 2.0],
+                &FilterOptions::default(),
+                &mut stats,
+            );
+            assert!(r.weight.is_finite() && r.error_bound.is_finite(), "{r:?}");
+            if let Some(c) = r.mean() {
+                assert!(c.to_array().iter().all(|v| v.is_finite()), "{c:?}");
+            }
+            assert!(stats.traversal.nodes_visited < 100_000, "{stats:?}");
+        }
+        Ok(())
+    })
+    .budget_ms(3_000);
+}
