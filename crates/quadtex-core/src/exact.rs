@@ -302,6 +302,7 @@ impl RegionIntegral {
 
     /// `colour / weight`, `None` when the weight is zero.
     pub fn mean(&self) -> Option<Rgba> {
+        // Not `mean_over`: a Mitchell lobe's weight may be negative.
         (self.weight != 0.0 && self.weight.is_finite()).then(|| {
             let s = 1.0 / self.weight;
             let c = self.colour.0;
@@ -430,6 +431,7 @@ pub(crate) fn integrate_region(
         filter,
         centre,
         screen_from_texture: projection.screen_from_texture,
+        screen_det: adjugate(&projection.screen_from_texture).1.abs(),
         edges: edges_of(&texture_region),
         region: texture_region,
         fixed,
@@ -458,14 +460,13 @@ fn finite_or_nothing(r: RegionIntegral) -> RegionIntegral {
 type Line = [f64; 3];
 
 fn edges_of(p: &ConvexPolygon) -> ([Line; crate::polygon::MAX_VERTICES], usize) {
-    let v = p.vertices();
     let mut lines = [[0.0; 3]; crate::polygon::MAX_VERTICES];
-    for i in 0..v.len() {
-        let (a, b) = (v[i], v[(i + 1) % v.len()]);
-        let (nx, nz) = (-(b[1] - a[1]), b[0] - a[0]);
-        lines[i] = [nx, nz, -(nx * a[0] + nz * a[1])];
+    let mut n = 0;
+    for (slot, line) in lines.iter_mut().zip(p.edge_lines()) {
+        *slot = line;
+        n += 1;
     }
-    (lines, v.len())
+    (lines, n)
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -612,6 +613,8 @@ struct Walk<'a> {
     filter: PixelFilter,
     centre: [f64; 2],
     screen_from_texture: Mat3,
+    /// `|det|` of `screen_from_texture`, for the density `|det| / w³`.
+    screen_det: f64,
     region: ConvexPolygon,
     edges: ([Line; crate::polygon::MAX_VERTICES], usize),
     fixed: Option<u8>,
@@ -810,7 +813,7 @@ impl Walk<'_> {
                 if root_terminal {
                     return Outcome::Final(self.contribution(root, &quad, 0.0));
                 }
-                let (linear, curved) = self.block_bound(&m, &corners, nx, nz);
+                let (linear, curved) = self.block_bound(&corners, nx, nz);
                 let bound = (self.k_max * (linear + curved)
                     + 0.5 * self.lipschitz * diameter(&quad) / nx.max(nz) * quad.area())
                 .min(self.k_max * quad.area());
@@ -833,11 +836,10 @@ impl Walk<'_> {
                 if root_terminal {
                     return Outcome::Final(self.contribution(root, &piece, 0.0));
                 }
-                let (_, det) = adjugate(&m);
-                let (rmin, rmax) = density_range_det(&m, det.abs(), &corners);
+                let (rmin, rmax) = density_range_det(&m, self.screen_det, &corners);
                 let tile = diameter(&quad) / nx.max(nz) * (rmax / rmin).max(1.0).sqrt();
                 let band = cut_length(&piece_tex, [x0, z0, x1, z1], &m) * tile;
-                let (linear, curved) = self.block_bound(&m, &corners, nx, nz);
+                let (linear, curved) = self.block_bound(&corners, nx, nz);
                 let bound = self.k_max * (band + linear + curved).min(piece.area());
                 Outcome::Refinable(
                     self.contribution(root, &piece, bound),
@@ -854,9 +856,8 @@ impl Walk<'_> {
     /// along rows and columns to the density's range `D` across the block;
     /// the remainder is bounded by the Hessian `|∂²ρ| ≤ 12ρ|∇w|²/w²`.
     /// Returned as the first-order part and the remainder.
-    fn block_bound(&self, m: &Mat3, corners: &[[f64; 2]; 4], nx: f64, nz: f64) -> (f64, f64) {
-        let (_, det) = adjugate(m);
-        let det = det.abs();
+    fn block_bound(&self, corners: &[[f64; 2]; 4], nx: f64, nz: f64) -> (f64, f64) {
+        let (m, det) = (&self.screen_from_texture, self.screen_det);
         let w_min = corners
             .iter()
             .map(|t| (m[2][0] * t[0] + m[2][1] * t[1] + m[2][2]).abs())
@@ -925,7 +926,7 @@ impl Walk<'_> {
                 let bound = if inner {
                     let (rmin, rmax) = density_range_det(&m, f.det, &corners);
                     let diam = if self.lipschitz > 0.0 {
-                        quad_diameter(&mapped)
+                        bbox_diagonal(&mapped)
                     } else {
                         0.0
                     };
@@ -1180,26 +1181,24 @@ fn colour_of(c: crate::Unorm16Rgba) -> [f64; 4] {
     c.0.map(|v| f64::from(v) * (1.0 / 65535.0))
 }
 
-/// The bounding box's diagonal of four points.
+/// The diagonal of the bounding box of `points`.
 #[inline]
-fn quad_diameter(p: &[[f64; 2]; 4]) -> f64 {
-    let (mut lo, mut hi) = (p[0], p[0]);
-    for q in &p[1..] {
+fn bbox_diagonal(points: &[[f64; 2]]) -> f64 {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in points {
         for a in 0..2 {
-            lo[a] = lo[a].min(q[a]);
-            hi[a] = hi[a].max(q[a]);
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
         }
     }
     let (dx, dy) = (hi[0] - lo[0], hi[1] - lo[1]);
     (dx * dx + dy * dy).sqrt()
 }
 
-/// Longest diagonal of a quad (or the bounding box's diagonal of a polygon).
+/// The bounding box's diagonal of a polygon.
 #[inline]
 fn diameter(p: &ConvexPolygon) -> f64 {
-    let (lo, hi) = p.bounds();
-    let (dx, dy) = (hi[0] - lo[0], hi[1] - lo[1]);
-    (dx * dx + dy * dy).sqrt()
+    bbox_diagonal(p.vertices())
 }
 
 /// Extremes of the screen density `|det m| / w³` over `corners`.

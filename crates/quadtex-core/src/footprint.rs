@@ -300,13 +300,7 @@ pub struct Strips {
 
 /// Area of a polygon by the shoelace formula (absolute value).
 pub(crate) fn polygon_area(p: &[[f64; 2]]) -> f64 {
-    let mut a = 0.0;
-    for i in 0..p.len() {
-        let (x0, z0) = (p[i][0], p[i][1]);
-        let (x1, z1) = (p[(i + 1) % p.len()][0], p[(i + 1) % p.len()][1]);
-        a += x0 * z1 - x1 * z0;
-    }
-    (a * 0.5).abs()
+    crate::polygon::signed_area(p).abs()
 }
 
 /// Extent along `axis` (0 = x, 1 = z) of the convex polygon within the slab

@@ -141,21 +141,17 @@ impl ConvexPolygon {
     /// The parts of this polygon outside convex polygon `other`, as convex
     /// pieces (at most one per edge of `other`).
     pub fn subtract(&self, other: &ConvexPolygon, mut out: impl FnMut(ConvexPolygon)) {
-        let v = other.vertices();
         if other.is_empty() {
             out(self.clone());
             return;
         }
         let mut rest = self.clone();
-        for i in 0..v.len() {
-            let (a, b) = (v[i], v[(i + 1) % v.len()]);
-            let (nx, ny) = (-(b[1] - a[1]), b[0] - a[0]);
-            let c = -(nx * a[0] + ny * a[1]);
-            let outside = rest.clip(-nx, -ny, -c);
+        for [a, b, c] in other.edge_lines() {
+            let outside = rest.clip(-a, -b, -c);
             if outside.area() > 0.0 {
                 out(outside);
             }
-            rest = rest.clip(nx, ny, c);
+            rest = rest.clip(a, b, c);
             if rest.is_empty() {
                 return;
             }
@@ -246,15 +242,22 @@ impl ConvexPolygon {
         }
     }
 
+    /// Each edge as the line `(a, b, c)` with `a·x + b·y + c ≥ 0` on the
+    /// inside (left of the edge, the polygon being counter-clockwise).
+    pub fn edge_lines(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
+        let v = self.vertices();
+        (0..v.len()).map(move |i| {
+            let (a, b) = (v[i], v[(i + 1) % v.len()]);
+            let (nx, ny) = (-(b[1] - a[1]), b[0] - a[0]);
+            [nx, ny, -(nx * a[0] + ny * a[1])]
+        })
+    }
+
     /// The part inside convex polygon `other`.
     pub fn intersect(&self, other: &ConvexPolygon) -> ConvexPolygon {
         let mut p = self.clone();
-        let v = other.vertices();
-        for i in 0..v.len() {
-            let (a, b) = (v[i], v[(i + 1) % v.len()]);
-            // Left of a→b is inside for a counter-clockwise polygon.
-            let (nx, ny) = (-(b[1] - a[1]), b[0] - a[0]);
-            p = p.clip(nx, ny, -(nx * a[0] + ny * a[1]));
+        for [a, b, c] in other.edge_lines() {
+            p = p.clip(a, b, c);
             if p.is_empty() {
                 return ConvexPolygon::EMPTY;
             }

@@ -283,10 +283,8 @@ fn a_million_tiles_cost_little() {
     assert!(nodes[2] < 2 * nodes[0], "{nodes:?}");
 }
 
-/// A region reaching past the horizon (`w ≤ 0`) is clipped there; what lies
-/// a hair before it takes the texture's mean, within the bound.
-#[test]
-fn regions_reaching_the_horizon_stay_finite() {
+/// A repeating 2×2 checker of opaque white and transparent cells.
+fn white_and_clear_checker() -> Texture {
     let grid = quadtex_core::TexelGrid::from_fn(2, 2, |c, r| {
         if (c + r) % 2 == 0 {
             Rgba::opaque(1.0, 1.0, 1.0)
@@ -298,7 +296,14 @@ fn regions_reaching_the_horizon_stay_finite() {
     let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
         .unwrap()
         .0;
-    let texture = Texture::new(tree, Wrap::REPEAT);
+    Texture::new(tree, Wrap::REPEAT)
+}
+
+/// A region reaching past the horizon (`w ≤ 0`) is clipped there; what lies
+/// a hair before it takes the texture's mean, within the bound.
+#[test]
+fn regions_reaching_the_horizon_stay_finite() {
+    let texture = white_and_clear_checker();
     // A ground plane: texture x = s_x / s_y·k, z = 1/s_y (w = s_y, the
     // horizon at screen y = 0).
     let projection = Projection::new([[3.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.0, 1.0, 0.0]]).unwrap();
@@ -327,18 +332,7 @@ fn regions_reaching_the_horizon_stay_finite() {
 /// everything: it stops at the cap with a finite colour and its bound.
 #[test]
 fn a_fixed_level_at_the_horizon_stops_at_the_cap() {
-    let grid = quadtex_core::TexelGrid::from_fn(2, 2, |c, r| {
-        if (c + r) % 2 == 0 {
-            Rgba::opaque(1.0, 1.0, 1.0)
-        } else {
-            Rgba::TRANSPARENT
-        }
-    })
-    .unwrap();
-    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
-        .unwrap()
-        .0;
-    let texture = Texture::new(tree, Wrap::REPEAT);
+    let texture = white_and_clear_checker();
     let projection = Projection::new([[3.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.0, 1.0, 0.0]]).unwrap();
     let mut stats = FilterStats::default();
     let r = texture.integrate_region(

@@ -68,13 +68,10 @@ impl View {
     /// camera lies in its plane (it is then seen edge-on: nothing).
     pub fn new(scene: &Scene, surface: usize, planar: &Planar) -> Option<View> {
         let cam = &scene.camera;
-        let (width, height) = (f64::from(cam.width), f64::from(cam.height));
-        let aspect = width / height;
-        let t = cam.tan_half_fov;
         // The ray direction through (px, py), affine: d = d0 + dx·px + dy·py.
-        let dx = cam.right * (2.0 * t * aspect / width);
-        let dy = cam.up * (-2.0 * t / height);
-        let d0 = cam.forward + cam.right * (-t * aspect) + cam.up * t;
+        let d0 = cam.direction(0.0, 0.0);
+        let dx = cam.direction(1.0, 0.0) - d0;
+        let dy = cam.direction(0.0, 1.0) - d0;
         let c = cam.position;
         let n = planar.normal;
         let np = n.dot(planar.point - c);
@@ -314,16 +311,13 @@ pub(crate) fn exact_pixel(
 }
 
 fn mean(acc: [f64; 4], weight: f64) -> Rgba {
-    if weight == 0.0 {
-        return Rgba::TRANSPARENT;
+    quadtex_core::RegionIntegral {
+        colour: quadtex_core::WeightedColour(acc),
+        weight,
+        error_bound: 0.0,
     }
-    let s = 1.0 / weight;
-    Rgba::new(
-        (acc[0] * s) as f32,
-        (acc[1] * s) as f32,
-        (acc[2] * s) as f32,
-        (acc[3] * s) as f32,
-    )
+    .mean()
+    .unwrap_or(Rgba::TRANSPARENT)
 }
 
 /// Indices of `views` front to back: repeatedly the one no other remaining
@@ -404,7 +398,7 @@ fn shade_piece(
         let t = view.depth_at(s);
         if t.is_finite() {
             // The camera's ray is normalised; depth_at is per unnormalised d.
-            let d = unnormalised_direction(scene, s);
+            let d = scene.camera.direction(s[0], s[1]);
             let point = scene.camera.position + d * t;
             let k = lambert(scene, view.normal, point, &ray);
             for (v, f) in c.iter_mut().zip(k) {
@@ -413,15 +407,6 @@ fn shade_piece(
         }
     }
     (c, w, b)
-}
-
-fn unnormalised_direction(scene: &Scene, s: [f64; 2]) -> Vec3 {
-    let cam = &scene.camera;
-    let (width, height) = (f64::from(cam.width), f64::from(cam.height));
-    let aspect = width / height;
-    let sx = (2.0 * s[0] / width - 1.0) * cam.tan_half_fov * aspect;
-    let sy = (1.0 - 2.0 * s[1] / height) * cam.tan_half_fov;
-    cam.forward + cam.right * sx + cam.up * sy
 }
 
 /// The screen row where the camera's ray through column `px` is level

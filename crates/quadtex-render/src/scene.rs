@@ -115,14 +115,23 @@ impl Camera {
     /// The ray through image point `(px, py)`, in pixel units from the top-left
     /// corner (pixel `(i, j)` covers `[i, i+1) × [j, j+1)`).
     pub fn ray(&self, px: f64, py: f64) -> Ray {
-        let aspect = f64::from(self.width) / f64::from(self.height);
-        let sx = (2.0 * px / f64::from(self.width) - 1.0) * self.tan_half_fov * aspect;
-        let sy = (1.0 - 2.0 * py / f64::from(self.height)) * self.tan_half_fov;
-        let d = self.forward + self.right * sx + self.up * sy;
+        let d = self.direction(px, py);
         Ray {
             origin: self.position,
             direction: d * (1.0 / d.length()),
         }
+    }
+}
+
+impl Camera {
+    /// The direction through image point `(px, py)`, not normalised: the
+    /// view direction plus the image-plane offset at distance 1. Affine in
+    /// `(px, py)`, which makes a plane's screen-to-texture map projective.
+    pub(crate) fn direction(&self, px: f64, py: f64) -> Vec3 {
+        let aspect = f64::from(self.width) / f64::from(self.height);
+        let sx = (2.0 * px / f64::from(self.width) - 1.0) * self.tan_half_fov * aspect;
+        let sy = (1.0 - 2.0 * py / f64::from(self.height)) * self.tan_half_fov;
+        self.forward + self.right * sx + self.up * sy
     }
 }
 
