@@ -73,6 +73,11 @@ pub const MAX_SCREEN_COORDINATE: f64 = (1u64 << 50) as f64;
 /// more than it is worth.
 const MAX_TILES_DESCENDED: f64 = 16.0;
 
+/// A refinement over more than [`MAX_TILES_DESCENDED`] tiles that the
+/// budget stops with its bound above this fraction of full contrast is
+/// replaced by the coarse sum (see `Walk::run`).
+const UNCONTROLLED: f64 = 0.05;
+
 /// A projective map from the screen to texture space,
 /// `texture_from_screen`: `t = (M·(s, 1))` divided by its third
 /// coordinate `w`. The surface is in front of the camera where `w > 0`.
@@ -425,6 +430,7 @@ pub(crate) fn integrate_region(
         queue: std::collections::BinaryHeap::new(),
         queued_bound: 0.0,
         target: epsilon * filter.k_max() * area,
+        area,
         budget: options.budget(),
         tree,
         wrap,
@@ -607,6 +613,8 @@ struct Walk<'a> {
     queue: std::collections::BinaryHeap<(u64, u32)>,
     queued_bound: f64,
     target: f64,
+    /// The region's screen area.
+    area: f64,
     budget: u64,
     tree: &'a QuadTree,
     wrap: Wrap,
@@ -642,7 +650,36 @@ impl Walk<'_> {
                 }
             }
         }
-        self.refine();
+        // Over many periods of a repeated texture, a refinement the budget
+        // cuts short is biased: the parts refined first (the largest, the
+        // nearest) follow the slow drift of a moiré between the region's
+        // edges and the tiles, and the rest, at the mean, does not cancel
+        // it. The coarse sum (every tile at the tile mean) keeps that
+        // cancellation: when the budget runs out there, it is returned,
+        // with its own (larger, still rigorous) bound.
+        let tiles = |s: &[Option<Segment>; 3]| match s[0] {
+            Some(Segment::Tiles(a, b)) if s[1].is_none() => (b - a + 1) as f64,
+            _ => 1.0,
+        };
+        let coarse = (tiles(&xs) * tiles(&zs) > MAX_TILES_DESCENDED).then(|| {
+            let mut coarse = self.out;
+            for p in &self.pending {
+                coarse.add(&RegionIntegral {
+                    colour: WeightedColour(p.taken.colour),
+                    weight: p.taken.weight,
+                    error_bound: p.taken.bound,
+                });
+            }
+            coarse
+        });
+        let cut_short = self.refine();
+        if let Some(coarse) = coarse
+            && cut_short
+            && self.fixed.is_none()
+            && self.out.error_bound > UNCONTROLLED * self.k_max * self.area
+        {
+            self.out = coarse;
+        }
     }
 
     /// Adds `colour` over the screen polygon `piece`; `approximate` pieces
@@ -699,12 +736,15 @@ impl Walk<'_> {
     /// Refines the queued part with the largest bound first, until the
     /// bound is met or the budget spent (under a fixed level: until nothing
     /// above that level is left), then takes what is left whole.
-    fn refine(&mut self) {
+    /// True when the budget (or the cap) stopped it short of the bound.
+    fn refine(&mut self) -> bool {
+        let mut cut_short = false;
         while let Some(&(_, index)) = self.queue.peek() {
             let done = match self.fixed {
                 None => {
-                    self.queued_bound + self.out.error_bound <= self.target
-                        || self.visited >= self.budget
+                    let met = self.queued_bound + self.out.error_bound <= self.target;
+                    cut_short = !met && self.visited >= self.budget;
+                    met || cut_short
                 }
                 // A fixed level over a region reaching the horizon (or a
                 // million tiles) would never finish: stop at a hard cap and
@@ -765,6 +805,7 @@ impl Walk<'_> {
             let taken = self.pending[index as usize].taken;
             self.add_contribution(&taken);
         }
+        cut_short
     }
 
     fn contribution(&self, colour: [f64; 4], piece: &ConvexPolygon, bound: f64) -> Contribution {
@@ -881,19 +922,24 @@ impl Walk<'_> {
     fn tile_frame(&mut self, i: i64, j: i64) -> usize {
         let (sx, ox) = tile_map(self.wrap.x, i);
         let (sz, oz) = tile_map(self.wrap.z, j);
-        // local = sign·(texture − offset)
-        let local = ConvexPolygon::from_trusted(
-            self.region
-                .map(|t| [sx * (t[0] - ox), sz * (t[1] - oz)])
-                .vertices(),
-        );
-        let a = [[sx, 0.0, ox], [0.0, sz, oz], [0.0, 0.0, 1.0]];
-        let to_screen = mul(&self.screen_from_texture, &a);
-        let (_, det) = adjugate(&to_screen);
+        // texture = (sx·x + ox, sz·z + oz): a half-plane's line in local
+        // coordinates, and the screen map composed with it (|det| kept).
+        let mut edges = self.edges;
+        for l in &mut edges.0[..edges.1] {
+            *l = [l[0] * sx, l[1] * sz, l[0] * ox + l[1] * oz + l[2]];
+        }
+        let m = &self.screen_from_texture;
+        let to_screen = [0, 1, 2].map(|r| {
+            [
+                m[r][0] * sx,
+                m[r][1] * sz,
+                m[r][0] * ox + m[r][1] * oz + m[r][2],
+            ]
+        });
         self.frames.push(TileFrame {
-            edges: edges_of(&local),
+            edges,
             to_screen,
-            det: det.abs(),
+            det: self.screen_det,
         });
         self.frames.len() - 1
     }
@@ -951,16 +997,15 @@ impl Walk<'_> {
                     Outcome::Final(c)
                 };
             }
-            Class::Boundary(crossing) => {
-                let mut piece = ConvexPolygon::rect(x0, z0, x1, z1);
-                for e in 0..f.edges.1 {
-                    if crossing >> e & 1 == 1 {
-                        let l = f.edges.0[e];
-                        piece = piece.clip(l[0], l[1], l[2]);
-                    }
-                }
-                piece.map(|t| apply(&m, t))
-            }
+            Class::Boundary(crossing) => ConvexPolygon::rect(x0, z0, x1, z1)
+                .clip_lines(
+                    f.edges.0[..f.edges.1]
+                        .iter()
+                        .enumerate()
+                        .filter(|(e, _)| crossing >> e & 1 == 1)
+                        .map(|(_, l)| *l),
+                )
+                .map(|t| apply(&m, t)),
             Class::Outside => return Outcome::Outside,
         };
         let bound = if inner {

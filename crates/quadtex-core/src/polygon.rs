@@ -194,23 +194,37 @@ impl ConvexPolygon {
     #[inline]
     pub fn clip_rect(&self, x0: f64, y0: f64, x1: f64, y1: f64) -> ConvexPolygon {
         let (lo, hi) = self.bounds();
-        // Clip in place between two buffers: a polygon moved is its whole
-        // capacity copied.
-        let mut a = self.clone();
-        let mut b = ConvexPolygon::EMPTY;
         let planes = [
             (lo[0] < x0, [1.0, 0.0, -x0]),
             (hi[0] > x1, [-1.0, 0.0, x1]),
             (lo[1] < y0, [0.0, 1.0, -y0]),
             (hi[1] > y1, [0.0, -1.0, y1]),
         ];
-        for (needed, [pa, pb, pc]) in planes {
-            if needed {
-                a.clip_into(pa, pb, pc, &mut b);
-                std::mem::swap(&mut a, &mut b);
+        self.clip_lines(planes.iter().filter(|p| p.0).map(|p| p.1))
+    }
+
+    /// The part inside every half-plane `a·x + b·y + c ≥ 0` of `lines`.
+    #[inline]
+    pub fn clip_lines(&self, lines: impl IntoIterator<Item = [f64; 3]>) -> ConvexPolygon {
+        // Ping-pong between two buffers by index: a polygon moved or swapped
+        // is its whole capacity copied, a clip only its vertices.
+        let mut buffers = [self.clone(), ConvexPolygon::EMPTY];
+        let mut current = 0;
+        for [a, b, c] in lines {
+            let [first, second] = &mut buffers;
+            let (from, to) = if current == 0 {
+                (&*first, second)
+            } else {
+                (&*second, first)
+            };
+            from.clip_into(a, b, c, to);
+            current ^= 1;
+            if buffers[current].is_empty() {
+                return ConvexPolygon::EMPTY;
             }
         }
-        a
+        let [first, second] = buffers;
+        if current == 0 { first } else { second }
     }
 
     /// [`ConvexPolygon::clip`] into `out` (cleared first).
@@ -255,14 +269,7 @@ impl ConvexPolygon {
 
     /// The part inside convex polygon `other`.
     pub fn intersect(&self, other: &ConvexPolygon) -> ConvexPolygon {
-        let mut p = self.clone();
-        for [a, b, c] in other.edge_lines() {
-            p = p.clip(a, b, c);
-            if p.is_empty() {
-                return ConvexPolygon::EMPTY;
-            }
-        }
-        p
+        self.clip_lines(other.edge_lines())
     }
 
     /// The polygon with every vertex mapped by `f` (which must keep it
