@@ -208,8 +208,16 @@ impl ConvexPolygon {
     pub fn clip_lines(&self, lines: impl IntoIterator<Item = [f64; 3]>) -> ConvexPolygon {
         // Ping-pong between two buffers by index: a polygon moved or swapped
         // is its whole capacity copied, a clip only its vertices.
-        let mut buffers = [self.clone(), ConvexPolygon::EMPTY];
+        let mut lines = lines.into_iter();
+        let Some([a, b, c]) = lines.next() else {
+            return self.clone();
+        };
+        let mut buffers = [ConvexPolygon::EMPTY, ConvexPolygon::EMPTY];
+        self.clip_into(a, b, c, &mut buffers[0]);
         let mut current = 0;
+        if buffers[0].is_empty() {
+            return ConvexPolygon::EMPTY;
+        }
         for [a, b, c] in lines {
             let [first, second] = &mut buffers;
             let (from, to) = if current == 0 {

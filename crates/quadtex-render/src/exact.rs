@@ -26,6 +26,8 @@
 //! shadows, taken at the piece's centroid. The sky's gradient is integrated
 //! by the midpoint rule on quarter-pixel cells clipped to the sky's part.
 
+use std::borrow::Cow;
+
 use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Projection, Rgba};
 
 use crate::frame::{Frame, lambert, sky};
@@ -123,14 +125,9 @@ impl View {
     /// The part of `support` where this primitive lies (in front of the
     /// camera, inside its edges), ignoring occlusion.
     pub fn region(&self, support: &ConvexPolygon) -> ConvexPolygon {
-        let mut p = support.clip(self.w[0], self.w[1], self.w[2]);
-        for b in &self.bounds[..self.bound_count] {
-            if p.is_empty() {
-                break;
-            }
-            p = p.clip(b[0], b[1], b[2]);
-        }
-        p
+        support.clip_lines(
+            std::iter::once(self.w).chain(self.bounds[..self.bound_count].iter().copied()),
+        )
     }
 
     /// The texture's integral over this primitive's part of `support`
@@ -189,12 +186,12 @@ impl SurfaceViews {
     }
 
     /// The view of primitive `triangle` of surface `surface`.
-    fn get(&self, scene: &Scene, surface: usize, triangle: u32) -> Option<View> {
+    fn get(&self, scene: &Scene, surface: usize, triangle: u32) -> Option<Cow<'_, View>> {
         match self.views.get(surface)? {
-            Some(v) => Some(v.clone()),
+            Some(v) => Some(Cow::Borrowed(v)),
             None => {
                 let planar = scene.surfaces.get(surface)?.geometry.planar(triangle)?;
-                View::new(scene, surface, &planar)
+                View::new(scene, surface, &planar).map(Cow::Owned)
             }
         }
     }
@@ -217,15 +214,6 @@ pub(crate) fn exact_pixel(
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
     let support = filter.support(centre);
-    let mut views = Vec::with_capacity(candidates.len() + scene.surfaces.len());
-    for &id in candidates {
-        let surface = (id >> 32) as usize - 1;
-        // A sphere (not planar) leaves the pixel to the tangent-plane path.
-        scene.surfaces.get(surface)?.geometry.planar(id as u32)?;
-        if let Some(v) = cache.get(scene, surface, id as u32) {
-            views.push(v);
-        }
-    }
     let mut acc = [0f64; 4];
     let mut weight = 0.0;
     let mut bound = 0.0;
@@ -238,16 +226,30 @@ pub(crate) fn exact_pixel(
         bound += b;
     };
     // One primitive over the whole support: one integral.
-    if let [view] = views.as_slice()
+    if let [id] = candidates
         && !sees_sky
     {
-        let region = view.region(&support);
-        if region.area() >= support.area() * (1.0 - 1e-12) {
-            let (c, w, b) = shade_piece(frame, view, &region, filter, centre, options, &mut parts);
-            add(c, w, b);
-            stats.merge_parts(&parts);
-            stats.filter.record_bound(b / w.abs().max(1e-300));
-            return Some(mean(acc, weight));
+        let surface = (id >> 32) as usize - 1;
+        scene.surfaces.get(surface)?.geometry.planar(*id as u32)?;
+        if let Some(view) = cache.get(scene, surface, *id as u32) {
+            let region = view.region(&support);
+            if region.area() >= support.area() * (1.0 - 1e-12) {
+                let (c, w, b) =
+                    shade_piece(frame, &view, &region, filter, centre, options, &mut parts);
+                add(c, w, b);
+                stats.merge_parts(&parts);
+                stats.filter.record_bound(b / w.abs().max(1e-300));
+                return Some(mean(acc, weight));
+            }
+        }
+    }
+    let mut views = Vec::with_capacity(candidates.len() + scene.surfaces.len());
+    for &id in candidates {
+        let surface = (id >> 32) as usize - 1;
+        // A sphere (not planar) leaves the pixel to the tangent-plane path.
+        scene.surfaces.get(surface)?.geometry.planar(id as u32)?;
+        if let Some(v) = cache.get(scene, surface, id as u32) {
+            views.push(v);
         }
     }
     // The centres in reach may all miss a primitive that still reaches into
@@ -277,7 +279,7 @@ pub(crate) fn exact_pixel(
                         .planar(t)
                         .and_then(|p| View::new(scene, surface, &p))
                     {
-                        views.push(v);
+                        views.push(Cow::Owned(v));
                     }
                 }
             }
@@ -323,7 +325,7 @@ fn mean(acc: [f64; 4], weight: f64) -> Rgba {
 /// Indices of `views` front to back: repeatedly the one no other remaining
 /// view is in front of where their regions overlap (the nearest at its own
 /// centroid if occlusion is cyclic).
-fn front_to_back(views: &[View], regions: &[ConvexPolygon]) -> Vec<usize> {
+fn front_to_back(views: &[Cow<'_, View>], regions: &[ConvexPolygon]) -> Vec<usize> {
     let mut left: Vec<usize> = (0..views.len())
         .filter(|&i| !regions[i].is_empty())
         .collect();
