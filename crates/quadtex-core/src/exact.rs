@@ -42,6 +42,13 @@
 //! to float rounding and half a 16-bit step on nothing (only terminal
 //! colours are used) — the slow, obvious reference the tests use.
 //!
+//! **Budget.** Refinement also stops after a budget of squares
+//! ([`crate::FilterOptions::budget`]). Over more than 16 repeated tiles a
+//! refinement the budget cuts short with its bound above 5% of full
+//! contrast is replaced by the coarse sum (every tile at the tile mean):
+//! the partial one is biased by moiré, the coarse one keeps the
+//! cancellation over many periods (`docs/algorithm.md` §8, measured there).
+//!
 //! **Wrap.** Repeat and mirror tiles are grouped in blocks of tiles; a block
 //! inside `Q` has the tree's root mean, with the covariance bound above
 //! summed over its tiles (`Δc·(k_max·(ρ_max−ρ_min)·(n_x+n_z) + …)`: it shrinks
