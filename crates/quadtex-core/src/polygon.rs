@@ -400,6 +400,37 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
 
+    /// `clip_lines` (two buffers, early exit) against clipping one line at
+    /// a time, on random convex polygons and lines, empty results included.
+    #[test]
+    fn clipping_by_many_lines_equals_clipping_one_at_a_time() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut random = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
+        };
+        for _ in 0..2000 {
+            let points: Vec<[f64; 2]> = (0..8).map(|_| [random(), random()]).collect();
+            let polygon = ConvexPolygon::hull(&points);
+            let lines: Vec<[f64; 3]> = (0..(random().abs() * 3.0) as usize + 1)
+                .map(|_| [random(), random(), random() * 0.5])
+                .collect();
+            let by_one = lines
+                .iter()
+                .fold(polygon.clone(), |p, l| p.clip(l[0], l[1], l[2]));
+            let at_once = polygon.clip_lines(lines.iter().copied());
+            if by_one.is_empty() {
+                assert!(at_once.is_empty(), "{polygon:?} {lines:?}");
+            } else {
+                assert_eq!(at_once, by_one, "{polygon:?} {lines:?}");
+            }
+        }
+        let square = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
+        assert_eq!(square.clip_lines(std::iter::empty()), square);
+    }
+
     #[test]
     fn clipping_a_square_by_a_diagonal_halves_it() {
         let sq = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
