@@ -413,14 +413,39 @@ pub struct VectorReport {
     pub max_leaf_edges: usize,
 }
 
-/// The part of one shape inside a square.
+/// The part of one shape inside a square: its contours are
+/// `Pieces::contours[contours]`.
 #[derive(Debug, Clone)]
 struct Piece {
     shape: u32,
     /// Winding contributed by contours that no longer enter the square.
     base: i32,
     /// Clipped contours that still have edges inside the square.
-    contours: Vec<Vec<Point>>,
+    contours: std::ops::Range<usize>,
+}
+
+/// The pieces of one square, flat: headers, contour ranges and points in
+/// three vectors that are cleared and refilled square after square (one
+/// per level), so the build allocates per level, not per square.
+#[derive(Debug, Default)]
+struct Pieces {
+    pieces: Vec<Piece>,
+    contours: Vec<std::ops::Range<usize>>,
+    points: Vec<Point>,
+}
+
+impl Pieces {
+    fn clear(&mut self) {
+        self.pieces.clear();
+        self.contours.clear();
+        self.points.clear();
+    }
+
+    fn contours_of(&self, piece: &Piece) -> impl Iterator<Item = &[Point]> + '_ {
+        self.contours[piece.contours.clone()]
+            .iter()
+            .map(|r| &self.points[r.clone()])
+    }
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -455,7 +480,32 @@ struct VectorBuilder<'a> {
     nodes: u64,
     levels: Vec<Vec<(bool, Unorm16Rgba)>>,
     report: VectorReport,
-    scratch: Vec<Point>,
+    /// Clipping buffers.
+    scratch: [Vec<Point>; 2],
+    /// The pieces of the square being built at each level.
+    work: Vec<Pieces>,
+    /// Scratch of the trapezoid sweep.
+    sweep: SweepScratch,
+}
+
+/// Buffers of [`VectorBuilder::sweep`], kept between leaves.
+#[derive(Debug, Default)]
+struct SweepScratch {
+    edges: Vec<Edge>,
+    heights: Vec<f64>,
+    winding: Vec<i32>,
+    crossings: Vec<(f64, usize, i32)>,
+    covered: Vec<u32>,
+}
+
+/// A non-horizontal edge of a leaf's clipped contours.
+#[derive(Debug, Clone, Copy)]
+struct Edge {
+    lo: Point,
+    hi: Point,
+    piece: usize,
+    /// Winding change when crossing the edge from left to right.
+    step: i32,
 }
 
 impl QuadTree {
@@ -487,25 +537,30 @@ impl QuadTree {
             nodes: 1,
             levels: vec![Vec::new(); usize::from(options.max_level) + 1],
             report: VectorReport::default(),
-            scratch: Vec::new(),
+            scratch: [Vec::new(), Vec::new()],
+            work: (0..=options.max_level).map(|_| Pieces::default()).collect(),
+            sweep: SweepScratch::default(),
         };
         let root = Square {
             x0: 0.0,
             z0: 0.0,
             side: 1.0,
         };
-        let mut pieces = Vec::new();
+        let mut top = Pieces::default();
         for (s, shape) in art.shapes.iter().enumerate() {
-            let whole = Piece {
-                shape: s as u32,
-                base: 0,
-                contours: shape.contours.iter().map(|c| c.points.clone()).collect(),
-            };
-            if let Some(p) = b.clip_piece(&whole, root, Some(&shape.contours)) {
-                pieces.push(p);
-            }
+            b.clip_piece_into(
+                s as u32,
+                0,
+                shape
+                    .contours
+                    .iter()
+                    .map(|c| (c.points.as_slice(), Some(c.bounds))),
+                root,
+                &mut top,
+            );
         }
-        let (_, colour, terminal) = b.square(0, root, pieces)?;
+        b.work[0] = top;
+        let (_, colour, terminal) = b.square(0, root)?;
         b.levels[0].push((!terminal, colour));
         while b.levels.last().is_some_and(Vec::is_empty) {
             b.levels.pop();
@@ -522,21 +577,31 @@ fn quantise(c: [f64; 4]) -> Unorm16Rgba {
 
 impl VectorBuilder<'_> {
     /// Returns the square's exact mean colour, its stored colour and whether
-    /// it is terminal; pushes its children's nodes.
-    fn square(
+    /// it is terminal; pushes its children's nodes. Its pieces are in
+    /// `self.work[level]`.
+    fn square(&mut self, level: u8, sq: Square) -> Result<([f64; 4], Unorm16Rgba, bool), Error> {
+        let mut here = std::mem::take(&mut self.work[usize::from(level)]);
+        let result = self.square_with(level, sq, &mut here);
+        self.work[usize::from(level)] = here;
+        result
+    }
+
+    fn square_with(
         &mut self,
         level: u8,
         sq: Square,
-        pieces: Vec<Piece>,
+        here: &mut Pieces,
     ) -> Result<([f64; 4], Unorm16Rgba, bool), Error> {
-        let pieces = self.cull(pieces);
-        if pieces.iter().all(|p| p.contours.is_empty()) {
-            let covered: Vec<u32> = pieces.iter().map(|p| p.shape).collect();
-            let mean = self.art.composite(&covered, 0);
+        self.cull(&mut here.pieces);
+        if here.pieces.iter().all(|p| p.contours.is_empty()) {
+            let covered = &mut self.sweep.covered;
+            covered.clear();
+            covered.extend(here.pieces.iter().map(|p| p.shape));
+            let mean = self.art.composite(covered, 0);
             return Ok((mean, quantise(mean), true));
         }
         if level == self.max_level {
-            let mean = self.sweep(&pieces, sq);
+            let mean = self.sweep(here, sq);
             return Ok((mean, quantise(mean), true));
         }
         self.nodes += 4;
@@ -555,19 +620,28 @@ impl VectorBuilder<'_> {
         )?;
         let mut children = [(Unorm16Rgba::default(), true); 4];
         let mut sum = [0.0; 4];
+        let next = usize::from(level) + 1;
         for (k, child) in children.iter_mut().enumerate() {
             let csq = sq.child(k);
-            let cp: Vec<Piece> = pieces
-                .iter()
-                .filter_map(|p| self.clip_piece(p, csq, None))
-                .collect();
-            let (mean, colour, terminal) = self.square(level + 1, csq, cp)?;
+            let mut below = std::mem::take(&mut self.work[next]);
+            below.clear();
+            for p in &here.pieces {
+                self.clip_piece_into(
+                    p.shape,
+                    p.base,
+                    here.contours_of(p).map(|c| (c, None)),
+                    csq,
+                    &mut below,
+                );
+            }
+            self.work[next] = below;
+            let (mean, colour, terminal) = self.square(level + 1, csq)?;
             for (s, m) in sum.iter_mut().zip(mean) {
                 *s += m / 4.0;
             }
             *child = (colour, terminal);
         }
-        let next = &mut self.levels[usize::from(level) + 1];
+        let next = &mut self.levels[next];
         for (c, terminal) in children {
             try_push(next, (!terminal, c), "tree level")?;
         }
@@ -576,7 +650,7 @@ impl VectorBuilder<'_> {
 
     /// Drops shapes that do not reach the square and shapes hidden by an
     /// opaque shape covering all of it.
-    fn cull(&self, mut pieces: Vec<Piece>) -> Vec<Piece> {
+    fn cull(&self, pieces: &mut Vec<Piece>) {
         pieces.retain(|p| {
             !p.contours.is_empty() || self.art.shapes[p.shape as usize].rule.covers(p.base)
         });
@@ -586,56 +660,64 @@ impl VectorBuilder<'_> {
         {
             pieces.drain(..top);
         }
-        pieces
     }
 
-    /// The piece clipped to `sq` (inside its parent square), or `None` when
-    /// it no longer reaches `sq` (winding 0 and no edges).
-    fn clip_piece(
+    /// Appends to `out` the piece of shape `shape` (winding `base` from
+    /// contours no longer inside, and `contours` with their bounds when
+    /// known) clipped to `sq`, unless it no longer reaches `sq` (winding 0
+    /// and no edges).
+    fn clip_piece_into<'c>(
         &mut self,
-        piece: &Piece,
+        shape: u32,
+        base: i32,
+        contours: impl Iterator<Item = (&'c [Point], Option<[f64; 4]>)>,
         sq: Square,
-        bounds: Option<&[Contour]>,
-    ) -> Option<Piece> {
-        let mut out = Piece {
-            shape: piece.shape,
-            base: piece.base,
-            contours: Vec::new(),
-        };
-        for (i, contour) in piece.contours.iter().enumerate() {
-            let b = match bounds {
-                Some(c) => c[i].bounds,
-                None => bounds_of(contour),
-            };
+        out: &mut Pieces,
+    ) {
+        let first = out.contours.len();
+        let mut base = base;
+        for (contour, bounds) in contours {
+            let b = bounds.unwrap_or_else(|| bounds_of(contour));
             if b[2] < sq.x0 || b[0] > sq.x1() || b[3] < sq.z0 || b[1] > sq.z1() {
                 continue; // wholly outside: winds 0 around every interior point
             }
-            let clipped = clip_to_square(contour, sq, &mut self.scratch);
+            let start = out.points.len();
+            clip_to_square(contour, sq, &mut self.scratch, &mut out.points);
+            let clipped = &out.points[start..];
             if clipped.len() < 3 {
+                out.points.truncate(start);
                 continue;
             }
-            if on_border(&clipped, sq) {
-                let w = signed_area(&clipped) / (sq.side * sq.side);
-                out.base += w.round() as i32;
+            if on_border(clipped, sq) {
+                let w = signed_area(clipped) / (sq.side * sq.side);
+                base += w.round() as i32;
+                out.points.truncate(start);
             } else {
-                out.contours.push(clipped);
+                out.contours.push(start..out.points.len());
             }
         }
-        (out.base != 0 || !out.contours.is_empty()).then_some(out)
+        let contours = first..out.contours.len();
+        if base != 0 || !contours.is_empty() {
+            out.pieces.push(Piece {
+                shape,
+                base,
+                contours,
+            });
+        }
     }
 
     /// Exact mean colour of a leaf by the trapezoid sweep.
-    fn sweep(&mut self, pieces: &[Piece], sq: Square) -> [f64; 4] {
-        struct Edge {
-            lo: Point,
-            hi: Point,
-            piece: usize,
-            /// Winding change when crossing the edge from left to right.
-            step: i32,
-        }
-        let mut edges = Vec::new();
-        for (pi, piece) in pieces.iter().enumerate() {
-            for c in &piece.contours {
+    fn sweep(&mut self, pieces: &Pieces, sq: Square) -> [f64; 4] {
+        let SweepScratch {
+            edges,
+            heights,
+            winding,
+            crossings,
+            covered,
+        } = &mut self.sweep;
+        edges.clear();
+        for (pi, piece) in pieces.pieces.iter().enumerate() {
+            for c in pieces.contours_of(piece) {
                 for i in 0..c.len() {
                     let (a, b) = (c[i], c[(i + 1) % c.len()]);
                     if a[1] == b[1] {
@@ -653,8 +735,9 @@ impl VectorBuilder<'_> {
         }
         self.report.swept_leaves += 1;
         self.report.max_leaf_edges = self.report.max_leaf_edges.max(edges.len());
-        let mut heights = vec![sq.z0, sq.z1()];
-        for e in &edges {
+        heights.clear();
+        heights.extend([sq.z0, sq.z1()]);
+        for e in edges.iter() {
             heights.push(e.lo[1]);
             heights.push(e.hi[1]);
         }
@@ -672,10 +755,10 @@ impl VectorBuilder<'_> {
         heights.retain(|z| *z >= sq.z0 && *z <= sq.z1());
         heights.sort_by(f64::total_cmp);
         heights.dedup();
-        let mut winding: Vec<i32> = pieces.iter().map(|p| p.base).collect();
-        let mut crossings: Vec<(f64, usize, i32)> = Vec::new();
-        let mut covered: Vec<u32> = Vec::new();
+        winding.clear();
+        winding.extend(pieces.pieces.iter().map(|p| p.base));
         let mut total = [0.0; 4];
+        let art = self.art;
         for slab in heights.windows(2) {
             let (z0, z1) = (slab[0], slab[1]);
             let h = z1 - z0;
@@ -684,7 +767,7 @@ impl VectorBuilder<'_> {
             }
             let zm = 0.5 * (z0 + z1);
             crossings.clear();
-            for e in &edges {
+            for e in edges.iter() {
                 if e.lo[1] < zm && zm < e.hi[1] {
                     let t = (zm - e.lo[1]) / (e.hi[1] - e.lo[1]);
                     let x = (e.lo[0] + t * (e.hi[0] - e.lo[0])).clamp(sq.x0, sq.x1());
@@ -692,7 +775,7 @@ impl VectorBuilder<'_> {
                 }
             }
             crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
-            for (w, p) in winding.iter_mut().zip(pieces) {
+            for (w, p) in winding.iter_mut().zip(&pieces.pieces) {
                 *w = p.base;
             }
             let mut left = sq.x0;
@@ -702,22 +785,22 @@ impl VectorBuilder<'_> {
                     return;
                 }
                 covered.clear();
-                for (p, w) in pieces.iter().zip(winding) {
-                    if self.art.shapes[p.shape as usize].rule.covers(*w) {
+                for (p, w) in pieces.pieces.iter().zip(winding) {
+                    if art.shapes[p.shape as usize].rule.covers(*w) {
                         covered.push(p.shape);
                     }
                 }
-                let c = self.art.composite(&covered, 0);
+                let c = art.composite(covered, 0);
                 for (t, v) in total.iter_mut().zip(c) {
                     *t += v * width * h;
                 }
             };
-            for &(x, piece, step) in &crossings {
-                gap(left, x, &winding, &mut total);
+            for &(x, piece, step) in crossings.iter() {
+                gap(left, x, winding, &mut total);
                 winding[piece] += step;
                 left = x;
             }
-            gap(left, sq.x1(), &winding, &mut total);
+            gap(left, sq.x1(), winding, &mut total);
         }
         let area = sq.side * sq.side;
         total.map(|t| t / area)
@@ -780,11 +863,18 @@ fn on_border(points: &[Point], sq: Square) -> bool {
     })
 }
 
-/// Sutherland–Hodgman clipping of a closed polygon to `sq`; points on the
-/// border are set to the border's coordinate exactly, consecutive duplicates
-/// removed.
-fn clip_to_square(points: &[Point], sq: Square, scratch: &mut Vec<Point>) -> Vec<Point> {
-    let mut a = points.to_vec();
+/// Sutherland–Hodgman clipping of a closed polygon to `sq`, appended to
+/// `out`; points on the border are set to the border's coordinate exactly,
+/// consecutive duplicates removed. `scratch` holds the passes.
+fn clip_to_square(
+    points: &[Point],
+    sq: Square,
+    scratch: &mut [Vec<Point>; 2],
+    out: &mut Vec<Point>,
+) {
+    let [a, b] = scratch;
+    a.clear();
+    a.extend_from_slice(points);
     let planes = [
         (0usize, sq.x0, true),
         (0, sq.x1(), false),
@@ -792,7 +882,7 @@ fn clip_to_square(points: &[Point], sq: Square, scratch: &mut Vec<Point>) -> Vec
         (1, sq.z1(), false),
     ];
     for (axis, bound, keep_above) in planes {
-        scratch.clear();
+        b.clear();
         let inside = |p: &Point| {
             if keep_above {
                 p[axis] >= bound
@@ -813,26 +903,25 @@ fn clip_to_square(points: &[Point], sq: Square, scratch: &mut Vec<Point>) -> Vec
                 let mut x = prev;
                 x[axis] = bound;
                 x[1 - axis] = prev[1 - axis] + t * (cur[1 - axis] - prev[1 - axis]);
-                scratch.push(x);
+                b.push(x);
             }
             if cin {
-                scratch.push(cur);
+                b.push(cur);
             }
         }
-        std::mem::swap(&mut a, scratch);
+        std::mem::swap(a, b);
     }
     let (x1, z1) = (sq.x1(), sq.z1());
-    let mut out: Vec<Point> = Vec::with_capacity(a.len());
-    for p in a {
+    let start = out.len();
+    for p in a.iter() {
         let p = [p[0].clamp(sq.x0, x1), p[1].clamp(sq.z0, z1)];
-        if out.last() != Some(&p) {
+        if out.len() == start || out.last() != Some(&p) {
             out.push(p);
         }
     }
-    while out.len() > 1 && out.first() == out.last() {
+    while out.len() > start + 1 && out[start] == out[out.len() - 1] {
         out.pop();
     }
-    out
 }
 
 #[cfg(test)]
@@ -841,6 +930,14 @@ mod tests {
 
     fn rect(x0: f64, z0: f64, x1: f64, z1: f64) -> Vec<[f64; 2]> {
         vec![[x0, z0], [x1, z0], [x1, z1], [x0, z1]]
+    }
+
+    fn clipped(points: &[Point], sq: Square) -> Vec<Point> {
+        let mut out = vec![[9.0, 9.0]];
+        clip_to_square(points, sq, &mut [Vec::new(), Vec::new()], &mut out);
+        // Appended after what `out` held.
+        assert_eq!(out[0], [9.0, 9.0]);
+        out.split_off(1)
     }
 
     #[test]
@@ -862,7 +959,7 @@ mod tests {
             side: 0.25,
         };
         // A big square around `sq` clips to `sq`'s border: winding 1.
-        let c = clip_to_square(&rect(0.0, 0.0, 1.0, 1.0), sq, &mut Vec::new());
+        let c = clipped(&rect(0.0, 0.0, 1.0, 1.0), sq);
         assert!(on_border(&c, sq));
         assert_eq!((signed_area(&c) / (0.25 * 0.25)).round(), 1.0);
         // A triangle whose hypotenuse is the square's diagonal keeps inner edges.
@@ -872,7 +969,7 @@ mod tests {
             side: 0.25,
         };
         let t = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
-        let c = clip_to_square(&t, sq, &mut Vec::new());
+        let c = clipped(&t, sq);
         assert!(!on_border(&c, sq));
         assert!((signed_area(&c) - 0.25 * 0.25 / 2.0).abs() < 1e-15);
     }
