@@ -90,7 +90,14 @@ pub struct QuadTree {
     /// The colour's first moments about the centre, computed when first
     /// needed ([`QuadTree::first_moments`]).
     moments: std::sync::OnceLock<[f64; 2]>,
+    /// The colours of the grid at the tree's depth, for shallow trees
+    /// ([`QuadTree::flat_grid`]), computed when first needed.
+    grid: std::sync::OnceLock<Option<Vec<[f64; 4]>>>,
 }
+
+/// Deepest tree whose full grid [`QuadTree::flat_grid`] gives (16 × 16
+/// cells, 8 KiB).
+pub const FLAT_GRID_MAX_DEPTH: u8 = 4;
 
 impl QuadTree {
     /// A tree from its breadth-first node list.
@@ -218,6 +225,7 @@ impl QuadTree {
             top_level,
             top: Vec::new(),
             moments: std::sync::OnceLock::new(),
+            grid: std::sync::OnceLock::new(),
         };
         tree.top = tree.build_top_table()?;
         Ok(tree)
@@ -336,6 +344,33 @@ impl QuadTree {
             let max = |m: [f64; 4]| m.iter().fold(0f64, |a, v| a.max(v.abs()));
             [max(mx), max(mz)]
         })
+    }
+
+    /// For a tree of depth `d ≤` [`FLAT_GRID_MAX_DEPTH`], the colour of every
+    /// cell of the `2^d × 2^d` grid at its depth (linear, premultiplied,
+    /// `[0, 1]`), row-major with `z` rows from the bottom: cell `(i, j)`
+    /// covers `[i, i+1) × [j, j+1)` scaled by `2^-d`. Exact: each cell lies
+    /// in one terminal square. `None` for deeper trees.
+    pub fn flat_grid(&self) -> Option<&[[f64; 4]]> {
+        self.grid
+            .get_or_init(|| {
+                let d = self.depth;
+                if d > FLAT_GRID_MAX_DEPTH {
+                    return None;
+                }
+                let n = 1usize << d;
+                let mut grid = vec![[0.0; 4]; n * n];
+                self.for_each_leaf(d, |level, ix, iz, c| {
+                    let span = 1usize << (d - level);
+                    let colour = c.0.map(|v| f64::from(v) / 65535.0);
+                    let (i0, j0) = (ix as usize * span, iz as usize * span);
+                    for j in j0..j0 + span {
+                        grid[j * n + i0..j * n + i0 + span].fill(colour);
+                    }
+                });
+                Some(grid)
+            })
+            .as_deref()
     }
 
     /// Calls `f(level, ix, iz, colour)` for every square a traversal to level

@@ -525,13 +525,9 @@ fn sky_integral(
 mod tests {
     use super::*;
 
-    /// Pixels just below the checker plane's horizon see thin needles
-    /// crossing tens of tiles; the default budget cannot finish them. The
-    /// coarse sum it falls back to stays close to the finished integral,
-    /// where a half-finished refinement was off by up to 0.11 (row 248:
-    /// RMS 0.044 before the fallback).
-    #[test]
-    fn horizon_needles_fall_back_to_the_unbiased_sum() {
+    /// RMS over every 7th pixel of row `y` of `scenes/checker.toml` at
+    /// 960×540: default options against the finished integral.
+    fn row_rms(y: f64) -> f64 {
         let mut scene =
             crate::load_scene(std::path::Path::new("../../scenes/checker.toml")).unwrap();
         scene.camera = scene.camera.with_size(960, 540);
@@ -540,24 +536,38 @@ mod tests {
         let texture = surface.texture.as_ref().unwrap().sampler(surface.wrap);
         let finished = FilterOptions::default()
             .with_error_bound(1e-6)
-            .and_then(|o| o.with_budget(1 << 16))
+            .and_then(|o| o.with_budget(1 << 18))
             .unwrap();
         let (mut sum, mut n) = (0.0, 0);
         for px in (0..960).step_by(7) {
-            let (x, y) = (f64::from(px), 248.0);
+            let x = f64::from(px);
             let support = ConvexPolygon::rect(x, y, x + 1.0, y + 1.0);
             let centre = [x + 0.5, y + 0.5];
             let get = |o: &FilterOptions| {
                 view.texture_integral(&texture, &support, PixelFilter::Box, centre, o)
             };
             let (quick, exact) = (get(&FilterOptions::default()), get(&finished));
-            assert!(exact.error_bound < 1e-5, "{exact:?}");
+            assert!(exact.error_bound < 1e-4 * exact.weight, "{exact:?}");
             let d = quick.mean().unwrap().r - exact.mean().unwrap().r;
-            assert!(f64::from(d.abs()) <= quick.error_bound / quick.weight + 1e-6);
+            assert!(f64::from(d.abs()) <= quick.error_bound / quick.weight + 1e-4);
             sum += f64::from(d * d);
             n += 1;
         }
-        let rms = (sum / f64::from(n)).sqrt();
-        assert!(rms < 0.015, "RMS {rms}");
+        (sum / f64::from(n)).sqrt()
+    }
+
+    /// Pixels just below the checker plane's horizon see thin needles
+    /// crossing tens of tiles: row 248 (14 tiles, 0.1 tile wide) is
+    /// scanned cell by cell, exactly (the walk, cut short by its budget,
+    /// was off there by RMS 0.044 before the fallback and 0.009 with it).
+    /// Row 243, hundreds of tiles long, has too many cells: the walk and
+    /// its coarse fallback answer, within their bound.
+    #[test]
+    fn horizon_needles_are_scanned_or_fall_back() {
+        let scanned = row_rms(248.0);
+        assert!(scanned < 1e-6, "row 248: RMS {scanned}");
+        let walked = row_rms(243.0);
+        eprintln!("row 243: RMS {walked}");
+        assert!(walked < 0.01, "row 243: RMS {walked}");
     }
 }
