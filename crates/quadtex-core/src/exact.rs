@@ -723,7 +723,7 @@ impl Walk<'_> {
         let n = 1i64 << depth;
         let h = 1.0 / n as f64;
         let (k0, k1) = ((lo[1] / h).floor(), (hi[1] / h).ceil());
-        if !(k1 - k0 <= SCAN_CELLS) {
+        if (k1 - k0).is_nan() || k1 - k0 > SCAN_CELLS {
             return false;
         }
         let (k0, k1) = (k0 as i64, k1 as i64);
