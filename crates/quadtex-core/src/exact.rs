@@ -42,6 +42,11 @@
 //! to float rounding and half a 16-bit step on nothing (only terminal
 //! colours are used) — the slow, obvious reference the tests use.
 //!
+//! **Shallow repeated textures.** A tree of depth ≤ 4 repeated or mirrored
+//! on both axes is integrated cell by cell over the grid at its depth, band
+//! by band, exactly, up to 512 cells a region (`Walk::scan_cells`); the
+//! walk below does the rest.
+//!
 //! **Budget.** Refinement also stops after a budget of squares
 //! ([`crate::FilterOptions::budget`]). Over more than 16 repeated tiles a
 //! refinement the budget cuts short with its bound above 5% of full
