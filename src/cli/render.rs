@@ -106,7 +106,8 @@ pub struct RenderArgs {
     error_bound: Option<f64>,
     /// Quadtree only: most squares evaluated per pixel region under the
     /// error bound (default 64); pixels at the horizon are the ones that
-    /// reach it.
+    /// reach it. Shallow repeated textures (at most 16×16 texels a tile)
+    /// are scanned cell by cell instead, exactly, up to 512 cells a pixel.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     budget: Option<u64>,
     /// Quadtree only: refine every square to this fixed level (or a

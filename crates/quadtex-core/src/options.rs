@@ -148,6 +148,8 @@ impl FilterOptions {
     /// With at most `budget` squares and tile blocks evaluated per region
     /// under an error bound (`≥ 1`; see [`crate::exact`]): past it the
     /// largest remaining errors stay and the bound reached is reported.
+    /// Shallow repeated textures (depth ≤ 4) are scanned cell by cell
+    /// instead, exactly, up to 512 cells a region, whatever the budget.
     pub fn with_budget(self, budget: u64) -> Result<FilterOptions, Error> {
         if budget == 0 {
             return Err(Error::BadOption {
