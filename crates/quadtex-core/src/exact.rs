@@ -708,15 +708,15 @@ impl Walk<'_> {
         }
     }
 
-    /// A region over many tiles of a shallow tree (depth ≤
+    /// The region over a shallow tree (depth ≤
     /// [`crate::tree::FLAT_GRID_MAX_DEPTH`], both axes repeated or
     /// mirrored), exactly: band by band of the grid at the tree's depth,
     /// each cell the region crosses clipped and weighted, at most
     /// [`SCAN_CELLS`] cells. False (nothing added) when it does not apply.
     ///
-    /// Such regions are the thin needles below a horizon: the walk's
-    /// blocks do not fit inside them and refining tile by tile costs more
-    /// squares than the budget, while a cell here costs a clip and an area.
+    /// It matters for the thin needles below a horizon: the walk's blocks
+    /// do not fit inside them and refining tile by tile costs more squares
+    /// than the budget, while a cell here costs a clip and an area.
     fn scan_cells(&mut self, lo: [f64; 2], hi: [f64; 2]) -> bool {
         let Some(grid) = self.tree.flat_grid() else {
             return false;
