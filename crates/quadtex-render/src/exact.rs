@@ -48,6 +48,24 @@ pub(crate) fn seen_id(surface: usize, triangle: u32) -> Seen {
     ((surface as u64 + 1) << 32) | u64::from(triangle)
 }
 
+/// The surface and triangle of a (non-sky) id from [`seen_id`].
+fn surface_and_triangle(id: Seen) -> (usize, u32) {
+    (((id >> 32) as usize).wrapping_sub(1), id as u32)
+}
+
+/// The view of candidate `id`: `None` when it is not planar (a sphere: the
+/// pixel takes the tangent-plane path), `Some(None)` when it is seen
+/// edge-on.
+fn candidate_view<'a>(
+    scene: &Scene,
+    cache: &'a SurfaceViews,
+    id: Seen,
+) -> Option<Option<Cow<'a, View>>> {
+    let (surface, triangle) = surface_and_triangle(id);
+    scene.surfaces.get(surface)?.geometry.planar(triangle)?;
+    Some(cache.get(scene, surface, triangle))
+}
+
 /// A planar primitive seen from the camera: rows `(a, b, c)` of affine
 /// functions of the screen point `(px, py, 1)`.
 #[derive(Debug, Clone)]
@@ -228,29 +246,20 @@ pub(crate) fn exact_pixel(
     // One primitive over the whole support: one integral.
     if let [id] = candidates
         && !sees_sky
+        && let Some(view) = candidate_view(scene, cache, *id)?
     {
-        let surface = (id >> 32) as usize - 1;
-        scene.surfaces.get(surface)?.geometry.planar(*id as u32)?;
-        if let Some(view) = cache.get(scene, surface, *id as u32) {
-            let region = view.region(&support);
-            if region.area() >= support.area() * (1.0 - 1e-12) {
-                let (c, w, b) =
-                    shade_piece(frame, &view, &region, filter, centre, options, &mut parts);
-                add(c, w, b);
-                stats.merge_parts(&parts);
-                stats.filter.record_bound(b / w.abs().max(1e-300));
-                return Some(mean(acc, weight));
-            }
+        let region = view.region(&support);
+        if region.area() >= support.area() * (1.0 - 1e-12) {
+            let (c, w, b) = shade_piece(frame, &view, &region, filter, centre, options, &mut parts);
+            add(c, w, b);
+            stats.merge_parts(&parts);
+            stats.filter.record_bound(b / w.abs().max(1e-300));
+            return Some(mean(acc, weight));
         }
     }
     let mut views = Vec::with_capacity(candidates.len() + scene.surfaces.len());
     for &id in candidates {
-        let surface = (id >> 32) as usize - 1;
-        // A sphere (not planar) leaves the pixel to the tangent-plane path.
-        scene.surfaces.get(surface)?.geometry.planar(id as u32)?;
-        if let Some(v) = cache.get(scene, surface, id as u32) {
-            views.push(v);
-        }
+        views.extend(candidate_view(scene, cache, id)?);
     }
     // The centres in reach may all miss a primitive that still reaches into
     // the support (a quad's corner, a triangle's tip near a vertex): every
@@ -268,7 +277,7 @@ pub(crate) fn exact_pixel(
                 if mesh.len() <= MAX_MESH_SCAN
                     && candidates
                         .iter()
-                        .any(|&id| (id >> 32) as usize == surface + 1) =>
+                        .any(|&id| surface_and_triangle(id).0 == surface) =>
             {
                 for t in 0..mesh.len() as u32 {
                     if seen_here(t) {
