@@ -53,7 +53,7 @@ pub use fragment::Fragment;
 pub use polygon::ConvexPolygon;
 pub use texture::{FilterOptions, FilterStats, LevelOfDetail, Texture, Weighting};
 pub use tree::{LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
-pub use vector::{FillRule, VectorArt, VectorOptions, VectorReport};
+pub use vector::{ClipId, FillRule, VectorArt, VectorOptions, VectorReport};
 pub use wrap::{Wrap, WrapMode};
 
 /// The README's Rust examples, run as doctests.

@@ -31,6 +31,13 @@
 //! * Otherwise the square splits and its colour is the exact mean of its
 //!   children, rounded once to 16 bits.
 //!
+//! **Clip regions** ([`VectorArt::clip_region`]) are carried the same way:
+//! their member shapes are clipped to every square like painted shapes (so
+//! their edges split squares too) but never painted. Wherever the square's
+//! or the trapezoid's set of covering shapes is known, a painted shape counts
+//! only if its region covers too, evaluated from that same set; clipping is
+//! as exact as coverage.
+//!
 //! Memory and time grow with the length of the edges times `2^L` (the squares
 //! an edge crosses), never with `4^L`. Compositing is the premultiplied
 //! *over* operator in **linear light**; browsers composite in sRGB, so
@@ -79,7 +86,15 @@ impl FillRule {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GroupId(u32);
 
-/// One filled shape.
+/// A clip region (see [`VectorArt::clip_region`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClipId(u32);
+
+/// Deepest nesting of clip regions (a region within a region, or clipped
+/// by one, adds a level), so evaluating one stays shallow.
+pub const MAX_CLIP_DEPTH: usize = 32;
+
+/// One filled shape, or one member shape of a clip region.
 #[derive(Debug, Clone)]
 struct Shape {
     contours: Vec<Contour>,
@@ -87,6 +102,21 @@ struct Shape {
     colour: [f64; 4],
     /// Enclosing translucent groups, outermost first.
     groups: Vec<u32>,
+    /// The clip region the shape is painted within.
+    clip: Option<u32>,
+    /// True for a clip region's member: it is never painted, only tested.
+    member: bool,
+}
+
+/// A clip region: the union of its member shapes (each within its own
+/// clip, if any), intersected with every region of `within`.
+#[derive(Debug, Clone)]
+struct Clip {
+    /// `(member shape, the clip it is restricted to)`.
+    members: Vec<(u32, Option<u32>)>,
+    within: Vec<u32>,
+    /// 1 + the deepest region this one refers to.
+    depth: usize,
 }
 
 type Point = [f64; 2];
@@ -102,6 +132,9 @@ struct Contour {
 #[derive(Debug, Clone, Default)]
 pub struct VectorArt {
     shapes: Vec<Shape>,
+    clips: Vec<Clip>,
+    /// The painted shape added last (clip members do not count).
+    last_painted: Option<usize>,
     group_opacity: Vec<f64>,
     /// Groups closed by a later shape outside them (groups are contiguous).
     group_closed: Vec<bool>,
@@ -141,6 +174,94 @@ impl VectorArt {
         colour: Rgba,
         groups: &[GroupId],
     ) -> Result<(), Error> {
+        self.fill_clipped(contours, rule, colour, groups, None)
+    }
+
+    /// A new clip region, empty until [`VectorArt::add_to_clip`] adds
+    /// shapes to it, and restricted to the intersection of `within`.
+    ///
+    /// A shape painted within a region shows only where the region covers,
+    /// with exact geometry: clipping is binary (a point is in or out), so
+    /// it commutes with compositing and translucent groups.
+    pub fn clip_region(&mut self, within: &[ClipId]) -> Result<ClipId, Error> {
+        let mut depth = 1;
+        for w in within {
+            depth = depth.max(1 + self.clip(w.0)?.depth);
+        }
+        self.new_clip(Clip {
+            members: Vec::new(),
+            within: within.iter().map(|w| w.0).collect(),
+            depth,
+        })
+    }
+
+    /// Adds the shape `contours` (filled by `rule`) to the union that makes
+    /// region `region`; with `clip`, only its part within that region.
+    pub fn add_to_clip(
+        &mut self,
+        region: ClipId,
+        contours: Vec<Vec<[f64; 2]>>,
+        rule: FillRule,
+        clip: Option<ClipId>,
+    ) -> Result<(), Error> {
+        self.clip(region.0)?;
+        let mut depth = 1;
+        if let Some(c) = clip {
+            depth = 1 + self.clip(c.0)?.depth;
+        }
+        let kept = self.contours(contours)?;
+        let shape = u32::try_from(self.shapes.len())
+            .map_err(|_| Error::BadVector("too many shapes".into()))?;
+        self.shapes.push(Shape {
+            contours: kept,
+            rule,
+            colour: [0.0; 4],
+            groups: Vec::new(),
+            clip: clip.map(|c| c.0),
+            member: true,
+        });
+        let r = &mut self.clips[region.0 as usize];
+        r.members.push((shape, clip.map(|c| c.0)));
+        r.depth = r.depth.max(depth);
+        // A region's depth only grows; regions built on it were checked when smaller.
+        if r.depth > MAX_CLIP_DEPTH {
+            return Err(Error::BadVector(format!(
+                "clip regions nested deeper than {MAX_CLIP_DEPTH}"
+            )));
+        }
+        Ok(())
+    }
+
+    fn clip(&self, id: u32) -> Result<&Clip, Error> {
+        self.clips
+            .get(id as usize)
+            .ok_or_else(|| Error::BadVector(format!("unknown clip region {id}")))
+    }
+
+    fn new_clip(&mut self, clip: Clip) -> Result<ClipId, Error> {
+        if clip.depth > MAX_CLIP_DEPTH {
+            return Err(Error::BadVector(format!(
+                "clip regions nested deeper than {MAX_CLIP_DEPTH}"
+            )));
+        }
+        let id = u32::try_from(self.clips.len())
+            .map_err(|_| Error::BadVector("too many clip regions".into()))?;
+        self.clips.push(clip);
+        Ok(ClipId(id))
+    }
+
+    /// As [`VectorArt::fill`], painted only within the region `clip`.
+    pub fn fill_clipped(
+        &mut self,
+        contours: Vec<Vec<[f64; 2]>>,
+        rule: FillRule,
+        colour: Rgba,
+        groups: &[GroupId],
+        clip: Option<ClipId>,
+    ) -> Result<(), Error> {
+        if let Some(c) = clip {
+            self.clip(c.0)?;
+        }
         let c = colour.to_array().map(f64::from);
         if c.iter().any(|v| !v.is_finite() || *v < 0.0)
             || c[3] > 1.0
@@ -156,7 +277,7 @@ impl VectorArt {
             }
         }
         // Groups must be contiguous in paint order: a group left behind stays closed.
-        let previous: &[u32] = self.shapes.last().map_or(&[], |s| &s.groups);
+        let previous: &[u32] = self.last_painted.map_or(&[], |i| &self.shapes[i].groups);
         let common = previous
             .iter()
             .zip(groups)
@@ -174,6 +295,35 @@ impl VectorArt {
                 g.0
             )));
         }
+        let kept = self.contours(contours)?;
+        self.last_painted = Some(self.shapes.len());
+        let clip = clip.map(|c| c.0);
+        if c[3] == 0.0 || kept.is_empty() {
+            // Invisible; group bookkeeping above still applies.
+            self.shapes.push(Shape {
+                contours: Vec::new(),
+                rule,
+                colour: c,
+                groups: groups.iter().map(|g| g.0).collect(),
+                clip,
+                member: false,
+            });
+            return Ok(());
+        }
+        self.shapes.push(Shape {
+            contours: kept,
+            rule,
+            colour: c,
+            groups: groups.iter().map(|g| g.0).collect(),
+            clip,
+            member: false,
+        });
+        Ok(())
+    }
+
+    /// Validated contours with their bounds; contours of fewer than three
+    /// points are dropped.
+    fn contours(&mut self, contours: Vec<Vec<[f64; 2]>>) -> Result<Vec<Contour>, Error> {
         let mut kept = Vec::with_capacity(contours.len());
         for points in contours {
             if let Some(p) = points.iter().find(|p| {
@@ -208,23 +358,7 @@ impl VectorArt {
             }
             kept.push(Contour { points, bounds });
         }
-        if c[3] == 0.0 || kept.is_empty() {
-            // Invisible; group bookkeeping above still applies.
-            self.shapes.push(Shape {
-                contours: Vec::new(),
-                rule,
-                colour: c,
-                groups: groups.iter().map(|g| g.0).collect(),
-            });
-            return Ok(());
-        }
-        self.shapes.push(Shape {
-            contours: kept,
-            rule,
-            colour: c,
-            groups: groups.iter().map(|g| g.0).collect(),
-        });
-        Ok(())
+        Ok(kept)
     }
 
     /// Shapes added so far.
@@ -321,7 +455,34 @@ impl VectorArt {
                 shape.rule.covers(w)
             })
             .collect();
-        self.composite(&covered, 0)
+        let mut visible = Vec::new();
+        self.visible(&covered, &mut visible);
+        self.composite(&visible, 0)
+    }
+
+    /// The painted shapes of `covered` (ascending shape indices, members
+    /// included) that their clip regions let through, into `out`.
+    fn visible(&self, covered: &[u32], out: &mut Vec<u32>) {
+        out.clear();
+        if self.clips.is_empty() {
+            out.extend_from_slice(covered);
+            return;
+        }
+        out.extend(covered.iter().copied().filter(|&s| {
+            let shape = &self.shapes[s as usize];
+            !shape.member && shape.clip.is_none_or(|c| self.clip_covers(c, covered))
+        }));
+    }
+
+    /// True when clip region `clip` covers the point whose covering shapes
+    /// are `covered` (ascending).
+    fn clip_covers(&self, clip: u32, covered: &[u32]) -> bool {
+        let c = &self.clips[clip as usize];
+        c.within.iter().all(|&w| self.clip_covers(w, covered))
+            && c.members.iter().any(|&(m, inner)| {
+                covered.binary_search(&m).is_ok()
+                    && inner.is_none_or(|i| self.clip_covers(i, covered))
+            })
     }
 
     /// Composite of the shapes `list` (paint order) at group depth `depth`.
@@ -356,7 +517,7 @@ impl VectorArt {
     /// True when shape `s` hides everything below it where it covers.
     fn is_opaque(&self, s: u32) -> bool {
         let shape = &self.shapes[s as usize];
-        shape.colour[3] >= 1.0 && shape.groups.is_empty()
+        shape.colour[3] >= 1.0 && shape.groups.is_empty() && shape.clip.is_none() && !shape.member
     }
 }
 
@@ -496,6 +657,7 @@ struct SweepScratch {
     winding: Vec<i32>,
     crossings: Vec<(f64, usize, i32)>,
     covered: Vec<u32>,
+    visible: Vec<u32>,
 }
 
 /// A non-horizontal edge of a leaf's clipped contours.
@@ -597,7 +759,8 @@ impl VectorBuilder<'_> {
             let covered = &mut self.sweep.covered;
             covered.clear();
             covered.extend(here.pieces.iter().map(|p| p.shape));
-            let mean = self.art.composite(covered, 0);
+            self.art.visible(covered, &mut self.sweep.visible);
+            let mean = self.art.composite(&self.sweep.visible, 0);
             return Ok((mean, quantise(mean), true));
         }
         if level == self.max_level {
@@ -658,7 +821,16 @@ impl VectorBuilder<'_> {
             .iter()
             .rposition(|p| p.contours.is_empty() && self.art.is_opaque(p.shape))
         {
-            pieces.drain(..top);
+            if self.art.clips.is_empty() {
+                pieces.drain(..top);
+            } else {
+                // Clip members below stay: shapes above may be clipped by them.
+                let mut i = 0;
+                pieces.retain(|p| {
+                    i += 1;
+                    i > top || self.art.shapes[p.shape as usize].member
+                });
+            }
         }
     }
 
@@ -714,6 +886,7 @@ impl VectorBuilder<'_> {
             winding,
             crossings,
             covered,
+            visible,
         } = &mut self.sweep;
         edges.clear();
         for (pi, piece) in pieces.pieces.iter().enumerate() {
@@ -790,7 +963,8 @@ impl VectorBuilder<'_> {
                         covered.push(p.shape);
                     }
                 }
-                let c = art.composite(covered, 0);
+                art.visible(covered, visible);
+                let c = art.composite(visible, 0);
                 for (t, v) in total.iter_mut().zip(c) {
                     *t += v * width * h;
                 }

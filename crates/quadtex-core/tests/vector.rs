@@ -3,7 +3,9 @@
 //! sampler (winding numbers over the unclipped polygons, `VectorArt::colour_at`).
 
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
-use quadtex_core::{FillRule, Fragment, QuadTree, Rgba, VectorArt, VectorOptions};
+use quadtex_core::{
+    ClipId, ConvexPolygon, FillRule, Fragment, QuadTree, Rgba, VectorArt, VectorOptions,
+};
 
 const UNIT: f64 = 1.0;
 
@@ -356,7 +358,155 @@ fn random_art(u: &mut Unstructured<'_>) -> ArbResult<VectorArt> {
         } else {
             FillRule::NonZero
         };
-        art.fill(contours, rule, colour, &[]).unwrap();
+        // Some shapes are clipped: by a region of one or two random polygons,
+        // sometimes itself within a second region.
+        let clip = if u.ratio(1u8, 3)? {
+            let outer = if u.arbitrary()? {
+                let r = art.clip_region(&[]).unwrap();
+                art.add_to_clip(r, vec![random_polygon(u)?], FillRule::NonZero, None)
+                    .unwrap();
+                Some(r)
+            } else {
+                None
+            };
+            let r = art.clip_region(outer.as_slice()).unwrap();
+            for _ in 0..u.int_in_range(1..=2usize)? {
+                art.add_to_clip(r, vec![random_polygon(u)?], rule, None)
+                    .unwrap();
+            }
+            Some(r)
+        } else {
+            None
+        };
+        art.fill_clipped(contours, rule, colour, &[], clip).unwrap();
     }
     Ok(art)
+}
+
+fn random_polygon(u: &mut Unstructured<'_>) -> ArbResult<Vec<[f64; 2]>> {
+    let n = u.int_in_range(3..=6usize)?;
+    let mut c = Vec::new();
+    for _ in 0..n {
+        c.push([
+            f64::from(u.int_in_range(-100..=1100i32)?) / 1000.0,
+            f64::from(u.int_in_range(-100..=1100i32)?) / 1000.0,
+        ]);
+    }
+    Ok(c)
+}
+
+/// Clip regions against closed-form areas: convex polygons intersected by
+/// `ConvexPolygon` (independent of the packer's sweep): a shape within one
+/// region, within a union of two, and within a region nested in another;
+/// the rest of the square stays transparent.
+#[test]
+fn clipped_areas_match_convex_intersections() {
+    let white = Rgba::opaque(1.0, 1.0, 1.0);
+    let shape = rotated_rect(0.5, 0.5, 0.7, 0.4, 0.4);
+    let b = regular_polygon(0.4, 0.45, 0.25, 7);
+    let c = vec![[0.55, 0.3], [0.95, 0.5], [0.6, 0.9]];
+    let convex = |p: &[[f64; 2]]| ConvexPolygon::hull(p);
+    let (ps, pb, pc) = (convex(&shape), convex(&b), convex(&c));
+    let both = |x: &ConvexPolygon, y: &ConvexPolygon| x.intersect(y).area();
+    type MakeClip<'a> = Box<dyn Fn(&mut VectorArt) -> ClipId + 'a>;
+    let cases: Vec<(&str, f64, MakeClip)> = vec![
+        (
+            "one region",
+            both(&ps, &pb),
+            Box::new(|art: &mut VectorArt| {
+                let r = art.clip_region(&[]).unwrap();
+                art.add_to_clip(r, vec![b.clone()], FillRule::NonZero, None)
+                    .unwrap();
+                r
+            }),
+        ),
+        (
+            "union of two",
+            both(&ps, &pb) + both(&ps, &pc) - ps.intersect(&pb).intersect(&pc).area(),
+            Box::new(|art: &mut VectorArt| {
+                let r = art.clip_region(&[]).unwrap();
+                art.add_to_clip(r, vec![b.clone()], FillRule::EvenOdd, None)
+                    .unwrap();
+                art.add_to_clip(r, vec![c.clone()], FillRule::NonZero, None)
+                    .unwrap();
+                r
+            }),
+        ),
+        (
+            "nested",
+            ps.intersect(&pb).intersect(&pc).area(),
+            Box::new(|art: &mut VectorArt| {
+                let outer = art.clip_region(&[]).unwrap();
+                art.add_to_clip(outer, vec![c.clone()], FillRule::NonZero, None)
+                    .unwrap();
+                let r = art.clip_region(&[outer]).unwrap();
+                art.add_to_clip(r, vec![b.clone()], FillRule::NonZero, None)
+                    .unwrap();
+                r
+            }),
+        ),
+        (
+            "member clipped by its own region",
+            ps.intersect(&pb).intersect(&pc).area(),
+            Box::new(|art: &mut VectorArt| {
+                let own = art.clip_region(&[]).unwrap();
+                art.add_to_clip(own, vec![c.clone()], FillRule::NonZero, None)
+                    .unwrap();
+                let r = art.clip_region(&[]).unwrap();
+                art.add_to_clip(r, vec![b.clone()], FillRule::NonZero, Some(own))
+                    .unwrap();
+                r
+            }),
+        ),
+    ];
+    for (name, area, make) in &cases {
+        assert!(*area > 0.01, "{name}: degenerate case");
+        for level in [5u8, 11] {
+            let mut art = VectorArt::new();
+            let clip = make(&mut art);
+            art.fill_clipped(
+                vec![shape.clone()],
+                FillRule::NonZero,
+                white,
+                &[],
+                Some(clip),
+            )
+            .unwrap();
+            let t = pack(&art, level);
+            for (ch, got) in total(&t).into_iter().enumerate() {
+                assert!(
+                    (got - area).abs() < 1e-9 + 4.0 * STEP,
+                    "{name} at level {level}: channel {ch} integral {got} vs area {area}"
+                );
+            }
+        }
+    }
+    // An empty region clips everything away.
+    let mut art = VectorArt::new();
+    let r = art.clip_region(&[]).unwrap();
+    art.fill_clipped(vec![shape], FillRule::NonZero, white, &[], Some(r))
+        .unwrap();
+    assert_eq!(total(&pack(&art, 6)), [0.0; 4]);
+}
+
+#[test]
+fn clip_regions_refuse_unknown_ids_and_deep_nesting() {
+    let mut other = VectorArt::new();
+    let foreign = other.clip_region(&[]).unwrap();
+    let _ = other.clip_region(&[foreign]).unwrap();
+    let mut art = VectorArt::new();
+    assert!(art.clip_region(&[foreign]).is_err(), "unknown region");
+    let mut r = art.clip_region(&[]).unwrap();
+    let mut refused = false;
+    for _ in 0..100 {
+        match art.clip_region(&[r]) {
+            Ok(next) => r = next,
+            Err(e) => {
+                assert!(e.to_string().contains("nested deeper"), "{e}");
+                refused = true;
+                break;
+            }
+        }
+    }
+    assert!(refused);
 }
