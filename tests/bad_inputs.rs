@@ -485,14 +485,14 @@ fn svg_not_svg_at_all() {
 }
 
 #[test]
-fn svg_gradient_is_unsupported() {
+fn svg_pattern_is_unsupported() {
     svg_case(
-        "svg-gradient",
+        "svg-pattern",
         &format!(
-            "{SVG_HEAD}<linearGradient id=\"g\"><stop offset=\"0\" stop-color=\"red\"/><stop offset=\"1\" stop-color=\"blue\"/></linearGradient><rect id=\"sky\" width=\"10\" height=\"10\" fill=\"url(#g)\"/></svg>"
+            "{SVG_HEAD}<pattern id=\"p\" width=\"2\" height=\"2\" patternUnits=\"userSpaceOnUse\"><rect width=\"1\" height=\"1\"/></pattern><rect id=\"sky\" width=\"10\" height=\"10\" fill=\"url(#p)\"/></svg>"
         ),
         &[],
-        "unsupported: linearGradient (id \"sky\")",
+        "unsupported: pattern (id \"sky\")",
     );
 }
 
@@ -558,12 +558,14 @@ fn svg_level_beyond_limit() {
 }
 
 #[test]
-fn svg_with_tolerance() {
+fn svg_radial_gradient_with_focal_outside() {
     svg_case(
-        "svg-tolerance",
-        &format!("{SVG_HEAD}<rect width=\"5\" height=\"5\"/></svg>"),
-        &["--tolerance", "0.1"],
-        "--tolerance",
+        "svg-focal",
+        &format!(
+            "{SVG_HEAD}<radialGradient id=\"g\" cx=\"0.5\" r=\"0.2\" fx=\"0.5\" fr=\"0.4\"><stop offset=\"0\" stop-color=\"red\"/><stop offset=\"1\" stop-color=\"blue\"/></radialGradient><rect id=\"sky\" width=\"10\" height=\"10\" fill=\"url(#g)\"/></svg>"
+        ),
+        &[],
+        "unsupported: radialGradient with the focal circle not inside the end circle (id \"sky\")",
     );
 }
 

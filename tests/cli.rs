@@ -161,6 +161,67 @@ fn bad_query_lines_name_the_line_and_fail() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `pack --tolerance` on SVG art bounds how far a gradient square's colour
+/// is from the art; a coarser tolerance gives fewer nodes.
+#[test]
+fn svg_gradients_pack_to_the_tolerance() {
+    let dir = common::temp_dir("svg-gradient");
+    let svg = dir.join("ramp.svg");
+    std::fs::write(
+        &svg,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
+        <linearGradient id="g"><stop offset="0" stop-color="navy"/><stop offset="1" stop-color="gold"/></linearGradient>
+        <rect width="10" height="10" fill="url(#g)"/></svg>"#,
+    )
+    .unwrap();
+    let mut nodes = Vec::new();
+    for tolerance in ["0.001", "0.01"] {
+        let qtx = dir.join(format!("ramp-{tolerance}.qtx"));
+        let out = common::run(
+            &[
+                "pack",
+                svg.to_str().unwrap(),
+                "-o",
+                qtx.to_str().unwrap(),
+                "--tolerance",
+                tolerance,
+            ],
+            "",
+        );
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        assert!(
+            out.status.success(),
+            "{text}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let deviation: f64 = text
+            .split("max deviation from a square's colour ")
+            .nth(1)
+            .and_then(|r| r.split(',').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no deviation in {text}"));
+        assert!(deviation <= tolerance.parse::<f64>().unwrap(), "{text}");
+        assert!(
+            text.contains("mean error ≤ 0.00e0"),
+            "linear means are exact: {text}"
+        );
+        let n: u64 = text
+            .split(": ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        nodes.push(n);
+    }
+    assert!(
+        nodes[1] * 10 < nodes[0],
+        "ten times the tolerance: {nodes:?}"
+    );
+}
+
 #[test]
 fn info_reports_levels_and_ratios() {
     let (dir, _, qtx) = packed_shapes("info", &["--tolerance", "0.01"]);

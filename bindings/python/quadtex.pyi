@@ -130,7 +130,8 @@ def pack(
 
     tolerance: in [0, 1]; largest per-channel deviation (linear,
         premultiplied) of a texel from its leaf's colour. 0 is lossless.
-        Raster images only (SVG art packs exactly).
+        Raster images only (SVG art packs exactly; its gradients to a
+        quarter of an 8-bit step).
     max_level: depth of the tree's finest cells (0..30; a raster builds at
         most 15). Default: the smallest level whose cells are no larger than
         a texel for rasters, 12 for SVG.

@@ -115,13 +115,15 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
         out,
         "level  effective        nodes   tree bytes   RGBA8 raster  raster+mips  raster+mips/tree   pack s"
     )?;
+    let mut smooth = Vec::new();
     let mut rows = levels.to_vec();
     rows.sort_unstable();
     rows.dedup();
     for level in rows {
         let start = Instant::now();
-        let (tree, _) = quadtex_io::pack_svg(path, level, limits)?;
+        let (tree, report) = quadtex_io::pack_svg(path, level, limits)?;
         let seconds = start.elapsed().as_secs_f64();
+        smooth.push((level, report));
         let bytes = tree.memory_bytes();
         let side = 1u64 << level;
         let raster = 4 * side * side;
@@ -137,6 +139,17 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
             mips as f64 / bytes as f64,
             seconds
         )?;
+    }
+    // Gradients are the one approximation: say how far, per level.
+    for (level, report) in smooth {
+        let summary = super::pack::smooth_summary(&report);
+        if !summary.is_empty() {
+            writeln!(
+                out,
+                "level {level}{summary} (tolerance {:.6}, a quarter of an 8-bit step)",
+                quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE
+            )?;
+        }
     }
     // Trees only grow with the level, so walk up until one exceeds 1 MiB.
     let mut fits = None;

@@ -29,7 +29,8 @@ pub struct Args {
     output: Output,
     /// Largest per-channel deviation (linear, premultiplied, full scale 1) of
     /// a cell from its terminal square's colour, in [0, 1]; 0 is lossless.
-    /// Raster images only.
+    /// For SVG art it applies to gradients only (edges and flat colour are
+    /// exact), default a quarter of an 8-bit step.
     #[arg(long, value_name = "T", allow_negative_numbers = true, value_parser = tolerance)]
     tolerance: Option<f64>,
     /// Depth of the finest cells (default: the image's natural depth; 12 for SVG art).
@@ -68,17 +69,11 @@ pub fn run(args: Args) -> Result<()> {
         options.tolerance = t;
     }
     if is_svg(&input) {
-        if options.tolerance != 0.0 {
-            return Err(format!(
-                "{}: --tolerance applies to raster images; SVG art packs exactly",
-                input.display()
-            )
-            .into());
-        }
         return pack_svg(
             &input,
             &output,
             options.max_level.unwrap_or(DEFAULT_SVG_LEVEL),
+            tolerance.unwrap_or(quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE),
             &limits,
         );
     }
@@ -129,11 +124,17 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-fn pack_svg(input: &Path, output: &Output, level: u8, limits: &quadtex_io::Limits) -> Result<()> {
+fn pack_svg(
+    input: &Path,
+    output: &Output,
+    level: u8,
+    tolerance: f64,
+    limits: &quadtex_io::Limits,
+) -> Result<()> {
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("packing {} at level {level}", input.display()));
-    let (tree, report) = quadtex_io::pack_svg(input, level, limits)?;
+    let (tree, report) = quadtex_io::pack_svg_with_tolerance(input, level, tolerance, limits)?;
     progress.stage(&format!("writing {output}"));
     let side = 1u32 << level.min(31);
     output.write_qtx(&tree, Some((side, side)))?;
@@ -143,7 +144,7 @@ fn pack_svg(input: &Path, output: &Output, level: u8, limits: &quadtex_io::Limit
     let mut text = output.text();
     writeln!(
         text,
-        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept; {:.2} s",
+        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept{}; {:.2} s",
         input.display(),
         output,
         tree.node_count(),
@@ -153,10 +154,24 @@ fn pack_svg(input: &Path, output: &Output, level: u8, limits: &quadtex_io::Limit
         raster as f64 / bytes as f64,
         mips as f64 / bytes as f64,
         report.swept_leaves,
+        smooth_summary(&report),
         start.elapsed().as_secs_f64()
     )?;
     text.flush()?;
     Ok(())
+}
+
+/// What gradients cost in accuracy, when the art has any: the largest
+/// deviation of a point from its square's colour, and the bound on stored
+/// means (both linear, full scale 1).
+pub(crate) fn smooth_summary(report: &quadtex_core::VectorReport) -> String {
+    if report.max_smooth_deviation == 0.0 && report.max_mean_error == 0.0 {
+        return String::new();
+    }
+    format!(
+        "; gradients: max deviation from a square's colour {:.6}, mean error ≤ {:.2e} (linear)",
+        report.max_smooth_deviation, report.max_mean_error
+    )
 }
 
 /// Stage messages on a spinner when stderr is a terminal, nothing otherwise.

@@ -439,19 +439,19 @@ fn pack_checks_its_arguments() {
     unsafe { qtx_free(texture) };
 
     // SVG the exact packer refuses.
-    let gradient = dir.join("gradient.svg");
+    let pattern = dir.join("pattern.svg");
     std::fs::write(
-        &gradient,
+        &pattern,
         r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
-             <linearGradient id="g"><stop offset="0" stop-color="red"/><stop offset="1" stop-color="blue"/></linearGradient>
-             <rect id="r" width="10" height="10" fill="url(#g)"/></svg>"#,
+             <pattern id="p" width="2" height="2" patternUnits="userSpaceOnUse"><rect width="1" height="1"/></pattern>
+             <rect id="r" width="10" height="10" fill="url(#p)"/></svg>"#,
     )
     .unwrap();
     assert_eq!(
-        unsafe { qtx_pack(c_path(&gradient).as_ptr(), 0.0, 4, &mut texture) },
+        unsafe { qtx_pack(c_path(&pattern).as_ptr(), 0.0, 4, &mut texture) },
         QtxStatus::Unsupported
     );
-    assert_error(&["gradient.svg"]);
+    assert_error(&["pattern.svg"]);
     // Not an image at all.
     let text = dir.join("notes.png");
     std::fs::write(&text, "hello").unwrap();

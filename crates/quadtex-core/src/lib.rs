@@ -29,6 +29,7 @@ mod error;
 pub mod exact;
 pub mod footprint;
 mod fragment;
+pub mod gradient;
 
 pub mod build;
 pub mod memory;
@@ -53,7 +54,7 @@ pub use fragment::Fragment;
 pub use polygon::ConvexPolygon;
 pub use texture::{FilterOptions, FilterStats, LevelOfDetail, Texture, Weighting};
 pub use tree::{LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
-pub use vector::{ClipId, FillRule, VectorArt, VectorOptions, VectorReport};
+pub use vector::{ClipId, FillRule, Paint, VectorArt, VectorOptions, VectorReport};
 pub use wrap::{Wrap, WrapMode};
 
 /// The README's Rust examples, run as doctests.

@@ -2,8 +2,9 @@
 //! raster in between.
 //!
 //! [`VectorArt`] is a list of filled polygonal shapes in paint order (back to
-//! front), each with a fill rule, a linear premultiplied colour and the
-//! translucent groups it belongs to. Coordinates are texture space (`x` right,
+//! front), each with a fill rule, a [`Paint`] (a linear premultiplied colour
+//! or a [`Gradient`]), the translucent groups it belongs to and the clip
+//! region it is painted within. Coordinates are texture space (`x` right,
 //! `z` up, see the crate conventions); art outside `[0,1)²` is clipped off and
 //! uncovered parts are transparent. Curves are the caller's to flatten (the
 //! SVG packer states its tolerance).
@@ -31,6 +32,16 @@
 //! * Otherwise the square splits and its colour is the exact mean of its
 //!   children, rounded once to 16 bits.
 //!
+//! **Gradients.** A square no edge enters but a gradient paints is terminal
+//! when every point of it lies within [`VectorOptions::tolerance`] of its
+//! one colour, the exact mean (see [`crate::gradient`]); otherwise it splits
+//! like an edge square, down to the maximum level. So smooth colour costs
+//! squares in proportion to its slope over the tolerance, not `4^L`. At a
+//! leaf the trapezoid sweep takes each trapezoid's mean the same way.
+//! Means are exact where at most one varying layer shows and it is a linear
+//! gradient (compositing is affine in each layer); otherwise they carry a
+//! bound, reported in [`VectorReport::max_mean_error`].
+//!
 //! **Clip regions** ([`VectorArt::clip_region`]) are carried the same way:
 //! their member shapes are clipped to every square like painted shapes (so
 //! their edges split squares too) but never painted. Wherever the square's
@@ -47,6 +58,7 @@
 
 use crate::Error;
 use crate::colour::{Rgba, Unorm16Rgba};
+use crate::gradient::Gradient;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
 use crate::tree::{self, MAX_NODES, QuadTree};
 
@@ -106,6 +118,18 @@ struct Shape {
     clip: Option<u32>,
     /// True for a clip region's member: it is never painted, only tested.
     member: bool,
+    /// The gradient it is painted with (index into `VectorArt::gradients`);
+    /// `None` for the solid `colour`.
+    gradient: Option<u32>,
+}
+
+/// What a shape is filled with.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Paint {
+    /// One linear premultiplied colour.
+    Solid(Rgba),
+    /// A gradient (its stops carry the opacity).
+    Gradient(Gradient),
 }
 
 /// A clip region: the union of its member shapes (each within its own
@@ -133,6 +157,7 @@ struct Contour {
 pub struct VectorArt {
     shapes: Vec<Shape>,
     clips: Vec<Clip>,
+    gradients: Vec<Gradient>,
     /// The painted shape added last (clip members do not count).
     last_painted: Option<usize>,
     group_opacity: Vec<f64>,
@@ -219,6 +244,7 @@ impl VectorArt {
             groups: Vec::new(),
             clip: clip.map(|c| c.0),
             member: true,
+            gradient: None,
         });
         let r = &mut self.clips[region.0 as usize];
         r.members.push((shape, clip.map(|c| c.0)));
@@ -259,10 +285,33 @@ impl VectorArt {
         groups: &[GroupId],
         clip: Option<ClipId>,
     ) -> Result<(), Error> {
+        self.fill_paint(contours, rule, Paint::Solid(colour), groups, clip)
+    }
+
+    /// Adds a shape filled with `paint` (see [`VectorArt::fill`]), within
+    /// the region `clip` if given.
+    pub fn fill_paint(
+        &mut self,
+        contours: Vec<Vec<[f64; 2]>>,
+        rule: FillRule,
+        paint: Paint,
+        groups: &[GroupId],
+        clip: Option<ClipId>,
+    ) -> Result<(), Error> {
         if let Some(c) = clip {
             self.clip(c.0)?;
         }
-        let c = colour.to_array().map(f64::from);
+        let (c, gradient) = match paint {
+            Paint::Solid(colour) => (colour.to_array().map(f64::from), None),
+            Paint::Gradient(g) => {
+                let id = u32::try_from(self.gradients.len())
+                    .map_err(|_| Error::BadVector("too many gradients".into()))?;
+                let alpha = if g.is_opaque() { 1.0 } else { 0.5 };
+                self.gradients.push(g);
+                // `colour` only says whether the shape is visible and opaque.
+                ([0.0, 0.0, 0.0, alpha], Some(id))
+            }
+        };
         if c.iter().any(|v| !v.is_finite() || *v < 0.0)
             || c[3] > 1.0
             || c[..3].iter().any(|&v| v > c[3] + 1e-6)
@@ -307,6 +356,7 @@ impl VectorArt {
                 groups: groups.iter().map(|g| g.0).collect(),
                 clip,
                 member: false,
+                gradient,
             });
             return Ok(());
         }
@@ -317,6 +367,7 @@ impl VectorArt {
             groups: groups.iter().map(|g| g.0).collect(),
             clip,
             member: false,
+            gradient,
         });
         Ok(())
     }
@@ -457,7 +508,86 @@ impl VectorArt {
             .collect();
         let mut visible = Vec::new();
         self.visible(&covered, &mut visible);
-        self.composite(&visible, 0)
+        self.composite_by(&visible, 0, &|s| self.paint_at(s, p))
+    }
+
+    /// Shape `s`'s colour at point `p`.
+    fn paint_at(&self, s: u32, p: Point) -> [f64; 4] {
+        let shape = &self.shapes[s as usize];
+        match shape.gradient {
+            Some(g) => self.gradients[g as usize].colour_at(p),
+            None => shape.colour,
+        }
+    }
+
+    /// True when a shape of `list` is painted with a gradient.
+    fn any_gradient(&self, list: &[u32]) -> bool {
+        !self.gradients.is_empty()
+            && list
+                .iter()
+                .any(|&s| self.shapes[s as usize].gradient.is_some())
+    }
+
+    /// The mean composite of `visible` over the convex polygon `poly`, and
+    /// a bound on its error: exact where at most one layer varies (the
+    /// composite is affine in each layer) and that layer is a linear
+    /// gradient; otherwise within the width of the composite's range.
+    fn composite_over(&self, visible: &[u32], poly: &[Point]) -> ([f64; 4], f64) {
+        let mut means: Vec<(u32, [f64; 4])> = Vec::new();
+        let mut error: f64 = 0.0;
+        for &s in visible {
+            if let Some(g) = self.shapes[s as usize].gradient {
+                let (mean, e) = self.gradients[g as usize].mean_over(poly);
+                means.push((s, mean));
+                error = error.max(e);
+            }
+        }
+        let colour = self.composite_by(visible, 0, &|s| {
+            means
+                .iter()
+                .find(|m| m.0 == s)
+                .map_or(self.shapes[s as usize].colour, |m| m.1)
+        });
+        if means.len() >= 2 {
+            error = range_width(&self.composite_range(visible, 0, poly));
+        }
+        (colour, error)
+    }
+
+    /// Per channel `[lo, hi]` of the composite of `list` over the convex
+    /// polygon `poly`: interval arithmetic through the *over* operator.
+    fn composite_range(&self, list: &[u32], depth: usize, poly: &[Point]) -> [[f64; 2]; 4] {
+        let mut out = [[0.0; 2]; 4];
+        let mut i = 0;
+        while i < list.len() {
+            let shape = &self.shapes[list[i] as usize];
+            let (range, next) = match shape.groups.get(depth) {
+                Some(&g) => {
+                    let mut j = i + 1;
+                    while j < list.len()
+                        && self.shapes[list[j] as usize].groups.get(depth) == Some(&g)
+                    {
+                        j += 1;
+                    }
+                    let inner = self.composite_range(&list[i..j], depth + 1, poly);
+                    let o = self.group_opacity[g as usize];
+                    (inner.map(|r| r.map(|v| v * o)), j)
+                }
+                None => match shape.gradient {
+                    Some(g) => (self.gradients[g as usize].range_over(poly), i + 1),
+                    None => (shape.colour.map(|v| [v, v]), i + 1),
+                },
+            };
+            let alpha = range[3];
+            for (o, c) in out.iter_mut().zip(range) {
+                *o = [
+                    c[0] + (1.0 - alpha[1]) * o[0],
+                    c[1] + (1.0 - alpha[0]) * o[1],
+                ];
+            }
+            i = next;
+        }
+        out
     }
 
     /// The painted shapes of `covered` (ascending shape indices, members
@@ -485,8 +615,18 @@ impl VectorArt {
             })
     }
 
-    /// Composite of the shapes `list` (paint order) at group depth `depth`.
+    /// Composite of the solid shapes `list` (paint order) at group depth `depth`.
     fn composite(&self, list: &[u32], depth: usize) -> [f64; 4] {
+        self.composite_by(list, depth, &|s| self.shapes[s as usize].colour)
+    }
+
+    /// Composite of the shapes `list`, shape `s` having colour `colour(s)`.
+    fn composite_by(
+        &self,
+        list: &[u32],
+        depth: usize,
+        colour: &dyn Fn(u32) -> [f64; 4],
+    ) -> [f64; 4] {
         let mut out = [0.0; 4];
         let mut i = 0;
         while i < list.len() {
@@ -499,11 +639,11 @@ impl VectorArt {
                     {
                         j += 1;
                     }
-                    let inner = self.composite(&list[i..j], depth + 1);
+                    let inner = self.composite_by(&list[i..j], depth + 1, colour);
                     let o = self.group_opacity[g as usize];
                     (inner.map(|v| v * o), j)
                 }
-                None => (shape.colour, i + 1),
+                None => (colour(list[i]), i + 1),
             };
             let keep = 1.0 - colour[3];
             for (o, c) in out.iter_mut().zip(colour) {
@@ -519,6 +659,21 @@ impl VectorArt {
         let shape = &self.shapes[s as usize];
         shape.colour[3] >= 1.0 && shape.groups.is_empty() && shape.clip.is_none() && !shape.member
     }
+}
+
+/// A range of linear premultiplied colour in sRGB-encoded units (colour
+/// channels encoded, alpha as is; encoding is monotone).
+fn encoded(range: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
+    let mut out = range;
+    for r in &mut out[..3] {
+        *r = r.map(crate::gradient::srgb_encode);
+    }
+    out
+}
+
+/// The largest channel width of a range.
+fn range_width(range: &[[f64; 2]; 4]) -> f64 {
+    range.iter().map(|r| r[1] - r[0]).fold(0.0, f64::max)
 }
 
 /// Winding number of closed polygon `poly` around `p` (crossings of the ray
@@ -553,7 +708,22 @@ pub struct VectorOptions {
     /// proportional to the points times the levels); while building, when
     /// [`crate::memory::BUILD_BYTES_PER_NODE`] per node so far does.
     pub max_bytes: Option<u64>,
+    /// Largest per-channel deviation between any point of a square painted
+    /// by gradients and the square's one colour (its exact mean) for the
+    /// square to be terminal; squares beyond it are split, down to
+    /// `max_level`. Measured on the **sRGB-encoded** premultiplied colour
+    /// channels (alpha as is), full scale 1, so that the default
+    /// [`DEFAULT_SMOOTH_TOLERANCE`], a quarter of an 8-bit step, is a quarter
+    /// of a step of 8-bit output at every brightness (a linear measure would
+    /// be 13× too loose near black and 9× too strict near white). The
+    /// deviation is bounded by the colour's range over the square (interval
+    /// arithmetic through the compositing). Flat colour and edges are exact
+    /// regardless.
+    pub tolerance: f64,
 }
+
+/// A quarter of an 8-bit step: the default [`VectorOptions::tolerance`].
+pub const DEFAULT_SMOOTH_TOLERANCE: f64 = 0.25 / 255.0;
 
 impl Default for VectorOptions {
     fn default() -> Self {
@@ -561,6 +731,7 @@ impl Default for VectorOptions {
             max_level: 12,
             max_nodes: MAX_NODES,
             max_bytes: None,
+            tolerance: DEFAULT_SMOOTH_TOLERANCE,
         }
     }
 }
@@ -572,6 +743,15 @@ pub struct VectorReport {
     pub swept_leaves: u64,
     /// Most edges inside one swept leaf.
     pub max_leaf_edges: usize,
+    /// Largest deviation (per channel, sRGB-encoded, bounded as for
+    /// [`VectorOptions::tolerance`]) between a point of a terminal square
+    /// painted by gradients and the square's one colour. At most the
+    /// tolerance, except in squares at the maximum level.
+    pub max_smooth_deviation: f64,
+    /// Bound on the error of any stored mean, linear (0 when every mean is
+    /// exact: flat colour, and linear gradients not overlapping other
+    /// gradients).
+    pub max_mean_error: f64,
 }
 
 /// The part of one shape inside a square: its contours are
@@ -623,6 +803,12 @@ impl Square {
     fn z1(&self) -> f64 {
         self.z0 + self.side
     }
+    /// The corners, counter-clockwise.
+    fn corners(&self) -> [Point; 4] {
+        let (x1, z1) = (self.x1(), self.z1());
+        [[self.x0, self.z0], [x1, self.z0], [x1, z1], [self.x0, z1]]
+    }
+
     fn child(&self, k: usize) -> Square {
         let h = self.side / 2.0;
         Square {
@@ -636,6 +822,7 @@ impl Square {
 struct VectorBuilder<'a> {
     art: &'a VectorArt,
     max_level: u8,
+    tolerance: f64,
     max_nodes: u64,
     max_bytes: Option<u64>,
     nodes: u64,
@@ -655,7 +842,8 @@ struct SweepScratch {
     edges: Vec<Edge>,
     heights: Vec<f64>,
     winding: Vec<i32>,
-    crossings: Vec<(f64, usize, i32)>,
+    /// `(x at mid-slab, piece, winding step, x at slab bottom, x at slab top)`.
+    crossings: Vec<(f64, usize, i32, f64, f64)>,
     covered: Vec<u32>,
     visible: Vec<u32>,
 }
@@ -682,6 +870,9 @@ impl QuadTree {
                 max: MAX_VECTOR_LEVEL.into(),
             });
         }
+        if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
+            return Err(Error::BadTolerance(options.tolerance));
+        }
         if options.max_bytes.is_some() {
             let level = options.max_level;
             check_budget(
@@ -694,6 +885,7 @@ impl QuadTree {
         let mut b = VectorBuilder {
             art,
             max_level: options.max_level,
+            tolerance: options.tolerance,
             max_nodes: options.max_nodes.min(MAX_NODES),
             max_bytes: options.max_bytes,
             nodes: 1,
@@ -759,9 +951,30 @@ impl VectorBuilder<'_> {
             let covered = &mut self.sweep.covered;
             covered.clear();
             covered.extend(here.pieces.iter().map(|p| p.shape));
-            self.art.visible(covered, &mut self.sweep.visible);
-            let mean = self.art.composite(&self.sweep.visible, 0);
-            return Ok((mean, quantise(mean), true));
+            let visible = &mut self.sweep.visible;
+            self.art.visible(covered, visible);
+            if !self.art.any_gradient(visible) {
+                let mean = self.art.composite(visible, 0);
+                return Ok((mean, quantise(mean), true));
+            }
+            let poly = sq.corners();
+            let range = encoded(self.art.composite_range(visible, 0, &poly));
+            // A point lies within `deviation` of the mean, which cannot be
+            // below half the range: only then is the mean worth computing.
+            if range_width(&range) <= 2.0 * self.tolerance || level == self.max_level {
+                let (mean, error) = self.art.composite_over(visible, &poly);
+                let m = encoded(mean.map(|v| [v, v]));
+                let deviation = (0..4)
+                    .map(|c| (range[c][1] - m[c][0]).max(m[c][0] - range[c][0]))
+                    .fold(0.0, f64::max);
+                if deviation <= self.tolerance || level == self.max_level {
+                    let r = &mut self.report;
+                    r.max_smooth_deviation = r.max_smooth_deviation.max(deviation);
+                    r.max_mean_error = r.max_mean_error.max(error);
+                    return Ok((mean, quantise(mean), true));
+                }
+            }
+            // Smooth colour that varies too much: split like an edge would.
         }
         if level == self.max_level {
             let mean = self.sweep(here, sq);
@@ -888,6 +1101,7 @@ impl VectorBuilder<'_> {
             covered,
             visible,
         } = &mut self.sweep;
+        let mean_error = &mut self.report.max_mean_error;
         edges.clear();
         for (pi, piece) in pieces.pieces.iter().enumerate() {
             for c in pieces.contours_of(piece) {
@@ -942,39 +1156,52 @@ impl VectorBuilder<'_> {
             crossings.clear();
             for e in edges.iter() {
                 if e.lo[1] < zm && zm < e.hi[1] {
-                    let t = (zm - e.lo[1]) / (e.hi[1] - e.lo[1]);
-                    let x = (e.lo[0] + t * (e.hi[0] - e.lo[0])).clamp(sq.x0, sq.x1());
-                    crossings.push((x, e.piece, e.step));
+                    let x_at = |z: f64| {
+                        let t = (z - e.lo[1]) / (e.hi[1] - e.lo[1]);
+                        (e.lo[0] + t * (e.hi[0] - e.lo[0])).clamp(sq.x0, sq.x1())
+                    };
+                    crossings.push((x_at(zm), e.piece, e.step, x_at(z0), x_at(z1)));
                 }
             }
             crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
             for (w, p) in winding.iter_mut().zip(&pieces.pieces) {
                 *w = p.base;
             }
-            let mut left = sq.x0;
-            let mut gap = |left: f64, right: f64, winding: &[i32], total: &mut [f64; 4]| {
-                let width = right - left;
-                if width <= 0.0 {
-                    return;
-                }
-                covered.clear();
-                for (p, w) in pieces.pieces.iter().zip(winding) {
-                    if art.shapes[p.shape as usize].rule.covers(*w) {
-                        covered.push(p.shape);
+            // A boundary of a gap: x at the slab's middle, bottom and top.
+            let mut left = [sq.x0; 3];
+            let mut gap =
+                |left: [f64; 3], right: [f64; 3], winding: &[i32], total: &mut [f64; 4]| {
+                    let width = right[0] - left[0];
+                    if width <= 0.0 {
+                        return;
                     }
-                }
-                art.visible(covered, visible);
-                let c = art.composite(visible, 0);
-                for (t, v) in total.iter_mut().zip(c) {
-                    *t += v * width * h;
-                }
-            };
-            for &(x, piece, step) in crossings.iter() {
-                gap(left, x, winding, &mut total);
+                    covered.clear();
+                    for (p, w) in pieces.pieces.iter().zip(winding) {
+                        if art.shapes[p.shape as usize].rule.covers(*w) {
+                            covered.push(p.shape);
+                        }
+                    }
+                    art.visible(covered, visible);
+                    let c = if art.any_gradient(visible) {
+                        let trapezoid =
+                            [[left[1], z0], [right[1], z0], [right[2], z1], [left[2], z1]];
+                        let (mean, error) = art.composite_over(visible, &trapezoid);
+                        *mean_error = mean_error.max(error);
+                        mean
+                    } else {
+                        art.composite(visible, 0)
+                    };
+                    for (t, v) in total.iter_mut().zip(c) {
+                        *t += v * width * h;
+                    }
+                };
+            for &(x, piece, step, x_lo, x_hi) in crossings.iter() {
+                let right = [x, x_lo, x_hi];
+                gap(left, right, winding, &mut total);
                 winding[piece] += step;
-                left = x;
+                left = right;
             }
-            gap(left, sq.x1(), winding, &mut total);
+            gap(left, [sq.x1(); 3], winding, &mut total);
         }
         let area = sq.side * sq.side;
         total.map(|t| t / area)

@@ -3,8 +3,9 @@
 //! sampler (winding numbers over the unclipped polygons, `VectorArt::colour_at`).
 
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
+use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop, srgb_encode};
 use quadtex_core::{
-    ClipId, ConvexPolygon, FillRule, Fragment, QuadTree, Rgba, VectorArt, VectorOptions,
+    ClipId, ConvexPolygon, FillRule, Fragment, Paint, QuadTree, Rgba, VectorArt, VectorOptions,
 };
 
 const UNIT: f64 = 1.0;
@@ -14,6 +15,21 @@ fn pack(art: &VectorArt, level: u8) -> QuadTree {
         art,
         &VectorOptions {
             max_level: level,
+            ..VectorOptions::default()
+        },
+    )
+    .unwrap()
+    .0
+}
+
+/// Packed with a coarse smooth-colour tolerance, so random gradients stay
+/// cheap (their means are exact whatever the tolerance).
+fn pack_smooth(art: &VectorArt, level: u8) -> QuadTree {
+    QuadTree::from_vector(
+        art,
+        &VectorOptions {
+            max_level: level,
+            tolerance: 0.05,
             ..VectorOptions::default()
         },
     )
@@ -271,11 +287,11 @@ fn fragments_match_point_sampling_of_random_art() {
     arbtest::arbtest(|u: &mut Unstructured<'_>| {
         let art = random_art(u)?;
         let level = u.int_in_range(3..=9u8)?;
-        let t = pack(&art, level);
+        let t = pack_smooth(&art, level);
         // Exact at every depth: a deeper packing of the same art integrates
         // the leaf grid to the same values (up to quantisation), so sweeps and
         // subdivision agree far more tightly than the sampler can tell.
-        let deeper = pack(&art, level + 2);
+        let deeper = pack_smooth(&art, level + 2);
         for _ in 0..4 {
             // On the leaf grid (level `level`): below it the tree holds each
             // leaf's mean, not the art, by design.
@@ -378,9 +394,231 @@ fn random_art(u: &mut Unstructured<'_>) -> ArbResult<VectorArt> {
         } else {
             None
         };
-        art.fill_clipped(contours, rule, colour, &[], clip).unwrap();
+        // Some shapes are painted with an opaque linear gradient (opaque, so
+        // that at most one varying layer shows: every mean stays exact).
+        let paint = match u.int_in_range(0..=3u8)? {
+            0 => Paint::Gradient(random_gradient(u, false)?),
+            _ => Paint::Solid(colour),
+        };
+        art.fill_paint(contours, rule, paint, &[], clip).unwrap();
     }
     Ok(art)
+}
+
+fn random_gradient(u: &mut Unstructured<'_>, radial: bool) -> ArbResult<Gradient> {
+    let mut stops = Vec::new();
+    let mut offset = 0.0;
+    for _ in 0..u.int_in_range(1..=4usize)? {
+        offset += f64::from(u.int_in_range(0..=4u8)?) / 10.0;
+        let c = |u: &mut Unstructured<'_>| -> ArbResult<f64> {
+            Ok(f64::from(u.int_in_range(0..=10u8)?) / 10.0)
+        };
+        stops.push(Stop {
+            offset: offset.min(1.0),
+            colour: [c(u)?, c(u)?, c(u)?],
+            opacity: 1.0,
+        });
+    }
+    let spread = *u.choose(&[Spread::Pad, Spread::Repeat, Spread::Reflect])?;
+    let map = [1.0, 0.2, -0.3, 1.2, 0.05, -0.1];
+    let p = |u: &mut Unstructured<'_>| -> ArbResult<f64> {
+        Ok(f64::from(u.int_in_range(0..=10u8)?) / 10.0)
+    };
+    Ok(if radial {
+        let (cx, cz) = (p(u)?, p(u)?);
+        Gradient::radial(
+            map,
+            [cx + 0.05, cz],
+            0.0,
+            [cx, cz],
+            0.2 + p(u)?,
+            stops,
+            spread,
+            Interpolation::Srgb,
+        )
+        .unwrap()
+    } else {
+        let start = [p(u)?, p(u)?];
+        Gradient::linear(
+            map,
+            start,
+            [start[0] + 0.3, start[1] + 0.1],
+            stops,
+            spread,
+            Interpolation::Srgb,
+        )
+        .unwrap()
+    })
+}
+
+/// A radial gradient (focal point off centre, reflected, sRGB stops) over
+/// the whole square: every fragment on the leaf grid integrates within the
+/// packer's stated mean-error bound of dense point sampling.
+#[test]
+fn radial_gradient_integrals_are_within_the_stated_bound() {
+    let stop = |offset: f64, colour: [f64; 3]| Stop {
+        offset,
+        colour,
+        opacity: 1.0,
+    };
+    let g = Gradient::radial(
+        [1.0, 0.2, -0.3, 1.2, 0.05, -0.1],
+        [0.45, 0.5],
+        0.02,
+        [0.5, 0.5],
+        0.3,
+        vec![
+            stop(0.0, [1.0, 0.5, 0.0]),
+            stop(0.6, [0.0, 0.2, 1.0]),
+            stop(1.0, [0.3, 0.9, 0.4]),
+        ],
+        Spread::Reflect,
+        Interpolation::Srgb,
+    )
+    .unwrap();
+    let mut art = VectorArt::new();
+    let whole = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    art.fill_paint(
+        vec![whole],
+        FillRule::NonZero,
+        Paint::Gradient(g.clone()),
+        &[],
+        None,
+    )
+    .unwrap();
+    let options = VectorOptions {
+        max_level: 8,
+        tolerance: 0.01,
+        ..VectorOptions::default()
+    };
+    let (t, report) = QuadTree::from_vector(&art, &options).unwrap();
+    assert!(report.max_mean_error > 0.0, "radial means carry a bound");
+    for (x0, z0, side) in [(0.0, 0.0, 1.0), (0.25, 0.5, 0.125), (0.5, 0.125, 0.25)] {
+        let f = Fragment::new(x0, z0, x0 + side, z0 + side).unwrap();
+        let got = t.weighted_colour(&f, u8::MAX).0;
+        let n = 400;
+        let mut want = [0.0; 4];
+        for i in 0..n {
+            for j in 0..n {
+                let p = [
+                    x0 + side * (i as f64 + 0.5) / n as f64,
+                    z0 + side * (j as f64 + 0.5) / n as f64,
+                ];
+                for (w, c) in want.iter_mut().zip(g.colour_at(p)) {
+                    *w += c * f.area() / (n * n) as f64;
+                }
+            }
+        }
+        // The sampler's own error: the colour moves by at most its range per cell.
+        for ch in 0..4 {
+            let bound = f.area() * (report.max_mean_error + STEP) + 2e-4 * f.area();
+            assert!(
+                (got[ch] - want[ch]).abs() <= bound,
+                "{f:?} ch {ch}: tree {} sampled {} bound {bound}",
+                got[ch],
+                want[ch]
+            );
+        }
+    }
+}
+
+/// A gradient interpolated in linear light over a rectangle: the integral
+/// over any fragment is the overlap's area times the ramp at its centroid
+/// (the ramp is linear in `x` between the stops), in closed form; and every
+/// point of the art lies within the tolerance of its leaf's colour.
+#[test]
+fn linear_gradient_integrals_match_closed_forms() {
+    let ramp = Gradient::linear(
+        [1.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+        [0.125, 0.0],
+        [0.875, 0.0],
+        vec![
+            Stop {
+                offset: 0.0,
+                colour: [0.3, 0.9, 0.2],
+                opacity: 1.0,
+            },
+            Stop {
+                offset: 1.0,
+                colour: [0.9, 0.3, 0.2],
+                opacity: 1.0,
+            },
+        ],
+        Spread::Pad,
+        Interpolation::Linear,
+    )
+    .unwrap();
+    // Dyadic edges: only the ramp decides where squares stop splitting.
+    let rect = vec![[0.125, 0.25], [0.875, 0.25], [0.875, 0.75], [0.125, 0.75]];
+    let mut art = VectorArt::new();
+    art.fill_paint(
+        vec![rect],
+        FillRule::NonZero,
+        Paint::Gradient(ramp.clone()),
+        &[],
+        None,
+    )
+    .unwrap();
+    let level = 12;
+    let options = VectorOptions {
+        max_level: level,
+        ..VectorOptions::default()
+    };
+    let (t, report) = QuadTree::from_vector(&art, &options).unwrap();
+    assert_eq!(report.max_mean_error, 0.0);
+    assert!(report.max_smooth_deviation <= options.tolerance);
+    // The ramp stops splitting well above the maximum level.
+    assert!(t.depth() < level, "depth {}", t.depth());
+    let closed = |x0: f64, z0: f64, x1: f64, z1: f64| {
+        let (a, b) = (x0.max(0.125), x1.min(0.875));
+        let (c, d) = (z0.max(0.25), z1.min(0.75));
+        if a >= b || c >= d {
+            return [0.0; 4];
+        }
+        let area = (b - a) * (d - c);
+        let w = (0.5 * (a + b) - 0.125) / 0.75;
+        let red = 0.3 + 0.6 * w;
+        [red * area, (1.2 - red) * area, 0.2 * area, area]
+    };
+    // The ramp's terminal squares are at level 9 (a quarter step of an
+    // encoded slope ≤ 0.9 needs sides ≤ 2^-9): fragments on the level-6 grid
+    // are unions of whole squares, whose stored means are exact.
+    arbtest::arbtest(|u| {
+        let cells = 1i32 << 6;
+        let coord = |u: &mut Unstructured<'_>| -> ArbResult<f64> {
+            Ok(f64::from(u.int_in_range(-2..=cells + 2)?) / f64::from(cells))
+        };
+        let (a, b, c, d) = (coord(u)?, coord(u)?, coord(u)?, coord(u)?);
+        let f = Fragment::new(a.min(b), c.min(d), a.max(b), c.max(d)).unwrap();
+        let got = t.weighted_colour(&f, u8::MAX).0;
+        let want = closed(f.x0(), f.z0(), f.x1(), f.z1());
+        for ch in 0..4 {
+            assert!(
+                (got[ch] - want[ch]).abs() <= f.area() * STEP + 1e-12,
+                "{f:?} ch {ch}: {} vs {}",
+                got[ch],
+                want[ch]
+            );
+        }
+        // A point's leaf colour against the art there (sRGB-encoded).
+        let p = [
+            f64::from(u.int_in_range(126..=874u32)?) / 1000.0,
+            f64::from(u.int_in_range(251..=749u32)?) / 1000.0,
+        ];
+        let h = 1e-9;
+        let tiny = Fragment::new(p[0] - h, p[1] - h, p[0] + h, p[1] + h).unwrap();
+        let leaf = t.weighted_colour(&tiny, u8::MAX).0.map(|v| v / tiny.area());
+        let here = ramp.colour_at(p);
+        for ch in 0..3 {
+            let (e, w) = (srgb_encode(leaf[ch]), srgb_encode(here[ch]));
+            assert!(
+                (e - w).abs() <= options.tolerance + 2e-4,
+                "{p:?} ch {ch}: leaf {e} art {w}"
+            );
+        }
+        Ok(())
+    })
+    .budget_ms(1500);
 }
 
 fn random_polygon(u: &mut Unstructured<'_>) -> ArbResult<Vec<[f64; 2]>> {

@@ -50,7 +50,7 @@ pub enum Error {
         message: String,
     },
     /// An SVG feature the exact packer does not support (gradients, patterns,
-    /// images, masks, clip paths, filters, blend modes).
+    /// images, masks, filters, blend modes).
     UnsupportedSvg {
         /// The file.
         path: PathBuf,

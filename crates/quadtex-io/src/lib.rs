@@ -35,6 +35,6 @@ pub use qtx::{
     write_qtx_to,
 };
 pub use query::parse_query_line;
-pub use svg::{load_svg, pack_svg, parse_svg};
+pub use svg::{load_svg, pack_svg, pack_svg_with_tolerance, parse_svg};
 
 pub use quadtex_core::TexelGrid;

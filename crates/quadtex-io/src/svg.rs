@@ -11,9 +11,13 @@
 //! gives the same tree); clip paths, exact (nested, with `clip-rule`,
 //! `clipPathUnits` and `clip-path` on the clip path or on its children: a
 //! clip region is a union of filled shapes intersected with other regions,
-//! see [`VectorArt::clip_region`]). Gradients, patterns, images, masks,
-//! filters and blend modes other than normal are refused with
-//! [`Error::UnsupportedSvg`] naming the element, never approximated silently.
+//! see [`VectorArt::clip_region`]); linear and radial gradients with
+//! `gradientTransform`, `gradientUnits`, `spreadMethod`, stop opacity and
+//! SVG 2's `fr`, interpolated in sRGB as SVG specifies (see
+//! `quadtex_core::gradient`; a radial gradient whose focal circle is not
+//! inside its end circle is refused). Patterns, images, masks, filters and
+//! blend modes other than normal are refused with [`Error::UnsupportedSvg`]
+//! naming the element, never approximated silently.
 //!
 //! ## Geometry
 //!
@@ -34,8 +38,9 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
+use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
 use quadtex_core::vector::{ClipId, GroupId};
-use quadtex_core::{FillRule, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
+use quadtex_core::{FillRule, Paint, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
 use usvg::tiny_skia_path::{self, PathSegment};
 
 use crate::Error;
@@ -66,10 +71,27 @@ fn fonts() -> Arc<usvg::fontdb::Database> {
         .clone()
 }
 
-/// Reads an SVG file and packs it at `max_level`.
+/// Reads an SVG file and packs it at `max_level`, gradients to the default
+/// smooth-colour tolerance ([`quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE`]).
 pub fn pack_svg(
     path: &Path,
     max_level: u8,
+    limits: &Limits,
+) -> Result<(QuadTree, VectorReport), Error> {
+    pack_svg_with_tolerance(
+        path,
+        max_level,
+        quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE,
+        limits,
+    )
+}
+
+/// As [`pack_svg`], with squares painted by gradients terminal once their
+/// colour range is within `tolerance` ([`VectorOptions::tolerance`]).
+pub fn pack_svg_with_tolerance(
+    path: &Path,
+    max_level: u8,
+    tolerance: f64,
     limits: &Limits,
 ) -> Result<(QuadTree, VectorReport), Error> {
     let art = load_svg(path, max_level, limits)?;
@@ -79,6 +101,7 @@ pub fn pack_svg(
             max_level,
             max_nodes: limits.max_nodes,
             max_bytes: Some(limits.max_memory),
+            tolerance,
         },
     )
     .map_err(crate::error::core(path))
@@ -374,16 +397,92 @@ impl Walker<'_> {
         }
     }
 
-    fn paint_colour(&self, paint: &usvg::Paint, opacity: f32, id: &str) -> Result<Rgba, Error> {
-        match paint {
+    /// The core paint of `paint` with `opacity`, for a path drawn under
+    /// `transform` (gradients are defined in the path's user space).
+    fn paint(
+        &self,
+        paint: &usvg::Paint,
+        opacity: f32,
+        transform: usvg::Transform,
+        id: &str,
+    ) -> Result<Option<Paint>, Error> {
+        let opacity = f64::from(opacity);
+        let (base, geometry): (&usvg::BaseGradient, _) = match paint {
             usvg::Paint::Color(c) => {
-                let lin = |v: u8| srgb_to_linear(f32::from(v) / 255.0) * opacity;
-                Ok(Rgba::new(lin(c.red), lin(c.green), lin(c.blue), opacity))
+                let lin = |v: u8| srgb_to_linear(f32::from(v) / 255.0) * opacity as f32;
+                return Ok(Some(Paint::Solid(Rgba::new(
+                    lin(c.red),
+                    lin(c.green),
+                    lin(c.blue),
+                    opacity as f32,
+                ))));
             }
-            usvg::Paint::LinearGradient(_) => Err(self.unsupported("linearGradient", id)),
-            usvg::Paint::RadialGradient(_) => Err(self.unsupported("radialGradient", id)),
-            usvg::Paint::Pattern(_) => Err(self.unsupported("pattern", id)),
-        }
+            usvg::Paint::LinearGradient(g) => (g, GradientGeometry::Linear(g)),
+            usvg::Paint::RadialGradient(g) => (g, GradientGeometry::Radial(g)),
+            usvg::Paint::Pattern(_) => return Err(self.unsupported("pattern", id)),
+        };
+        let stops: Vec<Stop> = base
+            .stops()
+            .iter()
+            .map(|s| Stop {
+                offset: f64::from(s.offset().get()),
+                colour: [s.color().red, s.color().green, s.color().blue]
+                    .map(|v| f64::from(v) / 255.0),
+                opacity: f64::from(s.opacity().get()) * opacity,
+            })
+            .collect();
+        let spread = match base.spread_method() {
+            usvg::SpreadMethod::Pad => Spread::Pad,
+            usvg::SpreadMethod::Reflect => Spread::Reflect,
+            usvg::SpreadMethod::Repeat => Spread::Repeat,
+        };
+        // Texture space → device (user units) → the path's user space → gradient space.
+        let device_to_gradient = match invert(concat(affine(transform), affine(base.transform()))) {
+            Some(m) => m,
+            None => return Ok(None), // a degenerate transform paints nothing
+        };
+        let k = self.to_unit;
+        let [sx, ky, kx, sy, tx, ty] = device_to_gradient;
+        // p = (k·dx, 1 − k·dy)  ⇒  dx = x/k, dy = (1 − z)/k.
+        let map = [sx / k, ky / k, -kx / k, -sy / k, kx / k + tx, sy / k + ty];
+        let interpolation = Interpolation::Srgb;
+        let gradient = match geometry {
+            GradientGeometry::Linear(g) => {
+                let (start, end) = (
+                    [f64::from(g.x1()), f64::from(g.y1())],
+                    [f64::from(g.x2()), f64::from(g.y2())],
+                );
+                if start == end {
+                    // SVG: the last stop's colour, flat.
+                    let Some(last) = stops.last() else {
+                        return Ok(None);
+                    };
+                    let a = last.opacity as f32;
+                    let lin = |v: f64| srgb_to_linear(v as f32) * a;
+                    let [r, g, b] = last.colour;
+                    return Ok(Some(Paint::Solid(Rgba::new(lin(r), lin(g), lin(b), a))));
+                }
+                Gradient::linear(map, start, end, stops, spread, interpolation)
+                    .map_err(|e| self.core(e))?
+            }
+            GradientGeometry::Radial(g) => Gradient::radial(
+                map,
+                [f64::from(g.fx()), f64::from(g.fy())],
+                f64::from(g.fr().get()),
+                [f64::from(g.cx()), f64::from(g.cy())],
+                f64::from(g.r().get()),
+                stops,
+                spread,
+                interpolation,
+            )
+            .map_err(|_| {
+                self.unsupported(
+                    "radialGradient with the focal circle not inside the end circle",
+                    id,
+                )
+            })?,
+        };
+        Ok(Some(Paint::Gradient(gradient)))
     }
 
     fn path(&mut self, p: &usvg::Path, transform: usvg::Transform) -> Result<(), Error> {
@@ -392,19 +491,23 @@ impl Walker<'_> {
         }
         let fill = |w: &mut Self| -> Result<(), Error> {
             if let Some(f) = p.fill() {
-                let colour = w.paint_colour(f.paint(), f.opacity().get(), p.id())?;
+                let Some(paint) = w.paint(f.paint(), f.opacity().get(), transform, p.id())? else {
+                    return Ok(());
+                };
                 let rule = match f.rule() {
                     usvg::FillRule::NonZero => FillRule::NonZero,
                     usvg::FillRule::EvenOdd => FillRule::EvenOdd,
                 };
                 let contours = w.flatten(p.data(), transform);
-                w.add(contours, rule, colour)?;
+                w.add(contours, rule, paint)?;
             }
             Ok(())
         };
         let stroke = |w: &mut Self| -> Result<(), Error> {
             if let Some(s) = p.stroke() {
-                let colour = w.paint_colour(s.paint(), s.opacity().get(), p.id())?;
+                let Some(paint) = w.paint(s.paint(), s.opacity().get(), transform, p.id())? else {
+                    return Ok(());
+                };
                 let ts = s.to_tiny_skia();
                 // Scale the stroker's precision with the transform's largest stretch.
                 let stretch = (transform.sx.hypot(transform.ky))
@@ -424,7 +527,7 @@ impl Walker<'_> {
                 };
                 if let Some(outline) = source.stroke(&ts, res) {
                     let contours = w.flatten(&outline, transform);
-                    w.add(contours, FillRule::NonZero, colour)?;
+                    w.add(contours, FillRule::NonZero, paint)?;
                 }
             }
             Ok(())
@@ -445,11 +548,11 @@ impl Walker<'_> {
         &mut self,
         contours: Vec<Vec<[f64; 2]>>,
         rule: FillRule,
-        colour: Rgba,
+        paint: Paint,
     ) -> Result<(), Error> {
         let groups = self.groups.clone();
         self.art
-            .fill_clipped(contours, rule, colour, &groups, self.clip)
+            .fill_paint(contours, rule, paint, &groups, self.clip)
             .map_err(|e| self.core(e))
     }
 
@@ -524,6 +627,49 @@ impl Walker<'_> {
         }
         contours
     }
+}
+
+enum GradientGeometry<'a> {
+    Linear(&'a usvg::LinearGradient),
+    Radial(&'a usvg::RadialGradient),
+}
+
+/// A transform as `[sx, ky, kx, sy, tx, ty]` in `f64`:
+/// `x' = sx·x + kx·y + tx`, `y' = ky·x + sy·y + ty`.
+fn affine(t: usvg::Transform) -> [f64; 6] {
+    [t.sx, t.ky, t.kx, t.sy, t.tx, t.ty].map(f64::from)
+}
+
+/// `a ∘ b` (apply `b` first).
+fn concat(a: [f64; 6], b: [f64; 6]) -> [f64; 6] {
+    let [a0, a1, a2, a3, a4, a5] = a;
+    let [b0, b1, b2, b3, b4, b5] = b;
+    [
+        a0 * b0 + a2 * b1,
+        a1 * b0 + a3 * b1,
+        a0 * b2 + a2 * b3,
+        a1 * b2 + a3 * b3,
+        a0 * b4 + a2 * b5 + a4,
+        a1 * b4 + a3 * b5 + a5,
+    ]
+}
+
+fn invert(m: [f64; 6]) -> Option<[f64; 6]> {
+    let [a, b, c, d, e, f] = m;
+    let det = a * d - b * c;
+    if !(det.is_finite() && det.abs() > f64::MIN_POSITIVE) {
+        return None;
+    }
+    let inv = [d / det, -b / det, -c / det, a / det];
+    let r = [
+        inv[0],
+        inv[1],
+        inv[2],
+        inv[3],
+        -(inv[0] * e + inv[2] * f),
+        -(inv[1] * e + inv[3] * f),
+    ];
+    r.iter().all(|v| v.is_finite()).then_some(r)
 }
 
 /// Chords needed for a curve whose error bound with one chord is `ratio`
