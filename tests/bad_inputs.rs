@@ -485,14 +485,14 @@ fn svg_not_svg_at_all() {
 }
 
 #[test]
-fn svg_pattern_is_unsupported() {
+fn svg_pattern_with_too_many_tiles() {
     svg_case(
         "svg-pattern",
         &format!(
-            "{SVG_HEAD}<pattern id=\"p\" width=\"2\" height=\"2\" patternUnits=\"userSpaceOnUse\"><rect width=\"1\" height=\"1\"/></pattern><rect id=\"sky\" width=\"10\" height=\"10\" fill=\"url(#p)\"/></svg>"
+            "{SVG_HEAD}<pattern id=\"p\" width=\"0.1\" height=\"0.1\" patternUnits=\"userSpaceOnUse\"><rect width=\"0.05\" height=\"0.05\"/></pattern><rect id=\"sky\" width=\"10\" height=\"10\" fill=\"url(#p)\"/></svg>"
         ),
         &[],
-        "unsupported: pattern (id \"sky\")",
+        "unsupported: pattern repeated over more than 4096 tiles (id \"sky\")",
     );
 }
 

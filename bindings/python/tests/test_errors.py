@@ -243,8 +243,8 @@ SVG_HEAD = '<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.o
 @pytest.mark.parametrize(
     "body, message",
     [
-        ('<pattern id="p" width="2" height="2" patternUnits="userSpaceOnUse"><rect width="1" height="1"/></pattern>'
-         '<rect id="sky" width="10" height="10" fill="url(#p)"/>', 'unsupported: pattern (id "sky")'),
+        ('<pattern id="p" width="0.1" height="0.1" patternUnits="userSpaceOnUse"><rect width="0.05" height="0.05"/></pattern>'
+         '<rect id="sky" width="10" height="10" fill="url(#p)"/>', 'unsupported: pattern repeated over more than 4096 tiles (id "sky")'),
         ('<mask id="m"><rect width="5" height="5" fill="white"/></mask>'
          '<rect width="10" height="10" mask="url(#m)"/>', "unsupported: mask"),
         ('<filter id="f"><feGaussianBlur stdDeviation="2"/></filter>'

@@ -439,19 +439,19 @@ fn pack_checks_its_arguments() {
     unsafe { qtx_free(texture) };
 
     // SVG the exact packer refuses.
-    let pattern = dir.join("pattern.svg");
+    let masked = dir.join("mask.svg");
     std::fs::write(
-        &pattern,
+        &masked,
         r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
-             <pattern id="p" width="2" height="2" patternUnits="userSpaceOnUse"><rect width="1" height="1"/></pattern>
-             <rect id="r" width="10" height="10" fill="url(#p)"/></svg>"#,
+             <mask id="m"><rect width="5" height="5" fill="white"/></mask>
+             <rect id="r" width="10" height="10" mask="url(#m)"/></svg>"#,
     )
     .unwrap();
     assert_eq!(
-        unsafe { qtx_pack(c_path(&pattern).as_ptr(), 0.0, 4, &mut texture) },
+        unsafe { qtx_pack(c_path(&masked).as_ptr(), 0.0, 4, &mut texture) },
         QtxStatus::Unsupported
     );
-    assert_error(&["pattern.svg"]);
+    assert_error(&["mask.svg"]);
     // Not an image at all.
     let text = dir.join("notes.png");
     std::fs::write(&text, "hello").unwrap();

@@ -49,8 +49,8 @@ pub enum Error {
         /// The parser's message.
         message: String,
     },
-    /// An SVG feature the exact packer does not support (gradients, patterns,
-    /// images, masks, filters, blend modes).
+    /// An SVG feature the exact packer does not support (images, masks,
+    /// filters, blend modes, patterns over too many tiles).
     UnsupportedSvg {
         /// The file.
         path: PathBuf,

@@ -15,7 +15,9 @@
 //! `gradientTransform`, `gradientUnits`, `spreadMethod`, stop opacity and
 //! SVG 2's `fr`, interpolated in sRGB as SVG specifies (see
 //! `quadtex_core::gradient`; a radial gradient whose focal circle is not
-//! inside its end circle is refused). Patterns, images, masks, filters and
+//! inside its end circle is refused); patterns, exact (the content laid out
+//! once per tile the shape reaches, clipped to the tile and the shape; at
+//! most [`MAX_PATTERN_TILES`] tiles a fill). Images, masks, filters and
 //! blend modes other than normal are refused with [`Error::UnsupportedSvg`]
 //! naming the element, never approximated silently.
 //!
@@ -419,7 +421,8 @@ impl Walker<'_> {
             }
             usvg::Paint::LinearGradient(g) => (g, GradientGeometry::Linear(g)),
             usvg::Paint::RadialGradient(g) => (g, GradientGeometry::Radial(g)),
-            usvg::Paint::Pattern(_) => return Err(self.unsupported("pattern", id)),
+            // Patterns are laid out as shapes by `Walker::pattern`.
+            usvg::Paint::Pattern(_) => return Ok(None),
         };
         let stops: Vec<Stop> = base
             .stops()
@@ -491,23 +494,24 @@ impl Walker<'_> {
         }
         let fill = |w: &mut Self| -> Result<(), Error> {
             if let Some(f) = p.fill() {
-                let Some(paint) = w.paint(f.paint(), f.opacity().get(), transform, p.id())? else {
-                    return Ok(());
-                };
                 let rule = match f.rule() {
                     usvg::FillRule::NonZero => FillRule::NonZero,
                     usvg::FillRule::EvenOdd => FillRule::EvenOdd,
                 };
                 let contours = w.flatten(p.data(), transform);
-                w.add(contours, rule, paint)?;
+                w.fill_with(
+                    f.paint(),
+                    f.opacity().get(),
+                    transform,
+                    contours,
+                    rule,
+                    p.id(),
+                )?;
             }
             Ok(())
         };
         let stroke = |w: &mut Self| -> Result<(), Error> {
             if let Some(s) = p.stroke() {
-                let Some(paint) = w.paint(s.paint(), s.opacity().get(), transform, p.id())? else {
-                    return Ok(());
-                };
                 let ts = s.to_tiny_skia();
                 // Scale the stroker's precision with the transform's largest stretch.
                 let stretch = (transform.sx.hypot(transform.ky))
@@ -527,7 +531,15 @@ impl Walker<'_> {
                 };
                 if let Some(outline) = source.stroke(&ts, res) {
                     let contours = w.flatten(&outline, transform);
-                    w.add(contours, FillRule::NonZero, paint)?;
+                    let (paint, opacity) = (s.paint(), s.opacity().get());
+                    w.fill_with(
+                        paint,
+                        opacity,
+                        transform,
+                        contours,
+                        FillRule::NonZero,
+                        p.id(),
+                    )?;
                 }
             }
             Ok(())
@@ -542,6 +554,123 @@ impl Walker<'_> {
                 fill(self)
             }
         }
+    }
+
+    /// Fills `contours` (texture space, of a path drawn under `transform`)
+    /// with `paint` at `opacity`.
+    fn fill_with(
+        &mut self,
+        paint: &usvg::Paint,
+        opacity: f32,
+        transform: usvg::Transform,
+        contours: Vec<Vec<[f64; 2]>>,
+        rule: FillRule,
+        id: &str,
+    ) -> Result<(), Error> {
+        if let usvg::Paint::Pattern(pattern) = paint {
+            return self.pattern(pattern, opacity, transform, contours, rule, id);
+        }
+        match self.paint(paint, opacity, transform, id)? {
+            Some(paint) => self.add(contours, rule, paint),
+            None => Ok(()),
+        }
+    }
+
+    /// A pattern fill, exact: the pattern's content is laid out once per
+    /// tile the shape reaches, each copy clipped to its tile and to the
+    /// shape (clip regions), as a group faded by `opacity`. Tiles are the
+    /// pattern's `rect` repeated in pattern space; the content is in tile
+    /// coordinates, as resvg renders it.
+    fn pattern(
+        &mut self,
+        pattern: &usvg::Pattern,
+        opacity: f32,
+        transform: usvg::Transform,
+        contours: Vec<Vec<[f64; 2]>>,
+        rule: FillRule,
+        id: &str,
+    ) -> Result<(), Error> {
+        let rect = pattern.rect();
+        let (x, y, w, h) = (
+            f64::from(rect.x()),
+            f64::from(rect.y()),
+            f64::from(rect.width()),
+            f64::from(rect.height()),
+        );
+        // Texture space → device → pattern space.
+        let to_pattern = match invert(concat(affine(transform), affine(pattern.transform()))) {
+            Some(m) => m,
+            None => return Ok(()),
+        };
+        let k = self.to_unit;
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in contours.iter().flatten() {
+            let d = [p[0] / k, (1.0 - p[1]) / k];
+            let q = [
+                to_pattern[0] * d[0] + to_pattern[2] * d[1] + to_pattern[4],
+                to_pattern[1] * d[0] + to_pattern[3] * d[1] + to_pattern[5],
+            ];
+            for a in 0..2 {
+                lo[a] = lo[a].min(q[a]);
+                hi[a] = hi[a].max(q[a]);
+            }
+        }
+        if !(lo[0] <= hi[0] && lo[1] <= hi[1]) {
+            return Ok(()); // no contour
+        }
+        let (i0, i1) = (((lo[0] - x) / w).floor(), ((hi[0] - x) / w).floor());
+        let (j0, j1) = (((lo[1] - y) / h).floor(), ((hi[1] - y) / h).floor());
+        let tiles = (i1 - i0 + 1.0) * (j1 - j0 + 1.0);
+        if tiles.is_nan() || tiles > MAX_PATTERN_TILES {
+            return Err(self.unsupported(
+                &format!("pattern repeated over more than {MAX_PATTERN_TILES} tiles"),
+                id,
+            ));
+        }
+        let shape = self
+            .art
+            .clip_region(self.clip.as_slice())
+            .map_err(|e| self.core(e))?;
+        self.art
+            .add_to_clip(shape, contours, rule, None)
+            .map_err(|e| self.core(e))?;
+        let faded = f64::from(opacity) < 1.0;
+        if faded {
+            let g = self
+                .art
+                .group(f64::from(opacity))
+                .map_err(|e| self.core(e))?;
+            self.groups.push(g);
+        }
+        let enclosing = self.clip;
+        let mut j = j0;
+        while j <= j1 {
+            let mut i = i0;
+            while i <= i1 {
+                let tile = transform
+                    .pre_concat(pattern.transform())
+                    .pre_translate((x + i * w) as f32, (y + j * h) as f32);
+                let corners = [[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]].map(|[u, v]| {
+                    let m = affine(tile);
+                    let d = [m[0] * u + m[2] * v + m[4], m[1] * u + m[3] * v + m[5]];
+                    [k * d[0], 1.0 - k * d[1]]
+                });
+                let region = self.art.clip_region(&[shape]).map_err(|e| self.core(e))?;
+                self.art
+                    .add_to_clip(region, vec![corners.to_vec()], FillRule::NonZero, None)
+                    .map_err(|e| self.core(e))?;
+                self.clip = Some(region);
+                let result = self.group(pattern.root(), tile);
+                self.clip = enclosing;
+                result?;
+                i += 1.0;
+            }
+            j += 1.0;
+        }
+        if faded {
+            self.groups.pop();
+        }
+        Ok(())
     }
 
     fn add(
@@ -628,6 +757,10 @@ impl Walker<'_> {
         contours
     }
 }
+
+/// Most tiles one pattern fill is laid out over (each tile copies the
+/// pattern's content).
+pub const MAX_PATTERN_TILES: f64 = 4096.0;
 
 enum GradientGeometry<'a> {
     Linear(&'a usvg::LinearGradient),
@@ -754,6 +887,20 @@ mod tests {
             <rect x="0" y="0" width="100" height="100" clip-path="url(#c)"/></svg>"#
         );
         assert!(coverage(&evenodd).abs() < 2e-5, "{}", coverage(&evenodd));
+    }
+
+    #[test]
+    fn patterns_tile_exactly() {
+        // Black 10×10 squares every 20 units, filling 5..95 on both axes:
+        // 45 units a side are black, 0.2025 of the square.
+        let svg = r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 100 100">
+            <pattern id="p" width="20" height="20" patternUnits="userSpaceOnUse">
+            <rect width="10" height="10"/></pattern>
+            <rect x="5" y="5" width="90" height="90" fill="url(#p)"/></svg>"#;
+        assert!((coverage(svg) - 0.2025).abs() < 2e-5, "{}", coverage(svg));
+        // Half opacity fades the whole pattern.
+        let faded = svg.replace(r#"fill="url(#p)""#, r#"fill="url(#p)" fill-opacity="0.5""#);
+        assert!((coverage(&faded) - 0.10125).abs() < 2e-5, "{}", coverage(&faded));
     }
 
     #[test]
