@@ -43,7 +43,7 @@ const STILL_REFUSED: &[&str] = &[
     "radialGradient with the focal circle not inside the end circle",
     "mask",
     "filter",
-    "mix-blend-mode",
+    "mix-blend-mode plus-lighter",
     "image",
     "pattern repeated over more than 4096 tiles",
 ];

@@ -24,6 +24,7 @@
 //!   (`unorm16`, step `1/65535`, far finer than the 12 linear bits asked of us).
 #![forbid(unsafe_code)]
 
+pub mod blend;
 mod colour;
 mod error;
 pub mod exact;

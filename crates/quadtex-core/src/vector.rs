@@ -57,6 +57,7 @@
 //! its opacity, as SVG specifies.
 
 use crate::Error;
+use crate::blend::{BlendMode, blend};
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::gradient::Gradient;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
@@ -161,6 +162,7 @@ pub struct VectorArt {
     /// The painted shape added last (clip members do not count).
     last_painted: Option<usize>,
     group_opacity: Vec<f64>,
+    group_blend: Vec<BlendMode>,
     /// Groups closed by a later shape outside them (groups are contiguous).
     group_closed: Vec<bool>,
     points: usize,
@@ -176,6 +178,12 @@ impl VectorArt {
     /// composited together first, then faded; they must be added one after
     /// the other (a group cannot be reopened once a shape outside it follows).
     pub fn group(&mut self, opacity: f64) -> Result<GroupId, Error> {
+        self.blended_group(opacity, BlendMode::Normal)
+    }
+
+    /// As [`VectorArt::group`], blended onto what lies below it (within the
+    /// enclosing group) by `blend` (see [`crate::blend`]).
+    pub fn blended_group(&mut self, opacity: f64, blend: BlendMode) -> Result<GroupId, Error> {
         if !(0.0..=1.0).contains(&opacity) {
             return Err(Error::BadVector(format!(
                 "group opacity {opacity} is outside [0,1]"
@@ -184,6 +192,7 @@ impl VectorArt {
         let id = u32::try_from(self.group_opacity.len())
             .map_err(|_| Error::BadVector("too many groups".into()))?;
         self.group_opacity.push(opacity);
+        self.group_blend.push(blend);
         self.group_closed.push(false);
         Ok(GroupId(id))
     }
@@ -531,7 +540,8 @@ impl VectorArt {
     /// The mean composite of `visible` over the convex polygon `poly`, and
     /// a bound on its error: exact where at most one layer varies (the
     /// composite is affine in each layer) and that layer is a linear
-    /// gradient; otherwise within the width of the composite's range.
+    /// gradient outside blended groups; otherwise within the width of the
+    /// composite's range.
     fn composite_over(&self, visible: &[u32], poly: &[Point]) -> ([f64; 4], f64) {
         let mut means: Vec<(u32, [f64; 4])> = Vec::new();
         let mut error: f64 = 0.0;
@@ -548,7 +558,16 @@ impl VectorArt {
                 .find(|m| m.0 == s)
                 .map_or(self.shapes[s as usize].colour, |m| m.1)
         });
-        if means.len() >= 2 {
+        let blended = || {
+            visible.iter().any(|&s| {
+                self.shapes[s as usize]
+                    .groups
+                    .iter()
+                    .any(|&g| self.group_blend[g as usize] != BlendMode::Normal)
+            })
+        };
+        // Two varying layers, or one under a blend mode: not affine any more.
+        if means.len() >= 2 || (!means.is_empty() && blended()) {
             error = range_width(&self.composite_range(visible, 0, poly));
         }
         (colour, error)
@@ -571,7 +590,20 @@ impl VectorArt {
                     }
                     let inner = self.composite_range(&list[i..j], depth + 1, poly);
                     let o = self.group_opacity[g as usize];
-                    (inner.map(|r| r.map(|v| v * o)), j)
+                    let inner = inner.map(|r| r.map(|v| v * o));
+                    let mode = self.group_blend[g as usize];
+                    if mode != BlendMode::Normal {
+                        // Exact when nothing varies; otherwise the whole range.
+                        if range_width(&inner) == 0.0 && range_width(&out) == 0.0 {
+                            let b = blend(mode, out.map(|r| r[0]), inner.map(|r| r[0]));
+                            out = b.map(|v| [v, v]);
+                        } else {
+                            out = [[0.0, 1.0]; 4];
+                        }
+                        i = j;
+                        continue;
+                    }
+                    (inner, j)
                 }
                 None => match shape.gradient {
                     Some(g) => (self.gradients[g as usize].range_over(poly), i + 1),
@@ -641,6 +673,12 @@ impl VectorArt {
                     }
                     let inner = self.composite_by(&list[i..j], depth + 1, colour);
                     let o = self.group_opacity[g as usize];
+                    let mode = self.group_blend[g as usize];
+                    if mode != BlendMode::Normal {
+                        out = blend(mode, out, inner.map(|v| v * o));
+                        i = j;
+                        continue;
+                    }
                     (inner.map(|v| v * o), j)
                 }
                 None => (colour(list[i]), i + 1),

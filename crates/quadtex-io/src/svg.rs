@@ -40,6 +40,7 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
+use quadtex_core::blend::BlendMode;
 use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
 use quadtex_core::vector::{ClipId, GroupId};
 use quadtex_core::{FillRule, Paint, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
@@ -300,17 +301,38 @@ impl Walker<'_> {
         if !g.filters().is_empty() {
             return Err(self.unsupported("filter", g.id()));
         }
-        if g.blend_mode() != usvg::BlendMode::Normal {
-            return Err(self.unsupported("mix-blend-mode", g.id()));
-        }
+        let blend = match g.blend_mode() {
+            usvg::BlendMode::Normal => BlendMode::Normal,
+            usvg::BlendMode::Multiply => BlendMode::Multiply,
+            usvg::BlendMode::Screen => BlendMode::Screen,
+            usvg::BlendMode::Overlay => BlendMode::Overlay,
+            usvg::BlendMode::Darken => BlendMode::Darken,
+            usvg::BlendMode::Lighten => BlendMode::Lighten,
+            usvg::BlendMode::ColorDodge => BlendMode::ColorDodge,
+            usvg::BlendMode::ColorBurn => BlendMode::ColorBurn,
+            usvg::BlendMode::HardLight => BlendMode::HardLight,
+            usvg::BlendMode::SoftLight => BlendMode::SoftLight,
+            usvg::BlendMode::Difference => BlendMode::Difference,
+            usvg::BlendMode::Exclusion => BlendMode::Exclusion,
+            usvg::BlendMode::Hue => BlendMode::Hue,
+            usvg::BlendMode::Saturation => BlendMode::Saturation,
+            usvg::BlendMode::Color => BlendMode::Color,
+            usvg::BlendMode::Luminosity => BlendMode::Luminosity,
+            usvg::BlendMode::PlusLighter => {
+                return Err(self.unsupported("mix-blend-mode plus-lighter", g.id()));
+            }
+        };
         let enclosing_clip = self.clip;
         if let Some(clip) = g.clip_path() {
             self.clip = Some(self.clip_region(clip, transform, enclosing_clip)?);
         }
         let opacity = f64::from(g.opacity().get());
-        let pushed = opacity < 1.0;
+        let pushed = opacity < 1.0 || blend != BlendMode::Normal;
         if pushed {
-            let id = self.art.group(opacity).map_err(|e| self.core(e))?;
+            let id = self
+                .art
+                .blended_group(opacity, blend)
+                .map_err(|e| self.core(e))?;
             self.groups.push(id);
         }
         for node in g.children() {
@@ -900,7 +922,34 @@ mod tests {
         assert!((coverage(svg) - 0.2025).abs() < 2e-5, "{}", coverage(svg));
         // Half opacity fades the whole pattern.
         let faded = svg.replace(r#"fill="url(#p)""#, r#"fill="url(#p)" fill-opacity="0.5""#);
-        assert!((coverage(&faded) - 0.10125).abs() < 2e-5, "{}", coverage(&faded));
+        assert!(
+            (coverage(&faded) - 0.10125).abs() < 2e-5,
+            "{}",
+            coverage(&faded)
+        );
+    }
+
+    #[test]
+    fn multiply_blends_encoded_colours_exactly() {
+        // Opaque #808080 multiplied onto opaque #ff4000 over the whole square:
+        // encoded (0.502·1, 0.502·0.251, 0), decoded.
+        let svg = r##"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
+            <rect width="10" height="10" fill="#ff4000"/>
+            <rect width="10" height="10" fill="#808080" style="mix-blend-mode:multiply"/></svg>"##;
+        let art = parse_svg(svg.as_bytes(), Path::new("t.svg"), 2, &Limits::default()).unwrap();
+        let (tree, _) = QuadTree::from_vector(&art, &VectorOptions::default()).unwrap();
+        let f = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
+        let got = tree.weighted_colour(&f, 0).0;
+        let g = 128.0 / 255.0;
+        let want = [g, g * 64.0 / 255.0, 0.0].map(quadtex_core::gradient::srgb_decode);
+        for k in 0..3 {
+            assert!(
+                (got[k] - want[k]).abs() < 2e-5,
+                "channel {k}: {} vs {}",
+                got[k],
+                want[k]
+            );
+        }
     }
 
     #[test]
