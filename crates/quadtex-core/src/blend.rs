@@ -164,6 +164,62 @@ pub fn blend(mode: BlendMode, b: [f64; 4], s: [f64; 4]) -> [f64; 4] {
     out
 }
 
+/// Per channel `[lo, hi]` of [`blend`] over every backdrop and source in
+/// the ranges `b` and `s` (a bound; `[0, 1]` for the non-separable modes).
+/// Every separable mode's function is monotone in each argument except
+/// difference and exclusion, whose extremes over a box are at its corners
+/// (and 0 for difference when the two ranges overlap); the weights around
+/// it are products of non-negative ranges.
+pub fn blend_range(mode: BlendMode, b: [[f64; 2]; 4], s: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
+    let unit = [0.0, 1.0];
+    if matches!(
+        mode,
+        BlendMode::Hue | BlendMode::Saturation | BlendMode::Color | BlendMode::Luminosity
+    ) {
+        return [unit; 4];
+    }
+    let (ab, a_s) = (b[3], s[3]);
+    // Unpremultiplied, encoded colour ranges.
+    let colour = |c: [f64; 2], a: [f64; 2]| {
+        if a[0] <= 0.0 {
+            unit
+        } else {
+            [
+                srgb_encode((c[0] / a[1]).min(1.0)),
+                srgb_encode((c[1] / a[0]).min(1.0)),
+            ]
+        }
+    };
+    let mut out = [[0.0; 2]; 4];
+    for k in 0..3 {
+        let (cb, cs) = (colour(b[k], ab), colour(s[k], a_s));
+        let corners = [
+            separable(mode, cb[0], cs[0]),
+            separable(mode, cb[0], cs[1]),
+            separable(mode, cb[1], cs[0]),
+            separable(mode, cb[1], cs[1]),
+        ];
+        let mut lo = corners.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = corners.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if mode == BlendMode::Difference && cb[0] <= cs[1] && cs[0] <= cb[1] {
+            lo = 0.0;
+        }
+        let mixed = [
+            srgb_decode(lo.clamp(0.0, 1.0)),
+            srgb_decode(hi.clamp(0.0, 1.0)),
+        ];
+        out[k] = [
+            (1.0 - ab[1]) * s[k][0] + (1.0 - a_s[1]) * b[k][0] + a_s[0] * ab[0] * mixed[0],
+            (1.0 - ab[0]) * s[k][1] + (1.0 - a_s[0]) * b[k][1] + a_s[1] * ab[1] * mixed[1],
+        ];
+    }
+    out[3] = [
+        a_s[0] + ab[0] * (1.0 - a_s[0]),
+        a_s[1] + ab[1] * (1.0 - a_s[1]),
+    ];
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -194,6 +250,52 @@ mod tests {
         let over = blend(BlendMode::Normal, b, s);
         for k in 0..4 {
             assert!((over[k] - (s[k] + 0.6 * b[k])).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn ranges_contain_every_blend_of_their_members() {
+        let modes = [
+            BlendMode::Multiply,
+            BlendMode::Screen,
+            BlendMode::Overlay,
+            BlendMode::Darken,
+            BlendMode::Lighten,
+            BlendMode::ColorDodge,
+            BlendMode::ColorBurn,
+            BlendMode::HardLight,
+            BlendMode::SoftLight,
+            BlendMode::Difference,
+            BlendMode::Exclusion,
+        ];
+        // Backdrop and source ranges (premultiplied), sampled on a grid.
+        let b = [[0.1, 0.3], [0.0, 0.5], [0.2, 0.25], [0.6, 0.9]];
+        let s = [[0.05, 0.4], [0.3, 0.35], [0.0, 0.1], [0.4, 1.0]];
+        let pick = |r: [[f64; 2]; 4], t: f64| {
+            // Alpha first, colours at most alpha (premultiplied).
+            let a = r[3][0] + t * (r[3][1] - r[3][0]);
+            let mut c = [0.0, 0.0, 0.0, a];
+            for k in 0..3 {
+                c[k] = (r[k][0] + t * (r[k][1] - r[k][0])).min(a);
+            }
+            c
+        };
+        for mode in modes {
+            let r = blend_range(mode, b, s);
+            for i in 0..=8 {
+                for j in 0..=8 {
+                    let (bb, ss) = (pick(b, i as f64 / 8.0), pick(s, j as f64 / 8.0));
+                    let c = blend(mode, bb, ss);
+                    for k in 0..4 {
+                        assert!(
+                            r[k][0] - 1e-12 <= c[k] && c[k] <= r[k][1] + 1e-12,
+                            "{mode:?} ch {k}: {} not in {:?}",
+                            c[k],
+                            r[k]
+                        );
+                    }
+                }
+            }
         }
     }
 

@@ -57,7 +57,7 @@
 //! its opacity, as SVG specifies.
 
 use crate::Error;
-use crate::blend::{BlendMode, blend};
+use crate::blend::{BlendMode, blend, blend_range};
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::gradient::Gradient;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
@@ -593,13 +593,7 @@ impl VectorArt {
                     let inner = inner.map(|r| r.map(|v| v * o));
                     let mode = self.group_blend[g as usize];
                     if mode != BlendMode::Normal {
-                        // Exact when nothing varies; otherwise the whole range.
-                        if range_width(&inner) == 0.0 && range_width(&out) == 0.0 {
-                            let b = blend(mode, out.map(|r| r[0]), inner.map(|r| r[0]));
-                            out = b.map(|v| [v, v]);
-                        } else {
-                            out = [[0.0, 1.0]; 4];
-                        }
+                        out = blend_range(mode, out, inner);
                         i = j;
                         continue;
                     }
