@@ -36,7 +36,7 @@
 //! when every point of it lies within [`VectorOptions::tolerance`] of its
 //! one colour, the exact mean (see [`crate::gradient`]); otherwise it splits
 //! like an edge square, down to the maximum level. So smooth colour costs
-//! squares in proportion to its slope over the tolerance, not `4^L`. At a
+//! squares in proportion to its area times (slope / tolerance)², not `4^L`. At a
 //! leaf the trapezoid sweep takes each trapezoid's mean the same way.
 //! Means are exact where at most one varying layer shows and it is a linear
 //! gradient (compositing is affine in each layer); otherwise they carry a
@@ -242,6 +242,12 @@ impl VectorArt {
         let mut depth = 1;
         if let Some(c) = clip {
             depth = 1 + self.clip(c.0)?.depth;
+            if self.reaches(c.0, region.0) {
+                return Err(Error::BadVector(format!(
+                    "clip region {} would be clipped by itself",
+                    region.0
+                )));
+            }
         }
         let kept = self.contours(contours)?;
         let shape = u32::try_from(self.shapes.len())
@@ -265,6 +271,24 @@ impl VectorArt {
             )));
         }
         Ok(())
+    }
+
+    /// True when region `from` refers, directly or not, to region `target`.
+    fn reaches(&self, from: u32, target: u32) -> bool {
+        let mut seen = vec![false; self.clips.len()];
+        let mut stack = vec![from];
+        while let Some(c) = stack.pop() {
+            if c == target {
+                return true;
+            }
+            if std::mem::replace(&mut seen[c as usize], true) {
+                continue;
+            }
+            let r = &self.clips[c as usize];
+            stack.extend(&r.within);
+            stack.extend(r.members.iter().filter_map(|m| m.1));
+        }
+        false
     }
 
     fn clip(&self, id: u32) -> Result<&Clip, Error> {

@@ -747,4 +747,19 @@ fn clip_regions_refuse_unknown_ids_and_deep_nesting() {
         }
     }
     assert!(refused);
+    // A region cannot be clipped, through another, by itself.
+    let mut art = VectorArt::new();
+    let a = art.clip_region(&[]).unwrap();
+    let b = art.clip_region(&[]).unwrap();
+    let square = vec![vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]];
+    art.add_to_clip(a, square.clone(), FillRule::NonZero, Some(b))
+        .unwrap();
+    let e = art
+        .add_to_clip(b, square.clone(), FillRule::NonZero, Some(a))
+        .unwrap_err();
+    assert!(e.to_string().contains("clipped by itself"), "{e}");
+    assert!(
+        art.add_to_clip(a, square, FillRule::NonZero, Some(a))
+            .is_err()
+    );
 }
