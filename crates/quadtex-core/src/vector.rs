@@ -339,10 +339,9 @@ impl VectorArt {
             Paint::Gradient(g) => {
                 let id = u32::try_from(self.gradients.len())
                     .map_err(|_| Error::BadVector("too many gradients".into()))?;
-                let alpha = if g.is_opaque() { 1.0 } else { 0.5 };
                 self.gradients.push(g);
-                // `colour` only says whether the shape is visible and opaque.
-                ([0.0, 0.0, 0.0, alpha], Some(id))
+                // A gradient shape's `colour` is unused beyond "visible".
+                ([0.0, 0.0, 0.0, 1.0], Some(id))
             }
         };
         if c.iter().any(|v| !v.is_finite() || *v < 0.0)
@@ -606,12 +605,7 @@ impl VectorArt {
             let shape = &self.shapes[list[i] as usize];
             let (range, next) = match shape.groups.get(depth) {
                 Some(&g) => {
-                    let mut j = i + 1;
-                    while j < list.len()
-                        && self.shapes[list[j] as usize].groups.get(depth) == Some(&g)
-                    {
-                        j += 1;
-                    }
+                    let j = self.group_end(list, i, depth, g);
                     let inner = self.composite_range(&list[i..j], depth + 1, poly);
                     let o = self.group_opacity[g as usize];
                     let inner = inner.map(|r| r.map(|v| v * o));
@@ -665,6 +659,16 @@ impl VectorArt {
             })
     }
 
+    /// One past the last shape of `list` from `i` on that lies in group `g`
+    /// at depth `depth` (groups are contiguous in paint order).
+    fn group_end(&self, list: &[u32], i: usize, depth: usize, g: u32) -> usize {
+        i + 1
+            + list[i + 1..]
+                .iter()
+                .take_while(|&&s| self.shapes[s as usize].groups.get(depth) == Some(&g))
+                .count()
+    }
+
     /// Composite of the solid shapes `list` (paint order) at group depth `depth`.
     fn composite(&self, list: &[u32], depth: usize) -> [f64; 4] {
         self.composite_by(list, depth, &|s| self.shapes[s as usize].colour)
@@ -683,12 +687,7 @@ impl VectorArt {
             let shape = &self.shapes[list[i] as usize];
             let (colour, next) = match shape.groups.get(depth) {
                 Some(&g) => {
-                    let mut j = i + 1;
-                    while j < list.len()
-                        && self.shapes[list[j] as usize].groups.get(depth) == Some(&g)
-                    {
-                        j += 1;
-                    }
+                    let j = self.group_end(list, i, depth, g);
                     let inner = self.composite_by(&list[i..j], depth + 1, colour);
                     let o = self.group_opacity[g as usize];
                     let mode = self.group_blend[g as usize];
@@ -713,7 +712,11 @@ impl VectorArt {
     /// True when shape `s` hides everything below it where it covers.
     fn is_opaque(&self, s: u32) -> bool {
         let shape = &self.shapes[s as usize];
-        shape.colour[3] >= 1.0 && shape.groups.is_empty() && shape.clip.is_none() && !shape.member
+        let opaque = match shape.gradient {
+            Some(g) => self.gradients[g as usize].is_opaque(),
+            None => shape.colour[3] >= 1.0,
+        };
+        opaque && shape.groups.is_empty() && shape.clip.is_none() && !shape.member
     }
 }
 

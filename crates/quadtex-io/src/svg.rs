@@ -387,10 +387,7 @@ impl Walker<'_> {
                     let Some(fill) = p.fill().filter(|_| p.is_visible()) else {
                         continue;
                     };
-                    let rule = match fill.rule() {
-                        usvg::FillRule::NonZero => FillRule::NonZero,
-                        usvg::FillRule::EvenOdd => FillRule::EvenOdd,
-                    };
+                    let rule = fill_rule(fill.rule());
                     let contours = self.flatten(p.data(), transform);
                     self.art
                         .add_to_clip(region, contours, rule, member_clip)
@@ -433,13 +430,8 @@ impl Walker<'_> {
         let opacity = f64::from(opacity);
         let (base, geometry): (&usvg::BaseGradient, _) = match paint {
             usvg::Paint::Color(c) => {
-                let lin = |v: u8| srgb_to_linear(f32::from(v) / 255.0) * opacity as f32;
-                return Ok(Some(Paint::Solid(Rgba::new(
-                    lin(c.red),
-                    lin(c.green),
-                    lin(c.blue),
-                    opacity as f32,
-                ))));
+                let rgb = [c.red, c.green, c.blue].map(|v| f64::from(v) / 255.0);
+                return Ok(Some(solid(rgb, opacity)));
             }
             usvg::Paint::LinearGradient(g) => (g, GradientGeometry::Linear(g)),
             usvg::Paint::RadialGradient(g) => (g, GradientGeometry::Radial(g)),
@@ -482,10 +474,7 @@ impl Walker<'_> {
                     let Some(last) = stops.last() else {
                         return Ok(None);
                     };
-                    let a = last.opacity as f32;
-                    let lin = |v: f64| srgb_to_linear(v as f32) * a;
-                    let [r, g, b] = last.colour;
-                    return Ok(Some(Paint::Solid(Rgba::new(lin(r), lin(g), lin(b), a))));
+                    return Ok(Some(solid(last.colour, last.opacity)));
                 }
                 Gradient::linear(map, start, end, stops, spread, interpolation)
                     .map_err(|e| self.core(e))?
@@ -516,10 +505,7 @@ impl Walker<'_> {
         }
         let fill = |w: &mut Self| -> Result<(), Error> {
             if let Some(f) = p.fill() {
-                let rule = match f.rule() {
-                    usvg::FillRule::NonZero => FillRule::NonZero,
-                    usvg::FillRule::EvenOdd => FillRule::EvenOdd,
-                };
+                let rule = fill_rule(f.rule());
                 let contours = w.flatten(p.data(), transform);
                 w.fill_with(
                     f.paint(),
@@ -628,10 +614,7 @@ impl Walker<'_> {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for p in contours.iter().flatten() {
             let d = [p[0] / k, (1.0 - p[1]) / k];
-            let q = [
-                to_pattern[0] * d[0] + to_pattern[2] * d[1] + to_pattern[4],
-                to_pattern[1] * d[0] + to_pattern[3] * d[1] + to_pattern[5],
-            ];
+            let q = apply(to_pattern, d);
             for a in 0..2 {
                 lo[a] = lo[a].min(q[a]);
                 hi[a] = hi[a].max(q[a]);
@@ -672,9 +655,9 @@ impl Walker<'_> {
                 let tile = transform
                     .pre_concat(pattern.transform())
                     .pre_translate((x + i * w) as f32, (y + j * h) as f32);
-                let corners = [[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]].map(|[u, v]| {
-                    let m = affine(tile);
-                    let d = [m[0] * u + m[2] * v + m[4], m[1] * u + m[3] * v + m[5]];
+                let m = affine(tile);
+                let corners = [[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]].map(|p| {
+                    let d = apply(m, p);
                     [k * d[0], 1.0 - k * d[1]]
                 });
                 let region = self.art.clip_region(&[shape]).map_err(|e| self.core(e))?;
@@ -784,6 +767,20 @@ impl Walker<'_> {
 /// pattern's content).
 pub const MAX_PATTERN_TILES: f64 = 4096.0;
 
+fn fill_rule(rule: usvg::FillRule) -> FillRule {
+    match rule {
+        usvg::FillRule::NonZero => FillRule::NonZero,
+        usvg::FillRule::EvenOdd => FillRule::EvenOdd,
+    }
+}
+
+/// A flat paint from sRGB-encoded channels in `[0,1]` and an opacity.
+fn solid(rgb: [f64; 3], opacity: f64) -> Paint {
+    let a = opacity as f32;
+    let lin = |v: f64| srgb_to_linear(v as f32) * a;
+    Paint::Solid(Rgba::new(lin(rgb[0]), lin(rgb[1]), lin(rgb[2]), a))
+}
+
 enum GradientGeometry<'a> {
     Linear(&'a usvg::LinearGradient),
     Radial(&'a usvg::RadialGradient),
@@ -793,6 +790,14 @@ enum GradientGeometry<'a> {
 /// `x' = sx·x + kx·y + tx`, `y' = ky·x + sy·y + ty`.
 fn affine(t: usvg::Transform) -> [f64; 6] {
     [t.sx, t.ky, t.kx, t.sy, t.tx, t.ty].map(f64::from)
+}
+
+/// `m` applied to point `p`.
+fn apply(m: [f64; 6], p: [f64; 2]) -> [f64; 2] {
+    [
+        m[0] * p[0] + m[2] * p[1] + m[4],
+        m[1] * p[0] + m[3] * p[1] + m[5],
+    ]
 }
 
 /// `a ∘ b` (apply `b` first).
