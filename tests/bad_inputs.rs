@@ -497,14 +497,36 @@ fn svg_pattern_with_too_many_tiles() {
 }
 
 #[test]
-fn svg_image_is_unsupported() {
+fn svg_gif_image_is_unsupported() {
     svg_case(
         "svg-image",
         &format!(
-            "{SVG_HEAD}<image id=\"photo\" width=\"10\" height=\"10\" href=\"data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8DwHwAFBQIAX8jx0gAAAABJRU5ErkJggg==\"/></svg>"
+            "{SVG_HEAD}<image id=\"photo\" width=\"10\" height=\"10\" href=\"data:image/gif;base64,R0lGODlhAQABAIAAAP///wAAACH5BAEAAAAALAAAAAABAAEAAAICRAEAOw==\"/></svg>"
         ),
         &[],
-        "unsupported: image",
+        "unsupported: image in GIF format",
+    );
+}
+
+#[test]
+fn svg_image_file_missing() {
+    svg_case(
+        "svg-image-missing",
+        &format!("{SVG_HEAD}<image width=\"10\" height=\"10\" href=\"runway.png\"/></svg>"),
+        &[],
+        "image \"runway.png\" could not be read",
+    );
+}
+
+#[test]
+fn svg_image_data_corrupt() {
+    svg_case(
+        "svg-image-corrupt",
+        &format!(
+            "{SVG_HEAD}<image width=\"10\" height=\"10\" href=\"data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAIAAAACCAIAAAD91Jpz\"/></svg>"
+        ),
+        &[],
+        "image",
     );
 }
 

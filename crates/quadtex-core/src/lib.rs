@@ -31,6 +31,7 @@ pub mod exact;
 pub mod footprint;
 mod fragment;
 pub mod gradient;
+pub mod image_paint;
 
 pub mod build;
 pub mod memory;

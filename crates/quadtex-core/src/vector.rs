@@ -60,6 +60,7 @@ use crate::Error;
 use crate::blend::{BlendMode, blend, blend_range};
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::gradient::Gradient;
+use crate::image_paint::ImagePaint;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
 use crate::tree::{self, MAX_NODES, QuadTree};
 
@@ -131,6 +132,45 @@ pub enum Paint {
     Solid(Rgba),
     /// A gradient (its stops carry the opacity).
     Gradient(Gradient),
+    /// A raster image (its texels carry the opacity).
+    Image(ImagePaint),
+}
+
+/// A paint whose colour varies over a shape.
+#[derive(Debug, Clone)]
+enum Varying {
+    Gradient(Gradient),
+    Image(ImagePaint),
+}
+
+impl Varying {
+    fn colour_at(&self, p: Point) -> [f64; 4] {
+        match self {
+            Varying::Gradient(g) => g.colour_at(p),
+            Varying::Image(i) => i.colour_at(p),
+        }
+    }
+
+    fn mean_over(&self, poly: &[Point]) -> ([f64; 4], f64) {
+        match self {
+            Varying::Gradient(g) => g.mean_over(poly),
+            Varying::Image(i) => i.mean_over(poly),
+        }
+    }
+
+    fn range_over(&self, poly: &[Point]) -> [[f64; 2]; 4] {
+        match self {
+            Varying::Gradient(g) => g.range_over(poly),
+            Varying::Image(i) => i.range_over(poly),
+        }
+    }
+
+    fn is_opaque(&self) -> bool {
+        match self {
+            Varying::Gradient(g) => g.is_opaque(),
+            Varying::Image(i) => i.is_opaque(),
+        }
+    }
 }
 
 /// A clip region: the union of its member shapes (each within its own
@@ -158,7 +198,8 @@ struct Contour {
 pub struct VectorArt {
     shapes: Vec<Shape>,
     clips: Vec<Clip>,
-    gradients: Vec<Gradient>,
+    /// Gradients and images, the paints that vary over a shape.
+    gradients: Vec<Varying>,
     /// The painted shape added last (clip members do not count).
     last_painted: Option<usize>,
     group_opacity: Vec<f64>,
@@ -334,15 +375,20 @@ impl VectorArt {
         if let Some(c) = clip {
             self.clip(c.0)?;
         }
-        let (c, gradient) = match paint {
+        let (c, varying) = match paint {
             Paint::Solid(colour) => (colour.to_array().map(f64::from), None),
-            Paint::Gradient(g) => {
+            // A varying shape's `colour` is unused beyond "visible".
+            Paint::Gradient(g) => ([0.0, 0.0, 0.0, 1.0], Some(Varying::Gradient(g))),
+            Paint::Image(i) => ([0.0, 0.0, 0.0, 1.0], Some(Varying::Image(i))),
+        };
+        let gradient = match varying {
+            Some(v) => {
                 let id = u32::try_from(self.gradients.len())
-                    .map_err(|_| Error::BadVector("too many gradients".into()))?;
-                self.gradients.push(g);
-                // A gradient shape's `colour` is unused beyond "visible".
-                ([0.0, 0.0, 0.0, 1.0], Some(id))
+                    .map_err(|_| Error::BadVector("too many gradients and images".into()))?;
+                self.gradients.push(v);
+                Some(id)
             }
+            None => None,
         };
         if c.iter().any(|v| !v.is_finite() || *v < 0.0)
             || c[3] > 1.0

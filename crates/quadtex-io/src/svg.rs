@@ -17,8 +17,15 @@
 //! `quadtex_core::gradient`; a radial gradient whose focal circle is not
 //! inside its end circle is refused); patterns, exact (the content laid out
 //! once per tile the shape reaches, clipped to the tile and the shape; at
-//! most [`MAX_PATTERN_TILES`] tiles a fill). Images, masks, filters and
-//! blend modes other than normal are refused with [`Error::UnsupportedSvg`]
+//! most [`MAX_PATTERN_TILES`] tiles a fill); `mix-blend-mode` (every CSS
+//! mode but `plus-lighter`); images: PNG and JPEG, from data URLs or from
+//! files named relative to the SVG (each texel a flat square; every square
+//! of the tree gets the exact area mean of the texels it covers, see
+//! `quadtex_core::image_paint`), and SVG images, walked as nested art
+//! clipped to their size. An image that cannot be read (a missing file, a
+//! corrupt one, a remote URL, which is never fetched) is an error naming
+//! it, never dropped. Masks, filters, `plus-lighter` and images in GIF,
+//! WebP or compressed SVG are refused with [`Error::UnsupportedSvg`]
 //! naming the element, never approximated silently.
 //!
 //! ## Geometry
@@ -38,10 +45,11 @@
 
 use std::collections::HashMap;
 use std::path::Path;
-use std::sync::{Arc, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use quadtex_core::blend::BlendMode;
 use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
+use quadtex_core::image_paint::ImagePaint;
 use quadtex_core::vector::{ClipId, GroupId};
 use quadtex_core::{FillRule, Paint, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
 use usvg::tiny_skia_path::{self, PathSegment};
@@ -149,12 +157,48 @@ pub fn parse_svg(
     }
     let text = std::str::from_utf8(data).map_err(|e| svg_err(format!("not UTF-8: {e}")))?;
     count_elements(text, path, limits)?;
+    // usvg drops an image it cannot load without a word; the resolvers
+    // record the first failure instead, so nothing is lost silently.
+    let failure: Mutex<Option<Error>> = Mutex::new(None);
+    let fail = |e: Error| {
+        let mut f = failure.lock().unwrap_or_else(|p| p.into_inner());
+        f.get_or_insert(e);
+    };
     let options = usvg::Options {
         font_family: FAMILY.into(),
         fontdb: fonts(),
+        resources_dir: path.parent().map(Path::to_path_buf),
+        image_href_resolver: usvg::ImageHrefResolver {
+            resolve_data: Box::new(|mime, data, opts| {
+                resolve_image(mime, data, opts, path, limits).unwrap_or_else(|e| {
+                    fail(e);
+                    None
+                })
+            }),
+            resolve_string: Box::new(|href, opts| {
+                let file = opts.get_abs_path(Path::new(href));
+                let read = if href.contains("://") {
+                    Err(svg_err(format!("image \"{href}\" is remote (not fetched)")))
+                } else {
+                    read_limited(&file, limits)
+                        .map_err(|e| svg_err(format!("image \"{href}\" could not be read: {e}")))
+                };
+                read.and_then(|data| {
+                    resolve_image("text/plain", Arc::new(data), opts, &file, limits)
+                })
+                .unwrap_or_else(|e| {
+                    fail(e);
+                    None
+                })
+            }),
+        },
         ..usvg::Options::default()
     };
     let tree = usvg::Tree::from_str(text, &options).map_err(|e| svg_err(e.to_string()))?;
+    drop(options);
+    if let Some(e) = failure.into_inner().unwrap_or_else(|p| p.into_inner()) {
+        return Err(e);
+    }
     let size = tree.size();
     let side = f64::from(size.width().max(size.height()));
     let mut walker = Walker {
@@ -165,14 +209,14 @@ pub fn parse_svg(
         res_scale: (f64::from(max_level) + 4.0).exp2() as f32 / side as f32,
         groups: Vec::new(),
         clip: None,
+        limits,
     };
     walker.group(tree.root(), usvg::Transform::identity())?;
     Ok(walker.art)
 }
 
 /// Refuses documents whose elements, with every `use` expanded, exceed
-/// [`Limits::max_svg_elements`] (a `use` bomb), before `usvg` expands them,
-/// and documents with `image` elements (not supported yet).
+/// [`Limits::max_svg_elements`] (a `use` bomb), before `usvg` expands them.
 fn count_elements(text: &str, path: &Path, limits: &Limits) -> Result<(), Error> {
     let doc = usvg::roxmltree::Document::parse_with_options(
         text,
@@ -185,22 +229,6 @@ fn count_elements(text: &str, path: &Path, limits: &Limits) -> Result<(), Error>
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
-    // usvg drops an image it cannot load without a word; refuse every
-    // `image` element instead, so nothing is lost silently.
-    if let Some(image) = doc
-        .descendants()
-        .find(|n| n.is_element() && n.tag_name().name() == "image")
-    {
-        let id = image.attribute("id").unwrap_or("");
-        return Err(Error::UnsupportedSvg {
-            path: path.to_path_buf(),
-            element: if id.is_empty() {
-                "image".into()
-            } else {
-                format!("image (id \"{id}\")")
-            },
-        });
-    }
     let by_id: HashMap<&str, usvg::roxmltree::Node<'_, '_>> = doc
         .descendants()
         .filter_map(|n| n.attribute("id").map(|id| (id, n)))
@@ -275,6 +303,77 @@ struct Walker<'p> {
     groups: Vec<GroupId>,
     /// The clip region enclosing groups impose, if any.
     clip: Option<ClipId>,
+    limits: &'p Limits,
+}
+
+/// An image `data` (of `mime` type, `text/plain` to sniff) as usvg's kind,
+/// refusing what quadtex would not draw: data that is no image, a nested
+/// SVG that is malformed or expands past the element limit. `path` names
+/// the data in errors.
+fn resolve_image(
+    mime: &str,
+    data: Arc<Vec<u8>>,
+    opts: &usvg::Options<'_>,
+    path: &Path,
+    limits: &Limits,
+) -> Result<Option<usvg::ImageKind>, Error> {
+    let svg_err = |message: String| Error::Svg {
+        path: path.to_path_buf(),
+        message,
+    };
+    limits.check_file_size(path, data.len() as u64)?;
+    let magic = |m: &[u8]| data.starts_with(m);
+    let raster = magic(b"\x89PNG")
+        || magic(&[0xff, 0xd8, 0xff])
+        || magic(b"GIF8")
+        || (magic(b"RIFF") && data.get(8..12) == Some(b"WEBP"));
+    let svg = mime == "image/svg+xml" || (mime == "text/plain" && !raster);
+    if svg {
+        if magic(&[0x1f, 0x8b]) {
+            return Err(Error::UnsupportedSvg {
+                path: path.to_path_buf(),
+                element: "image in compressed SVG (svgz) format".into(),
+            });
+        }
+        let text = std::str::from_utf8(&data)
+            .map_err(|e| svg_err(format!("nested SVG image is not UTF-8: {e}")))?;
+        count_elements(text, path, limits)?;
+    }
+    let unsupported = |format: &str| Error::UnsupportedSvg {
+        path: path.to_path_buf(),
+        element: format!("image in {format} format"),
+    };
+    if magic(b"GIF8") || mime == "image/gif" {
+        return Err(unsupported("GIF"));
+    }
+    if magic(b"RIFF") || mime == "image/webp" {
+        return Err(unsupported("WebP"));
+    }
+    if raster {
+        // usvg skips an image whose size it cannot read, without a word.
+        image::ImageReader::new(std::io::Cursor::new(data.as_slice()))
+            .with_guessed_format()
+            .map_err(|e| svg_err(format!("image: {e}")))?
+            .into_dimensions()
+            .map_err(|e| svg_err(format!("image: {e}")))?;
+    }
+    match usvg::ImageHrefResolver::default_data_resolver()(mime, data, opts) {
+        Some(kind) => Ok(Some(kind)),
+        None => Err(svg_err(format!(
+            "an image of type \"{mime}\" could not be read (PNG, JPEG or SVG expected)"
+        ))),
+    }
+}
+
+/// The bytes of file `path`, refused beyond [`Limits::max_file_bytes`].
+fn read_limited(path: &Path, limits: &Limits) -> Result<Vec<u8>, Error> {
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let len = std::fs::metadata(path).map_err(io)?.len();
+    limits.check_file_size(path, len)?;
+    std::fs::read(path).map_err(io)
 }
 
 impl Walker<'_> {
@@ -339,7 +438,7 @@ impl Walker<'_> {
             match node {
                 usvg::Node::Group(child) => self.group(child, transform)?,
                 usvg::Node::Path(p) => self.path(p, transform)?,
-                usvg::Node::Image(i) => return Err(self.unsupported("image", i.id())),
+                usvg::Node::Image(i) => self.image(i, transform)?,
                 usvg::Node::Text(t) => self.group(t.flattened(), transform)?,
             }
         }
@@ -678,6 +777,65 @@ impl Walker<'_> {
         Ok(())
     }
 
+    /// An image drawn under `transform` (usvg places it at the origin of its
+    /// user space, one unit a pixel, its `preserveAspectRatio` turned into a
+    /// transform and a clip): a raster becomes its rectangle painted with its
+    /// texels (exact area means, see `quadtex_core::image_paint`); a nested
+    /// SVG is walked like a group, clipped to its size.
+    fn image(&mut self, image: &usvg::Image, transform: usvg::Transform) -> Result<(), Error> {
+        if !image.is_visible() {
+            return Ok(());
+        }
+        let size = image.size();
+        let (w, h) = (f64::from(size.width()), f64::from(size.height()));
+        let k = self.to_unit;
+        let m = affine(transform);
+        let rect = [[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]].map(|p| {
+            let d = apply(m, p);
+            [k * d[0], 1.0 - k * d[1]]
+        });
+        let data = match image.kind() {
+            usvg::ImageKind::PNG(data) | usvg::ImageKind::JPEG(data) => data,
+            usvg::ImageKind::GIF(_) => {
+                return Err(self.unsupported("image in GIF format", image.id()));
+            }
+            usvg::ImageKind::WEBP(_) => {
+                return Err(self.unsupported("image in WebP format", image.id()));
+            }
+            usvg::ImageKind::SVG(tree) => {
+                let enclosing = self.clip;
+                let region = self
+                    .art
+                    .clip_region(enclosing.as_slice())
+                    .map_err(|e| self.core(e))?;
+                self.art
+                    .add_to_clip(region, vec![rect.to_vec()], FillRule::NonZero, None)
+                    .map_err(|e| self.core(e))?;
+                self.clip = Some(region);
+                let result = self.group(tree.root(), transform);
+                self.clip = enclosing;
+                return result;
+            }
+        };
+        let texels = crate::image_io::load_texels_from_bytes(data, self.path, self.limits)?;
+        // Texture → device (user units) → the image's user space → texels.
+        let texture_to_device = [1.0 / k, 0.0, 0.0, -1.0 / k, 0.0, 1.0 / k];
+        let Some(device_to_local) = invert(m) else {
+            return Ok(()); // a degenerate transform draws nothing
+        };
+        let local_to_texels = [
+            f64::from(texels.width()) / w,
+            0.0,
+            0.0,
+            f64::from(texels.height()) / h,
+            0.0,
+            0.0,
+        ];
+        let placement = concat(local_to_texels, concat(device_to_local, texture_to_device));
+        let paint = ImagePaint::new(Arc::new(texels), placement).map_err(|e| self.core(e))?;
+        self.add(vec![rect.to_vec()], FillRule::NonZero, Paint::Image(paint))
+    }
+
     fn add(
         &mut self,
         contours: Vec<Vec<[f64; 2]>>,
@@ -957,11 +1115,72 @@ mod tests {
         }
     }
 
+    /// A 2×2 PNG: red, green / blue, white.
+    const PNG_2X2: &str = "iVBORw0KGgoAAAANSUhEUgAAAAIAAAACCAIAAAD91JpzAAAAEklEQVR4nGP4z8DAAMIM/4EAAB/uBfsL2WiLAAAAAElFTkSuQmCC";
+
     #[test]
-    fn image_elements_are_refused_by_name() {
-        let svg = r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
-            <image id="photo" href="missing.png" width="10" height="10"/></svg>"#;
-        let e = parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &Limits::default()).unwrap_err();
-        assert!(e.to_string().contains("image (id \"photo\")"), "{e}");
+    fn an_embedded_image_packs_to_its_exact_texel_means() {
+        let svg = format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
+            <image width="10" height="10" href="data:image/png;base64,{PNG_2X2}"/></svg>"#
+        );
+        let art = parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &Limits::default()).unwrap();
+        let (tree, report) = QuadTree::from_vector(
+            &art,
+            &VectorOptions {
+                max_level: 4,
+                ..VectorOptions::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(report.max_mean_error, 0.0);
+        // Texture z is up: the top-left quadrant is texel (0, 0), red.
+        let mean = |x0: f64, z0: f64| {
+            let f = Fragment::new(x0, z0, x0 + 0.5, z0 + 0.5).unwrap();
+            tree.weighted_colour(&f, 4).0.map(|v| v / 0.25)
+        };
+        let quadrant = mean;
+        let close = |a: [f64; 4], b: [f64; 4]| (0..4).all(|k| (a[k] - b[k]).abs() < 1e-4);
+        assert!(
+            close(quadrant(0.0, 0.5), [1.0, 0.0, 0.0, 1.0]),
+            "{:?}",
+            quadrant(0.0, 0.5)
+        );
+        assert!(close(quadrant(0.5, 0.5), [0.0, 1.0, 0.0, 1.0]));
+        assert!(close(quadrant(0.0, 0.0), [0.0, 0.0, 1.0, 1.0]));
+        assert!(close(quadrant(0.5, 0.0), [1.0, 1.0, 1.0, 1.0]));
+        // A square across the centre: a quarter of each texel.
+        assert!(
+            close(mean(0.25, 0.25), [0.5, 0.5, 0.5, 1.0]),
+            "{:?}",
+            mean(0.25, 0.25)
+        );
+    }
+
+    #[test]
+    fn images_that_cannot_be_drawn_are_errors_naming_them() {
+        let parse = |body: &str| {
+            let svg = format!(
+                r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">{body}</svg>"#
+            );
+            parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &Limits::default())
+                .unwrap_err()
+                .to_string()
+        };
+        let e = parse(r#"<image href="missing.png" width="10" height="10"/>"#);
+        assert!(
+            e.contains("t.svg") && e.contains("image \"missing.png\" could not be read"),
+            "{e}"
+        );
+        let e = parse(r#"<image href="https://example.com/a.png" width="10" height="10"/>"#);
+        assert!(e.contains("is remote"), "{e}");
+        let e = parse(
+            r#"<image id="anim" width="10" height="10" href="data:image/gif;base64,R0lGODlhAQABAIAAAP///wAAACH5BAEAAAAALAAAAAABAAEAAAICRAEAOw=="/>"#,
+        );
+        assert!(e.contains("unsupported: image in GIF format"), "{e}");
+        let e = parse(
+            r#"<image width="10" height="10" href="data:image/png;base64,iVBORw0KGgoAAAA"/>"#,
+        );
+        assert!(e.contains("t.svg"), "{e}");
     }
 }
