@@ -531,14 +531,14 @@ fn svg_image_data_corrupt() {
 }
 
 #[test]
-fn svg_mask_is_unsupported() {
+fn svg_filter_is_unsupported() {
     svg_case(
-        "svg-mask",
+        "svg-filter",
         &format!(
-            "{SVG_HEAD}<mask id=\"m\"><rect width=\"5\" height=\"5\" fill=\"white\"/></mask><rect width=\"10\" height=\"10\" mask=\"url(#m)\"/></svg>"
+            "{SVG_HEAD}<filter id=\"f\"><feGaussianBlur stdDeviation=\"2\"/></filter><rect id=\"r\" width=\"10\" height=\"10\" filter=\"url(#f)\"/></svg>"
         ),
         &[],
-        "unsupported: mask",
+        "unsupported: filter (id \"r\")",
     );
 }
 

@@ -41,7 +41,6 @@ const MATCH_SHARE: f64 = 0.001;
 /// Features quadtex still refuses; a refusal naming anything else fails.
 const STILL_REFUSED: &[&str] = &[
     "radialGradient with the focal circle not inside the end circle",
-    "mask",
     "filter",
     "mix-blend-mode plus-lighter",
     "image in GIF format",

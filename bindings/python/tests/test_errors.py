@@ -245,8 +245,9 @@ SVG_HEAD = '<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.o
     [
         ('<pattern id="p" width="0.1" height="0.1" patternUnits="userSpaceOnUse"><rect width="0.05" height="0.05"/></pattern>'
          '<rect id="sky" width="10" height="10" fill="url(#p)"/>', 'unsupported: pattern repeated over more than 4096 tiles (id "sky")'),
-        ('<mask id="m"><rect width="5" height="5" fill="white"/></mask>'
-         '<rect width="10" height="10" mask="url(#m)"/>', "unsupported: mask"),
+        ('<image width="10" height="10" href="data:image/gif;base64,R0lGODlhAQABAIAAAP///wAAACH5BAEAAAAALAAAAAABAAEAAAICRAEAOw=="/>',
+         "unsupported: image in GIF format"),
+        ('<image width="10" height="10" href="runway.png"/>', 'image "runway.png" could not be read'),
         ('<filter id="f"><feGaussianBlur stdDeviation="2"/></filter>'
          '<rect width="10" height="10" filter="url(#f)"/>', "unsupported: filter"),
         ('<rect width="5" height="5"></svg', "invalid SVG"),

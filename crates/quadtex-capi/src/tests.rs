@@ -439,19 +439,19 @@ fn pack_checks_its_arguments() {
     unsafe { qtx_free(texture) };
 
     // SVG the exact packer refuses.
-    let masked = dir.join("mask.svg");
+    let masked = dir.join("filter.svg");
     std::fs::write(
         &masked,
         r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
-             <mask id="m"><rect width="5" height="5" fill="white"/></mask>
-             <rect id="r" width="10" height="10" mask="url(#m)"/></svg>"#,
+             <filter id="f"><feGaussianBlur stdDeviation="2"/></filter>
+             <rect id="r" width="10" height="10" filter="url(#f)"/></svg>"#,
     )
     .unwrap();
     assert_eq!(
         unsafe { qtx_pack(c_path(&masked).as_ptr(), 0.0, 4, &mut texture) },
         QtxStatus::Unsupported
     );
-    assert_error(&["mask.svg"]);
+    assert_error(&["filter.svg"]);
     // Not an image at all.
     let text = dir.join("notes.png");
     std::fs::write(&text, "hello").unwrap();

@@ -108,6 +108,33 @@ pub struct ClipId(u32);
 /// by one, adds a level), so evaluating one stays shallow.
 pub const MAX_CLIP_DEPTH: usize = 32;
 
+/// A mask (see [`VectorArt::begin_mask`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MaskId(u32);
+
+/// How a mask's content becomes a coverage in `[0,1]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MaskKind {
+    /// Luminance times alpha, as SVG's default `mask-type`: the
+    /// unpremultiplied colour is sRGB-encoded, weighted
+    /// `0.2125 R + 0.7154 G + 0.0721 B` and multiplied by alpha (the
+    /// coefficients and the encoded space resvg and browsers use).
+    Luminance,
+    /// Alpha alone (`mask-type: alpha`).
+    Alpha,
+}
+
+/// Deepest nesting of masks (a mask drawn inside another's content), so
+/// evaluating one stays shallow.
+pub const MAX_MASK_DEPTH: usize = 32;
+
+#[derive(Debug, Clone)]
+struct Mask {
+    kind: MaskKind,
+    /// Still taking content (see [`VectorArt::end_mask`]).
+    open: bool,
+}
+
 /// One filled shape, or one member shape of a clip region.
 #[derive(Debug, Clone)]
 struct Shape {
@@ -123,6 +150,9 @@ struct Shape {
     /// The gradient it is painted with (index into `VectorArt::gradients`);
     /// `None` for the solid `colour`.
     gradient: Option<u32>,
+    /// The mask whose content it is (then it is a member: painted only
+    /// into that mask).
+    mask_of: Option<u32>,
 }
 
 /// What a shape is filled with.
@@ -204,6 +234,12 @@ pub struct VectorArt {
     last_painted: Option<usize>,
     group_opacity: Vec<f64>,
     group_blend: Vec<BlendMode>,
+    /// The masks each group is multiplied by.
+    group_masks: Vec<Vec<u32>>,
+    masks: Vec<Mask>,
+    /// Masks taking content, innermost last, with the painted shape added
+    /// last outside each (group contiguity is checked per content).
+    open_masks: Vec<(u32, Option<usize>)>,
     /// Groups closed by a later shape outside them (groups are contiguous).
     group_closed: Vec<bool>,
     points: usize,
@@ -225,6 +261,30 @@ impl VectorArt {
     /// As [`VectorArt::group`], blended onto what lies below it (within the
     /// enclosing group) by `blend` (see [`crate::blend`]).
     pub fn blended_group(&mut self, opacity: f64, blend: BlendMode) -> Result<GroupId, Error> {
+        self.masked_group(opacity, blend, &[])
+    }
+
+    /// As [`VectorArt::blended_group`], the group's composite multiplied by
+    /// the coverage of each of `masks` (finished masks, see
+    /// [`VectorArt::begin_mask`]) before it is faded and blended.
+    pub fn masked_group(
+        &mut self,
+        opacity: f64,
+        blend: BlendMode,
+        masks: &[MaskId],
+    ) -> Result<GroupId, Error> {
+        for m in masks {
+            match self.masks.get(m.0 as usize) {
+                None => return Err(Error::BadVector(format!("unknown mask {}", m.0))),
+                Some(mask) if mask.open => {
+                    return Err(Error::BadVector(format!(
+                        "mask {} is used before its content ends",
+                        m.0
+                    )));
+                }
+                Some(_) => {}
+            }
+        }
         if !(0.0..=1.0).contains(&opacity) {
             return Err(Error::BadVector(format!(
                 "group opacity {opacity} is outside [0,1]"
@@ -234,6 +294,7 @@ impl VectorArt {
             .map_err(|_| Error::BadVector("too many groups".into()))?;
         self.group_opacity.push(opacity);
         self.group_blend.push(blend);
+        self.group_masks.push(masks.iter().map(|m| m.0).collect());
         self.group_closed.push(false);
         Ok(GroupId(id))
     }
@@ -250,6 +311,43 @@ impl VectorArt {
         groups: &[GroupId],
     ) -> Result<(), Error> {
         self.fill_clipped(contours, rule, colour, groups, None)
+    }
+
+    /// Starts the content of a new mask: shapes (and groups, clip regions,
+    /// masks) added until [`VectorArt::end_mask`] are painted, composited in
+    /// isolation, into the mask, not onto the art. A group made with
+    /// [`VectorArt::masked_group`] is then multiplied, point by point, by the
+    /// mask's coverage ([`MaskKind`]): exact where the mask's content is flat
+    /// colour, within the stated bound where it is a gradient or an image
+    /// (see [`VectorReport::max_mean_error`]). Masks nest up to
+    /// [`MAX_MASK_DEPTH`].
+    pub fn begin_mask(&mut self, kind: MaskKind) -> Result<MaskId, Error> {
+        if self.open_masks.len() >= MAX_MASK_DEPTH {
+            return Err(Error::BadVector(format!(
+                "masks nested deeper than {MAX_MASK_DEPTH}"
+            )));
+        }
+        let id = u32::try_from(self.masks.len())
+            .map_err(|_| Error::BadVector("too many masks".into()))?;
+        self.masks.push(Mask { kind, open: true });
+        self.open_masks.push((id, self.last_painted.take()));
+        Ok(MaskId(id))
+    }
+
+    /// Ends the content of `mask`, the innermost mask begun.
+    pub fn end_mask(&mut self, mask: MaskId) -> Result<(), Error> {
+        match self.open_masks.last() {
+            Some(&(m, outer)) if m == mask.0 => {
+                self.open_masks.pop();
+                self.masks[m as usize].open = false;
+                self.last_painted = outer;
+                Ok(())
+            }
+            _ => Err(Error::BadVector(format!(
+                "mask {} is not the innermost mask begun",
+                mask.0
+            ))),
+        }
     }
 
     /// A new clip region, empty until [`VectorArt::add_to_clip`] adds
@@ -301,6 +399,7 @@ impl VectorArt {
             clip: clip.map(|c| c.0),
             member: true,
             gradient: None,
+            mask_of: None,
         });
         let r = &mut self.clips[region.0 as usize];
         r.members.push((shape, clip.map(|c| c.0)));
@@ -425,6 +524,7 @@ impl VectorArt {
         let kept = self.contours(contours)?;
         self.last_painted = Some(self.shapes.len());
         let clip = clip.map(|c| c.0);
+        let mask_of = self.open_masks.last().map(|m| m.0);
         if c[3] == 0.0 || kept.is_empty() {
             // Invisible; group bookkeeping above still applies.
             self.shapes.push(Shape {
@@ -433,8 +533,9 @@ impl VectorArt {
                 colour: c,
                 groups: groups.iter().map(|g| g.0).collect(),
                 clip,
-                member: false,
+                member: mask_of.is_some(),
                 gradient,
+                mask_of,
             });
             return Ok(());
         }
@@ -444,8 +545,9 @@ impl VectorArt {
             colour: c,
             groups: groups.iter().map(|g| g.0).collect(),
             clip,
-            member: false,
+            member: mask_of.is_some(),
             gradient,
+            mask_of,
         });
         Ok(())
     }
@@ -586,7 +688,7 @@ impl VectorArt {
             .collect();
         let mut visible = Vec::new();
         self.visible(&covered, &mut visible);
-        self.composite_by(&visible, 0, &|s| self.paint_at(s, p))
+        self.composite_by(&visible, 0, &covered, &|s| self.paint_at(s, p))
     }
 
     /// Shape `s`'s colour at point `p`.
@@ -598,7 +700,7 @@ impl VectorArt {
         }
     }
 
-    /// True when a shape of `list` is painted with a gradient.
+    /// True when a shape of `list` is painted with a gradient or an image.
     fn any_gradient(&self, list: &[u32]) -> bool {
         !self.gradients.is_empty()
             && list
@@ -606,22 +708,26 @@ impl VectorArt {
                 .any(|&s| self.shapes[s as usize].gradient.is_some())
     }
 
-    /// The mean composite of `visible` over the convex polygon `poly`, and
-    /// a bound on its error: exact where at most one layer varies (the
-    /// composite is affine in each layer) and that layer is a linear
-    /// gradient outside blended groups; otherwise within the width of the
-    /// composite's range.
-    fn composite_over(&self, visible: &[u32], poly: &[Point]) -> ([f64; 4], f64) {
+    /// The mean composite of `visible` (with masks evaluated from
+    /// `covered`) over the convex polygon `poly`, and a bound on its error:
+    /// exact where at most one layer varies (the composite is affine in each
+    /// layer) and that layer is a linear gradient or an image outside
+    /// blended groups; otherwise within the width of the composite's range.
+    fn composite_over(&self, visible: &[u32], covered: &[u32], poly: &[Point]) -> ([f64; 4], f64) {
         let mut means: Vec<(u32, [f64; 4])> = Vec::new();
         let mut error: f64 = 0.0;
-        for &s in visible {
-            if let Some(g) = self.shapes[s as usize].gradient {
+        // Mask content counts too: a varying mask multiplies what it masks.
+        for &s in covered {
+            let shape = &self.shapes[s as usize];
+            if let Some(g) = shape.gradient
+                && (shape.mask_of.is_some() || visible.binary_search(&s).is_ok())
+            {
                 let (mean, e) = self.gradients[g as usize].mean_over(poly);
                 means.push((s, mean));
                 error = error.max(e);
             }
         }
-        let colour = self.composite_by(visible, 0, &|s| {
+        let colour = self.composite_by(visible, 0, covered, &|s| {
             means
                 .iter()
                 .find(|m| m.0 == s)
@@ -635,16 +741,28 @@ impl VectorArt {
                     .any(|&g| self.group_blend[g as usize] != BlendMode::Normal)
             })
         };
-        // Two varying layers, or one under a blend mode: not affine any more.
-        if means.len() >= 2 || (!means.is_empty() && blended()) {
-            error = range_width(&self.composite_range(visible, 0, poly));
+        // A varying mask's coverage is not affine in its content's colour.
+        let in_mask = || {
+            means
+                .iter()
+                .any(|m| self.shapes[m.0 as usize].mask_of.is_some())
+        };
+        // Two varying layers, or one under a blend mode or in a mask: not affine any more.
+        if means.len() >= 2 || (!means.is_empty() && (blended() || in_mask())) {
+            error = range_width(&self.composite_range(visible, 0, covered, poly));
         }
         (colour, error)
     }
 
     /// Per channel `[lo, hi]` of the composite of `list` over the convex
     /// polygon `poly`: interval arithmetic through the *over* operator.
-    fn composite_range(&self, list: &[u32], depth: usize, poly: &[Point]) -> [[f64; 2]; 4] {
+    fn composite_range(
+        &self,
+        list: &[u32],
+        depth: usize,
+        covered: &[u32],
+        poly: &[Point],
+    ) -> [[f64; 2]; 4] {
         let mut out = [[0.0; 2]; 4];
         let mut i = 0;
         while i < list.len() {
@@ -652,9 +770,14 @@ impl VectorArt {
             let (range, next) = match shape.groups.get(depth) {
                 Some(&g) => {
                     let j = self.group_end(list, i, depth, g);
-                    let inner = self.composite_range(&list[i..j], depth + 1, poly);
+                    let inner = self.composite_range(&list[i..j], depth + 1, covered, poly);
                     let o = self.group_opacity[g as usize];
-                    let inner = inner.map(|r| r.map(|v| v * o));
+                    let mut factor = [o, o];
+                    for &m in &self.group_masks[g as usize] {
+                        let r = self.mask_range(m, covered, poly);
+                        factor = [factor[0] * r[0], factor[1] * r[1]];
+                    }
+                    let inner = inner.map(|r| [r[0] * factor[0], r[1] * factor[1]]);
                     let mode = self.group_blend[g as usize];
                     if mode != BlendMode::Normal {
                         out = blend_range(mode, out, inner);
@@ -684,7 +807,7 @@ impl VectorArt {
     /// included) that their clip regions let through, into `out`.
     fn visible(&self, covered: &[u32], out: &mut Vec<u32>) {
         out.clear();
-        if self.clips.is_empty() {
+        if self.clips.is_empty() && self.masks.is_empty() {
             out.extend_from_slice(covered);
             return;
         }
@@ -692,6 +815,41 @@ impl VectorArt {
             let shape = &self.shapes[s as usize];
             !shape.member && shape.clip.is_none_or(|c| self.clip_covers(c, covered))
         }));
+    }
+
+    /// The content of mask `m` that shows where `covered` cover.
+    fn mask_content(&self, m: u32, covered: &[u32]) -> Vec<u32> {
+        covered
+            .iter()
+            .copied()
+            .filter(|&s| {
+                let shape = &self.shapes[s as usize];
+                shape.mask_of == Some(m) && shape.clip.is_none_or(|c| self.clip_covers(c, covered))
+            })
+            .collect()
+    }
+
+    /// Mask `m`'s coverage where `covered` cover, shapes coloured `colour(s)`.
+    fn mask_value(&self, m: u32, covered: &[u32], colour: &dyn Fn(u32) -> [f64; 4]) -> f64 {
+        let content = self.mask_content(m, covered);
+        let c = self.composite_by(&content, 0, covered, colour);
+        mask_coverage(
+            self.masks[m as usize].kind,
+            c[..3].try_into().unwrap_or([0.0; 3]),
+            c[3],
+        )
+    }
+
+    /// `[lo, hi]` of mask `m`'s coverage over the convex polygon `poly`.
+    fn mask_range(&self, m: u32, covered: &[u32], poly: &[Point]) -> [f64; 2] {
+        let content = self.mask_content(m, covered);
+        let r = self.composite_range(&content, 0, covered, poly);
+        // Coverage grows with every channel and with alpha (see `mask_coverage`).
+        let kind = self.masks[m as usize].kind;
+        [
+            mask_coverage(kind, [r[0][0], r[1][0], r[2][0]], r[3][0]),
+            mask_coverage(kind, [r[0][1], r[1][1], r[2][1]], r[3][1]),
+        ]
     }
 
     /// True when clip region `clip` covers the point whose covering shapes
@@ -715,16 +873,19 @@ impl VectorArt {
                 .count()
     }
 
-    /// Composite of the solid shapes `list` (paint order) at group depth `depth`.
-    fn composite(&self, list: &[u32], depth: usize) -> [f64; 4] {
-        self.composite_by(list, depth, &|s| self.shapes[s as usize].colour)
+    /// Composite of the solid shapes `list` (paint order) at group depth
+    /// `depth`, masks evaluated from `covered`.
+    fn composite(&self, list: &[u32], depth: usize, covered: &[u32]) -> [f64; 4] {
+        self.composite_by(list, depth, covered, &|s| self.shapes[s as usize].colour)
     }
 
-    /// Composite of the shapes `list`, shape `s` having colour `colour(s)`.
+    /// Composite of the shapes `list`, shape `s` having colour `colour(s)`,
+    /// masks evaluated from `covered` (every shape covering the point).
     fn composite_by(
         &self,
         list: &[u32],
         depth: usize,
+        covered: &[u32],
         colour: &dyn Fn(u32) -> [f64; 4],
     ) -> [f64; 4] {
         let mut out = [0.0; 4];
@@ -734,8 +895,11 @@ impl VectorArt {
             let (colour, next) = match shape.groups.get(depth) {
                 Some(&g) => {
                     let j = self.group_end(list, i, depth, g);
-                    let inner = self.composite_by(&list[i..j], depth + 1, colour);
-                    let o = self.group_opacity[g as usize];
+                    let inner = self.composite_by(&list[i..j], depth + 1, covered, colour);
+                    let mut o = self.group_opacity[g as usize];
+                    for &m in &self.group_masks[g as usize] {
+                        o *= self.mask_value(m, covered, colour);
+                    }
                     let mode = self.group_blend[g as usize];
                     if mode != BlendMode::Normal {
                         out = blend(mode, out, inner.map(|v| v * o));
@@ -763,6 +927,23 @@ impl VectorArt {
             None => shape.colour[3] >= 1.0,
         };
         opaque && shape.groups.is_empty() && shape.clip.is_none() && !shape.member
+    }
+}
+
+/// A mask's coverage from a linear premultiplied colour `rgb`, `alpha`
+/// ([`MaskKind`]). Nondecreasing in each channel and in alpha: with
+/// `e = srgb_encode`, concave with `e(0) = 0`, `a·e(c/a)` grows with `c` and
+/// with `a` (its `a`-derivative is `e(x) − x·e'(x) ≥ 0`), so the ends of a
+/// colour range give the ends of the coverage's range.
+fn mask_coverage(kind: MaskKind, rgb: [f64; 3], alpha: f64) -> f64 {
+    let a = alpha.clamp(0.0, 1.0);
+    match kind {
+        MaskKind::Alpha => a,
+        MaskKind::Luminance if a <= 0.0 => 0.0,
+        MaskKind::Luminance => {
+            let e = |c: f64| crate::gradient::srgb_encode((c / a).clamp(0.0, 1.0)) * a;
+            (0.2125 * e(rgb[0]) + 0.7154 * e(rgb[1]) + 0.0721 * e(rgb[2])).clamp(0.0, 1.0)
+        }
     }
 }
 
@@ -1058,16 +1239,16 @@ impl VectorBuilder<'_> {
             covered.extend(here.pieces.iter().map(|p| p.shape));
             let visible = &mut self.sweep.visible;
             self.art.visible(covered, visible);
-            if !self.art.any_gradient(visible) {
-                let mean = self.art.composite(visible, 0);
+            if !self.art.any_gradient(covered) {
+                let mean = self.art.composite(visible, 0, covered);
                 return Ok((mean, quantise(mean), true));
             }
             let poly = sq.corners();
-            let range = encoded(self.art.composite_range(visible, 0, &poly));
+            let range = encoded(self.art.composite_range(visible, 0, covered, &poly));
             // A point lies within `deviation` of the mean, which cannot be
             // below half the range: only then is the mean worth computing.
             if range_width(&range) <= 2.0 * self.tolerance || level == self.max_level {
-                let (mean, error) = self.art.composite_over(visible, &poly);
+                let (mean, error) = self.art.composite_over(visible, covered, &poly);
                 let m = encoded(mean.map(|v| [v, v]));
                 let deviation = (0..4)
                     .map(|c| (range[c][1] - m[c][0]).max(m[c][0] - range[c][0]))
@@ -1139,10 +1320,10 @@ impl VectorBuilder<'_> {
             .iter()
             .rposition(|p| p.contours.is_empty() && self.art.is_opaque(p.shape))
         {
-            if self.art.clips.is_empty() {
+            if self.art.clips.is_empty() && self.art.masks.is_empty() {
                 pieces.drain(..top);
             } else {
-                // Clip members below stay: shapes above may be clipped by them.
+                // Clip and mask members below stay: shapes above may be clipped or masked by them.
                 let mut i = 0;
                 pieces.retain(|p| {
                     i += 1;
@@ -1287,14 +1468,14 @@ impl VectorBuilder<'_> {
                         }
                     }
                     art.visible(covered, visible);
-                    let c = if art.any_gradient(visible) {
+                    let c = if art.any_gradient(covered) {
                         let trapezoid =
                             [[left[1], z0], [right[1], z0], [right[2], z1], [left[2], z1]];
-                        let (mean, error) = art.composite_over(visible, &trapezoid);
+                        let (mean, error) = art.composite_over(visible, covered, &trapezoid);
                         *mean_error = mean_error.max(error);
                         mean
                     } else {
-                        art.composite(visible, 0)
+                        art.composite(visible, 0, covered)
                     };
                     for (t, v) in total.iter_mut().zip(c) {
                         *t += v * width * h;

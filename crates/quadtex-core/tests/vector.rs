@@ -763,3 +763,156 @@ fn clip_regions_refuse_unknown_ids_and_deep_nesting() {
             .is_err()
     );
 }
+
+/// sRGB-encoded grey `g` as linear opaque colour.
+fn grey(g: f64) -> Rgba {
+    let v = quadtex_core::gradient::srgb_decode(g) as f32;
+    Rgba::opaque(v, v, v)
+}
+
+#[test]
+fn flat_masks_weight_areas_exactly() {
+    use quadtex_core::blend::BlendMode;
+    use quadtex_core::vector::MaskKind;
+    let shape = rotated_rect(0.5, 0.5, 0.7, 0.4, 0.4);
+    let b = regular_polygon(0.4, 0.45, 0.25, 7);
+    let c = vec![[0.55, 0.3], [0.95, 0.5], [0.6, 0.9]];
+    let convex = |p: &[[f64; 2]]| ConvexPolygon::hull(p);
+    let (ps, pb, pc) = (convex(&shape), convex(&b), convex(&c));
+    let red = Rgba::opaque(1.0, 0.0, 0.0);
+    // Mask content: a white heptagon, then a mid grey (#808080) triangle on
+    // top; luminance is 1 in the heptagon, 128/255 in the triangle.
+    let g = 128.0 / 255.0;
+    let both = ps.intersect(&pb).intersect(&pc).area();
+    let only_b = ps.intersect(&pb).area() - both;
+    let in_c = ps.intersect(&pc).area();
+    for (kind, want) in [
+        (MaskKind::Luminance, only_b + g * in_c),
+        // Alpha: both are opaque, so the union counts fully.
+        (MaskKind::Alpha, only_b + in_c),
+    ] {
+        for level in [5u8, 11] {
+            let mut art = VectorArt::new();
+            let m = art.begin_mask(kind).unwrap();
+            art.fill(vec![b.clone()], FillRule::NonZero, grey(1.0), &[])
+                .unwrap();
+            art.fill(vec![c.clone()], FillRule::NonZero, grey(g), &[])
+                .unwrap();
+            art.end_mask(m).unwrap();
+            let group = art.masked_group(1.0, BlendMode::Normal, &[m]).unwrap();
+            art.fill(vec![shape.clone()], FillRule::NonZero, red, &[group])
+                .unwrap();
+            let (t, report) = QuadTree::from_vector(
+                &art,
+                &VectorOptions {
+                    max_level: level,
+                    ..VectorOptions::default()
+                },
+            )
+            .unwrap();
+            assert_eq!(report.max_mean_error, 0.0);
+            let got = total(&t);
+            assert!(
+                (got[0] - want).abs() < 1e-9 + 4.0 * STEP,
+                "{kind:?} at level {level}: red {} vs {want}",
+                got[0]
+            );
+            assert!(got[1].abs() < 4.0 * STEP && got[2].abs() < 4.0 * STEP);
+            assert!((got[3] - want).abs() < 1e-9 + 4.0 * STEP);
+            // The point sampler agrees inside each region.
+            // The triangle's centroid: inside the shape, outside the heptagon.
+            let p = [0.7, 1.7 / 3.0];
+            let at = art.colour_at(p);
+            let expect = if kind == MaskKind::Luminance { g } else { 1.0 };
+            assert!((at[0] - expect).abs() < 1e-9, "{at:?}");
+        }
+    }
+}
+
+#[test]
+fn gradient_masks_stay_within_the_stated_bound() {
+    use quadtex_core::blend::BlendMode;
+    use quadtex_core::vector::MaskKind;
+    // A black-to-white ramp across x masks a white square: the mean of the
+    // luminance is the integral of the encoded ramp, ∫₀¹ t dt = 1/2, as
+    // stops interpolate in sRGB.
+    let stops = vec![
+        Stop {
+            offset: 0.0,
+            colour: [0.0; 3],
+            opacity: 1.0,
+        },
+        Stop {
+            offset: 1.0,
+            colour: [1.0; 3],
+            opacity: 1.0,
+        },
+    ];
+    let ramp = Gradient::linear(
+        [1.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0],
+        [1.0, 0.0],
+        stops,
+        Spread::Pad,
+        Interpolation::Srgb,
+    )
+    .unwrap();
+    let mut art = VectorArt::new();
+    let m = art.begin_mask(MaskKind::Luminance).unwrap();
+    art.fill_paint(
+        vec![rotated_rect(0.5, 0.5, 1.0, 1.0, 0.0)],
+        FillRule::NonZero,
+        Paint::Gradient(ramp),
+        &[],
+        None,
+    )
+    .unwrap();
+    art.end_mask(m).unwrap();
+    let group = art.masked_group(1.0, BlendMode::Normal, &[m]).unwrap();
+    art.fill(
+        vec![rotated_rect(0.5, 0.5, 1.0, 1.0, 0.0)],
+        FillRule::NonZero,
+        grey(1.0),
+        &[group],
+    )
+    .unwrap();
+    let (t, report) = QuadTree::from_vector(
+        &art,
+        &VectorOptions {
+            max_level: 8,
+            ..VectorOptions::default()
+        },
+    )
+    .unwrap();
+    // Each stored mean is within `max_mean_error` of its square's true mean,
+    // so the whole is too; the coverage is exact in alpha.
+    let got = total(&t)[3];
+    assert!(report.max_mean_error > 0.0 && report.max_mean_error < 0.05);
+    assert!(
+        (got - 0.5).abs() <= report.max_mean_error + 1e-6,
+        "{got} vs 0.5 (bound {})",
+        report.max_mean_error
+    );
+    // The point sampler: the encoded ramp's value.
+    assert!((art.colour_at([0.3, 0.5])[3] - 0.3).abs() < 1e-9);
+}
+
+#[test]
+fn masks_refuse_misuse() {
+    use quadtex_core::blend::BlendMode;
+    use quadtex_core::vector::{MAX_MASK_DEPTH, MaskKind};
+    let mut art = VectorArt::new();
+    let m = art.begin_mask(MaskKind::Alpha).unwrap();
+    let e = art.masked_group(1.0, BlendMode::Normal, &[m]).unwrap_err();
+    assert!(e.to_string().contains("before its content ends"), "{e}");
+    let inner = art.begin_mask(MaskKind::Alpha).unwrap();
+    assert!(art.end_mask(m).is_err(), "not the innermost");
+    art.end_mask(inner).unwrap();
+    art.end_mask(m).unwrap();
+    assert!(art.end_mask(m).is_err(), "ended twice");
+    let mut deep = VectorArt::new();
+    for _ in 0..MAX_MASK_DEPTH {
+        deep.begin_mask(MaskKind::Luminance).unwrap();
+    }
+    assert!(deep.begin_mask(MaskKind::Luminance).is_err());
+}

@@ -24,7 +24,9 @@
 //! `quadtex_core::image_paint`), and SVG images, walked as nested art
 //! clipped to their size. An image that cannot be read (a missing file, a
 //! corrupt one, a remote URL, which is never fetched) is an error naming
-//! it, never dropped. Masks, filters, `plus-lighter` and images in GIF,
+//! it, never dropped. Masks (luminance and alpha, nested, with their
+//! rectangle; exact on flat content, bounded on gradients and images, see
+//! [`VectorArt::begin_mask`]). Filters, `plus-lighter` and images in GIF,
 //! WebP or compressed SVG are refused with [`Error::UnsupportedSvg`]
 //! naming the element, never approximated silently.
 //!
@@ -50,7 +52,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use quadtex_core::blend::BlendMode;
 use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
 use quadtex_core::image_paint::ImagePaint;
-use quadtex_core::vector::{ClipId, GroupId};
+use quadtex_core::vector::{ClipId, GroupId, MaskId, MaskKind};
 use quadtex_core::{FillRule, Paint, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
 use usvg::tiny_skia_path::{self, PathSegment};
 
@@ -394,9 +396,6 @@ impl Walker<'_> {
     /// group's own transform.)
     fn group(&mut self, g: &usvg::Group, parent: usvg::Transform) -> Result<(), Error> {
         let transform = parent.pre_concat(g.transform());
-        if g.mask().is_some() {
-            return Err(self.unsupported("mask", g.id()));
-        }
         if !g.filters().is_empty() {
             return Err(self.unsupported("filter", g.id()));
         }
@@ -425,12 +424,19 @@ impl Walker<'_> {
         if let Some(clip) = g.clip_path() {
             self.clip = Some(self.clip_region(clip, transform, enclosing_clip)?);
         }
+        // A mask's own `mask` multiplies the masked content too (as resvg does).
+        let mut masks = Vec::new();
+        let mut next = g.mask();
+        while let Some(mask) = next {
+            masks.push(self.mask(mask, transform)?);
+            next = mask.mask();
+        }
         let opacity = f64::from(g.opacity().get());
-        let pushed = opacity < 1.0 || blend != BlendMode::Normal;
+        let pushed = opacity < 1.0 || blend != BlendMode::Normal || !masks.is_empty();
         if pushed {
             let id = self
                 .art
-                .blended_group(opacity, blend)
+                .masked_group(opacity, blend, &masks)
                 .map_err(|e| self.core(e))?;
             self.groups.push(id);
         }
@@ -447,6 +453,37 @@ impl Walker<'_> {
         }
         self.clip = enclosing_clip;
         Ok(())
+    }
+
+    /// The content of `mask` applied under `transform` (the masked group's
+    /// absolute transform): its children composited in isolation, within
+    /// the mask's rectangle.
+    fn mask(&mut self, mask: &usvg::Mask, transform: usvg::Transform) -> Result<MaskId, Error> {
+        let kind = match mask.kind() {
+            usvg::MaskType::Luminance => MaskKind::Luminance,
+            usvg::MaskType::Alpha => MaskKind::Alpha,
+        };
+        let id = self.art.begin_mask(kind).map_err(|e| self.core(e))?;
+        let r = mask.rect();
+        let (x0, y0, x1, y1) = (r.left(), r.top(), r.right(), r.bottom());
+        let k = self.to_unit;
+        let m = affine(transform);
+        let rect = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]].map(|p| {
+            let d = apply(m, p.map(f64::from));
+            [k * d[0], 1.0 - k * d[1]]
+        });
+        let region = self.art.clip_region(&[]).map_err(|e| self.core(e))?;
+        self.art
+            .add_to_clip(region, vec![rect.to_vec()], FillRule::NonZero, None)
+            .map_err(|e| self.core(e))?;
+        let groups = std::mem::take(&mut self.groups);
+        let enclosing = self.clip.replace(region);
+        let result = self.group(mask.root(), transform);
+        self.groups = groups;
+        self.clip = enclosing;
+        result?;
+        self.art.end_mask(id).map_err(|e| self.core(e))?;
+        Ok(id)
     }
 
     /// The region of `clip` applied under `transform` (the clipped group's
