@@ -538,7 +538,7 @@ fn svg_filter_is_unsupported() {
             "{SVG_HEAD}<filter id=\"f\"><feGaussianBlur stdDeviation=\"2\"/></filter><rect id=\"r\" width=\"10\" height=\"10\" filter=\"url(#f)\"/></svg>"
         ),
         &[],
-        "unsupported: filter (id \"r\")",
+        "unsupported: filter (id \"f\")",
     );
 }
 

@@ -42,7 +42,6 @@ const MATCH_SHARE: f64 = 0.001;
 const STILL_REFUSED: &[&str] = &[
     "radialGradient with the focal circle not inside the end circle",
     "filter",
-    "mix-blend-mode plus-lighter",
     "image in GIF format",
     "image in WebP format",
     "image in compressed SVG (svgz) format",

@@ -8,6 +8,10 @@
 //! evaluated on **sRGB-encoded** channels and decoded, as browsers and
 //! resvg blend (so an opaque multiply matches them exactly); the weights
 //! around it are linear, like every other composite in quadtex.
+//!
+//! [`BlendMode::PlusLighter`] is a compositing operator rather than a
+//! blend: the sum of the two premultiplied colours, clamped to 1, taken on
+//! sRGB-encoded premultiplied channels as browsers and resvg add them.
 
 use crate::gradient::{srgb_decode, srgb_encode};
 
@@ -47,6 +51,9 @@ pub enum BlendMode {
     Color,
     /// The source's luminosity.
     Luminosity,
+    /// `min(1, cs + cb)` and `min(1, as + ab)` on premultiplied colours
+    /// (see the module docs).
+    PlusLighter,
 }
 
 fn separable(mode: BlendMode, b: f64, s: f64) -> f64 {
@@ -97,7 +104,11 @@ fn separable(mode: BlendMode, b: f64, s: f64) -> f64 {
         }
         BlendMode::Difference => (b - s).abs(),
         BlendMode::Exclusion => b + s - 2.0 * b * s,
-        BlendMode::Hue | BlendMode::Saturation | BlendMode::Color | BlendMode::Luminosity => s,
+        BlendMode::Hue
+        | BlendMode::Saturation
+        | BlendMode::Color
+        | BlendMode::Luminosity
+        | BlendMode::PlusLighter => s,
     }
 }
 
@@ -148,9 +159,38 @@ fn blend_encoded(mode: BlendMode, b: [f64; 3], s: [f64; 3]) -> [f64; 3] {
     }
 }
 
+/// Premultiplied sRGB-encoded colour channel `c` of alpha `a` (nondecreasing
+/// in both: `srgb_encode` is concave with value 0 at 0).
+fn encoded_premultiplied(c: f64, a: f64) -> f64 {
+    if a <= 0.0 {
+        0.0
+    } else {
+        srgb_encode((c / a).clamp(0.0, 1.0)) * a
+    }
+}
+
+/// Linear premultiplied channel of encoded premultiplied `e` at alpha `a`
+/// (nondecreasing in `e`, nonincreasing in `a`: `srgb_decode` is convex).
+fn linear_premultiplied(e: f64, a: f64) -> f64 {
+    if a <= 0.0 {
+        0.0
+    } else {
+        srgb_decode((e / a).clamp(0.0, 1.0)) * a
+    }
+}
+
 /// The source `s` blended onto the backdrop `b` (premultiplied, linear).
 pub fn blend(mode: BlendMode, b: [f64; 4], s: [f64; 4]) -> [f64; 4] {
     let (ab, a_s) = (b[3], s[3]);
+    if mode == BlendMode::PlusLighter {
+        let a = (ab + a_s).min(1.0);
+        let mut out = [0.0, 0.0, 0.0, a];
+        for k in 0..3 {
+            let e = encoded_premultiplied(b[k], ab) + encoded_premultiplied(s[k], a_s);
+            out[k] = linear_premultiplied(e.min(a), a);
+        }
+        return out;
+    }
     if mode == BlendMode::Normal || ab <= 0.0 || a_s <= 0.0 {
         return [0, 1, 2, 3].map(|k| s[k] + (1.0 - a_s) * b[k]);
     }
@@ -172,6 +212,30 @@ pub fn blend(mode: BlendMode, b: [f64; 4], s: [f64; 4]) -> [f64; 4] {
 /// it are products of non-negative ranges.
 pub fn blend_range(mode: BlendMode, b: [[f64; 2]; 4], s: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
     let unit = [0.0, 1.0];
+    if mode == BlendMode::PlusLighter {
+        let (ab, a_s) = (b[3], s[3]);
+        let a = [(ab[0] + a_s[0]).min(1.0), (ab[1] + a_s[1]).min(1.0)];
+        let mut out = [[0.0; 2]; 4];
+        for k in 0..3 {
+            let e = [
+                encoded_premultiplied(b[k][0], ab[0]) + encoded_premultiplied(s[k][0], a_s[0]),
+                encoded_premultiplied(b[k][1], ab[1]) + encoded_premultiplied(s[k][1], a_s[1]),
+            ];
+            // Smallest at the least sum and the most alpha; largest at the
+            // greatest sum and the least alpha that can hold it (the result
+            // never exceeds its alpha, nor the encoded sum).
+            // (Where the clamp to alpha binds, the result is alpha itself.)
+            let lo = linear_premultiplied(e[0].min(a[1]), a[1]).min(a[0]);
+            let hi = if e[1] <= a[0] {
+                linear_premultiplied(e[1], a[0])
+            } else {
+                e[1].min(a[1])
+            };
+            out[k] = [lo, hi];
+        }
+        out[3] = a;
+        return out;
+    }
     if matches!(
         mode,
         BlendMode::Hue | BlendMode::Saturation | BlendMode::Color | BlendMode::Luminosity
@@ -238,6 +302,21 @@ mod tests {
     }
 
     #[test]
+    fn plus_lighter_adds_encoded_premultiplied_colours() {
+        // Two half-covered greys: encoded 0.4·0.5 + 0.6·0.5 = 0.5 at alpha 1.
+        let grey = |e: f64, a: f64| {
+            let c = srgb_decode(e) * a;
+            [c, c, c, a]
+        };
+        let sum = blend(BlendMode::PlusLighter, grey(0.4, 0.5), grey(0.6, 0.5));
+        assert!((sum[3] - 1.0).abs() < 1e-15);
+        assert!((srgb_encode(sum[0]) - 0.5).abs() < 1e-12, "{sum:?}");
+        // Saturates at 1.
+        let white = blend(BlendMode::PlusLighter, grey(0.9, 1.0), grey(0.9, 1.0));
+        assert_eq!(white, [1.0; 4]);
+    }
+
+    #[test]
     fn transparent_layers_and_normal_reduce_to_over() {
         let b = [0.1, 0.2, 0.3, 0.5];
         let s = [0.2, 0.1, 0.0, 0.4];
@@ -256,6 +335,7 @@ mod tests {
     #[test]
     fn ranges_contain_every_blend_of_their_members() {
         let modes = [
+            BlendMode::PlusLighter,
             BlendMode::Multiply,
             BlendMode::Screen,
             BlendMode::Overlay,

@@ -18,7 +18,7 @@
 //! inside its end circle is refused); patterns, exact (the content laid out
 //! once per tile the shape reaches, clipped to the tile and the shape; at
 //! most [`MAX_PATTERN_TILES`] tiles a fill); `mix-blend-mode` (every CSS
-//! mode but `plus-lighter`); images: PNG and JPEG, from data URLs or from
+//! mode, `plus-lighter` included); images: PNG and JPEG, from data URLs or from
 //! files named relative to the SVG (each texel a flat square; every square
 //! of the tree gets the exact area mean of the texels it covers, see
 //! `quadtex_core::image_paint`), and SVG images, walked as nested art
@@ -26,7 +26,7 @@
 //! corrupt one, a remote URL, which is never fetched) is an error naming
 //! it, never dropped. Masks (luminance and alpha, nested, with their
 //! rectangle; exact on flat content, bounded on gradients and images, see
-//! [`VectorArt::begin_mask`]). Filters, `plus-lighter` and images in GIF,
+//! [`VectorArt::begin_mask`]). Filters and images in GIF,
 //! WebP or compressed SVG are refused with [`Error::UnsupportedSvg`]
 //! naming the element, never approximated silently.
 //!
@@ -396,8 +396,9 @@ impl Walker<'_> {
     /// group's own transform.)
     fn group(&mut self, g: &usvg::Group, parent: usvg::Transform) -> Result<(), Error> {
         let transform = parent.pre_concat(g.transform());
-        if !g.filters().is_empty() {
-            return Err(self.unsupported("filter", g.id()));
+        if let Some(filter) = g.filters().first() {
+            // usvg moves the filtered element into an anonymous group; name the filter.
+            return Err(self.unsupported("filter", filter.id()));
         }
         let blend = match g.blend_mode() {
             usvg::BlendMode::Normal => BlendMode::Normal,
@@ -416,9 +417,7 @@ impl Walker<'_> {
             usvg::BlendMode::Saturation => BlendMode::Saturation,
             usvg::BlendMode::Color => BlendMode::Color,
             usvg::BlendMode::Luminosity => BlendMode::Luminosity,
-            usvg::BlendMode::PlusLighter => {
-                return Err(self.unsupported("mix-blend-mode plus-lighter", g.id()));
-            }
+            usvg::BlendMode::PlusLighter => BlendMode::PlusLighter,
         };
         let enclosing_clip = self.clip;
         if let Some(clip) = g.clip_path() {
