@@ -68,8 +68,7 @@ typedef enum QtxStatus {
     QTX_STATUS_FORMAT = 3,
     /**
      * A well-formed file using something quadtex does not support (SVG
-     * filters, `plus-lighter`, GIF/WebP/svgz images, patterns over too many
-     * tiles).
+     * filters, GIF/WebP/svgz images, patterns over too many tiles).
      */
     QTX_STATUS_UNSUPPORTED = 4,
     /**
@@ -268,8 +267,8 @@ enum QtxStatus qtx_open(const char *path, struct QtxTexture **out);
  * `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance or level out of
  * range), `QTX_STATUS_IO`, `QTX_STATUS_FORMAT` (an image that does not
  * decode, SVG that does not parse), `QTX_STATUS_UNSUPPORTED` (SVG features
- * not supported: filters, `plus-lighter`, GIF/WebP/svgz images, patterns
- * over too many tiles),
+ * not supported: filters, GIF/WebP/svgz images, patterns over too many
+ * tiles),
  * `QTX_STATUS_LIMIT`. SVG gradients are packed to the default smooth-colour
  * tolerance (a quarter of an 8-bit step; `tolerance` must be 0 for SVG).
  *

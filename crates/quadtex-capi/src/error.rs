@@ -21,8 +21,7 @@ pub enum QtxStatus {
     /// not decode, SVG that does not parse.
     Format = 3,
     /// A well-formed file using something quadtex does not support (SVG
-    /// filters, `plus-lighter`, GIF/WebP/svgz images, patterns over too many
-    /// tiles).
+    /// filters, GIF/WebP/svgz images, patterns over too many tiles).
     Unsupported = 4,
     /// A resource limit would be exceeded (image dimensions, file size, node
     /// count, tree depth); nothing was allocated.

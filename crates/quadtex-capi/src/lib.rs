@@ -191,8 +191,8 @@ pub unsafe extern "C" fn qtx_open(path: *const c_char, out: *mut *mut QtxTexture
 /// `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance or level out of
 /// range), `QTX_STATUS_IO`, `QTX_STATUS_FORMAT` (an image that does not
 /// decode, SVG that does not parse), `QTX_STATUS_UNSUPPORTED` (SVG features
-/// not supported: filters, `plus-lighter`, GIF/WebP/svgz images, patterns
-/// over too many tiles),
+/// not supported: filters, GIF/WebP/svgz images, patterns over too many
+/// tiles),
 /// `QTX_STATUS_LIMIT`. SVG gradients are packed to the default smooth-colour
 /// tolerance (a quarter of an 8-bit step; `tolerance` must be 0 for SVG).
 ///
