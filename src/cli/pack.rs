@@ -169,7 +169,7 @@ pub(crate) fn smooth_summary(report: &quadtex_core::VectorReport) -> String {
         return String::new();
     }
     format!(
-        "; gradients: max deviation from a square's colour {:.6}, mean error ≤ {:.2e} (linear)",
+        "; gradients, images and masks: every point within {:.6} of its square's colour (at most --tolerance above --max-level), means within {:.2e} (linear)",
         report.max_smooth_deviation, report.max_mean_error
     )
 }
