@@ -1094,3 +1094,138 @@ fn jpeg_soi_then_eoi() {
         &["empty.jpeg"],
     );
 }
+
+/// Renders a tiny valid scene along camera path text `path_text` with
+/// `extra` arguments; expects failure naming every needle and no frames
+/// directory.
+fn path_case(case: &str, path_text: &str, extra: &[&str], needles: &[&str]) {
+    let d = dir(case);
+    let scene = d.join("scene.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\nposition = [0, 2, -10]\nlook_at = [0, 0, 10]\nfov = 50\nwidth = 16\nheight = 8\n\n[[shape]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\ntexture = \"builtin:checker\"\n",
+    )
+    .unwrap();
+    let path = d.join(format!("{case}.path.toml"));
+    std::fs::write(&path, path_text).unwrap();
+    let frames = d.join("frames");
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "--path",
+        path.to_str().unwrap(),
+        "-o",
+        frames.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    expect_failure(&args, "", needles, Some(&frames));
+}
+
+const KEY_A: &str = "[[key]]\nposition = [0, 2, -10]\nlook_at = [0, 0, 10]\n";
+
+#[test]
+fn path_without_keys() {
+    path_case(
+        "path-empty",
+        "# nothing\n",
+        &["--frames", "4"],
+        &["path-empty.path.toml", "key", "no [[key]]"],
+    );
+}
+
+#[test]
+fn path_with_times_going_back() {
+    path_case(
+        "path-time",
+        &format!(
+            "{KEY_A}time = 5\n\n[[key]]\ntime = 2\nposition = [0, 3, -5]\nlook_at = [0, 0, 10]\n"
+        ),
+        &["--frames", "4"],
+        &[
+            "path-time.path.toml:7:",
+            "key[1].time: 2 does not come after key[0].time 5",
+        ],
+    );
+}
+
+#[test]
+fn path_with_nan_and_unknown_keys() {
+    path_case(
+        "path-nan",
+        "[[key]]\nposition = [0, nan, -10]\nlook_at = [0, 0, 10]\n",
+        &["--frames", "4"],
+        &["path-nan.path.toml:2:", "key[0].position", "finite"],
+    );
+    path_case(
+        "path-zoom",
+        &format!("{KEY_A}zoom = 2\n"),
+        &["--frames", "4"],
+        &["path-zoom.path.toml:4:", "key[0].zoom", "unknown key"],
+    );
+}
+
+#[test]
+fn path_with_a_degenerate_frame() {
+    // The camera flies to where it looked and looks back: half-way its
+    // position meets the point it looks at.
+    path_case(
+        "path-degenerate",
+        "[[key]]\nposition = [0, 2, 0]\nlook_at = [0, 2, 10]\n\n[[key]]\nposition = [0, 2, 10]\nlook_at = [0, 2, 0]\n",
+        &["--frames", "3"],
+        &["camera path: frame 1 (time 0.5)", "degenerate"],
+    );
+}
+
+#[test]
+fn path_to_standard_output() {
+    let d = dir("path-stdout");
+    let path = d.join("p.path.toml");
+    std::fs::write(&path, KEY_A).unwrap();
+    expect_failure(
+        &[
+            "render",
+            "scenes/checker.toml",
+            "--path",
+            path.to_str().unwrap(),
+            "--frames",
+            "2",
+            "-o",
+            "-",
+        ],
+        "",
+        &["-o - is not possible"],
+        None,
+    );
+    // --frames without --path, and zero frames, are usage errors.
+    let out = run(
+        &[
+            "render",
+            "scenes/checker.toml",
+            "--frames",
+            "2",
+            "-o",
+            "x.png",
+        ],
+        "",
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("required arguments") && err.contains("--path"),
+        "{err}"
+    );
+    expect_usage_error(
+        &[
+            "render",
+            "scenes/checker.toml",
+            "--path",
+            path.to_str().unwrap(),
+            "--frames",
+            "0",
+            "-o",
+            "frames",
+        ],
+        &["--frames"],
+        None,
+    );
+}

@@ -397,3 +397,75 @@ fn footprint_dump_round_trips_through_the_cli() {
     assert!(rmse < 0.05, "{text}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn render_along_a_camera_path_writes_numbered_frames() {
+    let d = temp_dir("camera-path");
+    let frames = d.join("frames");
+    let out = run(
+        &[
+            "render",
+            "scenes/runway.toml",
+            "--path",
+            "scenes/runway-approach.path.toml",
+            "--frames",
+            "3",
+            "--width",
+            "48",
+            "--filter",
+            "nearest",
+            "-o",
+            frames.to_str().unwrap(),
+        ],
+        "",
+    );
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("wrote 3 frames"), "{text}");
+    let images: Vec<quadtex_io::LinearImage> = (0..3)
+        .map(|i| quadtex_io::load_linear_image(&frames.join(format!("frame_{i:04}.png"))).unwrap())
+        .collect();
+    assert!(!frames.join("frame_0003.png").exists());
+    for image in &images {
+        assert_eq!((image.width, image.height), (48, 27));
+    }
+    // The camera moves: consecutive frames differ.
+    for pair in images.windows(2) {
+        assert_ne!(pair[0].pixels, pair[1].pixels);
+    }
+    // The first frame is the first key's view: the same as rendering a
+    // scene whose camera is that key.
+    let scene = std::fs::read_to_string("scenes/runway.toml").unwrap();
+    let moved = scene.replace("position = [4, 25, 300]", "position = [4, 150, 1500]");
+    assert_ne!(scene, moved);
+    let first = d.join("first.toml");
+    std::fs::write(&first, moved).unwrap();
+    let png = d.join("first.png");
+    let out = run(
+        &[
+            "render",
+            first.to_str().unwrap(),
+            "--width",
+            "48",
+            "--filter",
+            "nearest",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        quadtex_io::load_linear_image(&png).unwrap().pixels,
+        images[0].pixels
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

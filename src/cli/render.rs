@@ -22,9 +22,22 @@ pub struct Args {
     #[arg(value_name = "SCENE.toml")]
     scene: PathBuf,
     /// The image to write: .png (sRGB, 8-bit) or .exr (linear, float); `-`
-    /// writes it to standard output (PNG unless `--format exr`).
-    #[arg(short, long, value_name = "OUT.png|OUT.exr|-")]
+    /// writes it to standard output (PNG unless `--format exr`). With
+    /// `--path`, the directory the frames go to.
+    #[arg(short, long, value_name = "OUT.png|OUT.exr|-|DIR")]
     output: Output,
+    /// Render a sequence along a camera path (TOML keyframes, format in
+    /// docs/scenes.md) instead of the scene's camera: `-o` is then a
+    /// directory, written as frame_0000.png, frame_0001.png, … (.exr with
+    /// `--format exr`); every frame shares the scene's packed textures. The
+    /// whole path is checked before the first frame is written.
+    #[arg(long, value_name = "PATH.toml", requires = "frames")]
+    path: Option<PathBuf>,
+    /// Frames along `--path`, spread evenly in time from its first key to
+    /// its last (1..=100000).
+    #[arg(long, value_name = "N", requires = "path",
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(quadtex_render::path::MAX_PATH_FRAMES)))]
+    frames: Option<u32>,
     #[command(flatten)]
     render: RenderArgs,
     #[command(flatten)]
@@ -225,9 +238,100 @@ impl RenderArgs {
 /// Runs `quadtex render`.
 pub fn run(args: Args) -> Result<()> {
     let options = args.render.options()?;
+    if let (Some(path), Some(frames)) = (&args.path, args.frames) {
+        let Output::File(dir) = &args.output else {
+            return Err("render --path writes a directory of frames: -o - is not possible".into());
+        };
+        let format = args
+            .format
+            .format
+            .map_or(quadtex_io::ImageFormat::Png, quadtex_io::ImageFormat::from);
+        let limits = args.memory.limits();
+        let camera_path = quadtex_render::load_camera_path(path, &limits)?;
+        let scene = quadtex_render::load_scene_with_limits(&args.scene, &limits)?;
+        return render_path(&scene, &camera_path, frames, &options, dir, format);
+    }
     let format = args.output.image_format(args.format.format)?;
     let scene = quadtex_render::load_scene_with_limits(&args.scene, &args.memory.limits())?;
     render(&scene, &options, &args.output, format)
+}
+
+/// Renders `frames` frames of `scene` along `path` into `dir` as `format`,
+/// with a progress bar over frames on a terminal, then prints where they
+/// went and the frame times. Every frame's camera is checked first, so a
+/// bad path writes nothing.
+fn render_path(
+    scene: &Scene,
+    path: &quadtex_render::CameraPath,
+    frames: u32,
+    options: &RenderOptions,
+    dir: &std::path::Path,
+    format: quadtex_io::ImageFormat,
+) -> Result<()> {
+    let (w, h) = (scene.camera.width(), scene.camera.height());
+    let cameras = (0..frames)
+        .map(|i| path.camera(i, frames, w, h))
+        .collect::<std::result::Result<Vec<_>, _>>()
+        .map_err(|e| format!("camera path: {e}"))?;
+    if dir.exists() && !dir.is_dir() {
+        return Err(format!("{}: exists and is not a directory", dir.display()).into());
+    }
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let digits = (frames - 1).max(1).ilog10() as usize + 1;
+    let digits = digits.max(4);
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let bar = indicatif::ProgressBar::new(u64::from(frames));
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{bar:40} frame {pos}/{len} {elapsed}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let mut seconds = Vec::with_capacity(cameras.len());
+    let mut names = Vec::with_capacity(cameras.len());
+    for (i, camera) in cameras.into_iter().enumerate() {
+        let framed = Scene {
+            camera,
+            ..scene.clone()
+        };
+        let (image, summary) = quadtex_render::render(&framed, options, &|_, _| {})?;
+        let file = dir.join(format!("frame_{i:0digits$}.{}", format.extension()));
+        quadtex_io::save_image_as(&file, &image, format)?;
+        seconds.push(summary.seconds);
+        names.push(file);
+        if let Some(bar) = &bar {
+            bar.inc(1);
+        }
+    }
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let mut sorted = seconds.clone();
+    sorted.sort_by(f64::total_cmp);
+    let mut text = super::output::Text::stdout();
+    writeln!(
+        text,
+        "wrote {} frames to {} ({} … {})",
+        names.len(),
+        dir.display(),
+        names
+            .first()
+            .and_then(|n| n.file_name())
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
+        names
+            .last()
+            .and_then(|n| n.file_name())
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
+    )?;
+    writeln!(
+        text,
+        "frame time: median {:.3} s, fastest {:.3} s, slowest {:.3} s",
+        sorted[sorted.len() / 2],
+        sorted[0],
+        sorted[sorted.len() - 1]
+    )?;
+    text.flush()?;
+    Ok(())
 }
 
 /// Runs `quadtex demo`.

@@ -11,7 +11,8 @@
 //! `view` (screen ↔ texture geometry, footprints), `exact` (exact pixels:
 //! planar primitives' projective maps, visibility by clipping), `shade` (one
 //! ray's colour), `pixel` (pixel strategies: exact, supersampling, spheres),
-//! `render` (the parallel loop), `stats` (what a render cost), `measure`
+//! `render` (the parallel loop), [`path`] (camera paths for sequences),
+//! `stats` (what a render cost), `measure`
 //! (lookups and footprints for the comparison and peer benchmarks).
 #![forbid(unsafe_code)]
 
@@ -22,6 +23,7 @@ pub mod math;
 mod measure;
 mod options;
 mod parse;
+pub mod path;
 mod pixel;
 mod render;
 pub mod scene;
@@ -38,8 +40,10 @@ pub use measure::{
 };
 pub use options::{Filter, PixelFilter, REFERENCE_SEED, RenderOptions};
 pub use parse::{
-    load_scene, load_scene_with_limits, parse_obj, parse_scene, parse_scene_with_limits,
+    load_camera_path, load_scene, load_scene_with_limits, parse_camera_path, parse_obj,
+    parse_scene, parse_scene_with_limits,
 };
+pub use path::CameraPath;
 pub use render::render;
 pub use scene::Scene;
 pub use stats::RenderSummary;

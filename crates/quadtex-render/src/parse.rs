@@ -13,6 +13,7 @@ use toml::{Table, Value};
 use crate::Error;
 use crate::demo::builtin_texture;
 use crate::math::Vec3;
+use crate::path::{CameraPath, Key, MAX_PATH_KEYS};
 use crate::scene::{Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform};
 use quadtex_io::Limits;
 
@@ -117,6 +118,92 @@ pub fn parse_scene_with_limits(text: &str, path: &Path, limits: &Limits) -> Resu
         surfaces,
         sky,
         lighting,
+    })
+}
+
+/// Reads and validates a camera path file (format in `docs/scenes.md`,
+/// model in [`crate::path`]) under `limits` (its size).
+pub fn load_camera_path(path: &Path, limits: &Limits) -> Result<CameraPath, Error> {
+    let io = |source| Error::Io {
+        path: path.into(),
+        source,
+    };
+    let len = std::fs::metadata(path).map_err(io)?.len();
+    if len > limits.max_file_bytes {
+        return Err(Error::Scene {
+            path: path.into(),
+            line: None,
+            key: "(file)".into(),
+            message: format!(
+                "{len} bytes, above max_file_bytes {}",
+                limits.max_file_bytes
+            ),
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(io)?;
+    parse_camera_path(&text, path)
+}
+
+/// Parses camera path text; `path` names it in errors.
+pub fn parse_camera_path(text: &str, path: &Path) -> Result<CameraPath, Error> {
+    let cx = Context {
+        text,
+        path,
+        textures: HashMap::new(),
+        limits: Limits::default(),
+    };
+    let root: Table = text.parse().map_err(|e: toml::de::Error| Error::Scene {
+        path: path.into(),
+        line: e.span().map(|s| line_of(text, s.start)),
+        key: "(syntax)".into(),
+        message: e.message().to_string(),
+    })?;
+    cx.keys(&root, "", &["key"])?;
+    let keys = match root.get("key") {
+        Some(Value::Array(a)) => a,
+        Some(_) => return Err(cx.err("key", "must be an array of tables: [[key]]")),
+        None => return Err(cx.err("key", "the path has no [[key]]")),
+    };
+    if keys.len() > MAX_PATH_KEYS {
+        return Err(cx.err(
+            "key",
+            &format!("{} keys, more than {MAX_PATH_KEYS}", keys.len()),
+        ));
+    }
+    let mut out = Vec::with_capacity(keys.len());
+    for (i, k) in keys.iter().enumerate() {
+        let name = format!("key[{i}]");
+        let Value::Table(t) = k else {
+            return Err(cx.err(&name, "must be a table"));
+        };
+        cx.keys(t, &name, &["time", "position", "look_at", "up", "fov"])?;
+        let previous = out.last();
+        let time = match cx.number(t, &name, "time")? {
+            Some(time) => time,
+            None => previous.map_or(0.0, |p: &Key| p.time + 1.0),
+        };
+        let up = match cx.vec3(t, &name, "up")? {
+            Some(up) => up,
+            None => previous.map_or(Vec3::new(0.0, 1.0, 0.0), |p| p.up),
+        };
+        let fov = match cx.number(t, &name, "fov")? {
+            Some(fov) => fov,
+            None => previous.map_or(45.0, |p| p.fov),
+        };
+        out.push(Key {
+            time,
+            position: cx.required_vec3(t, &name, "position")?,
+            look_at: cx.required_vec3(t, &name, "look_at")?,
+            up,
+            fov,
+        });
+    }
+    CameraPath::new(out).map_err(|message| {
+        // The message starts with the key it is about: name it, with its line.
+        match message.split(' ').next().filter(|k| k.starts_with("key[")) {
+            Some(key) => cx.err(key, message[key.len()..].trim_start()),
+            None => cx.err("key", &message),
+        }
     })
 }
 
