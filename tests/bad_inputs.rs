@@ -772,10 +772,6 @@ obj_cases! {
     obj_binary_garbage: (0..4096u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8).collect::<Vec<u8>>() => ["read error"];
     obj_empty_file: Vec::<u8>::new() => ["no usable triangles"];
     obj_only_degenerate_triangles: b"v 0 0 0\nv 1 0 0\nv 2 0 0\nvt 0 0\nvt 1 0\nvt 1 1\nf 1/1 2/2 3/3\n".as_slice() => ["no usable triangles"];
-    // 25 000 identical faces, 0.3 MB: beyond max_mesh_triangles (20 000).
-    obj_many_faces_over_triangle_limit: obj_with("", &"f 1/1 2/2 3/3\n".repeat(25_000)) => ["max_mesh_triangles 20000"];
-    // One polygon of 10^6 corners, 4 MB: a fan of 10^6 triangles.
-    obj_million_corner_polygon: obj_with("", &format!("f 1/1{}\n", " 2/2 3/3 4/4".repeat(333_334))) => ["max_mesh_triangles 20000"];
 }
 
 #[test]
@@ -1227,5 +1223,55 @@ fn path_to_standard_output() {
         ],
         &["--frames"],
         None,
+    );
+}
+
+/// A mesh beyond the memory budget: refused before its triangles are built.
+fn mesh_over_budget(case: &str, obj: &[u8], memory_limit: &str, needles: &[&str]) {
+    let d = dir(case);
+    std::fs::write(d.join("m.obj"), obj).unwrap();
+    let scene = d.join("scene.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\nposition = [0.5, 2, -1]\nlook_at = [0.5, 0, 0.5]\nfov = 50\nwidth = 16\nheight = 8\n\n[[shape]]\ntype = \"mesh\"\nfile = \"m.obj\"\ntexture = \"builtin:checker\"\n",
+    )
+    .unwrap();
+    let out = d.join("out.png");
+    expect_failure(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--memory-limit",
+            memory_limit,
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        needles,
+        Some(&out),
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn obj_many_faces_over_the_memory_budget() {
+    // 25 000 identical faces, 0.3 MB of text: 8 MB of triangles and hierarchy.
+    mesh_over_budget(
+        "obj-many-faces",
+        &obj_with("", &"f 1/1 2/2 3/3\n".repeat(25_000)),
+        "4M",
+        &[
+            "shape[0].file",
+            "m.obj",
+            "25002 triangles need about 7 MiB",
+            "raise --memory-limit",
+        ],
+    );
+    // One polygon of 10^6 corners, 4 MB of text: a fan of 10^6 triangles.
+    mesh_over_budget(
+        "obj-million-corners",
+        &obj_with("", &format!("f 1/1{}\n", " 2/2 3/3 4/4".repeat(333_334))),
+        "64M",
+        &["m.obj", "triangles need about 305 MiB"],
     );
 }

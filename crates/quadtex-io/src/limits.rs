@@ -19,8 +19,9 @@ pub struct Limits {
     pub max_svg_elements: u64,
     /// Most shapes in a scene (default 10 000).
     pub max_scene_shapes: usize,
-    /// Most triangles in one mesh of a scene (default 20 000: meshes are
-    /// intersected without an acceleration structure).
+    /// Most triangles in one mesh of a scene (default 2²² = 4 194 304,
+    /// about 1.3 GiB at the renderer's 320 bytes a triangle with its
+    /// bounding-volume hierarchy; a mesh must also fit [`Limits::max_memory`]).
     pub max_mesh_triangles: usize,
     /// Memory budget in bytes for one decode, build or read (default
     /// [`default_memory_budget`]: the smallest of the cgroup's memory limit,
@@ -92,7 +93,7 @@ impl Default for Limits {
             max_depth: quadtex_core::MAX_DEPTH,
             max_svg_elements: 100_000,
             max_scene_shapes: 10_000,
-            max_mesh_triangles: 20_000,
+            max_mesh_triangles: 1 << 22,
             max_memory: default_memory_budget(),
         }
     }

@@ -16,6 +16,7 @@
 //! (lookups and footprints for the comparison and peer benchmarks).
 #![forbid(unsafe_code)]
 
+mod bvh;
 mod demo;
 mod exact;
 mod frame;

@@ -732,6 +732,11 @@ fn check_obj_indices(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// Bytes a mesh holds per triangle once parsed: the triangle (160), its
+/// share of the hierarchy (about 60) and the parsed OBJ arrays alongside
+/// while it is built (up to about 100), rounded up.
+pub const MESH_BYTES_PER_TRIANGLE: u64 = 320;
+
 /// As [`parse_obj`], with `scale` then `translate` applied.
 fn parse_obj_with(
     bytes: &[u8],
@@ -750,7 +755,22 @@ fn parse_obj_with(
         Err(tobj::LoadError::OpenFileFailed)
     })
     .map_err(|e| e.to_string())?;
-    let mut triangles = Vec::new();
+    let count: u64 = models.iter().map(|m| m.mesh.indices.len() as u64 / 3).sum();
+    if count > limits.max_mesh_triangles as u64 {
+        return Err(format!(
+            "{count} triangles, more than max_mesh_triangles {}",
+            limits.max_mesh_triangles
+        ));
+    }
+    let bytes = count.saturating_mul(MESH_BYTES_PER_TRIANGLE);
+    if bytes > limits.max_memory {
+        return Err(format!(
+            "{count} triangles need about {} MiB with their hierarchy, above the memory budget of {} MiB (raise --memory-limit)",
+            bytes >> 20,
+            limits.max_memory >> 20
+        ));
+    }
+    let mut triangles = Vec::with_capacity(count as usize);
     // Models without faces (vertices only, or an empty file) add nothing.
     for model in models.iter().filter(|m| !m.mesh.indices.is_empty()) {
         let m = &model.mesh;
@@ -767,12 +787,6 @@ fn parse_obj_with(
             ));
         }
         for tri in m.indices.chunks_exact(3) {
-            if triangles.len() >= limits.max_mesh_triangles {
-                return Err(format!(
-                    "more than max_mesh_triangles {} triangles",
-                    limits.max_mesh_triangles
-                ));
-            }
             let mut p = [Vec3::default(); 3];
             let mut uv = [[0.0; 2]; 3];
             for (k, &i) in tri.iter().enumerate() {

@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 use quadtex_core::{QuadTree, Rgba, Wrap};
 
+use crate::bvh::{Aabb, Bvh};
 use crate::math::{Ray, Vec3};
 
 /// A pinhole camera.
@@ -160,9 +161,9 @@ pub enum Geometry {
         edge_v: Vec3,
     },
     /// Triangle mesh with per-vertex UVs (from an OBJ file); UV inside a
-    /// triangle is the barycentric blend. Intersection tests every triangle
-    /// behind a bounding-box test: meant for small meshes (at most
-    /// `quadtex_io::Limits::max_mesh_triangles`).
+    /// triangle is the barycentric blend. Rays find their triangle through
+    /// a bounding-volume hierarchy (`crate::bvh`); at most
+    /// `quadtex_io::Limits::max_mesh_triangles`.
     Mesh(Arc<Mesh>),
     /// Sphere; UV = (longitude / 2π, latitude from the south pole / π).
     Sphere {
@@ -217,26 +218,33 @@ impl Triangle {
     }
 }
 
-/// A triangle mesh with its bounding box.
+/// A triangle mesh with its bounding-volume hierarchy.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mesh {
     triangles: Vec<Triangle>,
-    lo: Vec3,
-    hi: Vec3,
+    bvh: Bvh,
 }
 
 impl Mesh {
-    /// A mesh from triangles; `None` when there are none.
+    /// A mesh from triangles, with its hierarchy built; `None` when there
+    /// are none.
     pub fn new(triangles: Vec<Triangle>) -> Option<Mesh> {
-        let first = triangles.first()?;
-        let (mut lo, mut hi) = (first.p0, first.p0);
-        for t in &triangles {
-            for p in [t.p0, t.p0 + t.e1, t.p0 + t.e2] {
-                lo = Vec3::new(lo.x.min(p.x), lo.y.min(p.y), lo.z.min(p.z));
-                hi = Vec3::new(hi.x.max(p.x), hi.y.max(p.y), hi.z.max(p.z));
+        triangles.first()?;
+        let bvh = Bvh::build(triangles.len(), |i| {
+            let t = &triangles[i];
+            let mut b = Aabb { lo: t.p0, hi: t.p0 };
+            for p in [t.p0 + t.e1, t.p0 + t.e2] {
+                b.lo = Vec3::new(b.lo.x.min(p.x), b.lo.y.min(p.y), b.lo.z.min(p.z));
+                b.hi = Vec3::new(b.hi.x.max(p.x), b.hi.y.max(p.y), b.hi.z.max(p.z));
             }
-        }
-        Some(Mesh { triangles, lo, hi })
+            b
+        });
+        Some(Mesh { triangles, bvh })
+    }
+
+    /// Bytes the triangles and their hierarchy hold.
+    pub fn memory_bytes(&self) -> usize {
+        self.triangles.len() * std::mem::size_of::<Triangle>() + self.bvh.memory_bytes()
     }
 
     /// Number of triangles.
@@ -249,52 +257,32 @@ impl Mesh {
         self.triangles.is_empty()
     }
 
-    fn hits_box(&self, ray: &Ray) -> bool {
-        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-        for (o, d, lo, hi) in [
-            (ray.origin.x, ray.direction.x, self.lo.x, self.hi.x),
-            (ray.origin.y, ray.direction.y, self.lo.y, self.hi.y),
-            (ray.origin.z, ray.direction.z, self.lo.z, self.hi.z),
-        ] {
-            let inv = 1.0 / d;
-            let (a, b) = ((lo - o) * inv, (hi - o) * inv);
-            let (a, b) = if a <= b { (a, b) } else { (b, a) };
-            // NaN (ray in a slab's plane, parallel) keeps the interval.
-            t0 = if a > t0 { a } else { t0 };
-            t1 = if b < t1 { b } else { t1 };
+    /// Möller–Trumbore: the distance at which `ray` crosses triangle `tri`.
+    fn crossing(tri: &Triangle, ray: &Ray) -> Option<f64> {
+        let p = ray.direction.cross(tri.e2);
+        let det = tri.e1.dot(p);
+        if det.abs() < 1e-14 {
+            return None;
         }
-        t0 <= t1 + 1e-9
+        let inv = 1.0 / det;
+        let s = ray.origin - tri.p0;
+        let b1 = s.dot(p) * inv;
+        if !(0.0..=1.0).contains(&b1) {
+            return None;
+        }
+        let q = s.cross(tri.e1);
+        let b2 = ray.direction.dot(q) * inv;
+        if b2 < 0.0 || b1 + b2 > 1.0 {
+            return None;
+        }
+        Some(tri.e2.dot(q) * inv)
     }
 
     fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
-        if !self.hits_box(ray) {
-            return None;
-        }
-        let mut best: Option<(f64, &Triangle, u32)> = None;
-        for (index, tri) in self.triangles.iter().enumerate() {
-            // Möller–Trumbore.
-            let p = ray.direction.cross(tri.e2);
-            let det = tri.e1.dot(p);
-            if det.abs() < 1e-14 {
-                continue;
-            }
-            let inv = 1.0 / det;
-            let s = ray.origin - tri.p0;
-            let b1 = s.dot(p) * inv;
-            if !(0.0..=1.0).contains(&b1) {
-                continue;
-            }
-            let q = s.cross(tri.e1);
-            let b2 = ray.direction.dot(q) * inv;
-            if b2 < 0.0 || b1 + b2 > 1.0 {
-                continue;
-            }
-            let t = tri.e2.dot(q) * inv;
-            if t > t_min && best.is_none_or(|(bt, ..)| t < bt) {
-                best = Some((t, tri, index as u32));
-            }
-        }
-        let (t, tri, index) = best?;
+        let (index, t) = self.bvh.nearest(ray, |i, _| {
+            Self::crossing(&self.triangles[i as usize], ray).filter(|&t| t > t_min)
+        })?;
+        let tri = &self.triangles[index as usize];
         let point = ray.origin + ray.direction * t;
         let d = point - tri.p0;
         let uv = [tri.uv0[0] + tri.du.dot(d), tri.uv0[1] + tri.dv.dot(d)];
