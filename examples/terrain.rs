@@ -2,15 +2,16 @@
 //! renderer scales with mesh size (issue: real meshes).
 //!
 //! `cargo run --release --example terrain [-- CELLS [WIDTH HEIGHT]]` writes
-//! `target/terrain/terrain.obj` (a `CELLS × CELLS` grid, two triangles a
-//! cell, displaced by rolling hills and flattened under the runway; default
-//! 708: 1 002 528 triangles) and `target/terrain/terrain.toml`, then loads
-//! the scene (OBJ parse and hierarchy build timed), and renders it at
+//! `target/terrain/terrain.glb` (binary glTF: a `CELLS × CELLS` grid, two
+//! triangles a cell, displaced by rolling hills and flattened under the
+//! runway, default 708: 1 002 528 triangles, with a generated 1024²
+//! orthophoto-like texture) and `target/terrain/terrain.toml` (the terrain
+//! and the runway as a decal), then loads the scene (glTF read, hierarchy
+//! build and texture packing timed), and renders it at
 //! `WIDTH × HEIGHT` (default 1920 × 1080) with `nearest` and the quadtree
 //! filter, printing each frame's time and the ratio to `nearest`.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::fmt::Write as _;
 use std::time::Instant;
 
 use quadtex_render::{Filter, RenderOptions};
@@ -36,36 +37,41 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         -0.3 + hills * ease * ease * (3.0 - 2.0 * ease)
     };
     let started = Instant::now();
-    let mut obj = String::with_capacity(cells * cells * 80);
-    for j in 0..=cells {
-        for i in 0..=cells {
+    let n = cells + 1;
+    let mut positions = Vec::with_capacity(n * n);
+    let mut uvs = Vec::with_capacity(n * n);
+    for j in 0..n {
+        for i in 0..n {
             let (x, z) = (-size / 2.0 + i as f64 * step, -size / 2.0 + j as f64 * step);
-            writeln!(obj, "v {x:.3} {:.3} {z:.3}", height_at(x, z))?;
+            positions.push([x as f32, height_at(x, z) as f32, z as f32]);
+            // One orthophoto over the whole terrain (glTF's v runs down the image).
+            uvs.push([i as f32 / cells as f32, j as f32 / cells as f32]);
         }
     }
-    for j in 0..=cells {
-        for i in 0..=cells {
-            // One checker tile per 4 cells.
-            writeln!(obj, "vt {} {}", i as f64 / 4.0, j as f64 / 4.0)?;
-        }
-    }
-    let at = |i: usize, j: usize| j * (cells + 1) + i + 1;
+    let mut indices = Vec::with_capacity(6 * cells * cells);
     for j in 0..cells {
         for i in 0..cells {
+            let at = |i: usize, j: usize| (j * n + i) as u32;
             let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
-            writeln!(obj, "f {a}/{a} {d}/{d} {c}/{c}")?;
-            writeln!(obj, "f {a}/{a} {c}/{c} {b}/{b}")?;
+            indices.extend_from_slice(&[a, d, c, a, c, b]);
         }
     }
-    std::fs::write(dir.join("terrain.obj"), &obj)?;
+    let photo = orthophoto(1024);
+    quadtex_render::write_glb(
+        &dir.join("terrain.glb"),
+        &positions,
+        &uvs,
+        &indices,
+        Some(&photo),
+    )?;
     let triangles = 2 * cells * cells;
     println!(
-        "wrote {} ({triangles} triangles, {:.0} MB) in {:.2} s",
-        dir.join("terrain.obj").display(),
-        obj.len() as f64 / 1e6,
+        "wrote {} ({triangles} triangles, a 1024² orthophoto-like PNG of {} KiB) in {:.2} s",
+        dir.join("terrain.glb").display(),
+        photo.len() / 1024,
         started.elapsed().as_secs_f64()
     );
-    drop(obj);
+    drop((positions, uvs, indices));
     std::fs::write(
         dir.join("terrain.toml"),
         format!(
@@ -73,11 +79,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
              [camera]\nposition = [30, 60, 600]\nlook_at = [0, 0, -600]\nfov = 40\nwidth = {width}\nheight = {height}\n\n\
              [sky]\nhorizon = [0.85, 0.38, 0.16]\nzenith = [0.04, 0.06, 0.2]\n\n\
              [light]\ndirection = [-0.8, 0.5, 0.55]\ncolour = [1.5, 1.0, 0.7]\nambient = [0.35, 0.35, 0.5]\n\n\
-             [[shape]]\ntype = \"mesh\"\nfile = \"terrain.obj\"\ntexture = \"builtin:checker\"\n\n\
+             [[shape]]\ntype = \"gltf\"\nfile = \"terrain.glb\"\n\n\
              [[shape]]\ntype = \"quad\"\norigin = [-56.25, 0.02, 100]\nedge_u = [112.5, 0, 0]\nedge_v = [0, 0, -1800]\ntexture = \"builtin:runway\"\nwrap = \"clamp\"\n"
         ),
     )?;
-
     let started = Instant::now();
     let scene = quadtex_render::load_scene(&dir.join("terrain.toml"))?;
     let load = started.elapsed().as_secs_f64();
@@ -90,7 +95,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .sum::<usize>();
     println!(
-        "loaded the scene (OBJ parse, hierarchy build, textures) in {load:.2} s; mesh with hierarchy {:.0} MiB",
+        "loaded the scene (glTF read, hierarchy build, texture packing) in {load:.2} s; mesh with hierarchy {:.0} MiB",
         mesh_bytes as f64 / f64::from(1 << 20)
     );
     let mut nearest = None;
@@ -114,4 +119,53 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         quadtex_io::save_image(&dir.join(format!("terrain-{name}.png")), &image)?;
     }
     Ok(())
+}
+
+/// Fields and tracks as a 8-bit RGB PNG, `side × side`: patches of a few
+/// crop colours with noisy texture, like an aerial photograph.
+fn orthophoto(side: u32) -> Vec<u8> {
+    let hash = |x: u32, y: u32| {
+        let mut h = x.wrapping_mul(0x9E37_79B1) ^ y.wrapping_mul(0x85EB_CA77);
+        h ^= h >> 15;
+        h = h.wrapping_mul(0x2C1B_3C6D);
+        h ^ (h >> 12)
+    };
+    let crops = [
+        [0.16, 0.26, 0.07],
+        [0.30, 0.32, 0.12],
+        [0.45, 0.38, 0.20],
+        [0.10, 0.18, 0.06],
+        [0.38, 0.30, 0.22],
+    ];
+    let pixels = (0..side * side)
+        .map(|k| {
+            let (x, y) = (k % side, k / side);
+            // Fields of 37–60 texels, staggered per row of fields.
+            let (fx, fy) = (x / 48, y / 37);
+            let crop = crops[(hash(fx + (fy % 3) * 7, fy) % crops.len() as u32) as usize];
+            let grain = 0.85 + 0.3 * f64::from(hash(x, y) % 1000) / 1000.0;
+            // Tracks between fields.
+            let track = x % 48 < 2 || y % 37 < 1;
+            let c = if track { [0.5, 0.45, 0.38] } else { crop };
+            quadtex_core::Rgba::opaque(
+                (c[0] * grain) as f32,
+                (c[1] * grain) as f32,
+                (c[2] * grain) as f32,
+            )
+        })
+        .collect();
+    let image = quadtex_io::LinearImage {
+        width: side,
+        height: side,
+        pixels,
+    };
+    let mut bytes = Vec::new();
+    quadtex_io::write_image(
+        &mut bytes,
+        std::path::Path::new("orthophoto.png"),
+        &image,
+        quadtex_io::ImageFormat::Png,
+    )
+    .expect("encoding to memory");
+    bytes
 }

@@ -1275,3 +1275,54 @@ fn obj_many_faces_over_the_memory_budget() {
         &["m.obj", "triangles need about 305 MiB"],
     );
 }
+
+#[test]
+fn gltf_malformed_and_out_of_range() {
+    let d = dir("gltf");
+    let good = d.join("good.glb");
+    quadtex_render::write_glb(
+        &good,
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 1.0]],
+        &[[0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+        &[0, 1, 2],
+        None,
+    )
+    .unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    let n = bytes.len();
+    let mut out_of_range = bytes.clone();
+    out_of_range[n - 4..].copy_from_slice(&9u32.to_le_bytes());
+    for (name, data, needle) in [
+        (
+            "truncated.glb",
+            bytes[..n - 10].to_vec(),
+            "not a valid glTF",
+        ),
+        (
+            "index.glb",
+            out_of_range,
+            "index 9 out of range (3 vertices)",
+        ),
+    ] {
+        std::fs::write(d.join(name), data).unwrap();
+        let scene = d.join(format!("{name}.toml"));
+        std::fs::write(
+            &scene,
+            format!("[camera]\nposition = [0.5, 2, -1]\nlook_at = [0.5, 0, 0.5]\nwidth = 16\nheight = 8\n\n[[shape]]\ntype = \"gltf\"\nfile = \"{name}\"\n"),
+        )
+        .unwrap();
+        let out = d.join("out.png");
+        expect_failure(
+            &[
+                "render",
+                scene.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ],
+            "",
+            &[&format!("{name}.toml:"), "shape[0].file", name, needle],
+            Some(&out),
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -126,7 +126,7 @@ impl Bvh {
                 nodes[node].start = start as u32;
                 nodes[node].count = count as u32;
             };
-            if count <= LEAF_SIZE || depth >= MAX_DEPTH || !(width > 0.0) {
+            if count <= LEAF_SIZE || depth >= MAX_DEPTH || width.is_nan() || width <= 0.0 {
                 leaf(&mut nodes);
                 continue;
             }

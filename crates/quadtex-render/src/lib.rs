@@ -20,6 +20,7 @@ mod bvh;
 mod demo;
 mod exact;
 mod frame;
+mod gltf_scene;
 pub mod math;
 mod measure;
 mod options;
@@ -36,6 +37,7 @@ use std::fmt;
 use std::path::PathBuf;
 
 pub use demo::{demo_scene, sign_art};
+pub use gltf_scene::write_glb;
 pub use measure::{
     LookupTiming, PixelFootprint, centre_distance, pixel_footprints, texture_only, time_lookups,
 };

@@ -111,7 +111,21 @@ pub fn parse_scene_with_limits(text: &str, path: &Path, limits: &Limits) -> Resu
         let Value::Table(t) = s else {
             return Err(cx.err(&key, "must be a table"));
         };
-        surfaces.push(cx.surface(t, &key)?);
+        if t.get("type").and_then(Value::as_str) == Some("gltf") {
+            surfaces.extend(cx.gltf(t, &key)?);
+        } else {
+            surfaces.push(cx.surface(t, &key)?);
+        }
+        if surfaces.len() > cx.limits.max_scene_shapes {
+            return Err(cx.err(
+                &key,
+                &format!(
+                    "the scene reaches {} surfaces (a glTF model adds one per material), more than max_scene_shapes {}",
+                    surfaces.len(),
+                    cx.limits.max_scene_shapes
+                ),
+            ));
+        }
     }
     Ok(Scene {
         camera,
@@ -622,6 +636,64 @@ impl Context<'_> {
             uv_transform,
             wrap,
         })
+    }
+
+    /// The surfaces of a glTF model shape (one per material).
+    fn gltf(&mut self, t: &Table, key: &str) -> Result<Vec<Surface>, Error> {
+        self.keys(t, key, &["type", "file", "scale", "translate"])?;
+        let file = match t.get("file") {
+            Some(Value::String(f)) => self.path.parent().unwrap_or(Path::new(".")).join(f),
+            _ => {
+                return Err(self.err(
+                    &format!("{key}.file"),
+                    "missing or not a string (a .gltf or .glb file)",
+                ));
+            }
+        };
+        let scale = self.number(t, key, "scale")?.unwrap_or(1.0);
+        let translate = self.vec3(t, key, "translate")?.unwrap_or_default();
+        let fail = |message: String| {
+            self.err(
+                &format!("{key}.file"),
+                &format!("{}: {message}", file.display()),
+            )
+        };
+        let model =
+            crate::gltf_scene::load_gltf(&file, scale, translate, &self.limits).map_err(fail)?;
+        let options = BuildOptions {
+            max_nodes: self.limits.max_nodes,
+            max_bytes: Some(self.limits.max_memory),
+            ..BuildOptions::default()
+        };
+        let mut textures = Vec::with_capacity(model.images.len());
+        for (i, grid) in model.images.iter().enumerate() {
+            let tree = QuadTree::from_texels(grid, &options)
+                .map_err(|e| fail(format!("image {i}: {e}")))?
+                .0;
+            let name = format!("{}#image{i}", file.display());
+            textures.push(
+                Texture::new(&name, Arc::new(tree)).with_memory_budget(self.limits.max_memory),
+            );
+        }
+        Ok(model
+            .parts
+            .into_iter()
+            .map(|part| Surface {
+                geometry: Geometry::Mesh(Arc::new(part.mesh)),
+                texture: part.image.map(|i| textures[i].clone()),
+                colour: part.colour,
+                uv_transform: UvTransform {
+                    scale: [1.0, 1.0],
+                    offset: [0.0, 0.0],
+                    rotation_degrees: 0.0,
+                },
+                wrap: Wrap {
+                    x: part.wrap.0,
+                    z: part.wrap.1,
+                    border: Rgba::TRANSPARENT,
+                },
+            })
+            .collect())
     }
 
     fn mesh(

@@ -31,9 +31,15 @@ pub(crate) struct Neighbourhood<'a> {
 }
 
 impl Neighbourhood<'_> {
-    /// True when the centres do not all see the same thing.
+    /// True when the centres do not all see the same surface (the
+    /// triangles of one mesh count as one, as the corner test of
+    /// `shade_area` compares surfaces: a mesh's inner edges are not
+    /// silhouettes, and testing them cast five rays a pixel over a
+    /// million-triangle terrain).
     pub fn mixed(&self) -> bool {
-        self.primitives.len() + usize::from(self.sky) > 1
+        let first = self.primitives.first().map(|&id| id >> 32);
+        let surfaces_differ = self.primitives.iter().any(|&id| Some(id >> 32) != first);
+        surfaces_differ || (self.sky && !self.primitives.is_empty())
     }
 }
 

@@ -294,3 +294,185 @@ fn tent_and_mitchell_converge_within_reference_noise() {
         }
     }
 }
+
+/// A 4×2 PNG (8-bit RGB), row 0 at the top.
+fn small_png() -> Vec<u8> {
+    let texels: Vec<quadtex_core::Rgba> = (0..8)
+        .map(|i| {
+            let c = [
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [1.0, 1.0, 1.0],
+                [0.2, 0.2, 0.2],
+                [1.0, 1.0, 0.0],
+                [0.0, 1.0, 1.0],
+                [1.0, 0.0, 1.0],
+            ][i];
+            quadtex_core::Rgba::opaque(c[0], c[1], c[2])
+        })
+        .collect();
+    let image = quadtex_io::LinearImage {
+        width: 4,
+        height: 2,
+        pixels: texels,
+    };
+    let mut bytes = Vec::new();
+    quadtex_io::write_image(
+        &mut bytes,
+        Path::new("small.png"),
+        &image,
+        quadtex_io::ImageFormat::Png,
+    )
+    .unwrap();
+    bytes
+}
+
+#[test]
+fn gltf_mesh_renders_like_the_same_quad() {
+    let dir = std::env::temp_dir().join(format!("quadtex-gltf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = small_png();
+    std::fs::write(dir.join("small.png"), &png).unwrap();
+    // The sign panel's quad as two triangles; glTF's v runs down the image.
+    quadtex_render::write_glb(
+        &dir.join("panel.glb"),
+        &[
+            [-8.0, 0.0, 0.0],
+            [8.0, 0.0, 0.0],
+            [8.0, 4.0, 0.0],
+            [-8.0, 4.0, 0.0],
+        ],
+        &[[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+        &[0, 1, 2, 0, 2, 3],
+        Some(&png),
+    )
+    .unwrap();
+    let scene = |shape: &str| {
+        let text = format!(
+            "[camera]\nposition = [3, 5, 20]\nlook_at = [0, 2, 0]\nfov = 50\nwidth = 96\nheight = 48\n\n[[shape]]\n{shape}\n"
+        );
+        parse_scene(&text, &dir.join("s.toml")).unwrap()
+    };
+    let gltf = scene("type = \"gltf\"\nfile = \"panel.glb\"");
+    let quad = scene(
+        "type = \"quad\"\norigin = [-8, 0, 0]\nedge_u = [16, 0, 0]\nedge_v = [0, 4, 0]\ntexture = \"small.png\"\nwrap = \"clamp\"",
+    );
+    assert_eq!(gltf.surfaces.len(), 1);
+    let options = RenderOptions {
+        filter: quadtex_render::Filter::Quadtree(
+            quadtex_core::FilterOptions::default()
+                .with_error_bound(1e-6)
+                .unwrap()
+                .with_budget(1 << 20)
+                .unwrap(),
+        ),
+        ..RenderOptions::default()
+    };
+    let (a, sa) = render(&gltf, &options, &|_, _| {}).unwrap();
+    let (b, _) = render(&quad, &options, &|_, _| {}).unwrap();
+    assert!(sa.textured_pixels > 200, "{}", sa.textured_pixels);
+    let worst = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| {
+            (p.r - q.r)
+                .abs()
+                .max((p.g - q.g).abs())
+                .max((p.b - q.b).abs())
+        })
+        .fold(0f32, f32::max);
+    assert!(worst < 1e-3, "glTF and quad differ by {worst}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_gltf_files_name_the_problem() {
+    let dir = std::env::temp_dir().join(format!("quadtex-badgltf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let good = dir.join("good.glb");
+    quadtex_render::write_glb(
+        &good,
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
+        &[[0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+        &[0, 1, 2],
+        None,
+    )
+    .unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    let check = |name: &str, data: &[u8], needle: &str| {
+        std::fs::write(dir.join(name), data).unwrap();
+        let text = format!(
+            "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nwidth = 8\nheight = 8\n\n[[shape]]\ntype = \"gltf\"\nfile = \"{name}\"\n"
+        );
+        let e = parse_scene(&text, &dir.join("s.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("shape[0].file") && e.contains(name) && e.contains(needle),
+            "{name}: {e}"
+        );
+    };
+    check(
+        "truncated.glb",
+        &bytes[..bytes.len() / 2],
+        "not a valid glTF",
+    );
+    check(
+        "garbage.glb",
+        b"glTF\x02\x00\x00\x00garbage",
+        "not a valid glTF",
+    );
+    // Index 7 of a 3-vertex mesh: the last 4 bytes of the binary chunk.
+    let mut bad_index = bytes.clone();
+    let n = bad_index.len();
+    bad_index[n - 4..].copy_from_slice(&7u32.to_le_bytes());
+    check("index.glb", &bad_index, "index 7 out of range");
+    // A NaN vertex: the first position's x.
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let bin = 20 + json_len + 8;
+    let mut nan = bytes.clone();
+    nan[bin..bin + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    check("nan.glb", &nan, "non-finite vertex");
+    // A buffer declared longer than the binary chunk holds.
+    let text = String::from_utf8_lossy(&bytes[20..20 + json_len]).to_string();
+    let declared = text
+        .split("\"byteLength\":")
+        .nth(1)
+        .unwrap()
+        .split('}')
+        .next()
+        .unwrap();
+    let longer = text.replacen(
+        &format!("\"buffers\":[{{\"byteLength\":{declared}}}]"),
+        &format!(
+            "\"buffers\":[{{\"byteLength\":{}}}]",
+            4096 + declared.parse::<usize>().unwrap()
+        ),
+        1,
+    );
+    assert_ne!(longer, text);
+    // Rebuilt with the JSON chunk padded to 4 bytes and the header's lengths updated.
+    let mut json = longer.into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut rebuilt = Vec::new();
+    rebuilt.extend_from_slice(&bytes[..8]);
+    let total = 12 + 8 + json.len() + (bytes.len() - 20 - json_len);
+    rebuilt.extend_from_slice(&(total as u32).to_le_bytes());
+    rebuilt.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    rebuilt.extend_from_slice(b"JSON");
+    rebuilt.extend_from_slice(&json);
+    rebuilt.extend_from_slice(&bytes[20 + json_len..]);
+    check("short.glb", &rebuilt, "the model declares");
+    // A buffer in a missing file beside the model.
+    let external = text.replacen(
+        &format!("\"buffers\":[{{\"byteLength\":{declared}}}]"),
+        &format!("\"buffers\":[{{\"byteLength\":{declared},\"uri\":\"absent.bin\"}}]"),
+        1,
+    );
+    check("external.gltf", external.as_bytes(), "absent.bin");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
