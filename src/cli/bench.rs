@@ -50,9 +50,16 @@ pub struct Args {
     /// Fragments per width (at least 1).
     #[arg(long, value_name = "Q", default_value_t = 100_000, value_parser = at_least_one("--queries"))]
     queries: usize,
-    /// Timed runs per measurement (the median is reported; at least 1).
-    #[arg(long, value_name = "R", default_value_t = 5, value_parser = at_least_one("--runs"))]
-    runs: usize,
+    /// Timed runs per measurement (the median is reported; at least 1;
+    /// default 5, or 3 with `--frames`).
+    #[arg(long, value_name = "R", value_parser = at_least_one("--runs"))]
+    runs: Option<usize>,
+    /// Time whole 1920×1080 frames instead: the demo, the runway scene and
+    /// a generated terrain of 1 M triangles (binary glTF, see
+    /// `quadtex_render::terrain`), each with `nearest`, the quadtree filter
+    /// and EWA, as medians and as ratios to `nearest` (same run).
+    #[arg(long, conflicts_with_all = ["size", "queries"])]
+    frames: bool,
     #[command(flatten)]
     memory: super::MemoryArgs,
 }
@@ -87,8 +94,13 @@ pub fn run(args: Args) -> Result<()> {
         size,
         queries,
         runs,
+        frames,
         memory,
     } = args;
+    if frames {
+        return run_frames(runs.unwrap_or(3), &memory.limits());
+    }
+    let runs = runs.unwrap_or(5);
     let budget = memory.bytes();
     let side = u64::from(size);
     // The raster (8 bytes a texel) and a lossless tree of it (at most 4/3 nodes a texel).
@@ -233,4 +245,93 @@ mod tests {
             );
         }
     }
+}
+
+/// `quadtex bench --frames`: median frame times at 1920×1080.
+fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
+    use quadtex_render::{Filter, RenderOptions};
+    let (width, height) = (1920, 1080);
+    let dir = std::env::temp_dir().join(format!("quadtex-bench-terrain-{}", std::process::id()));
+    let started = Instant::now();
+    let terrain = quadtex_render::terrain::write_terrain(
+        &dir,
+        quadtex_render::terrain::TERRAIN_CELLS,
+        width,
+        height,
+    )
+    .and_then(|file| quadtex_render::load_scene_with_limits(&file, limits));
+    let _ = std::fs::remove_dir_all(&dir);
+    let terrain = terrain?;
+    let terrain_load = started.elapsed().as_secs_f64();
+    let runway = quadtex_render::parse_scene(
+        include_str!("../../scenes/runway.toml"),
+        std::path::Path::new("scenes/runway.toml"),
+    )?;
+    let scenes = [
+        ("demo (built-in airfield)", quadtex_render::demo_scene()?),
+        ("runway (`scenes/runway.toml`)", runway),
+        ("terrain, 1 002 528 triangles (glTF)", terrain),
+    ];
+    let filters = [
+        ("nearest", Filter::Nearest),
+        (
+            "quadtree",
+            Filter::Quadtree(quadtex_core::FilterOptions::default()),
+        ),
+        (
+            "ewa",
+            Filter::Ewa {
+                max_anisotropy: 8.0,
+            },
+        ),
+    ];
+    let mut out = Text::stdout();
+    writeln!(
+        out,
+        "## quadtex bench --frames: {width}x{height}, median of {runs} runs, {} cores\n",
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    )?;
+    writeln!(
+        out,
+        "Terrain written and loaded (glTF read, hierarchy build, texture packing) in {terrain_load:.2} s.\n"
+    )?;
+    writeln!(
+        out,
+        "| scene | nearest | quadtree | EWA (aniso 8) | quadtree / nearest | EWA / nearest | quadtree's filter share / nearest |"
+    )?;
+    writeln!(out, "|---|---:|---:|---:|---:|---:|---:|")?;
+    for (name, scene) in &scenes {
+        let mut medians = Vec::new();
+        for (_, filter) in &filters {
+            let options = RenderOptions {
+                width: Some(width),
+                height: Some(height),
+                filter: *filter,
+                ..RenderOptions::default()
+            };
+            let mut times = Vec::with_capacity(runs);
+            for _ in 0..runs {
+                times.push(
+                    quadtex_render::render(scene, &options, &|_, _| {})?
+                        .1
+                        .seconds,
+                );
+            }
+            times.sort_by(f64::total_cmp);
+            medians.push(times[times.len() / 2]);
+        }
+        let (n, q, e) = (medians[0], medians[1], medians[2]);
+        writeln!(
+            out,
+            "| {name} | {:.0} ms | {:.0} ms | {:.0} ms | {:.2} | {:.2} | {:.2} |",
+            n * 1e3,
+            q * 1e3,
+            e * 1e3,
+            q / n,
+            e / n,
+            (q - n) / n
+        )?;
+    }
+    out.flush()?;
+    Ok(())
 }

@@ -31,6 +31,7 @@ mod render;
 pub mod scene;
 mod shade;
 mod stats;
+pub mod terrain;
 mod view;
 
 use std::fmt;
