@@ -219,34 +219,6 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn counts_must_be_positive() {
-        assert_eq!(at_least_one("--queries")("10"), Ok(10));
-        assert_eq!(
-            at_least_one("--queries")("0"),
-            Err("--queries must be at least 1, got 0".to_string())
-        );
-        assert!(at_least_one("--runs")("-1").is_err());
-    }
-
-    #[test]
-    fn texture_size_is_a_power_of_two_in_range() {
-        assert_eq!(texture_size("64"), Ok(64));
-        for bad in ["32", "100", "32768"] {
-            assert_eq!(
-                texture_size(bad),
-                Err(format!(
-                    "--size must be a power of two in 64..=16384, got {bad}"
-                ))
-            );
-        }
-    }
-}
-
 /// `quadtex bench --frames`: median frame times at 1920×1080.
 fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     use quadtex_render::{Filter, RenderOptions};
@@ -334,4 +306,32 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     }
     out.flush()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_must_be_positive() {
+        assert_eq!(at_least_one("--queries")("10"), Ok(10));
+        assert_eq!(
+            at_least_one("--queries")("0"),
+            Err("--queries must be at least 1, got 0".to_string())
+        );
+        assert!(at_least_one("--runs")("-1").is_err());
+    }
+
+    #[test]
+    fn texture_size_is_a_power_of_two_in_range() {
+        assert_eq!(texture_size("64"), Ok(64));
+        for bad in ["32", "100", "32768"] {
+            assert_eq!(
+                texture_size(bad),
+                Err(format!(
+                    "--size must be a power of two in 64..=16384, got {bad}"
+                ))
+            );
+        }
+    }
 }
