@@ -33,6 +33,8 @@ pub struct Settings {
     pub shimmer_reference_grid: u32,
     /// Compute FLIP.
     pub flip: bool,
+    /// The shimmer frames' camera path, instead of the move along the view.
+    pub path: Option<quadtex_render::CameraPath>,
 }
 
 impl Default for Settings {
@@ -43,6 +45,7 @@ impl Default for Settings {
             frames: 16,
             shimmer_reference_grid: 16,
             flip: true,
+            path: None,
         }
     }
 }
@@ -98,24 +101,33 @@ pub struct CompareArgs {
     /// Skip FLIP (the perceptual error).
     #[arg(long)]
     no_flip: bool,
+    /// Move the shimmer frames' camera along this camera path (format in
+    /// docs/scenes.md) instead of straight ahead along the view.
+    #[arg(long, value_name = "PATH.toml")]
+    path: Option<PathBuf>,
 }
 
 impl CompareArgs {
-    /// The settings for frames `width` pixels wide.
-    pub fn settings(&self, width: u32) -> Settings {
-        Settings {
+    /// The settings for frames `width` pixels wide (reads `--path` under `limits`).
+    pub fn settings(&self, width: u32, limits: &quadtex_io::Limits) -> Result<Settings> {
+        let path = match &self.path {
+            Some(p) => Some(quadtex_render::load_camera_path(p, limits)?),
+            None => None,
+        };
+        Ok(Settings {
             width,
             reference_grid: (f64::from(self.reference_spp).sqrt().round() as u32).max(1),
             frames: self.frames,
             flip: !self.no_flip,
+            path,
             ..Settings::default()
-        }
+        })
     }
 }
 
 /// Runs `quadtex compare`.
 pub fn run(args: Args) -> Result<()> {
-    let settings = args.options.settings(args.width);
+    let settings = args.options.settings(args.width, &args.memory.limits())?;
     let scene = quadtex_render::load_scene_with_limits(&args.scene, &args.memory.limits())?;
     let name = args
         .scene
@@ -281,14 +293,27 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
     // each 0.4% of the distance to what the centre of the view sees.
     let shimmer_size = ((w / 2).max(16), (h / 2).max(9));
     let step = quadtex_render::centre_distance(scene).unwrap_or(1.0) * 0.004;
-    let moved: Vec<Scene> = (0..s.frames)
-        .map(|t| Scene {
-            camera: scene
-                .camera
-                .translated(scene.camera.forward() * (step * f64::from(t))),
-            ..scene.clone()
-        })
-        .collect();
+    let moved: Vec<Scene> = match &s.path {
+        Some(path) => (0..s.frames)
+            .map(|t| {
+                let camera = path
+                    .camera(t, s.frames, scene.camera.width(), scene.camera.height())
+                    .map_err(|e| format!("camera path: {e}"))?;
+                Ok(Scene {
+                    camera,
+                    ..scene.clone()
+                })
+            })
+            .collect::<Result<_>>()?,
+        None => (0..s.frames)
+            .map(|t| Scene {
+                camera: scene
+                    .camera
+                    .translated(scene.camera.forward() * (step * f64::from(t))),
+                ..scene.clone()
+            })
+            .collect(),
+    };
     let shimmer_refs = |pf: PixelFilter| -> Result<Vec<LinearImage>> {
         moved
             .iter()
@@ -440,7 +465,15 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
             n * n,
             exact_note.clone().unwrap_or_default()
         ),
-        motion: if s.frames >= 2 {
+        motion: if s.frames >= 2 && s.path.is_some() {
+            format!(
+                "{} frames at {}x{} along the camera path, against {}-sample references",
+                s.frames,
+                shimmer_size.0,
+                shimmer_size.1,
+                s.shimmer_reference_grid * s.shimmer_reference_grid
+            )
+        } else if s.frames >= 2 {
             format!(
                 "{} frames at {}x{} moving {:.3} scene units per frame along the view, against {}-sample references",
                 s.frames,

@@ -66,7 +66,7 @@ pub struct FormatFlag {
 #[derive(Debug, clap::Args)]
 #[command(group(
     clap::ArgGroup::new("compare_only")
-        .args(["reference_spp", "frames", "no_flip"])
+        .args(["reference_spp", "frames", "no_flip", "path"])
         .multiple(true)
         .requires("compare")
 ))]
@@ -346,7 +346,9 @@ pub fn run_demo(args: DemoArgs) -> Result<()> {
         if !(16..=3840).contains(&width) {
             return Err(format!("--width must be in 16..=3840, got {width}").into());
         }
-        let settings = args.compare_options.settings(width);
+        let settings = args
+            .compare_options
+            .settings(width, &args.memory.limits())?;
         let dir = match args.output {
             Some(Output::File(dir)) => dir,
             Some(Output::Stdout) => {
