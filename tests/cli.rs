@@ -469,3 +469,31 @@ fn render_along_a_camera_path_writes_numbered_frames() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn compare_measures_shimmer_along_a_camera_path() {
+    let d = temp_dir("compare-path");
+    let out = d.join("report");
+    let o = run(
+        &[
+            "compare",
+            "scenes/runway.toml",
+            "--width",
+            "32",
+            "--reference-spp",
+            "1",
+            "--frames",
+            "2",
+            "--no-flip",
+            "--path",
+            "scenes/runway-approach.path.toml",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("2 frames at 16x9 along the camera path"), "{html}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
