@@ -2,9 +2,10 @@
 //! raster in between.
 //!
 //! [`VectorArt`] is a list of filled polygonal shapes in paint order (back to
-//! front), each with a fill rule, a [`Paint`] (a linear premultiplied colour
-//! or a [`Gradient`]), the translucent groups it belongs to and the clip
-//! region it is painted within. Coordinates are texture space (`x` right,
+//! front), each with a fill rule, a [`Paint`] (a linear premultiplied colour,
+//! a [`Gradient`] or an [`ImagePaint`]), the translucent groups it belongs
+//! to (each possibly blended and masked) and the clip region it is painted
+//! within. Coordinates are texture space (`x` right,
 //! `z` up, see the crate conventions); art outside `[0,1)²` is clipped off and
 //! uncovered parts are transparent. Curves are the caller's to flatten (the
 //! SVG packer states its tolerance).
@@ -48,6 +49,14 @@
 //! or the trapezoid's set of covering shapes is known, a painted shape counts
 //! only if its region covers too, evaluated from that same set; clipping is
 //! as exact as coverage.
+//!
+//! **Masks** ([`VectorArt::begin_mask`]) are carried the same way: their
+//! content shapes travel through the subdivision as members, and wherever
+//! the covering set is known, a masked group's composite is multiplied by
+//! the composite of its mask's content there, turned into a coverage
+//! ([`MaskKind`]). On flat content that is exact; where a gradient or an
+//! image varies inside a mask, the mean carries the bound of the coverage's
+//! range (interval arithmetic, as for gradients).
 //!
 //! Memory and time grow with the length of the edges times `2^L` (the squares
 //! an edge crosses), never with `4^L`. Compositing is the premultiplied
