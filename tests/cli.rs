@@ -494,6 +494,9 @@ fn compare_measures_shimmer_along_a_camera_path() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert!(html.contains("2 frames at 16x9 along the camera path"), "{html}");
+    assert!(
+        html.contains("2 frames at 16x9 along the camera path"),
+        "{html}"
+    );
     std::fs::remove_dir_all(&d).unwrap();
 }
