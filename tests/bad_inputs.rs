@@ -1326,3 +1326,92 @@ fn gltf_malformed_and_out_of_range() {
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Writes a `side × side` grey PNG tile at `dir/name`.
+fn tile_png(dir: &Path, name: &str, side: u32) {
+    let image = quadtex_io::LinearImage {
+        width: side,
+        height: side,
+        pixels: vec![quadtex_core::Rgba::opaque(0.5, 0.5, 0.5); (side * side) as usize],
+    };
+    quadtex_io::save_image(&dir.join(name), &image).unwrap();
+}
+
+/// A 2×2 grid of 8×8 tiles, changed by `spoil`; `pack-tiles` must fail
+/// naming every needle and write nothing.
+fn tiles_case(case: &str, spoil: impl FnOnce(&Path), needles: &[&str]) {
+    let d = dir(case);
+    let tiles = d.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    for name in ["0_0.png", "0_1.png", "1_0.png", "1_1.png"] {
+        tile_png(&tiles, name, 8);
+    }
+    spoil(&tiles);
+    let out = d.join("out.qtx");
+    expect_failure(
+        &[
+            "pack-tiles",
+            tiles.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        needles,
+        Some(&out),
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn tiles_missing_duplicate_mismatched_and_corrupt() {
+    tiles_case(
+        "tiles-missing",
+        |t| std::fs::remove_file(t.join("1_0.png")).unwrap(),
+        &["1_0.png", "missing: a 2x2 grid needs every tile"],
+    );
+    tiles_case(
+        "tiles-duplicate",
+        |t| {
+            std::fs::copy(t.join("0_1.png"), t.join("0_1.jpg"))
+                .map(|_| ())
+                .unwrap()
+        },
+        &["tile 0_1 is also"],
+    );
+    tiles_case(
+        "tiles-size",
+        |t| tile_png(t, "1_1.png", 16),
+        &["1_1.png", "16x16 texels, but the first tile is 8x8"],
+    );
+    tiles_case(
+        "tiles-corrupt",
+        |t| std::fs::write(t.join("0_1.png"), b"\x89PNG\r\n\x1a\nnot really").unwrap(),
+        &["0_1.png"],
+    );
+    tiles_case(
+        "tiles-three",
+        |t| tile_png(t, "2_2.png", 8),
+        &["3 tiles a side: the grid must be 1, 2, 4, 8"],
+    );
+    tiles_case(
+        "tiles-odd-side",
+        |t| {
+            for name in ["0_0.png", "0_1.png", "1_0.png", "1_1.png"] {
+                tile_png(t, name, 6);
+            }
+        },
+        &[
+            "0_0.png",
+            "6x6 texels: tiles must be squares of a power of two",
+        ],
+    );
+    tiles_case(
+        "tiles-none",
+        |t| {
+            for name in ["0_0.png", "0_1.png", "1_0.png", "1_1.png"] {
+                std::fs::remove_file(t.join(name)).unwrap();
+            }
+        },
+        &["no tiles named ROW_COL.png"],
+    );
+}

@@ -500,3 +500,72 @@ fn compare_measures_shimmer_along_a_camera_path() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// The runway art rasterised `side × side`, and cut into `tiles × tiles`
+/// PNG tiles named `ROW_COL.png` in `dir`.
+fn write_tiles(dir: &Path, side: u32, tiles: u32) -> LinearImage {
+    let grid = quadtex_core::synth::runway_art()
+        .rasterise(side, side)
+        .unwrap();
+    let whole = LinearImage {
+        width: side,
+        height: side,
+        pixels: grid.texels().iter().map(|t| t.to_rgba()).collect(),
+    };
+    let t = side / tiles;
+    for row in 0..tiles {
+        for col in 0..tiles {
+            let pixels = (0..t * t)
+                .map(|k| whole.pixels[((row * t + k / t) * side + col * t + k % t) as usize])
+                .collect();
+            let tile = LinearImage {
+                width: t,
+                height: t,
+                pixels,
+            };
+            save_image(&dir.join(format!("{row}_{col}.png")), &tile).unwrap();
+        }
+    }
+    whole
+}
+
+#[test]
+fn pack_tiles_builds_the_tree_of_the_whole_mosaic() {
+    let d = temp_dir("pack-tiles");
+    let tiles = d.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    let whole = write_tiles(&tiles, 256, 4);
+    // A file that is not a tile is ignored.
+    std::fs::write(tiles.join("README.txt"), "tiles of the runway").unwrap();
+    let png = d.join("whole.png");
+    save_image(&png, &whole).unwrap();
+    let (a, b) = (d.join("tiled.qtx"), d.join("whole.qtx"));
+    let out = run(
+        &[
+            "pack-tiles",
+            tiles.to_str().unwrap(),
+            "-o",
+            a.to_str().unwrap(),
+        ],
+        "",
+    );
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("packed 4x4 tiles of 64x64"), "{text}");
+    let out = run(
+        &["pack", png.to_str().unwrap(), "-o", b.to_str().unwrap()],
+        "",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The same tree, byte for byte (the header records 256x256 for both).
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    std::fs::remove_dir_all(&d).unwrap();
+}

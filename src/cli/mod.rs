@@ -9,6 +9,7 @@ mod footprints;
 mod info;
 mod output;
 mod pack;
+mod pack_tiles;
 mod query;
 mod render;
 mod sample;
@@ -46,6 +47,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     Pack(pack::Args),
+    PackTiles(pack_tiles::Args),
     Info(info::Args),
     Query(query::Args),
     Render(render::Args),
@@ -68,6 +70,7 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Some(Command::Pack(args)) => pack::run(args),
+        Some(Command::PackTiles(args)) => pack_tiles::run(args),
         Some(Command::Info(args)) => info::run(args),
         Some(Command::Query(args)) => query::run(args),
         Some(Command::Render(args)) => render::run(args),

@@ -41,7 +41,7 @@ pub struct Args {
 }
 
 /// A value parser: a tolerance in [0, 1].
-fn tolerance(text: &str) -> std::result::Result<f64, String> {
+pub(crate) fn tolerance(text: &str) -> std::result::Result<f64, String> {
     let t = text.parse::<f64>().map_err(|e| e.to_string())?;
     if !(t.is_finite() && (0.0..=1.0).contains(&t)) {
         return Err(format!("--tolerance must be in [0, 1], got {t}"));

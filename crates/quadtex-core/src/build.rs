@@ -202,8 +202,19 @@ impl Stats {
     }
 }
 
+/// Where the squares of one level come from whole: tiles packed one at a
+/// time (see [`QuadTree::from_tiles`]).
+struct Tiles<'a> {
+    /// The level whose squares are tiles (`2^level` tiles a side).
+    level: u8,
+    /// Texels on a tile's side.
+    side: u32,
+    load: &'a mut dyn FnMut(u32, u32) -> Result<TexelGrid, Error>,
+}
+
 struct Builder<'a> {
     cells: &'a [Unorm16Rgba],
+    tiles: Option<Tiles<'a>>,
     side: usize,
     depth: u8,
     tolerance: u16,
@@ -230,6 +241,9 @@ impl Builder<'_> {
         ix: usize,
         iz: usize,
     ) -> Result<(Stats, Unorm16Rgba, bool), Error> {
+        if self.tiles.as_ref().is_some_and(|t| t.level == level) {
+            return self.tile(level, ix, iz);
+        }
         if level == self.depth {
             let c = self.cell(ix, iz);
             return Ok((Stats::of(c), c, true));
@@ -279,7 +293,136 @@ impl Builder<'_> {
     }
 }
 
+impl Builder<'_> {
+    /// Square `(level, ix, iz)` as a whole tile: loads it, packs it on its
+    /// own and splices its levels below this one (breadth-first order holds:
+    /// squares are visited in the order their level lists them).
+    fn tile(
+        &mut self,
+        level: u8,
+        ix: usize,
+        iz: usize,
+    ) -> Result<(Stats, Unorm16Rgba, bool), Error> {
+        let Some(tiles) = self.tiles.as_mut() else {
+            return Err(Error::MalformedTree("no tiles".into()));
+        };
+        let (n, side) = (1u32 << level, tiles.side);
+        let (row, col) = (n - 1 - iz as u32, ix as u32);
+        let grid = (tiles.load)(row, col)?;
+        if (grid.width, grid.height) != (side, side) {
+            return Err(Error::BadDimensions {
+                width: grid.width.into(),
+                height: grid.height.into(),
+                reason: "not the size of the first tile (tiles must all be the same square)",
+            });
+        }
+        let depth = self.depth - level;
+        let mut b = Builder {
+            cells: &grid.texels,
+            tiles: None,
+            side: side as usize,
+            depth,
+            tolerance: self.tolerance,
+            levels: vec![Vec::new(); usize::from(depth) + 1],
+            nodes: self.nodes,
+            max_nodes: self.max_nodes,
+            max_error: self.max_error,
+            fixed_bytes: self.fixed_bytes,
+            max_bytes: self.max_bytes,
+        };
+        let (stats, root, terminal) = b.square(0, 0, 0)?;
+        self.nodes = b.nodes;
+        self.max_error = b.max_error;
+        for (below, tile_level) in self.levels[usize::from(level) + 1..]
+            .iter_mut()
+            .zip(b.levels.into_iter().skip(1))
+        {
+            below
+                .try_reserve(tile_level.len())
+                .map_err(|_| Error::AllocationFailed {
+                    what: "tree level".into(),
+                    bytes: (tile_level.len() * std::mem::size_of::<(bool, Unorm16Rgba)>()) as u64,
+                })?;
+            below.extend(tile_level);
+        }
+        Ok((stats, root, terminal))
+    }
+}
+
 impl QuadTree {
+    /// Packs a square grid of square tiles into one tree without holding
+    /// more than one tile's texels: `tiles × tiles` tiles (a power of two),
+    /// each `side × side` texels (a power of two), tile `(row, col)` (row 0
+    /// at the top) returned by `load` when the packer reaches it, in Morton
+    /// order. The result is the tree [`QuadTree::from_texels`] would build
+    /// from the whole mosaic, losslessly or to `options.tolerance`;
+    /// `options.max_level` must be `None` (the depth is the mosaic's). The
+    /// budget covers one tile's texels and the nodes so far. A tile of
+    /// another size, or any error `load` returns, stops the build.
+    pub fn from_tiles(
+        tiles: u32,
+        side: u32,
+        options: &BuildOptions,
+        load: &mut dyn FnMut(u32, u32) -> Result<TexelGrid, Error>,
+    ) -> Result<(QuadTree, BuildReport), Error> {
+        if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
+            return Err(Error::BadTolerance(options.tolerance));
+        }
+        if !tiles.is_power_of_two() || !side.is_power_of_two() || side > MAX_DIMENSION {
+            return Err(Error::BadDimensions {
+                width: u64::from(tiles),
+                height: u64::from(side),
+                reason: "tiles a side and texels a tile side must be powers of two",
+            });
+        }
+        if options.max_level.is_some() {
+            return Err(Error::BadDimensions {
+                width: u64::from(tiles) * u64::from(side),
+                height: u64::from(tiles) * u64::from(side),
+                reason: "a tiled texture is packed at its own depth (no max level)",
+            });
+        }
+        let level = tiles.trailing_zeros() as u8;
+        let depth = level + side.trailing_zeros() as u8;
+        if depth > MAX_DEPTH {
+            return Err(Error::DepthTooLarge {
+                depth: depth.into(),
+                max: MAX_DEPTH.into(),
+            });
+        }
+        let fixed_bytes = 8 * u64::from(side) * u64::from(side);
+        check_budget(
+            || format!("packing {tiles}x{tiles} tiles of {side}x{side} texels"),
+            fixed_bytes + BUILD_BYTES_PER_NODE,
+            options.max_bytes,
+            RASTER_KNOBS,
+        )?;
+        let mut b = Builder {
+            cells: &[],
+            tiles: Some(Tiles { level, side, load }),
+            side: 0,
+            depth,
+            tolerance: (options.tolerance * 65535.0).floor().min(65535.0) as u16,
+            levels: vec![Vec::new(); usize::from(depth) + 1],
+            nodes: 1,
+            max_nodes: options.max_nodes,
+            max_error: 0,
+            fixed_bytes,
+            max_bytes: options.max_bytes,
+        };
+        let (_, root, terminal) = b.square(0, 0, 0)?;
+        b.levels[0].push((!terminal, root));
+        while b.levels.last().is_some_and(Vec::is_empty) {
+            b.levels.pop();
+        }
+        let report = BuildReport {
+            cell_depth: depth,
+            resampled: false,
+            max_error: f64::from(b.max_error) / 65535.0,
+        };
+        Ok((tree::from_levels(b.levels)?, report))
+    }
+
     /// Packs a raster (see the [module documentation](crate::build)).
     pub fn from_texels(
         grid: &TexelGrid,
@@ -320,6 +463,7 @@ impl QuadTree {
         let tolerance = (options.tolerance * 65535.0).floor().min(65535.0) as u16;
         let mut b = Builder {
             cells,
+            tiles: None,
             side,
             depth,
             tolerance,
@@ -426,6 +570,84 @@ fn weights_1d(texels: usize, cells: usize) -> Vec<Vec<(usize, f32)>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A mosaic with uniform regions, edges and noise: `(col, row)` texel.
+    fn mosaic_texel(col: u32, row: u32) -> Rgba {
+        let h = (col.wrapping_mul(2_654_435_761) ^ row.wrapping_mul(40_503)) % 7;
+        if col < 20 && row < 12 {
+            Rgba::opaque(0.2, 0.4, 0.6)
+        } else if (col / 3 + row / 5) % 2 == 0 {
+            Rgba::new(0.5, 0.25, 0.0, 0.5)
+        } else {
+            Rgba::opaque(h as f32 / 7.0, 0.1, 0.9)
+        }
+    }
+
+    #[test]
+    fn tiles_pack_to_the_tree_of_the_whole_mosaic() {
+        for (tiles, side, tolerance) in [
+            (4u32, 8u32, 0.0),
+            (2, 16, 0.0),
+            (4, 8, 0.05),
+            (1, 32, 0.0),
+            (8, 4, 0.0),
+        ] {
+            let total = tiles * side;
+            let whole = TexelGrid::from_fn(total, total, mosaic_texel).unwrap();
+            let options = BuildOptions {
+                tolerance,
+                ..BuildOptions::default()
+            };
+            let (expected, expected_report) = QuadTree::from_texels(&whole, &options).unwrap();
+            let mut loaded = Vec::new();
+            let (tree, report) = QuadTree::from_tiles(tiles, side, &options, &mut |row, col| {
+                loaded.push((row, col));
+                TexelGrid::from_fn(side, side, |c, r| {
+                    mosaic_texel(col * side + c, row * side + r)
+                })
+            })
+            .unwrap();
+            assert_eq!(
+                tree, expected,
+                "{tiles}x{tiles} tiles of {side}, tolerance {tolerance}"
+            );
+            assert_eq!(report.max_error, expected_report.max_error);
+            // Every tile loaded once.
+            loaded.sort_unstable();
+            loaded.dedup();
+            assert_eq!(loaded.len(), (tiles * tiles) as usize);
+        }
+    }
+
+    #[test]
+    fn tiles_of_the_wrong_size_or_failing_to_load_stop_the_build() {
+        let options = BuildOptions::default();
+        let e = QuadTree::from_tiles(2, 8, &options, &mut |row, col| {
+            let side = if (row, col) == (1, 1) { 4 } else { 8 };
+            TexelGrid::from_fn(side, side, |_, _| Rgba::opaque(1.0, 0.0, 0.0))
+        })
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("not the size of the first tile"),
+            "{e}"
+        );
+        let e = QuadTree::from_tiles(2, 8, &options, &mut |_, _| {
+            Err(Error::BadDimensions {
+                width: 0,
+                height: 0,
+                reason: "a test failure",
+            })
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("a test failure"), "{e}");
+        assert!(QuadTree::from_tiles(3, 8, &options, &mut |_, _| unreachable!()).is_err());
+        assert!(QuadTree::from_tiles(2, 6, &options, &mut |_, _| unreachable!()).is_err());
+        let levelled = BuildOptions {
+            max_level: Some(3),
+            ..BuildOptions::default()
+        };
+        assert!(QuadTree::from_tiles(2, 8, &levelled, &mut |_, _| unreachable!()).is_err());
+    }
 
     #[test]
     fn weights_cover_each_cell_once() {

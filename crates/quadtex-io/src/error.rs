@@ -49,13 +49,21 @@ pub enum Error {
         /// The parser's message.
         message: String,
     },
-    /// An SVG feature the exact packer does not support (images, masks,
-    /// filters, blend modes, patterns over too many tiles).
+    /// An SVG feature the exact packer does not support (filters, GIF,
+    /// WebP and svgz images, patterns over too many tiles).
     UnsupportedSvg {
         /// The file.
         path: PathBuf,
         /// The element or property, with its `id` when it has one.
         element: String,
+    },
+    /// A folder of tiles is not a complete square grid of equal square
+    /// tiles (see [`crate::pack_tiles`]); the message names the tile.
+    Tiles {
+        /// The folder, or the tile at fault.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
     },
     /// Reading, decoding or packing the file would need more memory than
     /// [`crate::Limits::max_memory`]; nothing large was allocated. Shown as
@@ -118,6 +126,7 @@ impl fmt::Display for Error {
             Error::UnsupportedSvg { path, element } => {
                 write!(f, "{}: unsupported: {element}", path.display())
             }
+            Error::Tiles { path, message } => write!(f, "{}: {message}", path.display()),
             Error::MemoryBudget {
                 path,
                 what,

@@ -21,6 +21,7 @@ mod limits;
 mod qtx;
 mod query;
 pub mod svg;
+mod tiles;
 
 pub use atomic::write_atomically;
 pub use error::Error;
@@ -36,5 +37,6 @@ pub use qtx::{
 };
 pub use query::parse_query_line;
 pub use svg::{load_svg, pack_svg, pack_svg_with_tolerance, parse_svg};
+pub use tiles::{TileFolder, pack_tiles};
 
 pub use quadtex_core::TexelGrid;

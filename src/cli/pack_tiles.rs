@@ -1,0 +1,82 @@
+//! `quadtex pack-tiles`: a folder of raster tiles into one `.qtx` tree.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use super::output::Output;
+use super::{MemoryArgs, Result, human_bytes, raster_bytes};
+
+/// Pack a folder of raster tiles into one quadtree texture.
+///
+/// The folder holds tiles named ROW_COL.png (or .jpg; row 0 at the top):
+/// a complete square grid of 1, 2, 4, 8, … tiles a side, every tile the
+/// same square of a power of two texels. They are packed one at a time, so
+/// memory holds one tile's texels and the tree, never the whole mosaic; the
+/// tree is the one `pack` would build from the mosaic. A missing, duplicate,
+/// odd-sized or undecodable tile is an error naming it; nothing is written.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The folder of ROW_COL.png tiles.
+    #[arg(value_name = "DIR")]
+    dir: PathBuf,
+    /// The .qtx file to write; `-` writes it to standard output (the
+    /// summary then goes to standard error).
+    #[arg(short, long, value_name = "OUT.qtx")]
+    output: Output,
+    /// Largest per-channel deviation (linear, premultiplied, full scale 1)
+    /// of a texel from its terminal square's colour, in [0, 1]; 0 (the
+    /// default) is lossless.
+    #[arg(long, value_name = "T", default_value_t = 0.0, value_parser = super::pack::tolerance)]
+    tolerance: f64,
+    #[command(flatten)]
+    memory: MemoryArgs,
+}
+
+/// Runs `quadtex pack-tiles`.
+pub fn run(args: Args) -> Result<()> {
+    let start = Instant::now();
+    let limits = args.memory.limits();
+    let (tree, report, folder) = quadtex_io::pack_tiles(&args.dir, args.tolerance, &limits)?;
+    let packed = start.elapsed().as_secs_f64();
+    let side = u32::try_from(folder.texels()).map_err(|_| "texture side beyond 2^32")?;
+    args.output.write_qtx(&tree, Some((side, side)))?;
+    let bytes = tree.memory_bytes();
+    let (raster, mips) = raster_bytes(side, side);
+    let error = if report.max_error == 0.0 {
+        "lossless".to_string()
+    } else {
+        format!("max error {:.6} (L∞ per channel, linear)", report.max_error)
+    };
+    let mut text = args.output.text();
+    writeln!(
+        text,
+        "packed {}x{} tiles of {}x{} from {} -> {}: {side}x{side} texels, {} nodes, depth {}, {}; RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {error}; packed in {packed:.2} s, {:.2} s with writing{}",
+        folder.tiles(),
+        folder.tiles(),
+        folder.side(),
+        folder.side(),
+        args.dir.display(),
+        args.output,
+        tree.node_count(),
+        tree.depth(),
+        human_bytes(bytes),
+        raster as f64 / bytes as f64,
+        mips as f64 / bytes as f64,
+        start.elapsed().as_secs_f64(),
+        peak_memory().map_or(String::new(), |m| format!(
+            "; peak memory {}",
+            human_bytes(m)
+        ))
+    )?;
+    text.flush()?;
+    Ok(())
+}
+
+/// The process's peak resident memory (`VmHWM`), where the system reports it.
+fn peak_memory() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
