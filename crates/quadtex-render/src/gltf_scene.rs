@@ -246,7 +246,7 @@ impl Loader<'_> {
         }
         let bytes = self
             .triangles
-            .saturating_mul(crate::parse::MESH_BYTES_PER_TRIANGLE);
+            .saturating_mul(crate::scene::MESH_BYTES_PER_TRIANGLE);
         if bytes > self.limits.max_memory {
             return Err(format!(
                 "{} triangles need about {} MiB with their hierarchy, above the memory budget of {} MiB (raise --memory-limit)",

@@ -14,7 +14,9 @@ use crate::Error;
 use crate::demo::builtin_texture;
 use crate::math::Vec3;
 use crate::path::{CameraPath, Key, MAX_PATH_KEYS};
-use crate::scene::{Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform};
+use crate::scene::{
+    Camera, Geometry, Lighting, MESH_BYTES_PER_TRIANGLE, Scene, Sky, Surface, Texture, UvTransform,
+};
 use quadtex_io::Limits;
 
 /// Max level of SVG textures without `texture_level` (4096² effective).
@@ -803,11 +805,6 @@ fn check_obj_indices(bytes: &[u8]) -> Result<(), String> {
     }
     Ok(())
 }
-
-/// Bytes a mesh holds per triangle once parsed: the triangle (160), its
-/// share of the hierarchy (about 60) and the parsed OBJ arrays alongside
-/// while it is built (up to about 100), rounded up.
-pub const MESH_BYTES_PER_TRIANGLE: u64 = 320;
 
 /// As [`parse_obj`], with `scale` then `translate` applied.
 fn parse_obj_with(
