@@ -576,7 +576,7 @@ mod tests {
         let h = (col.wrapping_mul(2_654_435_761) ^ row.wrapping_mul(40_503)) % 7;
         if col < 20 && row < 12 {
             Rgba::opaque(0.2, 0.4, 0.6)
-        } else if (col / 3 + row / 5) % 2 == 0 {
+        } else if (col / 3 + row / 5).is_multiple_of(2) {
             Rgba::new(0.5, 0.25, 0.0, 0.5)
         } else {
             Rgba::opaque(h as f32 / 7.0, 0.1, 0.9)
