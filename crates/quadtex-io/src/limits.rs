@@ -17,6 +17,11 @@ pub struct Limits {
     /// Most elements in an SVG document, counted with every `use` expanded
     /// (default 100 000; `usvg` itself stops at 1 000 000).
     pub max_svg_elements: u64,
+    /// Most image texels one SVG may draw, every copy (pattern tile, `use`)
+    /// counted (default 2²⁸: sixteen copies of a 4096² image). Packing
+    /// visits an image's texels once per level for every square it covers,
+    /// so this bounds the time images take.
+    pub max_svg_image_texels: u64,
     /// Most shapes in a scene (default 10 000).
     pub max_scene_shapes: usize,
     /// Most triangles in one mesh of a scene (default 2²² = 4 194 304,
@@ -92,6 +97,7 @@ impl Default for Limits {
             max_nodes: quadtex_core::MAX_NODES,
             max_depth: quadtex_core::MAX_DEPTH,
             max_svg_elements: 100_000,
+            max_svg_image_texels: 1 << 28,
             max_scene_shapes: 10_000,
             max_mesh_triangles: 1 << 22,
             max_memory: default_memory_budget(),

@@ -212,6 +212,8 @@ pub fn parse_svg(
         groups: Vec::new(),
         clip: None,
         limits,
+        image_texels: 0,
+        decoded: HashMap::new(),
     };
     walker.group(tree.root(), usvg::Transform::identity())?;
     Ok(walker.art)
@@ -306,6 +308,11 @@ struct Walker<'p> {
     /// The clip region enclosing groups impose, if any.
     clip: Option<ClipId>,
     limits: &'p Limits,
+    /// Texels of the images drawn so far, each pattern copy counted.
+    image_texels: u64,
+    /// Images decoded so far, by the address of their bytes (a pattern
+    /// draws the same image once per tile).
+    decoded: HashMap<usize, Arc<quadtex_core::TexelGrid>>,
 }
 
 /// An image `data` (of `mime` type, `text/plain` to sniff) as usvg's kind,
@@ -853,7 +860,30 @@ impl Walker<'_> {
                 return result;
             }
         };
-        let texels = crate::image_io::load_texels_from_bytes(data, self.path, self.limits)?;
+        let key = Arc::as_ptr(data) as usize;
+        let texels = match self.decoded.get(&key) {
+            Some(t) => Arc::clone(t),
+            None => {
+                let t = Arc::new(crate::image_io::load_texels_from_bytes(
+                    data,
+                    self.path,
+                    self.limits,
+                )?);
+                self.decoded.insert(key, Arc::clone(&t));
+                t
+            }
+        };
+        self.image_texels = self
+            .image_texels
+            .saturating_add(u64::from(texels.width()) * u64::from(texels.height()));
+        if self.image_texels > self.limits.max_svg_image_texels {
+            return Err(Error::Limit {
+                path: self.path.to_path_buf(),
+                limit: "max_svg_image_texels",
+                value: self.image_texels,
+                max: self.limits.max_svg_image_texels,
+            });
+        }
         // Texture → device (user units) → the image's user space → texels.
         let texture_to_device = [1.0 / k, 0.0, 0.0, -1.0 / k, 0.0, 1.0 / k];
         let Some(device_to_local) = invert(m) else {
@@ -868,7 +898,7 @@ impl Walker<'_> {
             0.0,
         ];
         let placement = concat(local_to_texels, concat(device_to_local, texture_to_device));
-        let paint = ImagePaint::new(Arc::new(texels), placement).map_err(|e| self.core(e))?;
+        let paint = ImagePaint::new(texels, placement).map_err(|e| self.core(e))?;
         self.add(vec![rect.to_vec()], FillRule::NonZero, Paint::Image(paint))
     }
 
@@ -1191,6 +1221,29 @@ mod tests {
             "{:?}",
             mean(0.25, 0.25)
         );
+    }
+
+    #[test]
+    fn image_copies_beyond_the_texel_limit_are_refused() {
+        // The pattern is laid out over 5 × 5 tiles (the shape's edges touch
+        // a fifth row and column), each drawing the 2×2 image: 100 texels.
+        let svg = format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 8 8">
+            <pattern id="p" width="2" height="2" patternUnits="userSpaceOnUse">
+              <image width="2" height="2" href="data:image/png;base64,{PNG_2X2}"/></pattern>
+            <rect width="8" height="8" fill="url(#p)"/></svg>"#
+        );
+        let limits = Limits {
+            max_svg_image_texels: 99,
+            ..Limits::default()
+        };
+        let e = parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &limits).unwrap_err();
+        assert!(e.to_string().contains("max_svg_image_texels"), "{e}");
+        let limits = Limits {
+            max_svg_image_texels: 100,
+            ..Limits::default()
+        };
+        assert!(parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &limits).is_ok());
     }
 
     #[test]
