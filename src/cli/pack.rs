@@ -144,7 +144,7 @@ fn pack_svg(
     let mut text = output.text();
     writeln!(
         text,
-        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept{}; {:.2} s",
+        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept (at most {} edges in one){}; {:.2} s",
         input.display(),
         output,
         tree.node_count(),
@@ -154,6 +154,7 @@ fn pack_svg(
         raster as f64 / bytes as f64,
         mips as f64 / bytes as f64,
         report.swept_leaves,
+        report.max_leaf_edges,
         smooth_summary(&report),
         start.elapsed().as_secs_f64()
     )?;

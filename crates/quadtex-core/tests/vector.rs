@@ -916,3 +916,72 @@ fn masks_refuse_misuse() {
     }
     assert!(deep.begin_mask(MaskKind::Luminance).is_err());
 }
+
+#[test]
+fn leaves_crowded_with_edges_stay_exact() {
+    // 900 small squares (3 600 edges) and a rotated frame over them, packed
+    // at levels 0–2: each leaf holds far more edges than one sweep takes,
+    // so it is swept quadrant by quadrant; coverage stays exact.
+    let mut art = VectorArt::new();
+    let mut area = 0.0;
+    let mut contours = Vec::new();
+    for i in 0..30 {
+        for j in 0..30 {
+            let (x, z) = (
+                0.1 + 0.8 * f64::from(i) / 30.0,
+                0.1 + 0.8 * f64::from(j) / 30.0,
+            );
+            let s = 0.8 / 30.0 * 0.6;
+            contours.push(vec![[x, z], [x + s, z], [x + s, z + s], [x, z + s]]);
+            area += s * s;
+        }
+    }
+    art.fill(
+        contours,
+        FillRule::NonZero,
+        Rgba::opaque(1.0, 0.0, 0.0),
+        &[],
+    )
+    .unwrap();
+    // A translucent green frame crossing many squares: overlaps composite.
+    let outer = rotated_rect(0.5, 0.5, 0.7, 0.5, 0.3);
+    let mut inner = rotated_rect(0.5, 0.5, 0.5, 0.3, 0.3);
+    inner.reverse();
+    art.fill(
+        vec![outer.clone(), inner.clone()],
+        FillRule::NonZero,
+        Rgba::new(0.0, 0.5, 0.0, 0.5),
+        &[],
+    )
+    .unwrap();
+    let frame = ConvexPolygon::hull(&outer).area() - ConvexPolygon::hull(&inner).area();
+    for level in [0u8, 1, 2] {
+        let (t, report) = QuadTree::from_vector(
+            &art,
+            &VectorOptions {
+                max_level: level,
+                ..VectorOptions::default()
+            },
+        )
+        .unwrap();
+        assert!(report.max_leaf_edges <= 1024, "{}", report.max_leaf_edges);
+        let got = total(&t);
+        // Green: the frame's area at half; alpha: squares plus frame minus overlap.
+        assert!(
+            (got[1] - 0.5 * frame).abs() < 1e-9 + 8.0 * STEP,
+            "level {level}: {got:?}"
+        );
+        // Red is covered by the frame at half: red = area − 0.5·overlap ≤ area.
+        assert!(got[0] <= area + 8.0 * STEP && got[0] >= area - 0.5 * frame);
+    }
+    // Against point sampling at a deeper level: the same red.
+    let deep = pack(&art, 9);
+    let shallow = pack(&art, 1);
+    let (a, b) = (total(&deep), total(&shallow));
+    for ch in 0..4 {
+        assert!(
+            (a[ch] - b[ch]).abs() < 1e-9 + 8.0 * STEP,
+            "channel {ch}: {a:?} vs {b:?}"
+        );
+    }
+}
