@@ -260,6 +260,29 @@ fn pack(
     })
 }
 
+/// Packs a folder of raster tiles named `ROW_COL.png` (or `.jpg`; row 0 at
+/// the top; a complete grid of 1, 2, 4, … tiles a side, every tile the same
+/// power-of-two square) into one texture, one tile in memory at a time, as
+/// `quadtex pack-tiles` does.
+#[pyfunction]
+#[pyo3(signature = (directory, tolerance = 0.0))]
+fn pack_tiles(py: Python<'_>, directory: PathBuf, tolerance: f64) -> PyResult<Texture> {
+    if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
+        return Err(PyValueError::new_err(format!(
+            "tolerance must be in [0, 1], got {tolerance}"
+        )));
+    }
+    let (tree, _, folder) = py
+        .detach(|| quadtex_io::pack_tiles(&directory, tolerance, &quadtex_io::Limits::default()))
+        .map_err(io_error)?;
+    let side = u32::try_from(folder.texels())
+        .map_err(|_| PyValueError::new_err("texture side beyond 2^32 texels"))?;
+    Ok(Texture {
+        tree: Arc::new(tree),
+        source: Some((side, side)),
+    })
+}
+
 /// `pack` of a file, as `quadtex pack` does it.
 fn pack_file(
     py: Python<'_>,
@@ -395,6 +418,7 @@ fn quadtex_python(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Texture>()?;
     m.add_function(wrap_pyfunction!(open, m)?)?;
     m.add_function(wrap_pyfunction!(pack, m)?)?;
+    m.add_function(wrap_pyfunction!(pack_tiles, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

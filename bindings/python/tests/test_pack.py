@@ -160,3 +160,26 @@ def test_paths_accept_pathlike(tmp_path):
     tex.save(Custom(path))
     assert quadtex.open(Custom(path)).node_count == tex.node_count == 5
     assert isinstance(pathlib.Path(path), os.PathLike)
+
+
+def test_pack_tiles_equals_packing_the_mosaic(tmp_path, rng):
+    mosaic = rng.integers(0, 4, size=(32, 32, 3)).astype(np.uint8) * 80
+    mosaic[:16, :16] = 200  # a uniform quadrant
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    for row in range(4):
+        for col in range(4):
+            write_png(tiles / f"{row}_{col}.png", mosaic[row * 8:(row + 1) * 8, col * 8:(col + 1) * 8])
+    (tiles / "notes.txt").write_text("not a tile")
+    whole = tmp_path / "whole.png"
+    write_png(whole, mosaic)
+    a, b = quadtex.pack_tiles(tiles), quadtex.pack(whole)
+    assert a.source_size == b.source_size == (32, 32)
+    assert (a.depth, a.node_count) == (b.depth, b.node_count)
+    rects = np.vstack([WHOLE, QUARTERS, [[0.1, 0.2, 0.7, 0.9]]])
+    np.testing.assert_array_equal(a.integrate(rects), b.integrate(rects))
+    os.remove(tiles / "2_3.png")
+    with pytest.raises(ValueError, match="2_3.png"):
+        quadtex.pack_tiles(tiles)
+    with pytest.raises(ValueError, match="tolerance"):
+        quadtex.pack_tiles(tiles, tolerance=2.0)
