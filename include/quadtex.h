@@ -278,6 +278,24 @@ enum QtxStatus qtx_open(const char *path, struct QtxTexture **out);
 enum QtxStatus qtx_pack(const char *path, double tolerance, int max_level, struct QtxTexture **out);
 
 /**
+ * Packs a folder of raster tiles into one texture, one tile in memory at a
+ * time: tiles named `ROW_COL.png` (or `.jpg`; row 0 at the top) forming a
+ * complete grid of 1, 2, 4, … tiles a side, every tile the same square of
+ * a power of two texels. The texture is the one `qtx_pack` would make of
+ * the whole mosaic. `tolerance` as for `qtx_pack` (0 = lossless).
+ *
+ * `dir` (NUL-terminated) and `out` as for `qtx_open`. Returns
+ * `QTX_STATUS_OK`; `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance
+ * out of range), `QTX_STATUS_IO`, `QTX_STATUS_FORMAT` (a missing,
+ * duplicate, odd-sized or undecodable tile, named in the message),
+ * `QTX_STATUS_LIMIT`.
+ *
+ * # Safety
+ * As `qtx_open`, with `dir` for `path`.
+ */
+enum QtxStatus qtx_pack_tiles(const char *dir, double tolerance, struct QtxTexture **out);
+
+/**
  * Filters `n` pixel footprints: the mean colour of the texture over each.
  *
  * A footprint is the texture-space image of a pixel square: its four

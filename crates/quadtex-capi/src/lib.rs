@@ -217,6 +217,38 @@ pub unsafe extern "C" fn qtx_pack(
     })
 }
 
+/// Packs a folder of raster tiles into one texture, one tile in memory at a
+/// time: tiles named `ROW_COL.png` (or `.jpg`; row 0 at the top) forming a
+/// complete grid of 1, 2, 4, … tiles a side, every tile the same square of
+/// a power of two texels. The texture is the one `qtx_pack` would make of
+/// the whole mosaic. `tolerance` as for `qtx_pack` (0 = lossless).
+///
+/// `dir` (NUL-terminated) and `out` as for `qtx_open`. Returns
+/// `QTX_STATUS_OK`; `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance
+/// out of range), `QTX_STATUS_IO`, `QTX_STATUS_FORMAT` (a missing,
+/// duplicate, odd-sized or undecodable tile, named in the message),
+/// `QTX_STATUS_LIMIT`.
+///
+/// # Safety
+/// As `qtx_open`, with `dir` for `path`.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_pack_tiles(
+    dir: *const c_char,
+    tolerance: f64,
+    out: *mut *mut QtxTexture,
+) -> QtxStatus {
+    guard(|| {
+        // SAFETY: `out` is NULL or writable, by this function's contract.
+        let mut out = unsafe { Out::new(out, "out") }?;
+        out.set(std::ptr::null_mut());
+        // SAFETY: `dir` is NULL or NUL-terminated, by this function's contract.
+        let dir = unsafe { ptr::path_arg(dir, "dir") }?;
+        out.set(ptr::into_raw(ops::pack_tiles(&dir, tolerance)?));
+        Ok(())
+    })
+}
+
 /// Filters `n` pixel footprints: the mean colour of the texture over each.
 ///
 /// A footprint is the texture-space image of a pixel square: its four

@@ -52,6 +52,18 @@ fn is_svg(path: &Path) -> bool {
 /// raster tolerance in `[0, 1]`, SVG exact (tolerance 0) at `max_level`
 /// (default 12, at most 24); raster `max_level` at most 30 (default: the
 /// image's natural depth).
+/// `qtx_pack_tiles`: a folder of `ROW_COL` tiles, as `quadtex pack-tiles`.
+pub(crate) fn pack_tiles(dir: &Path, tolerance: f64) -> Result<QtxTexture, Failure> {
+    if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
+        return Err(Failure::invalid(format!(
+            "{}: tolerance must be in [0, 1], got {tolerance}",
+            dir.display()
+        )));
+    }
+    let (tree, _, _) = quadtex_io::pack_tiles(dir, tolerance, &quadtex_io::Limits::default())?;
+    Ok(QtxTexture::new(tree))
+}
+
 pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTexture, Failure> {
     let shown = path.display();
     let level = if max_level < 0 { None } else { Some(max_level) };

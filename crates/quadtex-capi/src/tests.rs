@@ -821,3 +821,70 @@ fn texture_info_and_filter_after_failed_open_are_refused() {
     assert_error(&["texture is NULL"]);
     unsafe { qtx_free(texture) };
 }
+
+#[test]
+fn tiles_pack_like_the_whole_mosaic_and_bad_tiles_are_named() {
+    let dir = temp_dir("capi-tiles");
+    let tiles = dir.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    // A 4×4 mosaic of 2×2 tiles: a colour per texel.
+    let colour = |x: u32, y: u32| quadtex_core::Rgba::opaque(x as f32 / 3.0, y as f32 / 3.0, 0.5);
+    let whole = quadtex_io::LinearImage {
+        width: 4,
+        height: 4,
+        pixels: (0..16).map(|k| colour(k % 4, k / 4)).collect(),
+    };
+    quadtex_io::save_image(&dir.join("whole.png"), &whole).unwrap();
+    for row in 0..2 {
+        for col in 0..2 {
+            let tile = quadtex_io::LinearImage {
+                width: 2,
+                height: 2,
+                pixels: (0..4)
+                    .map(|k| colour(2 * col + k % 2, 2 * row + k / 2))
+                    .collect(),
+            };
+            quadtex_io::save_image(&tiles.join(format!("{row}_{col}.png")), &tile).unwrap();
+        }
+    }
+    let (mut a, mut b) = (null_mut(), null_mut());
+    assert_eq!(
+        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 0.0, &mut a) },
+        QtxStatus::Ok,
+        "{:?}",
+        last_error()
+    );
+    assert_eq!(
+        unsafe { qtx_pack(c_path(&dir.join("whole.png")).as_ptr(), 0.0, -1, &mut b) },
+        QtxStatus::Ok
+    );
+    let options = qtx_filter_options_default();
+    for r in [
+        rect(0.0, 0.0, 1.0, 1.0),
+        rect(0.1, 0.3, 0.6, 0.9),
+        rect(0.5, 0.0, 0.75, 0.25),
+    ] {
+        assert_eq!(filter_one(a, r, &options), filter_one(b, r, &options));
+    }
+    unsafe {
+        qtx_free(a);
+        qtx_free(b);
+    }
+    std::fs::remove_file(tiles.join("1_0.png")).unwrap();
+    let mut t: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
+    assert_eq!(
+        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 0.0, &mut t) },
+        QtxStatus::Format
+    );
+    assert!(t.is_null());
+    assert_error(&["1_0.png", "missing"]);
+    assert_eq!(
+        unsafe { qtx_pack_tiles(null(), 0.0, &mut t) },
+        QtxStatus::InvalidArgument
+    );
+    assert_eq!(
+        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 1.5, &mut t) },
+        QtxStatus::InvalidArgument
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
