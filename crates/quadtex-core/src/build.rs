@@ -294,6 +294,21 @@ impl Builder<'_> {
 }
 
 impl Builder<'_> {
+    /// Builds the whole tree from the root; `resampled` goes to the report.
+    fn build(mut self, resampled: bool) -> Result<(QuadTree, BuildReport), Error> {
+        let (_, root, terminal) = self.square(0, 0, 0)?;
+        self.levels[0].push((!terminal, root));
+        while self.levels.last().is_some_and(Vec::is_empty) {
+            self.levels.pop();
+        }
+        let report = BuildReport {
+            cell_depth: self.depth,
+            resampled,
+            max_error: f64::from(self.max_error) / 65535.0,
+        };
+        Ok((tree::from_levels(self.levels)?, report))
+    }
+
     /// Square `(level, ix, iz)` as a whole tile: loads it, packs it on its
     /// own and splices its levels below this one (breadth-first order holds:
     /// squares are visited in the order their level lists them).
@@ -397,7 +412,7 @@ impl QuadTree {
             options.max_bytes,
             RASTER_KNOBS,
         )?;
-        let mut b = Builder {
+        let b = Builder {
             cells: &[],
             tiles: Some(Tiles { level, side, load }),
             side: 0,
@@ -410,17 +425,7 @@ impl QuadTree {
             fixed_bytes,
             max_bytes: options.max_bytes,
         };
-        let (_, root, terminal) = b.square(0, 0, 0)?;
-        b.levels[0].push((!terminal, root));
-        while b.levels.last().is_some_and(Vec::is_empty) {
-            b.levels.pop();
-        }
-        let report = BuildReport {
-            cell_depth: depth,
-            resampled: false,
-            max_error: f64::from(b.max_error) / 65535.0,
-        };
-        Ok((tree::from_levels(b.levels)?, report))
+        b.build(false)
     }
 
     /// Packs a raster (see the [module documentation](crate::build)).
@@ -461,7 +466,7 @@ impl QuadTree {
             &grid.texels
         };
         let tolerance = (options.tolerance * 65535.0).floor().min(65535.0) as u16;
-        let mut b = Builder {
+        let b = Builder {
             cells,
             tiles: None,
             side,
@@ -474,17 +479,7 @@ impl QuadTree {
             fixed_bytes,
             max_bytes: options.max_bytes,
         };
-        let (_, root, terminal) = b.square(0, 0, 0)?;
-        b.levels[0].push((!terminal, root));
-        while b.levels.last().is_some_and(Vec::is_empty) {
-            b.levels.pop();
-        }
-        let report = BuildReport {
-            cell_depth: depth,
-            resampled,
-            max_error: f64::from(b.max_error) / 65535.0,
-        };
-        Ok((tree::from_levels(b.levels)?, report))
+        b.build(resampled)
     }
 }
 

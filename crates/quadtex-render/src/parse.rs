@@ -547,17 +547,7 @@ impl Context<'_> {
                     key,
                     &[&common[..], &["file", "scale", "translate"]].concat(),
                 )?;
-                let file = match t.get("file") {
-                    Some(Value::String(f)) => self.path.parent().unwrap_or(Path::new(".")).join(f),
-                    _ => {
-                        return Err(self.err(
-                            &format!("{key}.file"),
-                            "missing or not a string (an .obj file)",
-                        ));
-                    }
-                };
-                let scale = self.number(t, key, "scale")?.unwrap_or(1.0);
-                let translate = self.vec3(t, key, "translate")?.unwrap_or_default();
+                let (file, scale, translate) = self.model_file(t, key, "an .obj file")?;
                 Geometry::Mesh(Arc::new(self.mesh(
                     &file,
                     scale,
@@ -640,20 +630,27 @@ impl Context<'_> {
         })
     }
 
-    /// The surfaces of a glTF model shape (one per material).
-    fn gltf(&mut self, t: &Table, key: &str) -> Result<Vec<Surface>, Error> {
-        self.keys(t, key, &["type", "file", "scale", "translate"])?;
+    /// A model shape's `file` (relative to the scene; `kind` names what it
+    /// must be in the error), `scale` (default 1) and `translate`.
+    fn model_file(&self, t: &Table, key: &str, kind: &str) -> Result<(PathBuf, f64, Vec3), Error> {
         let file = match t.get("file") {
             Some(Value::String(f)) => self.path.parent().unwrap_or(Path::new(".")).join(f),
             _ => {
                 return Err(self.err(
                     &format!("{key}.file"),
-                    "missing or not a string (a .gltf or .glb file)",
+                    &format!("missing or not a string ({kind})"),
                 ));
             }
         };
         let scale = self.number(t, key, "scale")?.unwrap_or(1.0);
         let translate = self.vec3(t, key, "translate")?.unwrap_or_default();
+        Ok((file, scale, translate))
+    }
+
+    /// The surfaces of a glTF model shape (one per material).
+    fn gltf(&mut self, t: &Table, key: &str) -> Result<Vec<Surface>, Error> {
+        self.keys(t, key, &["type", "file", "scale", "translate"])?;
+        let (file, scale, translate) = self.model_file(t, key, "a .gltf or .glb file")?;
         let fail = |message: String| {
             self.err(
                 &format!("{key}.file"),
