@@ -198,6 +198,15 @@ typedef struct QtxTextureInfo {
      */
     uint32_t depth;
     /**
+     * Columns of the finest grid over the texture (`2^depth` for a square
+     * texture; a strip packs its own shape, fewer along its short side).
+     */
+    uint64_t columns;
+    /**
+     * Rows of the finest grid over the texture.
+     */
+    uint64_t rows;
+    /**
      * Nodes in the tree.
      */
     uint64_t node_count;

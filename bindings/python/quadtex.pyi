@@ -40,6 +40,12 @@ class Texture:
         """Level of the tree's finest squares (side ``2**-depth``)."""
 
     @property
+    def cells(self) -> tuple[int, int]:
+        """``(columns, rows)`` of the finest grid over the texture: ``2**depth``
+        each for a square texture; a strip packs its own shape (powers of two
+        per axis), fewer cells along its short side."""
+
+    @property
     def node_count(self) -> int:
         """Number of nodes in the tree."""
 

@@ -70,6 +70,23 @@ pub fn run(args: Args) -> Result<()> {
         human_bytes(meta.file_bytes)
     )?;
     writeln!(out, "depth:       {}", tree.depth())?;
+    let [columns, rows] = tree.finest_grid();
+    let [sx, sz] = tree.aspect().shrink();
+    writeln!(
+        out,
+        "cells:       {columns}x{rows} at the deepest level{}",
+        match (sx, sz) {
+            (0, 0) => String::new(),
+            (s, 0) => format!(
+                " (texture is the left 1/{} of the tree's square)",
+                1u64 << s
+            ),
+            (_, s) => format!(
+                " (texture is the bottom 1/{} of the tree's square)",
+                1u64 << s
+            ),
+        }
+    )?;
     writeln!(out, "nodes:       {}", tree.node_count())?;
     writeln!(
         out,
@@ -80,8 +97,8 @@ pub fn run(args: Args) -> Result<()> {
     let (w, h) = if meta.source_width > 0 {
         (meta.source_width, meta.source_height)
     } else {
-        let side = 1u32.checked_shl(tree.depth().into()).unwrap_or(u32::MAX);
-        (side, side)
+        let clamp = |n: u64| u32::try_from(n).unwrap_or(u32::MAX);
+        (clamp(columns), clamp(rows))
     };
     let (raster, mips) = raster_bytes(w, h);
     writeln!(

@@ -170,6 +170,14 @@ impl Texture {
         self.tree.depth()
     }
 
+    /// `(columns, rows)` of the finest grid over the texture: `2^depth`
+    /// each for a square texture; a strip packs its own shape.
+    #[getter]
+    fn cells(&self) -> (u64, u64) {
+        let [columns, rows] = self.tree.finest_grid();
+        (columns, rows)
+    }
+
     /// Number of nodes in the tree.
     #[getter]
     fn node_count(&self) -> u64 {

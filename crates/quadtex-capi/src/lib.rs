@@ -118,6 +118,11 @@ pub struct QtxFilterOptions {
 pub struct QtxTextureInfo {
     /// Depth of the tree: the level of its finest squares.
     pub depth: u32,
+    /// Columns of the finest grid over the texture (`2^depth` for a square
+    /// texture; a strip packs its own shape, fewer along its short side).
+    pub columns: u64,
+    /// Rows of the finest grid over the texture.
+    pub rows: u64,
     /// Nodes in the tree.
     pub node_count: u64,
     /// Bytes the tree occupies in memory.

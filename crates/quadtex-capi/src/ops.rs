@@ -231,8 +231,11 @@ pub(crate) fn filter(
 /// Depth, size and mean colour of a texture.
 pub(crate) fn info(texture: &QtxTexture) -> QtxTextureInfo {
     let tree = texture.texture.tree();
+    let [columns, rows] = tree.finest_grid();
     QtxTextureInfo {
         depth: u32::from(tree.depth()),
+        columns,
+        rows,
         node_count: tree.node_count(),
         memory_bytes: tree.memory_bytes(),
         mean: tree.average().to_rgba().to_array(),

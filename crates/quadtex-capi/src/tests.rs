@@ -431,6 +431,7 @@ fn pack_checks_its_arguments() {
     );
     let info = unsafe { info.assume_init() };
     assert_eq!(info.depth, 2);
+    assert_eq!((info.columns, info.rows), (4, 4));
     assert!(
         close(info.mean, [0.5, 0.5, 0.5, 1.0], 1e-4),
         "{:?}",

@@ -1,11 +1,14 @@
 //! Packing a raster into an incomplete quadtree.
 //!
-//! The raster is first brought onto a `2^D × 2^D` grid of *cells* (the
-//! squares of the deepest level `D`). When the image is already that size,
-//! cells are texels. Otherwise every cell stores the exact area-weighted mean
-//! of the texels it overlaps (texels are rectangles of the unit square, see
-//! the crate conventions), so a square that straddles texel borders is exact
-//! on average.
+//! The raster is first brought onto a grid of *cells*, the squares of the
+//! deepest level `D` that cover the texture: `2^a × 2^b` of them for a
+//! `W × H` image, `a = ⌈log2 W⌉`, `b = ⌈log2 H⌉`, `D = max(a, b)`; a
+//! non-square texture covers part of the tree's square (see
+//! [`Aspect`]), so a strip costs its own cells, not the square around it.
+//! When the image is already that size, cells are texels. Otherwise every
+//! cell stores the exact area-weighted mean of the texels it overlaps
+//! (texels are rectangles of the unit square, see the crate conventions), so
+//! a square that straddles texel borders is exact on average.
 //!
 //! Then one bottom-up pass computes, for every square, the integer sum, the
 //! minimum and the maximum of its cells per channel. A square is **terminal**
@@ -18,7 +21,7 @@
 use crate::Error;
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push, try_vec};
-use crate::tree::{self, MAX_DEPTH, MAX_NODES, QuadTree};
+use crate::tree::{self, Aspect, MAX_DEPTH, MAX_NODES, QuadTree};
 
 /// The settings that shrink a raster build, for [`Error::MemoryBudget`].
 const RASTER_KNOBS: &str = "lower --max-level, raise --tolerance, or raise --memory-limit";
@@ -95,9 +98,22 @@ impl TexelGrid {
 
     /// The depth at which cells are at least as fine as texels: `ceil(log2(max(w, h)))`.
     pub fn natural_depth(&self) -> u8 {
-        let side = self.width.max(self.height);
-        (32 - (side - 1).leading_zeros()) as u8
+        ceil_log2(self.width.max(self.height))
     }
+}
+
+fn ceil_log2(n: u32) -> u8 {
+    (32 - n.max(1).saturating_sub(1).leading_zeros()) as u8
+}
+
+/// The aspect of a `width × height` raster packed at `depth`, and its cell
+/// grid `(columns, rows)`: the image's own power-of-two shape, as deep as
+/// `depth` allows on the long side.
+pub fn raster_cells(width: u32, height: u32, depth: u8) -> (Aspect, usize, usize) {
+    let aspect = Aspect::of_grid(ceil_log2(width), ceil_log2(height));
+    let [sx, sz] = aspect.shrink().map(|s| s.min(depth));
+    let aspect = Aspect::new(sx, sz).unwrap_or(Aspect::SQUARE);
+    (aspect, 1usize << (depth - sx), 1usize << (depth - sz))
 }
 
 fn check_dimensions(width: u32, height: u32) -> Result<(), Error> {
@@ -176,20 +192,22 @@ impl Stats {
             max: c.0,
         }
     }
-    fn merge(parts: [Stats; 4]) -> Stats {
-        let mut s = parts[0];
-        for p in &parts[1..] {
+    /// The stats of the parts present (`None` when none is).
+    fn merge(parts: [Option<Stats>; 4]) -> Option<Stats> {
+        let mut present = parts.into_iter().flatten();
+        let mut s = present.next()?;
+        for p in present {
             for ch in 0..4 {
                 s.sum[ch] += p.sum[ch];
                 s.min[ch] = s.min[ch].min(p.min[ch]);
                 s.max[ch] = s.max[ch].max(p.max[ch]);
             }
         }
-        s
+        Some(s)
     }
-    /// Rounded mean over `cells` cells (a power of four).
-    fn mean(&self, log4_cells: u32) -> Unorm16Rgba {
-        let shift = 2 * log4_cells;
+    /// Rounded mean over `2^log2_cells` cells.
+    fn mean(&self, log2_cells: u32) -> Unorm16Rgba {
+        let shift = log2_cells;
         let half = if shift == 0 { 0 } else { 1u64 << (shift - 1) };
         Unorm16Rgba(self.sum.map(|s| ((s + half) >> shift) as u16))
     }
@@ -225,42 +243,61 @@ struct Builder<'a> {
     /// Bytes held before the tree grows (texels, cell grid).
     fixed_bytes: u64,
     max_bytes: Option<u64>,
+    /// Where the texture lies in the tree's square; `side` × `rows` cells.
+    aspect: Aspect,
+    rows: usize,
 }
 
 impl Builder<'_> {
     /// Cell at `(ix, iz)` of the finest level, `iz` counted from the bottom.
     fn cell(&self, ix: usize, iz: usize) -> Unorm16Rgba {
-        self.cells[(self.side - 1 - iz) * self.side + ix]
+        self.cells[(self.rows - 1 - iz) * self.side + ix]
     }
 
     /// Builds the subtree of square `(level, ix, iz)`: returns its stats and
     /// its (colour, terminal) decision; pushes its descendants if it is inner.
+    /// `None` for a square of the pad (its parent gives it a colour).
     fn square(
         &mut self,
         level: u8,
         ix: usize,
         iz: usize,
-    ) -> Result<(Stats, Unorm16Rgba, bool), Error> {
+    ) -> Result<Option<(Stats, Unorm16Rgba, bool)>, Error> {
+        if self.aspect.is_pad(level, ix as u32, iz as u32) {
+            return Ok(None);
+        }
         if self.tiles.as_ref().is_some_and(|t| t.level == level) {
-            return self.tile(level, ix, iz);
+            return self.tile(level, ix, iz).map(Some);
         }
         if level == self.depth {
             let c = self.cell(ix, iz);
-            return Ok((Stats::of(c), c, true));
+            return Ok(Some((Stats::of(c), c, true)));
         }
         let mut marks = [0usize; MAX_DEPTH as usize + 1];
         for (m, l) in marks.iter_mut().zip(&self.levels[usize::from(level) + 1..]) {
             *m = l.len();
         }
-        let mut parts = [Stats::of(Unorm16Rgba::default()); 4];
-        let mut children = [(Unorm16Rgba::default(), true); 4];
+        let mut parts = [None; 4];
+        let mut children = [None; 4];
         for k in 0..4 {
-            let (s, c, term) = self.square(level + 1, 2 * ix + (k & 1), 2 * iz + (k >> 1))?;
-            parts[k] = s;
-            children[k] = (c, term);
+            if let Some((s, c, term)) =
+                self.square(level + 1, 2 * ix + (k & 1), 2 * iz + (k >> 1))?
+            {
+                parts[k] = Some(s);
+                children[k] = Some((c, term));
+            }
         }
-        let stats = Stats::merge(parts);
-        let mean = stats.mean(u32::from(self.depth - level));
+        let Some(stats) = Stats::merge(parts) else {
+            return Ok(None);
+        };
+        // Cells of the texture under this square: a power of two on each axis.
+        let [sx, sz] = self.aspect.shrink();
+        let below = u32::from(self.depth - level);
+        let log2_cells =
+            below.min(u32::from(self.depth - sx)) + below.min(u32::from(self.depth - sz));
+        let mean = stats.mean(log2_cells);
+        // Pad children carry the mean, so the parent stays their average.
+        let children = children.map(|c| c.unwrap_or((mean, true)));
         let deviation = stats.deviation(mean);
         if deviation <= self.tolerance {
             self.max_error = self.max_error.max(deviation);
@@ -269,7 +306,7 @@ impl Builder<'_> {
                 self.nodes -= (l.len() - m) as u64;
                 l.truncate(m);
             }
-            return Ok((stats, mean, true));
+            return Ok(Some((stats, mean, true)));
         }
         self.nodes += 4;
         if self.nodes > self.max_nodes {
@@ -289,14 +326,18 @@ impl Builder<'_> {
         for (c, term) in children {
             try_push(next, (!term, c), "tree level")?;
         }
-        Ok((stats, mean, false))
+        Ok(Some((stats, mean, false)))
     }
 }
 
 impl Builder<'_> {
     /// Builds the whole tree from the root; `resampled` goes to the report.
     fn build(mut self, resampled: bool) -> Result<(QuadTree, BuildReport), Error> {
-        let (_, root, terminal) = self.square(0, 0, 0)?;
+        let Some((_, root, terminal)) = self.square(0, 0, 0)? else {
+            return Err(Error::MalformedTree(
+                "the texture lies wholly in the pad".into(),
+            ));
+        };
         self.levels[0].push((!terminal, root));
         while self.levels.last().is_some_and(Vec::is_empty) {
             self.levels.pop();
@@ -306,7 +347,7 @@ impl Builder<'_> {
             resampled,
             max_error: f64::from(self.max_error) / 65535.0,
         };
-        Ok((tree::from_levels(self.levels)?, report))
+        Ok((tree::from_levels(self.levels, self.aspect)?, report))
     }
 
     /// Square `(level, ix, iz)` as a whole tile: loads it, packs it on its
@@ -344,8 +385,12 @@ impl Builder<'_> {
             max_error: self.max_error,
             fixed_bytes: self.fixed_bytes,
             max_bytes: self.max_bytes,
+            aspect: Aspect::SQUARE,
+            rows: side as usize,
         };
-        let (stats, root, terminal) = b.square(0, 0, 0)?;
+        let Some((stats, root, terminal)) = b.square(0, 0, 0)? else {
+            return Err(Error::MalformedTree("a tile lies wholly in the pad".into()));
+        };
         self.nodes = b.nodes;
         self.max_error = b.max_error;
         for (below, tile_level) in self.levels[usize::from(level) + 1..]
@@ -424,6 +469,8 @@ impl QuadTree {
             max_error: 0,
             fixed_bytes,
             max_bytes: options.max_bytes,
+            aspect: Aspect::SQUARE,
+            rows: 0,
         };
         b.build(false)
     }
@@ -444,13 +491,13 @@ impl QuadTree {
                 max: MAX_BUILD_DEPTH.into(),
             });
         }
-        let side = 1usize << depth;
-        let resampled = grid.width as usize != side || grid.height as usize != side;
+        let (aspect, columns, rows) = raster_cells(grid.width, grid.height, depth);
+        let resampled = grid.width as usize != columns || grid.height as usize != rows;
         let fixed_bytes = raster_grid_bytes(grid.width, grid.height, depth);
         check_budget(
             || {
                 format!(
-                    "packing {}x{} texels at level {depth} ({side}x{side} cells)",
+                    "packing {}x{} texels at level {depth} ({columns}x{rows} cells)",
                     grid.width, grid.height
                 )
             },
@@ -460,7 +507,7 @@ impl QuadTree {
         )?;
         let owned;
         let cells: &[Unorm16Rgba] = if resampled {
-            owned = try_resample(grid, side)?;
+            owned = try_resample(grid, columns, rows)?;
             &owned
         } else {
             &grid.texels
@@ -469,7 +516,7 @@ impl QuadTree {
         let b = Builder {
             cells,
             tiles: None,
-            side,
+            side: columns,
             depth,
             tolerance,
             levels: vec![Vec::new(); usize::from(depth) + 1],
@@ -478,6 +525,8 @@ impl QuadTree {
             max_error: 0,
             fixed_bytes,
             max_bytes: options.max_bytes,
+            aspect,
+            rows,
         };
         b.build(resampled)
     }
@@ -485,34 +534,46 @@ impl QuadTree {
 
 /// Bytes a raster build at `depth` holds before its tree grows: the
 /// `width × height` texels (8 bytes each), and unless they are the cells
-/// themselves the `2^depth × 2^depth` cell grid (8 bytes a cell) plus the
-/// resampler's horizontal pass (`height × 2^depth` cells of 16 bytes). The
+/// themselves the cell grid of [`raster_cells`] (8 bytes a cell) plus the
+/// resampler's horizontal pass (`height × columns` cells of 16 bytes). The
 /// tree adds [`crate::memory::BUILD_BYTES_PER_NODE`] a node, at most
-/// `4^(depth+1)/3` nodes (a lossless tree of noise).
+/// `4/3` a cell plus `4` per level of the aspect (a lossless tree of noise).
 pub fn raster_grid_bytes(width: u32, height: u32, depth: u8) -> u64 {
     let texels = 8 * u64::from(width) * u64::from(height);
-    let side = 1u64 << depth.min(31);
-    if u64::from(width) == side && u64::from(height) == side {
+    let depth = depth.min(MAX_DEPTH);
+    let (_, columns, rows) = raster_cells(width, height, depth);
+    let (columns, rows) = (columns as u64, rows as u64);
+    if u64::from(width) == columns && u64::from(height) == rows {
         return texels;
     }
     texels
-        .saturating_add(8u64.saturating_mul(side).saturating_mul(side))
-        .saturating_add(16u64.saturating_mul(u64::from(height)).saturating_mul(side))
+        .saturating_add(8u64.saturating_mul(columns).saturating_mul(rows))
+        .saturating_add(
+            16u64
+                .saturating_mul(u64::from(height))
+                .saturating_mul(columns),
+        )
 }
 
-/// [`try_resample`] for callers that check sizes first (the mip pyramid):
-/// an allocation failure aborts, as `vec!` does.
+/// [`try_resample`] onto a square, for callers that check sizes first (the
+/// mip pyramid): an allocation failure aborts, as `vec!` does.
 pub(crate) fn resample(grid: &TexelGrid, side: usize) -> Vec<Unorm16Rgba> {
-    match try_resample(grid, side) {
+    match try_resample(grid, side, side) {
         Ok(cells) => cells,
         Err(_) => std::alloc::handle_alloc_error(std::alloc::Layout::new::<[f32; 4]>()),
     }
 }
 
-/// Exact area-weighted resampling of the texels onto a `side × side` cell grid.
-fn try_resample(grid: &TexelGrid, side: usize) -> Result<Vec<Unorm16Rgba>, Error> {
-    let xw = weights_1d(grid.width as usize, side);
-    let zw = weights_1d(grid.height as usize, side);
+/// Exact area-weighted resampling of the texels onto a `columns × rows`
+/// cell grid (row 0 at the top).
+fn try_resample(
+    grid: &TexelGrid,
+    columns: usize,
+    rows_out: usize,
+) -> Result<Vec<Unorm16Rgba>, Error> {
+    let side = columns;
+    let xw = weights_1d(grid.width as usize, columns);
+    let zw = weights_1d(grid.height as usize, rows_out);
     // Horizontal pass into f32 rows, then vertical pass with rounding once.
     let w = grid.width as usize;
     let mut rows = try_vec(grid.height as usize * side, [0f32; 4], "resampling rows")?;
@@ -528,7 +589,7 @@ fn try_resample(grid: &TexelGrid, side: usize) -> Result<Vec<Unorm16Rgba>, Error
             rows[row * side + cx] = acc;
         }
     }
-    let mut out = try_vec(side * side, Unorm16Rgba::default(), "cell grid")?;
+    let mut out = try_vec(side * rows_out, Unorm16Rgba::default(), "cell grid")?;
     for (cz, taps) in zw.iter().enumerate() {
         for cx in 0..side {
             let mut acc = [0f32; 4];
@@ -706,23 +767,33 @@ mod tests {
     #[test]
     fn grid_estimate_counts_texels_cells_and_resampling_rows() {
         assert_eq!(raster_grid_bytes(64, 64, 6), 8 * 64 * 64);
-        // The 1×20000 column on 32768² cells: texels + cells + rows.
+        assert_eq!(
+            raster_grid_bytes(64, 16, 6),
+            8 * 64 * 16,
+            "a strip packs its own texels"
+        );
+        // The 1×20000 column on its own 1×32768 cells: texels + cells + rows.
         assert_eq!(
             raster_grid_bytes(1, 20000, 15),
-            8 * 20000 + 8 * (1 << 30) + 16 * 20000 * 32768
+            8 * 20000 + 8 * 32768 + 16 * 20000
+        );
+        // A square of another size still resamples onto the square around it.
+        assert_eq!(
+            raster_grid_bytes(3000, 3000, 12),
+            8 * 9_000_000 + 8 * 4096 * 4096 + 16 * 3000 * 4096
         );
         let g = TexelGrid::from_fn(1, 20000, |_, r| {
             Rgba::opaque((r % 7) as f32 / 7.0, 0.0, 0.0)
         })
         .unwrap();
         let opts = BuildOptions {
-            max_bytes: Some(1 << 30),
+            max_bytes: Some(512 << 10),
             ..BuildOptions::default()
         };
         let e = QuadTree::from_texels(&g, &opts).unwrap_err();
         assert!(
             e.to_string().starts_with(
-                "packing 1x20000 texels at level 15 (32768x32768 cells) needs an estimated 17.8 GiB, above the memory budget of 1.0 GiB"
+                "packing 1x20000 texels at level 15 (1x32768 cells) needs an estimated 724.8 KiB, above the memory budget of 512.0 KiB"
             ),
             "{e}"
         );

@@ -481,8 +481,12 @@ fn finite_or_nothing(r: RegionIntegral) -> RegionIntegral {
 /// An edge line `n·p + c ≥ 0` (inside).
 type Line = [f64; 3];
 
-fn edges_of(p: &ConvexPolygon) -> ([Line; crate::polygon::MAX_VERTICES], usize) {
-    let mut lines = [[0.0; 3]; crate::polygon::MAX_VERTICES];
+/// The region's edges, plus one that keeps a non-square texture's tile off
+/// the tree's pad ([`crate::Aspect`]).
+const MAX_EDGES: usize = crate::polygon::MAX_VERTICES + 1;
+
+fn edges_of(p: &ConvexPolygon) -> ([Line; MAX_EDGES], usize) {
+    let mut lines = [[0.0; 3]; MAX_EDGES];
     let mut n = 0;
     for (slot, line) in lines.iter_mut().zip(p.edge_lines()) {
         *slot = line;
@@ -502,13 +506,7 @@ enum Class {
 /// Where the rectangle `[x0, x1] × [z0, z1]` lies against the polygon with
 /// `edges`.
 #[inline]
-fn classify(
-    edges: &([Line; crate::polygon::MAX_VERTICES], usize),
-    x0: f64,
-    z0: f64,
-    x1: f64,
-    z1: f64,
-) -> Class {
+fn classify(edges: &([Line; MAX_EDGES], usize), x0: f64, z0: f64, x1: f64, z1: f64) -> Class {
     let mut crossing = 0u32;
     for (i, e) in edges.0[..edges.1].iter().enumerate() {
         let base = e[2];
@@ -573,7 +571,7 @@ fn tile_map(mode: WrapMode, i: i64) -> (f64, f64) {
 /// A tile's view of the region: the region and its edges in the tile's
 /// local coordinates, and the map from local coordinates to the screen.
 struct TileFrame {
-    edges: ([Line; crate::polygon::MAX_VERTICES], usize),
+    edges: ([Line; MAX_EDGES], usize),
     to_screen: Mat3,
     det: f64,
 }
@@ -640,7 +638,7 @@ struct Walk<'a> {
     /// `|det|` of `screen_from_texture`, for the density `|det| / w³`.
     screen_det: f64,
     region: ConvexPolygon,
-    edges: ([Line; crate::polygon::MAX_VERTICES], usize),
+    edges: ([Line; MAX_EDGES], usize),
     fixed: Option<u8>,
     boundary_coef: f64,
     k_max: f64,
@@ -1021,11 +1019,25 @@ impl Walk<'_> {
     fn tile_frame(&mut self, i: i64, j: i64) -> usize {
         let (sx, ox) = tile_map(self.wrap.x, i);
         let (sz, oz) = tile_map(self.wrap.z, j);
+        // Local coordinates are tree space: a texture of another aspect
+        // spans [0, ex) × [0, ez) of it, exact powers of two.
+        let aspect = self.tree.aspect();
+        let [ex, ez] = aspect.extent();
+        let (sx, sz) = (sx / ex, sz / ez);
         // texture = (sx·x + ox, sz·z + oz): a half-plane's line in local
-        // coordinates, and the screen map composed with it (|det| kept).
+        // coordinates, and the screen map composed with it.
         let mut edges = self.edges;
         for l in &mut edges.0[..edges.1] {
             *l = [l[0] * sx, l[1] * sz, l[0] * ox + l[1] * oz + l[2]];
+        }
+        // The pad is not texture: keep the tile to x < ex, z < ez.
+        if !aspect.is_square() {
+            edges.0[edges.1] = if ex < 1.0 {
+                [-1.0, 0.0, ex]
+            } else {
+                [0.0, -1.0, ez]
+            };
+            edges.1 += 1;
         }
         let m = &self.screen_from_texture;
         let to_screen = [0, 1, 2].map(|r| {
@@ -1038,7 +1050,7 @@ impl Walk<'_> {
         self.frames.push(TileFrame {
             edges,
             to_screen,
-            det: self.screen_det,
+            det: self.screen_det * aspect.area_ratio(),
         });
         self.frames.len() - 1
     }
@@ -1205,8 +1217,14 @@ impl Walk<'_> {
         offset: f64,
         part: &ConvexPolygon,
     ) {
+        // Along the edge, in texture units of that axis (tree units over the extent).
+        let aspect = self.tree.aspect();
+        let along = aspect.extent()[1 - axis];
         let side = unit_side(level);
-        let (l0, l1) = (f64::from(k) * side, f64::from(k + 1) * side);
+        let (l0, l1) = (f64::from(k) * side / along, f64::from(k + 1) * side / along);
+        if l0 >= 1.0 {
+            return;
+        }
         let (t0, t1) = if sign > 0.0 {
             (offset + l0, offset + l1)
         } else {
@@ -1231,7 +1249,7 @@ impl Walk<'_> {
             return;
         }
         let first = self.tree.children_of(p);
-        let h = u32::from(high);
+        let h = u32::from(across_high(aspect, axis, high, level));
         for c in 0..2u32 {
             // Children on the edge: the outer half across the edge, both along it.
             let child = if axis == 0 { h + 2 * c } else { c + 2 * h };
@@ -1256,21 +1274,30 @@ impl Walk<'_> {
             return c;
         }
         let mut acc = [0.0; 4];
-        let mut stack = vec![(QuadTree::ROOT, 0u8)];
-        while let Some((p, level)) = stack.pop() {
+        let aspect = self.tree.aspect();
+        let along = aspect.extent()[1 - axis];
+        let mut stack = vec![(QuadTree::ROOT, 0u8, 0u32)];
+        while let Some((p, level, k)) = stack.pop() {
+            let side = unit_side(level);
+            let start = f64::from(k) * side;
+            if start >= along {
+                continue;
+            }
             let (inner, stored) = self.tree.node(p);
             if !inner {
+                // Its length along the edge that is texture, in texture units.
+                let length = ((start + side).min(along) - start) / along;
                 let c = colour_of(stored);
                 for (a, v) in acc.iter_mut().zip(c) {
-                    *a += v * unit_side(level);
+                    *a += v * length;
                 }
                 continue;
             }
             let first = self.tree.children_of(p);
-            let h = usize::from(high);
+            let h = usize::from(across_high(aspect, axis, high, level));
             for c in 0..2usize {
                 let child = if axis == 0 { h + 2 * c } else { c + 2 * h };
-                stack.push((first + child, level + 1));
+                stack.push((first + child, level + 1, 2 * k + c as u32));
             }
         }
         self.edge_means[slot] = Some(acc);
@@ -1279,15 +1306,28 @@ impl Walk<'_> {
 
     /// The colour of the tree's corner cell (`x` high?, `z` high?).
     fn corner_colour(&self, x_high: bool, z_high: bool) -> [f64; 4] {
-        let mut p = QuadTree::ROOT;
+        let aspect = self.tree.aspect();
+        let (mut p, mut level) = (QuadTree::ROOT, 0u8);
         loop {
             let (inner, stored) = self.tree.node(p);
             if !inner {
                 return colour_of(stored);
             }
-            p = self.tree.children_of(p) + usize::from(x_high) + 2 * usize::from(z_high);
+            let hx = across_high(aspect, 0, x_high, level);
+            let hz = across_high(aspect, 1, z_high, level);
+            p = self.tree.children_of(p) + usize::from(hx) + 2 * usize::from(hz);
+            level += 1;
         }
     }
+}
+
+/// Which half of a level-`level` square on the texture's edge (`axis`,
+/// `high`) holds that edge: the high one for the high edge, except above a
+/// shrunk axis's level, where the texture's high edge lies in the low half
+/// ([`crate::Aspect`]).
+#[inline]
+fn across_high(aspect: crate::Aspect, axis: usize, high: bool, level: u8) -> bool {
+    high && level >= aspect.shrink()[axis]
 }
 
 /// Screen length of the edges of `piece` (a region clipped to the box

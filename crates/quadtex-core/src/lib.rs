@@ -55,7 +55,7 @@ pub use footprint::Footprint;
 pub use fragment::Fragment;
 pub use polygon::ConvexPolygon;
 pub use texture::{FilterOptions, FilterStats, LevelOfDetail, Texture, Weighting};
-pub use tree::{LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
+pub use tree::{Aspect, LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
 pub use vector::{ClipId, FillRule, Paint, VectorArt, VectorOptions, VectorReport};
 pub use wrap::{Wrap, WrapMode};
 

@@ -37,11 +37,18 @@ pub fn texel_sum(grid: &TexelGrid, fragment: &Fragment) -> WeightedColour {
 
 /// Σ over the squares of the tree truncated at `max_level` (terminal nodes
 /// above it, all nodes at it) of colour × area(square ∩ fragment). O(nodes).
+/// Squares are taken in texture space: a non-square texture's squares are
+/// rectangles there, and those straddling the pad keep their texture part
+/// ([`crate::Aspect`]).
 pub fn truncated_tree_sum(tree: &QuadTree, fragment: &Fragment, max_level: u8) -> WeightedColour {
     let mut acc = WeightedColour::ZERO;
+    let [ex, ez] = tree.aspect().extent();
     tree.for_each_leaf(max_level, |level, ix, iz, colour| {
         let side = unit_side(level);
-        let area = fragment.overlap_area(f64::from(ix) * side, f64::from(iz) * side, side);
+        let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
+        let (x1, z1) = ((x0 + side).min(ex) / ex, (z0 + side).min(ez) / ez);
+        let area = overlap(fragment.x0(), fragment.x1(), x0 / ex, x1)
+            * overlap(fragment.z0(), fragment.z1(), z0 / ez, z1);
         if area > 0.0 {
             acc += weigh(colour, area);
         }
@@ -54,6 +61,23 @@ pub fn truncated_tree_sum(tree: &QuadTree, fragment: &Fragment, max_level: u8) -
 /// transitions by eq. 7–8, the four checks in the paper's order, no
 /// clipping and no shortcuts.
 pub fn paper_traversal(
+    tree: &QuadTree,
+    fragment: &Fragment,
+    max_level: u8,
+    init: fn(f64, f64) -> Variant,
+) -> WeightedColour {
+    let aspect = tree.aspect();
+    if !aspect.is_square() {
+        // In tree space, where the squares are; areas back in texture units.
+        let Some(f) = aspect.tree_fragment(fragment) else {
+            return WeightedColour::ZERO;
+        };
+        return paper_in_tree_space(tree, &f, max_level, init) * aspect.area_ratio();
+    }
+    paper_in_tree_space(tree, fragment, max_level, init)
+}
+
+fn paper_in_tree_space(
     tree: &QuadTree,
     fragment: &Fragment,
     max_level: u8,

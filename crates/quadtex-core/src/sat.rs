@@ -50,6 +50,11 @@ impl SummedAreaTable {
         self.width
     }
 
+    /// Height of the raster in texels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
     /// Bytes of memory the table occupies.
     pub fn memory_bytes(&self) -> u64 {
         (self.table.len() * std::mem::size_of::<[f64; 4]>()) as u64

@@ -186,12 +186,10 @@ impl Texture {
     /// As [`Texture::nearest`], adding the cost to `stats`.
     pub fn nearest_counted(&self, p: [f64; 2], stats: &mut TraversalStats) -> Rgba {
         let depth = self.tree.depth();
-        let cell = self.tree.finest_cell();
-        let (fx, fz) = ((p[0] / cell).floor() * cell, (p[1] / cell).floor() * cell);
-        match Fragment::new(fx, fz, fx + cell, fz + cell) {
-            Ok(f) => {
-                integrate_wrapped(&*self.tree, &f, depth, self.wrap, stats).mean_over(cell * cell)
-            }
+        let [cx, cz] = self.tree.finest_cell_size();
+        let (fx, fz) = ((p[0] / cx).floor() * cx, (p[1] / cz).floor() * cz);
+        match Fragment::new(fx, fz, fx + cx, fz + cz) {
+            Ok(f) => integrate_wrapped(&*self.tree, &f, depth, self.wrap, stats).mean_over(cx * cz),
             Err(_) => Rgba::TRANSPARENT,
         }
     }
@@ -204,12 +202,11 @@ impl Texture {
 
     /// As [`Texture::bilinear`], adding the cost to `stats`.
     pub fn bilinear_counted(&self, p: [f64; 2], stats: &mut TraversalStats) -> Rgba {
-        let cell = self.tree.finest_cell();
-        let (u, v) = (p[0] / cell - 0.5, p[1] / cell - 0.5);
+        let [cx, cz] = self.tree.finest_cell_size();
+        let (u, v) = (p[0] / cx - 0.5, p[1] / cz - 0.5);
         let (u0, v0) = (u.floor(), v.floor());
         let (fu, fv) = ((u - u0) as f32, (v - v0) as f32);
-        let mut at =
-            |i: f64, j: f64| self.nearest_counted([(i + 0.5) * cell, (j + 0.5) * cell], stats);
+        let mut at = |i: f64, j: f64| self.nearest_counted([(i + 0.5) * cx, (j + 0.5) * cz], stats);
         let (a, b) = (at(u0, v0), at(u0 + 1.0, v0));
         let (c, d) = (at(u0, v0 + 1.0), at(u0 + 1.0, v0 + 1.0));
         a.lerp(b, fu).lerp(c.lerp(d, fu), fv)
@@ -244,11 +241,16 @@ pub fn filter_footprint<T: BoxIntegral + ?Sized>(
         Weighting::Texture => None,
     };
     let depth = source.finest_level();
+    // Level units: a level-k cell is 2^-k of them (a non-square texture's
+    // cells are not square in texture units).
+    let [cx, cz] = source.finest_cell();
+    let unit = f64::from_bits((1023 - u64::from(depth.min(60))) << 52);
+    let (ux, uz) = (unit / cx, unit / cz);
     let (mut acc, mut area) = (WeightedColour::ZERO, 0.0);
     let mut add = |f: &Fragment, w: f64, traversal: &mut TraversalStats| {
         let k = options
             .level_of_detail()
-            .level(f.width(), f.height(), depth);
+            .level(f.width() * ux, f.height() * uz, depth);
         acc += integrate_wrapped(source, f, k, wrap, traversal) * w;
         area += f.area() * w;
     };

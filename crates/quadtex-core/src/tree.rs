@@ -46,6 +46,109 @@ struct RankBlock {
     rank: u64,
 }
 
+/// Where texture space lies in the tree's square, for textures that are not
+/// square.
+///
+/// **Tree space** is the square the tree subdivides, `[0,1)²`, `x` right
+/// and `z` up. **Texture space** is the image: `[0,1)²` spans it whatever its
+/// aspect (the usual UV convention), so a texel of a `W × H` image is
+/// `1/W × 1/H` texture units. A texture `2^s` times wider than high sits in
+/// the bottom `2^-s` of the tree's square (`z` shrunk by `s`), one `2^s`
+/// times higher than wide in its left `2^-s` (`x` shrunk):
+/// `tree = (x·2^-sx, z·2^-sz)`, with at most one of `sx`, `sz` non-zero.
+/// Both scales are powers of two, so the map is exact in floating point.
+///
+/// The rest of the square, the *pad*, is never read: queries are clipped
+/// to the texture first. Its squares are terminal and carry their parent's
+/// mean, so every inner colour is the mean of its children and the root's
+/// is the texture's mean. A `2^a × 2^b` raster packs into `2^(a+b)` finest
+/// cells plus `O(2^|a−b|)` nodes along the pad, not `4^max(a,b)`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct Aspect {
+    shrink: [u8; 2],
+}
+
+impl Aspect {
+    /// A square texture: texture space is tree space.
+    pub const SQUARE: Aspect = Aspect { shrink: [0, 0] };
+
+    /// Texture space shrunk by `2^-x_shrink` along `x` and `2^-z_shrink`
+    /// along `z`; at most one may be non-zero, each at most [`MAX_DEPTH`].
+    pub fn new(x_shrink: u8, z_shrink: u8) -> Result<Aspect, Error> {
+        if x_shrink != 0 && z_shrink != 0 {
+            return Err(Error::MalformedTree(format!(
+                "aspect shrinks both axes ({x_shrink}, {z_shrink}); at most one may be shrunk"
+            )));
+        }
+        if x_shrink.max(z_shrink) > MAX_DEPTH {
+            return Err(Error::DepthTooLarge {
+                depth: x_shrink.max(z_shrink).into(),
+                max: MAX_DEPTH.into(),
+            });
+        }
+        Ok(Aspect {
+            shrink: [x_shrink, z_shrink],
+        })
+    }
+
+    /// The aspect of a `2^a × 2^b` grid of cells (`a = log2 columns`,
+    /// `b = log2 rows`).
+    pub fn of_grid(log2_columns: u8, log2_rows: u8) -> Aspect {
+        let (a, b) = (log2_columns.min(MAX_DEPTH), log2_rows.min(MAX_DEPTH));
+        Aspect {
+            shrink: [b.saturating_sub(a), a.saturating_sub(b)],
+        }
+    }
+
+    /// `[sx, sz]`: tree space is texture space times `2^-s` per axis.
+    pub fn shrink(self) -> [u8; 2] {
+        self.shrink
+    }
+
+    /// True for a square texture.
+    pub fn is_square(self) -> bool {
+        self.shrink == [0, 0]
+    }
+
+    /// `[2^-sx, 2^-sz]`: tree units per texture unit along each axis.
+    #[inline]
+    pub fn scale(self) -> [f64; 2] {
+        [unit_side(self.shrink[0]), unit_side(self.shrink[1])]
+    }
+
+    /// The texture's extent in tree space: `[2^-sx, 2^-sz]` (same as
+    /// [`Aspect::scale`]).
+    #[inline]
+    pub fn extent(self) -> [f64; 2] {
+        self.scale()
+    }
+
+    /// Texture area per tree area: `2^(sx+sz)`.
+    #[inline]
+    pub fn area_ratio(self) -> f64 {
+        f64::from_bits((1023 + u64::from(self.shrink[0]) + u64::from(self.shrink[1])) << 52)
+    }
+
+    /// The fragment (texture space) clipped to the texture and mapped to
+    /// tree space; `None` when nothing of it is on the texture.
+    #[inline]
+    pub(crate) fn tree_fragment(self, f: &Fragment) -> Option<Fragment> {
+        let f = f.clip_to_unit()?;
+        if self.is_square() {
+            return Some(f);
+        }
+        let [sx, sz] = self.scale();
+        Fragment::new(f.x0() * sx, f.z0() * sz, f.x1() * sx, f.z1() * sz).ok()
+    }
+
+    /// True when square `(level, ix, iz)` of tree space lies wholly in the pad.
+    #[inline]
+    pub fn is_pad(self, level: u8, ix: u32, iz: u32) -> bool {
+        let beyond = |i: u32, s: u8| (u64::from(i) << s) >= 1u64 << level;
+        beyond(ix, self.shrink[0]) || beyond(iz, self.shrink[1])
+    }
+}
+
 /// Node and terminal counts of one level, for reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LevelStats {
@@ -76,6 +179,8 @@ pub struct TraversalStats {
 #[derive(Debug, Clone, PartialEq)]
 pub struct QuadTree {
     depth: u8,
+    /// Where texture space lies in the tree's square.
+    aspect: Aspect,
     /// Padded node colours.
     colours: Vec<Unorm16Rgba>,
     blocks: Vec<RankBlock>,
@@ -108,6 +213,17 @@ impl QuadTree {
     /// depth `depth` with consistent colours.
     pub fn from_parts(
         depth: u8,
+        inner: &[u64],
+        colours: Vec<Unorm16Rgba>,
+    ) -> Result<QuadTree, Error> {
+        Self::from_parts_with_aspect(depth, Aspect::SQUARE, inner, colours)
+    }
+
+    /// As [`QuadTree::from_parts`], for a texture that covers `aspect` of
+    /// the tree's square.
+    pub fn from_parts_with_aspect(
+        depth: u8,
+        aspect: Aspect,
         inner: &[u64],
         colours: Vec<Unorm16Rgba>,
     ) -> Result<QuadTree, Error> {
@@ -195,12 +311,13 @@ impl QuadTree {
                 blocks[p / 64].bits |= 1 << (p % 64);
             }
         }
-        Self::finish(depth, padded, blocks, level_starts)?.checked_averages()
+        Self::finish(depth, aspect, padded, blocks, level_starts)?.checked_averages()
     }
 
     /// Completes a tree from validated padded arrays: rank counters and top table.
     fn finish(
         depth: u8,
+        aspect: Aspect,
         colours: Vec<Unorm16Rgba>,
         mut blocks: Vec<RankBlock>,
         level_starts: Vec<usize>,
@@ -219,6 +336,7 @@ impl QuadTree {
         }
         let mut tree = QuadTree {
             depth,
+            aspect,
             colours,
             blocks,
             level_starts,
@@ -280,6 +398,29 @@ impl QuadTree {
         self.depth
     }
 
+    /// Where texture space lies in the tree's square.
+    pub fn aspect(&self) -> Aspect {
+        self.aspect
+    }
+
+    /// The finest cell's size in texture units, `[width, height]`: `2^-depth`
+    /// scaled up by the aspect's shrink on that axis.
+    pub fn finest_cell_size(&self) -> [f64; 2] {
+        let [sx, sz] = self.aspect.shrink;
+        let side = |s: u8| unit_side(self.depth - s.min(self.depth));
+        [side(sx), side(sz)]
+    }
+
+    /// Columns and rows of the finest grid over the texture:
+    /// `[2^(depth−sx), 2^(depth−sz)]`, at least one each.
+    pub fn finest_grid(&self) -> [u64; 2] {
+        let [sx, sz] = self.aspect.shrink;
+        [
+            1u64 << self.depth.saturating_sub(sx),
+            1u64 << self.depth.saturating_sub(sz),
+        ]
+    }
+
     /// Number of nodes.
     pub fn node_count(&self) -> u64 {
         (self.colours.len() - PAD) as u64
@@ -329,13 +470,16 @@ impl QuadTree {
     pub fn first_moments(&self) -> [f64; 2] {
         *self.moments.get_or_init(|| {
             let (mut mx, mut mz) = ([0f64; 4], [0f64; 4]);
+            let [ex, ez] = self.aspect.extent();
             self.for_each_leaf(self.depth, |level, ix, iz, c| {
+                // The leaf's texture part, in texture units (a leaf above
+                // the aspect's level straddles the pad).
                 let side = unit_side(level);
-                let a = side * side / 65535.0;
-                let (x, z) = (
-                    (f64::from(ix) + 0.5) * side - 0.5,
-                    (f64::from(iz) + 0.5) * side - 0.5,
-                );
+                let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
+                let (x1, z1) = ((x0 + side).min(ex) / ex, (z0 + side).min(ez) / ez);
+                let (x0, z0) = (x0 / ex, z0 / ez);
+                let a = (x1 - x0) * (z1 - z0) / 65535.0;
+                let (x, z) = (0.5 * (x0 + x1) - 0.5, 0.5 * (z0 + z1) - 0.5);
                 for ch in 0..4 {
                     mx[ch] += f64::from(c.0[ch]) * a * x;
                     mz[ch] += f64::from(c.0[ch]) * a * z;
@@ -350,12 +494,12 @@ impl QuadTree {
     /// cell of the `2^d × 2^d` grid at its depth (linear, premultiplied,
     /// `[0, 1]`), row-major with `z` rows from the bottom: cell `(i, j)`
     /// covers `[i, i+1) × [j, j+1)` scaled by `2^-d`. Exact: each cell lies
-    /// in one terminal square. `None` for deeper trees.
+    /// in one terminal square. `None` for deeper trees and non-square ones.
     pub fn flat_grid(&self) -> Option<&[[f64; 4]]> {
         self.grid
             .get_or_init(|| {
                 let d = self.depth;
-                if d > FLAT_GRID_MAX_DEPTH {
+                if d > FLAT_GRID_MAX_DEPTH || !self.aspect.is_square() {
                     return None;
                 }
                 let n = 1usize << d;
@@ -376,10 +520,14 @@ impl QuadTree {
     /// Calls `f(level, ix, iz, colour)` for every square a traversal to level
     /// `max_level` treats as uniform: terminal nodes at levels `< max_level`
     /// and all nodes at level `max_level`. Square `(level, ix, iz)` covers
-    /// `[ix, ix+1) × [iz, iz+1)` scaled by `2^-level`. Order: depth first.
+    /// `[ix, ix+1) × [iz, iz+1)` scaled by `2^-level` in *tree space*
+    /// ([`Aspect`]); squares of the pad are skipped. Order: depth first.
     pub fn for_each_leaf(&self, max_level: u8, mut f: impl FnMut(u8, u32, u32, Unorm16Rgba)) {
         let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
         while let Some((node, level, ix, iz)) = stack.pop() {
+            if self.aspect.is_pad(level, ix, iz) {
+                continue;
+            }
             if !self.is_inner(node) || level >= max_level {
                 f(level, ix, iz, self.colours[node]);
             } else {
@@ -396,12 +544,14 @@ impl QuadTree {
         }
     }
 
-    /// The tree as a raster of `2^level × 2^level` cells (row 0 at the top),
-    /// each cell the colour of the square that holds it in the tree truncated
-    /// at `level` (deeper than the tree, cells repeat their square's colour).
-    /// For baselines that need a raster; refused above level 14 (a 2 GiB
-    /// grid); [`QuadTree::rasterise_bytes`] is its size, to check against a
-    /// budget first.
+    /// The texture as a raster (row 0 at the top): the tree's square cut
+    /// into `2^level × 2^level` cells, of which the texture's
+    /// ([`QuadTree::raster_size`]) are kept, each cell the colour of the
+    /// square that holds it in the tree truncated at `level` (deeper than
+    /// the tree, cells repeat their square's colour). For baselines that
+    /// need a raster; refused above level 14 (a 2 GiB grid);
+    /// [`QuadTree::rasterise_bytes`] is its size, to check against a budget
+    /// first.
     pub fn rasterise(&self, level: u8) -> Result<crate::TexelGrid, Error> {
         if level > 14 {
             return Err(Error::DepthTooLarge {
@@ -409,20 +559,31 @@ impl QuadTree {
                 max: 14,
             });
         }
-        let side = 1usize << level;
-        let mut texels = crate::memory::try_vec(side * side, Unorm16Rgba::default(), "raster")?;
+        let [w, h] = self.raster_size(level).map(|v| v as usize);
+        let mut texels = crate::memory::try_vec(w * h, Unorm16Rgba::default(), "raster")?;
         self.for_each_leaf(level, |l, ix, iz, colour| {
             let span = 1usize << (level - l);
             let (x0, z0) = (ix as usize * span, iz as usize * span);
-            for z in z0..z0 + span {
-                let row = side - 1 - z;
-                texels[row * side + x0..row * side + x0 + span].fill(colour);
+            // A leaf above the aspect's level straddles the pad: keep its texture part.
+            let x1 = (x0 + span).min(w);
+            for z in z0..(z0 + span).min(h) {
+                let row = h - 1 - z;
+                texels[row * w + x0..row * w + x1].fill(colour);
             }
         });
-        crate::TexelGrid::new(side as u32, side as u32, texels)
+        crate::TexelGrid::new(w as u32, h as u32, texels)
     }
 
-    /// Bytes [`QuadTree::rasterise`] allocates at `level` (8 a cell).
+    /// Columns and rows of [`QuadTree::rasterise`] at `level`: `2^level`
+    /// shrunk by the aspect, at least one.
+    pub fn raster_size(&self, level: u8) -> [u32; 2] {
+        let [sx, sz] = self.aspect.shrink;
+        let cells = |s: u8| 1u32 << level.saturating_sub(s).min(31);
+        [cells(sx), cells(sz)]
+    }
+
+    /// Bytes [`QuadTree::rasterise`] allocates at `level` (8 a cell) for a
+    /// square texture, an upper bound for others.
     pub fn rasterise_bytes(level: u8) -> u64 {
         8u64 << (2 * u32::from(level.min(31)))
     }
@@ -460,7 +621,7 @@ impl QuadTree {
     /// whose colours differ. Renderers use it to skip cutting footprints that
     /// lie in a uniform region.
     pub fn uniform_colour(&self, fragment: &Fragment) -> Option<Unorm16Rgba> {
-        let f = fragment.clip_to_unit()?;
+        let f = self.aspect.tree_fragment(fragment)?;
         let mut node = PAD;
         let (mut level, mut ix, mut iz) = (0u8, 0u64, 0u64);
         loop {
@@ -492,7 +653,8 @@ impl QuadTree {
 
     /// The weighted colour (integral of colour over area) of the fragment's
     /// overlap with the unit square, from a traversal down to level
-    /// `max_level` (clamped to [`QuadTree::depth`]).
+    /// `max_level` (clamped to [`QuadTree::depth`]). The fragment and the
+    /// area are in texture units; levels are the tree's ([`Aspect`]).
     ///
     /// Squares inside the fragment count whole at the highest level they
     /// exist, squares at `max_level` or terminal count by their overlap, as in
@@ -525,9 +687,11 @@ impl QuadTree {
         if COUNT {
             stats.queries += 1;
         }
-        let Some(f) = fragment.clip_to_unit() else {
+        let Some(f) = self.aspect.tree_fragment(fragment) else {
             return WeightedColour::ZERO;
         };
+        let ratio = self.aspect.area_ratio();
+        let result = |acc: [f64; 4]| scaled(acc.map(|a| a * ratio));
         let k = max_level.min(self.depth);
         let (x0, z0, x1, z1) = (f.x0(), f.z0(), f.x1(), f.z1());
 
@@ -550,14 +714,14 @@ impl QuadTree {
             stats.nodes_visited += 1;
         }
         if level >= k || !self.is_inner(start) {
-            return scaled(weigh(self.colours[start], f.area()));
+            return result(weigh(self.colours[start], f.area()));
         }
         let side = unit_side(level);
         let (lo_x, lo_z) = (f64::from(sx) * side, f64::from(sz) * side);
         let vx = variant::classify(x0, x1, lo_x, lo_x + side);
         let vz = variant::classify(z0, z1, lo_z, lo_z + side);
         if vx == variant::SQUARE_INSIDE && vz == variant::SQUARE_INSIDE {
-            return scaled(weigh(self.colours[start], side * side));
+            return result(weigh(self.colours[start], side * side));
         }
 
         let mut acc = [0f64; 4];
@@ -627,7 +791,7 @@ impl QuadTree {
         if COUNT {
             stats.nodes_visited += visited;
         }
-        scaled(acc)
+        result(acc)
     }
 }
 
@@ -677,7 +841,10 @@ fn top_table_len(top_level: u8) -> usize {
 
 /// Assembles a tree from per-level node lists produced by the builder
 /// (already valid by construction).
-pub(crate) fn from_levels(levels: Vec<Vec<(bool, Unorm16Rgba)>>) -> Result<QuadTree, Error> {
+pub(crate) fn from_levels(
+    levels: Vec<Vec<(bool, Unorm16Rgba)>>,
+    aspect: Aspect,
+) -> Result<QuadTree, Error> {
     let depth = (levels.len() - 1) as u8;
     let n: usize = levels.iter().map(Vec::len).sum();
     let mut colours = crate::memory::try_with_capacity(PAD + n, "tree colours")?;
@@ -699,5 +866,5 @@ pub(crate) fn from_levels(levels: Vec<Vec<(bool, Unorm16Rgba)>>) -> Result<QuadT
         }
     }
     level_starts.push(colours.len());
-    QuadTree::finish(depth, colours, blocks, level_starts)
+    QuadTree::finish(depth, aspect, colours, blocks, level_starts)
 }

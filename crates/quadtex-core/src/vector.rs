@@ -1221,7 +1221,7 @@ impl QuadTree {
         while b.levels.last().is_some_and(Vec::is_empty) {
             b.levels.pop();
         }
-        Ok((tree::from_levels(b.levels)?, b.report))
+        Ok((tree::from_levels(b.levels, tree::Aspect::SQUARE)?, b.report))
     }
 }
 

@@ -141,10 +141,11 @@ pub trait BoxIntegral {
     fn box_integral(&self, f: &Fragment, k: u8, stats: &mut TraversalStats) -> WeightedColour;
     /// Integral over the whole unit square.
     fn whole_tile(&self) -> WeightedColour;
-    /// Side of the finest cell (the edge strip [`WrapMode::Clamp`] reads).
-    fn finest_cell(&self) -> f64;
-    /// The level of the finest cell, `log2(1/finest_cell)`: what a
-    /// level-of-detail rule is capped by.
+    /// Width and height of the finest cell in texture units (the edge strip
+    /// [`WrapMode::Clamp`] reads).
+    fn finest_cell(&self) -> [f64; 2];
+    /// The level of the finest cell: what a level-of-detail rule is capped
+    /// by. A level-`k` cell is `finest_cell · 2^(finest_level − k)`.
     fn finest_level(&self) -> u8;
 }
 
@@ -155,8 +156,8 @@ impl BoxIntegral for QuadTree {
     fn whole_tile(&self) -> WeightedColour {
         WeightedColour::from_unorm16(self.average(), 1.0)
     }
-    fn finest_cell(&self) -> f64 {
-        f64::from_bits((1023 - u64::from(self.depth())) << 52)
+    fn finest_cell(&self) -> [f64; 2] {
+        self.finest_cell_size()
     }
     fn finest_level(&self) -> u8 {
         self.depth()
@@ -171,11 +172,14 @@ impl BoxIntegral for SummedAreaTable {
     fn whole_tile(&self) -> WeightedColour {
         Fragment::new(0.0, 0.0, 1.0, 1.0).map_or(WeightedColour::ZERO, |f| self.weighted_colour(&f))
     }
-    fn finest_cell(&self) -> f64 {
-        1.0 / self.width() as f64
+    fn finest_cell(&self) -> [f64; 2] {
+        [1.0 / self.width() as f64, 1.0 / self.height() as f64]
     }
     fn finest_level(&self) -> u8 {
-        (self.width() as f64).log2().ceil().clamp(0.0, 255.0) as u8
+        (self.width().max(self.height()) as f64)
+            .log2()
+            .ceil()
+            .clamp(0.0, 255.0) as u8
     }
 }
 
@@ -240,9 +244,9 @@ pub fn integrate_wrapped<T: BoxIntegral + ?Sized>(
     wrap: Wrap,
     stats: &mut TraversalStats,
 ) -> WeightedColour {
-    let edge = source.finest_cell();
-    let xs = AxisCut::new(wrap.x, f.x0(), f.x1(), edge);
-    let zs = AxisCut::new(wrap.z, f.z0(), f.z1(), edge);
+    let [edge_x, edge_z] = source.finest_cell();
+    let xs = AxisCut::new(wrap.x, f.x0(), f.x1(), edge_x);
+    let zs = AxisCut::new(wrap.z, f.z0(), f.z1(), edge_z);
     let mut acc = WeightedColour::ZERO;
     for &(xa, xb, wx) in xs.pieces.iter().flatten() {
         for &(za, zb, wz) in zs.pieces.iter().flatten() {

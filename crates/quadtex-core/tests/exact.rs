@@ -13,8 +13,22 @@ use quadtex_core::{
     QuadTree, Rgba, Texture, Wrap, WrapMode,
 };
 
+/// A blocky tree, square or (one time in two) cropped to a strip of its
+/// rows or columns: a non-square texture in part of the tree's square.
 fn blocky_tree(u: &mut Unstructured<'_>) -> ArbResult<QuadTree> {
     let grid = blocky_grid(u, 4)?;
+    let side = grid.width();
+    let grid = if u.ratio(1, 2)? && side > 1 {
+        let short = side >> u.int_in_range(1..=side.trailing_zeros())?;
+        let (w, h) = if u.ratio(1, 2)? {
+            (side, short)
+        } else {
+            (short, side)
+        };
+        quadtex_core::TexelGrid::from_fn(w, h, |c, r| grid.texel(c, r).to_rgba()).unwrap()
+    } else {
+        grid
+    };
     Ok(QuadTree::from_texels(&grid, &BuildOptions::default())
         .unwrap()
         .0)
@@ -84,16 +98,16 @@ fn coefficients(p: [[f64; 2]; 4]) -> [f64; 8] {
 /// times the colour `Texture::nearest` gives at the cell's centre.
 fn brute_force_box(texture: &Texture, fp: &Footprint) -> Rgba {
     let [a, b, c, d, e, f, g, h] = coefficients(fp.corners());
-    let cell = 1.0 / f64::from(1u32 << texture.tree().depth());
+    let [cx, cz] = texture.tree().finest_cell_size();
     let (lo, hi) = fp.bounds();
-    let (i0, i1) = ((lo[0] / cell).floor() as i64, (hi[0] / cell).ceil() as i64);
-    let (j0, j1) = ((lo[1] / cell).floor() as i64, (hi[1] / cell).ceil() as i64);
+    let (i0, i1) = ((lo[0] / cx).floor() as i64, (hi[0] / cx).ceil() as i64);
+    let (j0, j1) = ((lo[1] / cz).floor() as i64, (hi[1] / cz).ceil() as i64);
     let square = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
     let mut acc = [0f64; 4];
     for j in j0..j1 {
         for i in i0..i1 {
-            let (x0, x1) = (i as f64 * cell, (i + 1) as f64 * cell);
-            let (z0, z1) = (j as f64 * cell, (j + 1) as f64 * cell);
+            let (x0, x1) = (i as f64 * cx, (i + 1) as f64 * cx);
+            let (z0, z1) = (j as f64 * cz, (j + 1) as f64 * cz);
             let piece = square
                 .clip(a - x0 * g, b - x0 * h, c - x0)
                 .clip(x1 * g - a, x1 * h - b, x1 - c)

@@ -9,7 +9,7 @@ use common::{PALETTE, blocky_grid};
 use quadtex_core::reference::{paper_traversal, texel_sum, truncated_tree_sum};
 use quadtex_core::sat::SummedAreaTable;
 use quadtex_core::variant::f_init;
-use quadtex_core::{BuildOptions, Fragment, QuadTree, Rgba, TexelGrid, WeightedColour};
+use quadtex_core::{Aspect, BuildOptions, Fragment, QuadTree, Rgba, TexelGrid, WeightedColour};
 
 /// A random grid of any size (non-power-of-two included).
 fn any_grid(u: &mut Unstructured<'_>) -> ArbResult<TexelGrid> {
@@ -115,9 +115,15 @@ fn any_size_image_integrates_to_its_texels_at_cell_resolution() {
     // whole square, and within one cell's worth of colour elsewhere.
     arbtest::arbtest(|u| {
         let grid = any_grid(u)?;
-        let (tree, report) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+        let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
         let d = tree.depth().max(1);
-        let cells = f64::from(1u32 << report.cell_depth);
+        // The cells follow the image's own aspect: 2^⌈log2 w⌉ × 2^⌈log2 h⌉.
+        let [columns, rows] = tree.finest_grid();
+        let log2 = |n: u32| n.next_power_of_two().trailing_zeros() as u8;
+        assert_eq!(
+            tree.aspect(),
+            Aspect::of_grid(log2(grid.width()), log2(grid.height()))
+        );
         let whole = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
         assert!(close(
             tree.weighted_colour(&whole, d),
@@ -125,9 +131,18 @@ fn any_size_image_integrates_to_its_texels_at_cell_resolution() {
             2e-5
         ));
         for _ in 0..10 {
-            let i = f64::from(u.int_in_range(0..=(cells as u32))?) / cells;
-            let j = f64::from(u.int_in_range(0..=(cells as u32))?) / cells;
+            let cells = columns as f64;
+            let i = f64::from(u.int_in_range(0..=(columns as u32))?) / cells;
+            let j = f64::from(u.int_in_range(0..=(columns as u32))?) / cells;
             let f = Fragment::new(i.min(j), 0.0, i.max(j), 1.0).unwrap();
+            assert!(
+                close(tree.weighted_colour(&f, 30), texel_sum(&grid, &f), 2e-5),
+                "{f:?}"
+            );
+            let cells = rows as f64;
+            let i = f64::from(u.int_in_range(0..=(rows as u32))?) / cells;
+            let j = f64::from(u.int_in_range(0..=(rows as u32))?) / cells;
+            let f = Fragment::new(0.0, i.min(j), 1.0, i.max(j)).unwrap();
             assert!(
                 close(tree.weighted_colour(&f, 30), texel_sum(&grid, &f), 2e-5),
                 "{f:?}"

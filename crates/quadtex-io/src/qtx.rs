@@ -4,7 +4,7 @@ use std::fs::File;
 use std::io::{Read, Write};
 use std::path::Path;
 
-use quadtex_core::{QuadTree, Unorm16Rgba};
+use quadtex_core::{Aspect, QuadTree, Unorm16Rgba};
 
 use crate::atomic::{put, write_atomically};
 use crate::error::{Error, io};
@@ -84,6 +84,7 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 4] {
     header[12..16].copy_from_slice(&(HEADER_BYTES as u32).to_le_bytes());
     header[16] = tree.depth();
     header[17] = COLOUR_UNORM16_PREMUL_LINEAR;
+    header[18..20].copy_from_slice(&tree.aspect().shrink());
     header[20..24].copy_from_slice(&sw.to_le_bytes());
     header[24..28].copy_from_slice(&sh.to_le_bytes());
     header[32..40].copy_from_slice(&n.to_le_bytes());
@@ -199,10 +200,11 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
             u16::from_le_bytes([c[2 * k], c[2 * k + 1]])
         }))
     }));
-    let tree = QuadTree::from_parts(header.depth, &words, colours).map_err(|e| match e {
-        quadtex_core::Error::AllocationFailed { .. } => crate::error::core(path)(e),
-        e => bad("nodes", e.to_string()),
-    })?;
+    let tree = QuadTree::from_parts_with_aspect(header.depth, header.aspect, &words, colours)
+        .map_err(|e| match e {
+            quadtex_core::Error::AllocationFailed { .. } => crate::error::core(path)(e),
+            e => bad("nodes", e.to_string()),
+        })?;
     Ok((
         tree,
         QtxInfo {
@@ -222,6 +224,7 @@ const fn checksums_enforced() -> bool {
 
 struct Header {
     depth: u8,
+    aspect: Aspect,
     nodes: u64,
     inner: u64,
     payload: u64,
@@ -277,7 +280,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
             "header checksum mismatch (corrupt header)".into(),
         ));
     }
-    if h[18..20] != [0, 0] || h[28..32] != [0; 4] || h[60..64] != [0; 4] {
+    if h[28..32] != [0; 4] || h[60..64] != [0; 4] {
         return Err(bad("reserved", "reserved header bytes are not zero".into()));
     }
     if u32_at(12) as usize != HEADER_BYTES {
@@ -290,6 +293,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     if depth > limits.max_depth {
         return Err(limit("max_depth", depth.into(), limits.max_depth.into()));
     }
+    let aspect = Aspect::new(h[18], h[19]).map_err(|e| bad("aspect", e.to_string()))?;
     if h[17] != COLOUR_UNORM16_PREMUL_LINEAR {
         return Err(bad(
             "colour_format",
@@ -331,6 +335,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     )?;
     Ok(Header {
         depth,
+        aspect,
         nodes,
         inner,
         payload,
@@ -365,6 +370,25 @@ mod tests {
         assert_eq!(back, t);
         assert_eq!((info.source_width, info.source_height), (64, 64));
         std::fs::remove_file(&p).unwrap();
+    }
+
+    /// A strip keeps its aspect through the file; a header claiming both
+    /// axes shrunk is refused by name.
+    #[test]
+    fn strips_round_trip_with_their_aspect() {
+        let g = synth::runway_art().rasterise(64, 8).unwrap();
+        let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+        assert_eq!(t.aspect().shrink(), [0, 3]);
+        let mut bytes = Vec::new();
+        write_qtx_to(&mut bytes, Path::new("strip"), &t, Some((64, 8))).unwrap();
+        let (back, _) = parse_qtx(&bytes, Path::new("strip"), &Limits::default()).unwrap();
+        assert_eq!(back, t);
+        assert_eq!(back.aspect(), t.aspect());
+        bytes[18] = 2;
+        let crc = crc32fast::hash(&bytes[..56]);
+        bytes[56..60].copy_from_slice(&crc.to_le_bytes());
+        let e = parse_qtx(&bytes, Path::new("strip"), &Limits::default()).unwrap_err();
+        assert!(e.to_string().contains("aspect"), "{e}");
     }
 
     #[test]
