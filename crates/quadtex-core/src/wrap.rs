@@ -471,6 +471,64 @@ mod tests {
         }
     }
 
+    /// Strips (a texture in part of the tree's square) wrap like squares:
+    /// repeat and mirror against tile-by-tile sums, clamp against the edge
+    /// cells stretched by hand, with cells of their own width and height.
+    #[test]
+    fn strips_wrap_like_squares() {
+        for (w, h) in [(16u32, 2u32), (2, 16), (8, 1)] {
+            let g = TexelGrid::from_fn(w, h, |c, r| {
+                Rgba::opaque(
+                    c as f32 / w as f32,
+                    r as f32 / h as f32,
+                    ((c * r) % 3) as f32 / 2.0,
+                )
+            })
+            .unwrap();
+            let (tree, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+            assert!(!tree.aspect().is_square());
+            assert_eq!(
+                tree.finest_cell_size(),
+                [1.0 / f64::from(w), 1.0 / f64::from(h)]
+            );
+            for f in [
+                Fragment::new(-1.25, 0.6, 1.4, 2.1).unwrap(),
+                Fragment::new(-3.3, -2.9, -1.1, 0.2).unwrap(),
+                Fragment::new(0.1, 0.2, 0.7, 0.3).unwrap(),
+            ] {
+                for (mode, mirror) in [(Wrap::REPEAT, false), (Wrap::MIRROR, true)] {
+                    let fast =
+                        integrate_wrapped(&tree, &f, 30, mode, &mut TraversalStats::default());
+                    let slow = tile_by_tile(&tree, &f, mirror);
+                    // Whole tiles count the root's mean, rounded once to 16 bits.
+                    let tol = 1e-9 + f.area() * 0.5 / 65535.0;
+                    assert!(
+                        close(fast, slow, tol),
+                        "{w}x{h} {mode:?} {f:?}: {fast:?} vs {slow:?}"
+                    );
+                }
+            }
+            let [cx, cz] = tree.finest_cell_size();
+            let right = Fragment::new(1.0, 0.0, 3.0, 1.0).unwrap();
+            let got = integrate_wrapped(
+                &tree,
+                &right,
+                30,
+                Wrap::CLAMP,
+                &mut TraversalStats::default(),
+            );
+            let column = tree.weighted_colour(&Fragment::new(1.0 - cx, 0.0, 1.0, 1.0).unwrap(), 30);
+            // Up to one rounded inner mean over the area (half a 16-bit step).
+            let tol = 1e-9 + 2.0 * 0.5 / 65535.0;
+            assert!(close(got, column * (2.0 / cx), tol), "{w}x{h}: {got:?}");
+            let top = Fragment::new(0.0, 1.0, 1.0, 1.5).unwrap();
+            let got =
+                integrate_wrapped(&tree, &top, 30, Wrap::CLAMP, &mut TraversalStats::default());
+            let row = tree.weighted_colour(&Fragment::new(0.0, 1.0 - cz, 1.0, 1.0).unwrap(), 30);
+            assert!(close(got, row * (0.5 / cz), tol), "{w}x{h}: {got:?}");
+        }
+    }
+
     #[test]
     fn mirror_reflects_odd_tiles() {
         let tree = ramp_tree();

@@ -7,28 +7,15 @@
 mod common;
 
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
-use common::{PALETTE, blocky_grid};
+use common::{PALETTE, blocky_grid_any_aspect};
 use quadtex_core::{
     BuildOptions, ConvexPolygon, FilterOptions, FilterStats, Footprint, PixelFilter, Projection,
     QuadTree, Rgba, Texture, Wrap, WrapMode,
 };
 
-/// A blocky tree, square or (one time in two) cropped to a strip of its
-/// rows or columns: a non-square texture in part of the tree's square.
+/// A blocky tree, square or a strip (part of the tree's square).
 fn blocky_tree(u: &mut Unstructured<'_>) -> ArbResult<QuadTree> {
-    let grid = blocky_grid(u, 4)?;
-    let side = grid.width();
-    let grid = if u.ratio(1, 2)? && side > 1 {
-        let short = side >> u.int_in_range(1..=side.trailing_zeros())?;
-        let (w, h) = if u.ratio(1, 2)? {
-            (side, short)
-        } else {
-            (short, side)
-        };
-        quadtex_core::TexelGrid::from_fn(w, h, |c, r| grid.texel(c, r).to_rgba()).unwrap()
-    } else {
-        grid
-    };
+    let grid = blocky_grid_any_aspect(u, 4)?;
     Ok(QuadTree::from_texels(&grid, &BuildOptions::default())
         .unwrap()
         .0)

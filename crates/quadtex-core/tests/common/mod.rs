@@ -25,6 +25,23 @@ pub fn blocky_grid(u: &mut Unstructured<'_>, max_depth: u32) -> ArbResult<TexelG
     .unwrap())
 }
 
+/// [`blocky_grid`], or one time in two a strip of it: its first `2^-k` of
+/// rows or of columns, a texture that takes part of the tree's square.
+pub fn blocky_grid_any_aspect(u: &mut Unstructured<'_>, max_depth: u32) -> ArbResult<TexelGrid> {
+    let grid = blocky_grid(u, max_depth)?;
+    let side = grid.width();
+    if side == 1 || u.ratio(1, 2)? {
+        return Ok(grid);
+    }
+    let short = side >> u.int_in_range(1..=side.trailing_zeros())?;
+    let (w, h) = if u.ratio(1, 2)? {
+        (side, short)
+    } else {
+        (short, side)
+    };
+    Ok(TexelGrid::from_fn(w, h, |c, r| grid.texel(c, r).to_rgba()).unwrap())
+}
+
 pub fn fill(
     u: &mut Unstructured<'_>,
     t: &mut [Rgba],
