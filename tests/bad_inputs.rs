@@ -131,10 +131,13 @@ qtx_cases! {
     qtx_payload_bit_flip: "payload_crc", |b| { let n = b.len(); b[n - 9] ^= 0x01; };
     qtx_terabyte_node_count: "max_nodes", |b| { b[32..40].copy_from_slice(&(1u64 << 40).to_le_bytes()); reseal_header(b); };
     qtx_inconsistent_inner_count: "node_count", |b| { let inner = u64::from_le_bytes(b[40..48].try_into().unwrap()); b[40..48].copy_from_slice(&(inner + 1).to_le_bytes()); reseal_header(b); };
-    qtx_payload_size_lie: "payload_bytes", |b| { b[48] ^= 0x08; reseal_header(b); };
+    qtx_payload_size_lie: "payload_bytes", |b| { b[48..56].copy_from_slice(&1u64.to_le_bytes()); reseal_header(b); };
+    qtx_payload_size_off_by_eight: "length", |b| { b[48] ^= 0x08; reseal_header(b); };
     qtx_absurd_depth: "max_depth", |b| { b[16] = 200; reseal_header(b); };
     qtx_unknown_colour_format: "colour_format", |b| { b[17] = 7; reseal_header(b); };
-    qtx_reserved_bytes_set: "reserved", |b| { b[29] = 1; reseal_header(b); };
+    qtx_reserved_bytes_set: "reserved", |b| { b[31] = 1; reseal_header(b); };
+    qtx_unknown_block_format: "block_format", |b| { b[28] = 9; reseal_header(b); };
+    qtx_block_level_below_the_tree: "block_level", |b| { b[29] = 31; reseal_header(b); };
     qtx_wrong_header_size: "header_bytes", |b| { b[12] = 128; reseal_header(b); };
     qtx_inner_flags_cleared: "inner_bits", |b| { b[64] = 0; reseal_payload(b); };
     qtx_not_premultiplied: "premultiplied", |b| {

@@ -90,7 +90,9 @@ def test_arrays_pack_exactly_as_the_same_png(tmp_path, rng, channels, dtype):
 def test_pack_options(random_texels):
     lossless = quadtex.pack(random_texels)
     lossy = quadtex.pack(random_texels, tolerance=0.5)
-    assert lossy.node_count < lossless.node_count
+    # Noise packs losslessly into texel blocks (few nodes); a tolerance
+    # merges squares instead: fewer bytes.
+    assert lossy.nbytes < lossless.nbytes
     coarse = quadtex.pack(random_texels, max_level=2)
     assert coarse.depth <= 2
     # Cells resampled by area: the whole-texture integral is unchanged.

@@ -828,21 +828,21 @@ fn tiles_pack_like_the_whole_mosaic_and_bad_tiles_are_named() {
     let dir = temp_dir("capi-tiles");
     let tiles = dir.join("tiles");
     std::fs::create_dir_all(&tiles).unwrap();
-    // A 4×4 mosaic of 2×2 tiles: a colour per texel.
-    let colour = |x: u32, y: u32| quadtex_core::Rgba::opaque(x as f32 / 3.0, y as f32 / 3.0, 0.5);
+    // An 8×8 mosaic of 4×4 tiles: a colour per texel.
+    let colour = |x: u32, y: u32| quadtex_core::Rgba::opaque(x as f32 / 7.0, y as f32 / 7.0, 0.5);
     let whole = quadtex_io::LinearImage {
-        width: 4,
-        height: 4,
-        pixels: (0..16).map(|k| colour(k % 4, k / 4)).collect(),
+        width: 8,
+        height: 8,
+        pixels: (0..64).map(|k| colour(k % 8, k / 8)).collect(),
     };
     quadtex_io::save_image(&dir.join("whole.png"), &whole).unwrap();
     for row in 0..2 {
         for col in 0..2 {
             let tile = quadtex_io::LinearImage {
-                width: 2,
-                height: 2,
-                pixels: (0..4)
-                    .map(|k| colour(2 * col + k % 2, 2 * row + k / 2))
+                width: 4,
+                height: 4,
+                pixels: (0..16)
+                    .map(|k| colour(4 * col + k % 4, 4 * row + k / 4))
                     .collect(),
             };
             quadtex_io::save_image(&tiles.join(format!("{row}_{col}.png")), &tile).unwrap();

@@ -21,6 +21,7 @@
 use crate::Error;
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push, try_vec};
+use crate::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, BlockWriter};
 use crate::tree::{self, Aspect, MAX_DEPTH, MAX_NODES, QuadTree};
 
 /// The settings that shrink a raster build, for [`Error::MemoryBudget`].
@@ -39,6 +40,9 @@ pub struct TexelGrid {
     width: u32,
     height: u32,
     texels: Vec<Unorm16Rgba>,
+    /// The 8-bit sRGB texels (straight alpha) the texels were decoded from,
+    /// kept so texel blocks can store them as they were.
+    srgb8: Option<Vec<[u8; 4]>>,
 }
 
 impl TexelGrid {
@@ -56,6 +60,7 @@ impl TexelGrid {
             width,
             height,
             texels,
+            srgb8: None,
         })
     }
 
@@ -76,7 +81,37 @@ impl TexelGrid {
             width,
             height,
             texels,
+            srgb8: None,
         })
+    }
+
+    /// A grid from row-major 8-bit sRGB texels with straight alpha (row 0
+    /// at the top), as PNG and JPEG store them: each decodes with
+    /// [`crate::texel_block::srgb8_texel`], and the packer keeps the bytes
+    /// in texel blocks ([`crate::texel_block`]).
+    pub fn from_srgb8(width: u32, height: u32, srgb8: Vec<[u8; 4]>) -> Result<TexelGrid, Error> {
+        check_dimensions(width, height)?;
+        let expected = u64::from(width) * u64::from(height);
+        if srgb8.len() as u64 != expected {
+            return Err(Error::TexelCount {
+                expected,
+                actual: srgb8.len() as u64,
+            });
+        }
+        let mut texels = crate::memory::try_with_capacity(srgb8.len(), "texels")?;
+        texels.extend(srgb8.iter().map(|&p| crate::texel_block::srgb8_texel(p)));
+        Ok(TexelGrid {
+            width,
+            height,
+            texels,
+            srgb8: Some(srgb8),
+        })
+    }
+
+    /// The 8-bit sRGB texels the grid was made from, if it was
+    /// ([`TexelGrid::from_srgb8`]).
+    pub fn srgb8(&self) -> Option<&[[u8; 4]]> {
+        self.srgb8.as_deref()
     }
 
     /// Width in texels.
@@ -230,8 +265,21 @@ struct Tiles<'a> {
     load: &'a mut dyn FnMut(u32, u32) -> Result<TexelGrid, Error>,
 }
 
+/// What a square became.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Terminal,
+    Inner,
+    /// Terminal, its texels in a block.
+    Block,
+}
+
 struct Builder<'a> {
     cells: &'a [Unorm16Rgba],
+    /// The 8-bit source of `cells`, when blocks store it.
+    srgb8: Option<&'a [[u8; 4]]>,
+    /// Texel blocks, when the tree is deep enough to have them.
+    blocks: Option<BlockWriter>,
     tiles: Option<Tiles<'a>>,
     side: usize,
     depth: u8,
@@ -255,14 +303,14 @@ impl Builder<'_> {
     }
 
     /// Builds the subtree of square `(level, ix, iz)`: returns its stats and
-    /// its (colour, terminal) decision; pushes its descendants if it is inner.
+    /// its colour and kind; pushes its descendants if it is inner.
     /// `None` for a square of the pad (its parent gives it a colour).
     fn square(
         &mut self,
         level: u8,
         ix: usize,
         iz: usize,
-    ) -> Result<Option<(Stats, Unorm16Rgba, bool)>, Error> {
+    ) -> Result<Option<(Stats, Unorm16Rgba, Kind)>, Error> {
         if self.aspect.is_pad(level, ix as u32, iz as u32) {
             return Ok(None);
         }
@@ -271,20 +319,21 @@ impl Builder<'_> {
         }
         if level == self.depth {
             let c = self.cell(ix, iz);
-            return Ok(Some((Stats::of(c), c, true)));
+            return Ok(Some((Stats::of(c), c, Kind::Terminal)));
         }
         let mut marks = [0usize; MAX_DEPTH as usize + 1];
         for (m, l) in marks.iter_mut().zip(&self.levels[usize::from(level) + 1..]) {
             *m = l.len();
         }
+        let block_marks = self.blocks.as_ref().map(|b| (b.flags.len(), b.data.len()));
         let mut parts = [None; 4];
         let mut children = [None; 4];
         for k in 0..4 {
-            if let Some((s, c, term)) =
+            if let Some((s, c, kind)) =
                 self.square(level + 1, 2 * ix + (k & 1), 2 * iz + (k >> 1))?
             {
                 parts[k] = Some(s);
-                children[k] = Some((c, term));
+                children[k] = Some((c, kind));
             }
         }
         let Some(stats) = Stats::merge(parts) else {
@@ -297,16 +346,36 @@ impl Builder<'_> {
             below.min(u32::from(self.depth - sx)) + below.min(u32::from(self.depth - sz));
         let mean = stats.mean(log2_cells);
         // Pad children carry the mean, so the parent stays their average.
-        let children = children.map(|c| c.unwrap_or((mean, true)));
+        let children = children.map(|c| c.unwrap_or((mean, Kind::Terminal)));
         let deviation = stats.deviation(mean);
+        let discard = |b: &mut Self| {
+            for (l, &m) in b.levels[usize::from(level) + 1..].iter_mut().zip(&marks) {
+                b.nodes -= (l.len() - m) as u64;
+                l.truncate(m);
+            }
+            if let (Some(w), Some((flags, data))) = (b.blocks.as_mut(), block_marks) {
+                w.flags.truncate(flags);
+                w.data.truncate(data);
+            }
+        };
         if deviation <= self.tolerance {
             self.max_error = self.max_error.max(deviation);
             // Discard descendants the children pushed (only possible with a tolerance).
-            for (l, &m) in self.levels[usize::from(level) + 1..].iter_mut().zip(&marks) {
-                self.nodes -= (l.len() - m) as u64;
-                l.truncate(m);
+            discard(self);
+            return Ok(Some((stats, mean, Kind::Terminal)));
+        }
+        if let Some(w) = self.blocks.as_ref().filter(|w| w.level == level) {
+            // A block where its texels cost no more than the nodes below.
+            let below = 4 + self.levels[usize::from(level) + 1..]
+                .iter()
+                .zip(&marks)
+                .map(|(l, &m)| (l.len() - m) as u64)
+                .sum::<u64>();
+            if below * 8 >= w.block_bytes() as u64 {
+                discard(self);
+                self.write_block(ix, iz)?;
+                return Ok(Some((stats, mean, Kind::Block)));
             }
-            return Ok(Some((stats, mean, true)));
         }
         self.nodes += 4;
         if self.nodes > self.max_nodes {
@@ -323,22 +392,60 @@ impl Builder<'_> {
             RASTER_KNOBS,
         )?;
         let next = &mut self.levels[usize::from(level) + 1];
-        for (c, term) in children {
-            try_push(next, (!term, c), "tree level")?;
+        for (c, kind) in children {
+            try_push(next, (kind == Kind::Inner, c), "tree level")?;
         }
-        Ok(Some((stats, mean, false)))
+        if let Some(w) = self.blocks.as_mut().filter(|w| w.level == level + 1) {
+            for (_, kind) in children {
+                try_push(&mut w.flags, kind == Kind::Block, "texel block flags")?;
+            }
+        }
+        Ok(Some((stats, mean, Kind::Inner)))
+    }
+
+    /// Appends the texels of the square `(level, ix, iz)` at the block
+    /// level as a block: rows from the bottom.
+    fn write_block(&mut self, ix: usize, iz: usize) -> Result<(), Error> {
+        let Some(w) = self.blocks.as_mut() else {
+            return Ok(());
+        };
+        let side = 1usize << BLOCK_LOG2_SIDE;
+        let bytes = w.block_bytes();
+        w.data
+            .try_reserve(bytes)
+            .map_err(|_| Error::AllocationFailed {
+                what: "texel blocks".into(),
+                bytes: (w.data.len() + bytes) as u64,
+            })?;
+        for tz in iz * side..(iz + 1) * side {
+            for tx in ix * side..(ix + 1) * side {
+                let i = (self.rows - 1 - tz) * self.side + tx;
+                match (w.format, self.srgb8) {
+                    (BlockFormat::Srgb8Rgba, Some(src)) => w.data.extend(src[i]),
+                    _ => {
+                        for v in self.cells[i].0 {
+                            w.data.extend(v.to_le_bytes());
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 }
 
 impl Builder<'_> {
     /// Builds the whole tree from the root; `resampled` goes to the report.
     fn build(mut self, resampled: bool) -> Result<(QuadTree, BuildReport), Error> {
-        let Some((_, root, terminal)) = self.square(0, 0, 0)? else {
+        let Some((_, root, kind)) = self.square(0, 0, 0)? else {
             return Err(Error::MalformedTree(
                 "the texture lies wholly in the pad".into(),
             ));
         };
-        self.levels[0].push((!terminal, root));
+        self.levels[0].push((kind == Kind::Inner, root));
+        if let Some(w) = self.blocks.as_mut().filter(|w| w.level == 0) {
+            w.flags.push(kind == Kind::Block);
+        }
         while self.levels.last().is_some_and(Vec::is_empty) {
             self.levels.pop();
         }
@@ -347,7 +454,14 @@ impl Builder<'_> {
             resampled,
             max_error: f64::from(self.max_error) / 65535.0,
         };
-        Ok((tree::from_levels(self.levels, self.aspect)?, report))
+        let texel_blocks = match self.blocks {
+            Some(w) => w.finish()?,
+            None => None,
+        };
+        Ok((
+            tree::from_levels_with_blocks(self.levels, self.aspect, texel_blocks)?,
+            report,
+        ))
     }
 
     /// Square `(level, ix, iz)` as a whole tile: loads it, packs it on its
@@ -358,7 +472,7 @@ impl Builder<'_> {
         level: u8,
         ix: usize,
         iz: usize,
-    ) -> Result<(Stats, Unorm16Rgba, bool), Error> {
+    ) -> Result<(Stats, Unorm16Rgba, Kind), Error> {
         let Some(tiles) = self.tiles.as_mut() else {
             return Err(Error::MalformedTree("no tiles".into()));
         };
@@ -373,8 +487,47 @@ impl Builder<'_> {
             });
         }
         let depth = self.depth - level;
+        // The first tile fixes the blocks' format; the others must agree.
+        let format = block_format(&grid, false);
+        let block_level = self
+            .depth
+            .checked_sub(BLOCK_LOG2_SIDE)
+            .filter(|&l| l >= level);
+        let sub_blocks = match (block_level, self.blocks.as_ref()) {
+            (None, _) => None,
+            (Some(_), Some(w)) if w.format != format => {
+                let name = |f: BlockFormat| match f {
+                    BlockFormat::Srgb8Rgba => "8-bit",
+                    _ => "16-bit or float",
+                };
+                return Err(Error::TileFormat {
+                    row,
+                    col,
+                    found: name(format),
+                    expected: name(w.format),
+                });
+            }
+            (Some(l), _) => {
+                if self.blocks.is_none() {
+                    self.blocks = Some(BlockWriter {
+                        level: l,
+                        format,
+                        flags: Vec::new(),
+                        data: Vec::new(),
+                    });
+                }
+                Some(BlockWriter {
+                    level: l - level,
+                    format,
+                    flags: Vec::new(),
+                    data: Vec::new(),
+                })
+            }
+        };
         let mut b = Builder {
             cells: &grid.texels,
+            srgb8: grid.srgb8.as_deref(),
+            blocks: sub_blocks,
             tiles: None,
             side: side as usize,
             depth,
@@ -388,11 +541,21 @@ impl Builder<'_> {
             aspect: Aspect::SQUARE,
             rows: side as usize,
         };
-        let Some((stats, root, terminal)) = b.square(0, 0, 0)? else {
+        let Some((stats, root, kind)) = b.square(0, 0, 0)? else {
             return Err(Error::MalformedTree("a tile lies wholly in the pad".into()));
         };
         self.nodes = b.nodes;
         self.max_error = b.max_error;
+        if let (Some(w), Some(sub)) = (self.blocks.as_mut(), b.blocks) {
+            w.flags.extend(sub.flags);
+            w.data
+                .try_reserve(sub.data.len())
+                .map_err(|_| Error::AllocationFailed {
+                    what: "texel blocks".into(),
+                    bytes: (w.data.len() + sub.data.len()) as u64,
+                })?;
+            w.data.extend(sub.data);
+        }
         for (below, tile_level) in self.levels[usize::from(level) + 1..]
             .iter_mut()
             .zip(b.levels.into_iter().skip(1))
@@ -405,7 +568,7 @@ impl Builder<'_> {
                 })?;
             below.extend(tile_level);
         }
-        Ok((stats, root, terminal))
+        Ok((stats, root, kind))
     }
 }
 
@@ -435,6 +598,13 @@ impl QuadTree {
                 reason: "tiles a side and texels a tile side must be powers of two",
             });
         }
+        if side < 1 << BLOCK_LOG2_SIDE {
+            return Err(Error::BadDimensions {
+                width: u64::from(side),
+                height: u64::from(side),
+                reason: "tiles must be at least 4x4 texels",
+            });
+        }
         if options.max_level.is_some() {
             return Err(Error::BadDimensions {
                 width: u64::from(tiles) * u64::from(side),
@@ -459,6 +629,9 @@ impl QuadTree {
         )?;
         let b = Builder {
             cells: &[],
+            srgb8: None,
+            // Made when the first tile shows the format.
+            blocks: None,
             tiles: Some(Tiles { level, side, load }),
             side: 0,
             depth,
@@ -513,8 +686,20 @@ impl QuadTree {
             &grid.texels
         };
         let tolerance = (options.tolerance * 65535.0).floor().min(65535.0) as u16;
+        // Blocks where the block level lies wholly in the texture.
+        let blocks = depth
+            .checked_sub(BLOCK_LOG2_SIDE)
+            .filter(|&l| aspect.shrink().iter().all(|&s| s <= l))
+            .map(|level| BlockWriter {
+                level,
+                format: block_format(grid, resampled),
+                flags: Vec::new(),
+                data: Vec::new(),
+            });
         let b = Builder {
             cells,
+            srgb8: grid.srgb8.as_deref().filter(|_| !resampled),
+            blocks,
             tiles: None,
             side: columns,
             depth,
@@ -529,6 +714,16 @@ impl QuadTree {
             rows,
         };
         b.build(resampled)
+    }
+}
+
+/// The format texel blocks keep `grid` in: its 8-bit source when it has
+/// one and its cells are its texels, else the tree's unorm16.
+fn block_format(grid: &TexelGrid, resampled: bool) -> BlockFormat {
+    if grid.srgb8.is_some() && !resampled {
+        BlockFormat::Srgb8Rgba
+    } else {
+        BlockFormat::Unorm16Rgba
     }
 }
 
@@ -864,5 +1059,87 @@ mod tests {
             QuadTree::from_texels(&g, &few),
             Err(Error::TooManyNodes { .. })
         ));
+    }
+}
+#[cfg(test)]
+mod block_tests {
+    use super::*;
+    use crate::Fragment;
+    use crate::texel_block::srgb8_texel;
+
+    fn noise(c: u32, r: u32) -> [u8; 4] {
+        let h = c.wrapping_mul(2_654_435_761) ^ r.wrapping_mul(40_503);
+        [
+            (h % 251) as u8,
+            (h / 7 % 253) as u8,
+            (h / 13 % 241) as u8,
+            255,
+        ]
+    }
+
+    /// An 8-bit photograph-like grid keeps its bytes in blocks; every texel
+    /// integrates back exactly, and the tree is smaller than its nodes were.
+    #[test]
+    fn photographs_keep_8_bit_texels_in_blocks() {
+        let (w, h) = (16u32, 16u32);
+        let bytes: Vec<[u8; 4]> = (0..h)
+            .flat_map(|r| (0..w).map(move |c| noise(c, r)))
+            .collect();
+        let g = TexelGrid::from_srgb8(w, h, bytes.clone()).unwrap();
+        let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+        let tb = t.texel_blocks().expect("blocks");
+        assert_eq!(tb.format(), BlockFormat::Srgb8Rgba);
+        assert_eq!((tb.level(), tb.count()), (2, 16));
+        assert_eq!(t.depth(), 4);
+        // Level 2 is the deepest stored level: 1 + 4 + 16 nodes.
+        assert_eq!(t.node_count(), 21);
+        for r in 0..h {
+            for c in 0..w {
+                let f = Fragment::new(
+                    f64::from(c) / 16.0,
+                    f64::from(15 - r) / 16.0,
+                    f64::from(c + 1) / 16.0,
+                    f64::from(16 - r) / 16.0,
+                )
+                .unwrap();
+                let got = t.weighted_colour(&f, 30).0.map(|v| v * 256.0);
+                let want = srgb8_texel(bytes[(r * w + c) as usize])
+                    .to_rgba()
+                    .to_array();
+                for (a, b) in got.iter().zip(want) {
+                    assert!(
+                        (a - f64::from(b)).abs() < 1e-6,
+                        "({c}, {r}): {got:?} vs {want:?}"
+                    );
+                }
+                assert_eq!(t.uniform_colour(&f), Some(g.texel(c, r)));
+            }
+        }
+        let unorm = TexelGrid::new(w, h, g.texels().to_vec()).unwrap();
+        let (t16, _) = QuadTree::from_texels(&unorm, &BuildOptions::default()).unwrap();
+        assert_eq!(
+            t16.texel_blocks().map(|b| b.format()),
+            Some(BlockFormat::Unorm16Rgba)
+        );
+        assert!(t.memory_bytes() < t16.memory_bytes());
+    }
+
+    /// Edges of vector-like art stay nodes where nodes are cheaper than a
+    /// block; uniform squares never become blocks.
+    #[test]
+    fn sparse_subtrees_stay_nodes() {
+        let g = TexelGrid::from_fn(16, 16, |c, r| {
+            if c + r < 9 {
+                Rgba::opaque(1.0, 0.0, 0.0)
+            } else {
+                Rgba::opaque(0.0, 0.0, 1.0)
+            }
+        })
+        .unwrap();
+        let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+        let blocks = t.texel_blocks().map_or(0, |b| b.count());
+        // A 4×4 square the diagonal crosses splits into 4 + 8 nodes (96 B)
+        // against 128 B of unorm16 texels: it stays nodes.
+        assert_eq!(blocks, 0, "{blocks} blocks");
     }
 }

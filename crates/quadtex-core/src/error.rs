@@ -98,6 +98,19 @@ pub enum Error {
         /// The size of the refused allocation, in bytes.
         bytes: u64,
     },
+    /// A tile of a tiled texture in another precision than the first one
+    /// (8-bit sRGB against 16-bit or float): one tree keeps its texel
+    /// blocks in one format.
+    TileFormat {
+        /// The tile's row (0 at the top).
+        row: u32,
+        /// The tile's column.
+        col: u32,
+        /// What the tile is.
+        found: &'static str,
+        /// What the first tile was.
+        expected: &'static str,
+    },
 }
 
 impl fmt::Display for Error {
@@ -151,6 +164,15 @@ impl fmt::Display for Error {
                 f,
                 "out of memory: {what} needed {} more and the system refused it (lower --max-level, or set --memory-limit to refuse such work up front)",
                 crate::memory::format_bytes(*bytes)
+            ),
+            Error::TileFormat {
+                row,
+                col,
+                found,
+                expected,
+            } => write!(
+                f,
+                "tile ({row}, {col}) is {found}, the first tile was {expected}: all tiles must share one format"
             ),
         }
     }

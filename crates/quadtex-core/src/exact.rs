@@ -70,7 +70,7 @@ use crate::colour::{Rgba, WeightedColour};
 use crate::footprint::Footprint;
 use crate::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET};
 use crate::polygon::{ConvexPolygon, Cubic, separable_integral};
-use crate::tree::{QuadTree, unit_side};
+use crate::tree::{NodeRef, QuadTree, unit_side};
 use crate::wrap::uniform_colour_in;
 use crate::wrap::{Wrap, WrapMode};
 
@@ -600,7 +600,7 @@ enum Item {
     /// Tree node `node` at `(level, ix, iz)` of tile frame `frame`.
     Node {
         frame: u32,
-        node: u32,
+        node: NodeRef,
         level: u8,
         ix: u32,
         iz: u32,
@@ -885,11 +885,10 @@ impl Walk<'_> {
                     ix,
                     iz,
                 } => {
-                    let first = self.tree.children_of(node as usize);
                     for c in 0..4u32 {
                         self.offer(Item::Node {
                             frame,
-                            node: (first + c as usize) as u32,
+                            node: self.tree.child_ref(node, c as usize),
                             level: level + 1,
                             ix: 2 * ix + (c & 1),
                             iz: 2 * iz + (c >> 1),
@@ -923,7 +922,7 @@ impl Walk<'_> {
                 level,
                 ix,
                 iz,
-            } => self.evaluate_node(frame as usize, node as usize, level, ix, iz),
+            } => self.evaluate_node(frame as usize, node, level, ix, iz),
         }
     }
 
@@ -944,7 +943,7 @@ impl Walk<'_> {
         let corners = [[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
         let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(&m, t)));
         let root = colour_of(self.tree.average());
-        let root_terminal = !self.tree.node(QuadTree::ROOT).0;
+        let root_terminal = !self.tree.node_info(QuadTree::ROOT).0;
         let (nx, nz) = ((i1 - i0 + 1) as f64, (j1 - j0 + 1) as f64);
         match class {
             Class::Inside => {
@@ -1055,7 +1054,7 @@ impl Walk<'_> {
         self.frames.len() - 1
     }
 
-    fn evaluate_node(&mut self, frame: usize, p: usize, level: u8, ix: u32, iz: u32) -> Outcome {
+    fn evaluate_node(&mut self, frame: usize, p: NodeRef, level: u8, ix: u32, iz: u32) -> Outcome {
         let f = &self.frames[frame];
         let side = unit_side(level);
         let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
@@ -1065,14 +1064,13 @@ impl Walk<'_> {
             return Outcome::Outside;
         }
         self.visited += 1;
-        let (inner, stored) = self.tree.node(p);
-        let colour = colour_of(stored);
+        let (inner, colour) = self.tree.node_info(p);
         let corners = [[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
         let m = f.to_screen;
         let refinable = inner && self.fixed.is_none_or(|k| level < k);
         let here = Item::Node {
             frame: frame as u32,
-            node: p as u32,
+            node: p,
             level,
             ix,
             iz,
@@ -1210,7 +1208,7 @@ impl Walk<'_> {
         &mut self,
         axis: usize,
         high: bool,
-        p: usize,
+        p: NodeRef,
         level: u8,
         k: u32,
         sign: f64,
@@ -1235,7 +1233,7 @@ impl Walk<'_> {
             return;
         }
         self.visited += 1;
-        let (inner, stored) = self.tree.node(p);
+        let (inner, stored) = self.tree.node_info(p);
         let m = self.screen_from_texture;
         let screen = self.to_screen_poly(&piece, &m);
         let take = !inner
@@ -1245,10 +1243,9 @@ impl Walk<'_> {
                 None => screen.area() <= self.boundary_coef * diameter(&screen),
             };
         if take {
-            self.add(colour_of(stored), &screen, inner);
+            self.add(stored, &screen, inner);
             return;
         }
-        let first = self.tree.children_of(p);
         let h = u32::from(across_high(aspect, axis, high, level));
         for c in 0..2u32 {
             // Children on the edge: the outer half across the edge, both along it.
@@ -1256,7 +1253,7 @@ impl Walk<'_> {
             self.edge_node(
                 axis,
                 high,
-                first + child as usize,
+                self.tree.child_ref(p, child as usize),
                 level + 1,
                 2 * k + c,
                 sign,
@@ -1283,21 +1280,19 @@ impl Walk<'_> {
             if start >= along {
                 continue;
             }
-            let (inner, stored) = self.tree.node(p);
+            let (inner, c) = self.tree.node_info(p);
             if !inner {
                 // Its length along the edge that is texture, in texture units.
                 let length = ((start + side).min(along) - start) / along;
-                let c = colour_of(stored);
                 for (a, v) in acc.iter_mut().zip(c) {
                     *a += v * length;
                 }
                 continue;
             }
-            let first = self.tree.children_of(p);
             let h = usize::from(across_high(aspect, axis, high, level));
             for c in 0..2usize {
                 let child = if axis == 0 { h + 2 * c } else { c + 2 * h };
-                stack.push((first + child, level + 1, 2 * k + c as u32));
+                stack.push((self.tree.child_ref(p, child), level + 1, 2 * k + c as u32));
             }
         }
         self.edge_means[slot] = Some(acc);
@@ -1309,13 +1304,15 @@ impl Walk<'_> {
         let aspect = self.tree.aspect();
         let (mut p, mut level) = (QuadTree::ROOT, 0u8);
         loop {
-            let (inner, stored) = self.tree.node(p);
+            let (inner, colour) = self.tree.node_info(p);
             if !inner {
-                return colour_of(stored);
+                return colour;
             }
             let hx = across_high(aspect, 0, x_high, level);
             let hz = across_high(aspect, 1, z_high, level);
-            p = self.tree.children_of(p) + usize::from(hx) + 2 * usize::from(hz);
+            p = self
+                .tree
+                .child_ref(p, usize::from(hx) + 2 * usize::from(hz));
             level += 1;
         }
     }

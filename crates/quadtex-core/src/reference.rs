@@ -4,7 +4,7 @@
 use crate::build::TexelGrid;
 use crate::colour::{Unorm16Rgba, WeightedColour};
 use crate::fragment::Fragment;
-use crate::tree::{QuadTree, unit_side};
+use crate::tree::{NodeRef, QuadTree, unit_side};
 use crate::variant::{self, Variant, f_high, f_low};
 
 /// Σ over texels of colour × area(texel ∩ fragment), texels as rectangles of
@@ -86,12 +86,12 @@ fn paper_in_tree_space(
     let k = max_level.min(tree.depth());
     let (a_x, b_x, a_z, b_z) = (fragment.x0(), fragment.x1(), fragment.z0(), fragment.z1());
     let (vx, vz) = (init(a_x, b_x), init(a_z, b_z));
-    let (inner, colour) = tree.node(QuadTree::ROOT);
+    let (inner, colour) = tree.node_info(QuadTree::ROOT);
     if variant::is_disjoint(vx) || variant::is_disjoint(vz) {
         return WeightedColour::ZERO;
     }
     if k == 0 || !inner {
-        return weigh(colour, fragment.overlap_area(0.0, 0.0, 1.0));
+        return weigh_f(colour, fragment.overlap_area(0.0, 0.0, 1.0));
     }
     let mut acc = WeightedColour::ZERO;
     step(
@@ -114,7 +114,7 @@ fn step(
     tree: &QuadTree,
     f: &Fragment,
     k: u8,
-    node: usize,
+    node: NodeRef,
     level: u8,
     lo_x: f64,
     lo_z: f64,
@@ -125,7 +125,6 @@ fn step(
     let child_level = level + 1;
     let half = unit_side(child_level);
     let (mx, mz) = (lo_x + half, lo_z + half);
-    let first = tree.children_of(node);
     for c in 0..4 {
         let (hx, hz) = (c & 1 == 1, c & 2 == 2);
         let cvx = if hx {
@@ -139,32 +138,26 @@ fn step(
             f_low(f.z0(), f.z1(), mz, vz)
         };
         let (clo_x, clo_z) = (if hx { mx } else { lo_x }, if hz { mz } else { lo_z });
-        let (inner, colour) = tree.node(first + c);
+        let child = tree.child_ref(node, c);
+        let (inner, colour) = tree.node_info(child);
         if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
-            *acc += weigh(colour, half * half);
+            *acc += weigh_f(colour, half * half);
         } else if variant::is_disjoint(cvx) || variant::is_disjoint(cvz) {
             continue;
         } else if !inner || child_level == k {
-            *acc += weigh(colour, f.overlap_area(clo_x, clo_z, half));
+            *acc += weigh_f(colour, f.overlap_area(clo_x, clo_z, half));
         } else {
-            step(
-                tree,
-                f,
-                k,
-                first + c,
-                child_level,
-                clo_x,
-                clo_z,
-                cvx,
-                cvz,
-                acc,
-            );
+            step(tree, f, k, child, child_level, clo_x, clo_z, cvx, cvz, acc);
         }
     }
 }
 
 fn overlap(a: f64, b: f64, lo: f64, hi: f64) -> f64 {
     (b.min(hi) - a.max(lo)).max(0.0)
+}
+
+fn weigh_f(c: [f64; 4], area: f64) -> WeightedColour {
+    WeightedColour(c.map(|v| v * area))
 }
 
 fn weigh(c: Unorm16Rgba, area: f64) -> WeightedColour {

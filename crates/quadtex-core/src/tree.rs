@@ -23,6 +23,7 @@
 use crate::Error;
 use crate::colour::{Unorm16Rgba, WeightedColour};
 use crate::fragment::{Fragment, overlap_1d};
+use crate::texel_block::TexelBlocks;
 use crate::variant::{self, Variant};
 
 /// Deepest level a tree may have. A level-30 square has side `2^-30`, still
@@ -198,6 +199,45 @@ pub struct QuadTree {
     /// The colours of the grid at the tree's depth, for shallow trees
     /// ([`QuadTree::flat_grid`]), computed when first needed.
     grid: std::sync::OnceLock<Option<Vec<[f64; 4]>>>,
+    /// Texel blocks ending squares of one level ([`crate::texel_block`]),
+    /// and the padded indices of that level's nodes.
+    texel_blocks: Option<TexelBlocks>,
+    block_nodes: std::ops::Range<usize>,
+}
+
+/// A node as traversals see it: a stored node (its padded index), or a cell
+/// of a texel block below the block level (block, levels below the block
+/// node `j`, position in the block at that level).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub(crate) struct NodeRef(u64);
+
+const CELL: u64 = 1 << 63;
+
+impl NodeRef {
+    #[inline]
+    fn stored(p: usize) -> NodeRef {
+        NodeRef(p as u64)
+    }
+
+    #[inline]
+    fn cell(block: usize, j: u8, ix: u32, iz: u32) -> NodeRef {
+        NodeRef(
+            CELL | block as u64
+                | u64::from(j) << 40
+                | u64::from(ix & 0xff) << 44
+                | u64::from(iz & 0xff) << 52,
+        )
+    }
+
+    #[inline]
+    fn as_cell(self) -> Option<(usize, u8, u32, u32)> {
+        (self.0 & CELL != 0).then_some((
+            (self.0 & ((1 << 40) - 1)) as usize,
+            (self.0 >> 40 & 0xf) as u8,
+            (self.0 >> 44 & 0xff) as u32,
+            (self.0 >> 52 & 0xff) as u32,
+        ))
+    }
 }
 
 /// Deepest tree whose full grid [`QuadTree::flat_grid`] gives (16 × 16
@@ -226,6 +266,21 @@ impl QuadTree {
         aspect: Aspect,
         inner: &[u64],
         colours: Vec<Unorm16Rgba>,
+    ) -> Result<QuadTree, Error> {
+        Self::from_parts_with_blocks(depth, aspect, inner, colours, None)
+    }
+
+    /// As [`QuadTree::from_parts_with_aspect`], with terminal squares of the
+    /// blocks' level ended by texel blocks. `depth` is then the level of the
+    /// finest squares, texels of blocks included. Besides the tree's checks:
+    /// block nodes are terminal, the flags cover exactly the block level's
+    /// nodes, and each block node's colour is the mean of its texels.
+    pub fn from_parts_with_blocks(
+        depth: u8,
+        aspect: Aspect,
+        inner: &[u64],
+        colours: Vec<Unorm16Rgba>,
+        texel_blocks: Option<TexelBlocks>,
     ) -> Result<QuadTree, Error> {
         let n = colours.len() as u64;
         if depth > MAX_DEPTH {
@@ -281,10 +336,18 @@ impl QuadTree {
             start = next;
             len = 4 * inner_here;
         }
-        if level_starts.len() != usize::from(depth) + 1 {
+        let stored_depth = level_starts.len() - 1;
+        let block_bottom = texel_blocks
+            .as_ref()
+            .map_or(0, |b| usize::from(b.level()) + usize::from(b.log2_side()));
+        if stored_depth.max(block_bottom) != usize::from(depth) {
             return Err(Error::MalformedTree(format!(
-                "declared depth {depth}, but the nodes reach level {}",
-                level_starts.len() - 1
+                "declared depth {depth}, but the nodes reach level {stored_depth}{}",
+                if texel_blocks.is_some() {
+                    format!(" and the texel blocks level {block_bottom}")
+                } else {
+                    String::new()
+                }
             )));
         }
         level_starts.push(PAD + n as usize);
@@ -311,7 +374,9 @@ impl QuadTree {
                 blocks[p / 64].bits |= 1 << (p % 64);
             }
         }
-        Self::finish(depth, aspect, padded, blocks, level_starts)?.checked_averages()
+        Self::finish(depth, aspect, padded, blocks, level_starts, texel_blocks)?
+            .checked_averages()?
+            .checked_blocks()
     }
 
     /// Completes a tree from validated padded arrays: rank counters and top table.
@@ -321,15 +386,46 @@ impl QuadTree {
         colours: Vec<Unorm16Rgba>,
         mut blocks: Vec<RankBlock>,
         level_starts: Vec<usize>,
+        texel_blocks: Option<TexelBlocks>,
     ) -> Result<QuadTree, Error> {
+        let block_nodes = match &texel_blocks {
+            Some(b) => {
+                let l = usize::from(b.level());
+                let range = match (level_starts.get(l), level_starts.get(l + 1)) {
+                    (Some(&start), Some(&end)) if l + 1 < level_starts.len() => start..end,
+                    _ => {
+                        return Err(Error::MalformedTree(format!(
+                            "texel blocks at level {l}, where the tree has no nodes"
+                        )));
+                    }
+                };
+                if b.flag_word_count() != range.len().div_ceil(64)
+                    || b.flag_words()
+                        .last()
+                        .is_some_and(|w| range.len() % 64 != 0 && w >> (range.len() % 64) != 0)
+                {
+                    return Err(Error::MalformedTree(format!(
+                        "texel block flags do not match the {} nodes of level {l}",
+                        range.len()
+                    )));
+                }
+                range
+            }
+            None => 0..0,
+        };
         let mut rank = 0u64;
         for b in &mut blocks {
             b.rank = rank;
             rank += u64::from(b.bits.count_ones());
         }
         let node_bytes = colours.len() * std::mem::size_of::<Unorm16Rgba>();
+        // Not below the block level: a query starting at a block must start
+        // at the block's own level.
+        let top_max = texel_blocks
+            .as_ref()
+            .map_or(MAX_TOP_LEVEL, |b| b.level().min(MAX_TOP_LEVEL));
         let mut top_level = 0u8;
-        while top_level < depth.min(MAX_TOP_LEVEL)
+        while top_level < depth.min(top_max)
             && top_table_len(top_level + 1) * 4 <= (node_bytes / 16).max(4096)
         {
             top_level += 1;
@@ -344,6 +440,8 @@ impl QuadTree {
             top: Vec::new(),
             moments: std::sync::OnceLock::new(),
             grid: std::sync::OnceLock::new(),
+            texel_blocks,
+            block_nodes,
         };
         tree.top = tree.build_top_table()?;
         Ok(tree)
@@ -393,7 +491,43 @@ impl QuadTree {
         Ok(self)
     }
 
-    /// Deepest level present (0 for a single-colour texture).
+    /// Checks that block nodes are terminal and hold their texels' mean
+    /// (within rounding: `|n·node − Σ texels| ≤ n` per channel).
+    fn checked_blocks(self) -> Result<QuadTree, Error> {
+        let Some(tb) = &self.texel_blocks else {
+            return Ok(self);
+        };
+        for p in self.block_nodes.clone() {
+            let Some(b) = tb.block_of(p - self.block_nodes.start) else {
+                continue;
+            };
+            if self.is_inner(p) {
+                return Err(Error::MalformedTree(format!(
+                    "node {}: a texel block with children",
+                    p - PAD
+                )));
+            }
+            let (sum, n) = tb.cell_sum(b, 0, 0, 0);
+            for (ch, (&total, &stored)) in sum.iter().zip(&self.colours[p].0).enumerate() {
+                if (u64::from(n) * u64::from(stored)).abs_diff(total) > u64::from(n) {
+                    return Err(Error::MalformedTree(format!(
+                        "node {}: channel {ch} is {stored} but its texel block averages {:.1}",
+                        p - PAD,
+                        total as f64 / f64::from(n)
+                    )));
+                }
+            }
+        }
+        Ok(self)
+    }
+
+    /// The texel blocks, if any ([`crate::texel_block`]).
+    pub fn texel_blocks(&self) -> Option<&TexelBlocks> {
+        self.texel_blocks.as_ref()
+    }
+
+    /// Deepest level present, texels of blocks included (0 for a
+    /// single-colour texture).
     pub fn depth(&self) -> u8 {
         self.depth
     }
@@ -438,6 +572,10 @@ impl QuadTree {
             + self.blocks.len() * std::mem::size_of::<RankBlock>()
             + self.top.len() * 4
             + self.level_starts.len() * std::mem::size_of::<usize>()) as u64
+            + self
+                .texel_blocks
+                .as_ref()
+                .map_or(0, TexelBlocks::memory_bytes)
     }
 
     /// Nodes and terminals per level.
@@ -528,7 +666,20 @@ impl QuadTree {
             if self.aspect.is_pad(level, ix, iz) {
                 continue;
             }
-            if !self.is_inner(node) || level >= max_level {
+            if let (Some(b), Some(tb)) = (
+                self.block_at(node).filter(|_| level < max_level),
+                self.texel_blocks.as_ref(),
+            ) {
+                let j = (max_level - level).min(tb.log2_side());
+                for cz in 0..1u32 << j {
+                    for cx in 0..1u32 << j {
+                        let (sum, n) = tb.cell_sum(b, j, cx, cz);
+                        let half = u64::from(n / 2);
+                        let mean = sum.map(|v| ((v + half) / u64::from(n)) as u16);
+                        f(level + j, (ix << j) + cx, (iz << j) + cz, Unorm16Rgba(mean));
+                    }
+                }
+            } else if !self.is_inner(node) || level >= max_level {
                 f(level, ix, iz, self.colours[node]);
             } else {
                 let c = self.first_child(node);
@@ -601,17 +752,105 @@ impl QuadTree {
         4 + 4 * (b.rank as usize + below.count_ones() as usize)
     }
 
-    /// The colour of the node at (padded) index `p`, for the reference traversal.
-    pub(crate) fn node(&self, p: usize) -> (bool, Unorm16Rgba) {
-        (self.is_inner(p), self.colours[p])
+    /// The texel block ending the stored node at padded index `p`, if any.
+    #[inline]
+    fn block_at(&self, p: usize) -> Option<usize> {
+        if !self.block_nodes.contains(&p) {
+            return None;
+        }
+        self.texel_blocks
+            .as_ref()?
+            .block_of(p - self.block_nodes.start)
     }
 
-    /// Padded index of the root.
-    pub(crate) const ROOT: usize = PAD;
+    /// The root.
+    pub(crate) const ROOT: NodeRef = NodeRef(PAD as u64);
 
-    /// Padded index of the first child of inner node `p` (reference traversal).
-    pub(crate) fn children_of(&self, p: usize) -> usize {
-        self.first_child(p)
+    /// Whether node `n` has children (an inner node, a texel block, or a
+    /// block's cell larger than a texel and not uniform), and its colour in
+    /// `[0, 1]` (a cell's is the exact mean of its texels).
+    #[inline]
+    pub(crate) fn node_info(&self, n: NodeRef) -> (bool, [f64; 4]) {
+        match (n.as_cell(), &self.texel_blocks) {
+            (Some((b, j, ix, iz)), Some(tb)) => (
+                j < tb.log2_side() && !tb.cell_is_uniform(b, j, ix, iz),
+                tb.cell_mean(b, j, ix, iz),
+            ),
+            _ => {
+                let p = n.0 as usize;
+                let c = self.colours[p].0.map(|v| f64::from(v) / 65535.0);
+                (self.is_inner(p) || self.block_at(p).is_some(), c)
+            }
+        }
+    }
+
+    /// Child `c` (`low-x low-z, high-x low-z, low-x high-z, high-x high-z`)
+    /// of node `n`, which has children ([`QuadTree::node_info`]).
+    #[inline]
+    pub(crate) fn child_ref(&self, n: NodeRef, c: usize) -> NodeRef {
+        let (hx, hz) = ((c & 1) as u32, (c >> 1) as u32);
+        if let Some((b, j, ix, iz)) = n.as_cell() {
+            return NodeRef::cell(b, j + 1, 2 * ix + hx, 2 * iz + hz);
+        }
+        let p = n.0 as usize;
+        match self.block_at(p) {
+            Some(b) => NodeRef::cell(b, 1, hx, hz),
+            None => NodeRef::stored(self.first_child(p) + c),
+        }
+    }
+
+    /// Adds to `acc` (unorm16 units × area) the integral over the fragment
+    /// `[x0,x1) × [z0,z1)` (tree space) of texel block `b`, whose square at
+    /// `level` has its low corner at `lo` and side `side`, its texels
+    /// grouped into cells at level `k` (`> level`) or finer.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn add_block(
+        &self,
+        acc: &mut [f64; 4],
+        b: usize,
+        level: u8,
+        lo: [f64; 2],
+        side: f64,
+        k: u8,
+        [x0, z0, x1, z1]: [f64; 4],
+    ) {
+        let Some(tb) = &self.texel_blocks else {
+            return;
+        };
+        let j = (k - level).min(tb.log2_side());
+        let n = 1u32 << j;
+        let cell = side / f64::from(n);
+        let range = |a: f64, b: f64, lo: f64| {
+            let first = (((a - lo) / cell).floor().max(0.0) as u32).min(n - 1);
+            let last = ((((b - lo) / cell).ceil().max(1.0) as u32) - 1).clamp(first, n - 1);
+            first..=last
+        };
+        for cz in range(z0, z1, lo[1]) {
+            let (c0, c1) = (
+                lo[1] + f64::from(cz) * cell,
+                lo[1] + f64::from(cz + 1) * cell,
+            );
+            let dz = overlap_1d(z0, z1, c0, c1);
+            if dz <= 0.0 {
+                continue;
+            }
+            for cx in range(x0, x1, lo[0]) {
+                let (c0, c1) = (
+                    lo[0] + f64::from(cx) * cell,
+                    lo[0] + f64::from(cx + 1) * cell,
+                );
+                let area = overlap_1d(x0, x1, c0, c1) * dz;
+                if area <= 0.0 {
+                    continue;
+                }
+                let (sum, count) = tb.cell_sum(b, j, cx, cz);
+                let w = area / f64::from(count);
+                for (a, s) in acc.iter_mut().zip(sum) {
+                    *a += w * s as f64;
+                }
+            }
+        }
     }
 
     /// The colour of the fragment's overlap with the unit square when one
@@ -625,6 +864,9 @@ impl QuadTree {
         let mut node = PAD;
         let (mut level, mut ix, mut iz) = (0u8, 0u64, 0u64);
         loop {
+            if let Some(b) = self.block_at(node) {
+                return self.uniform_in_block(b, level, ix, iz, &f);
+            }
             if !self.is_inner(node) {
                 return Some(self.colours[node]);
             }
@@ -649,6 +891,33 @@ impl QuadTree {
             node = self.first_child(node) + hx + 2 * hz;
             (level, ix, iz) = (child_level, 2 * ix + hx as u64, 2 * iz + hz as u64);
         }
+    }
+
+    /// The texel under all of fragment `f` (tree space) inside block `b` of
+    /// square `(level, ix, iz)`, if one colour covers it.
+    fn uniform_in_block(
+        &self,
+        b: usize,
+        level: u8,
+        ix: u64,
+        iz: u64,
+        f: &Fragment,
+    ) -> Option<Unorm16Rgba> {
+        let tb = self.texel_blocks.as_ref()?;
+        let n = tb.side();
+        let side = unit_side(level);
+        let cell = side / f64::from(n);
+        let (lo_x, lo_z) = (ix as f64 * side, iz as f64 * side);
+        let range = |a: f64, b: f64, lo: f64| {
+            let first = (((a - lo) / cell).floor().max(0.0) as u32).min(n - 1);
+            let last = ((((b - lo) / cell).ceil().max(1.0) as u32) - 1).clamp(first, n - 1);
+            first..=last
+        };
+        let (xs, zs) = (range(f.x0(), f.x1(), lo_x), range(f.z0(), f.z1(), lo_z));
+        let first = tb.texel(b, *xs.start(), *zs.start());
+        zs.into_iter()
+            .all(|tz| xs.clone().all(|tx| tb.texel(b, tx, tz) == first))
+            .then_some(first)
     }
 
     /// The weighted colour (integral of colour over area) of the fragment's
@@ -713,6 +982,15 @@ impl QuadTree {
         if COUNT {
             stats.nodes_visited += 1;
         }
+        if level < k
+            && let Some(b) = self.block_at(start)
+        {
+            let side = unit_side(level);
+            let lo = [f64::from(sx) * side, f64::from(sz) * side];
+            let mut acc = [0f64; 4];
+            self.add_block(&mut acc, b, level, lo, side, k, [x0, z0, x1, z1]);
+            return result(acc);
+        }
         if level >= k || !self.is_inner(start) {
             return result(weigh(self.colours[start], f.area()));
         }
@@ -772,9 +1050,22 @@ impl QuadTree {
                 if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
                     add(&mut acc, colour, child_area);
                 } else if block >> c & 1 == 0 || !descend_allowed {
-                    let area = overlap_1d(x0, x1, clo_x, clo_x + half)
-                        * overlap_1d(z0, z1, clo_z, clo_z + half);
-                    add(&mut acc, colour, area);
+                    match self.block_at(first + c).filter(|_| descend_allowed) {
+                        Some(b) => self.add_block(
+                            &mut acc,
+                            b,
+                            child_level,
+                            [clo_x, clo_z],
+                            half,
+                            k,
+                            [x0, z0, x1, z1],
+                        ),
+                        None => {
+                            let area = overlap_1d(x0, x1, clo_x, clo_x + half)
+                                * overlap_1d(z0, z1, clo_z, clo_z + half);
+                            add(&mut acc, colour, area);
+                        }
+                    }
                 } else {
                     stack[top] = Pending {
                         node: (first + c) as u32,
@@ -845,7 +1136,19 @@ pub(crate) fn from_levels(
     levels: Vec<Vec<(bool, Unorm16Rgba)>>,
     aspect: Aspect,
 ) -> Result<QuadTree, Error> {
-    let depth = (levels.len() - 1) as u8;
+    from_levels_with_blocks(levels, aspect, None)
+}
+
+/// As [`from_levels`], with texel blocks ending squares of their level.
+pub(crate) fn from_levels_with_blocks(
+    levels: Vec<Vec<(bool, Unorm16Rgba)>>,
+    aspect: Aspect,
+    texel_blocks: Option<TexelBlocks>,
+) -> Result<QuadTree, Error> {
+    let block_bottom = texel_blocks
+        .as_ref()
+        .map_or(0, |b| b.level() + b.log2_side());
+    let depth = ((levels.len() - 1) as u8).max(block_bottom);
     let n: usize = levels.iter().map(Vec::len).sum();
     let mut colours = crate::memory::try_with_capacity(PAD + n, "tree colours")?;
     colours.extend([Unorm16Rgba::default(); PAD]);
@@ -866,5 +1169,5 @@ pub(crate) fn from_levels(
         }
     }
     level_starts.push(colours.len());
-    QuadTree::finish(depth, aspect, colours, blocks, level_starts)
+    QuadTree::finish(depth, aspect, colours, blocks, level_starts, texel_blocks)
 }

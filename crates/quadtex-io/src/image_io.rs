@@ -27,14 +27,7 @@ pub struct LinearImage {
     pub pixels: Vec<Rgba>,
 }
 
-/// The sRGB transfer function's inverse: encoded `[0,1]` → linear `[0,1]`.
-pub fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
+pub use quadtex_core::texel_block::srgb_to_linear;
 
 /// The sRGB transfer function: linear `[0,1]` → encoded `[0,1]` (clamped).
 pub fn linear_to_srgb(v: f32) -> f32 {
@@ -143,6 +136,31 @@ fn decode_texels<R: std::io::BufRead + std::io::Seek>(
 fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Error> {
     let lut = decode_table();
     let (w, h) = (image.width(), image.height());
+    // 8-bit images keep their bytes: the packer stores them as they are in
+    // texel blocks (`quadtex_core::texel_block`).
+    if matches!(
+        image,
+        DynamicImage::ImageLuma8(_)
+            | DynamicImage::ImageLumaA8(_)
+            | DynamicImage::ImageRgb8(_)
+            | DynamicImage::ImageRgba8(_)
+    ) {
+        let mut bytes = Vec::new();
+        bytes
+            .try_reserve_exact(w as usize * h as usize)
+            .map_err(|_| quadtex_core::Error::AllocationFailed {
+                what: format!("decoding {w}x{h} 8-bit texels"),
+                bytes: 4 * u64::from(w) * u64::from(h),
+            })?;
+        match image {
+            DynamicImage::ImageRgb8(buf) => {
+                bytes.extend(buf.pixels().map(|p| [p[0], p[1], p[2], 255]));
+            }
+            DynamicImage::ImageRgba8(buf) => bytes.extend(buf.pixels().map(|p| p.0)),
+            other => bytes.extend(other.to_rgba8().pixels().map(|p| p.0)),
+        }
+        return TexelGrid::from_srgb8(w, h, bytes);
+    }
     let mut texels = Vec::new();
     texels
         .try_reserve_exact(w as usize * h as usize)
@@ -161,15 +179,6 @@ fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Err
         .to_unorm16()
     };
     match image {
-        // Common 8-bit cases without widening the whole image first.
-        DynamicImage::ImageRgb8(buf) => texels.extend(
-            buf.pixels()
-                .map(|p| to_texel([p[0], p[1], p[2], 255].map(|v| u16::from(v) * 257))),
-        ),
-        DynamicImage::ImageRgba8(buf) => texels.extend(
-            buf.pixels()
-                .map(|p| to_texel(p.0.map(|v| u16::from(v) * 257))),
-        ),
         // Float images (OpenEXR) are linear and premultiplied already.
         DynamicImage::ImageRgba32F(buf) => texels.extend(buf.pixels().map(|p| {
             // A NaN alpha is no coverage (and must not reach `clamp` as a bound).

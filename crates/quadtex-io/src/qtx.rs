@@ -4,7 +4,8 @@ use std::fs::File;
 use std::io::{Read, Write};
 use std::path::Path;
 
-use quadtex_core::{Aspect, QuadTree, Unorm16Rgba};
+use quadtex_core::texel_block::BLOCK_LOG2_SIDE;
+use quadtex_core::{Aspect, BlockFormat, QuadTree, TexelBlocks, Unorm16Rgba};
 
 use crate::atomic::{put, write_atomically};
 use crate::error::{Error, io};
@@ -37,12 +38,12 @@ pub struct QtxInfo {
 /// `path` is handled as [`write_atomically`] describes: a symbolic link is
 /// followed and stays a link; a device, FIFO or socket is written in place.
 pub fn write_qtx(path: &Path, tree: &QuadTree, source: Option<(u32, u32)>) -> Result<(), Error> {
-    let [header, bits, colours, crc] = encode_qtx(tree, source);
+    let parts = encode_qtx(tree, source);
     write_atomically(path, |w| {
-        put(w, path, &header)?;
-        put(w, path, &bits)?;
-        put(w, path, &colours)?;
-        put(w, path, &crc)
+        for part in &parts {
+            put(w, path, part)?;
+        }
+        Ok(())
     })
 }
 
@@ -61,8 +62,9 @@ pub fn write_qtx_to(
     w.flush().map_err(io(name))
 }
 
-/// The file's four parts: header, inner-node bits, colours, payload CRC.
-fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 4] {
+/// The file's parts: header, inner-node bits, colours, texel blocks
+/// (empty without), payload CRC.
+fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
     let n = tree.node_count();
     let bit_bytes = n.div_ceil(8) as usize;
     let mut bits = vec![0u8; bit_bytes];
@@ -77,6 +79,7 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 4] {
             colours.extend(v.to_le_bytes());
         }
     }
+    let blocks = encode_blocks(tree);
     let (sw, sh) = source.unwrap_or((0, 0));
     let mut header = [0u8; HEADER_BYTES];
     header[0..8].copy_from_slice(&MAGIC);
@@ -89,19 +92,47 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 4] {
     header[24..28].copy_from_slice(&sh.to_le_bytes());
     header[32..40].copy_from_slice(&n.to_le_bytes());
     header[40..48].copy_from_slice(&inner.to_le_bytes());
-    header[48..56].copy_from_slice(&((bit_bytes + colours.len()) as u64).to_le_bytes());
+    if let Some(b) = tree.texel_blocks() {
+        header[28] = b.format().code();
+        header[29] = b.level();
+        header[30] = b.log2_side();
+    }
+    header[48..56]
+        .copy_from_slice(&((bit_bytes + colours.len() + blocks.len()) as u64).to_le_bytes());
     let header_crc = crc32fast::hash(&header[..56]);
     header[56..60].copy_from_slice(&header_crc.to_le_bytes());
     let mut hasher = crc32fast::Hasher::new();
     hasher.update(&bits);
     hasher.update(&colours);
+    hasher.update(&blocks);
     let payload_crc = hasher.finalize();
     [
         header.to_vec(),
         bits,
         colours,
+        blocks,
         payload_crc.to_le_bytes().to_vec(),
     ]
+}
+
+/// The texel-block section (`docs/format.md`): nodes at the block level,
+/// blocks, one flag bit per node of the level, the blocks' texels.
+fn encode_blocks(tree: &QuadTree) -> Vec<u8> {
+    let Some(b) = tree.texel_blocks() else {
+        return Vec::new();
+    };
+    let level_nodes = tree
+        .level_stats()
+        .get(usize::from(b.level()))
+        .map_or(0, |l| l.nodes);
+    let flag_bytes = level_nodes.div_ceil(8) as usize;
+    let mut out = Vec::with_capacity(16 + flag_bytes + b.data().len());
+    out.extend(level_nodes.to_le_bytes());
+    out.extend(b.count().to_le_bytes());
+    let words: Vec<u64> = b.flag_words().collect();
+    out.extend((0..flag_bytes).map(|i| (words[i / 8] >> (8 * (i % 8))) as u8));
+    out.extend_from_slice(b.data());
+    out
 }
 
 /// Reads a `.qtx` file under the default [`Limits`].
@@ -191,6 +222,7 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
             format!("{counted} inner flags set, header says {}", header.inner),
         ));
     }
+    let (colour_bytes, block_bytes) = colour_bytes.split_at(8 * nodes as usize);
     let mut colours = Vec::new();
     colours
         .try_reserve_exact(nodes as usize)
@@ -200,11 +232,21 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
             u16::from_le_bytes([c[2 * k], c[2 * k + 1]])
         }))
     }));
-    let tree = QuadTree::from_parts_with_aspect(header.depth, header.aspect, &words, colours)
-        .map_err(|e| match e {
-            quadtex_core::Error::AllocationFailed { .. } => crate::error::core(path)(e),
-            e => bad("nodes", e.to_string()),
-        })?;
+    let texel_blocks = match header.blocks {
+        None => None,
+        Some((format, level)) => Some(decode_blocks(block_bytes, format, level, path)?),
+    };
+    let tree = QuadTree::from_parts_with_blocks(
+        header.depth,
+        header.aspect,
+        &words,
+        colours,
+        texel_blocks,
+    )
+    .map_err(|e| match e {
+        quadtex_core::Error::AllocationFailed { .. } => crate::error::core(path)(e),
+        e => bad("nodes", e.to_string()),
+    })?;
     Ok((
         tree,
         QtxInfo {
@@ -213,6 +255,47 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
             file_bytes,
         },
     ))
+}
+
+/// The texel-block section after the colours: `level_nodes` and `count`
+/// (u64 each), `ceil(level_nodes/8)` flag bytes, `count` blocks of texels.
+fn decode_blocks(
+    bytes: &[u8],
+    format: BlockFormat,
+    level: u8,
+    path: &Path,
+) -> Result<TexelBlocks, Error> {
+    let bad = |message: String| Error::Format {
+        path: path.to_path_buf(),
+        field: "texel_blocks",
+        message,
+    };
+    if bytes.len() < 16 {
+        return Err(bad(format!(
+            "{} bytes, shorter than its 16-byte counts",
+            bytes.len()
+        )));
+    }
+    let u64_at = |o: usize| u64::from_le_bytes(std::array::from_fn(|k| bytes[o + k]));
+    let (level_nodes, count) = (u64_at(0), u64_at(8));
+    let block = (format.bytes_per_texel() as u64) << (2 * BLOCK_LOG2_SIDE);
+    let expected = level_nodes
+        .div_ceil(8)
+        .checked_add(count.saturating_mul(block))
+        .and_then(|v| v.checked_add(16));
+    if expected != Some(bytes.len() as u64) || count > level_nodes {
+        return Err(bad(format!(
+            "{count} blocks over {level_nodes} nodes do not fill its {} bytes",
+            bytes.len()
+        )));
+    }
+    let flag_bytes = &bytes[16..16 + level_nodes.div_ceil(8) as usize];
+    let mut words = vec![0u64; flag_bytes.len().div_ceil(8)];
+    for (i, &b) in flag_bytes.iter().enumerate() {
+        words[i / 8] |= u64::from(b) << (8 * (i % 8));
+    }
+    let data = bytes[16 + flag_bytes.len()..].to_vec();
+    TexelBlocks::new(level, format, words, data).map_err(|e| bad(e.to_string()))
 }
 
 /// Checksums are skipped only in fuzzing builds (`--cfg fuzzing`), so the
@@ -225,6 +308,8 @@ const fn checksums_enforced() -> bool {
 struct Header {
     depth: u8,
     aspect: Aspect,
+    /// Texel blocks: their format and level.
+    blocks: Option<(BlockFormat, u8)>,
     nodes: u64,
     inner: u64,
     payload: u64,
@@ -280,7 +365,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
             "header checksum mismatch (corrupt header)".into(),
         ));
     }
-    if h[28..32] != [0; 4] || h[60..64] != [0; 4] {
+    if h[31] != 0 || h[60..64] != [0; 4] {
         return Err(bad("reserved", "reserved header bytes are not zero".into()));
     }
     if u32_at(12) as usize != HEADER_BYTES {
@@ -294,6 +379,29 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
         return Err(limit("max_depth", depth.into(), limits.max_depth.into()));
     }
     let aspect = Aspect::new(h[18], h[19]).map_err(|e| bad("aspect", e.to_string()))?;
+    let blocks = match h[28] {
+        0 if h[29..31] == [0, 0] => None,
+        0 => {
+            return Err(bad(
+                "block_format",
+                "no texel blocks, but a block level or side".into(),
+            ));
+        }
+        code => {
+            let format = BlockFormat::from_code(code)
+                .ok_or_else(|| bad("block_format", format!("unknown texel block format {code}")))?;
+            if h[30] != BLOCK_LOG2_SIDE || h[29] > depth {
+                return Err(bad(
+                    "block_level",
+                    format!(
+                        "blocks of 2^{} texels at level {} in a tree of depth {depth} (blocks are 2^{BLOCK_LOG2_SIDE} a side)",
+                        h[30], h[29]
+                    ),
+                ));
+            }
+            Some((format, h[29]))
+        }
+    };
     if h[17] != COLOUR_UNORM16_PREMUL_LINEAR {
         return Err(bad(
             "colour_format",
@@ -311,11 +419,17 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
             format!("{nodes} nodes cannot hold {inner} inner nodes of four children each"),
         ));
     }
-    let payload = nodes.div_ceil(8) + 8 * nodes;
-    if u64_at(48) != payload {
+    let nodes_payload = nodes.div_ceil(8) + 8 * nodes;
+    // Texel blocks follow the nodes: at least their 16 bytes of counts.
+    let payload = u64_at(48);
+    let fits = match blocks {
+        None => payload == nodes_payload,
+        Some(_) => payload >= nodes_payload + 16,
+    };
+    if !fits {
         return Err(bad(
             "payload_bytes",
-            format!("{} declared, {payload} implied by node_count", u64_at(48)),
+            format!("{payload} declared, {nodes_payload} implied by node_count"),
         ));
     }
     let expected = HEADER_BYTES as u64 + payload + 4;
@@ -336,6 +450,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     Ok(Header {
         depth,
         aspect,
+        blocks,
         nodes,
         inner,
         payload,
@@ -391,22 +506,100 @@ mod tests {
         assert!(e.to_string().contains("aspect"), "{e}");
     }
 
+    /// A photograph-like 8-bit grid: most of its bottom in texel blocks.
+    fn photo_sample() -> QuadTree {
+        let bytes = (0..32u32 * 32)
+            .map(|i| {
+                let h = i.wrapping_mul(2_654_435_761);
+                [
+                    (h >> 8) as u8,
+                    (h >> 16) as u8,
+                    (h >> 24) as u8,
+                    255 - (i % 3) as u8,
+                ]
+            })
+            .collect();
+        let g = quadtex_core::TexelGrid::from_srgb8(32, 32, bytes).unwrap();
+        QuadTree::from_texels(&g, &BuildOptions::default())
+            .unwrap()
+            .0
+    }
+
+    /// Texel blocks round-trip; their section is checked structurally
+    /// (checksums skipped, as under fuzzing): counts that lie, flags for
+    /// the wrong nodes and a block that disowns its node's mean are refused
+    /// by name.
+    #[test]
+    fn texel_blocks_round_trip_and_lies_are_refused() {
+        let t = photo_sample();
+        let blocks = t.texel_blocks().expect("blocks");
+        assert_eq!(blocks.format(), BlockFormat::Srgb8Rgba);
+        assert!(blocks.count() > 32, "{}", blocks.count());
+        let mut bytes = Vec::new();
+        write_qtx_to(&mut bytes, Path::new("photo"), &t, Some((32, 32))).unwrap();
+        let (back, _) = parse_qtx(&bytes, Path::new("photo"), &Limits::default()).unwrap();
+        assert_eq!(back, t);
+        let reseal = |b: &mut Vec<u8>| {
+            let crc = crc32fast::hash(&b[..56]);
+            b[56..60].copy_from_slice(&crc.to_le_bytes());
+            let end = b.len() - 4;
+            let crc = crc32fast::hash(&b[64..end]);
+            b[end..].copy_from_slice(&crc.to_le_bytes());
+        };
+        let n = t.node_count() as usize;
+        let section = 64 + n.div_ceil(8) + 8 * n;
+        let refused = |b: &[u8]| {
+            parse_qtx(b, Path::new("photo"), &Limits::default())
+                .unwrap_err()
+                .to_string()
+        };
+        // The block count one too high.
+        let mut lie = bytes.clone();
+        lie[section + 8] += 1;
+        reseal(&mut lie);
+        assert!(refused(&lie).contains("texel_blocks"), "{}", refused(&lie));
+        // Flags changed: the blocks no longer match their texels or nodes.
+        for flip in [0b1u8, 0b11, 0b1000_0000] {
+            let mut lie = bytes.clone();
+            lie[section + 16] ^= flip;
+            reseal(&mut lie);
+            let e = refused(&lie);
+            assert!(e.contains("texel block"), "{e}");
+        }
+        // A texel changed: its block no longer averages to its node.
+        let mut lie = bytes.clone();
+        let first_texel = section
+            + 16
+            + (t.level_stats()[usize::from(blocks.level())].nodes as usize).div_ceil(8);
+        lie[first_texel] ^= 0xff;
+        reseal(&mut lie);
+        let e = refused(&lie);
+        assert!(e.contains("texel block averages"), "{e}");
+        // An unknown block format.
+        let mut lie = bytes.clone();
+        lie[28] = 9;
+        reseal(&mut lie);
+        assert!(refused(&lie).contains("block_format"), "{}", refused(&lie));
+    }
+
     #[test]
     fn every_single_byte_flip_and_truncation_is_an_error() {
         let p = temp("flip.qtx");
-        write_qtx(&p, &sample(), None).unwrap();
-        let good = std::fs::read(&p).unwrap();
         let q = temp("flip-bad.qtx");
-        for i in (0..good.len()).step_by(7) {
-            let mut bytes = good.clone();
-            bytes[i] ^= 0x10;
-            std::fs::write(&q, &bytes).unwrap();
-            assert!(read_qtx(&q).is_err(), "flip at byte {i} accepted");
-        }
-        for len in [0, 10, 63, 64, good.len() / 2, good.len() - 1] {
-            std::fs::write(&q, &good[..len]).unwrap();
-            let e = read_qtx(&q).unwrap_err().to_string();
-            assert!(e.contains("flip-bad.qtx"), "{e}");
+        for tree in [sample(), photo_sample()] {
+            write_qtx(&p, &tree, None).unwrap();
+            let good = std::fs::read(&p).unwrap();
+            for i in (0..good.len()).step_by(7) {
+                let mut bytes = good.clone();
+                bytes[i] ^= 0x10;
+                std::fs::write(&q, &bytes).unwrap();
+                assert!(read_qtx(&q).is_err(), "flip at byte {i} accepted");
+            }
+            for len in [0, 10, 63, 64, good.len() / 2, good.len() - 1] {
+                std::fs::write(&q, &good[..len]).unwrap();
+                let e = read_qtx(&q).unwrap_err().to_string();
+                assert!(e.contains("flip-bad.qtx"), "{e}");
+            }
         }
         std::fs::remove_file(&p).unwrap();
         std::fs::remove_file(&q).unwrap();

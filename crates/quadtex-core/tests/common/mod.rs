@@ -28,7 +28,11 @@ pub fn blocky_grid(u: &mut Unstructured<'_>, max_depth: u32) -> ArbResult<TexelG
 /// [`blocky_grid`], or one time in two a strip of it: its first `2^-k` of
 /// rows or of columns, a texture that takes part of the tree's square.
 pub fn blocky_grid_any_aspect(u: &mut Unstructured<'_>, max_depth: u32) -> ArbResult<TexelGrid> {
-    let grid = blocky_grid(u, max_depth)?;
+    let grid = if u.ratio(1, 3)? {
+        noisy_srgb8_grid(u, max_depth)?
+    } else {
+        blocky_grid(u, max_depth)?
+    };
     let side = grid.width();
     if side == 1 || u.ratio(1, 2)? {
         return Ok(grid);
@@ -40,6 +44,20 @@ pub fn blocky_grid_any_aspect(u: &mut Unstructured<'_>, max_depth: u32) -> ArbRe
         (short, side)
     };
     Ok(TexelGrid::from_fn(w, h, |c, r| grid.texel(c, r).to_rgba()).unwrap())
+}
+
+/// A square 8-bit sRGB grid (as a PNG decodes) of noise over a few bytes
+/// per channel, with translucent texels: its subtrees split to the texels,
+/// so the packer keeps most of its bottom in 8-bit texel blocks.
+pub fn noisy_srgb8_grid(u: &mut Unstructured<'_>, max_depth: u32) -> ArbResult<TexelGrid> {
+    let side = 1u32 << u.int_in_range(0..=max_depth)?;
+    let mut bytes = Vec::with_capacity((side * side) as usize);
+    for _ in 0..side * side {
+        let v = *u.choose(&[0u8, 40, 128, 200, 255])?;
+        let a = *u.choose(&[255u8, 255, 255, 128, 0])?;
+        bytes.push([v, 255 - v, v / 2, a]);
+    }
+    Ok(TexelGrid::from_srgb8(side, side, bytes).unwrap())
 }
 
 pub fn fill(
