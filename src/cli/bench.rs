@@ -47,6 +47,10 @@ pub struct Args {
     /// Texture side in texels: a power of two in 64..=16384.
     #[arg(long, value_name = "N", default_value_t = 4096, value_parser = texture_size)]
     size: u32,
+    /// Benchmark this image (PNG, JPEG, EXR) instead of the built-in art,
+    /// packed losslessly: a photograph shows the texel blocks' cost.
+    #[arg(long, value_name = "FILE", conflicts_with = "size")]
+    texture: Option<std::path::PathBuf>,
     /// Fragments per width (at least 1).
     #[arg(long, value_name = "Q", default_value_t = 100_000, value_parser = at_least_one("--queries"))]
     queries: usize,
@@ -58,7 +62,7 @@ pub struct Args {
     /// a generated terrain of 1 M triangles (binary glTF, see
     /// `quadtex_render::terrain`), each with `nearest`, the quadtree filter
     /// and EWA, as medians and as ratios to `nearest` (same run).
-    #[arg(long, conflicts_with_all = ["size", "queries"])]
+    #[arg(long, conflicts_with_all = ["size", "queries", "texture"])]
     frames: bool,
     #[command(flatten)]
     memory: super::MemoryArgs,
@@ -92,6 +96,7 @@ fn texture_size(text: &str) -> std::result::Result<u32, String> {
 pub fn run(args: Args) -> Result<()> {
     let Args {
         size,
+        texture,
         queries,
         runs,
         frames,
@@ -102,15 +107,33 @@ pub fn run(args: Args) -> Result<()> {
     }
     let runs = runs.unwrap_or(5);
     let budget = memory.bytes();
-    let side = u64::from(size);
-    // The raster (8 bytes a texel) and a lossless tree of it (at most 4/3 nodes a texel).
-    quadtex_core::memory::check_budget(
-        || format!("benchmarking a {size}x{size} texture"),
-        8 * side * side + quadtex_core::memory::BUILD_BYTES_PER_NODE * side * side * 4 / 3,
-        Some(budget),
-        "lower --size, or raise --memory-limit",
-    )?;
-    let grid = runway_art().rasterise(size, size)?;
+    let (grid, title) = match &texture {
+        Some(path) => {
+            let grid = quadtex_io::load_texels_with_limits(path, &memory.limits())?;
+            let title = format!(
+                "{}, {}x{} texels (lossless)",
+                path.display(),
+                grid.width(),
+                grid.height()
+            );
+            (grid, title)
+        }
+        None => {
+            let side = u64::from(size);
+            // The raster (8 bytes a texel) and a lossless tree of it (at most 4/3 nodes a texel).
+            quadtex_core::memory::check_budget(
+                || format!("benchmarking a {size}x{size} texture"),
+                8 * side * side + quadtex_core::memory::BUILD_BYTES_PER_NODE * side * side * 4 / 3,
+                Some(budget),
+                "lower --size, or raise --memory-limit",
+            )?;
+            let title = format!(
+                "runway markings and lettering, {size}x{size} texels (vector-like, lossless)"
+            );
+            (runway_art().rasterise(size, size)?, title)
+        }
+    };
+    let size = grid.width().max(grid.height());
     let mut pack_times = Vec::new();
     let mut tree = None;
     for _ in 0..3 {
@@ -124,31 +147,47 @@ pub fn run(args: Args) -> Result<()> {
         tree = Some(t);
     }
     let tree = tree.ok_or("no tree")?;
+    // The same texture with every square a node, for the blocks' cost.
+    let (nodes_only, _) = QuadTree::from_texels(
+        &grid,
+        &BuildOptions {
+            max_bytes: Some(budget),
+            texel_blocks: false,
+            ..BuildOptions::default()
+        },
+    )?;
     pack_times.sort_by(f64::total_cmp);
     let sat = SummedAreaTable::new(&grid);
-    let (raster, mips) = raster_bytes(size, size);
+    let (raster, mips) = raster_bytes(grid.width(), grid.height());
     let tree_bytes = tree.memory_bytes();
     let depth = tree.depth();
 
     let mut out = Text::stdout();
+    writeln!(out, "## quadtex bench: {title}\n")?;
     writeln!(
         out,
-        "## quadtex bench: runway markings and lettering, {size}x{size} texels (vector-like, lossless)\n"
-    )?;
-    writeln!(
-        out,
-        "Pack time (median of 3): {:.3} s; {} nodes, depth {depth}\n",
+        "Pack time (median of 3): {:.3} s; {} nodes{}, depth {depth}\n",
         pack_times[1],
-        tree.node_count()
+        tree.node_count(),
+        super::info::blocks_summary(&tree)
     )?;
     writeln!(out, "| storage | bytes | tree is smaller by |")?;
     writeln!(out, "|---|---:|---:|")?;
     writeln!(
         out,
-        "| quadtree ({:.2} B/node) | {} | 1 |",
-        tree_bytes as f64 / tree.node_count() as f64,
+        "| quadtree ({:.2} B/texel) | {} | 1 |",
+        tree_bytes as f64 / (f64::from(grid.width()) * f64::from(grid.height())),
         human_bytes(tree_bytes)
     )?;
+    if tree.texel_blocks().is_some() {
+        let b = nodes_only.memory_bytes();
+        writeln!(
+            out,
+            "| quadtree without texel blocks | {} | {:.1}x |",
+            human_bytes(b),
+            b as f64 / tree_bytes as f64
+        )?;
+    }
     writeln!(
         out,
         "| RGBA8 raster | {} | {:.1}x |",
@@ -174,13 +213,14 @@ pub fn run(args: Args) -> Result<()> {
     )?;
     writeln!(
         out,
-        "| width (texels) | quadtree k={depth} (exact) | quadtree matched k | SAT (exact) | texel loop | matched / SAT | exact / SAT | max abs error vs SAT |"
+        "| width (texels) | quadtree k={depth} (exact) | without blocks (exact) | quadtree matched k | SAT (exact) | texel loop | matched / SAT | exact / SAT | max abs error vs SAT |"
     )?;
-    writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+    writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
     for width in [1.0, 4.0, 16.0, 256.0] {
         let frags = scanline_fragments(size, width, queries, 7);
         let matched = depth.saturating_sub(width.log2().floor() as u8);
         let full = time_per_query(runs, &frags, |f| tree.weighted_colour(f, depth));
+        let nodes = time_per_query(runs, &frags, |f| nodes_only.weighted_colour(f, depth));
         let lod = time_per_query(runs, &frags, |f| tree.weighted_colour(f, matched));
         let sat_t = time_per_query(runs, &frags, |f| sat.weighted_colour(f));
         // The texel loop is O(width²): cap its work (but time at least 100
@@ -201,8 +241,9 @@ pub fn run(args: Args) -> Result<()> {
             .fold(0.0, f64::max);
         writeln!(
             out,
-            "| {width} | {:.0} | {:.0} (k={matched}) | {:.0} | {:.0} | {:.2} | {:.2} | {:.1e} |",
+            "| {width} | {:.0} | {:.0} | {:.0} (k={matched}) | {:.0} | {:.0} | {:.2} | {:.2} | {:.1e} |",
             full * 1e9,
+            nodes * 1e9,
             lod * 1e9,
             sat_t * 1e9,
             brute * 1e9,

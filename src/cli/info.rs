@@ -88,9 +88,20 @@ pub fn run(args: Args) -> Result<()> {
         }
     )?;
     writeln!(out, "nodes:       {}", tree.node_count())?;
+    if let Some(b) = tree.texel_blocks() {
+        let side = 1u32 << b.log2_side();
+        writeln!(
+            out,
+            "blocks:      {} of {side}x{side} texels at level {}, stored as {} ({})",
+            b.count(),
+            b.level(),
+            b.format().name(),
+            human_bytes(b.data().len() as u64)
+        )?;
+    }
     writeln!(
         out,
-        "memory:      {} ({:.3} bytes/node; colour 8 B/node as unorm16 RGBA)",
+        "memory:      {} ({:.3} bytes/node with blocks; colour 8 B/node as unorm16 RGBA)",
         human_bytes(bytes),
         bytes as f64 / tree.node_count() as f64
     )?;
@@ -190,6 +201,14 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
     }?;
     out.flush()?;
     Ok(())
+}
+
+/// `" + N texel blocks of 4x4"` for a tree with texel blocks, else empty.
+pub(crate) fn blocks_summary(tree: &quadtex_core::QuadTree) -> String {
+    tree.texel_blocks().map_or_else(String::new, |b| {
+        let side = 1u32 << b.log2_side();
+        format!(" + {} texel blocks of {side}x{side}", b.count())
+    })
 }
 
 #[cfg(test)]

@@ -102,14 +102,15 @@ pub fn run(args: Args) -> Result<()> {
     let mut text = output.text();
     writeln!(
         text,
-        "packed {} -> {}: {} nodes ({} terminal), depth {}, {} ({:.2} B/node); RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {}{}; {:.2} s",
+        "packed {} -> {}: {} nodes ({} terminal){}, depth {}, {} ({:.2} B/texel); RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {}{}; {:.2} s",
         input.display(),
         output,
         tree.node_count(),
         terminals,
+        super::info::blocks_summary(&tree),
         tree.depth(),
         human_bytes(bytes),
-        bytes as f64 / tree.node_count() as f64,
+        bytes as f64 / (f64::from(grid.width()) * f64::from(grid.height())),
         raster as f64 / bytes as f64,
         mips as f64 / bytes as f64,
         error,

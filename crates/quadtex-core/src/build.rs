@@ -185,6 +185,10 @@ pub struct BuildOptions {
     /// cell grid ([`raster_grid_bytes`]) exceed it; while building, when
     /// those plus [`crate::memory::BUILD_BYTES_PER_NODE`] per node so far do.
     pub max_bytes: Option<u64>,
+    /// End squares in texel blocks where their texels cost no more than
+    /// their nodes ([`crate::texel_block`]); `true` by default. Off, every
+    /// square is a node (for comparisons).
+    pub texel_blocks: bool,
 }
 
 impl Default for BuildOptions {
@@ -194,6 +198,7 @@ impl Default for BuildOptions {
             max_level: None,
             max_nodes: MAX_NODES,
             max_bytes: None,
+            texel_blocks: true,
         }
     }
 }
@@ -280,6 +285,8 @@ struct Builder<'a> {
     srgb8: Option<&'a [[u8; 4]]>,
     /// Texel blocks, when the tree is deep enough to have them.
     blocks: Option<BlockWriter>,
+    /// Whether tiles may make texel blocks ([`BuildOptions::texel_blocks`]).
+    texel_blocks_allowed: bool,
     tiles: Option<Tiles<'a>>,
     side: usize,
     depth: u8,
@@ -420,8 +427,8 @@ impl Builder<'_> {
         for tz in iz * side..(iz + 1) * side {
             for tx in ix * side..(ix + 1) * side {
                 let i = (self.rows - 1 - tz) * self.side + tx;
-                match (w.format, self.srgb8) {
-                    (BlockFormat::Srgb8Rgba, Some(src)) => w.data.extend(src[i]),
+                match (w.format.is_srgb8(), self.srgb8) {
+                    (true, Some(src)) => w.format.put_srgb8(&mut w.data, src[i]),
                     _ => {
                         for v in self.cells[i].0 {
                             w.data.extend(v.to_le_bytes());
@@ -492,13 +499,16 @@ impl Builder<'_> {
         let block_level = self
             .depth
             .checked_sub(BLOCK_LOG2_SIDE)
-            .filter(|&l| l >= level);
-        let sub_blocks = match (block_level, self.blocks.as_ref()) {
+            .filter(|&l| l >= level && self.texel_blocks_allowed);
+        let sub_blocks = match (block_level, self.blocks.as_mut()) {
             (None, _) => None,
-            (Some(_), Some(w)) if w.format != format => {
-                let name = |f: BlockFormat| match f {
-                    BlockFormat::Srgb8Rgba => "8-bit",
-                    _ => "16-bit or float",
+            (Some(_), Some(w)) if w.format.is_srgb8() != format.is_srgb8() => {
+                let name = |f: BlockFormat| {
+                    if f.is_srgb8() {
+                        "8-bit"
+                    } else {
+                        "16-bit or float"
+                    }
                 };
                 return Err(Error::TileFormat {
                     row,
@@ -507,7 +517,15 @@ impl Builder<'_> {
                     expected: name(w.format),
                 });
             }
-            (Some(l), _) => {
+            (Some(l), w) => {
+                // 8-bit tiles share the widest of their formats.
+                let format = match w {
+                    Some(w) => {
+                        w.widen(w.format.widest(format))?;
+                        w.format
+                    }
+                    None => format,
+                };
                 if self.blocks.is_none() {
                     self.blocks = Some(BlockWriter {
                         level: l,
@@ -528,6 +546,7 @@ impl Builder<'_> {
             cells: &grid.texels,
             srgb8: grid.srgb8.as_deref(),
             blocks: sub_blocks,
+            texel_blocks_allowed: self.texel_blocks_allowed,
             tiles: None,
             side: side as usize,
             depth,
@@ -632,6 +651,7 @@ impl QuadTree {
             srgb8: None,
             // Made when the first tile shows the format.
             blocks: None,
+            texel_blocks_allowed: options.texel_blocks,
             tiles: Some(Tiles { level, side, load }),
             side: 0,
             depth,
@@ -689,6 +709,7 @@ impl QuadTree {
         // Blocks where the block level lies wholly in the texture.
         let blocks = depth
             .checked_sub(BLOCK_LOG2_SIDE)
+            .filter(|_| options.texel_blocks)
             .filter(|&l| aspect.shrink().iter().all(|&s| s <= l))
             .map(|level| BlockWriter {
                 level,
@@ -700,6 +721,7 @@ impl QuadTree {
             cells,
             srgb8: grid.srgb8.as_deref().filter(|_| !resampled),
             blocks,
+            texel_blocks_allowed: options.texel_blocks,
             tiles: None,
             side: columns,
             depth,
@@ -720,10 +742,9 @@ impl QuadTree {
 /// The format texel blocks keep `grid` in: its 8-bit source when it has
 /// one and its cells are its texels, else the tree's unorm16.
 fn block_format(grid: &TexelGrid, resampled: bool) -> BlockFormat {
-    if grid.srgb8.is_some() && !resampled {
-        BlockFormat::Srgb8Rgba
-    } else {
-        BlockFormat::Unorm16Rgba
+    match grid.srgb8.as_deref() {
+        Some(src) if !resampled => BlockFormat::narrowest_srgb8(src),
+        _ => BlockFormat::Unorm16Rgba,
     }
 }
 
@@ -1088,7 +1109,8 @@ mod block_tests {
         let g = TexelGrid::from_srgb8(w, h, bytes.clone()).unwrap();
         let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
         let tb = t.texel_blocks().expect("blocks");
-        assert_eq!(tb.format(), BlockFormat::Srgb8Rgba);
+        // Opaque colour: three bytes a texel.
+        assert_eq!(tb.format(), BlockFormat::Srgb8Rgb);
         assert_eq!((tb.level(), tb.count()), (2, 16));
         assert_eq!(t.depth(), 4);
         // Level 2 is the deepest stored level: 1 + 4 + 16 nodes.
@@ -1115,6 +1137,21 @@ mod block_tests {
                 assert_eq!(t.uniform_colour(&f), Some(g.texel(c, r)));
             }
         }
+        // Translucent texels keep four bytes, opaque grey one.
+        let format = |f: fn([u8; 4]) -> [u8; 4]| {
+            let bytes = bytes.iter().map(|&p| f(p)).collect();
+            let g = TexelGrid::from_srgb8(w, h, bytes).unwrap();
+            let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+            t.texel_blocks().map(|b| b.format())
+        };
+        assert_eq!(
+            format(|[r, g, b, _]| [r, g, b, r]),
+            Some(BlockFormat::Srgb8Rgba)
+        );
+        assert_eq!(
+            format(|[r, ..]| [r, r, r, 255]),
+            Some(BlockFormat::Srgb8Grey)
+        );
         let unorm = TexelGrid::new(w, h, g.texels().to_vec()).unwrap();
         let (t16, _) = QuadTree::from_texels(&unorm, &BuildOptions::default()).unwrap();
         assert_eq!(
@@ -1122,6 +1159,54 @@ mod block_tests {
             Some(BlockFormat::Unorm16Rgba)
         );
         assert!(t.memory_bytes() < t16.memory_bytes());
+    }
+
+    /// 8-bit tiles of different kinds (grey first, then colour, then
+    /// translucent) widen the blocks as they come: the tree is the whole
+    /// mosaic's. A 16-bit tile among 8-bit ones is refused by name.
+    #[test]
+    fn tiles_widen_their_blocks_to_the_mosaic_format() {
+        let texel = |x: u32, y: u32| {
+            let v = noise(x, y);
+            match (x / 8, y / 8) {
+                (0, 0) => [v[0], v[0], v[0], 255],
+                (1, 0) => v,
+                _ => [v[0], v[1], v[2], v[0] | 1],
+            }
+        };
+        let bytes = (0..16u32)
+            .flat_map(|y| (0..16).map(move |x| texel(x, y)))
+            .collect();
+        let whole = TexelGrid::from_srgb8(16, 16, bytes).unwrap();
+        let options = BuildOptions::default();
+        let (expected, _) = QuadTree::from_texels(&whole, &options).unwrap();
+        assert_eq!(
+            expected.texel_blocks().map(|b| b.format()),
+            Some(BlockFormat::Srgb8Rgba)
+        );
+        let tile = |row: u32, col: u32| {
+            let bytes = (0..8u32)
+                .flat_map(|y| (0..8).map(move |x| texel(8 * col + x, 8 * row + y)))
+                .collect();
+            TexelGrid::from_srgb8(8, 8, bytes)
+        };
+        let (tree, _) =
+            QuadTree::from_tiles(2, 8, &options, &mut |row, col| tile(row, col)).unwrap();
+        assert_eq!(tree, expected);
+        let e = QuadTree::from_tiles(2, 8, &options, &mut |row, col| {
+            let t = tile(row, col)?;
+            if (row, col) == (1, 1) {
+                TexelGrid::new(8, 8, t.texels().to_vec())
+            } else {
+                Ok(t)
+            }
+        })
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("tile (1, 1) is 16-bit or float, the first tile was 8-bit"),
+            "{e}"
+        );
     }
 
     /// Edges of vector-like art stay nodes where nodes are cheaper than a

@@ -31,6 +31,10 @@ pub enum BlockFormat {
     Unorm16Rgba,
     /// sRGB-encoded RGBA with straight alpha, four `u8`: 8-bit sources.
     Srgb8Rgba,
+    /// sRGB-encoded RGB, three `u8`: opaque 8-bit sources.
+    Srgb8Rgb,
+    /// sRGB-encoded grey, one `u8`: opaque grey 8-bit sources.
+    Srgb8Grey,
 }
 
 impl BlockFormat {
@@ -39,6 +43,73 @@ impl BlockFormat {
         match self {
             BlockFormat::Unorm16Rgba => 8,
             BlockFormat::Srgb8Rgba => 4,
+            BlockFormat::Srgb8Rgb => 3,
+            BlockFormat::Srgb8Grey => 1,
+        }
+    }
+
+    /// True for the 8-bit sRGB formats.
+    pub fn is_srgb8(self) -> bool {
+        self != BlockFormat::Unorm16Rgba
+    }
+
+    /// The narrowest 8-bit format that holds every texel of `texels`
+    /// exactly: grey if all are opaque grey, RGB if all are opaque.
+    pub fn narrowest_srgb8(texels: &[[u8; 4]]) -> BlockFormat {
+        texels.iter().fold(BlockFormat::Srgb8Grey, |f, &p| {
+            f.widest(BlockFormat::of_srgb8(p))
+        })
+    }
+
+    /// The narrowest 8-bit format for one texel.
+    fn of_srgb8([r, g, b, a]: [u8; 4]) -> BlockFormat {
+        if a != 255 {
+            BlockFormat::Srgb8Rgba
+        } else if r != g || g != b {
+            BlockFormat::Srgb8Rgb
+        } else {
+            BlockFormat::Srgb8Grey
+        }
+    }
+
+    /// The wider of two 8-bit formats (grey < RGB < RGBA).
+    pub fn widest(self, other: BlockFormat) -> BlockFormat {
+        let rank = |f: BlockFormat| match f {
+            BlockFormat::Srgb8Grey => 0,
+            BlockFormat::Srgb8Rgb => 1,
+            BlockFormat::Srgb8Rgba => 2,
+            BlockFormat::Unorm16Rgba => 3,
+        };
+        if rank(other) > rank(self) {
+            other
+        } else {
+            self
+        }
+    }
+
+    /// Appends texel `p` (8-bit sRGB, straight alpha) in this format; the
+    /// format must hold it ([`BlockFormat::narrowest_srgb8`]).
+    pub(crate) fn put_srgb8(self, out: &mut Vec<u8>, p: [u8; 4]) {
+        match self {
+            BlockFormat::Srgb8Rgba => out.extend(p),
+            BlockFormat::Srgb8Rgb => out.extend(&p[..3]),
+            BlockFormat::Srgb8Grey => out.push(p[0]),
+            BlockFormat::Unorm16Rgba => {
+                for v in srgb8_texel(p).0 {
+                    out.extend(v.to_le_bytes());
+                }
+            }
+        }
+    }
+
+    /// Texel `d` (this format's bytes) as 8-bit sRGB with straight alpha;
+    /// `None` for unorm16.
+    fn srgb8_of(self, d: &[u8]) -> Option<[u8; 4]> {
+        match self {
+            BlockFormat::Srgb8Rgba => Some([d[0], d[1], d[2], d[3]]),
+            BlockFormat::Srgb8Rgb => Some([d[0], d[1], d[2], 255]),
+            BlockFormat::Srgb8Grey => Some([d[0], d[0], d[0], 255]),
+            BlockFormat::Unorm16Rgba => None,
         }
     }
 
@@ -47,6 +118,8 @@ impl BlockFormat {
         match self {
             BlockFormat::Unorm16Rgba => 1,
             BlockFormat::Srgb8Rgba => 2,
+            BlockFormat::Srgb8Rgb => 3,
+            BlockFormat::Srgb8Grey => 4,
         }
     }
 
@@ -55,6 +128,8 @@ impl BlockFormat {
         match code {
             1 => Some(BlockFormat::Unorm16Rgba),
             2 => Some(BlockFormat::Srgb8Rgba),
+            3 => Some(BlockFormat::Srgb8Rgb),
+            4 => Some(BlockFormat::Srgb8Grey),
             _ => None,
         }
     }
@@ -64,6 +139,8 @@ impl BlockFormat {
         match self {
             BlockFormat::Unorm16Rgba => "unorm16 linear RGBA",
             BlockFormat::Srgb8Rgba => "8-bit sRGB RGBA",
+            BlockFormat::Srgb8Rgb => "8-bit sRGB RGB",
+            BlockFormat::Srgb8Grey => "8-bit sRGB grey",
         }
     }
 }
@@ -83,6 +160,13 @@ fn srgb8_table() -> &'static [f32; 256] {
     TABLE.get_or_init(|| {
         std::array::from_fn(|v| srgb_to_linear(f32::from(v as u16 * 257) / 65535.0))
     })
+}
+
+/// An opaque 8-bit sRGB channel as the tree's unorm16 linear value: what
+/// [`srgb8_texel`] gives at alpha 255 (the same arithmetic, tabulated).
+fn opaque_table() -> &'static [u16; 256] {
+    static TABLE: std::sync::OnceLock<[u16; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| std::array::from_fn(|v| srgb8_texel([v as u8, 0, 0, 255]).0[0]))
 }
 
 /// An 8-bit sRGB texel with straight alpha as the tree's linear,
@@ -237,10 +321,23 @@ impl TexelBlocks {
         let o = (block * self.texels_per_block() + t) * bpt;
         let d = &self.data[o..o + bpt];
         match self.format {
+            BlockFormat::Srgb8Grey => {
+                let v = opaque_table()[usize::from(d[0])];
+                Unorm16Rgba([v, v, v, u16::MAX])
+            }
+            BlockFormat::Srgb8Rgb => {
+                let t = opaque_table();
+                Unorm16Rgba([
+                    t[usize::from(d[0])],
+                    t[usize::from(d[1])],
+                    t[usize::from(d[2])],
+                    u16::MAX,
+                ])
+            }
+            BlockFormat::Srgb8Rgba => srgb8_texel([d[0], d[1], d[2], d[3]]),
             BlockFormat::Unorm16Rgba => Unorm16Rgba(std::array::from_fn(|k| {
                 u16::from_le_bytes([d[2 * k], d[2 * k + 1]])
             })),
-            BlockFormat::Srgb8Rgba => srgb8_texel([d[0], d[1], d[2], d[3]]),
         }
     }
 
@@ -249,6 +346,52 @@ impl TexelBlocks {
     #[inline]
     pub fn texel(&self, block: usize, tx: u32, tz: u32) -> Unorm16Rgba {
         self.texel_at(block, (tz * self.side() + tx) as usize)
+    }
+
+    /// Adds to `acc` (unorm16 units × weight) `Σ wx[tx]·wz[tz]·texel(tx, tz)`
+    /// over the texels of `block` with `tx` in `xs` and `tz` in `zs`: a box
+    /// over a block is separable, one weight per column and per row.
+    #[inline]
+    pub(crate) fn add_weighted(
+        &self,
+        acc: &mut [f64; 4],
+        block: usize,
+        (wx, xs): (&[f64], std::ops::RangeInclusive<u32>),
+        (wz, zs): (&[f64], std::ops::RangeInclusive<u32>),
+    ) {
+        let side = self.side() as usize;
+        let bpt = self.format.bytes_per_texel();
+        let base = block * self.texels_per_block() * bpt;
+        let table = opaque_table();
+        for tz in zs {
+            let row = &self.data[base + tz as usize * side * bpt..][..side * bpt];
+            let w_row = wz[tz as usize];
+            for tx in xs.clone() {
+                let w = w_row * wx[tx as usize];
+                let d = &row[tx as usize * bpt..][..bpt];
+                let c = match self.format {
+                    BlockFormat::Srgb8Grey => {
+                        let v = f64::from(table[usize::from(d[0])]);
+                        [v, v, v, 65535.0]
+                    }
+                    BlockFormat::Srgb8Rgb => [
+                        f64::from(table[usize::from(d[0])]),
+                        f64::from(table[usize::from(d[1])]),
+                        f64::from(table[usize::from(d[2])]),
+                        65535.0,
+                    ],
+                    BlockFormat::Srgb8Rgba => {
+                        srgb8_texel([d[0], d[1], d[2], d[3]]).0.map(f64::from)
+                    }
+                    BlockFormat::Unorm16Rgba => std::array::from_fn(|k| {
+                        f64::from(u16::from_le_bytes([d[2 * k], d[2 * k + 1]]))
+                    }),
+                };
+                for (a, v) in acc.iter_mut().zip(c) {
+                    *a += w * v;
+                }
+            }
+        }
     }
 
     /// The sum (unorm16 units) of the texels of cell `(ix, iz)` of `block`
@@ -299,6 +442,25 @@ impl BlockWriter {
         self.format.bytes_per_texel() << (2 * BLOCK_LOG2_SIDE)
     }
 
+    /// Re-encodes the blocks so far in the wider 8-bit `format` (a tiled
+    /// texture whose later tile needs more channels than the first).
+    pub(crate) fn widen(&mut self, format: BlockFormat) -> Result<(), Error> {
+        if format == self.format {
+            return Ok(());
+        }
+        let (old, bpt) = (self.format, self.format.bytes_per_texel());
+        let texels = self.data.len() / bpt;
+        let mut data =
+            crate::memory::try_with_capacity(texels * format.bytes_per_texel(), "texel blocks")?;
+        for d in self.data.chunks_exact(bpt) {
+            if let Some(p) = old.srgb8_of(d) {
+                format.put_srgb8(&mut data, p);
+            }
+        }
+        (self.format, self.data) = (format, data);
+        Ok(())
+    }
+
     /// The finished blocks.
     pub(crate) fn finish(self) -> Result<Option<TexelBlocks>, Error> {
         if !self.flags.iter().any(|&f| f) {
@@ -329,6 +491,22 @@ mod tests {
         // Half coverage halves the colour.
         let h = srgb8_texel([255, 0, 0, 128]);
         assert_eq!(h.0[0], h.0[3]);
+    }
+
+    #[test]
+    fn opaque_formats_decode_like_the_general_path() {
+        for v in 0..=255u8 {
+            let rgb = TexelBlocks::new(
+                0,
+                BlockFormat::Srgb8Rgb,
+                vec![1],
+                [v, 255 - v, v / 3].repeat(16),
+            )
+            .unwrap();
+            assert_eq!(rgb.texel(0, 1, 2), srgb8_texel([v, 255 - v, v / 3, 255]));
+            let grey = TexelBlocks::new(0, BlockFormat::Srgb8Grey, vec![1], vec![v; 16]).unwrap();
+            assert_eq!(grey.texel(0, 3, 3), srgb8_texel([v, v, v, 255]));
+        }
     }
 
     #[test]

@@ -826,6 +826,22 @@ impl QuadTree {
             let last = ((((b - lo) / cell).ceil().max(1.0) as u32) - 1).clamp(first, n - 1);
             first..=last
         };
+        if j == tb.log2_side() {
+            // Texel by texel: separable weights, the overlap of each column
+            // and each row (in cell areas, so each texel counts its value).
+            let (xs, zs) = (range(x0, x1, lo[0]), range(z0, z1, lo[1]));
+            let weights = |a: f64, b: f64, lo: f64, r: &std::ops::RangeInclusive<u32>| {
+                let mut w = [0f64; 16];
+                for i in r.clone() {
+                    let c0 = lo + f64::from(i) * cell;
+                    w[i as usize] = overlap_1d(a, b, c0, c0 + cell);
+                }
+                w
+            };
+            let (wx, wz) = (weights(x0, x1, lo[0], &xs), weights(z0, z1, lo[1], &zs));
+            tb.add_weighted(acc, b, (&wx, xs), (&wz, zs));
+            return;
+        }
         for cz in range(z0, z1, lo[1]) {
             let (c0, c1) = (
                 lo[1] + f64::from(cz) * cell,

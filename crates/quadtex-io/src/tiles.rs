@@ -148,6 +148,7 @@ pub fn pack_tiles(
         max_level: None,
         max_nodes: limits.max_nodes,
         max_bytes: Some(limits.max_memory),
+        ..BuildOptions::default()
     };
     // The loader's own error (naming the tile) is kept aside: the core sees a placeholder.
     let mut failure: Option<Error> = None;
