@@ -135,6 +135,78 @@ fn packed_png_queries_match_the_brute_force_box_integral() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The committed photographs (`samples/photos`) pack losslessly into less
+/// than an RGBA8 raster and its mips, their bottoms in 8-bit texel blocks,
+/// and answer queries exactly: against the sum over the PNG's texels.
+#[test]
+fn photographs_pack_below_a_mip_pyramid_and_stay_exact() {
+    let dir = temp_dir("photos");
+    for (name, blocks) in [
+        ("astronaut", "8-bit sRGB RGB"),
+        ("brick", "8-bit sRGB grey"),
+        ("grass", "8-bit sRGB grey"),
+    ] {
+        let png = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("samples/photos/{name}.png"));
+        let qtx = dir.join(format!("{name}.qtx"));
+        let out = run(
+            &["pack", png.to_str().unwrap(), "-o", qtx.to_str().unwrap()],
+            "",
+        );
+        let summary = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let ratio: f64 = summary
+            .split("raster+mips / tree = ")
+            .nth(1)
+            .and_then(|r| r.split(';').next())
+            .and_then(|r| r.parse().ok())
+            .unwrap_or_else(|| panic!("{summary}"));
+        assert!(ratio >= 1.0 && summary.contains("lossless"), "{summary}");
+        let info = run(&["info", qtx.to_str().unwrap()], "");
+        let info = String::from_utf8_lossy(&info.stdout).into_owned();
+        assert!(info.contains(&format!("stored as {blocks}")), "{info}");
+
+        let grid = load_texels(&png).unwrap();
+        let fragments: Vec<Fragment> = (0..2000u32)
+            .map(|i| {
+                let h = |k: u32| {
+                    f64::from(i.wrapping_mul(2_654_435_761).rotate_left(k) % 10_000) / 10_000.0
+                };
+                let (x, z, w) = (h(0), h(7), h(13) * 0.05);
+                Fragment::new(x, z, x + w, z + w * h(21)).unwrap()
+            })
+            .collect();
+        let input: String = fragments
+            .iter()
+            .map(|f| format!("{} {} {} {}\n", f.x0(), f.z0(), f.x1(), f.z1()))
+            .collect();
+        let out = run(&["query", qtx.to_str().unwrap()], &input);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8(out.stdout).unwrap();
+        let mut worst = 0f64;
+        for (f, line) in fragments.iter().zip(text.lines()) {
+            let got: Vec<f64> = line.split(' ').map(|v| v.parse().unwrap()).collect();
+            let want = texel_sum(&grid, f);
+            let area = f.clip_to_unit().map_or(0.0, |c| c.area());
+            if area > 0.0 {
+                for (g, w) in got.iter().zip(&want.0) {
+                    worst = worst.max((g - w).abs() / area);
+                }
+            }
+        }
+        // Exact but for inner means rounded once to 16 bits.
+        assert!(worst < 2e-5, "{name}: mean colour off by {worst}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn bad_query_lines_name_the_line_and_fail() {
     let (dir, _, qtx) = packed_shapes("query", &[]);
