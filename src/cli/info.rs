@@ -120,7 +120,7 @@ pub fn run(args: Args) -> Result<()> {
         human_bytes(mips),
         mips as f64 / bytes as f64
     )?;
-    let avg = tree.average().to_rgba();
+    let avg = tree.average();
     writeln!(
         out,
         "average:     {} {} {} {} (linear, premultiplied)",

@@ -238,7 +238,7 @@ pub(crate) fn info(texture: &QtxTexture) -> QtxTextureInfo {
         rows,
         node_count: tree.node_count(),
         memory_bytes: tree.memory_bytes(),
-        mean: tree.average().to_rgba().to_array(),
+        mean: tree.average().to_array(),
     }
 }
 

@@ -1134,7 +1134,7 @@ mod block_tests {
                         "({c}, {r}): {got:?} vs {want:?}"
                     );
                 }
-                assert_eq!(t.uniform_colour(&f), Some(g.texel(c, r)));
+                assert_eq!(t.uniform_colour(&f), Some(g.texel(c, r).to_rgba()));
             }
         }
         // Translucent texels keep four bytes, opaque grey one.

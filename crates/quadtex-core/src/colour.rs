@@ -115,6 +115,74 @@ impl Unorm16Rgba {
     }
 }
 
+/// How a tree's nodes store colour: each channel is one `u16`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[non_exhaustive]
+pub enum ColourEncoding {
+    /// `v / 65535`: linear, premultiplied, in `[0, 1]` (LDR textures).
+    #[default]
+    Unorm16,
+    /// IEEE 754 binary16 ("half"): linear, premultiplied, unclamped colour
+    /// (HDR textures: values above 1 and below 0), alpha in `[0, 1]`;
+    /// 11 significant bits, about 3 decimal digits, up to 65504.
+    Half,
+}
+
+impl ColourEncoding {
+    /// The channel `v` as a float.
+    #[inline]
+    pub fn decode(self, v: u16) -> f64 {
+        match self {
+            ColourEncoding::Unorm16 => f64::from(v) * (1.0 / 65535.0),
+            ColourEncoding::Half => f64::from(half::f16::from_bits(v).to_f32()),
+        }
+    }
+
+    /// A stored colour as floats.
+    #[inline]
+    pub fn decode_colour(self, c: Unorm16Rgba) -> [f64; 4] {
+        c.0.map(|v| self.decode(v))
+    }
+
+    /// A channel value rounded to the nearest stored one (unorm16 clamps to
+    /// `[0, 1]`; half rounds to nearest even and saturates to ±65504).
+    #[inline]
+    pub fn encode(self, v: f64) -> u16 {
+        match self {
+            ColourEncoding::Unorm16 => (v.clamp(0.0, 1.0) * 65535.0 + 0.5) as u16,
+            ColourEncoding::Half => {
+                let h = half::f16::from_f64(v.clamp(-65504.0, 65504.0));
+                h.to_bits()
+            }
+        }
+    }
+
+    /// The code the `.qtx` header stores (`colour_format`).
+    pub fn code(self) -> u8 {
+        match self {
+            ColourEncoding::Unorm16 => 1,
+            ColourEncoding::Half => 2,
+        }
+    }
+
+    /// The encoding of a header code.
+    pub fn from_code(code: u8) -> Option<ColourEncoding> {
+        match code {
+            1 => Some(ColourEncoding::Unorm16),
+            2 => Some(ColourEncoding::Half),
+            _ => None,
+        }
+    }
+
+    /// A short name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            ColourEncoding::Unorm16 => "unorm16 RGBA (linear, premultiplied, [0,1])",
+            ColourEncoding::Half => "half-float RGBA (linear, premultiplied, HDR)",
+        }
+    }
+}
+
 /// Colour × area: the integral of the texture's colour over a region.
 ///
 /// Channels are linear, premultiplied, in units of (colour × texture-space

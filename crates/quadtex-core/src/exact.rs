@@ -397,7 +397,7 @@ pub(crate) fn integrate_region(
             .clip(-r[0], -r[1], floor - r[2]);
         region = region.clip(r[0], r[1], r[2] - floor);
         if !sliver.is_empty() {
-            let c = tree.average().to_rgba();
+            let c = tree.average();
             let wgt = filter.integral(&sliver, centre);
             out.colour += WeightedColour::from_colour(c, wgt);
             out.weight += wgt;
@@ -942,7 +942,7 @@ impl Walk<'_> {
         let m = self.screen_from_texture;
         let corners = [[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
         let quad = ConvexPolygon::from_trusted(&corners.map(|t| apply(&m, t)));
-        let root = colour_of(self.tree.average());
+        let root = self.tree.mean_colour();
         let root_terminal = !self.tree.node_info(QuadTree::ROOT).0;
         let (nx, nz) = ((i1 - i0 + 1) as f64, (j1 - j0 + 1) as f64);
         match class {
@@ -1187,7 +1187,7 @@ impl Walk<'_> {
         }
         if self.over_budget() {
             // Out of budget: the texture's mean, the whole weight as bound.
-            let c = colour_of(self.tree.average());
+            let c = self.tree.mean_colour();
             self.add(c, &screen, true);
             return;
         }
@@ -1355,11 +1355,6 @@ fn clip_axis(p: &ConvexPolygon, axis: usize, lo: f64, hi: f64) -> ConvexPolygon 
     } else {
         p.clip_rect(f64::NEG_INFINITY, lo, f64::INFINITY, hi)
     }
-}
-
-#[inline]
-fn colour_of(c: crate::Unorm16Rgba) -> [f64; 4] {
-    c.0.map(|v| f64::from(v) * (1.0 / 65535.0))
 }
 
 /// The diagonal of the bounding box of `points`.

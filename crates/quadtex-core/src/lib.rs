@@ -49,7 +49,7 @@ pub mod vector;
 pub mod wrap;
 
 pub use build::{BuildOptions, BuildReport, TexelGrid};
-pub use colour::{Rgba, Unorm16Rgba, WeightedColour};
+pub use colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
 pub use error::Error;
 pub use exact::{PixelFilter, Projection, RegionIntegral};
 pub use footprint::Footprint;

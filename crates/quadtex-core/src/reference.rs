@@ -2,7 +2,7 @@
 //! fuzz targets and benchmarks can check the fast path against them.
 
 use crate::build::TexelGrid;
-use crate::colour::{Unorm16Rgba, WeightedColour};
+use crate::colour::WeightedColour;
 use crate::fragment::Fragment;
 use crate::tree::{NodeRef, QuadTree, unit_side};
 use crate::variant::{self, Variant, f_high, f_low};
@@ -50,7 +50,7 @@ pub fn truncated_tree_sum(tree: &QuadTree, fragment: &Fragment, max_level: u8) -
         let area = overlap(fragment.x0(), fragment.x1(), x0 / ex, x1)
             * overlap(fragment.z0(), fragment.z1(), z0 / ez, z1);
         if area > 0.0 {
-            acc += weigh(colour, area);
+            acc += weigh_f(colour, area);
         }
     });
     acc
@@ -158,8 +158,4 @@ fn overlap(a: f64, b: f64, lo: f64, hi: f64) -> f64 {
 
 fn weigh_f(c: [f64; 4], area: f64) -> WeightedColour {
     WeightedColour(c.map(|v| v * area))
-}
-
-fn weigh(c: Unorm16Rgba, area: f64) -> WeightedColour {
-    WeightedColour::from_unorm16(c, area)
 }

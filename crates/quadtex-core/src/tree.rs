@@ -21,7 +21,7 @@
 //! that encloses its fragment.
 
 use crate::Error;
-use crate::colour::{Unorm16Rgba, WeightedColour};
+use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
 use crate::fragment::{Fragment, overlap_1d};
 use crate::texel_block::TexelBlocks;
 use crate::variant::{self, Variant};
@@ -180,6 +180,8 @@ pub struct TraversalStats {
 #[derive(Debug, Clone, PartialEq)]
 pub struct QuadTree {
     depth: u8,
+    /// How node colours are stored.
+    encoding: ColourEncoding,
     /// Where texture space lies in the tree's square.
     aspect: Aspect,
     /// Padded node colours.
@@ -267,7 +269,7 @@ impl QuadTree {
         inner: &[u64],
         colours: Vec<Unorm16Rgba>,
     ) -> Result<QuadTree, Error> {
-        Self::from_parts_with_blocks(depth, aspect, inner, colours, None)
+        Self::from_parts_with_blocks(depth, aspect, ColourEncoding::Unorm16, inner, colours, None)
     }
 
     /// As [`QuadTree::from_parts_with_aspect`], with terminal squares of the
@@ -275,13 +277,23 @@ impl QuadTree {
     /// finest squares, texels of blocks included. Besides the tree's checks:
     /// block nodes are terminal, the flags cover exactly the block level's
     /// nodes, and each block node's colour is the mean of its texels.
+    ///
+    /// With [`ColourEncoding::Half`] the colours are half floats (HDR):
+    /// every channel must be finite and alpha in `[0, 1]`, and texel blocks
+    /// are not allowed.
     pub fn from_parts_with_blocks(
         depth: u8,
         aspect: Aspect,
+        encoding: ColourEncoding,
         inner: &[u64],
         colours: Vec<Unorm16Rgba>,
         texel_blocks: Option<TexelBlocks>,
     ) -> Result<QuadTree, Error> {
+        if encoding != ColourEncoding::Unorm16 && texel_blocks.is_some() {
+            return Err(Error::MalformedTree(
+                "texel blocks in a tree of half-float colours".into(),
+            ));
+        }
         let n = colours.len() as u64;
         if depth > MAX_DEPTH {
             return Err(Error::DepthTooLarge {
@@ -353,11 +365,23 @@ impl QuadTree {
         level_starts.push(PAD + n as usize);
         for (i, c) in colours.iter().enumerate() {
             let [r, g, b, a] = c.0;
-            if r > a || g > a || b > a {
-                return Err(Error::MalformedTree(format!(
-                    "node {i}: colour {:?} is not premultiplied (a channel exceeds alpha)",
-                    c.0
-                )));
+            match encoding {
+                ColourEncoding::Half => {
+                    let v = encoding.decode_colour(*c);
+                    if v.iter().any(|x| !x.is_finite()) || !(0.0..=1.0).contains(&v[3]) {
+                        return Err(Error::MalformedTree(format!(
+                            "node {i}: half-float colour {v:?} is not finite or its alpha is outside [0, 1]"
+                        )));
+                    }
+                }
+                _ => {
+                    if r > a || g > a || b > a {
+                        return Err(Error::MalformedTree(format!(
+                            "node {i}: colour {:?} is not premultiplied (a channel exceeds alpha)",
+                            c.0
+                        )));
+                    }
+                }
             }
         }
         let mut padded = crate::memory::try_with_capacity(PAD + colours.len(), "tree colours")?;
@@ -375,6 +399,7 @@ impl QuadTree {
             }
         }
         Self::finish(depth, aspect, padded, blocks, level_starts, texel_blocks)?
+            .with_encoding(encoding)
             .checked_averages()?
             .checked_blocks()
     }
@@ -432,6 +457,7 @@ impl QuadTree {
         }
         let mut tree = QuadTree {
             depth,
+            encoding: ColourEncoding::Unorm16,
             aspect,
             colours,
             blocks,
@@ -467,14 +493,39 @@ impl QuadTree {
         Ok(top)
     }
 
+    /// The tree with its colours read as `encoding`.
+    pub(crate) fn with_encoding(mut self, encoding: ColourEncoding) -> QuadTree {
+        self.encoding = encoding;
+        self
+    }
+
     /// Checks that every inner colour is the average of its children to
-    /// within rounding (|4·parent − Σ children| ≤ 4 per channel).
+    /// within rounding (|4·parent − Σ children| ≤ 4 per channel; for half
+    /// floats, within two steps of the larger magnitude).
     fn checked_averages(self) -> Result<QuadTree, Error> {
         for p in PAD..self.colours.len() {
             if !self.is_inner(p) {
                 continue;
             }
             let c = self.first_child(p);
+            if self.encoding == ColourEncoding::Half {
+                let parent = self.encoding.decode_colour(self.colours[p]);
+                for ch in 0..4 {
+                    let mean: f64 = (0..4)
+                        .map(|k| self.encoding.decode(self.colours[c + k].0[ch]))
+                        .sum::<f64>()
+                        / 4.0;
+                    let scale = parent[ch].abs().max(mean.abs()).max(6.1e-5);
+                    if (parent[ch] - mean).abs() > scale * (2.0 / 1024.0) {
+                        return Err(Error::MalformedTree(format!(
+                            "node {}: channel {ch} is {} but its children average {mean}",
+                            p - PAD,
+                            parent[ch]
+                        )));
+                    }
+                }
+                continue;
+            }
             for ch in 0..4 {
                 let sum: i64 = (0..4).map(|k| i64::from(self.colours[c + k].0[ch])).sum();
                 let parent = 4 * i64::from(self.colours[p].0[ch]);
@@ -561,8 +612,19 @@ impl QuadTree {
     }
 
     /// The texture's average colour (the root's colour).
-    pub fn average(&self) -> Unorm16Rgba {
-        self.colours[PAD]
+    pub fn average(&self) -> Rgba {
+        let [r, g, b, a] = self.mean_colour().map(|v| v as f32);
+        Rgba::new(r, g, b, a)
+    }
+
+    /// The texture's average colour in `f64`, as stored.
+    pub fn mean_colour(&self) -> [f64; 4] {
+        self.encoding.decode_colour(self.colours[PAD])
+    }
+
+    /// How node colours are stored: unorm16 (LDR) or half floats (HDR).
+    pub fn encoding(&self) -> ColourEncoding {
+        self.encoding
     }
 
     /// Bytes of memory the tree occupies (node colours, rank blocks, top table,
@@ -616,11 +678,11 @@ impl QuadTree {
                 let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
                 let (x1, z1) = ((x0 + side).min(ex) / ex, (z0 + side).min(ez) / ez);
                 let (x0, z0) = (x0 / ex, z0 / ez);
-                let a = (x1 - x0) * (z1 - z0) / 65535.0;
+                let a = (x1 - x0) * (z1 - z0);
                 let (x, z) = (0.5 * (x0 + x1) - 0.5, 0.5 * (z0 + z1) - 0.5);
                 for ch in 0..4 {
-                    mx[ch] += f64::from(c.0[ch]) * a * x;
-                    mz[ch] += f64::from(c.0[ch]) * a * z;
+                    mx[ch] += c[ch] * a * x;
+                    mz[ch] += c[ch] * a * z;
                 }
             });
             let max = |m: [f64; 4]| m.iter().fold(0f64, |a, v| a.max(v.abs()));
@@ -642,9 +704,8 @@ impl QuadTree {
                 }
                 let n = 1usize << d;
                 let mut grid = vec![[0.0; 4]; n * n];
-                self.for_each_leaf(d, |level, ix, iz, c| {
+                self.for_each_leaf(d, |level, ix, iz, colour| {
                     let span = 1usize << (d - level);
-                    let colour = c.0.map(|v| f64::from(v) / 65535.0);
                     let (i0, j0) = (ix as usize * span, iz as usize * span);
                     for j in j0..j0 + span {
                         grid[j * n + i0..j * n + i0 + span].fill(colour);
@@ -660,7 +721,9 @@ impl QuadTree {
     /// and all nodes at level `max_level`. Square `(level, ix, iz)` covers
     /// `[ix, ix+1) × [iz, iz+1)` scaled by `2^-level` in *tree space*
     /// ([`Aspect`]); squares of the pad are skipped. Order: depth first.
-    pub fn for_each_leaf(&self, max_level: u8, mut f: impl FnMut(u8, u32, u32, Unorm16Rgba)) {
+    /// Colours are decoded ([`ColourEncoding`]); a block's cells give the
+    /// exact mean of their texels.
+    pub fn for_each_leaf(&self, max_level: u8, mut f: impl FnMut(u8, u32, u32, [f64; 4])) {
         let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
         while let Some((node, level, ix, iz)) = stack.pop() {
             if self.aspect.is_pad(level, ix, iz) {
@@ -673,14 +736,17 @@ impl QuadTree {
                 let j = (max_level - level).min(tb.log2_side());
                 for cz in 0..1u32 << j {
                     for cx in 0..1u32 << j {
-                        let (sum, n) = tb.cell_sum(b, j, cx, cz);
-                        let half = u64::from(n / 2);
-                        let mean = sum.map(|v| ((v + half) / u64::from(n)) as u16);
-                        f(level + j, (ix << j) + cx, (iz << j) + cz, Unorm16Rgba(mean));
+                        let mean = tb.cell_mean(b, j, cx, cz);
+                        f(level + j, (ix << j) + cx, (iz << j) + cz, mean);
                     }
                 }
             } else if !self.is_inner(node) || level >= max_level {
-                f(level, ix, iz, self.colours[node]);
+                f(
+                    level,
+                    ix,
+                    iz,
+                    self.encoding.decode_colour(self.colours[node]),
+                );
             } else {
                 let c = self.first_child(node);
                 for k in 0..4 {
@@ -712,7 +778,9 @@ impl QuadTree {
         }
         let [w, h] = self.raster_size(level).map(|v| v as usize);
         let mut texels = crate::memory::try_vec(w * h, Unorm16Rgba::default(), "raster")?;
-        self.for_each_leaf(level, |l, ix, iz, colour| {
+        self.for_each_leaf(level, |l, ix, iz, c| {
+            // HDR colours are clamped to the raster's [0, 1].
+            let colour = Rgba::new(c[0] as f32, c[1] as f32, c[2] as f32, c[3] as f32).to_unorm16();
             let span = 1usize << (level - l);
             let (x0, z0) = (ix as usize * span, iz as usize * span);
             // A leaf above the aspect's level straddles the pad: keep its texture part.
@@ -778,7 +846,7 @@ impl QuadTree {
             ),
             _ => {
                 let p = n.0 as usize;
-                let c = self.colours[p].0.map(|v| f64::from(v) / 65535.0);
+                let c = self.encoding.decode_colour(self.colours[p]);
                 (self.is_inner(p) || self.block_at(p).is_some(), c)
             }
         }
@@ -875,16 +943,19 @@ impl QuadTree {
     /// `None` when the overlap is empty or crosses a border between squares
     /// whose colours differ. Renderers use it to skip cutting footprints that
     /// lie in a uniform region.
-    pub fn uniform_colour(&self, fragment: &Fragment) -> Option<Unorm16Rgba> {
+    pub fn uniform_colour(&self, fragment: &Fragment) -> Option<Rgba> {
         let f = self.aspect.tree_fragment(fragment)?;
         let mut node = PAD;
         let (mut level, mut ix, mut iz) = (0u8, 0u64, 0u64);
         loop {
             if let Some(b) = self.block_at(node) {
-                return self.uniform_in_block(b, level, ix, iz, &f);
+                return self
+                    .uniform_in_block(b, level, ix, iz, &f)
+                    .map(Unorm16Rgba::to_rgba);
             }
             if !self.is_inner(node) {
-                return Some(self.colours[node]);
+                let [r, g, b, a] = self.encoding.decode_colour(self.colours[node]);
+                return Some(Rgba::new(r as f32, g as f32, b as f32, a as f32));
             }
             let child_level = level + 1;
             let side = unit_side(child_level);
@@ -949,7 +1020,7 @@ impl QuadTree {
     /// (`≤ 0.5/65535 × area`): an inner colour is the exact mean of its
     /// region rounded once to 16 bits.
     pub fn weighted_colour(&self, fragment: &Fragment, max_level: u8) -> WeightedColour {
-        self.integrate::<false>(fragment, max_level, &mut TraversalStats::default())
+        self.weighted_colour_counted(fragment, max_level, &mut TraversalStats::default())
     }
 
     /// As [`QuadTree::weighted_colour`], adding the query's cost to `stats`.
@@ -959,17 +1030,21 @@ impl QuadTree {
         max_level: u8,
         stats: &mut TraversalStats,
     ) -> WeightedColour {
-        self.integrate::<true>(fragment, max_level, stats)
+        match self.encoding {
+            ColourEncoding::Half => self.integrate::<true>(fragment, max_level, stats),
+            _ => self.integrate::<false>(fragment, max_level, stats),
+        }
     }
 
+    /// The traversal; colours in unorm16 units (half floats scaled by 65535).
     #[inline]
-    fn integrate<const COUNT: bool>(
+    fn integrate<const HALF: bool>(
         &self,
         fragment: &Fragment,
         max_level: u8,
         stats: &mut TraversalStats,
     ) -> WeightedColour {
-        if COUNT {
+        {
             stats.queries += 1;
         }
         let Some(f) = self.aspect.tree_fragment(fragment) else {
@@ -995,7 +1070,7 @@ impl QuadTree {
         let start =
             self.top[top_table_offset(level) + ((sz as usize) << level) + sx as usize] as usize;
 
-        if COUNT {
+        {
             stats.nodes_visited += 1;
         }
         if level < k
@@ -1008,14 +1083,14 @@ impl QuadTree {
             return result(acc);
         }
         if level >= k || !self.is_inner(start) {
-            return result(weigh(self.colours[start], f.area()));
+            return result(weigh::<HALF>(self.colours[start], f.area()));
         }
         let side = unit_side(level);
         let (lo_x, lo_z) = (f64::from(sx) * side, f64::from(sz) * side);
         let vx = variant::classify(x0, x1, lo_x, lo_x + side);
         let vz = variant::classify(z0, z1, lo_z, lo_z + side);
         if vx == variant::SQUARE_INSIDE && vz == variant::SQUARE_INSIDE {
-            return result(weigh(self.colours[start], side * side));
+            return result(weigh::<HALF>(self.colours[start], side * side));
         }
 
         let mut acc = [0f64; 4];
@@ -1064,7 +1139,7 @@ impl QuadTree {
                 let colour = self.colours[first + c];
                 let (clo_x, clo_z) = (lo_x + (c & 1) as f64 * half, lo_z + (c >> 1) as f64 * half);
                 if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
-                    add(&mut acc, colour, child_area);
+                    add::<HALF>(&mut acc, colour, child_area);
                 } else if block >> c & 1 == 0 || !descend_allowed {
                     match self.block_at(first + c).filter(|_| descend_allowed) {
                         Some(b) => self.add_block(
@@ -1079,7 +1154,7 @@ impl QuadTree {
                         None => {
                             let area = overlap_1d(x0, x1, clo_x, clo_x + half)
                                 * overlap_1d(z0, z1, clo_z, clo_z + half);
-                            add(&mut acc, colour, area);
+                            add::<HALF>(&mut acc, colour, area);
                         }
                     }
                 } else {
@@ -1095,7 +1170,7 @@ impl QuadTree {
                 }
             }
         }
-        if COUNT {
+        {
             stats.nodes_visited += visited;
         }
         result(acc)
@@ -1121,16 +1196,26 @@ pub(crate) fn unit_side(level: u8) -> f64 {
     f64::from_bits((1023 - u64::from(level)) << 52)
 }
 
-#[inline]
-fn add(acc: &mut [f64; 4], colour: Unorm16Rgba, area: f64) {
-    for (a, &c) in acc.iter_mut().zip(&colour.0) {
-        *a += area * f64::from(c);
+/// A stored channel in unorm16 units: the integer, or a half float × 65535.
+#[inline(always)]
+fn units<const HALF: bool>(c: u16) -> f64 {
+    if HALF {
+        f64::from(half::f16::from_bits(c).to_f32()) * 65535.0
+    } else {
+        f64::from(c)
     }
 }
 
 #[inline]
-fn weigh(colour: Unorm16Rgba, area: f64) -> [f64; 4] {
-    colour.0.map(|c| area * f64::from(c))
+fn add<const HALF: bool>(acc: &mut [f64; 4], colour: Unorm16Rgba, area: f64) {
+    for (a, &c) in acc.iter_mut().zip(&colour.0) {
+        *a += area * units::<HALF>(c);
+    }
+}
+
+#[inline]
+fn weigh<const HALF: bool>(colour: Unorm16Rgba, area: f64) -> [f64; 4] {
+    colour.0.map(|c| area * units::<HALF>(c))
 }
 
 #[inline]
@@ -1161,6 +1246,16 @@ pub(crate) fn from_levels_with_blocks(
     aspect: Aspect,
     texel_blocks: Option<TexelBlocks>,
 ) -> Result<QuadTree, Error> {
+    from_levels_encoded(levels, aspect, texel_blocks, ColourEncoding::Unorm16)
+}
+
+/// As [`from_levels_with_blocks`], colours stored as `encoding`.
+pub(crate) fn from_levels_encoded(
+    levels: Vec<Vec<(bool, Unorm16Rgba)>>,
+    aspect: Aspect,
+    texel_blocks: Option<TexelBlocks>,
+    encoding: ColourEncoding,
+) -> Result<QuadTree, Error> {
     let block_bottom = texel_blocks
         .as_ref()
         .map_or(0, |b| b.level() + b.log2_side());
@@ -1186,4 +1281,5 @@ pub(crate) fn from_levels_with_blocks(
     }
     level_starts.push(colours.len());
     QuadTree::finish(depth, aspect, colours, blocks, level_starts, texel_blocks)
+        .map(|t| t.with_encoding(encoding))
 }

@@ -1852,7 +1852,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(report.swept_leaves, 8, "the diagonal crosses 8 leaves");
-        let a = t.average().to_rgba().to_array();
+        let a = t.average().to_array();
         assert!((f64::from(a[3]) - 0.5).abs() < 1e-4, "{a:?}");
     }
 }

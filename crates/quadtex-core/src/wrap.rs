@@ -154,7 +154,7 @@ impl BoxIntegral for QuadTree {
         self.weighted_colour_counted(f, k, stats)
     }
     fn whole_tile(&self) -> WeightedColour {
-        WeightedColour::from_unorm16(self.average(), 1.0)
+        WeightedColour(self.mean_colour())
     }
     fn finest_cell(&self) -> [f64; 2] {
         self.finest_cell_size()
@@ -336,7 +336,7 @@ pub(crate) fn uniform_colour_in(
     if f.area() <= 0.0 {
         return None;
     }
-    tree.uniform_colour(&f).map(|c| c.to_rgba())
+    tree.uniform_colour(&f)
 }
 
 /// `[lo, hi]` moved into `[0,1]` when it lies in one tile the wrap folds

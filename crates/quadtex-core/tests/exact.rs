@@ -259,7 +259,7 @@ fn a_million_tiles_cost_little() {
     let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
         .unwrap()
         .0;
-    let mean = tree.average().to_rgba();
+    let mean = tree.average();
     let texture = Texture::new(tree, Wrap::REPEAT);
     let corners = [
         [0.3, 0.1],

@@ -5,7 +5,7 @@ use std::io::{Read, Write};
 use std::path::Path;
 
 use quadtex_core::texel_block::BLOCK_LOG2_SIDE;
-use quadtex_core::{Aspect, BlockFormat, QuadTree, TexelBlocks, Unorm16Rgba};
+use quadtex_core::{Aspect, BlockFormat, ColourEncoding, QuadTree, TexelBlocks, Unorm16Rgba};
 
 use crate::atomic::{put, write_atomically};
 use crate::error::{Error, io};
@@ -17,9 +17,6 @@ pub const MAGIC: [u8; 8] = *b"\x89QTX\r\n\x1a\n";
 /// The version this library writes and reads.
 pub const FORMAT_VERSION: u32 = 1;
 const HEADER_BYTES: usize = 64;
-/// Colour format 1: four little-endian u16 per node, linear light,
-/// premultiplied RGBA, value v meaning v/65535.
-const COLOUR_UNORM16_PREMUL_LINEAR: u8 = 1;
 
 /// Facts about a `.qtx` file beyond the tree itself.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -86,7 +83,7 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
     header[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
     header[12..16].copy_from_slice(&(HEADER_BYTES as u32).to_le_bytes());
     header[16] = tree.depth();
-    header[17] = COLOUR_UNORM16_PREMUL_LINEAR;
+    header[17] = tree.encoding().code();
     header[18..20].copy_from_slice(&tree.aspect().shrink());
     header[20..24].copy_from_slice(&sw.to_le_bytes());
     header[24..28].copy_from_slice(&sh.to_le_bytes());
@@ -239,6 +236,7 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
     let tree = QuadTree::from_parts_with_blocks(
         header.depth,
         header.aspect,
+        header.encoding,
         &words,
         colours,
         texel_blocks,
@@ -307,6 +305,7 @@ const fn checksums_enforced() -> bool {
 
 struct Header {
     depth: u8,
+    encoding: ColourEncoding,
     aspect: Aspect,
     /// Texel blocks: their format and level.
     blocks: Option<(BlockFormat, u8)>,
@@ -402,12 +401,8 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
             Some((format, h[29]))
         }
     };
-    if h[17] != COLOUR_UNORM16_PREMUL_LINEAR {
-        return Err(bad(
-            "colour_format",
-            format!("unknown colour format {}", h[17]),
-        ));
-    }
+    let encoding = ColourEncoding::from_code(h[17])
+        .ok_or_else(|| bad("colour_format", format!("unknown colour format {}", h[17])))?;
     let nodes = u64_at(32);
     let inner = u64_at(40);
     if nodes > limits.max_nodes {
@@ -449,6 +444,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     )?;
     Ok(Header {
         depth,
+        encoding,
         aspect,
         blocks,
         nodes,
