@@ -510,17 +510,16 @@ impl QuadTree {
             let c = self.first_child(p);
             if self.encoding == ColourEncoding::Half {
                 let parent = self.encoding.decode_colour(self.colours[p]);
-                for ch in 0..4 {
+                for (ch, &stored) in parent.iter().enumerate() {
                     let mean: f64 = (0..4)
                         .map(|k| self.encoding.decode(self.colours[c + k].0[ch]))
                         .sum::<f64>()
                         / 4.0;
-                    let scale = parent[ch].abs().max(mean.abs()).max(6.1e-5);
-                    if (parent[ch] - mean).abs() > scale * (2.0 / 1024.0) {
+                    let scale = stored.abs().max(mean.abs()).max(6.1e-5);
+                    if (stored - mean).abs() > scale * (2.0 / 1024.0) {
                         return Err(Error::MalformedTree(format!(
-                            "node {}: channel {ch} is {} but its children average {mean}",
-                            p - PAD,
-                            parent[ch]
+                            "node {}: channel {ch} is {stored} but its children average {mean}",
+                            p - PAD
                         )));
                     }
                 }
