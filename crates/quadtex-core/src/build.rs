@@ -19,7 +19,7 @@
 //! rounding never accumulates up the tree.
 
 use crate::Error;
-use crate::colour::{Rgba, Unorm16Rgba};
+use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba};
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push, try_vec};
 use crate::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, BlockWriter};
 use crate::tree::{self, Aspect, MAX_DEPTH, MAX_NODES, QuadTree};
@@ -43,6 +43,10 @@ pub struct TexelGrid {
     /// The 8-bit sRGB texels (straight alpha) the texels were decoded from,
     /// kept so texel blocks can store them as they were.
     srgb8: Option<Vec<[u8; 4]>>,
+    /// HDR texels as half floats (linear, premultiplied, unclamped): the
+    /// packer then stores half floats ([`ColourEncoding::Half`]); `texels`
+    /// holds them clamped to `[0, 1]` for raster baselines.
+    half: Option<Vec<HalfRgba>>,
 }
 
 impl TexelGrid {
@@ -61,6 +65,7 @@ impl TexelGrid {
             height,
             texels,
             srgb8: None,
+            half: None,
         })
     }
 
@@ -82,6 +87,7 @@ impl TexelGrid {
             height,
             texels,
             srgb8: None,
+            half: None,
         })
     }
 
@@ -105,7 +111,59 @@ impl TexelGrid {
             height,
             texels,
             srgb8: Some(srgb8),
+            half: None,
         })
+    }
+
+    /// An HDR grid from row-major linear, premultiplied `f32` texels (row 0
+    /// at the top), as OpenEXR and Radiance files hold them: colour is kept
+    /// unclamped (above 1 and below 0) to half-float precision; alpha is
+    /// clamped to `[0, 1]`. A NaN or infinite channel is refused
+    /// ([`Error::NonFiniteTexel`] names the texel), never clamped. The
+    /// packer stores such grids as half floats ([`ColourEncoding::Half`]).
+    pub fn from_linear_f32(
+        width: u32,
+        height: u32,
+        texels: &[[f32; 4]],
+    ) -> Result<TexelGrid, Error> {
+        check_dimensions(width, height)?;
+        let expected = u64::from(width) * u64::from(height);
+        if texels.len() as u64 != expected {
+            return Err(Error::TexelCount {
+                expected,
+                actual: texels.len() as u64,
+            });
+        }
+        let mut half = crate::memory::try_with_capacity(texels.len(), "HDR texels")?;
+        let mut ldr = crate::memory::try_with_capacity(texels.len(), "texels")?;
+        for (i, t) in texels.iter().enumerate() {
+            if let Some(ch) = (0..4).find(|&ch| !t[ch].is_finite()) {
+                return Err(Error::NonFiniteTexel {
+                    col: (i % width as usize) as u32,
+                    row: (i / width as usize) as u32,
+                    channel: ['r', 'g', 'b', 'a'][ch],
+                    value: t[ch],
+                });
+            }
+            let a = t[3].clamp(0.0, 1.0);
+            let v = [t[0], t[1], t[2], a];
+            half.push(HalfRgba(
+                v.map(|c| ColourEncoding::Half.encode(f64::from(c))),
+            ));
+            ldr.push(Rgba::new(v[0], v[1], v[2], a).to_unorm16());
+        }
+        Ok(TexelGrid {
+            width,
+            height,
+            texels: ldr,
+            srgb8: None,
+            half: Some(half),
+        })
+    }
+
+    /// True for an HDR grid ([`TexelGrid::from_linear_f32`]).
+    pub fn is_hdr(&self) -> bool {
+        self.half.is_some()
     }
 
     /// The 8-bit sRGB texels the grid was made from, if it was
@@ -216,23 +274,57 @@ pub struct BuildReport {
     pub max_error: f64,
 }
 
-/// Per-square statistics of the bottom-up pass.
+/// A finest cell as the packer reads it: its stored colour, and how the
+/// bottom-up pass sums squares of them.
+pub(crate) trait Cell: Copy {
+    /// Per-square statistics of the bottom-up pass.
+    type Stats: Copy;
+    /// How the tree stores the colours made of these cells.
+    const ENCODING: ColourEncoding;
+    /// The stored colour of a terminal cell.
+    fn stored(self) -> Unorm16Rgba;
+    /// The statistics of one cell.
+    fn stats(self) -> Self::Stats;
+    /// The stats of the parts present (`None` when none is).
+    fn merge(parts: [Option<Self::Stats>; 4]) -> Option<Self::Stats>;
+    /// The rounded mean over `2^log2_cells` cells, as stored.
+    fn mean(s: &Self::Stats, log2_cells: u32) -> Unorm16Rgba;
+    /// Largest deviation of any cell from the stored `mean`, per channel,
+    /// in full-scale units (`1` = an LDR channel's range).
+    fn deviation(s: &Self::Stats, mean: Unorm16Rgba) -> f64;
+    /// The tolerance as the pass compares it: unorm16 rounds it down to
+    /// whole steps.
+    fn tolerance(t: f64) -> f64;
+    /// Square `(level, ix, iz)` as a whole tile ([`QuadTree::from_tiles`]).
+    fn tile(
+        b: &mut Builder<'_, Self>,
+        level: u8,
+        ix: usize,
+        iz: usize,
+    ) -> Result<(Self::Stats, Unorm16Rgba, Kind), Error>;
+}
+
+/// Sums, minima and maxima of unorm16 cells.
 #[derive(Clone, Copy)]
-struct Stats {
+pub(crate) struct Stats {
     sum: [u64; 4],
     min: [u16; 4],
     max: [u16; 4],
 }
 
-impl Stats {
-    fn of(c: Unorm16Rgba) -> Stats {
+impl Cell for Unorm16Rgba {
+    type Stats = Stats;
+    const ENCODING: ColourEncoding = ColourEncoding::Unorm16;
+    fn stored(self) -> Unorm16Rgba {
+        self
+    }
+    fn stats(self) -> Stats {
         Stats {
-            sum: c.0.map(u64::from),
-            min: c.0,
-            max: c.0,
+            sum: self.0.map(u64::from),
+            min: self.0,
+            max: self.0,
         }
     }
-    /// The stats of the parts present (`None` when none is).
     fn merge(parts: [Option<Stats>; 4]) -> Option<Stats> {
         let mut present = parts.into_iter().flatten();
         let mut s = present.next()?;
@@ -245,18 +337,94 @@ impl Stats {
         }
         Some(s)
     }
-    /// Rounded mean over `2^log2_cells` cells.
-    fn mean(&self, log2_cells: u32) -> Unorm16Rgba {
+    fn mean(s: &Stats, log2_cells: u32) -> Unorm16Rgba {
         let shift = log2_cells;
         let half = if shift == 0 { 0 } else { 1u64 << (shift - 1) };
-        Unorm16Rgba(self.sum.map(|s| ((s + half) >> shift) as u16))
+        Unorm16Rgba(s.sum.map(|v| ((v + half) >> shift) as u16))
     }
-    /// Largest deviation of any cell from `mean`, in unorm16 steps.
-    fn deviation(&self, mean: Unorm16Rgba) -> u16 {
-        (0..4)
-            .map(|ch| (self.max[ch] - mean.0[ch]).max(mean.0[ch] - self.min[ch]))
+    fn deviation(s: &Stats, mean: Unorm16Rgba) -> f64 {
+        let steps = (0..4)
+            .map(|ch| (s.max[ch] - mean.0[ch]).max(mean.0[ch] - s.min[ch]))
             .max()
-            .unwrap_or(0)
+            .unwrap_or(0);
+        f64::from(steps) / 65535.0
+    }
+    fn tolerance(t: f64) -> f64 {
+        (t * 65535.0).floor().min(65535.0) / 65535.0
+    }
+    fn tile(
+        b: &mut Builder<'_, Self>,
+        level: u8,
+        ix: usize,
+        iz: usize,
+    ) -> Result<(Stats, Unorm16Rgba, Kind), Error> {
+        b.tile(level, ix, iz)
+    }
+}
+
+/// A cell of an HDR texture: four half floats (linear, premultiplied,
+/// unclamped colour, alpha in `[0, 1]`), as the tree stores them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct HalfRgba(pub(crate) [u16; 4]);
+
+/// Sums, minima and maxima of half-float cells, in `f64`.
+#[derive(Clone, Copy)]
+pub(crate) struct HalfStats {
+    sum: [f64; 4],
+    min: [f64; 4],
+    max: [f64; 4],
+}
+
+impl Cell for HalfRgba {
+    type Stats = HalfStats;
+    const ENCODING: ColourEncoding = ColourEncoding::Half;
+    fn stored(self) -> Unorm16Rgba {
+        Unorm16Rgba(self.0)
+    }
+    fn stats(self) -> HalfStats {
+        let v = ColourEncoding::Half.decode_colour(Unorm16Rgba(self.0));
+        HalfStats {
+            sum: v,
+            min: v,
+            max: v,
+        }
+    }
+    fn merge(parts: [Option<HalfStats>; 4]) -> Option<HalfStats> {
+        let mut present = parts.into_iter().flatten();
+        let mut s = present.next()?;
+        for p in present {
+            for ch in 0..4 {
+                s.sum[ch] += p.sum[ch];
+                s.min[ch] = s.min[ch].min(p.min[ch]);
+                s.max[ch] = s.max[ch].max(p.max[ch]);
+            }
+        }
+        Some(s)
+    }
+    fn mean(s: &HalfStats, log2_cells: u32) -> Unorm16Rgba {
+        // Sums of halves over at most 2^60 cells: exact enough in f64,
+        // and a power-of-two division is exact.
+        let n = f64::from_bits((1023 + u64::from(log2_cells)) << 52);
+        Unorm16Rgba(s.sum.map(|v| ColourEncoding::Half.encode(v / n)))
+    }
+    fn deviation(s: &HalfStats, mean: Unorm16Rgba) -> f64 {
+        let m = ColourEncoding::Half.decode_colour(mean);
+        (0..4)
+            .map(|ch| (s.max[ch] - m[ch]).max(m[ch] - s.min[ch]))
+            .fold(0.0, f64::max)
+    }
+    fn tolerance(t: f64) -> f64 {
+        t
+    }
+    fn tile(
+        _: &mut Builder<'_, Self>,
+        _: u8,
+        _: usize,
+        _: usize,
+    ) -> Result<(HalfStats, Unorm16Rgba, Kind), Error> {
+        Err(Error::MalformedTree(
+            "HDR textures are not packed from tiles".into(),
+        ))
     }
 }
 
@@ -272,15 +440,15 @@ struct Tiles<'a> {
 
 /// What a square became.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
+pub(crate) enum Kind {
     Terminal,
     Inner,
     /// Terminal, its texels in a block.
     Block,
 }
 
-struct Builder<'a> {
-    cells: &'a [Unorm16Rgba],
+pub(crate) struct Builder<'a, C: Cell = Unorm16Rgba> {
+    cells: &'a [C],
     /// The 8-bit source of `cells`, when blocks store it.
     srgb8: Option<&'a [[u8; 4]]>,
     /// Texel blocks, when the tree is deep enough to have them.
@@ -290,11 +458,11 @@ struct Builder<'a> {
     tiles: Option<Tiles<'a>>,
     side: usize,
     depth: u8,
-    tolerance: u16,
+    tolerance: f64,
     levels: Vec<Vec<(bool, Unorm16Rgba)>>,
     nodes: u64,
     max_nodes: u64,
-    max_error: u16,
+    max_error: f64,
     /// Bytes held before the tree grows (texels, cell grid).
     fixed_bytes: u64,
     max_bytes: Option<u64>,
@@ -303,9 +471,9 @@ struct Builder<'a> {
     rows: usize,
 }
 
-impl Builder<'_> {
+impl<C: Cell> Builder<'_, C> {
     /// Cell at `(ix, iz)` of the finest level, `iz` counted from the bottom.
-    fn cell(&self, ix: usize, iz: usize) -> Unorm16Rgba {
+    fn cell(&self, ix: usize, iz: usize) -> C {
         self.cells[(self.rows - 1 - iz) * self.side + ix]
     }
 
@@ -317,16 +485,16 @@ impl Builder<'_> {
         level: u8,
         ix: usize,
         iz: usize,
-    ) -> Result<Option<(Stats, Unorm16Rgba, Kind)>, Error> {
+    ) -> Result<Option<(C::Stats, Unorm16Rgba, Kind)>, Error> {
         if self.aspect.is_pad(level, ix as u32, iz as u32) {
             return Ok(None);
         }
         if self.tiles.as_ref().is_some_and(|t| t.level == level) {
-            return self.tile(level, ix, iz).map(Some);
+            return C::tile(self, level, ix, iz).map(Some);
         }
         if level == self.depth {
             let c = self.cell(ix, iz);
-            return Ok(Some((Stats::of(c), c, Kind::Terminal)));
+            return Ok(Some((c.stats(), c.stored(), Kind::Terminal)));
         }
         let mut marks = [0usize; MAX_DEPTH as usize + 1];
         for (m, l) in marks.iter_mut().zip(&self.levels[usize::from(level) + 1..]) {
@@ -343,7 +511,7 @@ impl Builder<'_> {
                 children[k] = Some((c, kind));
             }
         }
-        let Some(stats) = Stats::merge(parts) else {
+        let Some(stats) = C::merge(parts) else {
             return Ok(None);
         };
         // Cells of the texture under this square: a power of two on each axis.
@@ -351,10 +519,10 @@ impl Builder<'_> {
         let below = u32::from(self.depth - level);
         let log2_cells =
             below.min(u32::from(self.depth - sx)) + below.min(u32::from(self.depth - sz));
-        let mean = stats.mean(log2_cells);
+        let mean = C::mean(&stats, log2_cells);
         // Pad children carry the mean, so the parent stays their average.
         let children = children.map(|c| c.unwrap_or((mean, Kind::Terminal)));
-        let deviation = stats.deviation(mean);
+        let deviation = C::deviation(&stats, mean);
         let discard = |b: &mut Self| {
             for (l, &m) in b.levels[usize::from(level) + 1..].iter_mut().zip(&marks) {
                 b.nodes -= (l.len() - m) as u64;
@@ -430,7 +598,7 @@ impl Builder<'_> {
                 match (w.format.is_srgb8(), self.srgb8) {
                     (true, Some(src)) => w.format.put_srgb8(&mut w.data, src[i]),
                     _ => {
-                        for v in self.cells[i].0 {
+                        for v in self.cells[i].stored().0 {
                             w.data.extend(v.to_le_bytes());
                         }
                     }
@@ -441,7 +609,7 @@ impl Builder<'_> {
     }
 }
 
-impl Builder<'_> {
+impl<C: Cell> Builder<'_, C> {
     /// Builds the whole tree from the root; `resampled` goes to the report.
     fn build(mut self, resampled: bool) -> Result<(QuadTree, BuildReport), Error> {
         let Some((_, root, kind)) = self.square(0, 0, 0)? else {
@@ -459,18 +627,20 @@ impl Builder<'_> {
         let report = BuildReport {
             cell_depth: self.depth,
             resampled,
-            max_error: f64::from(self.max_error) / 65535.0,
+            max_error: self.max_error,
         };
         let texel_blocks = match self.blocks {
             Some(w) => w.finish()?,
             None => None,
         };
         Ok((
-            tree::from_levels_with_blocks(self.levels, self.aspect, texel_blocks)?,
+            tree::from_levels_encoded(self.levels, self.aspect, texel_blocks, C::ENCODING)?,
             report,
         ))
     }
+}
 
+impl Builder<'_, Unorm16Rgba> {
     /// Square `(level, ix, iz)` as a whole tile: loads it, packs it on its
     /// own and splices its levels below this one (breadth-first order holds:
     /// squares are visited in the order their level lists them).
@@ -646,7 +816,7 @@ impl QuadTree {
             options.max_bytes,
             RASTER_KNOBS,
         )?;
-        let b = Builder {
+        let b = Builder::<Unorm16Rgba> {
             cells: &[],
             srgb8: None,
             // Made when the first tile shows the format.
@@ -655,11 +825,11 @@ impl QuadTree {
             tiles: Some(Tiles { level, side, load }),
             side: 0,
             depth,
-            tolerance: (options.tolerance * 65535.0).floor().min(65535.0) as u16,
+            tolerance: Unorm16Rgba::tolerance(options.tolerance),
             levels: vec![Vec::new(); usize::from(depth) + 1],
             nodes: 1,
             max_nodes: options.max_nodes,
-            max_error: 0,
+            max_error: 0.0,
             fixed_bytes,
             max_bytes: options.max_bytes,
             aspect: Aspect::SQUARE,
@@ -698,6 +868,15 @@ impl QuadTree {
             options.max_bytes,
             RASTER_KNOBS,
         )?;
+        if let Some(half) = &grid.half {
+            return build_hdr(
+                grid,
+                half,
+                options,
+                (depth, aspect, columns, rows),
+                fixed_bytes,
+            );
+        }
         let owned;
         let cells: &[Unorm16Rgba] = if resampled {
             owned = try_resample(grid, columns, rows)?;
@@ -705,7 +884,7 @@ impl QuadTree {
         } else {
             &grid.texels
         };
-        let tolerance = (options.tolerance * 65535.0).floor().min(65535.0) as u16;
+        let tolerance = Unorm16Rgba::tolerance(options.tolerance);
         // Blocks where the block level lies wholly in the texture.
         let blocks = depth
             .checked_sub(BLOCK_LOG2_SIDE)
@@ -729,7 +908,7 @@ impl QuadTree {
             levels: vec![Vec::new(); usize::from(depth) + 1],
             nodes: 1,
             max_nodes: options.max_nodes,
-            max_error: 0,
+            max_error: 0.0,
             fixed_bytes,
             max_bytes: options.max_bytes,
             aspect,
@@ -737,6 +916,53 @@ impl QuadTree {
         };
         b.build(resampled)
     }
+}
+
+/// Packs the half-float texels of an HDR grid (no texel blocks).
+fn build_hdr(
+    grid: &TexelGrid,
+    half: &[HalfRgba],
+    options: &BuildOptions,
+    (depth, aspect, columns, rows): (u8, Aspect, usize, usize),
+    fixed_bytes: u64,
+) -> Result<(QuadTree, BuildReport), Error> {
+    let resampled = grid.width as usize != columns || grid.height as usize != rows;
+    let owned;
+    let cells: &[HalfRgba] = if resampled {
+        let decode = |i: usize| {
+            ColourEncoding::Half
+                .decode_colour(Unorm16Rgba(half[i].0))
+                .map(|v| v as f32)
+        };
+        owned = resample_with(
+            (grid.width as usize, grid.height as usize),
+            (columns, rows),
+            decode,
+            |acc| HalfRgba(acc.map(|v| ColourEncoding::Half.encode(f64::from(v)))),
+        )?;
+        &owned
+    } else {
+        half
+    };
+    let b = Builder::<HalfRgba> {
+        cells,
+        srgb8: None,
+        blocks: None,
+        texel_blocks_allowed: false,
+        tiles: None,
+        side: columns,
+        depth,
+        tolerance: options.tolerance,
+        levels: vec![Vec::new(); usize::from(depth) + 1],
+        nodes: 1,
+        max_nodes: options.max_nodes,
+        max_error: 0.0,
+        fixed_bytes,
+        max_bytes: options.max_bytes,
+        aspect,
+        rows,
+    };
+    b.build(resampled)
 }
 
 /// The format texel blocks keep `grid` in: its 8-bit source when it has
@@ -787,25 +1013,44 @@ fn try_resample(
     columns: usize,
     rows_out: usize,
 ) -> Result<Vec<Unorm16Rgba>, Error> {
+    resample_with(
+        (grid.width as usize, grid.height as usize),
+        (columns, rows_out),
+        |i| grid.texels[i].0.map(f32::from),
+        |acc| {
+            let q = acc.map(|v| (v + 0.5).clamp(0.0, 65535.0) as u16);
+            let a = q[3];
+            Unorm16Rgba([q[0].min(a), q[1].min(a), q[2].min(a), a])
+        },
+    )
+}
+
+/// Exact area-weighted resampling of `width × height` texels (`texel(i)`,
+/// row-major from the top) onto `columns × rows` cells, each made by `cell`
+/// from its weighted sum: a horizontal pass into `f32` rows, then a
+/// vertical one.
+fn resample_with<T: Copy + Default>(
+    (width, height): (usize, usize),
+    (columns, rows_out): (usize, usize),
+    texel: impl Fn(usize) -> [f32; 4],
+    cell: impl Fn([f32; 4]) -> T,
+) -> Result<Vec<T>, Error> {
     let side = columns;
-    let xw = weights_1d(grid.width as usize, columns);
-    let zw = weights_1d(grid.height as usize, rows_out);
-    // Horizontal pass into f32 rows, then vertical pass with rounding once.
-    let w = grid.width as usize;
-    let mut rows = try_vec(grid.height as usize * side, [0f32; 4], "resampling rows")?;
-    for row in 0..grid.height as usize {
-        let src = &grid.texels[row * w..(row + 1) * w];
+    let xw = weights_1d(width, columns);
+    let zw = weights_1d(height, rows_out);
+    let mut rows = try_vec(height * side, [0f32; 4], "resampling rows")?;
+    for row in 0..height {
         for (cx, taps) in xw.iter().enumerate() {
             let mut acc = [0f32; 4];
             for &(col, wgt) in taps {
-                for (a, &c) in acc.iter_mut().zip(&src[col].0) {
-                    *a += wgt * f32::from(c);
+                for (a, c) in acc.iter_mut().zip(texel(row * width + col)) {
+                    *a += wgt * c;
                 }
             }
             rows[row * side + cx] = acc;
         }
     }
-    let mut out = try_vec(side * rows_out, Unorm16Rgba::default(), "cell grid")?;
+    let mut out = try_vec(side * rows_out, T::default(), "cell grid")?;
     for (cz, taps) in zw.iter().enumerate() {
         for cx in 0..side {
             let mut acc = [0f32; 4];
@@ -814,9 +1059,7 @@ fn try_resample(
                     *a += wgt * c;
                 }
             }
-            let q = acc.map(|v| (v + 0.5).clamp(0.0, 65535.0) as u16);
-            let a = q[3];
-            out[cz * side + cx] = Unorm16Rgba([q[0].min(a), q[1].min(a), q[2].min(a), a]);
+            out[cz * side + cx] = cell(acc);
         }
     }
     Ok(out)
@@ -1207,6 +1450,91 @@ mod block_tests {
                 .starts_with("tile (1, 1) is 16-bit or float, the first tile was 8-bit"),
             "{e}"
         );
+    }
+
+    /// HDR texels (up to 1000, below 0, translucent) pack into half floats
+    /// and integrate back within half-float precision; strips and odd sizes
+    /// too; a NaN texel is refused by position.
+    #[test]
+    fn hdr_texels_keep_their_range_to_half_precision() {
+        let value = |c: u32, r: u32| {
+            let h = (c.wrapping_mul(2_654_435_761) ^ r.wrapping_mul(40_503)) % 1000;
+            let v = match h % 4 {
+                0 => 1000.0 - h as f32 / 7.0,
+                1 => -(h as f32) / 300.0,
+                2 => h as f32 / 1000.0,
+                _ => 3.0,
+            };
+            [v, 0.5 * v, -0.25, if h % 5 == 0 { 0.5 } else { 1.0 }]
+        };
+        for (w, h) in [(16u32, 16u32), (32, 4), (5, 3)] {
+            let texels: Vec<[f32; 4]> = (0..h)
+                .flat_map(|r| (0..w).map(move |c| value(c, r)))
+                .collect();
+            let g = TexelGrid::from_linear_f32(w, h, &texels).unwrap();
+            assert!(g.is_hdr());
+            let (t, report) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+            assert_eq!(t.encoding(), ColourEncoding::Half);
+            assert!(t.texel_blocks().is_none());
+            let exact = |f: &Fragment| {
+                // Σ texel × overlap, texels as rectangles of the unit square.
+                let mut acc = [0f64; 4];
+                for r in 0..h {
+                    for c in 0..w {
+                        let (x0, x1) =
+                            (f64::from(c) / f64::from(w), f64::from(c + 1) / f64::from(w));
+                        let (z0, z1) = (
+                            1.0 - f64::from(r + 1) / f64::from(h),
+                            1.0 - f64::from(r) / f64::from(h),
+                        );
+                        let a = (f.x1().min(x1) - f.x0().max(x0)).max(0.0)
+                            * (f.z1().min(z1) - f.z0().max(z0)).max(0.0);
+                        for (s, v) in acc.iter_mut().zip(value(c, r)) {
+                            *s += a * f64::from(v);
+                        }
+                    }
+                }
+                acc
+            };
+            let power_of_two = w.is_power_of_two() && h.is_power_of_two();
+            assert_eq!(report.resampled, !power_of_two);
+            let fragments: Vec<Fragment> = if power_of_two {
+                (0..h)
+                    .flat_map(|r| (0..w).map(move |c| (c, r)))
+                    .map(|(c, r)| {
+                        Fragment::new(
+                            f64::from(c) / f64::from(w),
+                            1.0 - f64::from(r + 1) / f64::from(h),
+                            f64::from(c + 1) / f64::from(w),
+                            1.0 - f64::from(r) / f64::from(h),
+                        )
+                        .unwrap()
+                    })
+                    .chain([Fragment::new(0.1, 0.2, 0.7, 0.9).unwrap()])
+                    .collect()
+            } else {
+                vec![Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap()]
+            };
+            for f in fragments {
+                let got = t.weighted_colour(&f, 30).0;
+                let want = exact(&f);
+                for (a, b) in got.iter().zip(want) {
+                    // Half floats: 11 significant bits, rounded once per
+                    // texel and once per inner mean.
+                    let tol = f.area() * 1e-3 + b.abs() * 2.0 / 1024.0;
+                    assert!((a - b).abs() <= tol, "{w}x{h} {f:?}: {got:?} vs {want:?}");
+                }
+            }
+        }
+        let mut texels = vec![[0.5f32; 4]; 12];
+        texels[7][1] = f32::NAN;
+        let e = TexelGrid::from_linear_f32(4, 3, &texels).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "texel (3, 1) has g = NaN: HDR texels must be finite"
+        );
+        texels[7][1] = f32::INFINITY;
+        assert!(TexelGrid::from_linear_f32(4, 3, &texels).is_err());
     }
 
     /// Edges of vector-like art stay nodes where nodes are cheaper than a

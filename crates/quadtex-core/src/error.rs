@@ -98,6 +98,17 @@ pub enum Error {
         /// The size of the refused allocation, in bytes.
         bytes: u64,
     },
+    /// An HDR texel with a NaN or infinite channel: refused, never clamped.
+    NonFiniteTexel {
+        /// Its column.
+        col: u32,
+        /// Its row (0 at the top).
+        row: u32,
+        /// The channel (`r`, `g`, `b`, `a`).
+        channel: char,
+        /// The value.
+        value: f32,
+    },
     /// A tile of a tiled texture in another precision than the first one
     /// (8-bit sRGB against 16-bit or float): one tree keeps its texel
     /// blocks in one format.
@@ -164,6 +175,15 @@ impl fmt::Display for Error {
                 f,
                 "out of memory: {what} needed {} more and the system refused it (lower --max-level, or set --memory-limit to refuse such work up front)",
                 crate::memory::format_bytes(*bytes)
+            ),
+            Error::NonFiniteTexel {
+                col,
+                row,
+                channel,
+                value,
+            } => write!(
+                f,
+                "texel ({col}, {row}) has {channel} = {value}: HDR texels must be finite"
             ),
             Error::TileFormat {
                 row,

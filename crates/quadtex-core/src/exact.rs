@@ -401,7 +401,8 @@ pub(crate) fn integrate_region(
             let wgt = filter.integral(&sliver, centre);
             out.colour += WeightedColour::from_colour(c, wgt);
             out.weight += wgt;
-            out.error_bound += filter.k_max() * sliver.area();
+            // Unit-contrast bounds scale with an HDR tree's colour range.
+            out.error_bound += filter.k_max() * sliver.area() * tree.bound_scale();
         }
         if region.is_empty() {
             return out;
@@ -464,8 +465,11 @@ pub(crate) fn integrate_region(
         visited: 0,
         edge_means: [None; 4],
     };
+    let before = walk.out.error_bound;
     walk.run(lo, hi);
     stats.traversal.nodes_visited += walk.visited;
+    // The walk's bounds assume colour channels in [0, 1]; HDR colours span more.
+    walk.out.error_bound = before + (walk.out.error_bound - before) * tree.bound_scale();
     finite_or_nothing(walk.out)
 }
 

@@ -182,6 +182,10 @@ pub struct QuadTree {
     depth: u8,
     /// How node colours are stored.
     encoding: ColourEncoding,
+    /// What error bounds computed for unit contrast are multiplied by:
+    /// 1 for unorm16 colours (channels in `[0, 1]`), the largest channel
+    /// range (at least 1) for half floats.
+    bound_scale: f64,
     /// Where texture space lies in the tree's square.
     aspect: Aspect,
     /// Padded node colours.
@@ -458,6 +462,7 @@ impl QuadTree {
         let mut tree = QuadTree {
             depth,
             encoding: ColourEncoding::Unorm16,
+            bound_scale: 1.0,
             aspect,
             colours,
             blocks,
@@ -496,7 +501,27 @@ impl QuadTree {
     /// The tree with its colours read as `encoding`.
     pub(crate) fn with_encoding(mut self, encoding: ColourEncoding) -> QuadTree {
         self.encoding = encoding;
+        self.bound_scale = match encoding {
+            ColourEncoding::Unorm16 => 1.0,
+            _ => {
+                let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
+                for c in &self.colours[PAD..] {
+                    for (ch, v) in encoding.decode_colour(*c).into_iter().enumerate() {
+                        lo[ch] = lo[ch].min(v);
+                        hi[ch] = hi[ch].max(v);
+                    }
+                }
+                (0..4).map(|ch| hi[ch] - lo[ch]).fold(1.0, f64::max)
+            }
+        };
         self
+    }
+
+    /// What the error bounds of [`crate::exact`], derived for colour
+    /// channels in `[0, 1]`, are multiplied by for this tree: 1 for unorm16
+    /// colours, the widest channel range (at least 1) for HDR colours.
+    pub fn bound_scale(&self) -> f64 {
+        self.bound_scale
     }
 
     /// Checks that every inner colour is the average of its children to
