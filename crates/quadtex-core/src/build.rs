@@ -1465,7 +1465,12 @@ mod block_tests {
                 2 => h as f32 / 1000.0,
                 _ => 3.0,
             };
-            [v, 0.5 * v, -0.25, if h % 5 == 0 { 0.5 } else { 1.0 }]
+            [
+                v,
+                0.5 * v,
+                -0.25,
+                if h.is_multiple_of(5) { 0.5 } else { 1.0 },
+            ]
         };
         for (w, h) in [(16u32, 16u32), (32, 4), (5, 3)] {
             let texels: Vec<[f32; 4]> = (0..h)
