@@ -207,6 +207,11 @@ typedef struct QtxTextureInfo {
      */
     uint64_t rows;
     /**
+     * How nodes store colour: 1 = unorm16 (LDR, channels in `[0, 1]`),
+     * 2 = half floats (HDR: OpenEXR and Radiance sources, unclamped).
+     */
+    uint32_t colour_format;
+    /**
      * Nodes in the tree.
      */
     uint64_t node_count;

@@ -207,6 +207,101 @@ fn photographs_pack_below_a_mip_pyramid_and_stay_exact() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// An EXR with values up to 1000 and below 0 round-trips through `pack` →
+/// `query` within half-float precision; `info` names the storage; an EXR
+/// with a NaN texel is refused, naming the file and the texel, and nothing
+/// is written.
+#[test]
+fn hdr_exr_round_trips_to_half_precision() {
+    let dir = temp_dir("hdr");
+    let (w, h) = (16u32, 8u32);
+    let value = |c: u32, r: u32| {
+        let k = (c * 7 + r * 13) % 16;
+        let v = match k % 3 {
+            0 => 1000.0 - k as f32,
+            1 => -(k as f32) / 4.0,
+            _ => k as f32 / 100.0,
+        };
+        Rgba::new(v, v * 0.5, 2.0, if k == 5 { 0.5 } else { 1.0 })
+    };
+    let image = LinearImage {
+        width: w,
+        height: h,
+        pixels: (0..h)
+            .flat_map(|r| (0..w).map(move |c| value(c, r)))
+            .collect(),
+    };
+    let exr = dir.join("hdr.exr");
+    save_image(&exr, &image).unwrap();
+    let qtx = dir.join("hdr.qtx");
+    let out = run(
+        &["pack", exr.to_str().unwrap(), "-o", qtx.to_str().unwrap()],
+        "",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let info = run(&["info", qtx.to_str().unwrap()], "");
+    let info = String::from_utf8_lossy(&info.stdout).into_owned();
+    assert!(info.contains("half-float"), "{info}");
+    let input: String = (0..h)
+        .flat_map(|r| (0..w).map(move |c| (c, r)))
+        .map(|(c, r)| {
+            let (x0, z1) = (
+                f64::from(c) / f64::from(w),
+                1.0 - f64::from(r) / f64::from(h),
+            );
+            format!(
+                "{x0} {} {} {z1}\n",
+                z1 - 1.0 / f64::from(h),
+                x0 + 1.0 / f64::from(w)
+            )
+        })
+        .collect();
+    let out = run(&["query", qtx.to_str().unwrap()], &input);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let area = 1.0 / f64::from(w * h);
+    for (i, line) in String::from_utf8(out.stdout).unwrap().lines().enumerate() {
+        let (c, r) = (i as u32 % w, i as u32 / w);
+        let want = value(c, r).to_array();
+        for (got, want) in line
+            .split(' ')
+            .map(|v| v.parse::<f64>().unwrap() / area)
+            .zip(want)
+        {
+            // Half floats: 11 significant bits.
+            let tol = f64::from(want).abs() / 1024.0 + 1e-6;
+            assert!(
+                (got - f64::from(want)).abs() <= tol,
+                "texel ({c}, {r}): {line} vs {want:?}"
+            );
+        }
+    }
+    let mut bad = image.clone();
+    bad.pixels[3 * w as usize + 2].g = f32::NAN;
+    let nan = dir.join("nan.exr");
+    save_image(&nan, &bad).unwrap();
+    let none = dir.join("nan.qtx");
+    let out = run(
+        &["pack", nan.to_str().unwrap(), "-o", none.to_str().unwrap()],
+        "",
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("nan.exr") && stderr.contains("texel (2, 3) has g = NaN"),
+        "{stderr}"
+    );
+    assert!(!none.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn bad_query_lines_name_the_line_and_fail() {
     let (dir, _, qtx) = packed_shapes("query", &[]);

@@ -121,18 +121,23 @@ def pack(
     source: Union[_StrPath, npt.ArrayLike],
     tolerance: float = 0.0,
     max_level: Optional[int] = None,
+    hdr: bool = False,
 ) -> Texture:
     """Packs an image into a texture, as ``quadtex pack`` does.
 
-    source: a path to a PNG, JPEG or OpenEXR image or an SVG document, or an
-        array ``(H, W)`` or ``(H, W, C)`` with C = 1 (grey), 2 (grey, alpha),
-        3 (RGB) or 4 (RGBA), row 0 at the top:
+    source: a path to a PNG, JPEG, OpenEXR or Radiance ``.hdr`` image or an
+        SVG document (OpenEXR and ``.hdr`` files pack as HDR textures: half
+        floats, unclamped), or an array ``(H, W)`` or ``(H, W, C)`` with
+        C = 1 (grey), 2 (grey, alpha), 3 (RGB) or 4 (RGBA), row 0 at the top:
 
         * ``uint8`` / ``uint16``: sRGB-encoded, straight alpha, exactly as an
           8- / 16-bit PNG is decoded (sRGB → linear, then premultiplied);
-        * floating point: linear light, *premultiplied* alpha, as an OpenEXR
-          file is read (alpha clamped to [0, 1], colour to [0, alpha]; without
-          alpha, colour clamped to [0, 1]); NaN or infinity is a ValueError.
+          8-bit texels are kept as they are in the tree's texel blocks;
+        * floating point: linear light, *premultiplied* alpha. With
+          ``hdr=True`` kept unclamped as half floats (alpha clamped to
+          [0, 1]), as an OpenEXR file is read; otherwise clamped (alpha to
+          [0, 1], colour to [0, alpha]; without alpha, colour to [0, 1]).
+          NaN or infinity is a ValueError.
 
     tolerance: in [0, 1]; largest per-channel deviation (linear,
         premultiplied) of a texel from its leaf's colour. 0 is lossless.

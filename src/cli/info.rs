@@ -101,10 +101,11 @@ pub fn run(args: Args) -> Result<()> {
     }
     writeln!(
         out,
-        "memory:      {} ({:.3} bytes/node with blocks; colour 8 B/node as unorm16 RGBA)",
+        "memory:      {} ({:.3} bytes/node with blocks; colour 8 B/node)",
         human_bytes(bytes),
         bytes as f64 / tree.node_count() as f64
     )?;
+    writeln!(out, "colours:     {}", tree.encoding().name())?;
     let (w, h) = if meta.source_width > 0 {
         (meta.source_width, meta.source_height)
     } else {

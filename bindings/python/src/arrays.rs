@@ -217,15 +217,36 @@ fn rgba<T: Copy, U: Copy>(px: ArrayView1<'_, T>, opaque: U, f: impl Fn(T) -> U) 
 
 impl ImageView<'_> {
     /// The texels, as `quadtex-io` decodes a PNG (integers: sRGB, straight
-    /// alpha, premultiplied after decoding) or an OpenEXR file (floats:
-    /// linear, premultiplied; alpha clamped to `[0,1]`, colour to `[0, alpha]`;
-    /// without alpha, colour clamped to `[0,1]`).
-    pub(crate) fn to_texels(&self) -> Result<TexelGrid, quadtex_core::Error> {
+    /// alpha, premultiplied after decoding; 8-bit ones kept for texel
+    /// blocks) or, with `hdr`, an OpenEXR file (floats: linear,
+    /// premultiplied, unclamped, alpha clamped to `[0,1]`, NaN and infinity
+    /// refused). Floats without `hdr` are clamped: alpha to `[0,1]`,
+    /// colour to `[0, alpha]`; without alpha, colour to `[0,1]`.
+    pub(crate) fn to_texels(&self, hdr: bool) -> Result<TexelGrid, quadtex_core::Error> {
         let (h, w, _) = match self {
             ImageView::U8(v) => v.dim(),
             ImageView::U16(v) => v.dim(),
             ImageView::F32(v) => v.dim(),
         };
+        match self {
+            ImageView::U8(v) => {
+                let bytes = v
+                    .lanes(Axis(2))
+                    .into_iter()
+                    .map(|px| rgba(px, u8::MAX, |x| x))
+                    .collect();
+                return TexelGrid::from_srgb8(dim_u32(w), dim_u32(h), bytes);
+            }
+            ImageView::F32(v) if hdr => {
+                let texels: Vec<[f32; 4]> = v
+                    .lanes(Axis(2))
+                    .into_iter()
+                    .map(|px| rgba(px, 1.0, |x| x))
+                    .collect();
+                return TexelGrid::from_linear_f32(dim_u32(w), dim_u32(h), &texels);
+            }
+            _ => {}
+        }
         let mut texels: Vec<Unorm16Rgba> = Vec::with_capacity(h * w);
         let lut = decode_table();
         let srgb = |p: [u16; 4]| {

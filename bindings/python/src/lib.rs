@@ -226,12 +226,13 @@ fn open(py: Python<'_>, path: PathBuf) -> PyResult<Texture> {
 
 /// Packs an image file (PNG, JPEG, EXR, SVG) or a numpy array into a texture.
 #[pyfunction]
-#[pyo3(signature = (source, tolerance = 0.0, max_level = None))]
+#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false))]
 fn pack(
     py: Python<'_>,
     source: &Bound<'_, PyAny>,
     tolerance: f64,
     max_level: Option<i64>,
+    hdr: bool,
 ) -> PyResult<Texture> {
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
         return Err(PyValueError::new_err(format!(
@@ -257,7 +258,7 @@ fn pack(
     };
     let (tree, size) = py
         .detach(|| {
-            let grid = image.to_texels()?;
+            let grid = image.to_texels(hdr)?;
             let size = (grid.width(), grid.height());
             QuadTree::from_texels(&grid, &options).map(|(tree, _)| (tree, size))
         })

@@ -230,11 +230,12 @@ def test_pack_png_declaring_100000_squared(tmp_path):
         quadtex.pack(path)
 
 
-def test_pack_radiance_hdr_is_unsupported(tmp_path):
+def test_pack_radiance_hdr_packs_unclamped(tmp_path):
     path = tmp_path / "sky.hdr"
-    path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 2\n" + bytes([128, 64, 32, 129]) * 4)
-    with pytest.raises(ValueError, match=r"sky\.hdr: .*not supported"):
-        quadtex.pack(path)
+    # RGBE (128, 64, 32, 131): 4.0, 2.0, 1.0 — above 1, kept.
+    path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 2\n" + bytes([128, 64, 32, 131]) * 4)
+    tex = quadtex.pack(path)
+    np.testing.assert_allclose(tex.integrate([[0, 0, 1, 1]])[0], [4.0, 2.0, 1.0, 1.0], rtol=2e-2)
 
 
 SVG_HEAD = '<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" viewBox="0 0 10 10">'

@@ -46,6 +46,24 @@ def test_strips_pack_their_own_cells_and_integrate_exactly(rng, shape):
         np.testing.assert_allclose(got[0, :3], exact_integral(texels, WHOLE)[0], atol=1e-5)
 
 
+def test_hdr_float_arrays_keep_their_range_to_half_precision(rng):
+    texels = rng.random((8, 16, 4)) * np.array([2000.0, -4.0, 1.0, 1.0]) - np.array([1000.0, 0, 0, 0])
+    texels[..., 3] = 1.0
+    ldr = quadtex.pack(texels)
+    hdr = quadtex.pack(texels, hdr=True)
+    rects = np.array([[c / 16, 1 - (r + 1) / 8, (c + 1) / 16, 1 - r / 8] for r in range(8) for c in range(16)])
+    got = hdr.integrate(rects) * 128
+    want = texels.reshape(-1, 4)
+    # Half floats: 11 significant bits.
+    np.testing.assert_allclose(got, want, rtol=1 / 1024, atol=1e-6)
+    # Without hdr the same floats are clamped to [0, alpha].
+    assert ldr.integrate(rects).max() <= 1 / 128 + 1e-9
+    bad = texels.copy()
+    bad[2, 3, 1] = np.nan
+    with pytest.raises(ValueError):
+        quadtex.pack(bad, hdr=True)
+
+
 def test_float_arrays_are_linear_premultiplied():
     px = np.array([0.2, 0.1, 0.05, 0.5], dtype=np.float32)
     tex = quadtex.pack(np.broadcast_to(px, (4, 4, 4)))

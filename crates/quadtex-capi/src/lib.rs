@@ -123,6 +123,9 @@ pub struct QtxTextureInfo {
     pub columns: u64,
     /// Rows of the finest grid over the texture.
     pub rows: u64,
+    /// How nodes store colour: 1 = unorm16 (LDR, channels in `[0, 1]`),
+    /// 2 = half floats (HDR: OpenEXR and Radiance sources, unclamped).
+    pub colour_format: u32,
     /// Nodes in the tree.
     pub node_count: u64,
     /// Bytes the tree occupies in memory.

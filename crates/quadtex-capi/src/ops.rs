@@ -236,6 +236,7 @@ pub(crate) fn info(texture: &QtxTexture) -> QtxTextureInfo {
         depth: u32::from(tree.depth()),
         columns,
         rows,
+        colour_format: u32::from(tree.encoding().code()),
         node_count: tree.node_count(),
         memory_bytes: tree.memory_bytes(),
         mean: tree.average().to_array(),

@@ -179,27 +179,16 @@ fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Err
         .to_unorm16()
     };
     match image {
-        // Float images (OpenEXR) are linear and premultiplied already.
-        DynamicImage::ImageRgba32F(buf) => texels.extend(buf.pixels().map(|p| {
-            // A NaN alpha is no coverage (and must not reach `clamp` as a bound).
-            let a = if p[3].is_nan() {
-                0.0
-            } else {
-                p[3].clamp(0.0, 1.0)
-            };
-            let c = |v: f32| if v.is_finite() { v.clamp(0.0, a) } else { 0.0 };
-            Rgba::new(c(p[0]), c(p[1]), c(p[2]), a).to_unorm16()
-        })),
-        DynamicImage::ImageRgb32F(buf) => texels.extend(buf.pixels().map(|p| {
-            let c = |v: f32| {
-                if v.is_finite() {
-                    v.clamp(0.0, 1.0)
-                } else {
-                    0.0
-                }
-            };
-            Rgba::opaque(c(p[0]), c(p[1]), c(p[2])).to_unorm16()
-        })),
+        // Float images (OpenEXR, Radiance) are HDR: linear, premultiplied
+        // already, kept unclamped; NaN or infinite texels are refused.
+        DynamicImage::ImageRgba32F(buf) => {
+            let texels: Vec<[f32; 4]> = buf.pixels().map(|p| p.0).collect();
+            return TexelGrid::from_linear_f32(w, h, &texels);
+        }
+        DynamicImage::ImageRgb32F(buf) => {
+            let texels: Vec<[f32; 4]> = buf.pixels().map(|p| [p[0], p[1], p[2], 1.0]).collect();
+            return TexelGrid::from_linear_f32(w, h, &texels);
+        }
         other => texels.extend(other.to_rgba16().pixels().map(|p| to_texel(p.0))),
     }
     TexelGrid::new(w, h, texels)
@@ -463,36 +452,32 @@ mod tests {
     }
 
     #[test]
-    fn float_texels_with_nan_or_infinite_alpha_do_not_panic() {
-        let img = DynamicImage::ImageRgba32F(
-            image::ImageBuffer::from_raw(
-                3,
-                1,
-                vec![
-                    0.5,
-                    0.5,
-                    0.5,
-                    f32::NAN,
-                    2.0,
-                    0.5,
-                    f32::NAN,
-                    f32::INFINITY,
-                    0.1,
-                    0.2,
-                    0.3,
-                    -1.0,
-                ],
-            )
-            .unwrap(),
-        );
-        let g = texels_from_image(img).unwrap();
-        assert_eq!(g.texel(0, 0).to_rgba(), Rgba::TRANSPARENT);
-        let t = g.texel(1, 0).to_rgba();
+    fn float_texels_stay_unclamped_and_nan_or_infinite_ones_are_refused() {
+        let float = |v: Vec<f32>| {
+            DynamicImage::ImageRgba32F(image::ImageBuffer::from_raw(4, 1, v).unwrap())
+        };
+        let g = texels_from_image(float(vec![
+            500.0, -2.0, 0.5, 1.0, 0.25, 0.5, 0.75, 0.5, 0.1, 0.2, 0.3, 1.5, 0.0, 0.0, 0.0, 0.0,
+        ]))
+        .unwrap();
+        assert!(g.is_hdr());
+        let (tree, _) = quadtex_core::QuadTree::from_texels(&g, &Default::default()).unwrap();
+        let f = |x0: f64| quadtex_core::Fragment::new(x0, 0.0, x0 + 0.25, 1.0).unwrap();
+        let first = tree.weighted_colour(&f(0.0), 30).0.map(|v| v * 4.0);
         assert!(
-            t.a == 1.0 && t.r == 1.0 && (t.g - 0.5).abs() < 1e-4 && t.b == 0.0,
-            "{t:?}"
+            (first[0] - 500.0).abs() < 0.25 && (first[1] + 2.0).abs() < 1e-3,
+            "{first:?}"
         );
-        assert_eq!(g.texel(2, 0).to_rgba(), Rgba::TRANSPARENT);
+        // Alpha is clamped to [0, 1] (stated in `TexelGrid::from_linear_f32`).
+        let third = tree.weighted_colour(&f(0.5), 30).0.map(|v| v * 4.0);
+        assert!((third[3] - 1.0).abs() < 1e-3, "{third:?}");
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            let e = texels_from_image(float(vec![
+                0.5, 0.5, 0.5, 1.0, 2.0, 0.5, bad, 1.0, 0.1, 0.2, 0.3, 1.0, 0.0, 0.0, 0.0, 0.0,
+            ]))
+            .unwrap_err();
+            assert!(e.to_string().starts_with("texel (1, 0) has b = "), "{e}");
+        }
     }
 
     #[test]

@@ -735,7 +735,8 @@ impl Context<'_> {
                     .map_err(|e| self.err(key, &e.to_string()))?
                     .0
             }
-            Some("png" | "jpg" | "jpeg") => {
+            // EXR and Radiance .hdr pack as HDR trees (half floats).
+            Some("png" | "jpg" | "jpeg" | "exr" | "hdr") => {
                 let grid = quadtex_io::load_texels_with_limits(&file, &self.limits)
                     .map_err(|e| self.err(key, &e.to_string()))?;
                 let options = BuildOptions {
@@ -755,7 +756,7 @@ impl Context<'_> {
             _ => {
                 return Err(self.err(
                     key,
-                    "unknown texture type (use .qtx, .png, .jpg, .svg or builtin:NAME)",
+                    "unknown texture type (use .qtx, .png, .jpg, .exr, .hdr, .svg or builtin:NAME)",
                 ));
             }
         };
