@@ -955,8 +955,10 @@ impl Walk<'_> {
                     return Outcome::Final(self.contribution(root, &quad, 0.0));
                 }
                 let (linear, curved) = self.block_bound(&corners, nx, nz);
+                let (rmin, rmax) = density_range_det(&m, self.screen_det, &corners);
+                let tile = tile_diameter(&corners.map(|t| apply(&m, t)), nx, nz, rmin, rmax);
                 let bound = (self.k_max * (linear + curved)
-                    + 0.5 * self.lipschitz * diameter(&quad) / nx.max(nz) * quad.area())
+                    + 0.5 * self.lipschitz * tile * quad.area())
                 .min(self.k_max * quad.area());
                 let c = self.contribution(root, &quad, bound);
                 // In the linear regime, splitting a block does not shrink its
@@ -978,7 +980,7 @@ impl Walk<'_> {
                     return Outcome::Final(self.contribution(root, &piece, 0.0));
                 }
                 let (rmin, rmax) = density_range_det(&m, self.screen_det, &corners);
-                let tile = diameter(&quad) / nx.max(nz) * (rmax / rmin).max(1.0).sqrt();
+                let tile = tile_diameter(&corners.map(|t| apply(&m, t)), nx, nz, rmin, rmax);
                 let band = cut_length(&piece_tex, [x0, z0, x1, z1], &m) * tile;
                 let (linear, curved) = self.block_bound(&corners, nx, nz);
                 let bound = self.k_max * (band + linear + curved).min(piece.area());
@@ -1359,6 +1361,19 @@ fn clip_axis(p: &ConvexPolygon, axis: usize, lo: f64, hi: f64) -> ConvexPolygon 
     } else {
         p.clip_rect(f64::NEG_INFINITY, lo, f64::INFINITY, hi)
     }
+}
+
+/// A bound on the screen diameter of one tile of a block of `nx × nz`
+/// tiles whose corners map to `q` on the screen (low-x low-z, high-x low-z,
+/// high-x high-z, low-x high-z): the block's sides over the tile
+/// counts, each axis on its own (a block one tile wide and many tall has
+/// tiles as wide as itself, not a `1/max(nx, nz)` share of its diameter),
+/// scaled by how much the density varies across the block.
+fn tile_diameter(q: &[[f64; 2]; 4], nx: f64, nz: f64, rmin: f64, rmax: f64) -> f64 {
+    let len = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    let along_x = len(q[1], q[0]).max(len(q[2], q[3])) / nx;
+    let along_z = len(q[3], q[0]).max(len(q[2], q[1])) / nz;
+    (along_x + along_z) * (rmax / rmin).max(1.0).sqrt()
 }
 
 /// The diagonal of the bounding box of `points`.
