@@ -981,7 +981,18 @@ impl Walk<'_> {
                 }
                 let (rmin, rmax) = density_range_det(&m, self.screen_det, &corners);
                 let tile = tile_diameter(&corners.map(|t| apply(&m, t)), nx, nz, rmin, rmax);
-                let band = cut_length(&piece_tex, [x0, z0, x1, z1], &m) * tile;
+                // The tiles' screen sizes come from the block's corners: only
+                // when all of them are in front of the camera. A block
+                // reaching past the horizon (the region's part of it can
+                // still be small) gets the whole weight as its bound.
+                let in_front = corners
+                    .iter()
+                    .all(|t| m[2][0] * t[0] + m[2][1] * t[1] + m[2][2] > 0.0);
+                let band = if in_front {
+                    cut_length(&piece_tex, [x0, z0, x1, z1], &m) * tile
+                } else {
+                    f64::INFINITY
+                };
                 let (linear, curved) = self.block_bound(&corners, nx, nz);
                 let bound = self.k_max * (band + linear + curved).min(piece.area());
                 Outcome::Refinable(
