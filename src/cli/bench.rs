@@ -169,7 +169,7 @@ pub fn run(args: Args) -> Result<()> {
         "Pack time (median of 3): {:.3} s; {} nodes{}, depth {depth}\n",
         pack_times[1],
         tree.node_count(),
-        super::info::blocks_summary(&tree)
+        super::blocks_summary(&tree)
     )?;
     writeln!(out, "| storage | bytes | tree is smaller by |")?;
     writeln!(out, "|---|---:|---:|")?;

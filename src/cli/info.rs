@@ -204,14 +204,6 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
     Ok(())
 }
 
-/// `" + N texel blocks of 4x4"` for a tree with texel blocks, else empty.
-pub(crate) fn blocks_summary(tree: &quadtex_core::QuadTree) -> String {
-    tree.texel_blocks().map_or_else(String::new, |b| {
-        let side = 1u32 << b.log2_side();
-        format!(" + {} texel blocks of {side}x{side}", b.count())
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

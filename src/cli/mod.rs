@@ -212,6 +212,14 @@ fn human_bytes(b: u64) -> String {
     }
 }
 
+/// `" + N texel blocks of 4x4"` for a tree with texel blocks, else empty.
+pub(crate) fn blocks_summary(tree: &quadtex_core::QuadTree) -> String {
+    tree.texel_blocks().map_or_else(String::new, |b| {
+        let side = 1u32 << b.log2_side();
+        format!(" + {} texel blocks of {side}x{side}", b.count())
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -107,7 +107,7 @@ pub fn run(args: Args) -> Result<()> {
         output,
         tree.node_count(),
         terminals,
-        super::info::blocks_summary(&tree),
+        super::blocks_summary(&tree),
         tree.depth(),
         human_bytes(bytes),
         bytes as f64 / (f64::from(grid.width()) * f64::from(grid.height())),
