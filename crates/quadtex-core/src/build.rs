@@ -656,6 +656,10 @@ impl Builder<'_, Unorm16Rgba> {
         let (n, side) = (1u32 << level, tiles.side);
         let (row, col) = (n - 1 - iz as u32, ix as u32);
         let grid = (tiles.load)(row, col)?;
+        if grid.is_hdr() {
+            // Tiles are packed as unorm16 or 8-bit: an HDR tile would be clamped.
+            return Err(Error::HdrTile { row, col });
+        }
         if (grid.width, grid.height) != (side, side) {
             return Err(Error::BadDimensions {
                 width: grid.width.into(),
@@ -1449,6 +1453,14 @@ mod block_tests {
             e.to_string()
                 .starts_with("tile (1, 1) is 16-bit or float, the first tile was 8-bit"),
             "{e}"
+        );
+        let e = QuadTree::from_tiles(2, 8, &options, &mut |_, _| {
+            TexelGrid::from_linear_f32(8, 8, &[[2.0, 0.5, 0.5, 1.0]; 64])
+        })
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "tile (1, 0) is HDR (float): tiled packing takes 8- and 16-bit tiles only"
         );
     }
 

@@ -109,6 +109,14 @@ pub enum Error {
         /// The value.
         value: f32,
     },
+    /// An HDR (float) tile in a tiled texture: tiled packing takes 8- and
+    /// 16-bit tiles only, and would otherwise clamp it.
+    HdrTile {
+        /// The tile's row (0 at the top).
+        row: u32,
+        /// The tile's column.
+        col: u32,
+    },
     /// A tile of a tiled texture in another precision than the first one
     /// (8-bit sRGB against 16-bit or float): one tree keeps its texel
     /// blocks in one format.
@@ -184,6 +192,10 @@ impl fmt::Display for Error {
             } => write!(
                 f,
                 "texel ({col}, {row}) has {channel} = {value}: HDR texels must be finite"
+            ),
+            Error::HdrTile { row, col } => write!(
+                f,
+                "tile ({row}, {col}) is HDR (float): tiled packing takes 8- and 16-bit tiles only"
             ),
             Error::TileFormat {
                 row,
