@@ -14,7 +14,7 @@ fuzz_target!(|data: &[u8]| {
     // below hold at any tolerance), so more inputs run per second.
     let options = VectorOptions { max_level: level, max_nodes: limits.max_nodes, tolerance: 1.0 / 64.0, ..VectorOptions::default() };
     if let Ok((tree, _)) = QuadTree::from_vector(&art, &options) {
-        let c = tree.average().to_rgba().to_array();
+        let c = tree.average().to_array();
         assert!(c.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= 1.0), "{c:?}");
         assert!(c[0] <= c[3] && c[1] <= c[3] && c[2] <= c[3], "{c:?}");
     }
