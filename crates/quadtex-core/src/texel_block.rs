@@ -166,13 +166,29 @@ fn srgb8_table() -> &'static [f32; 256] {
 /// [`srgb8_texel`] gives at alpha 255 (the same arithmetic, tabulated).
 fn opaque_table() -> &'static [u16; 256] {
     static TABLE: std::sync::OnceLock<[u16; 256]> = std::sync::OnceLock::new();
-    TABLE.get_or_init(|| std::array::from_fn(|v| srgb8_texel([v as u8, 0, 0, 255]).0[0]))
+    TABLE.get_or_init(|| std::array::from_fn(|v| srgb8_texel_computed([v as u8, 0, 0, 255]).0[0]))
 }
 
 /// An 8-bit sRGB texel with straight alpha as the tree's linear,
 /// premultiplied colour.
 #[inline]
 pub fn srgb8_texel(p: [u8; 4]) -> Unorm16Rgba {
+    if p[3] == u8::MAX {
+        // Opaque: the same arithmetic, tabulated.
+        let t = opaque_table();
+        return Unorm16Rgba([
+            t[usize::from(p[0])],
+            t[usize::from(p[1])],
+            t[usize::from(p[2])],
+            u16::MAX,
+        ]);
+    }
+    srgb8_texel_computed(p)
+}
+
+/// [`srgb8_texel`] computed: decode through the `f32` table, premultiply,
+/// round.
+fn srgb8_texel_computed(p: [u8; 4]) -> Unorm16Rgba {
     let lut = srgb8_table();
     let a = f32::from(u16::from(p[3]) * 257) / 65535.0;
     Rgba::new(
@@ -491,6 +507,15 @@ mod tests {
         // Half coverage halves the colour.
         let h = srgb8_texel([255, 0, 0, 128]);
         assert_eq!(h.0[0], h.0[3]);
+    }
+
+    #[test]
+    fn the_opaque_table_is_the_computed_decoding() {
+        for v in 0..=255u8 {
+            for p in [[v, 0, 255 - v, 255], [v, v, v, 255], [0, v, 1, 255]] {
+                assert_eq!(srgb8_texel(p), srgb8_texel_computed(p));
+            }
+        }
     }
 
     #[test]
