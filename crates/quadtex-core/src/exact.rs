@@ -1038,7 +1038,7 @@ impl Walk<'_> {
         // Local coordinates are tree space: a texture of another aspect
         // spans [0, ex) × [0, ez) of it, exact powers of two.
         let aspect = self.tree.aspect();
-        let [ex, ez] = aspect.extent();
+        let [ex, ez] = aspect.scale();
         let (sx, sz) = (sx / ex, sz / ez);
         // texture = (sx·x + ox, sz·z + oz): a half-plane's line in local
         // coordinates, and the screen map composed with it.
@@ -1234,7 +1234,7 @@ impl Walk<'_> {
     ) {
         // Along the edge, in texture units of that axis (tree units over the extent).
         let aspect = self.tree.aspect();
-        let along = aspect.extent()[1 - axis];
+        let along = aspect.scale()[1 - axis];
         let side = unit_side(level);
         let (l0, l1) = (f64::from(k) * side / along, f64::from(k + 1) * side / along);
         if l0 >= 1.0 {
@@ -1289,7 +1289,7 @@ impl Walk<'_> {
         }
         let mut acc = [0.0; 4];
         let aspect = self.tree.aspect();
-        let along = aspect.extent()[1 - axis];
+        let along = aspect.scale()[1 - axis];
         let mut stack = vec![(QuadTree::ROOT, 0u8, 0u32)];
         while let Some((p, level, k)) = stack.pop() {
             let side = unit_side(level);

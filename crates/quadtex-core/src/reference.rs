@@ -42,7 +42,7 @@ pub fn texel_sum(grid: &TexelGrid, fragment: &Fragment) -> WeightedColour {
 /// ([`crate::Aspect`]).
 pub fn truncated_tree_sum(tree: &QuadTree, fragment: &Fragment, max_level: u8) -> WeightedColour {
     let mut acc = WeightedColour::ZERO;
-    let [ex, ez] = tree.aspect().extent();
+    let [ex, ez] = tree.aspect().scale();
     tree.for_each_leaf(max_level, |level, ix, iz, colour| {
         let side = unit_side(level);
         let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);

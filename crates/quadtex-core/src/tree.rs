@@ -111,17 +111,11 @@ impl Aspect {
         self.shrink == [0, 0]
     }
 
-    /// `[2^-sx, 2^-sz]`: tree units per texture unit along each axis.
+    /// `[2^-sx, 2^-sz]`: tree units per texture unit along each axis, which
+    /// is also the texture's extent in tree space.
     #[inline]
     pub fn scale(self) -> [f64; 2] {
         [unit_side(self.shrink[0]), unit_side(self.shrink[1])]
-    }
-
-    /// The texture's extent in tree space: `[2^-sx, 2^-sz]` (same as
-    /// [`Aspect::scale`]).
-    #[inline]
-    pub fn extent(self) -> [f64; 2] {
-        self.scale()
     }
 
     /// Texture area per tree area: `2^(sx+sz)`.
@@ -694,7 +688,7 @@ impl QuadTree {
     pub fn first_moments(&self) -> [f64; 2] {
         *self.moments.get_or_init(|| {
             let (mut mx, mut mz) = ([0f64; 4], [0f64; 4]);
-            let [ex, ez] = self.aspect.extent();
+            let [ex, ez] = self.aspect.scale();
             self.for_each_leaf(self.depth, |level, ix, iz, c| {
                 // The leaf's texture part, in texture units (a leaf above
                 // the aspect's level straddles the pad).
