@@ -266,6 +266,35 @@ struct QtxFilterOptions qtx_filter_options_default(void);
 enum QtxStatus qtx_open(const char *path, struct QtxTexture **out);
 
 /**
+ * Opens a `.qtx` file by memory-mapping it: only the header and the
+ * structure are checked (time and memory proportional to 1/64 of the
+ * file), and filtering reads the nodes it touches. Colours are not read:
+ * `qtx_verify` checks them. The file must not be truncated or rewritten
+ * in place while the texture lives (quadtex's writers replace files by
+ * renaming, which is safe).
+ *
+ * Arguments, returns and safety as `qtx_open`.
+ *
+ * # Safety
+ * As `qtx_open`.
+ */
+enum QtxStatus qtx_open_mapped(const char *path, struct QtxTexture **out);
+
+/**
+ * Checks every colour and texel of a texture (what `qtx_open_mapped`
+ * leaves unread): premultiplied colours, each inner colour the mean of
+ * its children, each texel block the mean of its texels.
+ *
+ * Returns `QTX_STATUS_OK`; `QTX_STATUS_INVALID_ARGUMENT` (NULL
+ * `texture`); `QTX_STATUS_FORMAT`, the message naming the first node that
+ * fails.
+ *
+ * # Safety
+ * `texture` is NULL or a live texture from `qtx_open` / `qtx_pack`.
+ */
+enum QtxStatus qtx_verify(const struct QtxTexture *texture);
+
+/**
  * Packs an image or SVG art into a texture, as `quadtex pack` does.
  *
  * * PNG, JPEG or OpenEXR: cells within `tolerance` (in [0, 1]: the largest

@@ -33,10 +33,26 @@ fn reseal_header(b: &mut [u8]) {
     b[56..60].copy_from_slice(&crc.to_le_bytes());
 }
 
+/// Recomputes the structure checksum (inner flags and the texel-block
+/// section's counts and flags) and the payload checksum.
 fn reseal_payload(b: &mut [u8]) {
-    let n = b.len();
-    let crc = crc32(&b[64..n - 4]);
-    b[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    let len = b.len();
+    let nodes = u64::from_le_bytes(b[32..40].try_into().unwrap()) as usize;
+    let bits = 64..64 + nodes.div_ceil(8);
+    let section = bits.end + 8 * nodes..len - 4;
+    let flags = match b.get(section.start..section.start + 8) {
+        Some(counts) => {
+            let level_nodes = u64::from_le_bytes(counts.try_into().unwrap()) as usize;
+            16 + level_nodes.div_ceil(8)
+        }
+        None => 0,
+    };
+    let mut structure = b[bits].to_vec();
+    structure.extend_from_slice(&b[section.start..section.start + flags]);
+    let crc = crc32(&structure);
+    b[60..64].copy_from_slice(&crc.to_le_bytes());
+    let crc = crc32(&b[64..len - 4]);
+    b[len - 4..].copy_from_slice(&crc.to_le_bytes());
 }
 
 fn crc32(data: &[u8]) -> u32 {
@@ -92,21 +108,49 @@ fn expect_usage_error(args: &[&str], needles: &[&str], must_not_exist: Option<&P
     }
 }
 
-/// A `.qtx` case: mutate the valid bytes, run `info` and `query` on them.
+/// A `.qtx` case: mutate the valid bytes, run `info` and `query` on them
+/// (memory-mapped, the default, and with `--verify`).
 fn qtx_case(case: &str, mutate: impl FnOnce(&mut Vec<u8>), field: &str) {
+    qtx_case_with(case, mutate, field, &[&[], &["--verify"]]);
+}
+
+/// A `.qtx` case in the colours: mapped, `info` and `query` do not read
+/// them (and must not crash); `--verify` refuses them by name.
+fn qtx_colour_case(case: &str, mutate: impl Fn(&mut Vec<u8>), field: &str) {
+    qtx_case_with(case, &mutate, field, &[&["--verify"]]);
+    let d = dir(&format!("{case}-mapped"));
+    let mut bytes = valid_qtx(&d);
+    mutate(&mut bytes);
+    let p = d.join(format!("{case}.qtx"));
+    std::fs::write(&p, &bytes).unwrap();
+    let out = run(
+        &["query", p.to_str().unwrap()],
+        "0 0 1 1\n0.1 0.2 0.3 0.9\n",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 2);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+fn qtx_case_with(case: &str, mutate: impl FnOnce(&mut Vec<u8>), field: &str, modes: &[&[&str]]) {
     let d = dir(case);
     let mut bytes = valid_qtx(&d);
     mutate(&mut bytes);
     let p = d.join(format!("{case}.qtx"));
     std::fs::write(&p, &bytes).unwrap();
     let name = format!("{case}.qtx");
-    expect_failure(&["info", p.to_str().unwrap()], "", &[&name, field], None);
-    expect_failure(
-        &["query", p.to_str().unwrap()],
-        "0 0 1 1\n",
-        &[&name, field],
-        None,
-    );
+    for mode in modes {
+        let mut info = vec!["info", p.to_str().unwrap()];
+        info.extend_from_slice(mode);
+        expect_failure(&info, "", &[&name, field], None);
+        let mut query = vec!["query", p.to_str().unwrap()];
+        query.extend_from_slice(mode);
+        expect_failure(&query, "0 0 1 1\n", &[&name, field], None);
+    }
     std::fs::remove_dir_all(&d).unwrap();
 }
 
@@ -119,6 +163,15 @@ macro_rules! qtx_cases {
     )*};
 }
 
+macro_rules! qtx_colour_cases {
+    ($($name:ident: $field:expr, $mutate:expr;)*) => {$(
+        #[test]
+        fn $name() {
+            qtx_colour_case(stringify!($name), $mutate, $field);
+        }
+    )*};
+}
+
 qtx_cases! {
     qtx_empty: "header", |b| b.clear();
     qtx_truncated_header: "header", |b| b.truncate(40);
@@ -126,9 +179,9 @@ qtx_cases! {
     qtx_trailing_garbage: "length", |b| b.extend_from_slice(b"extra");
     qtx_wrong_magic: "magic", |b| b[1] = b'P';
     qtx_text_file: "magic", |b| { *b = b"x0 z0 x1 z1\n0 0 1 1\n".repeat(5); };
-    qtx_future_version: "version", |b| { b[8] = 2; reseal_header(b); };
+    qtx_future_version: "version", |b| { b[8] = 3; reseal_header(b); };
+    qtx_structure_bit_flip: "structure_crc", |b| b[64] ^= 0x02;
     qtx_header_bit_flip: "header_crc", |b| b[33] ^= 0x04;
-    qtx_payload_bit_flip: "payload_crc", |b| { let n = b.len(); b[n - 9] ^= 0x01; };
     qtx_terabyte_node_count: "max_nodes", |b| { b[32..40].copy_from_slice(&(1u64 << 40).to_le_bytes()); reseal_header(b); };
     qtx_inconsistent_inner_count: "node_count", |b| { let inner = u64::from_le_bytes(b[40..48].try_into().unwrap()); b[40..48].copy_from_slice(&(inner + 1).to_le_bytes()); reseal_header(b); };
     qtx_payload_size_lie: "payload_bytes", |b| { b[48..56].copy_from_slice(&1u64.to_le_bytes()); reseal_header(b); };
@@ -140,6 +193,10 @@ qtx_cases! {
     qtx_block_level_below_the_tree: "block_level", |b| { b[29] = 31; reseal_header(b); };
     qtx_wrong_header_size: "header_bytes", |b| { b[12] = 128; reseal_header(b); };
     qtx_inner_flags_cleared: "inner_bits", |b| { b[64] = 0; reseal_payload(b); };
+}
+
+qtx_colour_cases! {
+    qtx_payload_bit_flip: "payload_crc", |b| { let n = b.len(); b[n - 9] ^= 0x01; };
     qtx_not_premultiplied: "premultiplied", |b| {
         // Node 0's red channel (first colour, after the inner bits) above its alpha.
         let n = u64::from_le_bytes(b[32..40].try_into().unwrap()) as usize;

@@ -24,6 +24,11 @@ pub struct Args {
     /// SVG art only: the levels to pack, comma-separated [default: 8,10,12,14,16].
     #[arg(long, value_name = "L,L,...", value_delimiter = ',', value_parser = vector_level)]
     levels: Option<Vec<u8>>,
+    /// A .qtx file is memory-mapped and only its header and structure are
+    /// checked (fast at any size); with --verify, read it whole and check
+    /// its payload checksum and every colour as well.
+    #[arg(long)]
+    verify: bool,
     #[command(flatten)]
     memory: super::MemoryArgs,
 }
@@ -47,6 +52,7 @@ pub fn run(args: Args) -> Result<()> {
     let Args {
         path,
         levels,
+        verify,
         memory,
     } = args;
     let limits = memory.limits();
@@ -60,7 +66,13 @@ pub fn run(args: Args) -> Result<()> {
     if levels.is_some() {
         return Err("--levels applies to SVG art only".into());
     }
-    let (tree, meta) = quadtex_io::read_qtx_with_limits(&path, &limits)?;
+    let start = Instant::now();
+    let (tree, meta) = if verify {
+        quadtex_io::read_qtx_with_limits(&path, &limits)?
+    } else {
+        quadtex_io::map_qtx(&path, &limits)?
+    };
+    let opened = start.elapsed();
     let bytes = tree.memory_bytes();
     let mut out = Text::stdout();
     writeln!(
@@ -68,6 +80,16 @@ pub fn run(args: Args) -> Result<()> {
         "file:        {} ({})",
         path.display(),
         human_bytes(meta.file_bytes)
+    )?;
+    writeln!(
+        out,
+        "opened:      in {:.1} ms, {}",
+        opened.as_secs_f64() * 1e3,
+        if verify {
+            "read whole; checksums, structure and every colour verified"
+        } else {
+            "mapped; header and structure checked, colours not read (--verify reads them)"
+        }
     )?;
     writeln!(out, "depth:       {}", tree.depth())?;
     let [columns, rows] = tree.finest_grid();
@@ -101,9 +123,14 @@ pub fn run(args: Args) -> Result<()> {
     }
     writeln!(
         out,
-        "memory:      {} ({:.3} bytes/node with blocks; colour 8 B/node)",
+        "memory:      {} ({:.3} bytes/node with blocks; colour 8 B/node{})",
         human_bytes(bytes),
-        bytes as f64 / tree.node_count() as f64
+        bytes as f64 / tree.node_count() as f64,
+        if verify {
+            ""
+        } else {
+            "; colours and texels stay in the mapped file, paged in as read"
+        }
     )?;
     writeln!(out, "colours:     {}", tree.encoding().name())?;
     let (w, h) = if meta.source_width > 0 {

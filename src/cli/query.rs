@@ -21,13 +21,23 @@ pub struct Args {
     /// Integrate at this level (default: the tree's depth, exact).
     #[arg(short = 'k', long, value_name = "K", value_parser = level("--level"))]
     level: Option<u8>,
+    /// Read the file whole and verify every colour before answering
+    /// (default: memory-map it, check its structure, and read only the
+    /// nodes the fragments touch).
+    #[arg(long)]
+    verify: bool,
     #[command(flatten)]
     memory: super::MemoryArgs,
 }
 
 /// Runs `quadtex query`.
 pub fn run(args: Args) -> Result<()> {
-    let (tree, _) = quadtex_io::read_qtx_with_limits(&args.path, &args.memory.limits())?;
+    let limits = args.memory.limits();
+    let (tree, _) = if args.verify {
+        quadtex_io::read_qtx_with_limits(&args.path, &limits)?
+    } else {
+        quadtex_io::map_qtx(&args.path, &limits)?
+    };
     let k = args.level.unwrap_or(tree.depth());
     let stdin = std::io::stdin().lock();
     let mut out = BufWriter::new(Text::stdout());

@@ -43,6 +43,8 @@ struct Texture {
     tree: Arc<QuadTree>,
     /// Size of the raster it was packed from (kept in saved files).
     source: Option<(u32, u32)>,
+    /// The file it was opened from, named in `verify`'s errors.
+    file: Option<PathBuf>,
 }
 
 #[pymethods]
@@ -164,6 +166,16 @@ impl Texture {
             .map_err(io_error)
     }
 
+    /// Checks every colour and texel of the tree: what `open(path,
+    /// mapped=True)` leaves unread (premultiplied colours, each inner colour
+    /// the mean of its children, each texel block the mean of its texels).
+    /// Raises ValueError naming the first node that fails.
+    fn verify(&self, py: Python<'_>) -> PyResult<()> {
+        let tree = &*self.tree;
+        py.detach(|| tree.verify())
+            .map_err(|e| core_error(&e, self.file.as_deref()))
+    }
+
     /// Depth of the tree (level of its finest squares).
     #[getter]
     fn depth(&self) -> u8 {
@@ -210,17 +222,30 @@ impl Texture {
     }
 }
 
-/// Reads a `.qtx` file.
+/// Reads a `.qtx` file, checking its checksums and every colour.
+///
+/// With `mapped=True` the file is memory-mapped instead: only its header
+/// and structure are checked (fast at any size) and queries read the nodes
+/// they touch; `Texture.verify()` checks the rest.
 #[pyfunction]
-fn open(py: Python<'_>, path: PathBuf) -> PyResult<Texture> {
+#[pyo3(signature = (path, mapped = false))]
+fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
+    let limits = quadtex_io::Limits::default();
     let (tree, info) = py
-        .detach(|| quadtex_io::read_qtx_with_limits(&path, &quadtex_io::Limits::default()))
+        .detach(|| {
+            if mapped {
+                quadtex_io::map_qtx(&path, &limits)
+            } else {
+                quadtex_io::read_qtx_with_limits(&path, &limits)
+            }
+        })
         .map_err(io_error)?;
     let source = (info.source_width > 0 && info.source_height > 0)
         .then_some((info.source_width, info.source_height));
     Ok(Texture {
         tree: Arc::new(tree),
         source,
+        file: Some(path),
     })
 }
 
@@ -266,6 +291,7 @@ fn pack(
     Ok(Texture {
         tree: Arc::new(tree),
         source: Some(size),
+        file: None,
     })
 }
 
@@ -289,6 +315,7 @@ fn pack_tiles(py: Python<'_>, directory: PathBuf, tolerance: f64) -> PyResult<Te
     Ok(Texture {
         tree: Arc::new(tree),
         source: Some((side, side)),
+        file: None,
     })
 }
 
@@ -317,6 +344,7 @@ fn pack_file(
         return Ok(Texture {
             tree: Arc::new(tree),
             source: Some((side, side)),
+            file: None,
         });
     }
     let options = BuildOptions {
@@ -335,6 +363,7 @@ fn pack_file(
     Ok(Texture {
         tree: Arc::new(tree),
         source: Some((grid.width(), grid.height())),
+        file: None,
     })
 }
 

@@ -299,3 +299,34 @@ def test_bad_wrap_types(tex):
 def test_integrate_nan_rect(tex):
     with pytest.raises(ValueError, match=r"^rects\[0\]: coordinate x0 is not finite \(NaN\)$"):
         tex.integrate([[np.nan, 0, 1, 1]])
+
+
+def test_mapped_open_reads_colours_lazily_and_verify_finds_them(tmp_path, tex, qtx_bytes):
+    path = tmp_path / "lazy.qtx"
+    path.write_bytes(qtx_bytes)
+    mapped = quadtex.open(path, mapped=True)
+    mapped.verify()
+    rects = np.array([[0.1, 0.2, 0.6, 0.9], [0.0, 0.0, 1.0, 1.0]])
+    np.testing.assert_array_equal(mapped.integrate(rects), tex.integrate(rects))
+    # The last node's alpha zeroed: it opens mapped (colours are not read)
+    # and answers without crashing, but verify and a full open refuse it.
+    nodes = struct.unpack_from("<Q", qtx_bytes, 32)[0]
+    colours = 64 + (nodes + 7) // 8
+    b = bytearray(qtx_bytes)
+    b[colours + 8 * nodes - 2 : colours + 8 * nodes] = b"\0\0"
+    path.write_bytes(bytes(b))
+    lazy = quadtex.open(path, mapped=True)
+    assert np.isfinite(lazy.integrate(rects)).all()
+    with pytest.raises(ValueError, match=r"lazy\.qtx: .*node"):
+        lazy.verify()
+    with pytest.raises(ValueError, match=r"lazy\.qtx: invalid \.qtx file: payload_crc"):
+        quadtex.open(path)
+
+
+def test_mapped_open_refuses_corrupt_structure(tmp_path, qtx_bytes):
+    b = bytearray(qtx_bytes)
+    b[64] ^= 0x01
+    path = tmp_path / "flags.qtx"
+    path.write_bytes(bytes(b))
+    with pytest.raises(ValueError, match=r"flags\.qtx: invalid \.qtx file: structure_crc"):
+        quadtex.open(path, mapped=True)

@@ -184,6 +184,55 @@ pub unsafe extern "C" fn qtx_open(path: *const c_char, out: *mut *mut QtxTexture
     })
 }
 
+/// Opens a `.qtx` file by memory-mapping it: only the header and the
+/// structure are checked (time and memory proportional to 1/64 of the
+/// file), and filtering reads the nodes it touches. Colours are not read:
+/// `qtx_verify` checks them. The file must not be truncated or rewritten
+/// in place while the texture lives (quadtex's writers replace files by
+/// renaming, which is safe).
+///
+/// Arguments, returns and safety as `qtx_open`.
+///
+/// # Safety
+/// As `qtx_open`.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_open_mapped(
+    path: *const c_char,
+    out: *mut *mut QtxTexture,
+) -> QtxStatus {
+    guard(|| {
+        // SAFETY: `out` is NULL or writable, by this function's contract.
+        let mut out = unsafe { Out::new(out, "out") }?;
+        out.set(std::ptr::null_mut());
+        // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
+        let path = unsafe { ptr::path_arg(path, "path") }?;
+        out.set(ptr::into_raw(ops::open_mapped(&path)?));
+        Ok(())
+    })
+}
+
+/// Checks every colour and texel of a texture (what `qtx_open_mapped`
+/// leaves unread): premultiplied colours, each inner colour the mean of
+/// its children, each texel block the mean of its texels.
+///
+/// Returns `QTX_STATUS_OK`; `QTX_STATUS_INVALID_ARGUMENT` (NULL
+/// `texture`); `QTX_STATUS_FORMAT`, the message naming the first node that
+/// fails.
+///
+/// # Safety
+/// `texture` is NULL or a live texture from `qtx_open` / `qtx_pack`.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_verify(texture: *const QtxTexture) -> QtxStatus {
+    guard(|| {
+        // SAFETY: `texture` is NULL or live, by this function's contract.
+        let texture = unsafe { ptr::ref_arg(texture, "texture") }?;
+        texture.texture.tree().verify()?;
+        Ok(())
+    })
+}
+
 /// Packs an image or SVG art into a texture, as `quadtex pack` does.
 ///
 /// * PNG, JPEG or OpenEXR: cells within `tolerance` (in [0, 1]: the largest

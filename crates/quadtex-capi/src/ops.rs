@@ -43,6 +43,12 @@ pub(crate) fn open(path: &Path) -> Result<QtxTexture, Failure> {
     Ok(QtxTexture::new(tree))
 }
 
+/// Maps a `.qtx` file (structure checked, colours read on demand).
+pub(crate) fn open_mapped(path: &Path) -> Result<QtxTexture, Failure> {
+    let (tree, _) = quadtex_io::map_qtx(path, &quadtex_io::Limits::default())?;
+    Ok(QtxTexture::new(tree))
+}
+
 fn is_svg(path: &Path) -> bool {
     path.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("svg"))

@@ -903,3 +903,46 @@ fn tiles_pack_like_the_whole_mosaic_and_bad_tiles_are_named() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A mapped texture filters as an opened one; a corrupt colour opens
+/// mapped but fails `qtx_verify`; NULL is refused.
+#[test]
+fn mapped_open_and_verify() {
+    let dir = temp_dir("mapped");
+    let file = dir.join("checker.qtx");
+    quadtex_io::write_qtx(&file, &checker_tree(), Some((2, 2))).unwrap();
+    let mut texture = null_mut();
+    assert_eq!(
+        unsafe { qtx_open_mapped(c_path(&file).as_ptr(), &mut texture) },
+        QtxStatus::Ok
+    );
+    assert_eq!(unsafe { qtx_verify(texture) }, QtxStatus::Ok);
+    let white = filter_one(
+        texture,
+        rect(0.0, 0.5, 0.5, 1.0),
+        &qtx_filter_options_default(),
+    );
+    assert!(close(white, [1.0; 4], 1e-6));
+    unsafe { qtx_free(texture) };
+
+    // The root's alpha zeroed (node 0's colour is the first 8 colour bytes).
+    let mut bytes = std::fs::read(&file).unwrap();
+    let nodes = u64::from_le_bytes(bytes[32..40].try_into().unwrap()) as usize;
+    let root = 64 + nodes.div_ceil(8);
+    bytes[root + 6..root + 8].fill(0);
+    std::fs::write(&file, &bytes).unwrap();
+    assert_eq!(
+        unsafe { qtx_open_mapped(c_path(&file).as_ptr(), &mut texture) },
+        QtxStatus::Ok
+    );
+    assert_eq!(unsafe { qtx_verify(texture) }, QtxStatus::Format);
+    assert_error(&["node 0"]);
+    unsafe { qtx_free(texture) };
+    assert_eq!(unsafe { qtx_verify(null()) }, QtxStatus::InvalidArgument);
+    assert_eq!(
+        unsafe { qtx_open(c_path(&file).as_ptr(), &mut texture) },
+        QtxStatus::Format
+    );
+    assert_error(&["checker.qtx", "payload_crc"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -17,6 +17,7 @@
 //! function that made the tree's linear texels from them.
 
 use crate::Error;
+use crate::SharedBytes;
 use crate::colour::{Rgba, Unorm16Rgba};
 
 /// Side of a block, `log2`: blocks are 4 × 4 texels.
@@ -217,7 +218,7 @@ pub struct TexelBlocks {
     /// One flag per node of the block level, in the tree's order.
     flags: Vec<FlagWord>,
     count: u64,
-    data: Vec<u8>,
+    data: SharedBytes,
 }
 
 impl TexelBlocks {
@@ -231,6 +232,20 @@ impl TexelBlocks {
         format: BlockFormat,
         flags: Vec<u64>,
         data: Vec<u8>,
+    ) -> Result<TexelBlocks, Error> {
+        let blocks = Self::from_shared(level, format, flags, data.into())?;
+        blocks.check_texels()?;
+        Ok(blocks)
+    }
+
+    /// As [`TexelBlocks::new`], reading the texels in place from `data`
+    /// (for example a memory-mapped file): only the sizes are checked, not
+    /// the texels ([`crate::QuadTree::verify`] does).
+    pub fn from_shared(
+        level: u8,
+        format: BlockFormat,
+        flags: Vec<u64>,
+        data: SharedBytes,
     ) -> Result<TexelBlocks, Error> {
         let log2_side = BLOCK_LOG2_SIDE;
         let mut words = crate::memory::try_with_capacity(flags.len(), "block flags")?;
@@ -246,18 +261,23 @@ impl TexelBlocks {
                 data.len()
             )));
         }
-        let blocks = TexelBlocks {
+        Ok(TexelBlocks {
             level,
             log2_side,
             format,
             flags: words,
             count,
             data,
-        };
-        if format == BlockFormat::Unorm16Rgba {
-            for b in 0..count as usize {
-                for t in 0..blocks.texels_per_block() {
-                    let [r, g, bl, a] = blocks.texel_at(b, t).0;
+        })
+    }
+
+    /// Checks that 16-bit texels are premultiplied (8-bit texels are
+    /// straight and always valid).
+    pub(crate) fn check_texels(&self) -> Result<(), Error> {
+        if self.format == BlockFormat::Unorm16Rgba {
+            for b in 0..self.count as usize {
+                for t in 0..self.texels_per_block() {
+                    let [r, g, bl, a] = self.texel_at(b, t).0;
                     if r > a || g > a || bl > a {
                         return Err(Error::MalformedTree(format!(
                             "texel block {b}, texel {t}: not premultiplied"
@@ -266,7 +286,7 @@ impl TexelBlocks {
                 }
             }
         }
-        Ok(blocks)
+        Ok(())
     }
 
     /// The level whose nodes may be blocks.

@@ -21,6 +21,7 @@
 //! that encloses its fragment.
 
 use crate::Error;
+use crate::SharedBytes;
 use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
 use crate::fragment::{Fragment, overlap_1d};
 use crate::texel_block::TexelBlocks;
@@ -171,19 +172,21 @@ pub struct TraversalStats {
 /// [`QuadTree::depth`] `<= MAX_DEPTH`; colours are premultiplied
 /// (`r,g,b <= a`) and an inner node's colour is the rounded area-average of
 /// what lies below it.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct QuadTree {
     depth: u8,
     /// How node colours are stored.
     encoding: ColourEncoding,
     /// What error bounds computed for unit contrast are multiplied by:
     /// 1 for unorm16 colours (channels in `[0, 1]`), the largest channel
-    /// range (at least 1) for half floats.
-    bound_scale: f64,
+    /// range (at least 1) for half floats, found when first needed.
+    bound_scale: std::sync::OnceLock<f64>,
     /// Where texture space lies in the tree's square.
     aspect: Aspect,
-    /// Padded node colours.
-    colours: Vec<Unorm16Rgba>,
+    /// Node colours, four little-endian `u16` each, unpadded: the node at
+    /// padded index `p` is at byte `8·(p − PAD)` ([`QuadTree::colour`]).
+    /// Owned, or read in place from a mapped file.
+    colours: SharedBytes,
     blocks: Vec<RankBlock>,
     /// Padded index of the first node of each level, plus one past the end.
     level_starts: Vec<usize>,
@@ -203,6 +206,20 @@ pub struct QuadTree {
     /// and the padded indices of that level's nodes.
     texel_blocks: Option<TexelBlocks>,
     block_nodes: std::ops::Range<usize>,
+}
+
+/// Trees are equal when they store the same nodes and blocks in the same
+/// encoding and aspect; what is derived from them (tables, values computed
+/// on first use) does not count.
+impl PartialEq for QuadTree {
+    fn eq(&self, other: &QuadTree) -> bool {
+        self.depth == other.depth
+            && self.encoding == other.encoding
+            && self.aspect == other.aspect
+            && self.colours == other.colours
+            && self.blocks == other.blocks
+            && self.texel_blocks == other.texel_blocks
+    }
 }
 
 /// A node as traversals see it: a stored node (its padded index), or a cell
@@ -292,7 +309,135 @@ impl QuadTree {
                 "texel blocks in a tree of half-float colours".into(),
             ));
         }
-        let n = colours.len() as u64;
+        let n = colours.len();
+        let inner_words = n.div_ceil(64);
+        if inner.len() < inner_words {
+            return Err(Error::MalformedTree(format!(
+                "{} inner-flag words for {n} nodes",
+                inner.len()
+            )));
+        }
+        let mut bytes = crate::memory::try_with_capacity(8 * n, "tree colours")?;
+        for c in &colours {
+            for v in c.0 {
+                bytes.extend(v.to_le_bytes());
+            }
+        }
+        drop(colours);
+        let tree = Self::assemble(
+            depth,
+            aspect,
+            encoding,
+            n as u64,
+            |k| inner[k],
+            bytes.into(),
+            texel_blocks,
+        )?;
+        tree.verify()?;
+        Ok(tree)
+    }
+
+    /// A tree that reads its colours (and its blocks' texels) in place from
+    /// shared bytes, such as a memory-mapped file, without reading them:
+    /// `inner_bits` holds one bit per node (bit `i % 8` of byte `i / 8`, set
+    /// for an inner node), `colours` four little-endian `u16` per node.
+    ///
+    /// Only the structure is checked here (depth, levels, block flags), in
+    /// time proportional to the inner flags (1/64 of the colours); a query
+    /// then loads only the pages it touches. The colours' invariants
+    /// (premultiplied, inner colours the mean of their children, blocks the
+    /// mean of their texels) are *not* checked: a tree whose colours break
+    /// them gives wrong colours, never a panic. [`QuadTree::verify`] checks
+    /// them, reading everything.
+    pub fn from_shared_parts(
+        depth: u8,
+        aspect: Aspect,
+        encoding: ColourEncoding,
+        inner_bits: &[u8],
+        colours: SharedBytes,
+        texel_blocks: Option<TexelBlocks>,
+    ) -> Result<QuadTree, Error> {
+        if !colours.len().is_multiple_of(8) {
+            return Err(Error::MalformedTree(format!(
+                "{} colour bytes, not a whole number of 8-byte nodes",
+                colours.len()
+            )));
+        }
+        let n = colours.len() / 8;
+        if inner_bits.len() < n.div_ceil(8) {
+            return Err(Error::MalformedTree(format!(
+                "{} inner-flag bytes for {n} nodes",
+                inner_bits.len()
+            )));
+        }
+        let word = |k: usize| {
+            let bytes = inner_bits.get(8 * k..).unwrap_or_default();
+            u64::from_le_bytes(std::array::from_fn(|i| bytes.get(i).copied().unwrap_or(0)))
+        };
+        Self::assemble(
+            depth,
+            aspect,
+            encoding,
+            n as u64,
+            word,
+            colours,
+            texel_blocks,
+        )
+    }
+
+    /// Checks what [`QuadTree::from_shared_parts`] leaves unchecked, reading
+    /// every colour and texel: colours are premultiplied (unorm16) or finite
+    /// with alpha in `[0, 1]` (half floats); every inner colour is the
+    /// average of its children within rounding; 16-bit texels are
+    /// premultiplied; every block node's colour is the mean of its texels.
+    /// Trees made any other way have passed it already.
+    pub fn verify(&self) -> Result<(), Error> {
+        for p in PAD..PAD + self.node_count() as usize {
+            let c = self.colour(p);
+            let [r, g, b, a] = c.0;
+            let ok = match self.encoding {
+                ColourEncoding::Half => {
+                    let v = self.encoding.decode_colour(c);
+                    v.iter().all(|x| x.is_finite()) && (0.0..=1.0).contains(&v[3])
+                }
+                _ => r <= a && g <= a && b <= a,
+            };
+            if !ok {
+                return Err(Error::MalformedTree(match self.encoding {
+                    ColourEncoding::Half => format!(
+                        "node {}: half-float colour {:?} is not finite or its alpha is outside [0, 1]",
+                        p - PAD,
+                        self.encoding.decode_colour(c)
+                    ),
+                    _ => format!(
+                        "node {}: colour {:?} is not premultiplied (a channel exceeds alpha)",
+                        p - PAD,
+                        c.0
+                    ),
+                }));
+            }
+        }
+        self.check_averages()?;
+        self.check_blocks()
+    }
+
+    /// The structural checks shared by [`QuadTree::from_parts_with_blocks`]
+    /// and [`QuadTree::from_shared_parts`]: `n` nodes whose inner flags
+    /// are `inner_word(k)` (bits `64k..64k+64`, those past `n` ignored).
+    fn assemble(
+        depth: u8,
+        aspect: Aspect,
+        encoding: ColourEncoding,
+        n: u64,
+        inner_word: impl Fn(usize) -> u64,
+        colours: SharedBytes,
+        texel_blocks: Option<TexelBlocks>,
+    ) -> Result<QuadTree, Error> {
+        if encoding != ColourEncoding::Unorm16 && texel_blocks.is_some() {
+            return Err(Error::MalformedTree(
+                "texel blocks in a tree of half-float colours".into(),
+            ));
+        }
         if depth > MAX_DEPTH {
             return Err(Error::DepthTooLarge {
                 depth: depth.into(),
@@ -308,23 +453,25 @@ impl QuadTree {
         if n == 0 {
             return Err(Error::MalformedTree("no nodes".into()));
         }
-        if (inner.len() as u64) < n.div_ceil(64) {
-            return Err(Error::MalformedTree(format!(
-                "{} inner-flag words for {n} nodes",
-                inner.len()
-            )));
-        }
-        let is_inner = |i: u64| inner[(i / 64) as usize] >> (i % 64) & 1 == 1;
-        // Walk the levels: each level holds four children per inner node of the previous one.
+        let n = n as usize;
+        let blocks = rank_blocks(n, inner_word)?;
+        let inner_before = |p: usize| match blocks.get(p / 64) {
+            Some(b) => b.rank + u64::from((b.bits & ((1u64 << (p % 64)) - 1)).count_ones()),
+            None => blocks
+                .last()
+                .map_or(0, |b| b.rank + u64::from(b.bits.count_ones())),
+        };
+        // Walk the levels (padded indices): each holds four children per
+        // inner node of the one above.
         let mut level_starts = vec![PAD];
-        let (mut start, mut len) = (0u64, 1u64);
+        let (mut start, mut end) = (PAD, PAD + 1);
         loop {
-            let inner_here = (start..start + len).filter(|&i| is_inner(i)).count() as u64;
-            let next = start + len;
+            let inner_here = (inner_before(end) - inner_before(start)) as usize;
             if inner_here == 0 {
-                if next != n {
+                if end != PAD + n {
                     return Err(Error::MalformedTree(format!(
-                        "{n} nodes given but the inner flags account for {next}"
+                        "{n} nodes given but the inner flags account for {}",
+                        end - PAD
                     )));
                 }
                 break;
@@ -334,17 +481,16 @@ impl QuadTree {
                     "inner nodes at level {depth}, the declared depth"
                 )));
             }
-            if next + 4 * inner_here > n {
+            if end + 4 * inner_here > PAD + n {
                 return Err(Error::MalformedTree(format!(
                     "level {} needs {} nodes, only {} remain",
                     level_starts.len(),
                     4 * inner_here,
-                    n - next
+                    PAD + n - end
                 )));
             }
-            level_starts.push(PAD + next as usize);
-            start = next;
-            len = 4 * inner_here;
+            level_starts.push(end);
+            (start, end) = (end, end + 4 * inner_here);
         }
         let stored_depth = level_starts.len() - 1;
         let block_bottom = texel_blocks
@@ -360,54 +506,17 @@ impl QuadTree {
                 }
             )));
         }
-        level_starts.push(PAD + n as usize);
-        for (i, c) in colours.iter().enumerate() {
-            let [r, g, b, a] = c.0;
-            match encoding {
-                ColourEncoding::Half => {
-                    let v = encoding.decode_colour(*c);
-                    if v.iter().any(|x| !x.is_finite()) || !(0.0..=1.0).contains(&v[3]) {
-                        return Err(Error::MalformedTree(format!(
-                            "node {i}: half-float colour {v:?} is not finite or its alpha is outside [0, 1]"
-                        )));
-                    }
-                }
-                _ => {
-                    if r > a || g > a || b > a {
-                        return Err(Error::MalformedTree(format!(
-                            "node {i}: colour {:?} is not premultiplied (a channel exceeds alpha)",
-                            c.0
-                        )));
-                    }
-                }
-            }
-        }
-        let mut padded = crate::memory::try_with_capacity(PAD + colours.len(), "tree colours")?;
-        padded.extend([Unorm16Rgba::default(); PAD]);
-        padded.extend(colours);
-        let mut blocks = crate::memory::try_vec(
-            padded.len().div_ceil(64),
-            RankBlock::default(),
-            "tree inner flags",
-        )?;
-        for i in 0..n {
-            if is_inner(i) {
-                let p = i as usize + PAD;
-                blocks[p / 64].bits |= 1 << (p % 64);
-            }
-        }
-        Self::finish(depth, aspect, padded, blocks, level_starts, texel_blocks)?
-            .with_encoding(encoding)
-            .checked_averages()?
-            .checked_blocks()
+        level_starts.push(PAD + n);
+        Self::finish(depth, aspect, colours, blocks, level_starts, texel_blocks)
+            .map(|t| t.with_encoding(encoding))
     }
 
     /// Completes a tree from validated padded arrays: rank counters and top table.
     fn finish(
         depth: u8,
         aspect: Aspect,
-        colours: Vec<Unorm16Rgba>,
-        mut blocks: Vec<RankBlock>,
+        colours: SharedBytes,
+        blocks: Vec<RankBlock>,
         level_starts: Vec<usize>,
         texel_blocks: Option<TexelBlocks>,
     ) -> Result<QuadTree, Error> {
@@ -436,12 +545,7 @@ impl QuadTree {
             }
             None => 0..0,
         };
-        let mut rank = 0u64;
-        for b in &mut blocks {
-            b.rank = rank;
-            rank += u64::from(b.bits.count_ones());
-        }
-        let node_bytes = colours.len() * std::mem::size_of::<Unorm16Rgba>();
+        let node_bytes = colours.len() + PAD * std::mem::size_of::<Unorm16Rgba>();
         // Not below the block level: a query starting at a block must start
         // at the block's own level.
         let top_max = texel_blocks
@@ -456,7 +560,7 @@ impl QuadTree {
         let mut tree = QuadTree {
             depth,
             encoding: ColourEncoding::Unorm16,
-            bound_scale: 1.0,
+            bound_scale: std::sync::OnceLock::new(),
             aspect,
             colours,
             blocks,
@@ -495,43 +599,61 @@ impl QuadTree {
     /// The tree with its colours read as `encoding`.
     pub(crate) fn with_encoding(mut self, encoding: ColourEncoding) -> QuadTree {
         self.encoding = encoding;
-        self.bound_scale = match encoding {
+        self.bound_scale = std::sync::OnceLock::new();
+        self
+    }
+
+    /// What the error bounds of [`crate::exact`], derived for colour
+    /// channels in `[0, 1]`, are multiplied by for this tree: 1 for unorm16
+    /// colours, the widest channel range (at least 1) for HDR colours (one
+    /// pass over the colours, the first time).
+    pub fn bound_scale(&self) -> f64 {
+        *self.bound_scale.get_or_init(|| match self.encoding {
             ColourEncoding::Unorm16 => 1.0,
-            _ => {
+            encoding => {
                 let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
-                for c in &self.colours[PAD..] {
-                    for (ch, v) in encoding.decode_colour(*c).into_iter().enumerate() {
+                for p in PAD..PAD + self.node_count() as usize {
+                    for (ch, v) in encoding
+                        .decode_colour(self.colour(p))
+                        .into_iter()
+                        .enumerate()
+                    {
                         lo[ch] = lo[ch].min(v);
                         hi[ch] = hi[ch].max(v);
                     }
                 }
                 (0..4).map(|ch| hi[ch] - lo[ch]).fold(1.0, f64::max)
             }
-        };
-        self
+        })
     }
 
-    /// What the error bounds of [`crate::exact`], derived for colour
-    /// channels in `[0, 1]`, are multiplied by for this tree: 1 for unorm16
-    /// colours, the widest channel range (at least 1) for HDR colours.
-    pub fn bound_scale(&self) -> f64 {
-        self.bound_scale
+    /// The colour of the stored node at padded index `p`.
+    #[inline]
+    fn colour(&self, p: usize) -> Unorm16Rgba {
+        let o = 8 * (p - PAD);
+        let b = &self.colours[o..o + 8];
+        Unorm16Rgba([
+            u16::from_le_bytes([b[0], b[1]]),
+            u16::from_le_bytes([b[2], b[3]]),
+            u16::from_le_bytes([b[4], b[5]]),
+            u16::from_le_bytes([b[6], b[7]]),
+        ])
     }
 
     /// Checks that every inner colour is the average of its children to
     /// within rounding (|4·parent − Σ children| ≤ 4 per channel; for half
     /// floats, within two steps of the larger magnitude).
-    fn checked_averages(self) -> Result<QuadTree, Error> {
-        for p in PAD..self.colours.len() {
+    fn check_averages(&self) -> Result<(), Error> {
+        for p in PAD..PAD + self.node_count() as usize {
             if !self.is_inner(p) {
                 continue;
             }
             let c = self.first_child(p);
             if self.encoding == ColourEncoding::Half {
-                let parent = self.encoding.decode_colour(self.colours[p]);
+                let parent = self.encoding.decode_colour(self.colour(p));
                 for (ch, &stored) in parent.iter().enumerate() {
                     let mean: f64 = (0..4)
-                        .map(|k| self.encoding.decode(self.colours[c + k].0[ch]))
+                        .map(|k| self.encoding.decode(self.colour(c + k).0[ch]))
                         .sum::<f64>()
                         / 4.0;
                     let scale = stored.abs().max(mean.abs()).max(6.1e-5);
@@ -545,27 +667,28 @@ impl QuadTree {
                 continue;
             }
             for ch in 0..4 {
-                let sum: i64 = (0..4).map(|k| i64::from(self.colours[c + k].0[ch])).sum();
-                let parent = 4 * i64::from(self.colours[p].0[ch]);
+                let sum: i64 = (0..4).map(|k| i64::from(self.colour(c + k).0[ch])).sum();
+                let parent = 4 * i64::from(self.colour(p).0[ch]);
                 if (parent - sum).abs() > 4 {
                     return Err(Error::MalformedTree(format!(
                         "node {}: channel {ch} is {} but its children average {:.1}",
                         p - PAD,
-                        self.colours[p].0[ch],
+                        self.colour(p).0[ch],
                         sum as f64 / 4.0
                     )));
                 }
             }
         }
-        Ok(self)
+        Ok(())
     }
 
     /// Checks that block nodes are terminal and hold their texels' mean
     /// (within rounding: `|n·node − Σ texels| ≤ n` per channel).
-    fn checked_blocks(self) -> Result<QuadTree, Error> {
+    fn check_blocks(&self) -> Result<(), Error> {
         let Some(tb) = &self.texel_blocks else {
-            return Ok(self);
+            return Ok(());
         };
+        tb.check_texels()?;
         for p in self.block_nodes.clone() {
             let Some(b) = tb.block_of(p - self.block_nodes.start) else {
                 continue;
@@ -577,7 +700,7 @@ impl QuadTree {
                 )));
             }
             let (sum, n) = tb.cell_sum(b, 0, 0, 0);
-            for (ch, (&total, &stored)) in sum.iter().zip(&self.colours[p].0).enumerate() {
+            for (ch, (&total, &stored)) in sum.iter().zip(&self.colour(p).0).enumerate() {
                 if (u64::from(n) * u64::from(stored)).abs_diff(total) > u64::from(n) {
                     return Err(Error::MalformedTree(format!(
                         "node {}: channel {ch} is {stored} but its texel block averages {:.1}",
@@ -587,7 +710,7 @@ impl QuadTree {
                 }
             }
         }
-        Ok(self)
+        Ok(())
     }
 
     /// The texel blocks, if any ([`crate::texel_block`]).
@@ -626,7 +749,7 @@ impl QuadTree {
 
     /// Number of nodes.
     pub fn node_count(&self) -> u64 {
-        (self.colours.len() - PAD) as u64
+        (self.colours.len() / 8) as u64
     }
 
     /// The texture's average colour (the root's colour).
@@ -637,7 +760,7 @@ impl QuadTree {
 
     /// The texture's average colour in `f64`, as stored.
     pub fn mean_colour(&self) -> [f64; 4] {
-        self.encoding.decode_colour(self.colours[PAD])
+        self.encoding.decode_colour(self.colour(PAD))
     }
 
     /// How node colours are stored: unorm16 (LDR) or half floats (HDR).
@@ -648,7 +771,7 @@ impl QuadTree {
     /// Bytes of memory the tree occupies (node colours, rank blocks, top table,
     /// level index), excluding the struct itself.
     pub fn memory_bytes(&self) -> u64 {
-        (self.colours.len() * std::mem::size_of::<Unorm16Rgba>()
+        (self.colours.len()
             + self.blocks.len() * std::mem::size_of::<RankBlock>()
             + self.top.len() * 4
             + self.level_starts.len() * std::mem::size_of::<usize>()) as u64
@@ -664,7 +787,7 @@ impl QuadTree {
             .windows(2)
             .enumerate()
             .map(|(level, w)| {
-                let inner = (w[0]..w[1]).filter(|&i| self.is_inner(i)).count() as u64;
+                let inner = self.inner_before(w[1]) - self.inner_before(w[0]);
                 let nodes = (w[1] - w[0]) as u64;
                 LevelStats {
                     level: level as u8,
@@ -677,7 +800,7 @@ impl QuadTree {
 
     /// The nodes in breadth-first order: `(inner, colour)`.
     pub fn nodes(&self) -> impl ExactSizeIterator<Item = (bool, Unorm16Rgba)> + '_ {
-        (PAD..self.colours.len()).map(|i| (self.is_inner(i), self.colours[i]))
+        (PAD..PAD + self.node_count() as usize).map(|i| (self.is_inner(i), self.colour(i)))
     }
 
     /// The largest, over channels, of `|∫ colour·(x − ½)|` and
@@ -763,7 +886,7 @@ impl QuadTree {
                     level,
                     ix,
                     iz,
-                    self.encoding.decode_colour(self.colours[node]),
+                    self.encoding.decode_colour(self.colour(node)),
                 );
             } else {
                 let c = self.first_child(node);
@@ -825,6 +948,17 @@ impl QuadTree {
         8u64 << (2 * u32::from(level.min(31)))
     }
 
+    /// Inner nodes at padded indices below `p`.
+    fn inner_before(&self, p: usize) -> u64 {
+        match self.blocks.get(p / 64) {
+            Some(b) => b.rank + u64::from((b.bits & ((1u64 << (p % 64)) - 1)).count_ones()),
+            None => self
+                .blocks
+                .last()
+                .map_or(0, |b| b.rank + u64::from(b.bits.count_ones())),
+        }
+    }
+
     #[inline]
     fn is_inner(&self, p: usize) -> bool {
         self.blocks[p / 64].bits >> (p % 64) & 1 == 1
@@ -864,7 +998,7 @@ impl QuadTree {
             ),
             _ => {
                 let p = n.0 as usize;
-                let c = self.encoding.decode_colour(self.colours[p]);
+                let c = self.encoding.decode_colour(self.colour(p));
                 (self.is_inner(p) || self.block_at(p).is_some(), c)
             }
         }
@@ -972,7 +1106,7 @@ impl QuadTree {
                     .map(Unorm16Rgba::to_rgba);
             }
             if !self.is_inner(node) {
-                let [r, g, b, a] = self.encoding.decode_colour(self.colours[node]);
+                let [r, g, b, a] = self.encoding.decode_colour(self.colour(node));
                 return Some(Rgba::new(r as f32, g as f32, b as f32, a as f32));
             }
             let child_level = level + 1;
@@ -1101,14 +1235,14 @@ impl QuadTree {
             return result(acc);
         }
         if level >= k || !self.is_inner(start) {
-            return result(weigh::<HALF>(self.colours[start], f.area()));
+            return result(weigh::<HALF>(self.colour(start), f.area()));
         }
         let side = unit_side(level);
         let (lo_x, lo_z) = (f64::from(sx) * side, f64::from(sz) * side);
         let vx = variant::classify(x0, x1, lo_x, lo_x + side);
         let vz = variant::classify(z0, z1, lo_z, lo_z + side);
         if vx == variant::SQUARE_INSIDE && vz == variant::SQUARE_INSIDE {
-            return result(weigh::<HALF>(self.colours[start], side * side));
+            return result(weigh::<HALF>(self.colour(start), side * side));
         }
 
         let mut acc = [0f64; 4];
@@ -1154,7 +1288,7 @@ impl QuadTree {
                     continue;
                 }
                 visited += 1;
-                let colour = self.colours[first + c];
+                let colour = self.colour(first + c);
                 let (clo_x, clo_z) = (lo_x + (c & 1) as f64 * half, lo_z + (c >> 1) as f64 * half);
                 if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
                     add::<HALF>(&mut acc, colour, child_area);
@@ -1279,25 +1413,68 @@ pub(crate) fn from_levels_encoded(
         .map_or(0, |b| b.level() + b.log2_side());
     let depth = ((levels.len() - 1) as u8).max(block_bottom);
     let n: usize = levels.iter().map(Vec::len).sum();
-    let mut colours = crate::memory::try_with_capacity(PAD + n, "tree colours")?;
-    colours.extend([Unorm16Rgba::default(); PAD]);
+    let mut colours = crate::memory::try_with_capacity(8 * n, "tree colours")?;
     let mut blocks = crate::memory::try_vec(
         (PAD + n).div_ceil(64),
         RankBlock::default(),
         "tree inner flags",
     )?;
     let mut level_starts = Vec::with_capacity(levels.len() + 1);
+    let mut p = PAD;
     for level in levels {
-        level_starts.push(colours.len());
+        level_starts.push(p);
         for (inner, colour) in level {
-            let p = colours.len();
             if inner {
                 blocks[p / 64].bits |= 1 << (p % 64);
             }
-            colours.push(colour);
+            for v in colour.0 {
+                colours.extend(v.to_le_bytes());
+            }
+            p += 1;
         }
     }
-    level_starts.push(colours.len());
-    QuadTree::finish(depth, aspect, colours, blocks, level_starts, texel_blocks)
-        .map(|t| t.with_encoding(encoding))
+    level_starts.push(p);
+    fill_ranks(&mut blocks);
+    QuadTree::finish(
+        depth,
+        aspect,
+        colours.into(),
+        blocks,
+        level_starts,
+        texel_blocks,
+    )
+    .map(|t| t.with_encoding(encoding))
+}
+
+/// Padded rank blocks for `n` nodes whose inner flags are `word(k)` (bits
+/// `64k..64k+64` of the unpadded flags; bits past `n` are ignored).
+fn rank_blocks(n: usize, word: impl Fn(usize) -> u64) -> Result<Vec<RankBlock>, Error> {
+    let words = n.div_ceil(64);
+    let masked = |k: usize| match k {
+        k if k >= words => 0,
+        k if !n.is_multiple_of(64) && k + 1 == words => word(k) & ((1u64 << (n % 64)) - 1),
+        k => word(k),
+    };
+    let mut blocks = crate::memory::try_vec(
+        (PAD + n).div_ceil(64),
+        RankBlock::default(),
+        "tree inner flags",
+    )?;
+    let mut carry = 0u64;
+    for (j, b) in blocks.iter_mut().enumerate() {
+        let w = masked(j);
+        b.bits = w << PAD | carry;
+        carry = w >> (64 - PAD);
+    }
+    fill_ranks(&mut blocks);
+    Ok(blocks)
+}
+
+/// Sets each rank block's count of inner nodes before it.
+fn fill_ranks(blocks: &mut [RankBlock]) {
+    let mut rank = 0u64;
+    for b in blocks {
+        b.rank = rank;
+        rank += u64::from(b.bits.count_ones());
+    }
 }

@@ -10,8 +10,10 @@
 //! symbolic link is followed (the file it names is replaced; the link stays);
 //! a device, FIFO or socket is written in place ([`write_atomically`]);
 //! [`write_image`] and [`write_qtx_to`] write to any stream, such as
-//! standard output.
-#![forbid(unsafe_code)]
+//! standard output. `.qtx` files can also be memory-mapped ([`map_qtx`]):
+//! that one call is the crate's only `unsafe` (`unsafe_code` is denied
+//! everywhere else, see `Cargo.toml`).
+#![deny(unsafe_code)]
 
 mod atomic;
 mod error;
@@ -32,8 +34,8 @@ pub use image_io::{
 };
 pub use limits::{FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE, default_memory_budget};
 pub use qtx::{
-    FORMAT_VERSION, MAGIC, QtxInfo, parse_qtx, read_qtx, read_qtx_with_limits, write_qtx,
-    write_qtx_to,
+    FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, parse_qtx, parse_qtx_structure, read_qtx,
+    read_qtx_with_limits, write_qtx, write_qtx_to,
 };
 pub use query::parse_query_line;
 pub use svg::{load_svg, pack_svg, pack_svg_with_tolerance, parse_svg};

@@ -43,8 +43,10 @@ pub struct Limits {
 }
 
 /// Peak bytes per node while reading a `.qtx`: the file's bytes (8.125 a
-/// node), the colours decoded from them (8) and the tree's padded copy (8.25).
-pub const QTX_READ_BYTES_PER_NODE: u64 = 25;
+/// node), which the tree reads its colours from in place, and the tree's
+/// inner flags with their rank counters (0.25), rounded up.
+/// ([`crate::map_qtx`] needs only the 0.25.)
+pub const QTX_READ_BYTES_PER_NODE: u64 = 9;
 
 /// The memory budget when neither a cgroup limit, an address-space limit
 /// nor `/proc/meminfo` can be read: 4 GiB.

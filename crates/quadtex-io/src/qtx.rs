@@ -5,7 +5,7 @@ use std::io::{Read, Write};
 use std::path::Path;
 
 use quadtex_core::texel_block::BLOCK_LOG2_SIDE;
-use quadtex_core::{Aspect, BlockFormat, ColourEncoding, QuadTree, TexelBlocks, Unorm16Rgba};
+use quadtex_core::{Aspect, BlockFormat, ColourEncoding, QuadTree, SharedBytes, TexelBlocks};
 
 use crate::atomic::{put, write_atomically};
 use crate::error::{Error, io};
@@ -14,8 +14,9 @@ use crate::limits::Limits;
 /// First eight bytes of every `.qtx` file (PNG-style: a high byte, a name,
 /// and line endings that reveal text-mode corruption).
 pub const MAGIC: [u8; 8] = *b"\x89QTX\r\n\x1a\n";
-/// The version this library writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The version this library writes; it reads this one and every earlier
+/// one (version 1 lacks the structure checksum).
+pub const FORMAT_VERSION: u32 = 2;
 const HEADER_BYTES: usize = 64;
 
 /// Facts about a `.qtx` file beyond the tree itself.
@@ -100,6 +101,10 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
     header[56..60].copy_from_slice(&header_crc.to_le_bytes());
     let mut hasher = crc32fast::Hasher::new();
     hasher.update(&bits);
+    hasher.update(&blocks[..structure_bytes(&blocks)]);
+    header[60..64].copy_from_slice(&hasher.finalize().to_le_bytes());
+    let mut hasher = crc32fast::Hasher::new();
+    hasher.update(&bits);
     hasher.update(&colours);
     hasher.update(&blocks);
     let payload_crc = hasher.finalize();
@@ -137,8 +142,10 @@ pub fn read_qtx(path: &Path) -> Result<QuadTree, Error> {
     read_qtx_with_limits(path, &Limits::default()).map(|(t, _)| t)
 }
 
-/// Reads and fully validates a `.qtx` file. Every size is checked against
-/// the file's real length and `limits` before anything is allocated.
+/// Reads and fully validates a `.qtx` file: both checksums, the structure
+/// and every colour ([`QuadTree::verify`]). Every size is checked against
+/// the file's real length and `limits` before anything is allocated. The
+/// tree reads its colours in place from the file's bytes (no second copy).
 pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
     let mut file = File::open(path).map_err(io(path))?;
     let file_bytes = file.metadata().map_err(io(path))?.len();
@@ -146,14 +153,95 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
     // costs nothing.
     let mut header = [0u8; HEADER_BYTES];
     let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
-    check_header(&header[..got], file_bytes, path, limits)?;
+    let h = check_header(&header[..got], file_bytes, path, limits)?;
+    check_read_memory(&h, path, limits)?;
     let mut bytes = header.to_vec();
     let body = (file_bytes as usize).saturating_sub(HEADER_BYTES);
     bytes
         .try_reserve_exact(body)
         .map_err(|_| out_of_memory(path, "file", body))?;
     file.read_to_end(&mut bytes).map_err(io(path))?;
-    parse_qtx(&bytes, path, limits)
+    parse_shared(bytes.into(), path, limits, Check::Everything)
+}
+
+/// Opens a `.qtx` file by memory-mapping it: the tree reads its colours
+/// and texels in place, so opening costs time and memory proportional to
+/// the inner-node flags (1/64 of the file), not to the file, and a query
+/// loads only the pages it touches.
+///
+/// Opening checks the header, its checksum, the structure checksum of a
+/// version-2 file and the structure itself (levels, depth, block flags) as
+/// [`read_qtx_with_limits`] does; it does **not** read the colours, so
+/// their checksum and invariants are left to [`QuadTree::verify`] (or to
+/// [`read_qtx_with_limits`]). A corrupt colour then gives a wrong colour,
+/// never a panic. A version-1 file has no structure checksum: its whole
+/// payload checksum is checked instead, which reads the file.
+///
+/// Memory mapping has one hazard no reader can check: another process
+/// truncating the file while it is mapped makes later reads of the lost
+/// pages fail with `SIGBUS`, and one rewriting it in place changes colours
+/// under the tree. quadtex's writers never do either: they write a
+/// temporary file and rename it over the old one, which leaves a mapped
+/// file intact.
+pub fn map_qtx(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
+    let mut file = File::open(path).map_err(io(path))?;
+    let file_bytes = file.metadata().map_err(io(path))?.len();
+    let mut header = [0u8; HEADER_BYTES];
+    let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
+    let h = check_header(&header[..got], file_bytes, path, limits)?;
+    limits.check_memory(
+        path,
+        || format!("mapping a tree of {} nodes", h.nodes),
+        h.nodes.div_ceil(4),
+        "raise --memory-limit",
+    )?;
+    let map = map_file(&file).map_err(io(path))?;
+    // Opening reads the inner flags front to back: read them ahead. Queries
+    // then touch a few scattered colours each: read ahead nothing there, so
+    // memory holds what is read. (Advice only; a refusal changes nothing.)
+    #[cfg(unix)]
+    {
+        let flags = HEADER_BYTES + h.nodes.div_ceil(8) as usize;
+        let _ = map.advise(memmap2::Advice::Random);
+        let _ = map.advise_range(memmap2::Advice::Sequential, 0, flags.min(map.len()));
+    }
+    if map.len() as u64 != file_bytes {
+        return Err(Error::Format {
+            path: path.to_path_buf(),
+            field: "length",
+            message: format!(
+                "file changed while opening: {} bytes, then {}",
+                file_bytes,
+                map.len()
+            ),
+        });
+    }
+    parse_shared(SharedBytes::from_owner(map), path, limits, Check::Structure)
+}
+
+/// Maps `file` read-only.
+#[allow(unsafe_code)]
+fn map_file(file: &File) -> std::io::Result<memmap2::Mmap> {
+    // SAFETY: `Mmap::map` is unsafe because the mapped bytes may change or
+    // vanish if another process modifies or truncates the file. The map is
+    // read-only and every read through it is bounds-checked against the
+    // length fixed here, so a hostile *content* is just input (validated
+    // like any other); the remaining hazard, a concurrent truncation or
+    // in-place rewrite, is documented on `map_qtx` and never done by
+    // quadtex's own writers (temporary file + rename).
+    unsafe { memmap2::Mmap::map(file) }
+}
+
+/// Refuses a read whose peak, [`crate::QTX_READ_BYTES_PER_NODE`] a node,
+/// exceeds the memory budget.
+fn check_read_memory(h: &Header, path: &Path, limits: &Limits) -> Result<(), Error> {
+    limits.check_memory(
+        path,
+        || format!("reading a tree of {} nodes", h.nodes),
+        h.nodes
+            .saturating_mul(crate::limits::QTX_READ_BYTES_PER_NODE),
+        "raise --memory-limit, or repack at a lower --max-level",
+    )
 }
 
 /// The error for an allocation of `bytes` for `what` the allocator refused.
@@ -175,72 +263,115 @@ fn read_up_to(file: &mut File, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(filled)
 }
 
-/// Parses and validates a whole `.qtx` file held in memory; `path` only
-/// names the source in errors.
+/// Parses and fully validates a whole `.qtx` file held in memory (copied
+/// once); `path` only names the source in errors.
 pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
-    let file_bytes = bytes.len() as u64;
-    let header = check_header(bytes, file_bytes, path, limits)?;
+    let h = check_header(bytes, bytes.len() as u64, path, limits)?;
+    check_read_memory(&h, path, limits)?;
+    parse_shared(bytes.to_vec().into(), path, limits, Check::Everything)
+}
+
+/// As [`parse_qtx`], checking only what [`map_qtx`] checks: the tree reads
+/// its colours in place from `bytes` and they are not read here.
+pub fn parse_qtx_structure(
+    bytes: SharedBytes,
+    path: &Path,
+    limits: &Limits,
+) -> Result<(QuadTree, QtxInfo), Error> {
+    parse_shared(bytes, path, limits, Check::Structure)
+}
+
+/// How much of a file is read when it is opened.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Check {
+    /// Both checksums, the structure and every colour.
+    Everything,
+    /// The header, the structure checksum (the payload checksum for a
+    /// version-1 file) and the structure; colours are read on demand.
+    Structure,
+}
+
+fn parse_shared(
+    all: SharedBytes,
+    path: &Path,
+    limits: &Limits,
+    check: Check,
+) -> Result<(QuadTree, QtxInfo), Error> {
+    let file_bytes = all.len() as u64;
+    let header = check_header(&all, file_bytes, path, limits)?;
     let bad = |field: &'static str, message: String| Error::Format {
         path: path.to_path_buf(),
         field,
         message,
     };
-    let body = &bytes[HEADER_BYTES..];
-    let (data, crc) = body.split_at(header.payload as usize);
-    if checksums_enforced()
-        && crc32fast::hash(data) != u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]])
-    {
-        return Err(bad(
-            "payload_crc",
-            "payload checksum mismatch (corrupt node data)".into(),
-        ));
+    let payload = HEADER_BYTES..HEADER_BYTES + header.payload as usize;
+    let data = &all[payload.clone()];
+    let nodes = header.nodes as usize;
+    let (bits, rest) = data.split_at(nodes.div_ceil(8));
+    let block_section = &rest[8 * nodes..];
+    if checksums_enforced() {
+        if let Some(expected) = header.structure_crc {
+            let mut hasher = crc32fast::Hasher::new();
+            hasher.update(bits);
+            hasher.update(&block_section[..structure_bytes(block_section)]);
+            if hasher.finalize() != expected {
+                return Err(bad(
+                    "structure_crc",
+                    "structure checksum mismatch (corrupt inner flags or block flags)".into(),
+                ));
+            }
+        }
+        let crc = &all[payload.end..];
+        if (check == Check::Everything || header.structure_crc.is_none())
+            && crc32fast::hash(data) != u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]])
+        {
+            return Err(bad(
+                "payload_crc",
+                "payload checksum mismatch (corrupt node data)".into(),
+            ));
+        }
     }
-    let nodes = header.nodes;
-    let (bits, colour_bytes) = data.split_at(nodes.div_ceil(8) as usize);
-    let n_words = nodes.div_ceil(64) as usize;
-    let mut words = Vec::new();
-    words
-        .try_reserve_exact(n_words)
-        .map_err(|_| out_of_memory(path, "inner flags", 8 * n_words))?;
-    words.resize(n_words, 0u64);
-    for (i, &b) in bits.iter().enumerate() {
-        words[i / 8] |= u64::from(b) << (8 * (i % 8));
-    }
-    // Bits past the last node must be clear, or the count below would lie.
-    if let Some(last) = words.last().filter(|_| nodes % 64 != 0)
-        && last >> (nodes % 64) != 0
-    {
+    // Flags past the last node must be clear, or the count below would lie.
+    if !nodes.is_multiple_of(8) && bits.last().is_some_and(|&b| b >> (nodes % 8) != 0) {
         return Err(bad("inner_bits", "flags set beyond the last node".into()));
     }
-    let counted: u64 = words.iter().map(|w| u64::from(w.count_ones())).sum();
+    let counted: u64 = bits.iter().map(|b| u64::from(b.count_ones())).sum();
     if counted != header.inner {
         return Err(bad(
             "inner_bits",
             format!("{counted} inner flags set, header says {}", header.inner),
         ));
     }
-    let (colour_bytes, block_bytes) = colour_bytes.split_at(8 * nodes as usize);
-    let mut colours = Vec::new();
-    colours
-        .try_reserve_exact(nodes as usize)
-        .map_err(|_| out_of_memory(path, "colours", 8 * nodes as usize))?;
-    colours.extend(colour_bytes.chunks_exact(8).map(|c| {
-        Unorm16Rgba(std::array::from_fn(|k| {
-            u16::from_le_bytes([c[2 * k], c[2 * k + 1]])
-        }))
-    }));
+    let colour_start = payload.start + bits.len();
+    let shared = |range: std::ops::Range<usize>| {
+        all.slice(range)
+            .ok_or_else(|| bad("payload_bytes", "section outside the file".into()))
+    };
+    let colours = shared(colour_start..colour_start + 8 * nodes)?;
     let texel_blocks = match header.blocks {
         None => None,
-        Some((format, level)) => Some(decode_blocks(block_bytes, format, level, path)?),
+        Some((format, level)) => Some(decode_blocks(
+            &all,
+            colour_start + 8 * nodes..payload.end,
+            format,
+            level,
+            path,
+        )?),
     };
-    let tree = QuadTree::from_parts_with_blocks(
+    let tree = QuadTree::from_shared_parts(
         header.depth,
         header.aspect,
         header.encoding,
-        &words,
+        bits,
         colours,
         texel_blocks,
     )
+    .and_then(|t| {
+        if check == Check::Everything {
+            t.verify()?;
+        }
+        Ok(t)
+    })
     .map_err(|e| match e {
         quadtex_core::Error::AllocationFailed { .. } => crate::error::core(path)(e),
         e => bad("nodes", e.to_string()),
@@ -255,10 +386,25 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
     ))
 }
 
-/// The texel-block section after the colours: `level_nodes` and `count`
-/// (u64 each), `ceil(level_nodes/8)` flag bytes, `count` blocks of texels.
+/// Bytes of the texel-block section the structure checksum covers: its
+/// counts and flags (all of it, if shorter: the structure checks then
+/// refuse it).
+fn structure_bytes(section: &[u8]) -> usize {
+    let Some(counts) = section.get(..8) else {
+        return section.len();
+    };
+    let level_nodes = u64::from_le_bytes(std::array::from_fn(|k| counts[k]));
+    usize::try_from(level_nodes.div_ceil(8).saturating_add(16))
+        .unwrap_or(usize::MAX)
+        .min(section.len())
+}
+
+/// The texel-block section `all[range]` after the colours: `level_nodes`
+/// and `count` (u64 each), `ceil(level_nodes/8)` flag bytes, `count`
+/// blocks of texels (read in place, not checked here).
 fn decode_blocks(
-    bytes: &[u8],
+    all: &SharedBytes,
+    range: std::ops::Range<usize>,
     format: BlockFormat,
     level: u8,
     path: &Path,
@@ -268,6 +414,7 @@ fn decode_blocks(
         field: "texel_blocks",
         message,
     };
+    let bytes = &all[range.clone()];
     if bytes.len() < 16 {
         return Err(bad(format!(
             "{} bytes, shorter than its 16-byte counts",
@@ -288,12 +435,20 @@ fn decode_blocks(
         )));
     }
     let flag_bytes = &bytes[16..16 + level_nodes.div_ceil(8) as usize];
-    let mut words = vec![0u64; flag_bytes.len().div_ceil(8)];
-    for (i, &b) in flag_bytes.iter().enumerate() {
-        words[i / 8] |= u64::from(b) << (8 * (i % 8));
-    }
-    let data = bytes[16 + flag_bytes.len()..].to_vec();
-    TexelBlocks::new(level, format, words, data).map_err(|e| bad(e.to_string()))
+    let mut words = Vec::new();
+    words
+        .try_reserve_exact(flag_bytes.len().div_ceil(8))
+        .map_err(|_| out_of_memory(path, "texel block flags", flag_bytes.len()))?;
+    words.extend(
+        flag_bytes
+            .chunks(8)
+            .map(|c| u64::from_le_bytes(std::array::from_fn(|k| c.get(k).copied().unwrap_or(0)))),
+    );
+    let data_start = range.start + 16 + flag_bytes.len();
+    let data = all
+        .slice(data_start..range.end)
+        .ok_or_else(|| bad("texels outside the file".into()))?;
+    TexelBlocks::from_shared(level, format, words, data).map_err(|e| bad(e.to_string()))
 }
 
 /// Checksums are skipped only in fuzzing builds (`--cfg fuzzing`), so the
@@ -312,6 +467,8 @@ struct Header {
     nodes: u64,
     inner: u64,
     payload: u64,
+    /// The structure checksum (version 2 and later).
+    structure_crc: Option<u32>,
     source_width: u32,
     source_height: u32,
 }
@@ -352,10 +509,10 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     let u32_at = |o: usize| u32::from_le_bytes([h[o], h[o + 1], h[o + 2], h[o + 3]]);
     let u64_at = |o: usize| u64::from(u32_at(o)) | u64::from(u32_at(o + 4)) << 32;
     let version = u32_at(8);
-    if version != FORMAT_VERSION {
+    if !(1..=FORMAT_VERSION).contains(&version) {
         return Err(bad(
             "version",
-            format!("version {version} is not supported (this build reads {FORMAT_VERSION})"),
+            format!("version {version} is not supported (this build reads 1 to {FORMAT_VERSION})"),
         ));
     }
     if checksums_enforced() && crc32fast::hash(&h[..56]) != u32_at(56) {
@@ -364,9 +521,10 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
             "header checksum mismatch (corrupt header)".into(),
         ));
     }
-    if h[31] != 0 || h[60..64] != [0; 4] {
+    if h[31] != 0 || (version == 1 && h[60..64] != [0; 4]) {
         return Err(bad("reserved", "reserved header bytes are not zero".into()));
     }
+    let structure_crc = (version >= 2).then(|| u32_at(60));
     if u32_at(12) as usize != HEADER_BYTES {
         return Err(bad(
             "header_bytes",
@@ -436,12 +594,6 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
             ),
         ));
     }
-    limits.check_memory(
-        path,
-        || format!("reading a tree of {nodes} nodes"),
-        nodes.saturating_mul(crate::limits::QTX_READ_BYTES_PER_NODE),
-        "raise --memory-limit, or repack at a lower --max-level",
-    )?;
     Ok(Header {
         depth,
         encoding,
@@ -450,6 +602,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
         nodes,
         inner,
         payload,
+        structure_crc,
         source_width: u32_at(20),
         source_height: u32_at(24),
     })
@@ -466,6 +619,22 @@ mod tests {
         QuadTree::from_texels(&g, &BuildOptions::default())
             .unwrap()
             .0
+    }
+
+    /// Recomputes a file's three checksums after an edit (`n` nodes).
+    fn reseal(b: &mut [u8], n: usize) {
+        let crc = crc32fast::hash(&b[..56]);
+        b[56..60].copy_from_slice(&crc.to_le_bytes());
+        let end = b.len() - 4;
+        let bits = n.div_ceil(8);
+        let section = &b[64 + bits + 8 * n..end];
+        let mut hasher = crc32fast::Hasher::new();
+        hasher.update(&b[64..64 + bits]);
+        hasher.update(&section[..structure_bytes(section)]);
+        let crc = hasher.finalize();
+        b[60..64].copy_from_slice(&crc.to_le_bytes());
+        let crc = crc32fast::hash(&b[64..end]);
+        b[end..].copy_from_slice(&crc.to_le_bytes());
     }
 
     fn temp(name: &str) -> std::path::PathBuf {
@@ -535,13 +704,6 @@ mod tests {
         write_qtx_to(&mut bytes, Path::new("photo"), &t, Some((32, 32))).unwrap();
         let (back, _) = parse_qtx(&bytes, Path::new("photo"), &Limits::default()).unwrap();
         assert_eq!(back, t);
-        let reseal = |b: &mut Vec<u8>| {
-            let crc = crc32fast::hash(&b[..56]);
-            b[56..60].copy_from_slice(&crc.to_le_bytes());
-            let end = b.len() - 4;
-            let crc = crc32fast::hash(&b[64..end]);
-            b[end..].copy_from_slice(&crc.to_le_bytes());
-        };
         let n = t.node_count() as usize;
         let section = 64 + n.div_ceil(8) + 8 * n;
         let refused = |b: &[u8]| {
@@ -552,13 +714,13 @@ mod tests {
         // The block count one too high.
         let mut lie = bytes.clone();
         lie[section + 8] += 1;
-        reseal(&mut lie);
+        reseal(&mut lie, n);
         assert!(refused(&lie).contains("texel_blocks"), "{}", refused(&lie));
         // Flags changed: the blocks no longer match their texels or nodes.
         for flip in [0b1u8, 0b11, 0b1000_0000] {
             let mut lie = bytes.clone();
             lie[section + 16] ^= flip;
-            reseal(&mut lie);
+            reseal(&mut lie, n);
             let e = refused(&lie);
             assert!(e.contains("texel block"), "{e}");
         }
@@ -568,14 +730,87 @@ mod tests {
             + 16
             + (t.level_stats()[usize::from(blocks.level())].nodes as usize).div_ceil(8);
         lie[first_texel] ^= 0xff;
-        reseal(&mut lie);
+        reseal(&mut lie, n);
         let e = refused(&lie);
         assert!(e.contains("texel block averages"), "{e}");
         // An unknown block format.
         let mut lie = bytes.clone();
         lie[28] = 9;
-        reseal(&mut lie);
+        reseal(&mut lie, n);
         assert!(refused(&lie).contains("block_format"), "{}", refused(&lie));
+    }
+
+    /// A mapped file gives the tree a full read gives, and the same answers;
+    /// it reads no colour on opening, so a corrupt colour opens (and
+    /// queries without panicking) but fails `verify`, while corrupt
+    /// structure is refused on opening.
+    #[test]
+    fn mapped_files_open_lazily_and_verify_on_demand() {
+        let p = temp("map.qtx");
+        for (tree, name) in [(sample(), "vector"), (photo_sample(), "photo")] {
+            write_qtx(&p, &tree, None).unwrap();
+            let (mapped, info) = map_qtx(&p, &Limits::default()).unwrap();
+            assert_eq!(mapped, tree, "{name}");
+            assert_eq!(info.file_bytes, std::fs::metadata(&p).unwrap().len());
+            mapped.verify().unwrap();
+            let f = quadtex_core::Fragment::new(0.1, 0.23, 0.61, 0.9).unwrap();
+            assert_eq!(
+                mapped.weighted_colour(&f, 30),
+                tree.weighted_colour(&f, 30),
+                "{name}"
+            );
+            let good = std::fs::read(&p).unwrap();
+            let n = tree.node_count() as usize;
+            let colours = 64 + n.div_ceil(8);
+            // The last node's alpha zeroed: no longer premultiplied, and no
+            // longer its parent's share.
+            let mut bytes = good.clone();
+            bytes[colours + 8 * n - 2..colours + 8 * n].fill(0);
+            std::fs::write(&p, &bytes).unwrap();
+            let (lazy, _) = map_qtx(&p, &Limits::default()).unwrap();
+            let w = lazy.weighted_colour(&f, 30);
+            assert!(w.0.iter().all(|c| c.is_finite()));
+            let e = lazy.verify().unwrap_err().to_string();
+            assert!(e.contains("node"), "{e}");
+            let e = read_qtx(&p).unwrap_err().to_string();
+            assert!(e.contains("payload_crc"), "{e}");
+            // An inner flag flipped: refused on opening, by its checksum.
+            let mut bytes = good.clone();
+            bytes[64] ^= 1;
+            std::fs::write(&p, &bytes).unwrap();
+            let e = map_qtx(&p, &Limits::default()).unwrap_err().to_string();
+            assert!(e.contains("structure_crc"), "{e}");
+            // Resealed, the same flip is refused by the structure checks.
+            reseal(&mut bytes, n);
+            std::fs::write(&p, &bytes).unwrap();
+            let e = map_qtx(&p, &Limits::default()).unwrap_err().to_string();
+            assert!(e.contains("nodes") || e.contains("inner_bits"), "{e}");
+        }
+        std::fs::remove_file(&p).unwrap();
+    }
+
+    /// Version-1 files (no structure checksum) still read, mapped or not;
+    /// mapping one checks its payload checksum instead.
+    #[test]
+    fn version_1_files_still_read() {
+        let t = photo_sample();
+        let mut bytes = Vec::new();
+        write_qtx_to(&mut bytes, Path::new("v1"), &t, None).unwrap();
+        bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
+        bytes[60..64].fill(0);
+        let crc = crc32fast::hash(&bytes[..56]);
+        bytes[56..60].copy_from_slice(&crc.to_le_bytes());
+        let (back, _) = parse_qtx(&bytes, Path::new("v1"), &Limits::default()).unwrap();
+        assert_eq!(back, t);
+        let (lazy, _) =
+            parse_qtx_structure(bytes.clone().into(), Path::new("v1"), &Limits::default()).unwrap();
+        assert_eq!(lazy, t);
+        let last = bytes.len() - 5;
+        bytes[last] ^= 1;
+        let e = parse_qtx_structure(bytes.into(), Path::new("v1"), &Limits::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("payload_crc"), "{e}");
     }
 
     #[test]
