@@ -86,9 +86,11 @@ pub fn run(args: Args) -> Result<()> {
     let scene = quadtex_render::load_scene_with_limits(&path, &limits)?;
     if timing_only {
         let height = scene.camera.height_for_width(width);
+        let mut out = Text::stdout();
         for (label, _, filter) in TIMED {
             let t = quadtex_render::time_lookups(&scene, width, height, filter, passes)?;
-            println!("{label}\t{:.1}", t.ns_per_lookup);
+            writeln!(out, "{label}\t{:.1}", t.ns_per_lookup)?;
+            out.flush()?;
         }
         return Ok(());
     }

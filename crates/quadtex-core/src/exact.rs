@@ -734,25 +734,10 @@ impl Walk<'_> {
             return false;
         }
         let (k0, k1) = (k0 as i64, k1 as i64);
-        let band = |region: &ConvexPolygon, k: i64| {
-            let z = k as f64 * h;
-            region.clip_rect(f64::NEG_INFINITY, z, f64::INFINITY, z + h)
-        };
         let columns = |p: &ConvexPolygon| {
             let (a, b) = p.bounds();
             ((a[0] / h).floor() as i64, (b[0] / h).ceil() as i64)
         };
-        let mut cells = 0.0;
-        for k in k0..k1 {
-            let p = band(&self.region, k);
-            if !p.is_empty() {
-                let (m0, m1) = columns(&p);
-                cells += (m1 - m0) as f64;
-                if cells > SCAN_CELLS {
-                    return false;
-                }
-            }
-        }
         let wrapped = |mode: WrapMode, m: i64| {
             let (tile, c) = (m.div_euclid(n), m.rem_euclid(n));
             if mode == WrapMode::Mirror && tile.rem_euclid(2) == 1 {
@@ -762,13 +747,56 @@ impl Walk<'_> {
             }
         };
         let m = self.screen_from_texture;
+        // One pass, bands cut off the rest of the region from the bottom up;
+        // the sums stay local until the scan is known to fit.
+        let (mut colour_sum, mut weight_sum, mut cells) = ([0.0; 4], 0.0, 0.0);
+        let mut rests = [self.region.clone(), ConvexPolygon::EMPTY];
+        let mut band = ConvexPolygon::EMPTY;
+        let mut r = 0;
         for k in k0..k1 {
-            let p = band(&self.region, k);
+            let p = if k + 1 < k1 {
+                let z = (k + 1) as f64 * h;
+                let [r0, r1] = &mut rests;
+                let (from, to) = if r == 0 { (&*r0, r1) } else { (&*r1, r0) };
+                from.clip_into(0.0, -1.0, z, &mut band);
+                from.clip_into(0.0, 1.0, -z, to);
+                r ^= 1;
+                &band
+            } else {
+                &rests[r]
+            };
             if p.is_empty() {
                 continue;
             }
+            let (m0, m1) = columns(p);
+            cells += (m1 - m0) as f64;
+            if cells > SCAN_CELLS {
+                return false;
+            }
             let row = wrapped(self.wrap.z, k) * n as usize;
-            let (m0, m1) = columns(&p);
+            if self.filter == PixelFilter::Box {
+                // The box weight of a cell's piece is its screen area: the
+                // screen area of the band left of the cell's right side,
+                // less that left of its left side. One pass over the band's
+                // vertices a cell, no polygon built.
+                let sweep = BandSweep::new(p, &m, self.centre);
+                let mut left = 0.0;
+                for col in m0..m1 {
+                    let upto = if col + 1 == m1 {
+                        sweep.total
+                    } else {
+                        sweep.left_of((col + 1) as f64 * h)
+                    };
+                    let w = 0.5 * (upto - left).abs();
+                    left = upto;
+                    let colour = grid[row + wrapped(self.wrap.x, col)];
+                    for (a, c) in colour_sum.iter_mut().zip(colour) {
+                        *a += c * w;
+                    }
+                    weight_sum += w;
+                }
+                continue;
+            }
             for col in m0..m1 {
                 let x = col as f64 * h;
                 let piece = p.clip_rect(x, f64::NEG_INFINITY, x + h, f64::INFINITY);
@@ -776,9 +804,19 @@ impl Walk<'_> {
                     continue;
                 }
                 let colour = grid[row + wrapped(self.wrap.x, col)];
-                self.add(colour, &self.to_screen_poly(&piece, &m), false);
+                let w = self
+                    .filter
+                    .integral(&self.to_screen_poly(&piece, &m), self.centre);
+                for (a, c) in colour_sum.iter_mut().zip(colour) {
+                    *a += c * w;
+                }
+                weight_sum += w;
             }
         }
+        for (a, c) in self.out.colour.0.iter_mut().zip(colour_sum) {
+            *a += c;
+        }
+        self.out.weight += weight_sum;
         self.visited += cells as u64;
         true
     }
@@ -1418,6 +1456,85 @@ fn density_range_det(m: &Mat3, det: f64, corners: &[[f64; 2]; 4]) -> (f64, f64) 
         hi = hi.max(rho);
     }
     (lo, hi)
+}
+
+/// A texture-space convex polygon swept by vertical lines `x = X`: the
+/// doubled signed screen area of its part left of `X` (screen coordinates
+/// taken relative to a centre near the polygon, so that the shoelace sums
+/// stay at the polygon's own scale).
+struct BandSweep<'a> {
+    texture: &'a [[f64; 2]],
+    screen: arrayvec::ArrayVec<[f64; 2], { crate::polygon::MAX_VERTICES }>,
+    m: &'a Mat3,
+    centre: [f64; 2],
+    /// The whole polygon's doubled signed screen area.
+    total: f64,
+}
+
+impl<'a> BandSweep<'a> {
+    fn new(p: &'a ConvexPolygon, m: &'a Mat3, centre: [f64; 2]) -> BandSweep<'a> {
+        let texture = p.vertices();
+        let screen: arrayvec::ArrayVec<[f64; 2], { crate::polygon::MAX_VERTICES }> = texture
+            .iter()
+            .map(|&t| {
+                let s = apply(m, t);
+                [s[0] - centre[0], s[1] - centre[1]]
+            })
+            .collect();
+        let n = screen.len();
+        let total = (0..n)
+            .map(|i| {
+                let (a, b) = (screen[i], screen[(i + 1) % n]);
+                a[0] * b[1] - a[1] * b[0]
+            })
+            .sum();
+        BandSweep {
+            texture,
+            screen,
+            m,
+            centre,
+            total,
+        }
+    }
+
+    /// Doubled signed screen area of the part with `x <= x_cut`
+    /// (Sutherland–Hodgman against one half-plane, the clipped vertices
+    /// fed straight into the shoelace sum).
+    fn left_of(&self, x_cut: f64) -> f64 {
+        let (t, s) = (self.texture, &self.screen);
+        let n = t.len();
+        let mut sum = 0.0;
+        let mut first: Option<[f64; 2]> = None;
+        let mut last = [0.0; 2];
+        let mut emit = |q: [f64; 2]| {
+            match first {
+                None => first = Some(q),
+                Some(_) => sum += last[0] * q[1] - last[1] * q[0],
+            }
+            last = q;
+        };
+        let crossing = |a: [f64; 2], b: [f64; 2]| {
+            let u = (x_cut - a[0]) / (b[0] - a[0]);
+            let q = apply(self.m, [x_cut, a[1] + u * (b[1] - a[1])]);
+            [q[0] - self.centre[0], q[1] - self.centre[1]]
+        };
+        for i in 0..n {
+            let (pi, ci) = ((i + n - 1) % n, i);
+            let (prev_in, cur_in) = (t[pi][0] <= x_cut, t[ci][0] <= x_cut);
+            if cur_in {
+                if !prev_in {
+                    emit(crossing(t[pi], t[ci]));
+                }
+                emit(s[ci]);
+            } else if prev_in {
+                emit(crossing(t[pi], t[ci]));
+            }
+        }
+        if let Some(f) = first {
+            sum += last[0] * f[1] - last[1] * f[0];
+        }
+        sum
+    }
 }
 
 #[inline]

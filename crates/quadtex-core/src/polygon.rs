@@ -237,7 +237,7 @@ impl ConvexPolygon {
 
     /// [`ConvexPolygon::clip`] into `out` (cleared first).
     #[inline]
-    fn clip_into(&self, a: f64, b: f64, c: f64, out: &mut ConvexPolygon) {
+    pub(crate) fn clip_into(&self, a: f64, b: f64, c: f64, out: &mut ConvexPolygon) {
         out.v.clear();
         let v = self.vertices();
         let n = v.len();

@@ -41,9 +41,10 @@ fn textured_hits(scene: &Scene) -> Vec<(usize, usize, Hit)> {
     out
 }
 
-/// Texture lookups alone, timed: each textured pixel's centre hit is found
-/// first, then the texture filter runs over all of them on one thread,
-/// `passes` times (ray casting and shading excluded).
+/// Texture lookups alone, timed: each textured pixel's centre hit and
+/// footprint are found first, then the texture filter runs over all of
+/// them on one thread, `passes` times (ray casting, footprints and shading
+/// excluded, as a peer library's lookups are timed given derivatives).
 #[derive(Debug, Clone)]
 pub struct LookupTiming {
     /// The filtered texture colour per pixel (transparent where no textured
@@ -67,12 +68,22 @@ pub fn time_lookups(
     prepare_baselines(&scene, filter)?;
     let frame = Frame::new(&scene);
     let hits = textured_hits(&scene);
+    // The footprints (ray casting) before the clock starts, as a peer's
+    // lookups get their derivatives from the renderer.
+    let footprints: Vec<_> = hits
+        .iter()
+        .map(|&(pixel, surface, hit)| {
+            let (x, y) = (pixel as u32 % width, pixel as u32 / width);
+            let area = ScreenArea::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            view::footprint(&scene, &scene.surfaces[surface], &hit, area)
+        })
+        .collect();
     let mut pixels = vec![Rgba::TRANSPARENT; (width * height) as usize];
     let mut times = Vec::new();
     let mut stats = PixelStats::default();
     for _ in 0..passes.max(1) {
         let start = Instant::now();
-        for &(pixel, surface, hit) in &hits {
+        for (&(pixel, surface, hit), &footprint) in hits.iter().zip(&footprints) {
             let (x, y) = (pixel as u32 % width, pixel as u32 / width);
             let area = ScreenArea::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
             if let Some(sampler) = frame.sampler(surface) {
@@ -84,6 +95,7 @@ pub fn time_lookups(
                     filter,
                     PixelFilter::Box,
                     area,
+                    || footprint,
                     &mut stats,
                 );
             }

@@ -37,6 +37,7 @@ pub(crate) fn shade_ray(
                 filter,
                 pixel_filter,
                 area,
+                || view::footprint(scene, surface, &hit, area),
                 stats,
             );
             tex * surface.colour
@@ -47,7 +48,8 @@ pub(crate) fn shade_ray(
 }
 
 /// The filtered texture colour of surface `index` at `hit` for the screen
-/// square `area`.
+/// square `area`, whose footprint `footprint` gives when a filter needs it
+/// (computed there, or given: lookups are timed without it).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn texture_colour(
     frame: &Frame<'_>,
@@ -57,13 +59,13 @@ pub(crate) fn texture_colour(
     filter: Filter,
     pixel_filter: PixelFilter,
     area: ScreenArea,
+    footprint: impl FnOnce() -> Option<quadtex_core::Footprint>,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
     let surface = &scene.surfaces[index];
     let centre = view::centre_point(surface, hit);
     let traversal = &mut stats.filter.traversal;
-    let footprint = || view::footprint(scene, surface, hit, area);
     match filter {
         Filter::Nearest | Filter::Supersample(_) => sampler.nearest_counted(centre, traversal),
         Filter::Bilinear => sampler.bilinear_counted(centre, traversal),
