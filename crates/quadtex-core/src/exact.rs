@@ -750,6 +750,7 @@ impl Walk<'_> {
         // One pass, bands cut off the rest of the region from the bottom up;
         // the sums stay local until the scan is known to fit.
         let (mut colour_sum, mut weight_sum, mut cells) = ([0.0; 4], 0.0, 0.0);
+        let mut screen_buffer = [[0.0; 2]; crate::polygon::MAX_VERTICES];
         let mut rests = [self.region.clone(), ConvexPolygon::EMPTY];
         let mut band = ConvexPolygon::EMPTY;
         let mut r = 0;
@@ -779,13 +780,15 @@ impl Walk<'_> {
                 // screen area of the band left of the cell's right side,
                 // less that left of its left side. One pass over the band's
                 // vertices a cell, no polygon built.
-                let sweep = BandSweep::new(p, &m, self.centre);
+                let texture = p.vertices();
+                let screen = &mut screen_buffer[..texture.len()];
+                let total = band_to_screen(texture, &m, self.centre, screen);
                 let mut left = 0.0;
                 for col in m0..m1 {
                     let upto = if col + 1 == m1 {
-                        sweep.total
+                        total
                     } else {
-                        sweep.left_of((col + 1) as f64 * h)
+                        band_left_of(texture, screen, (col + 1) as f64 * h, &m, self.centre)
                     };
                     let w = 0.5 * (upto - left).abs();
                     left = upto;
@@ -1458,83 +1461,71 @@ fn density_range_det(m: &Mat3, det: f64, corners: &[[f64; 2]; 4]) -> (f64, f64) 
     (lo, hi)
 }
 
-/// A texture-space convex polygon swept by vertical lines `x = X`: the
-/// doubled signed screen area of its part left of `X` (screen coordinates
-/// taken relative to a centre near the polygon, so that the shoelace sums
-/// stay at the polygon's own scale).
-struct BandSweep<'a> {
-    texture: &'a [[f64; 2]],
-    screen: arrayvec::ArrayVec<[f64; 2], { crate::polygon::MAX_VERTICES }>,
-    m: &'a Mat3,
+/// Maps the texture-space `texture` vertices to screen coordinates relative
+/// to `centre` (so that shoelace sums stay at the polygon's own scale) into
+/// `screen`, and returns their doubled signed area.
+fn band_to_screen(
+    texture: &[[f64; 2]],
+    m: &Mat3,
     centre: [f64; 2],
-    /// The whole polygon's doubled signed screen area.
-    total: f64,
+    screen: &mut [[f64; 2]],
+) -> f64 {
+    for (s, &t) in screen.iter_mut().zip(texture) {
+        let q = apply(m, t);
+        *s = [q[0] - centre[0], q[1] - centre[1]];
+    }
+    let n = texture.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (screen[i], screen[(i + 1) % n]);
+            a[0] * b[1] - a[1] * b[0]
+        })
+        .sum()
 }
 
-impl<'a> BandSweep<'a> {
-    fn new(p: &'a ConvexPolygon, m: &'a Mat3, centre: [f64; 2]) -> BandSweep<'a> {
-        let texture = p.vertices();
-        let screen: arrayvec::ArrayVec<[f64; 2], { crate::polygon::MAX_VERTICES }> = texture
-            .iter()
-            .map(|&t| {
-                let s = apply(m, t);
-                [s[0] - centre[0], s[1] - centre[1]]
-            })
-            .collect();
-        let n = screen.len();
-        let total = (0..n)
-            .map(|i| {
-                let (a, b) = (screen[i], screen[(i + 1) % n]);
-                a[0] * b[1] - a[1] * b[0]
-            })
-            .sum();
-        BandSweep {
-            texture,
-            screen,
-            m,
-            centre,
-            total,
+/// The doubled signed screen area of the part of a texture-space convex
+/// polygon with `x <= x_cut`: Sutherland–Hodgman against one half-plane,
+/// the clipped vertices fed straight into the shoelace sum. `screen` holds
+/// the vertices as [`band_to_screen`] mapped them.
+fn band_left_of(
+    texture: &[[f64; 2]],
+    screen: &[[f64; 2]],
+    x_cut: f64,
+    m: &Mat3,
+    centre: [f64; 2],
+) -> f64 {
+    let n = texture.len();
+    let mut sum = 0.0;
+    let mut first: Option<[f64; 2]> = None;
+    let mut last = [0.0; 2];
+    let mut emit = |q: [f64; 2]| {
+        match first {
+            None => first = Some(q),
+            Some(_) => sum += last[0] * q[1] - last[1] * q[0],
+        }
+        last = q;
+    };
+    let crossing = |a: [f64; 2], b: [f64; 2]| {
+        let u = (x_cut - a[0]) / (b[0] - a[0]);
+        let q = apply(m, [x_cut, a[1] + u * (b[1] - a[1])]);
+        [q[0] - centre[0], q[1] - centre[1]]
+    };
+    for i in 0..n {
+        let prev = (i + n - 1) % n;
+        let (prev_in, cur_in) = (texture[prev][0] <= x_cut, texture[i][0] <= x_cut);
+        if cur_in {
+            if !prev_in {
+                emit(crossing(texture[prev], texture[i]));
+            }
+            emit(screen[i]);
+        } else if prev_in {
+            emit(crossing(texture[prev], texture[i]));
         }
     }
-
-    /// Doubled signed screen area of the part with `x <= x_cut`
-    /// (Sutherland–Hodgman against one half-plane, the clipped vertices
-    /// fed straight into the shoelace sum).
-    fn left_of(&self, x_cut: f64) -> f64 {
-        let (t, s) = (self.texture, &self.screen);
-        let n = t.len();
-        let mut sum = 0.0;
-        let mut first: Option<[f64; 2]> = None;
-        let mut last = [0.0; 2];
-        let mut emit = |q: [f64; 2]| {
-            match first {
-                None => first = Some(q),
-                Some(_) => sum += last[0] * q[1] - last[1] * q[0],
-            }
-            last = q;
-        };
-        let crossing = |a: [f64; 2], b: [f64; 2]| {
-            let u = (x_cut - a[0]) / (b[0] - a[0]);
-            let q = apply(self.m, [x_cut, a[1] + u * (b[1] - a[1])]);
-            [q[0] - self.centre[0], q[1] - self.centre[1]]
-        };
-        for i in 0..n {
-            let (pi, ci) = ((i + n - 1) % n, i);
-            let (prev_in, cur_in) = (t[pi][0] <= x_cut, t[ci][0] <= x_cut);
-            if cur_in {
-                if !prev_in {
-                    emit(crossing(t[pi], t[ci]));
-                }
-                emit(s[ci]);
-            } else if prev_in {
-                emit(crossing(t[pi], t[ci]));
-            }
-        }
-        if let Some(f) = first {
-            sum += last[0] * f[1] - last[1] * f[0];
-        }
-        sum
+    if let Some(f) = first {
+        sum += last[0] * f[1] - last[1] * f[0];
     }
+    sum
 }
 
 #[inline]
