@@ -262,7 +262,8 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         .iter()
         .any(|c| c.pixel_filter == PixelFilter::Tent);
     let n = s.reference_grid;
-    eprintln!(
+    let _ = writeln!(
+        std::io::stderr(),
         "{name}: {w}x{h}; reference {} samples per pixel (box{})",
         n * n,
         if needs_tent { " and tent" } else { "" }
@@ -283,7 +284,7 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         ))
     });
     if let Some(note) = &exact_note {
-        eprintln!("{name}: closed form{note}");
+        let _ = writeln!(std::io::stderr(), "{name}: closed form{note}");
     }
     let reference_for = |c: &Contender| match (c.pixel_filter, &reference_tent) {
         (PixelFilter::Tent, Some(t)) => t,
@@ -329,7 +330,8 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
             .collect()
     };
     let (shimmer_box, shimmer_tent) = if s.frames >= 2 {
-        eprintln!(
+        let _ = writeln!(
+            std::io::stderr(),
             "{name}: {} shimmer frames at {}x{}, references {} samples per pixel",
             s.frames,
             shimmer_size.0,
@@ -391,7 +393,8 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
             lookups_per_pixel: lookups_per_pixel(c.filter, &summary),
             texture_bytes: texture_bytes(scene, c.filter),
         };
-        eprintln!(
+        let _ = writeln!(
+            std::io::stderr(),
             "  {:<16} RMSE {:.4}  {:>7.0} ms/frame",
             c.label,
             rmse,

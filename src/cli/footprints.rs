@@ -169,9 +169,11 @@ pub fn run(args: Args) -> Result<()> {
             "{label}\t{:.1}\t{bytes}\t{file}\n",
             t.ns_per_lookup
         ));
-        eprintln!(
+        let _ = writeln!(
+            std::io::stderr(),
             "{label}: {:.1} ns per lookup over {} lookups (median of {passes}, one thread)",
-            t.ns_per_lookup, t.lookups
+            t.ns_per_lookup,
+            t.lookups
         );
     }
     quadtex_io::write_atomically(&dir.join("quadtex.tsv"), |w| {
