@@ -206,44 +206,56 @@ fn tent_and_mitchell_match_weighted_sampling() {
                 "{filter:?} weight {}",
                 r.weight
             );
-            let n = 300;
             let side = 2.0 * filter.radius();
-            let (mut acc, mut wsum) = ([0f64; 4], 0.0);
-            for j in 0..n {
-                for i in 0..n {
-                    let dx = -filter.radius() + side * (f64::from(i) + 0.5) / f64::from(n);
-                    let dy = -filter.radius() + side * (f64::from(j) + 0.5) / f64::from(n);
-                    let w = filter.weight(dx, dy);
-                    let t = projection
-                        .texture_point([centre[0] + dx, centre[1] + dy])
-                        .unwrap();
-                    for (a, v) in acc.iter_mut().zip(texture.nearest(t).to_array()) {
-                        *a += w * f64::from(v);
+            let sample = |n: u32| {
+                let (mut acc, mut wsum) = ([0f64; 4], 0.0);
+                for j in 0..n {
+                    for i in 0..n {
+                        let dx = -filter.radius() + side * (f64::from(i) + 0.5) / f64::from(n);
+                        let dy = -filter.radius() + side * (f64::from(j) + 0.5) / f64::from(n);
+                        let w = filter.weight(dx, dy);
+                        let t = projection
+                            .texture_point([centre[0] + dx, centre[1] + dy])
+                            .unwrap();
+                        for (a, v) in acc.iter_mut().zip(texture.nearest(t).to_array()) {
+                            *a += w * f64::from(v);
+                        }
+                        wsum += w;
                     }
-                    wsum += w;
                 }
-            }
-            let sampled = Rgba::new(
-                (acc[0] / wsum) as f32,
-                (acc[1] / wsum) as f32,
-                (acc[2] / wsum) as f32,
-                (acc[3] / wsum) as f32,
-            );
+                Rgba::new(
+                    (acc[0] / wsum) as f32,
+                    (acc[1] / wsum) as f32,
+                    (acc[2] / wsum) as f32,
+                    (acc[3] / wsum) as f32,
+                )
+            };
             let exact = r.mean().unwrap();
-            // Midpoint sampling on a 300² grid: edges cut ~300 samples each.
             // Relative to the contrast in view: an HDR texture against a
             // border colour spans more than [0, 1].
-            let contrast = exact
-                .to_array()
-                .iter()
-                .chain(&sampled.to_array())
-                .fold(texture.tree().bound_scale(), |m, v| {
-                    m.max(f64::from(v.abs()))
-                });
-            assert!(
-                max_diff(exact, sampled) < 0.02 * contrast,
-                "{filter:?}: {exact:?} vs sampled {sampled:?}"
-            );
+            let contrast = |sampled: Rgba| {
+                exact
+                    .to_array()
+                    .iter()
+                    .chain(&sampled.to_array())
+                    .fold(texture.tree().bound_scale(), |m, v| {
+                        m.max(f64::from(v.abs()))
+                    })
+            };
+            // Midpoint sampling on a 300² grid: edges cut ~300 samples each,
+            // within 2 % of the contrast but for rare arrangements of thin,
+            // bright HDR squares under Mitchell's lobes (seed
+            // 0x0944216800010000: 4.6 %, converging to the exact value,
+            // 1e-6 apart, at 3000²). Those get a second, 5× finer sampling
+            // held to 1 %; a wrong integral fails both.
+            let coarse = sample(300);
+            if max_diff(exact, coarse) >= 0.02 * contrast(coarse) {
+                let fine = sample(1500);
+                assert!(
+                    max_diff(exact, fine) < 0.01 * contrast(fine),
+                    "{filter:?}: {exact:?} vs sampled {coarse:?} (300²), {fine:?} (1500²)"
+                );
+            }
         }
         Ok(())
     })
