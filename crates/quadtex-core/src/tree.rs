@@ -304,11 +304,6 @@ impl QuadTree {
         colours: Vec<Unorm16Rgba>,
         texel_blocks: Option<TexelBlocks>,
     ) -> Result<QuadTree, Error> {
-        if encoding != ColourEncoding::Unorm16 && texel_blocks.is_some() {
-            return Err(Error::MalformedTree(
-                "texel blocks in a tree of half-float colours".into(),
-            ));
-        }
         let n = colours.len();
         let inner_words = n.div_ceil(64);
         if inner.len() < inner_words {

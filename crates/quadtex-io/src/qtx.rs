@@ -189,12 +189,7 @@ pub fn map_qtx(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Erro
     let mut header = [0u8; HEADER_BYTES];
     let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
     let h = check_header(&header[..got], file_bytes, path, limits)?;
-    limits.check_memory(
-        path,
-        || format!("mapping a tree of {} nodes", h.nodes),
-        h.nodes.div_ceil(4),
-        "raise --memory-limit",
-    )?;
+    check_map_memory(&h, path, limits)?;
     let map = map_file(&file).map_err(io(path))?;
     // Opening reads the inner flags front to back: read them ahead. Queries
     // then touch a few scattered colours each: read ahead nothing there, so
@@ -244,6 +239,17 @@ fn check_read_memory(h: &Header, path: &Path, limits: &Limits) -> Result<(), Err
     )
 }
 
+/// Refuses a mapping whose inner flags' rank counters (a quarter byte a
+/// node) exceed the memory budget.
+fn check_map_memory(h: &Header, path: &Path, limits: &Limits) -> Result<(), Error> {
+    limits.check_memory(
+        path,
+        || format!("mapping a tree of {} nodes", h.nodes),
+        h.nodes.div_ceil(4),
+        "raise --memory-limit",
+    )
+}
+
 /// The error for an allocation of `bytes` for `what` the allocator refused.
 fn out_of_memory(path: &Path, what: &str, bytes: usize) -> Error {
     crate::error::core(path)(quadtex_core::Error::AllocationFailed {
@@ -278,6 +284,8 @@ pub fn parse_qtx_structure(
     path: &Path,
     limits: &Limits,
 ) -> Result<(QuadTree, QtxInfo), Error> {
+    let h = check_header(&bytes, bytes.len() as u64, path, limits)?;
+    check_map_memory(&h, path, limits)?;
     parse_shared(bytes, path, limits, Check::Structure)
 }
 
