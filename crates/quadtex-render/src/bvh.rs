@@ -154,6 +154,46 @@ impl Bvh {
         best
     }
 
+    /// Whether `test` holds for a primitive whose box the ray enters: any
+    /// one, in no particular order, stopping at the first (a shadow ray
+    /// needs to know that something is in the way, not what is nearest).
+    pub fn any(&self, ray: &Ray, mut test: impl FnMut(u32) -> bool) -> bool {
+        let d = ray.direction;
+        let inv = Vec3::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+        let enters = |n: usize| {
+            self.nodes[n]
+                .bounds
+                .entry(ray.origin, inv, f64::INFINITY)
+                .is_some()
+        };
+        if !enters(0) {
+            return false;
+        }
+        let mut stack = [0u32; MAX_DEPTH + 2];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.count > 0 {
+                let s = node.start as usize;
+                if self.order[s..s + node.count as usize]
+                    .iter()
+                    .any(|&i| test(i))
+                {
+                    return true;
+                }
+                continue;
+            }
+            for child in [node.start as usize, node.start as usize + 1] {
+                if enters(child) {
+                    stack[top] = child as u32;
+                    top += 1;
+                }
+            }
+        }
+        false
+    }
+
     /// Nodes in the hierarchy.
     #[cfg(test)]
     pub fn node_count(&self) -> usize {
@@ -393,6 +433,9 @@ mod tests {
                     .fold(None, |b: Option<f64>, t| Some(b.map_or(t, |b| b.min(t))));
                 let found = bvh.nearest(&ray, |i, _| crossing(&tris[i as usize], &ray));
                 assert_eq!(found.map(|f| f.1), brute, "n = {n}");
+                // Any hit (shadow rays) exactly when there is a nearest one.
+                let any = bvh.any(&ray, |i| crossing(&tris[i as usize], &ray).is_some());
+                assert_eq!(any, brute.is_some(), "n = {n}");
                 hits += usize::from(brute.is_some());
             }
             assert!(

@@ -63,7 +63,7 @@ pub(crate) fn lambert(scene: &Scene, normal: Vec3, point: Vec3, ray: &Ray) -> [f
                     origin: point + n * 1e-6 * (1.0 + distance),
                     direction,
                 };
-                scene.nearest_hit(&shadow).is_none()
+                !scene.occluded(&shadow)
             };
             let k = if lit { cos as f32 } else { 0.0 };
             [0, 1, 2].map(|i| ambient[i] + k * colour[i])

@@ -284,6 +284,13 @@ impl Mesh {
         Some(tri.e2.dot(q) * inv)
     }
 
+    /// Whether the ray meets a triangle beyond `t_min` (any one).
+    fn occludes(&self, ray: &Ray, t_min: f64) -> bool {
+        self.bvh.any(ray, |i| {
+            Self::crossing(&self.triangles[i as usize], ray).is_some_and(|t| t > t_min)
+        })
+    }
+
     fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
         let (index, t) = self.bvh.nearest(ray, |i, _| {
             Self::crossing(&self.triangles[i as usize], ray).filter(|&t| t > t_min)
@@ -394,6 +401,15 @@ impl Geometry {
                 })
             }
             Geometry::Sphere { .. } => None,
+        }
+    }
+
+    /// Whether the ray meets the surface beyond `t_min`: what
+    /// [`Geometry::intersect`] finds, without finding the nearest point.
+    pub(crate) fn occludes(&self, ray: &Ray, t_min: f64) -> bool {
+        match self {
+            Geometry::Mesh(mesh) => mesh.occludes(ray, t_min),
+            _ => self.intersect(ray, t_min).is_some(),
         }
     }
 
@@ -718,6 +734,12 @@ impl Scene {
             }
         }
         best
+    }
+
+    /// Whether `ray` meets any surface (as [`Scene::nearest_index`] would
+    /// find one): for shadow rays.
+    pub(crate) fn occluded(&self, ray: &Ray) -> bool {
+        self.surfaces.iter().any(|s| s.geometry.occludes(ray, 1e-9))
     }
 
     /// The first surface `ray` meets, and where.
