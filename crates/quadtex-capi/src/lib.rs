@@ -173,13 +173,27 @@ pub extern "C" fn qtx_filter_options_default() -> QtxFilterOptions {
 #[unsafe(no_mangle)]
 #[allow(unsafe_code)]
 pub unsafe extern "C" fn qtx_open(path: *const c_char, out: *mut *mut QtxTexture) -> QtxStatus {
+    // SAFETY: forwarded from this function's contract.
+    unsafe { open_with(path, out, ops::open) }
+}
+
+/// `qtx_open` and `qtx_open_mapped`: `open` makes the texture from the path.
+///
+/// # Safety
+/// As `qtx_open`.
+#[allow(unsafe_code)]
+unsafe fn open_with(
+    path: *const c_char,
+    out: *mut *mut QtxTexture,
+    open: fn(&std::path::Path) -> Result<QtxTexture, Failure>,
+) -> QtxStatus {
     guard(|| {
-        // SAFETY: `out` is NULL or writable, by this function's contract.
+        // SAFETY: `out` is NULL or writable, by the caller's contract.
         let mut out = unsafe { Out::new(out, "out") }?;
         out.set(std::ptr::null_mut());
-        // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
+        // SAFETY: `path` is NULL or NUL-terminated, by the caller's contract.
         let path = unsafe { ptr::path_arg(path, "path") }?;
-        out.set(ptr::into_raw(ops::open(&path)?));
+        out.set(ptr::into_raw(open(&path)?));
         Ok(())
     })
 }
@@ -201,15 +215,8 @@ pub unsafe extern "C" fn qtx_open_mapped(
     path: *const c_char,
     out: *mut *mut QtxTexture,
 ) -> QtxStatus {
-    guard(|| {
-        // SAFETY: `out` is NULL or writable, by this function's contract.
-        let mut out = unsafe { Out::new(out, "out") }?;
-        out.set(std::ptr::null_mut());
-        // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
-        let path = unsafe { ptr::path_arg(path, "path") }?;
-        out.set(ptr::into_raw(ops::open_mapped(&path)?));
-        Ok(())
-    })
+    // SAFETY: forwarded from this function's contract.
+    unsafe { open_with(path, out, ops::open_mapped) }
 }
 
 /// Checks every colour and texel of a texture (what `qtx_open_mapped`

@@ -750,6 +750,12 @@ impl Walk<'_> {
         // One pass, bands cut off the rest of the region from the bottom up;
         // the sums stay local until the scan is known to fit.
         let (mut colour_sum, mut weight_sum, mut cells) = ([0.0; 4], 0.0, 0.0);
+        let mut add = |colour: [f64; 4], w: f64| {
+            for (a, c) in colour_sum.iter_mut().zip(colour) {
+                *a += c * w;
+            }
+            weight_sum += w;
+        };
         let mut screen_buffer = [[0.0; 2]; crate::polygon::MAX_VERTICES];
         let mut rests = [self.region.clone(), ConvexPolygon::EMPTY];
         let mut band = ConvexPolygon::EMPTY;
@@ -792,11 +798,7 @@ impl Walk<'_> {
                     };
                     let w = 0.5 * (upto - left).abs();
                     left = upto;
-                    let colour = grid[row + wrapped(self.wrap.x, col)];
-                    for (a, c) in colour_sum.iter_mut().zip(colour) {
-                        *a += c * w;
-                    }
-                    weight_sum += w;
+                    add(grid[row + wrapped(self.wrap.x, col)], w);
                 }
                 continue;
             }
@@ -810,10 +812,7 @@ impl Walk<'_> {
                 let w = self
                     .filter
                     .integral(&self.to_screen_poly(&piece, &m), self.centre);
-                for (a, c) in colour_sum.iter_mut().zip(colour) {
-                    *a += c * w;
-                }
-                weight_sum += w;
+                add(colour, w);
             }
         }
         for (a, c) in self.out.colour.0.iter_mut().zip(colour_sum) {

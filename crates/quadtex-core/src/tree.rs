@@ -450,12 +450,7 @@ impl QuadTree {
         }
         let n = n as usize;
         let blocks = rank_blocks(n, inner_word)?;
-        let inner_before = |p: usize| match blocks.get(p / 64) {
-            Some(b) => b.rank + u64::from((b.bits & ((1u64 << (p % 64)) - 1)).count_ones()),
-            None => blocks
-                .last()
-                .map_or(0, |b| b.rank + u64::from(b.bits.count_ones())),
-        };
+        let inner_before = |p: usize| inner_before(&blocks, p);
         // Walk the levels (padded indices): each holds four children per
         // inner node of the one above.
         let mut level_starts = vec![PAD];
@@ -782,7 +777,7 @@ impl QuadTree {
             .windows(2)
             .enumerate()
             .map(|(level, w)| {
-                let inner = self.inner_before(w[1]) - self.inner_before(w[0]);
+                let inner = inner_before(&self.blocks, w[1]) - inner_before(&self.blocks, w[0]);
                 let nodes = (w[1] - w[0]) as u64;
                 LevelStats {
                     level: level as u8,
@@ -941,17 +936,6 @@ impl QuadTree {
     /// square texture, an upper bound for others.
     pub fn rasterise_bytes(level: u8) -> u64 {
         8u64 << (2 * u32::from(level.min(31)))
-    }
-
-    /// Inner nodes at padded indices below `p`.
-    fn inner_before(&self, p: usize) -> u64 {
-        match self.blocks.get(p / 64) {
-            Some(b) => b.rank + u64::from((b.bits & ((1u64 << (p % 64)) - 1)).count_ones()),
-            None => self
-                .blocks
-                .last()
-                .map_or(0, |b| b.rank + u64::from(b.bits.count_ones())),
-        }
     }
 
     #[inline]
@@ -1463,6 +1447,16 @@ fn rank_blocks(n: usize, word: impl Fn(usize) -> u64) -> Result<Vec<RankBlock>, 
     }
     fill_ranks(&mut blocks);
     Ok(blocks)
+}
+
+/// Inner nodes at padded indices below `p`, from ranked `blocks`.
+fn inner_before(blocks: &[RankBlock], p: usize) -> u64 {
+    match blocks.get(p / 64) {
+        Some(b) => b.rank + u64::from((b.bits & ((1u64 << (p % 64)) - 1)).count_ones()),
+        None => blocks
+            .last()
+            .map_or(0, |b| b.rank + u64::from(b.bits.count_ones())),
+    }
 }
 
 /// Sets each rank block's count of inner nodes before it.

@@ -147,13 +147,7 @@ pub fn read_qtx(path: &Path) -> Result<QuadTree, Error> {
 /// the file's real length and `limits` before anything is allocated. The
 /// tree reads its colours in place from the file's bytes (no second copy).
 pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
-    let mut file = File::open(path).map_err(io(path))?;
-    let file_bytes = file.metadata().map_err(io(path))?.len();
-    // Check the header (and the file's size against the limits) before reading the body, so a hostile size field
-    // costs nothing.
-    let mut header = [0u8; HEADER_BYTES];
-    let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
-    let h = check_header(&header[..got], file_bytes, path, limits)?;
+    let (mut file, file_bytes, h, header) = open_checked(path, limits)?;
     check_read_memory(&h, path, limits)?;
     let mut bytes = header.to_vec();
     let body = (file_bytes as usize).saturating_sub(HEADER_BYTES);
@@ -184,11 +178,7 @@ pub fn read_qtx_with_limits(path: &Path, limits: &Limits) -> Result<(QuadTree, Q
 /// temporary file and rename it over the old one, which leaves a mapped
 /// file intact.
 pub fn map_qtx(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
-    let mut file = File::open(path).map_err(io(path))?;
-    let file_bytes = file.metadata().map_err(io(path))?.len();
-    let mut header = [0u8; HEADER_BYTES];
-    let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
-    let h = check_header(&header[..got], file_bytes, path, limits)?;
+    let (file, file_bytes, h, _) = open_checked(path, limits)?;
     check_map_memory(&h, path, limits)?;
     let map = map_file(&file).map_err(io(path))?;
     // Opening reads the inner flags front to back: read them ahead. Queries
@@ -212,6 +202,22 @@ pub fn map_qtx(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Erro
         });
     }
     parse_shared(SharedBytes::from_owner(map), path, limits, Check::Structure)
+}
+
+/// Opens `path` and checks its header (and its size against the limits)
+/// before anything sized by it is read, so a hostile size field costs
+/// nothing: the file positioned after the header, its length, the header
+/// parsed and its bytes.
+fn open_checked(
+    path: &Path,
+    limits: &Limits,
+) -> Result<(File, u64, Header, [u8; HEADER_BYTES]), Error> {
+    let mut file = File::open(path).map_err(io(path))?;
+    let file_bytes = file.metadata().map_err(io(path))?.len();
+    let mut header = [0u8; HEADER_BYTES];
+    let got = read_up_to(&mut file, &mut header).map_err(io(path))?;
+    let h = check_header(&header[..got], file_bytes, path, limits)?;
+    Ok((file, file_bytes, h, header))
 }
 
 /// Maps `file` read-only.
