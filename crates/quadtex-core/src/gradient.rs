@@ -256,6 +256,52 @@ impl Gradient {
         })
     }
 
+    /// A linear gradient given by its parameter directly:
+    /// `t = g[0]·x + g[1]·z + g[2]` in texture space (what
+    /// [`Gradient::linear_parameter`] returns, for storage).
+    pub fn linear_from_parameter(
+        g: [f64; 3],
+        stops: Vec<Stop>,
+        spread: Spread,
+        interpolation: Interpolation,
+    ) -> Result<Gradient, Error> {
+        check_stops(&stops)?;
+        if g.iter().any(|v| !v.is_finite()) {
+            return Err(bad(format!(
+                "linear gradient parameter {g:?} is not finite"
+            )));
+        }
+        Ok(Gradient {
+            kind: Kind::Linear { g },
+            stops,
+            spread,
+            interpolation,
+        })
+    }
+
+    /// For a linear gradient, `g` with `t = g[0]·x + g[1]·z + g[2]`.
+    pub fn linear_parameter(&self) -> Option<[f64; 3]> {
+        match self.kind {
+            Kind::Linear { g } => Some(g),
+            Kind::Radial { .. } => None,
+        }
+    }
+
+    /// The stops, in order.
+    pub fn stops(&self) -> &[Stop] {
+        &self.stops
+    }
+
+    /// How `t` continues beyond `[0,1]`.
+    pub fn spread(&self) -> Spread {
+        self.spread
+    }
+
+    /// The space stop colours are interpolated in.
+    pub fn interpolation(&self) -> Interpolation {
+        self.interpolation
+    }
+
     /// True when every stop is opaque.
     pub fn is_opaque(&self) -> bool {
         self.stops.iter().all(|s| s.opacity >= 1.0)

@@ -31,6 +31,7 @@ pub mod exact;
 pub mod footprint;
 mod fragment;
 pub mod gradient;
+pub mod gradient_leaf;
 pub mod image_paint;
 
 pub mod build;
@@ -55,6 +56,7 @@ pub use error::Error;
 pub use exact::{PixelFilter, Projection, RegionIntegral};
 pub use footprint::Footprint;
 pub use fragment::Fragment;
+pub use gradient_leaf::{GradientLeaves, LeafPaint};
 pub use polygon::ConvexPolygon;
 pub use shared::SharedBytes;
 pub use texel_block::{BlockFormat, TexelBlocks};

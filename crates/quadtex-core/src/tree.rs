@@ -24,6 +24,7 @@ use crate::Error;
 use crate::SharedBytes;
 use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
 use crate::fragment::{Fragment, overlap_1d};
+use crate::gradient_leaf::{GradientLeaves, square_corners};
 use crate::texel_block::TexelBlocks;
 use crate::variant::{self, Variant};
 
@@ -206,6 +207,9 @@ pub struct QuadTree {
     /// and the padded indices of that level's nodes.
     texel_blocks: Option<TexelBlocks>,
     block_nodes: std::ops::Range<usize>,
+    /// Terminal squares that keep their gradient paint
+    /// ([`crate::gradient_leaf`]).
+    gradient_leaves: Option<GradientLeaves>,
 }
 
 /// Trees are equal when they store the same nodes and blocks in the same
@@ -219,6 +223,7 @@ impl PartialEq for QuadTree {
             && self.colours == other.colours
             && self.blocks == other.blocks
             && self.texel_blocks == other.texel_blocks
+            && self.gradient_leaves == other.gradient_leaves
     }
 }
 
@@ -229,6 +234,9 @@ impl PartialEq for QuadTree {
 pub(crate) struct NodeRef(u64);
 
 const CELL: u64 = 1 << 63;
+/// With [`CELL`]: a cell of a gradient leaf (leaf in bits 0–27, levels
+/// below the leaf in 28–31, position in 32–46 and 47–61).
+const GRADIENT: u64 = 1 << 62;
 
 impl NodeRef {
     #[inline]
@@ -247,8 +255,29 @@ impl NodeRef {
     }
 
     #[inline]
+    fn gradient_cell(leaf: usize, j: u8, ix: u32, iz: u32) -> NodeRef {
+        NodeRef(
+            CELL | GRADIENT
+                | leaf as u64
+                | u64::from(j) << 28
+                | u64::from(ix & 0x7fff) << 32
+                | u64::from(iz & 0x7fff) << 47,
+        )
+    }
+
+    #[inline]
+    fn as_gradient_cell(self) -> Option<(usize, u8, u32, u32)> {
+        (self.0 & (CELL | GRADIENT) == CELL | GRADIENT).then_some((
+            (self.0 & ((1 << 28) - 1)) as usize,
+            (self.0 >> 28 & 0xf) as u8,
+            (self.0 >> 32 & 0x7fff) as u32,
+            (self.0 >> 47 & 0x7fff) as u32,
+        ))
+    }
+
+    #[inline]
     fn as_cell(self) -> Option<(usize, u8, u32, u32)> {
-        (self.0 & CELL != 0).then_some((
+        (self.0 & (CELL | GRADIENT) == CELL).then_some((
             (self.0 & ((1 << 40) - 1)) as usize,
             (self.0 >> 40 & 0xf) as u8,
             (self.0 >> 44 & 0xff) as u32,
@@ -413,7 +442,32 @@ impl QuadTree {
             }
         }
         self.check_averages()?;
-        self.check_blocks()
+        self.check_blocks()?;
+        self.check_gradient_leaves()
+    }
+
+    /// Every gradient leaf's colour is its paint's mean over its square,
+    /// rounded: within one 16-bit step per channel.
+    fn check_gradient_leaves(&self) -> Result<(), Error> {
+        let Some(g) = &self.gradient_leaves else {
+            return Ok(());
+        };
+        for i in 0..g.count() {
+            let (level, ix, iz) = g.square(i);
+            let mean = g
+                .paint(i)
+                .mean_over(&square_corners(level, ix.into(), iz.into()));
+            let node = g.node(i);
+            let stored = self.colour(node as usize + PAD).0;
+            if (0..4)
+                .any(|c| (mean[c].clamp(0.0, 1.0) * 65535.0 - f64::from(stored[c])).abs() > 1.0)
+            {
+                return Err(Error::MalformedTree(format!(
+                    "gradient leaf {i} (node {node}): colour {stored:?} is not its paint's mean {mean:?}"
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// The structural checks shared by [`QuadTree::from_parts_with_blocks`]
@@ -561,6 +615,7 @@ impl QuadTree {
             grid: std::sync::OnceLock::new(),
             texel_blocks,
             block_nodes,
+            gradient_leaves: None,
         };
         tree.top = tree.build_top_table()?;
         Ok(tree)
@@ -709,9 +764,99 @@ impl QuadTree {
     }
 
     /// Deepest level present, texels of blocks included (0 for a
-    /// single-colour texture).
+    /// single-colour texture); with gradient leaves, the level they answer
+    /// down to ([`GradientLeaves::depth`]).
     pub fn depth(&self) -> u8 {
         self.depth
+    }
+
+    /// Deepest level of the stored nodes and texel blocks: [`QuadTree::depth`]
+    /// without gradient leaves.
+    pub fn stored_depth(&self) -> u8 {
+        let nodes = (self.level_starts.len() - 2) as u8;
+        let blocks = self
+            .texel_blocks
+            .as_ref()
+            .map_or(0, |b| b.level() + b.log2_side());
+        nodes.max(blocks)
+    }
+
+    /// The gradient leaves, if any ([`crate::gradient_leaf`]).
+    pub fn gradient_leaves(&self) -> Option<&GradientLeaves> {
+        self.gradient_leaves.as_ref()
+    }
+
+    /// The tree with some terminal squares kept as gradient leaves; its
+    /// depth becomes `leaves.depth()`. [`Error::MalformedTree`] when a leaf
+    /// is not a terminal node of the tree, is a texel block, lies more
+    /// than [`crate::gradient_leaf::MAX_CELL_LEVELS`] above that depth, or
+    /// the depth is below the stored nodes'; half-float trees and trees
+    /// with texel blocks have no gradient leaves.
+    pub fn with_gradient_leaves(mut self, mut leaves: GradientLeaves) -> Result<QuadTree, Error> {
+        let bad = |why: String| Err(Error::MalformedTree(format!("gradient leaves: {why}")));
+        if self.encoding != ColourEncoding::Unorm16 || self.texel_blocks.is_some() {
+            return bad("only in unorm16 trees without texel blocks".into());
+        }
+        if leaves.depth() < self.stored_depth() {
+            return bad(format!(
+                "depth {} is above the stored nodes' {}",
+                leaves.depth(),
+                self.stored_depth()
+            ));
+        }
+        let n = self.node_count();
+        if let Some(last) = leaves.leaves().last()
+            && u64::from(last.0) >= n
+        {
+            return bad(format!("node {} of {n}", last.0));
+        }
+        // Each leaf's square, from one walk over the stored nodes.
+        let mut squares = vec![(0u8, 0u32, 0u32); leaves.count()];
+        let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
+        while let Some((p, level, ix, iz)) = stack.pop() {
+            if self.is_inner(p) {
+                let c = self.first_child(p);
+                for k in 0..4 {
+                    stack.push((
+                        c + k,
+                        level + 1,
+                        2 * ix + (k & 1) as u32,
+                        2 * iz + (k >> 1) as u32,
+                    ));
+                }
+            } else if let Some(i) = leaves.index_of((p - PAD) as u32) {
+                squares[i] = (level, ix, iz);
+            }
+        }
+        for (i, &(level, ix, iz)) in squares.iter().enumerate() {
+            let node = leaves.node(i);
+            if self.is_inner(node as usize + PAD) {
+                return bad(format!("leaf {i}: node {node} is inner"));
+            }
+            if level + crate::gradient_leaf::MAX_CELL_LEVELS < leaves.depth() {
+                return bad(format!(
+                    "leaf {i}: node {node} at level {level} is more than {} levels above depth {}",
+                    crate::gradient_leaf::MAX_CELL_LEVELS,
+                    leaves.depth()
+                ));
+            }
+            if self.aspect.is_pad(level, ix, iz) {
+                return bad(format!("leaf {i}: node {node} lies in the pad"));
+            }
+        }
+        leaves.set_squares(squares);
+        self.depth = leaves.depth();
+        self.gradient_leaves = Some(leaves);
+        self.grid = std::sync::OnceLock::new();
+        self.moments = std::sync::OnceLock::new();
+        Ok(self)
+    }
+
+    /// The gradient leaf at padded index `p`, if it is one.
+    #[inline]
+    fn gradient_leaf(&self, p: usize) -> Option<(usize, &GradientLeaves)> {
+        let g = self.gradient_leaves.as_ref()?;
+        g.index_of((p - PAD) as u32).map(|i| (i, g))
     }
 
     /// Where texture space lies in the tree's square.
@@ -769,6 +914,10 @@ impl QuadTree {
                 .texel_blocks
                 .as_ref()
                 .map_or(0, TexelBlocks::memory_bytes)
+            + self
+                .gradient_leaves
+                .as_ref()
+                .map_or(0, GradientLeaves::memory_bytes)
     }
 
     /// Nodes and terminals per level.
@@ -802,7 +951,19 @@ impl QuadTree {
         *self.moments.get_or_init(|| {
             let (mut mx, mut mz) = ([0f64; 4], [0f64; 4]);
             let [ex, ez] = self.aspect.scale();
-            self.for_each_leaf(self.depth, |level, ix, iz, c| {
+            // A gradient leaf counts at its mean; the rest of its moment,
+            // ∫ (c − c̄)(x − x̄), is at most its colour range × area × side/4.
+            let slack: f64 = self.gradient_leaves.as_ref().map_or(0.0, |g| {
+                (0..g.count())
+                    .map(|i| {
+                        let (level, ix, iz) = g.square(i);
+                        let side = unit_side(level);
+                        let poly = square_corners(level, ix.into(), iz.into());
+                        g.paint(i).linear_width(&poly) * side * side * side / 4.0
+                    })
+                    .sum()
+            });
+            self.visit_leaves(self.depth, false, |level, ix, iz, c| {
                 // The leaf's texture part, in texture units (a leaf above
                 // the aspect's level straddles the pad).
                 let side = unit_side(level);
@@ -816,7 +977,7 @@ impl QuadTree {
                     mz[ch] += c[ch] * a * z;
                 }
             });
-            let max = |m: [f64; 4]| m.iter().fold(0f64, |a, v| a.max(v.abs()));
+            let max = |m: [f64; 4]| m.iter().fold(0f64, |a, v| a.max(v.abs())) + slack;
             [max(mx), max(mz)]
         })
     }
@@ -830,7 +991,10 @@ impl QuadTree {
         self.grid
             .get_or_init(|| {
                 let d = self.depth;
-                if d > FLAT_GRID_MAX_DEPTH || !self.aspect.is_square() {
+                if d > FLAT_GRID_MAX_DEPTH
+                    || !self.aspect.is_square()
+                    || self.gradient_leaves.is_some()
+                {
                     return None;
                 }
                 let n = 1usize << d;
@@ -853,8 +1017,16 @@ impl QuadTree {
     /// `[ix, ix+1) × [iz, iz+1)` scaled by `2^-level` in *tree space*
     /// ([`Aspect`]); squares of the pad are skipped. Order: depth first.
     /// Colours are decoded ([`ColourEncoding`]); a block's cells give the
-    /// exact mean of their texels.
-    pub fn for_each_leaf(&self, max_level: u8, mut f: impl FnMut(u8, u32, u32, [f64; 4])) {
+    /// exact mean of their texels. A gradient leaf above `max_level` gives
+    /// its cells ([`crate::gradient_leaf`]), each the exact mean of its
+    /// paint over it.
+    pub fn for_each_leaf(&self, max_level: u8, f: impl FnMut(u8, u32, u32, [f64; 4])) {
+        self.visit_leaves(max_level, true, f);
+    }
+
+    /// [`QuadTree::for_each_leaf`]; gradient leaves whole (at their stored
+    /// mean) unless `cells`.
+    fn visit_leaves(&self, max_level: u8, cells: bool, mut f: impl FnMut(u8, u32, u32, [f64; 4])) {
         let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
         while let Some((node, level, ix, iz)) = stack.pop() {
             if self.aspect.is_pad(level, ix, iz) {
@@ -869,6 +1041,26 @@ impl QuadTree {
                     for cx in 0..1u32 << j {
                         let mean = tb.cell_mean(b, j, cx, cz);
                         f(level + j, (ix << j) + cx, (iz << j) + cz, mean);
+                    }
+                }
+            } else if let Some((leaf, g)) = self
+                .gradient_leaf(node)
+                .filter(|_| cells && level < max_level)
+            {
+                let mut pending = vec![(0u8, 0u32, 0u32)];
+                while let Some((j, cx, cz)) = pending.pop() {
+                    let (l, poly) = g.cell(leaf, j, cx, cz);
+                    if l < max_level && g.splits(leaf, j, l, &poly) {
+                        for k in 0..4 {
+                            pending.push((j + 1, 2 * cx + (k & 1), 2 * cz + (k >> 1)));
+                        }
+                    } else {
+                        f(
+                            l,
+                            (ix << j) + cx,
+                            (iz << j) + cz,
+                            g.paint(leaf).mean_over(&poly),
+                        );
                     }
                 }
             } else if !self.is_inner(node) || level >= max_level {
@@ -970,6 +1162,9 @@ impl QuadTree {
     /// `[0, 1]` (a cell's is the exact mean of its texels).
     #[inline]
     pub(crate) fn node_info(&self, n: NodeRef) -> (bool, [f64; 4]) {
+        if let (Some((leaf, j, ix, iz)), Some(g)) = (n.as_gradient_cell(), &self.gradient_leaves) {
+            return g.cell_info(leaf, j, ix, iz);
+        }
         match (n.as_cell(), &self.texel_blocks) {
             (Some((b, j, ix, iz)), Some(tb)) => (
                 j < tb.log2_side() && !tb.cell_is_uniform(b, j, ix, iz),
@@ -978,7 +1173,16 @@ impl QuadTree {
             _ => {
                 let p = n.0 as usize;
                 let c = self.encoding.decode_colour(self.colour(p));
-                (self.is_inner(p) || self.block_at(p).is_some(), c)
+                let splits = || {
+                    self.gradient_leaf(p).is_some_and(|(i, g)| {
+                        let (level, ix, iz) = g.square(i);
+                        g.splits(i, 0, level, &square_corners(level, ix.into(), iz.into()))
+                    })
+                };
+                (
+                    self.is_inner(p) || self.block_at(p).is_some() || splits(),
+                    c,
+                )
             }
         }
     }
@@ -988,12 +1192,19 @@ impl QuadTree {
     #[inline]
     pub(crate) fn child_ref(&self, n: NodeRef, c: usize) -> NodeRef {
         let (hx, hz) = ((c & 1) as u32, (c >> 1) as u32);
+        if let Some((leaf, j, ix, iz)) = n.as_gradient_cell() {
+            return NodeRef::gradient_cell(leaf, j + 1, 2 * ix + hx, 2 * iz + hz);
+        }
         if let Some((b, j, ix, iz)) = n.as_cell() {
             return NodeRef::cell(b, j + 1, 2 * ix + hx, 2 * iz + hz);
         }
         let p = n.0 as usize;
         match self.block_at(p) {
             Some(b) => NodeRef::cell(b, 1, hx, hz),
+            None if !self.is_inner(p) => match self.gradient_leaf(p) {
+                Some((leaf, _)) => NodeRef::gradient_cell(leaf, 1, hx, hz),
+                None => NodeRef::stored(self.first_child(p) + c),
+            },
             None => NodeRef::stored(self.first_child(p) + c),
         }
     }
@@ -1068,6 +1279,25 @@ impl QuadTree {
         }
     }
 
+    /// The exact integral (unorm16 units × area) of the gradient leaf at
+    /// padded index `p`, if it is one above level `k`, over the rectangle
+    /// `[x0, x1) × [z0, z1)` of tree space inside its square.
+    #[inline(never)]
+    fn gradient_integral(&self, p: usize, k: u8, [x0, z0, x1, z1]: [f64; 4]) -> Option<[f64; 4]> {
+        let (leaf, g) = self.gradient_leaf(p)?;
+        if g.square(leaf).0 >= k {
+            return None;
+        }
+        let area = (x1 - x0).max(0.0) * (z1 - z0).max(0.0);
+        if area <= 0.0 {
+            return Some([0.0; 4]);
+        }
+        let mean = g
+            .paint(leaf)
+            .mean_over(&[[x0, z0], [x1, z0], [x1, z1], [x0, z1]]);
+        Some(mean.map(|m| m * 65535.0 * area))
+    }
+
     /// The colour of the fragment's overlap with the unit square when one
     /// terminal square holds all of it (so every point of it has that colour),
     /// found by descending only through squares that enclose the fragment;
@@ -1085,6 +1315,9 @@ impl QuadTree {
                     .map(Unorm16Rgba::to_rgba);
             }
             if !self.is_inner(node) {
+                if self.gradient_leaf(node).is_some() {
+                    return None;
+                }
                 let [r, g, b, a] = self.encoding.decode_colour(self.colour(node));
                 return Some(Rgba::new(r as f32, g as f32, b as f32, a as f32));
             }
@@ -1213,6 +1446,11 @@ impl QuadTree {
             self.add_block(&mut acc, b, level, lo, side, k, [x0, z0, x1, z1]);
             return result(acc);
         }
+        if !self.is_inner(start)
+            && let Some(w) = self.gradient_integral(start, k, [x0, z0, x1, z1])
+        {
+            return result(w);
+        }
         if level >= k || !self.is_inner(start) {
             return result(weigh::<HALF>(self.colour(start), f.area()));
         }
@@ -1283,9 +1521,22 @@ impl QuadTree {
                             [x0, z0, x1, z1],
                         ),
                         None => {
-                            let area = overlap_1d(x0, x1, clo_x, clo_x + half)
-                                * overlap_1d(z0, z1, clo_z, clo_z + half);
-                            add::<HALF>(&mut acc, colour, area);
+                            let (ox0, ox1) = (x0.max(clo_x), x1.min(clo_x + half));
+                            let (oz0, oz1) = (z0.max(clo_z), z1.min(clo_z + half));
+                            match self.gradient_leaves.as_ref().and_then(|_| {
+                                self.gradient_integral(first + c, k, [ox0, oz0, ox1, oz1])
+                            }) {
+                                Some(w) => {
+                                    for (a, v) in acc.iter_mut().zip(w) {
+                                        *a += v;
+                                    }
+                                }
+                                None => {
+                                    let area = overlap_1d(x0, x1, clo_x, clo_x + half)
+                                        * overlap_1d(z0, z1, clo_z, clo_z + half);
+                                    add::<HALF>(&mut acc, colour, area);
+                                }
+                            }
                         }
                     }
                 } else {

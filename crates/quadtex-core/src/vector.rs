@@ -69,6 +69,7 @@ use crate::Error;
 use crate::blend::{BlendMode, blend, blend_range};
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::gradient::Gradient;
+use crate::gradient_leaf::{GradientLeaves, LeafPaint, MAX_CELL_LEVELS};
 use crate::image_paint::ImagePaint;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
 use crate::tree::{self, MAX_NODES, QuadTree};
@@ -763,6 +764,69 @@ impl VectorArt {
         (colour, error)
     }
 
+    /// When exactly one layer of the point's composite varies (as seen by
+    /// [`VectorArt::composite_over`]), and it is a linear gradient outside
+    /// masks and blend modes: its gradient and the composite as
+    /// `offset + matrix·g`, `g` the gradient's colour (*over* and group
+    /// opacity are affine in each layer; checked at one more colour).
+    fn affine_in_gradient(
+        &self,
+        visible: &[u32],
+        covered: &[u32],
+    ) -> Option<(u32, [f64; 4], [[f64; 4]; 4])> {
+        let mut varying = covered.iter().copied().filter(|&s| {
+            let shape = &self.shapes[s as usize];
+            shape.gradient.is_some()
+                && (shape.mask_of.is_some() || visible.binary_search(&s).is_ok())
+        });
+        let s = varying.next()?;
+        if varying.next().is_some() {
+            return None;
+        }
+        let shape = &self.shapes[s as usize];
+        let gradient = shape.gradient?;
+        if shape.mask_of.is_some()
+            || !matches!(&self.gradients[gradient as usize], Varying::Gradient(g) if g.is_linear())
+        {
+            return None;
+        }
+        let blended = visible.iter().any(|&v| {
+            self.shapes[v as usize]
+                .groups
+                .iter()
+                .any(|&g| self.group_blend[g as usize] != BlendMode::Normal)
+        });
+        if blended {
+            return None;
+        }
+        let at = |g: [f64; 4]| {
+            self.composite_by(visible, 0, covered, &|t| {
+                if t == s {
+                    g
+                } else {
+                    self.shapes[t as usize].colour
+                }
+            })
+        };
+        let offset = at([0.0; 4]);
+        let mut matrix = [[0.0; 4]; 4];
+        for k in 0..4 {
+            let mut e = [0.0; 4];
+            e[k] = 1.0;
+            let column = at(e);
+            for c in 0..4 {
+                matrix[c][k] = column[c] - offset[c];
+            }
+        }
+        let probe = [0.3, 0.2, 0.1, 0.45];
+        let seen = at(probe);
+        let affine = (0..4).all(|c| {
+            let predicted = offset[c] + (0..4).map(|k| matrix[c][k] * probe[k]).sum::<f64>();
+            (predicted - seen[c]).abs() <= 1e-12
+        });
+        affine.then_some((gradient, offset, matrix))
+    }
+
     /// Per channel `[lo, hi]` of the composite of `list` over the convex
     /// polygon `poly`: interval arithmetic through the *over* operator.
     fn composite_range(
@@ -1022,6 +1086,10 @@ pub struct VectorOptions {
     /// arithmetic through the compositing). Flat colour and edges are exact
     /// regardless.
     pub tolerance: f64,
+    /// Keep squares painted by one linear gradient (and flat colour) whole,
+    /// with their paint, instead of splitting them to the tolerance
+    /// ([`crate::gradient_leaf`]). On by default.
+    pub gradient_leaves: bool,
 }
 
 /// A quarter of an 8-bit step: the default [`VectorOptions::tolerance`].
@@ -1034,6 +1102,7 @@ impl Default for VectorOptions {
             max_nodes: MAX_NODES,
             max_bytes: None,
             tolerance: DEFAULT_SMOOTH_TOLERANCE,
+            gradient_leaves: true,
         }
     }
 }
@@ -1054,6 +1123,10 @@ pub struct VectorReport {
     /// exact: flat colour, and linear gradients not overlapping other
     /// gradients).
     pub max_mean_error: f64,
+    /// Terminal squares kept as gradient leaves ([`crate::gradient_leaf`]).
+    pub gradient_leaves: u64,
+    /// Distinct paints of those leaves.
+    pub gradient_leaf_paints: u64,
 }
 
 /// The part of one shape inside a square: its contours are
@@ -1130,6 +1203,17 @@ struct VectorBuilder<'a> {
     nodes: u64,
     levels: Vec<Vec<(bool, Unorm16Rgba)>>,
     report: VectorReport,
+    /// Whether squares may become gradient leaves.
+    gradient_leaves: bool,
+    /// Paints of gradient leaves, and the index of each by its gradient
+    /// and coefficients' bits.
+    leaf_paints: Vec<LeafPaint>,
+    leaf_paint_index: std::collections::HashMap<(u32, [u64; 20]), u32>,
+    /// `(level, index in level, paint)` of each gradient leaf.
+    leaves: Vec<(u8, usize, u32)>,
+    /// The paint of the square [`VectorBuilder::square`] just made into a
+    /// gradient leaf.
+    made_leaf: Option<u32>,
     /// Clipping buffers.
     scratch: [Vec<Point>; 2],
     /// The pieces of the square being built at each level.
@@ -1193,6 +1277,11 @@ impl QuadTree {
             nodes: 1,
             levels: vec![Vec::new(); usize::from(options.max_level) + 1],
             report: VectorReport::default(),
+            gradient_leaves: options.gradient_leaves,
+            leaf_paints: Vec::new(),
+            leaf_paint_index: std::collections::HashMap::new(),
+            leaves: Vec::new(),
+            made_leaf: None,
             scratch: [Vec::new(), Vec::new()],
             work: (0..=options.max_level).map(|_| Pieces::default()).collect(),
             sweep: SweepScratch::default(),
@@ -1218,10 +1307,35 @@ impl QuadTree {
         b.work[0] = top;
         let (_, colour, terminal) = b.square(0, root)?;
         b.levels[0].push((!terminal, colour));
+        if let Some(paint) = b.made_leaf.take() {
+            b.leaves.push((0, 0, paint));
+        }
         while b.levels.last().is_some_and(Vec::is_empty) {
             b.levels.pop();
         }
-        Ok((tree::from_levels(b.levels, tree::Aspect::SQUARE)?, b.report))
+        let mut level_start = vec![0usize];
+        for l in &b.levels {
+            level_start.push(level_start.last().copied().unwrap_or(0) + l.len());
+        }
+        let tree = tree::from_levels(b.levels, tree::Aspect::SQUARE)?;
+        if b.leaves.is_empty() {
+            return Ok((tree, b.report));
+        }
+        let mut leaves: Vec<(u32, u32)> = b
+            .leaves
+            .iter()
+            .map(|&(level, i, paint)| ((level_start[usize::from(level)] + i) as u32, paint))
+            .collect();
+        leaves.sort_unstable();
+        b.report.gradient_leaves = leaves.len() as u64;
+        b.report.gradient_leaf_paints = b.leaf_paints.len() as u64;
+        let leaves = GradientLeaves::new(
+            options.max_level,
+            options.tolerance.min(1.0),
+            b.leaf_paints,
+            &leaves,
+        )?;
+        Ok((tree.with_gradient_leaves(leaves)?, b.report))
     }
 }
 
@@ -1276,6 +1390,14 @@ impl VectorBuilder<'_> {
                     return Ok((mean, quantise(mean), true));
                 }
             }
+            if self.gradient_leaves
+                && level < self.max_level
+                && level + MAX_CELL_LEVELS >= self.max_level
+                && let Some((mean, paint)) = self.leaf_paint(&poly)
+            {
+                self.made_leaf = Some(paint);
+                return Ok((mean, quantise(mean), true));
+            }
             // Smooth colour that varies too much: split like an edge would.
         }
         if level == self.max_level {
@@ -1296,7 +1418,7 @@ impl VectorBuilder<'_> {
             self.max_bytes,
             VECTOR_KNOBS,
         )?;
-        let mut children = [(Unorm16Rgba::default(), true); 4];
+        let mut children = [(Unorm16Rgba::default(), true, None); 4];
         let mut sum = [0.0; 4];
         let next = usize::from(level) + 1;
         for (k, child) in children.iter_mut().enumerate() {
@@ -1317,13 +1439,46 @@ impl VectorBuilder<'_> {
             for (s, m) in sum.iter_mut().zip(mean) {
                 *s += m / 4.0;
             }
-            *child = (colour, terminal);
+            *child = (colour, terminal, self.made_leaf.take());
         }
-        let next = &mut self.levels[next];
-        for (c, terminal) in children {
-            try_push(next, (!terminal, c), "tree level")?;
+        let row = &mut self.levels[next];
+        for (c, terminal, leaf) in children {
+            if let Some(paint) = leaf {
+                self.leaves.push((level + 1, row.len(), paint));
+            }
+            try_push(row, (!terminal, c), "tree level")?;
         }
         Ok((sum, quantise(sum), false))
+    }
+
+    /// The square `poly`'s mean and the index of its gradient-leaf paint,
+    /// when its shapes (in `self.sweep`: none has an edge inside) make a
+    /// colour affine in one linear gradient whose mean over it is exact.
+    fn leaf_paint(&mut self, poly: &[Point; 4]) -> Option<([f64; 4], u32)> {
+        let (covered, visible) = (&self.sweep.covered, &self.sweep.visible);
+        let Some((gradient, offset, matrix)) = self.art.affine_in_gradient(visible, covered) else {
+            return None;
+        };
+        let (mean, error) = self.art.composite_over(visible, covered, poly);
+        if error != 0.0 {
+            return None;
+        }
+        let mut key = [0u64; 20];
+        for (k, v) in offset.iter().chain(matrix.iter().flatten()).enumerate() {
+            key[k] = v.to_bits();
+        }
+        if let Some(&index) = self.leaf_paint_index.get(&(gradient, key)) {
+            return Some((mean, index));
+        }
+        let Varying::Gradient(g) = &self.art.gradients[gradient as usize] else {
+            return None;
+        };
+        // A paint beyond the leaves' limits (an absurdly steep gradient) splits instead.
+        let paint = LeafPaint::new(g.clone(), offset, matrix).ok()?;
+        let index = self.leaf_paints.len() as u32;
+        self.leaf_paints.push(paint);
+        self.leaf_paint_index.insert((gradient, key), index);
+        Some((mean, index))
     }
 
     /// Drops shapes that do not reach the square and shapes hidden by an

@@ -4,8 +4,12 @@ use std::fs::File;
 use std::io::{Read, Write};
 use std::path::Path;
 
+use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
 use quadtex_core::texel_block::BLOCK_LOG2_SIDE;
-use quadtex_core::{Aspect, BlockFormat, ColourEncoding, QuadTree, SharedBytes, TexelBlocks};
+use quadtex_core::{
+    Aspect, BlockFormat, ColourEncoding, GradientLeaves, LeafPaint, QuadTree, SharedBytes,
+    TexelBlocks,
+};
 
 use crate::atomic::{put, write_atomically};
 use crate::error::{Error, io};
@@ -14,9 +18,14 @@ use crate::limits::Limits;
 /// First eight bytes of every `.qtx` file (PNG-style: a high byte, a name,
 /// and line endings that reveal text-mode corruption).
 pub const MAGIC: [u8; 8] = *b"\x89QTX\r\n\x1a\n";
-/// The version this library writes; it reads this one and every earlier
-/// one (version 1 lacks the structure checksum).
-pub const FORMAT_VERSION: u32 = 2;
+/// The newest version this library writes (files with gradient leaves);
+/// it reads this one and every earlier one (version 1 lacks the structure
+/// checksum, version 2 gradient leaves). Files without gradient leaves
+/// are written as version 2, so older readers still read them.
+pub const FORMAT_VERSION: u32 = 3;
+
+/// The version of files without gradient leaves.
+const PLAIN_VERSION: u32 = 2;
 const HEADER_BYTES: usize = 64;
 
 /// Facts about a `.qtx` file beyond the tree itself.
@@ -77,13 +86,24 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
             colours.extend(v.to_le_bytes());
         }
     }
-    let blocks = encode_blocks(tree);
+    let mut blocks = encode_blocks(tree);
+    let gradient_section = encode_gradient_leaves(tree);
+    let version = if gradient_section.is_empty() {
+        PLAIN_VERSION
+    } else {
+        FORMAT_VERSION
+    };
     let (sw, sh) = source.unwrap_or((0, 0));
     let mut header = [0u8; HEADER_BYTES];
     header[0..8].copy_from_slice(&MAGIC);
-    header[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+    header[8..12].copy_from_slice(&version.to_le_bytes());
     header[12..16].copy_from_slice(&(HEADER_BYTES as u32).to_le_bytes());
-    header[16] = tree.depth();
+    header[16] = tree.stored_depth();
+    if !gradient_section.is_empty() {
+        header[31] = LEAF_KIND_GRADIENT;
+        // The two sections never meet: trees with texel blocks have no gradient leaves.
+        blocks = gradient_section;
+    }
     header[17] = tree.encoding().code();
     header[18..20].copy_from_slice(&tree.aspect().shrink());
     header[20..24].copy_from_slice(&sw.to_le_bytes());
@@ -101,7 +121,7 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
     header[56..60].copy_from_slice(&header_crc.to_le_bytes());
     let mut hasher = crc32fast::Hasher::new();
     hasher.update(&bits);
-    hasher.update(&blocks[..structure_bytes(&blocks)]);
+    hasher.update(&blocks[..section_structure_bytes(&blocks, header[31])]);
     header[60..64].copy_from_slice(&hasher.finalize().to_le_bytes());
     let mut hasher = crc32fast::Hasher::new();
     hasher.update(&bits);
@@ -135,6 +155,200 @@ fn encode_blocks(tree: &QuadTree) -> Vec<u8> {
     out.extend((0..flag_bytes).map(|i| (words[i / 8] >> (8 * (i % 8))) as u8));
     out.extend_from_slice(b.data());
     out
+}
+
+/// Header byte 31: the section after the colours holds gradient leaves.
+const LEAF_KIND_GRADIENT: u8 = 1;
+
+/// Bytes of one stop, and of a paint besides its stops.
+const STOP_BYTES: usize = 40;
+const PAINT_BYTES: usize = 24 + 8 + 32 + 128;
+
+/// The gradient-leaf section (`docs/format.md`), empty without leaves.
+fn encode_gradient_leaves(tree: &QuadTree) -> Vec<u8> {
+    let Some(g) = tree.gradient_leaves() else {
+        return Vec::new();
+    };
+    let mut body = Vec::new();
+    body.push(g.depth());
+    body.extend([0u8; 7]);
+    body.extend(g.tolerance().to_le_bytes());
+    body.extend((g.paints().len() as u32).to_le_bytes());
+    body.extend([0u8; 4]);
+    body.extend((g.count() as u64).to_le_bytes());
+    let f64s = |out: &mut Vec<u8>, vs: &[f64]| {
+        for v in vs {
+            out.extend(v.to_le_bytes());
+        }
+    };
+    for p in g.paints() {
+        let gr = p.gradient();
+        f64s(&mut body, &gr.linear_parameter().unwrap_or([0.0; 3]));
+        body.push(match gr.spread() {
+            Spread::Pad => 0,
+            Spread::Reflect => 1,
+            Spread::Repeat => 2,
+        });
+        body.push(match gr.interpolation() {
+            Interpolation::Srgb => 0,
+            Interpolation::Linear => 1,
+        });
+        body.extend([0u8; 2]);
+        body.extend((gr.stops().len() as u32).to_le_bytes());
+        for s in gr.stops() {
+            f64s(
+                &mut body,
+                &[s.offset, s.colour[0], s.colour[1], s.colour[2], s.opacity],
+            );
+        }
+        f64s(&mut body, &p.offset());
+        f64s(&mut body, p.matrix().as_flattened());
+    }
+    for (node, paint) in g.leaves() {
+        body.extend(node.to_le_bytes());
+        body.extend(paint.to_le_bytes());
+    }
+    let mut out = (body.len() as u64).to_le_bytes().to_vec();
+    out.extend(body);
+    out
+}
+
+/// The gradient-leaf section `bytes` (after the colours) for a tree of
+/// `nodes` nodes.
+fn decode_gradient_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<GradientLeaves, Error> {
+    let bad = |message: String| Error::Format {
+        path: path.to_path_buf(),
+        field: "gradient_leaves",
+        message,
+    };
+    let mut r = Reader { bytes, at: 0 };
+    let short = |what: &str| bad(format!("ends inside {what}"));
+    let declared = r.u64().ok_or_else(|| short("its length"))?;
+    if declared != (bytes.len() - 8) as u64 {
+        return Err(bad(format!(
+            "declares {declared} bytes, holds {}",
+            bytes.len() - 8
+        )));
+    }
+    let depth = r.u8().ok_or_else(|| short("the depth"))?;
+    let reserved = r.take(7).ok_or_else(|| short("the depth"))?;
+    let tolerance = r.f64().ok_or_else(|| short("the tolerance"))?;
+    let paint_count = r.u32().ok_or_else(|| short("the paint count"))?;
+    let reserved2 = r.take(4).ok_or_else(|| short("the paint count"))?;
+    let leaf_count = r.u64().ok_or_else(|| short("the leaf count"))?;
+    if reserved.iter().chain(reserved2).any(|&b| b != 0) {
+        return Err(bad("reserved bytes are not zero".into()));
+    }
+    if leaf_count > nodes || u64::from(paint_count) > leaf_count {
+        return Err(bad(format!(
+            "{leaf_count} leaves with {paint_count} paints in a tree of {nodes} nodes"
+        )));
+    }
+    // Each paint takes at least PAINT_BYTES + one stop, each leaf 8 bytes.
+    let least =
+        (leaf_count * 8).saturating_add(u64::from(paint_count) * (PAINT_BYTES + STOP_BYTES) as u64);
+    if least > r.remaining() as u64 {
+        return Err(bad(format!(
+            "{leaf_count} leaves and {paint_count} paints need at least {least} bytes, {} remain",
+            r.remaining()
+        )));
+    }
+    let mut paints = Vec::with_capacity(paint_count as usize);
+    for i in 0..paint_count {
+        let in_paint = |what: &str| bad(format!("paint {i}: ends inside {what}"));
+        let g = [(); 3].map(|_| r.f64());
+        let [Some(g0), Some(g1), Some(g2)] = g else {
+            return Err(in_paint("its gradient"));
+        };
+        let head = r.take(4).ok_or_else(|| in_paint("its gradient"))?;
+        let spread = match head[0] {
+            0 => Spread::Pad,
+            1 => Spread::Reflect,
+            2 => Spread::Repeat,
+            v => return Err(bad(format!("paint {i}: unknown spread {v}"))),
+        };
+        let interpolation = match head[1] {
+            0 => Interpolation::Srgb,
+            1 => Interpolation::Linear,
+            v => return Err(bad(format!("paint {i}: unknown interpolation {v}"))),
+        };
+        if head[2..] != [0, 0] {
+            return Err(bad(format!("paint {i}: reserved bytes are not zero")));
+        }
+        let stop_count = r.u32().ok_or_else(|| in_paint("its stop count"))? as usize;
+        if stop_count == 0
+            || stop_count > quadtex_core::gradient::MAX_STOPS
+            || stop_count * STOP_BYTES > r.remaining()
+        {
+            return Err(bad(format!("paint {i}: {stop_count} stops")));
+        }
+        let mut stops = Vec::with_capacity(stop_count);
+        for _ in 0..stop_count {
+            let v = [(); 5].map(|_| r.f64().unwrap_or(f64::NAN));
+            stops.push(Stop {
+                offset: v[0],
+                colour: [v[1], v[2], v[3]],
+                opacity: v[4],
+            });
+        }
+        let mut coefficients = [0.0; 20];
+        for c in &mut coefficients {
+            *c = r.f64().ok_or_else(|| in_paint("its coefficients"))?;
+        }
+        let offset = std::array::from_fn(|k| coefficients[k]);
+        let matrix =
+            std::array::from_fn(|row| std::array::from_fn(|k| coefficients[4 + 4 * row + k]));
+        let gradient = Gradient::linear_from_parameter([g0, g1, g2], stops, spread, interpolation)
+            .map_err(|e| bad(format!("paint {i}: {e}")))?;
+        paints.push(
+            LeafPaint::new(gradient, offset, matrix).map_err(|e| bad(format!("paint {i}: {e}")))?,
+        );
+    }
+    if r.remaining() as u64 != leaf_count * 8 {
+        return Err(bad(format!(
+            "{} bytes left for {leaf_count} leaves of 8 bytes",
+            r.remaining()
+        )));
+    }
+    let mut leaves = Vec::with_capacity(leaf_count as usize);
+    for _ in 0..leaf_count {
+        let (Some(node), Some(paint)) = (r.u32(), r.u32()) else {
+            return Err(short("the leaves"));
+        };
+        leaves.push((node, paint));
+    }
+    GradientLeaves::new(depth, tolerance, paints, &leaves).map_err(|e| bad(e.to_string()))
+}
+
+/// Little-endian fields off the front of a byte slice.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
+        self.at += n;
+        Some(s)
+    }
+    fn remaining(&self) -> usize {
+        self.bytes.len() - self.at
+    }
+    fn u8(&mut self) -> Option<u8> {
+        self.take(1).map(|b| b[0])
+    }
+    fn u32(&mut self) -> Option<u32> {
+        self.take(4)
+            .map(|b| u32::from_le_bytes(std::array::from_fn(|k| b[k])))
+    }
+    fn u64(&mut self) -> Option<u64> {
+        self.take(8)
+            .map(|b| u64::from_le_bytes(std::array::from_fn(|k| b[k])))
+    }
+    fn f64(&mut self) -> Option<f64> {
+        self.u64().map(f64::from_bits)
+    }
 }
 
 /// Reads a `.qtx` file under the default [`Limits`].
@@ -323,11 +537,12 @@ fn parse_shared(
     let nodes = header.nodes as usize;
     let (bits, rest) = data.split_at(nodes.div_ceil(8));
     let block_section = &rest[8 * nodes..];
+    let kind = u8::from(header.gradient_leaves);
     if checksums_enforced() {
         if let Some(expected) = header.structure_crc {
             let mut hasher = crc32fast::Hasher::new();
             hasher.update(bits);
-            hasher.update(&block_section[..structure_bytes(block_section)]);
+            hasher.update(&block_section[..section_structure_bytes(block_section, kind)]);
             if hasher.finalize() != expected {
                 return Err(bad(
                     "structure_crc",
@@ -372,6 +587,20 @@ fn parse_shared(
             path,
         )?),
     };
+    let gradient_leaves = match header.gradient_leaves {
+        true => Some(decode_gradient_leaves(block_section, header.nodes, path)?),
+        false => None,
+    };
+    if let Some(g) = &gradient_leaves
+        && g.depth() > limits.max_depth
+    {
+        return Err(Error::Limit {
+            path: path.to_path_buf(),
+            limit: "max_depth",
+            value: g.depth().into(),
+            max: limits.max_depth.into(),
+        });
+    }
     let tree = QuadTree::from_shared_parts(
         header.depth,
         header.aspect,
@@ -380,6 +609,10 @@ fn parse_shared(
         colours,
         texel_blocks,
     )
+    .and_then(|t| match gradient_leaves {
+        Some(g) => t.with_gradient_leaves(g),
+        None => Ok(t),
+    })
     .and_then(|t| {
         if check == Check::Everything {
             t.verify()?;
@@ -398,6 +631,16 @@ fn parse_shared(
             file_bytes,
         },
     ))
+}
+
+/// Bytes of the section after the colours that the structure checksum
+/// covers: all of a gradient-leaf section (header byte 31 `kind`), the
+/// counts and flags of a texel-block section.
+fn section_structure_bytes(section: &[u8], kind: u8) -> usize {
+    match kind {
+        LEAF_KIND_GRADIENT => section.len(),
+        _ => structure_bytes(section),
+    }
 }
 
 /// Bytes of the texel-block section the structure checksum covers: its
@@ -483,6 +726,8 @@ struct Header {
     payload: u64,
     /// The structure checksum (version 2 and later).
     structure_crc: Option<u32>,
+    /// A gradient-leaf section follows the colours (version 3).
+    gradient_leaves: bool,
     source_width: u32,
     source_height: u32,
 }
@@ -535,9 +780,22 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
             "header checksum mismatch (corrupt header)".into(),
         ));
     }
-    if h[31] != 0 || (version == 1 && h[60..64] != [0; 4]) {
+    if version == 1 && h[60..64] != [0; 4] {
         return Err(bad("reserved", "reserved header bytes are not zero".into()));
     }
+    let gradient_leaves = match h[31] {
+        0 => false,
+        LEAF_KIND_GRADIENT if version >= 3 && h[28] == 0 => true,
+        v => {
+            return Err(bad(
+                "leaf_kinds",
+                format!(
+                    "leaf kind {v} in a version-{version} file{} (version 3 defines 1, gradient leaves, without texel blocks)",
+                    if h[28] != 0 { " with texel blocks" } else { "" }
+                ),
+            ));
+        }
+    };
     let structure_crc = (version >= 2).then(|| u32_at(60));
     if u32_at(12) as usize != HEADER_BYTES {
         return Err(bad(
@@ -589,9 +847,10 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     let nodes_payload = nodes.div_ceil(8) + 8 * nodes;
     // Texel blocks follow the nodes: at least their 16 bytes of counts.
     let payload = u64_at(48);
-    let fits = match blocks {
-        None => payload == nodes_payload,
-        Some(_) => payload >= nodes_payload + 16,
+    let fits = match (blocks, gradient_leaves) {
+        (None, false) => payload == nodes_payload,
+        (None, true) => payload >= nodes_payload + 8,
+        (Some(_), _) => payload >= nodes_payload + 16,
     };
     if !fits {
         return Err(bad(
@@ -617,6 +876,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
         inner,
         payload,
         structure_crc,
+        gradient_leaves,
         source_width: u32_at(20),
         source_height: u32_at(24),
     })

@@ -115,6 +115,7 @@ pub fn pack_svg_with_tolerance(
             max_nodes: limits.max_nodes,
             max_bytes: Some(limits.max_memory),
             tolerance,
+            ..VectorOptions::default()
         },
     )
     .map_err(crate::error::core(path))
