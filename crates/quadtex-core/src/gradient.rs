@@ -555,7 +555,7 @@ impl Gradient {
                 }
                 let w = ((u - ta) / (tb - ta)).clamp(0.0, 1.0);
                 let p = [a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1])];
-                let s = p[0] * dir[0] + p[1] * dir[1];
+                let s = (p[0] - poly[0][0]) * dir[0] + (p[1] - poly[0][1]) * dir[1];
                 lo = lo.min(s);
                 hi = hi.max(s);
             }
@@ -563,12 +563,16 @@ impl Gradient {
         };
         let mut cuts: Vec<f64> = poly.iter().map(|&p| self.parameter(p)).collect();
         self.cuts(t0, t1, &mut cuts);
-        let mut sum = [0.0; 4];
+        let (mut sum, mut weight) = ([0.0; 4], 0.0);
         for w in cuts.windows(2) {
             self.integrate_piece(w[0], w[1], &section, &mut sum);
+            gauss(w[0], w[1], |t, g| weight += g * section(t));
         }
-        // dA = section · dt / |∇t|
-        (sum.map(|s| s / (grad * area)), 0.0)
+        // dA = section · dt / |∇t|, so the weight's integral is area·|∇t|;
+        // dividing by the same quadrature of it keeps a small polygon's
+        // mean exact where rounding of its `t` would not.
+        let total = if weight > 0.0 { weight } else { grad * area };
+        (sum.map(|s| s / total), 0.0)
     }
 
     /// Adds `∫ colour(t)·weight(t) dt` over `[a, b]` to `sum`, where
@@ -673,10 +677,15 @@ impl Gradient {
 /// Signed (shoelace) area.
 fn polygon_area(poly: &[Point]) -> f64 {
     let n = poly.len();
+    let Some(&o) = poly.first() else {
+        return 0.0;
+    };
+    // Relative to a vertex: a small polygon far from the origin keeps its
+    // digits (absolute products of ~1 would cancel to rounding noise).
     (0..n)
         .map(|i| {
             let (p, q) = (poly[i], poly[(i + 1) % n]);
-            p[0] * q[1] - q[0] * p[1]
+            (p[0] - o[0]) * (q[1] - o[1]) - (q[0] - o[0]) * (p[1] - o[1])
         })
         .sum::<f64>()
         * 0.5

@@ -213,10 +213,14 @@ fn clip_half_plane(
 
 fn signed_area(poly: &[Point]) -> f64 {
     let n = poly.len();
+    let Some(&o) = poly.first() else {
+        return 0.0;
+    };
+    // Relative to a vertex, so a small polygon far from the origin keeps its digits.
     (0..n)
         .map(|i| {
             let (a, b) = (poly[i], poly[(i + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
+            (a[0] - o[0]) * (b[1] - o[1]) - (b[0] - o[0]) * (a[1] - o[1])
         })
         .sum::<f64>()
         / 2.0

@@ -560,65 +560,79 @@ fn linear_gradient_integrals_match_closed_forms() {
     )
     .unwrap();
     let level = 12;
-    let options = VectorOptions {
-        max_level: level,
-        ..VectorOptions::default()
-    };
-    let (t, report) = QuadTree::from_vector(&art, &options).unwrap();
-    assert_eq!(report.max_mean_error, 0.0);
-    assert!(report.max_smooth_deviation <= options.tolerance);
-    // The ramp stops splitting well above the maximum level.
-    assert!(t.depth() < level, "depth {}", t.depth());
-    let closed = |x0: f64, z0: f64, x1: f64, z1: f64| {
-        let (a, b) = (x0.max(0.125), x1.min(0.875));
-        let (c, d) = (z0.max(0.25), z1.min(0.75));
-        if a >= b || c >= d {
-            return [0.0; 4];
-        }
-        let area = (b - a) * (d - c);
-        let w = (0.5 * (a + b) - 0.125) / 0.75;
-        let red = 0.3 + 0.6 * w;
-        [red * area, (1.2 - red) * area, 0.2 * area, area]
-    };
-    // The ramp's terminal squares are at level 9 (a quarter step of an
-    // encoded slope ≤ 0.9 needs sides ≤ 2^-9): fragments on the level-6 grid
-    // are unions of whole squares, whose stored means are exact.
-    arbtest::arbtest(|u| {
-        let cells = 1i32 << 6;
-        let coord = |u: &mut Unstructured<'_>| -> ArbResult<f64> {
-            Ok(f64::from(u.int_in_range(-2..=cells + 2)?) / f64::from(cells))
+    for gradient_leaves in [false, true] {
+        let options = VectorOptions {
+            max_level: level,
+            gradient_leaves,
+            ..VectorOptions::default()
         };
-        let (a, b, c, d) = (coord(u)?, coord(u)?, coord(u)?, coord(u)?);
-        let f = Fragment::new(a.min(b), c.min(d), a.max(b), c.max(d)).unwrap();
-        let got = t.weighted_colour(&f, u8::MAX).0;
-        let want = closed(f.x0(), f.z0(), f.x1(), f.z1());
-        for ch in 0..4 {
-            assert!(
-                (got[ch] - want[ch]).abs() <= f.area() * STEP + 1e-12,
-                "{f:?} ch {ch}: {} vs {}",
-                got[ch],
-                want[ch]
-            );
+        let (t, report) = QuadTree::from_vector(&art, &options).unwrap();
+        assert_eq!(report.max_mean_error, 0.0);
+        assert!(report.max_smooth_deviation <= options.tolerance);
+        // The ramp stops splitting well above the maximum level; with gradient
+        // leaves, at the rectangle's edges (level 3).
+        assert!(t.stored_depth() < level, "depth {}", t.stored_depth());
+        if gradient_leaves {
+            assert_eq!(t.stored_depth(), 3);
+            assert!(report.gradient_leaves > 0 && report.gradient_leaf_paints == 1);
         }
-        // A point's leaf colour against the art there (sRGB-encoded).
-        let p = [
-            f64::from(u.int_in_range(126..=874u32)?) / 1000.0,
-            f64::from(u.int_in_range(251..=749u32)?) / 1000.0,
-        ];
-        let h = 1e-9;
-        let tiny = Fragment::new(p[0] - h, p[1] - h, p[0] + h, p[1] + h).unwrap();
-        let leaf = t.weighted_colour(&tiny, u8::MAX).0.map(|v| v / tiny.area());
-        let here = ramp.colour_at(p);
-        for ch in 0..3 {
-            let (e, w) = (srgb_encode(leaf[ch]), srgb_encode(here[ch]));
-            assert!(
-                (e - w).abs() <= options.tolerance + 2e-4,
-                "{p:?} ch {ch}: leaf {e} art {w}"
-            );
-        }
-        Ok(())
-    })
-    .budget_ms(1500);
+        let closed = |x0: f64, z0: f64, x1: f64, z1: f64| {
+            let (a, b) = (x0.max(0.125), x1.min(0.875));
+            let (c, d) = (z0.max(0.25), z1.min(0.75));
+            if a >= b || c >= d {
+                return [0.0; 4];
+            }
+            let area = (b - a) * (d - c);
+            let w = (0.5 * (a + b) - 0.125) / 0.75;
+            let red = 0.3 + 0.6 * w;
+            [red * area, (1.2 - red) * area, 0.2 * area, area]
+        };
+        // The ramp's terminal squares are at level 9 (a quarter step of an
+        // encoded slope ≤ 0.9 needs sides ≤ 2^-9): fragments on the level-6 grid
+        // are unions of whole squares, whose stored means are exact.
+        // With gradient leaves, any fragment: their integrals are exact.
+        arbtest::arbtest(|u| {
+            let cells = 1i32 << 6;
+            let coord = |u: &mut Unstructured<'_>| -> ArbResult<f64> {
+                if gradient_leaves {
+                    return Ok(f64::from(u.int_in_range(-100_000..=1_100_000)?) / 1e6);
+                }
+                Ok(f64::from(u.int_in_range(-2..=cells + 2)?) / f64::from(cells))
+            };
+            let (a, b, c, d) = (coord(u)?, coord(u)?, coord(u)?, coord(u)?);
+            let f = Fragment::new(a.min(b), c.min(d), a.max(b), c.max(d)).unwrap();
+            let got = t.weighted_colour(&f, u8::MAX).0;
+            let want = closed(f.x0(), f.z0(), f.x1(), f.z1());
+            for ch in 0..4 {
+                assert!(
+                    (got[ch] - want[ch]).abs() <= f.area() * STEP + 1e-12,
+                    "{f:?} ch {ch}: {} vs {}",
+                    got[ch],
+                    want[ch]
+                );
+            }
+            // A point's leaf colour against the art there (sRGB-encoded).
+            let p = [
+                f64::from(u.int_in_range(126..=874u32)?) / 1000.0,
+                f64::from(u.int_in_range(251..=749u32)?) / 1000.0,
+            ];
+            let h = 1e-9;
+            let tiny = Fragment::new(p[0] - h, p[1] - h, p[0] + h, p[1] + h).unwrap();
+            let leaf = t.weighted_colour(&tiny, u8::MAX).0.map(|v| v / tiny.area());
+            let here = ramp.colour_at(p);
+            for ch in 0..3 {
+                let (e, w) = (srgb_encode(leaf[ch]), srgb_encode(here[ch]));
+                let within = if gradient_leaves {
+                    1e-6
+                } else {
+                    options.tolerance + 2e-4
+                };
+                assert!((e - w).abs() <= within, "{p:?} ch {ch}: leaf {e} art {w}");
+            }
+            Ok(())
+        })
+        .budget_ms(1500);
+    }
 }
 
 fn random_polygon(u: &mut Unstructured<'_>) -> ArbResult<Vec<[f64; 2]>> {
