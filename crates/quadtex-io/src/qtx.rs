@@ -904,7 +904,7 @@ mod tests {
         let section = &b[64 + bits + 8 * n..end];
         let mut hasher = crc32fast::Hasher::new();
         hasher.update(&b[64..64 + bits]);
-        hasher.update(&section[..structure_bytes(section)]);
+        hasher.update(&section[..section_structure_bytes(section, b[31])]);
         let crc = hasher.finalize();
         b[60..64].copy_from_slice(&crc.to_le_bytes());
         let crc = crc32fast::hash(&b[64..end]);
@@ -1065,6 +1065,95 @@ mod tests {
 
     /// Version-1 files (no structure checksum) still read, mapped or not;
     /// mapping one checks its payload checksum instead.
+    /// A tree with gradient leaves round-trips (read and mapped) as a
+    /// version-3 file; a leaf on an inner node, a paint index out of range
+    /// and a truncated section are refused by field.
+    #[test]
+    fn gradient_leaves_round_trip_and_lies_are_refused() {
+        use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
+        use quadtex_core::{FillRule, Paint, VectorArt, VectorOptions};
+        let ramp = Gradient::linear(
+            [1.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0],
+            [0.3, 0.1],
+            vec![
+                Stop {
+                    offset: 0.0,
+                    colour: [0.1, 0.5, 0.9],
+                    opacity: 1.0,
+                },
+                Stop {
+                    offset: 1.0,
+                    colour: [0.9, 0.4, 0.0],
+                    opacity: 0.5,
+                },
+            ],
+            Spread::Repeat,
+            Interpolation::Srgb,
+        )
+        .unwrap();
+        let mut art = VectorArt::new();
+        art.fill_paint(
+            vec![vec![[0.1, 0.2], [0.8, 0.1], [0.7, 0.9]]],
+            FillRule::NonZero,
+            Paint::Gradient(ramp),
+            &[],
+            None,
+        )
+        .unwrap();
+        let options = VectorOptions {
+            max_level: 9,
+            ..VectorOptions::default()
+        };
+        let (t, _) = QuadTree::from_vector(&art, &options).unwrap();
+        let leaves = t.gradient_leaves().expect("gradient leaves");
+        assert_eq!(t.depth(), 9);
+        let path = temp("gradient.qtx");
+        write_qtx(&path, &t, None).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 3);
+        assert_eq!(bytes[31], LEAF_KIND_GRADIENT);
+        let limits = Limits::default();
+        let (back, _) = read_qtx_with_limits(&path, &limits).unwrap();
+        assert_eq!(back, t);
+        let (mapped, _) = map_qtx(&path, &limits).unwrap();
+        assert_eq!(mapped, t);
+        let f = quadtex_core::Fragment::new(0.4, 0.4, 0.4 + 1e-7, 0.4 + 1e-7).unwrap();
+        assert_eq!(mapped.weighted_colour(&f, 30), t.weighted_colour(&f, 30));
+        // The section: length, header, paints, then (node, paint) pairs.
+        let n = t.node_count() as usize;
+        let section = HEADER_BYTES + n.div_ceil(8) + 8 * n;
+        let pairs = bytes.len() - 4 - 8 * leaves.count();
+        let refused = |b: &[u8]| parse_qtx(b, &path, &limits).unwrap_err().to_string();
+        let mut lie = bytes.clone();
+        lie[pairs..pairs + 4].copy_from_slice(&0u32.to_le_bytes());
+        reseal(&mut lie, n);
+        let e = refused(&lie);
+        assert!(e.contains("gradient leaves") && e.contains("inner"), "{e}");
+        let mut lie = bytes.clone();
+        lie[pairs + 4..pairs + 8].copy_from_slice(&7u32.to_le_bytes());
+        reseal(&mut lie, n);
+        assert!(refused(&lie).contains("paint 7"), "{}", refused(&lie));
+        let mut lie = bytes.clone();
+        lie[section..section + 8].copy_from_slice(&5u64.to_le_bytes());
+        reseal(&mut lie, n);
+        assert!(
+            refused(&lie).contains("gradient_leaves"),
+            "{}",
+            refused(&lie)
+        );
+        let mut lie = bytes.clone();
+        lie[31] = 2;
+        reseal(&mut lie, n);
+        assert!(refused(&lie).contains("leaf_kinds"), "{}", refused(&lie));
+        // A version-2 reader's view: version 2 with the flag is refused.
+        let mut lie = bytes.clone();
+        lie[8..12].copy_from_slice(&2u32.to_le_bytes());
+        reseal(&mut lie, n);
+        assert!(refused(&lie).contains("leaf_kinds"), "{}", refused(&lie));
+        std::fs::remove_file(&path).ok();
+    }
+
     #[test]
     fn version_1_files_still_read() {
         let t = photo_sample();
