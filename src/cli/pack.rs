@@ -167,11 +167,19 @@ fn pack_svg(
 /// deviation of a point from its square's colour, and the bound on stored
 /// means (both linear, full scale 1).
 pub(crate) fn smooth_summary(report: &quadtex_core::VectorReport) -> String {
+    let leaves = if report.gradient_leaves > 0 {
+        format!(
+            "; {} gradient leaves ({} paints) keep their linear gradient: exact fragment integrals at any level",
+            report.gradient_leaves, report.gradient_leaf_paints
+        )
+    } else {
+        String::new()
+    };
     if report.max_smooth_deviation == 0.0 && report.max_mean_error == 0.0 {
-        return String::new();
+        return leaves;
     }
     format!(
-        "; gradients, images and masks: every point within {:.6} of its square's colour (at most --tolerance above --max-level), means within {:.2e} (linear)",
+        "; gradients, images and masks: every point within {:.6} of its square's colour (at most --tolerance above --max-level), means within {:.2e} (linear){leaves}",
         report.max_smooth_deviation, report.max_mean_error
     )
 }

@@ -1456,9 +1456,7 @@ impl VectorBuilder<'_> {
     /// colour affine in one linear gradient whose mean over it is exact.
     fn leaf_paint(&mut self, poly: &[Point; 4]) -> Option<([f64; 4], u32)> {
         let (covered, visible) = (&self.sweep.covered, &self.sweep.visible);
-        let Some((gradient, offset, matrix)) = self.art.affine_in_gradient(visible, covered) else {
-            return None;
-        };
+        let (gradient, offset, matrix) = self.art.affine_in_gradient(visible, covered)?;
         let (mean, error) = self.art.composite_over(visible, covered, poly);
         if error != 0.0 {
             return None;
