@@ -352,6 +352,7 @@ fn svg_gradients_pack_to_the_tolerance() {
                 qtx.to_str().unwrap(),
                 "--tolerance",
                 tolerance,
+                "--no-gradient-leaves",
             ],
             "",
         );
@@ -386,6 +387,26 @@ fn svg_gradients_pack_to_the_tolerance() {
     assert!(
         nodes[1] * 10 < nodes[0],
         "ten times the tolerance: {nodes:?}"
+    );
+    // With gradient leaves (the default) the whole ramp is one leaf, in a
+    // version-3 file that reads back to the same answers.
+    let qtx = dir.join("ramp-leaf.qtx");
+    let out = common::run(
+        &["pack", svg.to_str().unwrap(), "-o", qtx.to_str().unwrap()],
+        "",
+    );
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success() && text.contains(": 1 nodes") && text.contains("1 gradient leaves"),
+        "{text}"
+    );
+    let bytes = std::fs::read(&qtx).unwrap();
+    assert_eq!(bytes[8], 3);
+    let out = common::run(&["info", "--verify", qtx.to_str().unwrap()], "");
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success() && text.contains("gradient:    1 leaves"),
+        "{text}"
     );
 }
 

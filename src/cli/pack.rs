@@ -29,13 +29,21 @@ pub struct Args {
     output: Output,
     /// Largest per-channel deviation (linear, premultiplied, full scale 1) of
     /// a cell from its terminal square's colour, in [0, 1]; 0 is lossless.
-    /// For SVG art it applies to gradients only (edges and flat colour are
-    /// exact), default a quarter of an 8-bit step.
+    /// For SVG art it applies to smooth colour only (edges and flat colour
+    /// are exact), measured on sRGB-encoded channels, default a quarter of
+    /// an 8-bit step: squares that gradients, images or masks paint stop
+    /// splitting within it, and gradient leaves are seen by exact pixels
+    /// as cells within it.
     #[arg(long, value_name = "T", allow_negative_numbers = true, value_parser = tolerance)]
     tolerance: Option<f64>,
     /// Depth of the finest cells (default: the image's natural depth; 12 for SVG art).
     #[arg(long, value_name = "L", value_parser = level("--max-level"))]
     max_level: Option<u8>,
+    /// SVG art: split squares painted by one linear gradient down to
+    /// `--tolerance` instead of keeping the gradient in a leaf. The file
+    /// is then version 2, which readers older than gradient leaves read.
+    #[arg(long)]
+    no_gradient_leaves: bool,
     #[command(flatten)]
     memory: MemoryArgs,
 }
@@ -56,6 +64,7 @@ pub fn run(args: Args) -> Result<()> {
         output,
         tolerance,
         max_level,
+        no_gradient_leaves,
         memory,
     } = args;
     let limits = memory.limits();
@@ -69,13 +78,13 @@ pub fn run(args: Args) -> Result<()> {
         options.tolerance = t;
     }
     if is_svg(&input) {
-        return pack_svg(
-            &input,
-            &output,
-            options.max_level.unwrap_or(DEFAULT_SVG_LEVEL),
-            tolerance.unwrap_or(quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE),
-            &limits,
-        );
+        let svg = quadtex_core::VectorOptions {
+            max_level: options.max_level.unwrap_or(DEFAULT_SVG_LEVEL),
+            tolerance: tolerance.unwrap_or(quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE),
+            gradient_leaves: !no_gradient_leaves,
+            ..quadtex_core::VectorOptions::default()
+        };
+        return pack_svg(&input, &output, &svg, &limits);
     }
     let progress = Progress::new();
     let start = Instant::now();
@@ -128,14 +137,14 @@ pub fn run(args: Args) -> Result<()> {
 fn pack_svg(
     input: &Path,
     output: &Output,
-    level: u8,
-    tolerance: f64,
+    options: &quadtex_core::VectorOptions,
     limits: &quadtex_io::Limits,
 ) -> Result<()> {
+    let level = options.max_level;
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("packing {} at level {level}", input.display()));
-    let (tree, report) = quadtex_io::pack_svg_with_tolerance(input, level, tolerance, limits)?;
+    let (tree, report) = quadtex_io::pack_svg_with_options(input, options, limits)?;
     progress.stage(&format!("writing {output}"));
     let side = 1u32 << level.min(31);
     output.write_qtx(&tree, Some((side, side)))?;

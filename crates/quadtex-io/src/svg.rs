@@ -107,15 +107,35 @@ pub fn pack_svg_with_tolerance(
     tolerance: f64,
     limits: &Limits,
 ) -> Result<(QuadTree, VectorReport), Error> {
-    let art = load_svg(path, max_level, limits)?;
+    pack_svg_with_options(
+        path,
+        &VectorOptions {
+            max_level,
+            tolerance,
+            ..VectorOptions::default()
+        },
+        limits,
+    )
+}
+
+/// As [`pack_svg`], with the packer's `options` (level, tolerance, whether
+/// squares become gradient leaves); their node and memory budgets are
+/// lowered to `limits`'.
+pub fn pack_svg_with_options(
+    path: &Path,
+    options: &VectorOptions,
+    limits: &Limits,
+) -> Result<(QuadTree, VectorReport), Error> {
+    let art = load_svg(path, options.max_level, limits)?;
+    let max_bytes = options
+        .max_bytes
+        .map_or(limits.max_memory, |b| b.min(limits.max_memory));
     QuadTree::from_vector(
         &art,
         &VectorOptions {
-            max_level,
-            max_nodes: limits.max_nodes,
-            max_bytes: Some(limits.max_memory),
-            tolerance,
-            ..VectorOptions::default()
+            max_nodes: options.max_nodes.min(limits.max_nodes),
+            max_bytes: Some(max_bytes),
+            ..*options
         },
     )
     .map_err(crate::error::core(path))
