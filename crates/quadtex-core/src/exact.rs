@@ -1121,7 +1121,9 @@ impl Walk<'_> {
             return Outcome::Outside;
         }
         self.visited += 1;
-        let (inner, colour) = self.tree.node_info(p);
+        // `contrast` bounds the colour's deviation from the square's mean: 1
+        // (full contrast) but in gradient leaves, whose range is known.
+        let (inner, colour, contrast) = self.tree.node_detail(p);
         let corners = [[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
         let m = f.to_screen;
         let refinable = inner && self.fixed.is_none_or(|k| level < k);
@@ -1142,7 +1144,10 @@ impl Walk<'_> {
                     } else {
                         0.0
                     };
-                    0.5 * side * side * (self.k_max * (rmax - rmin) + rmax * self.lipschitz * diam)
+                    0.5 * contrast
+                        * side
+                        * side
+                        * (self.k_max * (rmax - rmin) + rmax * self.lipschitz * diam)
                 } else {
                     0.0
                 };
@@ -1175,7 +1180,7 @@ impl Walk<'_> {
             Class::Outside => return Outcome::Outside,
         };
         let bound = if inner {
-            self.k_max * piece.area()
+            contrast * self.k_max * piece.area()
         } else {
             0.0
         };

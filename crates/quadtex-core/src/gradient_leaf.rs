@@ -152,25 +152,31 @@ impl LeafPaint {
     /// Widest channel of the composite's range over `poly`, colour channels
     /// sRGB-encoded (alpha as is): the packer's measure of smooth colour.
     pub fn encoded_width(&self, poly: &[Point]) -> f64 {
-        let r = self.range_over(poly);
-        (0..4)
-            .map(|c| {
-                if c < 3 {
-                    srgb_encode(r[c][1]) - srgb_encode(r[c][0])
-                } else {
-                    r[c][1] - r[c][0]
-                }
-            })
-            .fold(0.0, f64::max)
+        encoded_width(&self.range_over(poly))
     }
 
     /// Widest channel of the linear range over `poly`.
     pub fn linear_width(&self, poly: &[Point]) -> f64 {
-        self.range_over(poly)
-            .iter()
-            .map(|r| r[1] - r[0])
-            .fold(0.0, f64::max)
+        linear_width(&self.range_over(poly))
     }
+}
+
+/// Widest channel of a range, colour channels sRGB-encoded.
+fn encoded_width(r: &[[f64; 2]; 4]) -> f64 {
+    (0..4)
+        .map(|c| {
+            if c < 3 {
+                srgb_encode(r[c][1]) - srgb_encode(r[c][0])
+            } else {
+                r[c][1] - r[c][0]
+            }
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Widest channel of a linear range.
+fn linear_width(r: &[[f64; 2]; 4]) -> f64 {
+    r.iter().map(|r| r[1] - r[0]).fold(0.0, f64::max)
 }
 
 /// The gradient leaves of a tree (see the [module documentation](self)):
@@ -316,20 +322,34 @@ impl GradientLeaves {
         (level, square_corners(level, cx, cz))
     }
 
-    /// Whether cell `(j, ix, iz)` of `leaf` is subdivided further, and its
-    /// exact mean colour.
-    pub(crate) fn cell_info(&self, leaf: usize, j: u8, ix: u32, iz: u32) -> (bool, [f64; 4]) {
+    /// Whether cell `(j, ix, iz)` of `leaf` is subdivided further, its
+    /// exact mean colour, and the widest channel of its linear colour
+    /// range (what its colour may differ from the mean by).
+    pub(crate) fn cell_info(&self, leaf: usize, j: u8, ix: u32, iz: u32) -> (bool, [f64; 4], f64) {
         let (level, poly) = self.cell(leaf, j, ix, iz);
-        let paint = self.paint(leaf);
-        (self.splits(leaf, j, level, &poly), paint.mean_over(&poly))
+        let (splits, contrast) = self.split_and_contrast(leaf, j, level, &poly);
+        (splits, self.paint(leaf).mean_over(&poly), contrast)
     }
 
     /// Whether a cell `j` levels below leaf `leaf`, at `level`, with
     /// corners `poly`, has children.
     pub(crate) fn splits(&self, leaf: usize, j: u8, level: u8, poly: &[Point; 4]) -> bool {
-        j < MAX_CELL_LEVELS
-            && level < self.depth
-            && self.paint(leaf).encoded_width(poly) > self.tolerance
+        self.split_and_contrast(leaf, j, level, poly).0
+    }
+
+    /// [`GradientLeaves::splits`], and the widest channel of the cell's
+    /// linear colour range.
+    pub(crate) fn split_and_contrast(
+        &self,
+        leaf: usize,
+        j: u8,
+        level: u8,
+        poly: &[Point; 4],
+    ) -> (bool, f64) {
+        let range = self.paint(leaf).range_over(poly);
+        let splits =
+            j < MAX_CELL_LEVELS && level < self.depth && encoded_width(&range) > self.tolerance;
+        (splits, linear_width(&range))
     }
 }
 

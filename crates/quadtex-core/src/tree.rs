@@ -1162,10 +1162,31 @@ impl QuadTree {
     /// `[0, 1]` (a cell's is the exact mean of its texels).
     #[inline]
     pub(crate) fn node_info(&self, n: NodeRef) -> (bool, [f64; 4]) {
-        if let (Some((leaf, j, ix, iz)), Some(g)) = (n.as_gradient_cell(), &self.gradient_leaves) {
-            return g.cell_info(leaf, j, ix, iz);
+        let (inner, colour, _) = self.node_detail(n);
+        (inner, colour)
+    }
+
+    /// [`QuadTree::node_info`], and a bound on how far the colour at any
+    /// point of the node's square may be from its colour, per channel, for
+    /// colours in `[0, 1]`: 1, but in gradient leaves and their cells,
+    /// whose colour range is known.
+    #[inline]
+    pub(crate) fn node_detail(&self, n: NodeRef) -> (bool, [f64; 4], f64) {
+        if let Some(g) = &self.gradient_leaves {
+            if let Some((leaf, j, ix, iz)) = n.as_gradient_cell() {
+                return g.cell_info(leaf, j, ix, iz);
+            }
+            if n.as_cell().is_none()
+                && let Some((leaf, _)) = self.gradient_leaf(n.0 as usize)
+            {
+                let (level, ix, iz) = g.square(leaf);
+                let poly = square_corners(level, ix.into(), iz.into());
+                let (splits, contrast) = g.split_and_contrast(leaf, 0, level, &poly);
+                let colour = self.encoding.decode_colour(self.colour(n.0 as usize));
+                return (splits, colour, contrast);
+            }
         }
-        match (n.as_cell(), &self.texel_blocks) {
+        let (inner, colour) = match (n.as_cell(), &self.texel_blocks) {
             (Some((b, j, ix, iz)), Some(tb)) => (
                 j < tb.log2_side() && !tb.cell_is_uniform(b, j, ix, iz),
                 tb.cell_mean(b, j, ix, iz),
@@ -1173,18 +1194,10 @@ impl QuadTree {
             _ => {
                 let p = n.0 as usize;
                 let c = self.encoding.decode_colour(self.colour(p));
-                let splits = || {
-                    self.gradient_leaf(p).is_some_and(|(i, g)| {
-                        let (level, ix, iz) = g.square(i);
-                        g.splits(i, 0, level, &square_corners(level, ix.into(), iz.into()))
-                    })
-                };
-                (
-                    self.is_inner(p) || self.block_at(p).is_some() || splits(),
-                    c,
-                )
+                (self.is_inner(p) || self.block_at(p).is_some(), c)
             }
-        }
+        };
+        (inner, colour, 1.0)
     }
 
     /// Child `c` (`low-x low-z, high-x low-z, low-x high-z, high-x high-z`)
