@@ -17,5 +17,13 @@ fuzz_target!(|data: &[u8]| {
         let c = tree.average().to_array();
         assert!(c.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= 1.0), "{c:?}");
         assert!(c[0] <= c[3] && c[1] <= c[3] && c[2] <= c[3], "{c:?}");
+        // Gradient leaves (and every other node) hold what the packer
+        // claims, and fragment integrals over them stay finite.
+        tree.verify().expect("a packed tree verifies");
+        for f in [(0.1, 0.2, 0.7, 0.9), (0.3, 0.3, 0.3 + 1e-9, 0.3 + 1e-9), (-0.5, 0.4, 1.5, 0.45)] {
+            let f = quadtex_core::Fragment::new(f.0, f.1, f.2, f.3).expect("fragment");
+            let w = tree.weighted_colour(&f, 30).0;
+            assert!(w.iter().all(|v| v.is_finite()), "{w:?}");
+        }
     }
 });
