@@ -44,6 +44,13 @@ pub struct Args {
     /// is then version 2, which readers older than gradient leaves read.
     #[arg(long)]
     no_gradient_leaves: bool,
+    /// SVG art: keep squares of flat art crossed by at most EDGES edges
+    /// (default 16 when the flag is given without a value) as contour
+    /// leaves, exact at any magnification, instead of splitting them
+    /// towards `--max-level`. The file is then version 3.
+    #[arg(long, value_name = "EDGES", num_args = 0..=1, default_missing_value = "16",
+          value_parser = clap::value_parser!(u16).range(3..=1024))]
+    contour_leaves: Option<u16>,
     #[command(flatten)]
     memory: MemoryArgs,
 }
@@ -65,6 +72,7 @@ pub fn run(args: Args) -> Result<()> {
         tolerance,
         max_level,
         no_gradient_leaves,
+        contour_leaves,
         memory,
     } = args;
     let limits = memory.limits();
@@ -82,6 +90,7 @@ pub fn run(args: Args) -> Result<()> {
             max_level: options.max_level.unwrap_or(DEFAULT_SVG_LEVEL),
             tolerance: tolerance.unwrap_or(quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE),
             gradient_leaves: !no_gradient_leaves,
+            contour_leaves: contour_leaves.map(usize::from),
             ..quadtex_core::VectorOptions::default()
         };
         return pack_svg(&input, &output, &svg, &limits);
@@ -176,7 +185,7 @@ fn pack_svg(
 /// deviation of a point from its square's colour, and the bound on stored
 /// means (both linear, full scale 1).
 pub(crate) fn smooth_summary(report: &quadtex_core::VectorReport) -> String {
-    let leaves = if report.gradient_leaves > 0 {
+    let mut leaves = if report.gradient_leaves > 0 {
         format!(
             "; {} gradient leaves ({} paints) keep their linear gradient: exact fragment integrals at any level",
             report.gradient_leaves, report.gradient_leaf_paints
@@ -184,6 +193,12 @@ pub(crate) fn smooth_summary(report: &quadtex_core::VectorReport) -> String {
     } else {
         String::new()
     };
+    if report.contour_leaves > 0 {
+        leaves += &format!(
+            "; {} contour leaves keep {} contour points: exact at any magnification",
+            report.contour_leaves, report.contour_leaf_points
+        );
+    }
     if report.max_smooth_deviation == 0.0 && report.max_mean_error == 0.0 {
         return leaves;
     }

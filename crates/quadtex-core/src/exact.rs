@@ -1137,7 +1137,7 @@ impl Walk<'_> {
         let piece = match class {
             Class::Inside => {
                 let mapped = corners.map(|t| apply(&m, t));
-                let bound = if inner {
+                let bound = if contrast > 0.0 {
                     let (rmin, rmax) = density_range_det(&m, f.det, &corners);
                     let diam = if self.lipschitz > 0.0 {
                         bbox_diagonal(&mapped)
@@ -1179,11 +1179,7 @@ impl Walk<'_> {
                 .map(|t| apply(&m, t)),
             Class::Outside => return Outcome::Outside,
         };
-        let bound = if inner {
-            contrast * self.k_max * piece.area()
-        } else {
-            0.0
-        };
+        let bound = contrast * self.k_max * piece.area();
         let c = self.contribution(colour, &piece, bound);
         if refinable {
             Outcome::Refinable(c, here)

@@ -32,6 +32,7 @@ pub mod footprint;
 mod fragment;
 pub mod gradient;
 pub mod gradient_leaf;
+pub mod contour_leaf;
 pub mod image_paint;
 
 pub mod build;
@@ -56,6 +57,7 @@ pub use error::Error;
 pub use exact::{PixelFilter, Projection, RegionIntegral};
 pub use footprint::Footprint;
 pub use fragment::Fragment;
+pub use contour_leaf::{ContourLeaves, ContourParts, LeafPiece};
 pub use gradient_leaf::{GradientLeaves, LeafPaint};
 pub use polygon::ConvexPolygon;
 pub use shared::SharedBytes;

@@ -24,6 +24,7 @@ use crate::Error;
 use crate::SharedBytes;
 use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
 use crate::fragment::{Fragment, overlap_1d};
+use crate::contour_leaf::ContourLeaves;
 use crate::gradient_leaf::{GradientLeaves, square_corners};
 use crate::texel_block::TexelBlocks;
 use crate::variant::{self, Variant};
@@ -210,6 +211,9 @@ pub struct QuadTree {
     /// Terminal squares that keep their gradient paint
     /// ([`crate::gradient_leaf`]).
     gradient_leaves: Option<GradientLeaves>,
+    /// Terminal squares that keep the edges crossing them
+    /// ([`crate::contour_leaf`]).
+    contour_leaves: Option<ContourLeaves>,
 }
 
 /// Trees are equal when they store the same nodes and blocks in the same
@@ -224,6 +228,7 @@ impl PartialEq for QuadTree {
             && self.blocks == other.blocks
             && self.texel_blocks == other.texel_blocks
             && self.gradient_leaves == other.gradient_leaves
+            && self.contour_leaves == other.contour_leaves
     }
 }
 
@@ -443,7 +448,27 @@ impl QuadTree {
         }
         self.check_averages()?;
         self.check_blocks()?;
-        self.check_gradient_leaves()
+        self.check_gradient_leaves()?;
+        self.check_contour_leaves()
+    }
+
+    /// Every contour leaf's colour is the mean of its art over its square,
+    /// rounded: within one 16-bit step per channel.
+    fn check_contour_leaves(&self) -> Result<(), Error> {
+        let Some(c) = &self.contour_leaves else {
+            return Ok(());
+        };
+        for i in 0..c.count() {
+            let (_, mean, _) = c.cell_info(i, 0, 0, 0);
+            let node = c.node(i);
+            let stored = self.colour(node as usize + PAD).0;
+            if (0..4).any(|k| (mean[k].clamp(0.0, 1.0) * 65535.0 - f64::from(stored[k])).abs() > 1.0) {
+                return Err(Error::MalformedTree(format!(
+                    "contour leaf {i} (node {node}): colour {stored:?} is not its art's mean {mean:?}"
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// Every gradient leaf's colour is its paint's mean over its square,
@@ -616,6 +641,7 @@ impl QuadTree {
             texel_blocks,
             block_nodes,
             gradient_leaves: None,
+            contour_leaves: None,
         };
         tree.top = tree.build_top_table()?;
         Ok(tree)
@@ -787,31 +813,88 @@ impl QuadTree {
     }
 
     /// The tree with some terminal squares kept as gradient leaves; its
-    /// depth becomes `leaves.depth()`. [`Error::MalformedTree`] when a leaf
-    /// is not a terminal node of the tree, is a texel block, lies more
-    /// than [`crate::gradient_leaf::MAX_CELL_LEVELS`] above that depth, or
-    /// the depth is below the stored nodes'; half-float trees and trees
-    /// with texel blocks have no gradient leaves.
+    /// depth becomes at least `leaves.depth()`. [`Error::MalformedTree`]
+    /// when a leaf is not a terminal node of the tree or lies in the pad,
+    /// when a node is already a contour leaf, or when the depth is below
+    /// the stored nodes'; half-float trees and trees with texel blocks have
+    /// no gradient leaves.
     pub fn with_gradient_leaves(mut self, mut leaves: GradientLeaves) -> Result<QuadTree, Error> {
-        let bad = |why: String| Err(Error::MalformedTree(format!("gradient leaves: {why}")));
+        let nodes: Vec<u32> = leaves.leaves().map(|l| l.0).collect();
+        let squares = self.leaf_squares("gradient leaves", &nodes, leaves.depth(), |n| {
+            leaves.index_of(n)
+        })?;
+        if let Some(c) = &self.contour_leaves
+            && let Some(&n) = nodes.iter().find(|&&n| c.index_of(n).is_some())
+        {
+            return Err(Error::MalformedTree(format!(
+                "gradient leaves: node {n} is also a contour leaf"
+            )));
+        }
+        leaves.set_squares(squares);
+        self.depth = self.depth.max(leaves.depth());
+        self.gradient_leaves = Some(leaves);
+        self.grid = std::sync::OnceLock::new();
+        self.moments = std::sync::OnceLock::new();
+        Ok(self)
+    }
+
+    /// The tree with some terminal squares kept as contour leaves
+    /// ([`crate::contour_leaf`]); as [`QuadTree::with_gradient_leaves`],
+    /// and every point must lie in its leaf's square.
+    pub fn with_contour_leaves(mut self, mut leaves: ContourLeaves) -> Result<QuadTree, Error> {
+        let nodes: Vec<u32> = (0..leaves.count()).map(|i| leaves.node(i)).collect();
+        let squares = self.leaf_squares("contour leaves", &nodes, leaves.depth(), |n| {
+            leaves.index_of(n)
+        })?;
+        if let Some(g) = &self.gradient_leaves
+            && let Some(&n) = nodes.iter().find(|&&n| g.index_of(n).is_some())
+        {
+            return Err(Error::MalformedTree(format!(
+                "contour leaves: node {n} is also a gradient leaf"
+            )));
+        }
+        leaves.set_squares(squares);
+        if let Some(i) = (0..leaves.count()).find(|&i| !leaves.inside_square(i)) {
+            return Err(Error::MalformedTree(format!(
+                "contour leaves: leaf {i} (node {}) has points outside its square",
+                leaves.node(i)
+            )));
+        }
+        self.depth = self.depth.max(leaves.depth());
+        self.contour_leaves = Some(leaves);
+        self.grid = std::sync::OnceLock::new();
+        self.moments = std::sync::OnceLock::new();
+        Ok(self)
+    }
+
+    /// The squares of leaves at unpadded `nodes` (increasing), checked:
+    /// terminal, not blocks, not in the pad, in a unorm16 tree whose stored
+    /// nodes do not reach below `depth`. `index_of` maps a node to its leaf.
+    fn leaf_squares(
+        &self,
+        what: &str,
+        nodes: &[u32],
+        depth: u8,
+        index_of: impl Fn(u32) -> Option<usize>,
+    ) -> Result<Vec<(u8, u32, u32)>, Error> {
+        let bad = |why: String| Err(Error::MalformedTree(format!("{what}: {why}")));
         if self.encoding != ColourEncoding::Unorm16 || self.texel_blocks.is_some() {
             return bad("only in unorm16 trees without texel blocks".into());
         }
-        if leaves.depth() < self.stored_depth() {
+        if depth < self.stored_depth() {
             return bad(format!(
-                "depth {} is above the stored nodes' {}",
-                leaves.depth(),
+                "depth {depth} is above the stored nodes' {}",
                 self.stored_depth()
             ));
         }
         let n = self.node_count();
-        if let Some(last) = leaves.leaves().last()
-            && u64::from(last.0) >= n
+        if let Some(&last) = nodes.last()
+            && u64::from(last) >= n
         {
-            return bad(format!("node {} of {n}", last.0));
+            return bad(format!("node {last} of {n}"));
         }
         // Each leaf's square, from one walk over the stored nodes.
-        let mut squares = vec![(0u8, 0u32, 0u32); leaves.count()];
+        let mut squares = vec![(0u8, 0u32, 0u32); nodes.len()];
         let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
         while let Some((p, level, ix, iz)) = stack.pop() {
             if self.is_inner(p) {
@@ -824,32 +907,19 @@ impl QuadTree {
                         2 * iz + (k >> 1) as u32,
                     ));
                 }
-            } else if let Some(i) = leaves.index_of((p - PAD) as u32) {
+            } else if let Some(i) = index_of((p - PAD) as u32) {
                 squares[i] = (level, ix, iz);
             }
         }
-        for (i, &(level, ix, iz)) in squares.iter().enumerate() {
-            let node = leaves.node(i);
+        for (i, (&node, &(level, ix, iz))) in nodes.iter().zip(&squares).enumerate() {
             if self.is_inner(node as usize + PAD) {
                 return bad(format!("leaf {i}: node {node} is inner"));
-            }
-            if level + crate::gradient_leaf::MAX_CELL_LEVELS < leaves.depth() {
-                return bad(format!(
-                    "leaf {i}: node {node} at level {level} is more than {} levels above depth {}",
-                    crate::gradient_leaf::MAX_CELL_LEVELS,
-                    leaves.depth()
-                ));
             }
             if self.aspect.is_pad(level, ix, iz) {
                 return bad(format!("leaf {i}: node {node} lies in the pad"));
             }
         }
-        leaves.set_squares(squares);
-        self.depth = leaves.depth();
-        self.gradient_leaves = Some(leaves);
-        self.grid = std::sync::OnceLock::new();
-        self.moments = std::sync::OnceLock::new();
-        Ok(self)
+        Ok(squares)
     }
 
     /// The gradient leaf at padded index `p`, if it is one.
@@ -857,6 +927,25 @@ impl QuadTree {
     fn gradient_leaf(&self, p: usize) -> Option<(usize, &GradientLeaves)> {
         let g = self.gradient_leaves.as_ref()?;
         g.index_of((p - PAD) as u32).map(|i| (i, g))
+    }
+
+    /// The contour leaf at padded index `p`, if it is one.
+    #[inline]
+    fn contour_leaf(&self, p: usize) -> Option<(usize, &ContourLeaves)> {
+        let c = self.contour_leaves.as_ref()?;
+        c.index_of((p - PAD) as u32).map(|i| (i, c))
+    }
+
+    /// The contour leaves, if any ([`crate::contour_leaf`]).
+    pub fn contour_leaves(&self) -> Option<&ContourLeaves> {
+        self.contour_leaves.as_ref()
+    }
+
+    /// Cells of both leaf kinds share one numbering in [`NodeRef`]:
+    /// gradient leaves first.
+    #[inline]
+    fn gradient_leaf_count(&self) -> usize {
+        self.gradient_leaves.as_ref().map_or(0, GradientLeaves::count)
     }
 
     /// Where texture space lies in the tree's square.
@@ -918,6 +1007,10 @@ impl QuadTree {
                 .gradient_leaves
                 .as_ref()
                 .map_or(0, GradientLeaves::memory_bytes)
+            + self
+                .contour_leaves
+                .as_ref()
+                .map_or(0, ContourLeaves::memory_bytes)
     }
 
     /// Nodes and terminals per level.
@@ -961,7 +1054,11 @@ impl QuadTree {
                         let poly = square_corners(level, ix.into(), iz.into());
                         g.paint(i).linear_width(&poly) * side * side * side / 4.0
                     })
-                    .sum()
+                    .sum::<f64>()
+            }) + self.contour_leaves.as_ref().map_or(0.0, |c| {
+                (0..c.count())
+                    .map(|i| unit_side(c.square(i).0).powi(3) / 4.0)
+                    .sum::<f64>()
             });
             self.visit_leaves(self.depth, false, |level, ix, iz, c| {
                 // The leaf's texture part, in texture units (a leaf above
@@ -994,6 +1091,7 @@ impl QuadTree {
                 if d > FLAT_GRID_MAX_DEPTH
                     || !self.aspect.is_square()
                     || self.gradient_leaves.is_some()
+                    || self.contour_leaves.is_some()
                 {
                     return None;
                 }
@@ -1061,6 +1159,22 @@ impl QuadTree {
                             (iz << j) + cz,
                             g.paint(leaf).mean_over(&poly),
                         );
+                    }
+                }
+            } else if let Some((leaf, c)) = self
+                .contour_leaf(node)
+                .filter(|_| cells && level < max_level)
+            {
+                let mut pending = vec![(0u8, 0u32, 0u32)];
+                while let Some((j, cx, cz)) = pending.pop() {
+                    let (splits, mean, _) = c.cell_info(leaf, j, cx, cz);
+                    let (l, sx, sz) = c.cell_square(leaf, j, cx, cz);
+                    if l < max_level && splits {
+                        for k in 0..4 {
+                            pending.push((j + 1, 2 * cx + (k & 1), 2 * cz + (k >> 1)));
+                        }
+                    } else {
+                        f(l, sx, sz, mean);
                     }
                 }
             } else if !self.is_inner(node) || level >= max_level {
@@ -1172,18 +1286,27 @@ impl QuadTree {
     /// whose colour range is known.
     #[inline]
     pub(crate) fn node_detail(&self, n: NodeRef) -> (bool, [f64; 4], f64) {
-        if let Some(g) = &self.gradient_leaves {
-            if let Some((leaf, j, ix, iz)) = n.as_gradient_cell() {
-                return g.cell_info(leaf, j, ix, iz);
-            }
-            if n.as_cell().is_none()
-                && let Some((leaf, _)) = self.gradient_leaf(n.0 as usize)
-            {
+        if let Some((leaf, j, ix, iz)) = n.as_gradient_cell() {
+            let gradients = self.gradient_leaf_count();
+            return match (&self.gradient_leaves, &self.contour_leaves) {
+                (Some(g), _) if leaf < gradients => g.cell_info(leaf, j, ix, iz),
+                (_, Some(c)) => c.cell_info(leaf - gradients, j, ix, iz),
+                _ => (false, [0.0; 4], 0.0),
+            };
+        }
+        if n.as_cell().is_none() {
+            let p = n.0 as usize;
+            if let Some((leaf, g)) = self.gradient_leaf(p) {
                 let (level, ix, iz) = g.square(leaf);
                 let poly = square_corners(level, ix.into(), iz.into());
                 let (splits, contrast) = g.split_and_contrast(leaf, 0, level, &poly);
-                let colour = self.encoding.decode_colour(self.colour(n.0 as usize));
+                let colour = self.encoding.decode_colour(self.colour(p));
                 return (splits, colour, contrast);
+            }
+            if let Some((leaf, c)) = self.contour_leaf(p) {
+                let (level, _, _) = c.square(leaf);
+                let colour = self.encoding.decode_colour(self.colour(p));
+                return (level < self.depth, colour, 1.0);
             }
         }
         let (inner, colour) = match (n.as_cell(), &self.texel_blocks) {
@@ -1197,7 +1320,8 @@ impl QuadTree {
                 (self.is_inner(p) || self.block_at(p).is_some(), c)
             }
         };
-        (inner, colour, 1.0)
+        // A stored terminal square is uniform: its colour is exact over it.
+        (inner, colour, if inner { 1.0 } else { 0.0 })
     }
 
     /// Child `c` (`low-x low-z, high-x low-z, low-x high-z, high-x high-z`)
@@ -1214,9 +1338,12 @@ impl QuadTree {
         let p = n.0 as usize;
         match self.block_at(p) {
             Some(b) => NodeRef::cell(b, 1, hx, hz),
-            None if !self.is_inner(p) => match self.gradient_leaf(p) {
-                Some((leaf, _)) => NodeRef::gradient_cell(leaf, 1, hx, hz),
-                None => NodeRef::stored(self.first_child(p) + c),
+            None if !self.is_inner(p) => match (self.gradient_leaf(p), self.contour_leaf(p)) {
+                (Some((leaf, _)), _) => NodeRef::gradient_cell(leaf, 1, hx, hz),
+                (_, Some((leaf, _))) => {
+                    NodeRef::gradient_cell(self.gradient_leaf_count() + leaf, 1, hx, hz)
+                }
+                _ => NodeRef::stored(self.first_child(p) + c),
             },
             None => NodeRef::stored(self.first_child(p) + c),
         }
@@ -1292,23 +1419,32 @@ impl QuadTree {
         }
     }
 
-    /// The exact integral (unorm16 units × area) of the gradient leaf at
-    /// padded index `p`, if it is one above level `k`, over the rectangle
-    /// `[x0, x1) × [z0, z1)` of tree space inside its square.
+    /// The exact integral (unorm16 units × area) of the gradient or
+    /// contour leaf at padded index `p`, if it is one above level `k`, over
+    /// the rectangle `[x0, x1) × [z0, z1)` of tree space inside its square.
     #[inline(never)]
-    fn gradient_integral(&self, p: usize, k: u8, [x0, z0, x1, z1]: [f64; 4]) -> Option<[f64; 4]> {
-        let (leaf, g) = self.gradient_leaf(p)?;
-        if g.square(leaf).0 >= k {
+    fn leaf_integral(&self, p: usize, k: u8, [x0, z0, x1, z1]: [f64; 4]) -> Option<[f64; 4]> {
+        let area = (x1 - x0).max(0.0) * (z1 - z0).max(0.0);
+        if let Some((leaf, g)) = self.gradient_leaf(p) {
+            if g.square(leaf).0 >= k {
+                return None;
+            }
+            if area <= 0.0 {
+                return Some([0.0; 4]);
+            }
+            let mean = g
+                .paint(leaf)
+                .mean_over(&[[x0, z0], [x1, z0], [x1, z1], [x0, z1]]);
+            return Some(mean.map(|m| m * 65535.0 * area));
+        }
+        let (leaf, c) = self.contour_leaf(p)?;
+        if c.square(leaf).0 >= k {
             return None;
         }
-        let area = (x1 - x0).max(0.0) * (z1 - z0).max(0.0);
         if area <= 0.0 {
             return Some([0.0; 4]);
         }
-        let mean = g
-            .paint(leaf)
-            .mean_over(&[[x0, z0], [x1, z0], [x1, z1], [x0, z1]]);
-        Some(mean.map(|m| m * 65535.0 * area))
+        Some(c.integral(leaf, [x0, z0, x1, z1]).0.map(|v| v * 65535.0))
     }
 
     /// The colour of the fragment's overlap with the unit square when one
@@ -1328,7 +1464,7 @@ impl QuadTree {
                     .map(Unorm16Rgba::to_rgba);
             }
             if !self.is_inner(node) {
-                if self.gradient_leaf(node).is_some() {
+                if self.gradient_leaf(node).is_some() || self.contour_leaf(node).is_some() {
                     return None;
                 }
                 let [r, g, b, a] = self.encoding.decode_colour(self.colour(node));
@@ -1460,7 +1596,7 @@ impl QuadTree {
             return result(acc);
         }
         if !self.is_inner(start)
-            && let Some(w) = self.gradient_integral(start, k, [x0, z0, x1, z1])
+            && let Some(w) = self.leaf_integral(start, k, [x0, z0, x1, z1])
         {
             return result(w);
         }
@@ -1536,9 +1672,12 @@ impl QuadTree {
                         None => {
                             let (ox0, ox1) = (x0.max(clo_x), x1.min(clo_x + half));
                             let (oz0, oz1) = (z0.max(clo_z), z1.min(clo_z + half));
-                            match self.gradient_leaves.as_ref().and_then(|_| {
-                                self.gradient_integral(first + c, k, [ox0, oz0, ox1, oz1])
-                            }) {
+                            let leaves =
+                                self.gradient_leaves.is_some() || self.contour_leaves.is_some();
+                            match leaves
+                                .then(|| self.leaf_integral(first + c, k, [ox0, oz0, ox1, oz1]))
+                                .flatten()
+                            {
                                 Some(w) => {
                                     for (a, v) in acc.iter_mut().zip(w) {
                                         *a += v;

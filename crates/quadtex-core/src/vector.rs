@@ -69,10 +69,11 @@ use crate::Error;
 use crate::blend::{BlendMode, blend, blend_range};
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::gradient::Gradient;
-use crate::gradient_leaf::{GradientLeaves, LeafPaint, MAX_CELL_LEVELS};
+use crate::contour_leaf::{ContourLeaves, ContourParts, LeafPiece};
+use crate::gradient_leaf::{GradientLeaves, LeafPaint};
 use crate::image_paint::ImagePaint;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
-use crate::tree::{self, MAX_NODES, QuadTree};
+use crate::tree::{self, MAX_DEPTH, MAX_NODES, QuadTree};
 
 /// The settings that shrink a vector build, for [`Error::MemoryBudget`].
 const VECTOR_KNOBS: &str = "lower --max-level, or raise --memory-limit";
@@ -98,7 +99,8 @@ pub enum FillRule {
 }
 
 impl FillRule {
-    fn covers(self, winding: i32) -> bool {
+    /// True when a point of winding number `winding` is inside.
+    pub fn covers(self, winding: i32) -> bool {
         match self {
             FillRule::NonZero => winding != 0,
             FillRule::EvenOdd => winding & 1 != 0,
@@ -1090,6 +1092,13 @@ pub struct VectorOptions {
     /// with their paint, instead of splitting them to the tolerance
     /// ([`crate::gradient_leaf`]). On by default.
     pub gradient_leaves: bool,
+    /// Keep a square of flat art crossed by at most this many edges whole,
+    /// with its contours, instead of splitting it further
+    /// ([`crate::contour_leaf`]): the art is then exact at any
+    /// magnification, and the tree answers down to level 30. Only squares
+    /// whose shapes are solid fills outside groups, clip paths and masks
+    /// qualify. Off (`None`) by default.
+    pub contour_leaves: Option<usize>,
 }
 
 /// A quarter of an 8-bit step: the default [`VectorOptions::tolerance`].
@@ -1103,6 +1112,7 @@ impl Default for VectorOptions {
             max_bytes: None,
             tolerance: DEFAULT_SMOOTH_TOLERANCE,
             gradient_leaves: true,
+            contour_leaves: None,
         }
     }
 }
@@ -1127,6 +1137,10 @@ pub struct VectorReport {
     pub gradient_leaves: u64,
     /// Distinct paints of those leaves.
     pub gradient_leaf_paints: u64,
+    /// Terminal squares kept as contour leaves ([`crate::contour_leaf`]).
+    pub contour_leaves: u64,
+    /// Points their contours hold.
+    pub contour_leaf_points: u64,
 }
 
 /// The part of one shape inside a square: its contours are
@@ -1211,9 +1225,14 @@ struct VectorBuilder<'a> {
     leaf_paint_index: std::collections::HashMap<(u32, [u64; 20]), u32>,
     /// `(level, index in level, paint)` of each gradient leaf.
     leaves: Vec<(u8, usize, u32)>,
-    /// The paint of the square [`VectorBuilder::square`] just made into a
-    /// gradient leaf.
-    made_leaf: Option<u32>,
+    /// The edge budget of contour leaves, if they are made.
+    contour_budget: Option<usize>,
+    /// Each contour leaf's pieces (paint order) and their contours.
+    contour_leaves: Vec<Vec<(LeafPiece, Vec<Vec<Point>>)>>,
+    /// `(level, index in level, contour leaf)` of each contour leaf.
+    contour_nodes: Vec<(u8, usize, usize)>,
+    /// The leaf [`VectorBuilder::square`] just made of its square.
+    made_leaf: Option<Made>,
     /// Clipping buffers.
     scratch: [Vec<Point>; 2],
     /// The pieces of the square being built at each level.
@@ -1281,6 +1300,9 @@ impl QuadTree {
             leaf_paints: Vec::new(),
             leaf_paint_index: std::collections::HashMap::new(),
             leaves: Vec::new(),
+            contour_budget: options.contour_leaves,
+            contour_leaves: Vec::new(),
+            contour_nodes: Vec::new(),
             made_leaf: None,
             scratch: [Vec::new(), Vec::new()],
             work: (0..=options.max_level).map(|_| Pieces::default()).collect(),
@@ -1307,9 +1329,8 @@ impl QuadTree {
         b.work[0] = top;
         let (_, colour, terminal) = b.square(0, root)?;
         b.levels[0].push((!terminal, colour));
-        if let Some(paint) = b.made_leaf.take() {
-            b.leaves.push((0, 0, paint));
-        }
+        let made = b.made_leaf.take();
+        b.record(made, 0, 0);
         while b.levels.last().is_some_and(Vec::is_empty) {
             b.levels.pop();
         }
@@ -1317,7 +1338,29 @@ impl QuadTree {
         for l in &b.levels {
             level_start.push(level_start.last().copied().unwrap_or(0) + l.len());
         }
-        let tree = tree::from_levels(b.levels, tree::Aspect::SQUARE)?;
+        let mut tree = tree::from_levels(b.levels, tree::Aspect::SQUARE)?;
+        if !b.contour_nodes.is_empty() {
+            let mut order: Vec<(u32, usize)> = b
+                .contour_nodes
+                .iter()
+                .map(|&(level, i, leaf)| ((level_start[usize::from(level)] + i) as u32, leaf))
+                .collect();
+            order.sort_unstable();
+            let mut parts = ContourParts::default();
+            for (node, leaf) in order {
+                let pieces = std::mem::take(&mut b.contour_leaves[leaf]);
+                parts.push_leaf(
+                    node,
+                    pieces
+                        .iter()
+                        .map(|(piece, contours)| (*piece, contours.iter().map(Vec::as_slice).collect())),
+                );
+            }
+            b.report.contour_leaves = parts.nodes.len() as u64;
+            let leaves = ContourLeaves::new(MAX_DEPTH, parts)?;
+            b.report.contour_leaf_points = leaves.point_count() as u64;
+            tree = tree.with_contour_leaves(leaves)?;
+        }
         if b.leaves.is_empty() {
             return Ok((tree, b.report));
         }
@@ -1392,13 +1435,34 @@ impl VectorBuilder<'_> {
             }
             if self.gradient_leaves
                 && level < self.max_level
-                && level + MAX_CELL_LEVELS >= self.max_level
                 && let Some((mean, paint)) = self.leaf_paint(&poly)
             {
-                self.made_leaf = Some(paint);
+                self.made_leaf = Some(Made::Gradient(paint));
                 return Ok((mean, quantise(mean), true));
             }
             // Smooth colour that varies too much: split like an edge would.
+        }
+        if let Some(budget) = self.contour_budget
+            && self.plain(here)
+            && edge_count(here) <= budget
+        {
+            let mean = self.sweep(here, sq);
+            let pieces = here
+                .pieces
+                .iter()
+                .map(|p| {
+                    let shape = &self.art.shapes[p.shape as usize];
+                    let piece = LeafPiece {
+                        colour: shape.colour,
+                        rule: shape.rule,
+                        base: p.base,
+                    };
+                    (piece, here.contours_of(p).map(<[Point]>::to_vec).collect())
+                })
+                .collect();
+            self.contour_leaves.push(pieces);
+            self.made_leaf = Some(Made::Contour(self.contour_leaves.len() - 1));
+            return Ok((mean, quantise(mean), true));
         }
         if level == self.max_level {
             let mean = self.sweep_split(here, sq, 0);
@@ -1441,14 +1505,34 @@ impl VectorBuilder<'_> {
             }
             *child = (colour, terminal, self.made_leaf.take());
         }
-        let row = &mut self.levels[next];
-        for (c, terminal, leaf) in children {
-            if let Some(paint) = leaf {
-                self.leaves.push((level + 1, row.len(), paint));
-            }
-            try_push(row, (!terminal, c), "tree level")?;
+        for (c, terminal, made) in children {
+            let index = self.levels[next].len();
+            self.record(made, level + 1, index);
+            try_push(&mut self.levels[next], (!terminal, c), "tree level")?;
         }
         Ok((sum, quantise(sum), false))
+    }
+
+    /// Notes the leaf made of the square at `index` of `level`.
+    fn record(&mut self, made: Option<Made>, level: u8, index: usize) {
+        match made {
+            Some(Made::Gradient(paint)) => self.leaves.push((level, index, paint)),
+            Some(Made::Contour(leaf)) => self.contour_nodes.push((level, index, leaf)),
+            None => {}
+        }
+    }
+
+    /// True when every piece is a solid fill outside groups, clip paths
+    /// and masks: what a contour leaf can hold.
+    fn plain(&self, pieces: &Pieces) -> bool {
+        pieces.pieces.iter().all(|p| {
+            let shape = &self.art.shapes[p.shape as usize];
+            shape.gradient.is_none()
+                && shape.groups.is_empty()
+                && shape.clip.is_none()
+                && !shape.member
+                && shape.mask_of.is_none()
+        })
     }
 
     /// The square `poly`'s mean and the index of its gradient-leaf paint,
@@ -1702,8 +1786,27 @@ impl VectorBuilder<'_> {
     }
 }
 
+/// The leaf a square was made into.
+#[derive(Debug, Clone, Copy)]
+enum Made {
+    /// A gradient leaf of this paint.
+    Gradient(u32),
+    /// A contour leaf, by its index in `VectorBuilder::contour_leaves`.
+    Contour(usize),
+}
+
+/// Edges of the pieces' clipped contours.
+fn edge_count(pieces: &Pieces) -> usize {
+    pieces
+        .pieces
+        .iter()
+        .flat_map(|p| &pieces.contours[p.contours.clone()])
+        .map(|r| r.len())
+        .sum()
+}
+
 /// Height at which segments `a–b` and `c–d` cross, if they cross properly.
-fn crossing_height(a: Point, b: Point, c: Point, d: Point) -> Option<f64> {
+pub(crate) fn crossing_height(a: Point, b: Point, c: Point, d: Point) -> Option<f64> {
     let r = [b[0] - a[0], b[1] - a[1]];
     let s = [d[0] - c[0], d[1] - c[1]];
     let denom = r[0] * s[1] - r[1] * s[0];
@@ -1735,25 +1838,34 @@ fn bounds_of(points: &[Point]) -> [f64; 4] {
 }
 
 /// Twice-halved shoelace: positive for counter-clockwise contours.
-fn signed_area(points: &[Point]) -> f64 {
+pub(crate) fn signed_area(points: &[Point]) -> f64 {
     let n = points.len();
+    let Some(&o) = points.first() else {
+        return 0.0;
+    };
+    // Relative to a vertex: a small polygon far from the origin keeps its digits.
     let mut a = 0.0;
     for i in 0..n {
         let (p, q) = (points[i], points[(i + 1) % n]);
-        a += p[0] * q[1] - q[0] * p[1];
+        a += (p[0] - o[0]) * (q[1] - o[1]) - (q[0] - o[0]) * (p[1] - o[1]);
     }
     0.5 * a
 }
 
 /// True when every edge of the (clipped) contour runs along the square's border.
 fn on_border(points: &[Point], sq: Square) -> bool {
-    let (x1, z1) = (sq.x1(), sq.z1());
+    on_rect_border(points, [sq.x0, sq.z0, sq.x1(), sq.z1()])
+}
+
+/// True when every edge of the closed polygon lies on the border of
+/// `[x0, z0, x1, z1]`.
+pub(crate) fn on_rect_border(points: &[Point], [x0, z0, x1, z1]: [f64; 4]) -> bool {
     let n = points.len();
     (0..n).all(|i| {
         let (p, q) = (points[i], points[(i + 1) % n]);
-        (p[0] == sq.x0 && q[0] == sq.x0)
+        (p[0] == x0 && q[0] == x0)
             || (p[0] == x1 && q[0] == x1)
-            || (p[1] == sq.z0 && q[1] == sq.z0)
+            || (p[1] == z0 && q[1] == z0)
             || (p[1] == z1 && q[1] == z1)
     })
 }
@@ -1767,14 +1879,24 @@ fn clip_to_square(
     scratch: &mut [Vec<Point>; 2],
     out: &mut Vec<Point>,
 ) {
+    clip_to_rect(points, [sq.x0, sq.z0, sq.x1(), sq.z1()], scratch, out);
+}
+
+/// [`clip_to_square`] for the rectangle `[x0, z0, x1, z1]`.
+pub(crate) fn clip_to_rect(
+    points: &[Point],
+    [x0, z0, x1, z1]: [f64; 4],
+    scratch: &mut [Vec<Point>; 2],
+    out: &mut Vec<Point>,
+) {
     let [a, b] = scratch;
     a.clear();
     a.extend_from_slice(points);
     let planes = [
-        (0usize, sq.x0, true),
-        (0, sq.x1(), false),
-        (1, sq.z0, true),
-        (1, sq.z1(), false),
+        (0usize, x0, true),
+        (0, x1, false),
+        (1, z0, true),
+        (1, z1, false),
     ];
     for (axis, bound, keep_above) in planes {
         b.clear();
@@ -1806,10 +1928,9 @@ fn clip_to_square(
         }
         std::mem::swap(a, b);
     }
-    let (x1, z1) = (sq.x1(), sq.z1());
     let start = out.len();
     for p in a.iter() {
-        let p = [p[0].clamp(sq.x0, x1), p[1].clamp(sq.z0, z1)];
+        let p = [p[0].clamp(x0, x1), p[1].clamp(z0, z1)];
         if out.len() == start || out.last() != Some(&p) {
             out.push(p);
         }

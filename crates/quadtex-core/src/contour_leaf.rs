@@ -1,0 +1,424 @@
+//! Contour leaves: terminal squares that keep the edges crossing them.
+//!
+//! A square of flat vector art (solid fills under the nonzero or even-odd
+//! rule, composited *over* in paint order; no gradients, groups, clip
+//! paths or masks) crossed by at most a budget of edges can be stored as
+//! the shapes' contours clipped to it, instead of being split down to the
+//! maximum level. Memory then follows the art's edge length at the
+//! budget's scale, not `2^L`, and the art stays exact at any magnification:
+//!
+//! * the fragment integral ([`crate::QuadTree::weighted_colour`]) clips
+//!   the leaf's contours to the fragment's overlap and integrates the
+//!   composite by the packer's trapezoid sweep: **exact** (up to rounding)
+//!   for fragments of any size, down to the `f64` resolution of the
+//!   contours. A square wholly inside the fragment counts at its stored
+//!   mean (rounded once to 16 bits), as every node;
+//! * the exact-pixel walk ([`crate::exact`]) sees the leaf as *cells* made
+//!   on demand, each at the exact mean of the art over it (the same sweep),
+//!   subdivided while edges cross it, at most
+//!   [`crate::gradient_leaf::MAX_CELL_LEVELS`] below the leaf and down to
+//!   the tree's depth; a cell still crossed by an edge there is taken at its
+//!   mean with a full-contrast bound.
+//!
+//! Contours are stored as they were clipped to the leaf's square, in tree
+//! space; a contour that encloses the square without an edge inside it is
+//! kept as a winding offset (`base`) of its piece.
+
+use crate::Error;
+use crate::vector::{FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area};
+
+type Point = [f64; 2];
+
+/// One shape's part of a contour leaf.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeafPiece {
+    /// Linear premultiplied colour, channels in `[0, 1]`, `r, g, b <= a`.
+    pub colour: [f64; 4],
+    /// The shape's fill rule.
+    pub rule: FillRule,
+    /// Winding of contours that enclose the whole square.
+    pub base: i32,
+}
+
+/// The contour leaves of a tree: per leaf its pieces (paint order), per
+/// piece its contours, per contour its points, flattened.
+///
+/// Invariants: at least one leaf; nodes strictly increasing; every range
+/// well formed; contours of at least 3 points, each point finite; colours
+/// finite and premultiplied in `[0, 1]`; `depth <= 30`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContourLeaves {
+    depth: u8,
+    nodes: Vec<u32>,
+    /// First piece of each leaf, plus one past the last.
+    leaf_pieces: Vec<u32>,
+    pieces: Vec<LeafPiece>,
+    /// First contour of each piece, plus one past the last.
+    piece_contours: Vec<u32>,
+    /// First point of each contour, plus one past the last.
+    contour_points: Vec<u32>,
+    points: Vec<Point>,
+    /// `(level, ix, iz)` of each leaf, found when attached to the tree.
+    squares: Vec<(u8, u32, u32)>,
+}
+
+/// Flattened contour leaves, as [`ContourLeaves::new`] takes them and
+/// [`ContourLeaves::parts`] gives them.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ContourParts {
+    /// Unpadded breadth-first index of each leaf's node, increasing.
+    pub nodes: Vec<u32>,
+    /// First piece of each leaf, plus one past the last (`nodes.len() + 1`).
+    pub leaf_pieces: Vec<u32>,
+    /// Pieces of all leaves.
+    pub pieces: Vec<LeafPiece>,
+    /// First contour of each piece, plus one past the last.
+    pub piece_contours: Vec<u32>,
+    /// First point of each contour, plus one past the last.
+    pub contour_points: Vec<u32>,
+    /// Points of all contours, tree space.
+    pub points: Vec<Point>,
+}
+
+impl ContourParts {
+    /// Appends a leaf of node `node` whose pieces are
+    /// `(piece, contours)` in paint order.
+    pub fn push_leaf<'a>(
+        &mut self,
+        node: u32,
+        pieces: impl IntoIterator<Item = (LeafPiece, Vec<&'a [Point]>)>,
+    ) {
+        if self.leaf_pieces.is_empty() {
+            self.leaf_pieces.push(0);
+            self.piece_contours.push(0);
+            self.contour_points.push(0);
+        }
+        self.nodes.push(node);
+        for (piece, contours) in pieces {
+            self.pieces.push(piece);
+            for c in contours {
+                self.points.extend_from_slice(c);
+                self.contour_points.push(self.points.len() as u32);
+            }
+            self.piece_contours
+                .push((self.contour_points.len() - 1) as u32);
+        }
+        self.leaf_pieces.push(self.pieces.len() as u32);
+    }
+}
+
+impl ContourLeaves {
+    /// Contour leaves of a tree answering down to level `depth`.
+    /// [`Error::MalformedTree`] names the first broken invariant.
+    pub fn new(depth: u8, parts: ContourParts) -> Result<ContourLeaves, Error> {
+        let bad = |why: String| Err(Error::MalformedTree(format!("contour leaves: {why}")));
+        let ContourParts {
+            nodes,
+            leaf_pieces,
+            pieces,
+            piece_contours,
+            contour_points,
+            points,
+        } = parts;
+        if depth > crate::MAX_DEPTH {
+            return bad(format!("depth {depth} exceeds {}", crate::MAX_DEPTH));
+        }
+        if nodes.is_empty() || nodes.len() > crate::gradient_leaf::MAX_GRADIENT_LEAVES {
+            return bad(format!("{} leaves", nodes.len()));
+        }
+        if let Some(w) = nodes.windows(2).find(|w| w[1] <= w[0]) {
+            return bad(format!("node {} does not follow node {}", w[1], w[0]));
+        }
+        // Each index list starts at 0, never decreases and ends at its items' count.
+        let ranges = |name: &str, firsts: &[u32], groups: usize, items: usize| {
+            if firsts.len() != groups + 1
+                || firsts.first() != Some(&0)
+                || firsts.last().map(|&l| l as usize) != Some(items)
+                || firsts.windows(2).any(|w| w[1] < w[0])
+            {
+                return Err(Error::MalformedTree(format!(
+                    "contour leaves: {name} do not index {items} items in {groups} groups"
+                )));
+            }
+            Ok(())
+        };
+        ranges("leaf pieces", &leaf_pieces, nodes.len(), pieces.len())?;
+        ranges("piece contours", &piece_contours, pieces.len(), contour_points.len().saturating_sub(1))?;
+        ranges("contour points", &contour_points, contour_points.len().saturating_sub(1), points.len())?;
+        if let Some(w) = contour_points.windows(2).position(|w| w[1] - w[0] < 3) {
+            return bad(format!("contour {w} has fewer than 3 points"));
+        }
+        if let Some(i) = points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
+            return bad(format!("point {i} is not finite"));
+        }
+        for (i, p) in pieces.iter().enumerate() {
+            let [r, g, b, a] = p.colour;
+            let unit = |v: f64| (0.0..=1.0).contains(&v);
+            if !(unit(a) && [r, g, b].iter().all(|&c| unit(c) && c <= a + 1e-12)) {
+                return bad(format!("piece {i}: colour {:?} is not premultiplied in [0, 1]", p.colour));
+            }
+        }
+        Ok(ContourLeaves {
+            depth,
+            nodes,
+            leaf_pieces,
+            pieces,
+            piece_contours,
+            contour_points,
+            points,
+            squares: Vec::new(),
+        })
+    }
+
+    /// The flattened parts (what [`ContourLeaves::new`] took).
+    pub fn parts(&self) -> ContourParts {
+        ContourParts {
+            nodes: self.nodes.clone(),
+            leaf_pieces: self.leaf_pieces.clone(),
+            pieces: self.pieces.clone(),
+            piece_contours: self.piece_contours.clone(),
+            contour_points: self.contour_points.clone(),
+            points: self.points.clone(),
+        }
+    }
+
+    /// Deepest level the tree answers at (cells go no deeper).
+    pub fn depth(&self) -> u8 {
+        self.depth
+    }
+
+    /// Number of leaves.
+    pub fn count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Number of stored points (every contour's, clipped to its leaf).
+    pub fn point_count(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Most edges in one leaf.
+    pub fn max_leaf_edges(&self) -> usize {
+        (0..self.count())
+            .map(|l| {
+                let (p0, p1) = self.piece_range(l);
+                let (c0, c1) = (self.piece_contours[p0] as usize, self.piece_contours[p1] as usize);
+                (self.contour_points[c1] - self.contour_points[c0]) as usize
+            })
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Bytes held.
+    pub fn memory_bytes(&self) -> u64 {
+        (self.nodes.len() * (4 + 4 + 12)
+            + self.pieces.len() * (std::mem::size_of::<LeafPiece>() + 4)
+            + self.contour_points.len() * 4
+            + self.points.len() * 16) as u64
+    }
+
+    #[inline]
+    pub(crate) fn index_of(&self, node: u32) -> Option<usize> {
+        self.nodes.binary_search(&node).ok()
+    }
+
+    pub(crate) fn node(&self, leaf: usize) -> u32 {
+        self.nodes[leaf]
+    }
+
+    pub(crate) fn set_squares(&mut self, squares: Vec<(u8, u32, u32)>) {
+        self.squares = squares;
+    }
+
+    pub(crate) fn square(&self, leaf: usize) -> (u8, u32, u32) {
+        self.squares[leaf]
+    }
+
+    fn piece_range(&self, leaf: usize) -> (usize, usize) {
+        (self.leaf_pieces[leaf] as usize, self.leaf_pieces[leaf + 1] as usize)
+    }
+
+    fn contours_of(&self, piece: usize) -> impl Iterator<Item = &[Point]> + '_ {
+        let (c0, c1) = (self.piece_contours[piece] as usize, self.piece_contours[piece + 1] as usize);
+        (c0..c1).map(|c| &self.points[self.contour_points[c] as usize..self.contour_points[c + 1] as usize])
+    }
+
+    /// True when every point of leaf `leaf` lies in its square.
+    pub(crate) fn inside_square(&self, leaf: usize) -> bool {
+        let (level, ix, iz) = self.squares[leaf];
+        let [x0, z0, x1, z1] = rect_of(level, ix.into(), iz.into());
+        let (p0, p1) = self.piece_range(leaf);
+        (p0..p1).all(|p| {
+            self.contours_of(p)
+                .flatten()
+                .all(|q| q[0] >= x0 && q[0] <= x1 && q[1] >= z0 && q[1] <= z1)
+        })
+    }
+
+    /// `∫ colour` (times area, linear premultiplied) of leaf `leaf` over
+    /// the rectangle `rect` (tree space, inside its square), and whether an
+    /// edge crosses the rectangle's inside.
+    pub(crate) fn integral(&self, leaf: usize, rect: [f64; 4]) -> ([f64; 4], bool) {
+        let (p0, p1) = self.piece_range(leaf);
+        let mut clipped = Clipped::default();
+        let mut scratch = [Vec::new(), Vec::new()];
+        for p in p0..p1 {
+            clipped.push_piece(self.pieces[p], self.contours_of(p), rect, &mut scratch);
+        }
+        let edges = !clipped.points.is_empty();
+        (clipped.sweep(rect), edges)
+    }
+
+    /// Whether cell `(j, ix, iz)` of `leaf` is subdivided further, its exact
+    /// mean colour, and how far a point's colour may be from that mean (0
+    /// when no edge crosses the cell, else full contrast).
+    pub(crate) fn cell_info(&self, leaf: usize, j: u8, ix: u32, iz: u32) -> (bool, [f64; 4], f64) {
+        let (level, lx, lz) = self.squares[leaf];
+        let level = level + j;
+        let (cx, cz) = ((u64::from(lx) << j) + u64::from(ix), (u64::from(lz) << j) + u64::from(iz));
+        let rect = rect_of(level, cx, cz);
+        let area = (rect[2] - rect[0]) * (rect[3] - rect[1]);
+        let (sum, edges) = self.integral(leaf, rect);
+        let splits = edges && j < crate::gradient_leaf::MAX_CELL_LEVELS && level < self.depth;
+        (splits, sum.map(|v| v / area), if edges { 1.0 } else { 0.0 })
+    }
+
+    /// The square `(level, ix, iz)` of cell `(j, ix, iz)` of `leaf`.
+    pub(crate) fn cell_square(&self, leaf: usize, j: u8, ix: u32, iz: u32) -> (u8, u32, u32) {
+        let (level, lx, lz) = self.squares[leaf];
+        (level + j, (lx << j) + ix, (lz << j) + iz)
+    }
+}
+
+/// `[x0, z0, x1, z1]` of square `(level, ix, iz)` of tree space.
+pub(crate) fn rect_of(level: u8, ix: u64, iz: u64) -> [f64; 4] {
+    let side = crate::tree::unit_side(level);
+    let (x0, z0) = (ix as f64 * side, iz as f64 * side);
+    [x0, z0, x0 + side, z0 + side]
+}
+
+/// Pieces clipped to a rectangle, ready to sweep.
+#[derive(Default)]
+struct Clipped {
+    pieces: Vec<(LeafPiece, std::ops::Range<usize>)>,
+    contours: Vec<std::ops::Range<usize>>,
+    points: Vec<Point>,
+}
+
+impl Clipped {
+    fn push_piece<'a>(
+        &mut self,
+        piece: LeafPiece,
+        contours: impl Iterator<Item = &'a [Point]>,
+        rect: [f64; 4],
+        scratch: &mut [Vec<Point>; 2],
+    ) {
+        let first = self.contours.len();
+        let mut piece = piece;
+        let area = (rect[2] - rect[0]) * (rect[3] - rect[1]);
+        for c in contours {
+            let start = self.points.len();
+            clip_to_rect(c, rect, scratch, &mut self.points);
+            let n = self.points.len() - start;
+            if n < 3 {
+                self.points.truncate(start);
+                continue;
+            }
+            if on_rect_border(&self.points[start..], rect) {
+                if area > 0.0 {
+                    piece.base += (signed_area(&self.points[start..]) / area).round() as i32;
+                }
+                self.points.truncate(start);
+            } else {
+                self.contours.push(start..self.points.len());
+            }
+        }
+        self.pieces.push((piece, first..self.contours.len()));
+    }
+
+    /// `∫ composite` over `rect`: the trapezoid sweep.
+    fn sweep(&self, rect: [f64; 4]) -> [f64; 4] {
+        let [x0, z0, x1, z1] = rect;
+        // (lo, hi, piece, winding step when crossed left to right)
+        let mut edges: Vec<(Point, Point, usize, i32)> = Vec::new();
+        for (pi, (_, cs)) in self.pieces.iter().enumerate() {
+            for r in &self.contours[cs.clone()] {
+                let c = &self.points[r.clone()];
+                for i in 0..c.len() {
+                    let (a, b) = (c[i], c[(i + 1) % c.len()]);
+                    if a[1] == b[1] {
+                        continue;
+                    }
+                    edges.push(if a[1] < b[1] { (a, b, pi, -1) } else { (b, a, pi, 1) });
+                }
+            }
+        }
+        let mut heights = vec![z0, z1];
+        for e in &edges {
+            heights.push(e.0[1]);
+            heights.push(e.1[1]);
+        }
+        for i in 0..edges.len() {
+            for j in i + 1..edges.len() {
+                let (e, f) = (&edges[i], &edges[j]);
+                if e.1[1] <= f.0[1] || f.1[1] <= e.0[1] {
+                    continue;
+                }
+                if let Some(z) = crossing_height(e.0, e.1, f.0, f.1) {
+                    heights.push(z);
+                }
+            }
+        }
+        heights.retain(|z| *z >= z0 && *z <= z1);
+        heights.sort_by(f64::total_cmp);
+        heights.dedup();
+        let mut total = [0.0; 4];
+        let mut crossings: Vec<(f64, usize, i32)> = Vec::new();
+        let mut winding: Vec<i32> = Vec::with_capacity(self.pieces.len());
+        for slab in heights.windows(2) {
+            let (za, zb) = (slab[0], slab[1]);
+            let h = zb - za;
+            if h <= 0.0 {
+                continue;
+            }
+            let zm = 0.5 * (za + zb);
+            crossings.clear();
+            for e in &edges {
+                if e.0[1] < zm && zm < e.1[1] {
+                    let t = (zm - e.0[1]) / (e.1[1] - e.0[1]);
+                    let x = (e.0[0] + t * (e.1[0] - e.0[0])).clamp(x0, x1);
+                    crossings.push((x, e.2, e.3));
+                }
+            }
+            crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
+            winding.clear();
+            winding.extend(self.pieces.iter().map(|(p, _)| p.base));
+            let mut left = x0;
+            let gap = |left: f64, right: f64, winding: &[i32], total: &mut [f64; 4]| {
+                let width = right - left;
+                if width <= 0.0 {
+                    return;
+                }
+                let mut c = [0.0; 4];
+                for ((p, _), &w) in self.pieces.iter().zip(winding) {
+                    if p.rule.covers(w) {
+                        let keep = 1.0 - p.colour[3];
+                        for k in 0..4 {
+                            c[k] = p.colour[k] + c[k] * keep;
+                        }
+                    }
+                }
+                for k in 0..4 {
+                    total[k] += c[k] * width * h;
+                }
+            };
+            for &(x, piece, step) in &crossings {
+                gap(left, x, &winding, &mut total);
+                winding[piece] += step;
+                left = x;
+            }
+            gap(left, x1, &winding, &mut total);
+        }
+        total
+    }
+}
