@@ -143,19 +143,35 @@ impl ContourLeaves {
             Ok(())
         };
         ranges("leaf pieces", &leaf_pieces, nodes.len(), pieces.len())?;
-        ranges("piece contours", &piece_contours, pieces.len(), contour_points.len().saturating_sub(1))?;
-        ranges("contour points", &contour_points, contour_points.len().saturating_sub(1), points.len())?;
+        ranges(
+            "piece contours",
+            &piece_contours,
+            pieces.len(),
+            contour_points.len().saturating_sub(1),
+        )?;
+        ranges(
+            "contour points",
+            &contour_points,
+            contour_points.len().saturating_sub(1),
+            points.len(),
+        )?;
         if let Some(w) = contour_points.windows(2).position(|w| w[1] - w[0] < 3) {
             return bad(format!("contour {w} has fewer than 3 points"));
         }
-        if let Some(i) = points.iter().position(|p| !(p[0].is_finite() && p[1].is_finite())) {
+        if let Some(i) = points
+            .iter()
+            .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+        {
             return bad(format!("point {i} is not finite"));
         }
         for (i, p) in pieces.iter().enumerate() {
             let [r, g, b, a] = p.colour;
             let unit = |v: f64| (0.0..=1.0).contains(&v);
             if !(unit(a) && [r, g, b].iter().all(|&c| unit(c) && c <= a + 1e-12)) {
-                return bad(format!("piece {i}: colour {:?} is not premultiplied in [0, 1]", p.colour));
+                return bad(format!(
+                    "piece {i}: colour {:?} is not premultiplied in [0, 1]",
+                    p.colour
+                ));
             }
         }
         Ok(ContourLeaves {
@@ -202,7 +218,10 @@ impl ContourLeaves {
         (0..self.count())
             .map(|l| {
                 let (p0, p1) = self.piece_range(l);
-                let (c0, c1) = (self.piece_contours[p0] as usize, self.piece_contours[p1] as usize);
+                let (c0, c1) = (
+                    self.piece_contours[p0] as usize,
+                    self.piece_contours[p1] as usize,
+                );
                 (self.contour_points[c1] - self.contour_points[c0]) as usize
             })
             .max()
@@ -235,12 +254,20 @@ impl ContourLeaves {
     }
 
     fn piece_range(&self, leaf: usize) -> (usize, usize) {
-        (self.leaf_pieces[leaf] as usize, self.leaf_pieces[leaf + 1] as usize)
+        (
+            self.leaf_pieces[leaf] as usize,
+            self.leaf_pieces[leaf + 1] as usize,
+        )
     }
 
     fn contours_of(&self, piece: usize) -> impl Iterator<Item = &[Point]> + '_ {
-        let (c0, c1) = (self.piece_contours[piece] as usize, self.piece_contours[piece + 1] as usize);
-        (c0..c1).map(|c| &self.points[self.contour_points[c] as usize..self.contour_points[c + 1] as usize])
+        let (c0, c1) = (
+            self.piece_contours[piece] as usize,
+            self.piece_contours[piece + 1] as usize,
+        );
+        (c0..c1).map(|c| {
+            &self.points[self.contour_points[c] as usize..self.contour_points[c + 1] as usize]
+        })
     }
 
     /// True when every point of leaf `leaf` lies in its square.
@@ -275,7 +302,10 @@ impl ContourLeaves {
     pub(crate) fn cell_info(&self, leaf: usize, j: u8, ix: u32, iz: u32) -> (bool, [f64; 4], f64) {
         let (level, lx, lz) = self.squares[leaf];
         let level = level + j;
-        let (cx, cz) = ((u64::from(lx) << j) + u64::from(ix), (u64::from(lz) << j) + u64::from(iz));
+        let (cx, cz) = (
+            (u64::from(lx) << j) + u64::from(ix),
+            (u64::from(lz) << j) + u64::from(iz),
+        );
         let rect = rect_of(level, cx, cz);
         let area = (rect[2] - rect[0]) * (rect[3] - rect[1]);
         let (sum, edges) = self.integral(leaf, rect);
@@ -349,7 +379,11 @@ impl Clipped {
                     if a[1] == b[1] {
                         continue;
                     }
-                    edges.push(if a[1] < b[1] { (a, b, pi, -1) } else { (b, a, pi, 1) });
+                    edges.push(if a[1] < b[1] {
+                        (a, b, pi, -1)
+                    } else {
+                        (b, a, pi, 1)
+                    });
                 }
             }
         }

@@ -26,13 +26,13 @@
 
 pub mod blend;
 mod colour;
+pub mod contour_leaf;
 mod error;
 pub mod exact;
 pub mod footprint;
 mod fragment;
 pub mod gradient;
 pub mod gradient_leaf;
-pub mod contour_leaf;
 pub mod image_paint;
 
 pub mod build;
@@ -53,11 +53,11 @@ pub mod wrap;
 
 pub use build::{BuildOptions, BuildReport, TexelGrid};
 pub use colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
+pub use contour_leaf::{ContourLeaves, ContourParts, LeafPiece};
 pub use error::Error;
 pub use exact::{PixelFilter, Projection, RegionIntegral};
 pub use footprint::Footprint;
 pub use fragment::Fragment;
-pub use contour_leaf::{ContourLeaves, ContourParts, LeafPiece};
 pub use gradient_leaf::{GradientLeaves, LeafPaint};
 pub use polygon::ConvexPolygon;
 pub use shared::SharedBytes;

@@ -23,8 +23,8 @@
 use crate::Error;
 use crate::SharedBytes;
 use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
-use crate::fragment::{Fragment, overlap_1d};
 use crate::contour_leaf::ContourLeaves;
+use crate::fragment::{Fragment, overlap_1d};
 use crate::gradient_leaf::{GradientLeaves, square_corners};
 use crate::texel_block::TexelBlocks;
 use crate::variant::{self, Variant};
@@ -462,7 +462,9 @@ impl QuadTree {
             let (_, mean, _) = c.cell_info(i, 0, 0, 0);
             let node = c.node(i);
             let stored = self.colour(node as usize + PAD).0;
-            if (0..4).any(|k| (mean[k].clamp(0.0, 1.0) * 65535.0 - f64::from(stored[k])).abs() > 1.0) {
+            if (0..4)
+                .any(|k| (mean[k].clamp(0.0, 1.0) * 65535.0 - f64::from(stored[k])).abs() > 1.0)
+            {
                 return Err(Error::MalformedTree(format!(
                     "contour leaf {i} (node {node}): colour {stored:?} is not its art's mean {mean:?}"
                 )));
@@ -945,7 +947,9 @@ impl QuadTree {
     /// gradient leaves first.
     #[inline]
     fn gradient_leaf_count(&self) -> usize {
-        self.gradient_leaves.as_ref().map_or(0, GradientLeaves::count)
+        self.gradient_leaves
+            .as_ref()
+            .map_or(0, GradientLeaves::count)
     }
 
     /// Where texture space lies in the tree's square.

@@ -68,8 +68,8 @@
 use crate::Error;
 use crate::blend::{BlendMode, blend, blend_range};
 use crate::colour::{Rgba, Unorm16Rgba};
-use crate::gradient::Gradient;
 use crate::contour_leaf::{ContourLeaves, ContourParts, LeafPiece};
+use crate::gradient::Gradient;
 use crate::gradient_leaf::{GradientLeaves, LeafPaint};
 use crate::image_paint::ImagePaint;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
@@ -1351,9 +1351,9 @@ impl QuadTree {
                 let pieces = std::mem::take(&mut b.contour_leaves[leaf]);
                 parts.push_leaf(
                     node,
-                    pieces
-                        .iter()
-                        .map(|(piece, contours)| (*piece, contours.iter().map(Vec::as_slice).collect())),
+                    pieces.iter().map(|(piece, contours)| {
+                        (*piece, contours.iter().map(Vec::as_slice).collect())
+                    }),
                 );
             }
             b.report.contour_leaves = parts.nodes.len() as u64;

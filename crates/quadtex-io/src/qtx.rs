@@ -7,8 +7,8 @@ use std::path::Path;
 use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
 use quadtex_core::texel_block::BLOCK_LOG2_SIDE;
 use quadtex_core::{
-    Aspect, BlockFormat, ColourEncoding, GradientLeaves, LeafPaint, QuadTree, SharedBytes,
-    TexelBlocks,
+    Aspect, BlockFormat, ColourEncoding, ContourLeaves, GradientLeaves, LeafPaint, LeafPiece,
+    QuadTree, SharedBytes, TexelBlocks,
 };
 
 use crate::atomic::{put, write_atomically};
@@ -87,7 +87,11 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
         }
     }
     let mut blocks = encode_blocks(tree);
-    let gradient_section = encode_gradient_leaves(tree);
+    let mut gradient_section = encode_gradient_leaves(tree);
+    let contour_section = encode_contour_leaves(tree);
+    let kinds = u8::from(!gradient_section.is_empty()) * LEAF_KIND_GRADIENT
+        + u8::from(!contour_section.is_empty()) * LEAF_KIND_CONTOUR;
+    gradient_section.extend(contour_section);
     let version = if gradient_section.is_empty() {
         PLAIN_VERSION
     } else {
@@ -100,7 +104,7 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
     header[12..16].copy_from_slice(&(HEADER_BYTES as u32).to_le_bytes());
     header[16] = tree.stored_depth();
     if !gradient_section.is_empty() {
-        header[31] = LEAF_KIND_GRADIENT;
+        header[31] = kinds;
         // The two sections never meet: trees with texel blocks have no gradient leaves.
         blocks = gradient_section;
     }
@@ -157,8 +161,156 @@ fn encode_blocks(tree: &QuadTree) -> Vec<u8> {
     out
 }
 
-/// Header byte 31: the section after the colours holds gradient leaves.
+/// Header byte 31, bit 0: a gradient-leaf section follows the colours.
 const LEAF_KIND_GRADIENT: u8 = 1;
+/// Header byte 31, bit 1: a contour-leaf section follows (after the
+/// gradient-leaf section, if any).
+const LEAF_KIND_CONTOUR: u8 = 2;
+
+/// Bytes of one contour-leaf piece.
+const PIECE_BYTES: usize = 48;
+
+/// The contour-leaf section (`docs/format.md`), empty without leaves.
+fn encode_contour_leaves(tree: &QuadTree) -> Vec<u8> {
+    let Some(c) = tree.contour_leaves() else {
+        return Vec::new();
+    };
+    let parts = c.parts();
+    let mut body = Vec::new();
+    body.push(c.depth());
+    body.extend([0u8; 7]);
+    let contours = parts.contour_points.len().saturating_sub(1);
+    for count in [
+        parts.nodes.len(),
+        parts.pieces.len(),
+        contours,
+        parts.points.len(),
+    ] {
+        body.extend((count as u64).to_le_bytes());
+    }
+    for (node, first) in parts.nodes.iter().zip(&parts.leaf_pieces) {
+        body.extend(node.to_le_bytes());
+        body.extend(first.to_le_bytes());
+    }
+    for (piece, first) in parts.pieces.iter().zip(&parts.piece_contours) {
+        for v in piece.colour {
+            body.extend(v.to_le_bytes());
+        }
+        body.push(match piece.rule {
+            quadtex_core::FillRule::NonZero => 0,
+            quadtex_core::FillRule::EvenOdd => 1,
+        });
+        body.extend([0u8; 3]);
+        body.extend(piece.base.to_le_bytes());
+        body.extend(first.to_le_bytes());
+        body.extend([0u8; 4]);
+    }
+    for first in &parts.contour_points[..contours] {
+        body.extend(first.to_le_bytes());
+    }
+    for p in &parts.points {
+        body.extend(p[0].to_le_bytes());
+        body.extend(p[1].to_le_bytes());
+    }
+    let mut out = (body.len() as u64).to_le_bytes().to_vec();
+    out.extend(body);
+    out
+}
+
+/// The contour-leaf section `bytes` for a tree of `nodes` nodes.
+fn decode_contour_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<ContourLeaves, Error> {
+    let bad = |message: String| Error::Format {
+        path: path.to_path_buf(),
+        field: "contour_leaves",
+        message,
+    };
+    let mut r = Reader { bytes, at: 0 };
+    let short = |what: &str| bad(format!("ends inside {what}"));
+    let declared = r.u64().ok_or_else(|| short("its length"))?;
+    if declared != (bytes.len() - 8) as u64 {
+        return Err(bad(format!(
+            "declares {declared} bytes, holds {}",
+            bytes.len() - 8
+        )));
+    }
+    let depth = r.u8().ok_or_else(|| short("the depth"))?;
+    if r.take(7)
+        .ok_or_else(|| short("the depth"))?
+        .iter()
+        .any(|&b| b != 0)
+    {
+        return Err(bad("reserved bytes are not zero".into()));
+    }
+    let mut counts = [0u64; 4];
+    for c in &mut counts {
+        *c = r.u64().ok_or_else(|| short("the counts"))?;
+    }
+    let [leaves, pieces, contours, points] = counts;
+    if leaves == 0
+        || leaves > nodes
+        || pieces > u64::from(u32::MAX)
+        || contours > u64::from(u32::MAX)
+        || points > u64::from(u32::MAX)
+    {
+        return Err(bad(format!(
+            "{leaves} leaves, {pieces} pieces, {contours} contours, {points} points in a tree of {nodes} nodes"
+        )));
+    }
+    let need = leaves * 8 + pieces * PIECE_BYTES as u64 + contours * 4 + points * 16;
+    if need != r.remaining() as u64 {
+        return Err(bad(format!(
+            "{leaves} leaves, {pieces} pieces, {contours} contours and {points} points need {need} bytes, {} remain",
+            r.remaining()
+        )));
+    }
+    let mut parts = quadtex_core::ContourParts::default();
+    for _ in 0..leaves {
+        let (Some(node), Some(first)) = (r.u32(), r.u32()) else {
+            return Err(short("the leaves"));
+        };
+        parts.nodes.push(node);
+        parts.leaf_pieces.push(first);
+    }
+    parts.leaf_pieces.push(pieces as u32);
+    for i in 0..pieces {
+        let colour = [(); 4].map(|_| r.f64().unwrap_or(f64::NAN));
+        let head = r.take(4).ok_or_else(|| short("the pieces"))?;
+        let rule = match head[0] {
+            0 => quadtex_core::FillRule::NonZero,
+            1 => quadtex_core::FillRule::EvenOdd,
+            v => return Err(bad(format!("piece {i}: unknown fill rule {v}"))),
+        };
+        if head[1..] != [0, 0, 0] {
+            return Err(bad(format!("piece {i}: reserved bytes are not zero")));
+        }
+        let (Some(base), Some(first), Some(reserved)) = (r.u32(), r.u32(), r.u32()) else {
+            return Err(short("the pieces"));
+        };
+        if reserved != 0 {
+            return Err(bad(format!("piece {i}: reserved bytes are not zero")));
+        }
+        parts.pieces.push(LeafPiece {
+            colour,
+            rule,
+            base: base as i32,
+        });
+        parts.piece_contours.push(first);
+    }
+    parts.piece_contours.push(contours as u32);
+    for _ in 0..contours {
+        parts
+            .contour_points
+            .push(r.u32().ok_or_else(|| short("the contours"))?);
+    }
+    parts.contour_points.push(points as u32);
+    for _ in 0..points {
+        let (Some(x), Some(z)) = (r.f64(), r.f64()) else {
+            return Err(short("the points"));
+        };
+        parts.points.push([x, z]);
+    }
+    ContourLeaves::new(depth, parts).map_err(|e| bad(e.to_string()))
+}
 
 /// Bytes of one stop, and of a paint besides its stops.
 const STOP_BYTES: usize = 40;
@@ -537,7 +689,7 @@ fn parse_shared(
     let nodes = header.nodes as usize;
     let (bits, rest) = data.split_at(nodes.div_ceil(8));
     let block_section = &rest[8 * nodes..];
-    let kind = u8::from(header.gradient_leaves);
+    let kind = header.leaf_kinds;
     if checksums_enforced() {
         if let Some(expected) = header.structure_crc {
             let mut hasher = crc32fast::Hasher::new();
@@ -587,17 +739,54 @@ fn parse_shared(
             path,
         )?),
     };
-    let gradient_leaves = match header.gradient_leaves {
-        true => Some(decode_gradient_leaves(block_section, header.nodes, path)?),
-        false => None,
+    // The gradient-leaf section, then the contour-leaf section, each
+    // opening with its own length.
+    let mut sections = block_section;
+    let mut next_section = |present: bool| -> Result<Option<&[u8]>, Error> {
+        if !present {
+            return Ok(None);
+        }
+        let len = sections
+            .get(..8)
+            .map(|b| u64::from_le_bytes(std::array::from_fn(|k| b[k])))
+            .and_then(|l| usize::try_from(l).ok())
+            .and_then(|l| l.checked_add(8))
+            .filter(|&l| l <= sections.len())
+            .ok_or_else(|| {
+                bad(
+                    "payload_bytes",
+                    "a leaf section overruns the payload".into(),
+                )
+            })?;
+        let (here, rest) = sections.split_at(len);
+        sections = rest;
+        Ok(Some(here))
     };
-    if let Some(g) = &gradient_leaves
-        && g.depth() > limits.max_depth
+    let gradient_leaves = match next_section(kind & LEAF_KIND_GRADIENT != 0)? {
+        Some(b) => Some(decode_gradient_leaves(b, header.nodes, path)?),
+        None => None,
+    };
+    let contour_leaves = match next_section(kind & LEAF_KIND_CONTOUR != 0)? {
+        Some(b) => Some(decode_contour_leaves(b, header.nodes, path)?),
+        None => None,
+    };
+    if kind != 0 && !sections.is_empty() {
+        return Err(bad(
+            "payload_bytes",
+            format!("{} bytes after the leaf sections", sections.len()),
+        ));
+    }
+    let leaf_depth = gradient_leaves
+        .as_ref()
+        .map(GradientLeaves::depth)
+        .max(contour_leaves.as_ref().map(ContourLeaves::depth));
+    if let Some(d) = leaf_depth
+        && d > limits.max_depth
     {
         return Err(Error::Limit {
             path: path.to_path_buf(),
             limit: "max_depth",
-            value: g.depth().into(),
+            value: d.into(),
             max: limits.max_depth.into(),
         });
     }
@@ -609,6 +798,10 @@ fn parse_shared(
         colours,
         texel_blocks,
     )
+    .and_then(|t| match contour_leaves {
+        Some(c) => t.with_contour_leaves(c),
+        None => Ok(t),
+    })
     .and_then(|t| match gradient_leaves {
         Some(g) => t.with_gradient_leaves(g),
         None => Ok(t),
@@ -638,7 +831,7 @@ fn parse_shared(
 /// counts and flags of a texel-block section.
 fn section_structure_bytes(section: &[u8], kind: u8) -> usize {
     match kind {
-        LEAF_KIND_GRADIENT => section.len(),
+        k if k != 0 => section.len(),
         _ => structure_bytes(section),
     }
 }
@@ -726,8 +919,8 @@ struct Header {
     payload: u64,
     /// The structure checksum (version 2 and later).
     structure_crc: Option<u32>,
-    /// A gradient-leaf section follows the colours (version 3).
-    gradient_leaves: bool,
+    /// Which leaf sections follow the colours (version 3; header byte 31).
+    leaf_kinds: u8,
     source_width: u32,
     source_height: u32,
 }
@@ -783,14 +976,14 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     if version == 1 && h[60..64] != [0; 4] {
         return Err(bad("reserved", "reserved header bytes are not zero".into()));
     }
-    let gradient_leaves = match h[31] {
-        0 => false,
-        LEAF_KIND_GRADIENT if version >= 3 && h[28] == 0 => true,
+    let leaf_kinds = match h[31] {
+        0 => 0,
+        v @ 1..=3 if version >= 3 && h[28] == 0 => v,
         v => {
             return Err(bad(
                 "leaf_kinds",
                 format!(
-                    "leaf kind {v} in a version-{version} file{} (version 3 defines 1, gradient leaves, without texel blocks)",
+                    "leaf kinds {v} in a version-{version} file{} (version 3 defines bits 1, gradient leaves, and 2, contour leaves, without texel blocks)",
                     if h[28] != 0 { " with texel blocks" } else { "" }
                 ),
             ));
@@ -847,9 +1040,9 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     let nodes_payload = nodes.div_ceil(8) + 8 * nodes;
     // Texel blocks follow the nodes: at least their 16 bytes of counts.
     let payload = u64_at(48);
-    let fits = match (blocks, gradient_leaves) {
-        (None, false) => payload == nodes_payload,
-        (None, true) => payload >= nodes_payload + 8,
+    let fits = match (blocks, leaf_kinds) {
+        (None, 0) => payload == nodes_payload,
+        (None, _) => payload >= nodes_payload + 8,
         (Some(_), _) => payload >= nodes_payload + 16,
     };
     if !fits {
@@ -876,7 +1069,7 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
         inner,
         payload,
         structure_crc,
-        gradient_leaves,
+        leaf_kinds,
         source_width: u32_at(20),
         source_height: u32_at(24),
     })
