@@ -437,13 +437,13 @@ impl Clipped {
                 for ((p, _), &w) in self.pieces.iter().zip(winding) {
                     if p.rule.covers(w) {
                         let keep = 1.0 - p.colour[3];
-                        for k in 0..4 {
-                            c[k] = p.colour[k] + c[k] * keep;
+                        for (ck, pk) in c.iter_mut().zip(p.colour) {
+                            *ck = pk + *ck * keep;
                         }
                     }
                 }
-                for k in 0..4 {
-                    total[k] += c[k] * width * h;
+                for (t, ck) in total.iter_mut().zip(c) {
+                    *t += ck * width * h;
                 }
             };
             for &(x, piece, step) in &crossings {

@@ -36,9 +36,9 @@ use crate::gradient::{Gradient, srgb_encode};
 
 type Point = [f64; 2];
 
-/// Deepest a gradient leaf is subdivided into cells below its own level
-/// (cells are addressed with 15 bits per axis).
-pub const MAX_CELL_LEVELS: u8 = 15;
+/// Deepest a leaf (gradient or contour) is subdivided into cells below
+/// its own level: to the deepest level of any tree.
+pub const MAX_CELL_LEVELS: u8 = crate::MAX_DEPTH;
 
 /// Most gradient leaves a tree may have (leaves are addressed with 28 bits).
 pub const MAX_GRADIENT_LEAVES: usize = 1 << 28;

@@ -232,57 +232,58 @@ impl PartialEq for QuadTree {
     }
 }
 
-/// A node as traversals see it: a stored node (its padded index), or a cell
+/// A node as traversals see it: a stored node (its padded index), a cell
 /// of a texel block below the block level (block, levels below the block
-/// node `j`, position in the block at that level).
+/// node `j`, position in the block at that level), or a cell of a gradient
+/// or contour leaf (leaf, levels below it, position below it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub(crate) struct NodeRef(u64);
+pub(crate) struct NodeRef(u128);
 
-const CELL: u64 = 1 << 63;
-/// With [`CELL`]: a cell of a gradient leaf (leaf in bits 0–27, levels
-/// below the leaf in 28–31, position in 32–46 and 47–61).
-const GRADIENT: u64 = 1 << 62;
+const CELL: u128 = 1 << 127;
+/// With [`CELL`]: a cell of a gradient or contour leaf (leaf in bits 0–31,
+/// levels below the leaf in 32–36, position in 40–71 and 72–103).
+const LEAF_CELL: u128 = 1 << 126;
 
 impl NodeRef {
     #[inline]
     fn stored(p: usize) -> NodeRef {
-        NodeRef(p as u64)
+        NodeRef(p as u128)
     }
 
     #[inline]
     fn cell(block: usize, j: u8, ix: u32, iz: u32) -> NodeRef {
         NodeRef(
-            CELL | block as u64
-                | u64::from(j) << 40
-                | u64::from(ix & 0xff) << 44
-                | u64::from(iz & 0xff) << 52,
+            CELL | block as u128
+                | u128::from(j) << 40
+                | u128::from(ix & 0xff) << 44
+                | u128::from(iz & 0xff) << 52,
         )
     }
 
     #[inline]
     fn gradient_cell(leaf: usize, j: u8, ix: u32, iz: u32) -> NodeRef {
         NodeRef(
-            CELL | GRADIENT
-                | leaf as u64
-                | u64::from(j) << 28
-                | u64::from(ix & 0x7fff) << 32
-                | u64::from(iz & 0x7fff) << 47,
+            CELL | LEAF_CELL
+                | (leaf as u128 & 0xffff_ffff)
+                | u128::from(j & 0x1f) << 32
+                | u128::from(ix) << 40
+                | u128::from(iz) << 72,
         )
     }
 
     #[inline]
     fn as_gradient_cell(self) -> Option<(usize, u8, u32, u32)> {
-        (self.0 & (CELL | GRADIENT) == CELL | GRADIENT).then_some((
-            (self.0 & ((1 << 28) - 1)) as usize,
-            (self.0 >> 28 & 0xf) as u8,
-            (self.0 >> 32 & 0x7fff) as u32,
-            (self.0 >> 47 & 0x7fff) as u32,
+        (self.0 & (CELL | LEAF_CELL) == CELL | LEAF_CELL).then_some((
+            (self.0 & 0xffff_ffff) as usize,
+            (self.0 >> 32 & 0x1f) as u8,
+            (self.0 >> 40 & 0xffff_ffff) as u32,
+            (self.0 >> 72 & 0xffff_ffff) as u32,
         ))
     }
 
     #[inline]
     fn as_cell(self) -> Option<(usize, u8, u32, u32)> {
-        (self.0 & (CELL | GRADIENT) == CELL).then_some((
+        (self.0 & (CELL | LEAF_CELL) == CELL).then_some((
             (self.0 & ((1 << 40) - 1)) as usize,
             (self.0 >> 40 & 0xf) as u8,
             (self.0 >> 44 & 0xff) as u32,
@@ -1273,7 +1274,7 @@ impl QuadTree {
     }
 
     /// The root.
-    pub(crate) const ROOT: NodeRef = NodeRef(PAD as u64);
+    pub(crate) const ROOT: NodeRef = NodeRef(PAD as u128);
 
     /// Whether node `n` has children (an inner node, a texel block, or a
     /// block's cell larger than a texel and not uniform), and its colour in
