@@ -1336,14 +1336,91 @@ mod tests {
             refused(&lie)
         );
         let mut lie = bytes.clone();
-        lie[31] = 2;
+        lie[31] = 4;
         reseal(&mut lie, n);
         assert!(refused(&lie).contains("leaf_kinds"), "{}", refused(&lie));
+        // Declared as contour leaves, the gradient section does not parse.
+        let mut lie = bytes.clone();
+        lie[31] = LEAF_KIND_CONTOUR;
+        reseal(&mut lie, n);
+        assert!(
+            refused(&lie).contains("contour_leaves"),
+            "{}",
+            refused(&lie)
+        );
         // A version-2 reader's view: version 2 with the flag is refused.
         let mut lie = bytes.clone();
         lie[8..12].copy_from_slice(&2u32.to_le_bytes());
         reseal(&mut lie, n);
         assert!(refused(&lie).contains("leaf_kinds"), "{}", refused(&lie));
+        std::fs::remove_file(&path).ok();
+    }
+
+    /// A tree with contour leaves (and gradient leaves) round-trips, read
+    /// and mapped; a point moved out of its leaf's square, a count that
+    /// lies and an unknown fill rule are refused by field.
+    #[test]
+    fn contour_leaves_round_trip_and_lies_are_refused() {
+        use quadtex_core::{FillRule, Rgba, VectorArt, VectorOptions};
+        let mut art = VectorArt::new();
+        art.fill(
+            vec![vec![[0.1, 0.15], [0.85, 0.3], [0.4, 0.9]]],
+            FillRule::NonZero,
+            Rgba::new(0.2, 0.4, 0.1, 0.6),
+            &[],
+        )
+        .unwrap();
+        art.fill(
+            vec![vec![[0.3, 0.3], [0.6, 0.3], [0.6, 0.6], [0.3, 0.6]]],
+            FillRule::EvenOdd,
+            Rgba::new(0.5, 0.0, 0.0, 0.5),
+            &[],
+        )
+        .unwrap();
+        let options = VectorOptions {
+            max_level: 8,
+            contour_leaves: Some(8),
+            ..VectorOptions::default()
+        };
+        let (t, _) = QuadTree::from_vector(&art, &options).unwrap();
+        let leaves = t.contour_leaves().expect("contour leaves");
+        assert_eq!(t.depth(), 30);
+        let path = temp("contour.qtx");
+        write_qtx(&path, &t, None).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(bytes[31], LEAF_KIND_CONTOUR);
+        let limits = Limits::default();
+        let (back, _) = read_qtx_with_limits(&path, &limits).unwrap();
+        assert_eq!(back, t);
+        let (mapped, _) = map_qtx(&path, &limits).unwrap();
+        assert_eq!(mapped, t);
+        let f = quadtex_core::Fragment::new(0.5, 0.5, 0.5 + 1e-9, 0.5 + 2e-9).unwrap();
+        assert_eq!(mapped.weighted_colour(&f, 30), t.weighted_colour(&f, 30));
+        let n = t.node_count() as usize;
+        let refused = |b: &[u8]| parse_qtx(b, &path, &limits).unwrap_err().to_string();
+        let end = bytes.len() - 4;
+        let mut lie = bytes.clone();
+        lie[end - 16..end - 8].copy_from_slice(&2.0f64.to_le_bytes());
+        reseal(&mut lie, n);
+        let e = refused(&lie);
+        assert!(e.contains("outside its square"), "{e}");
+        let section = HEADER_BYTES + n.div_ceil(8) + 8 * n;
+        let mut lie = bytes.clone();
+        // The point count (the fourth count after length, depth and reserved).
+        let at = section + 8 + 8 + 24;
+        let points = u64::from_le_bytes(lie[at..at + 8].try_into().unwrap());
+        lie[at..at + 8].copy_from_slice(&(points + 1).to_le_bytes());
+        reseal(&mut lie, n);
+        assert!(
+            refused(&lie).contains("contour_leaves"),
+            "{}",
+            refused(&lie)
+        );
+        let mut lie = bytes.clone();
+        let first_piece = section + 8 + 8 + 32 + 8 * leaves.count();
+        lie[first_piece + 32] = 9;
+        reseal(&mut lie, n);
+        assert!(refused(&lie).contains("fill rule 9"), "{}", refused(&lie));
         std::fs::remove_file(&path).ok();
     }
 
