@@ -25,7 +25,9 @@
 //! kept as a winding offset (`base`) of its piece.
 
 use crate::Error;
-use crate::vector::{FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area};
+use crate::vector::{
+    FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area, winding,
+};
 
 type Point = [f64; 2];
 
@@ -287,13 +289,20 @@ impl ContourLeaves {
     /// edge crosses the rectangle's inside.
     pub(crate) fn integral(&self, leaf: usize, rect: [f64; 4]) -> ([f64; 4], bool) {
         let (p0, p1) = self.piece_range(leaf);
-        let mut clipped = Clipped::default();
-        let mut scratch = [Vec::new(), Vec::new()];
-        for p in p0..p1 {
-            clipped.push_piece(self.pieces[p], self.contours_of(p), rect, &mut scratch);
-        }
-        let edges = !clipped.points.is_empty();
-        (clipped.sweep(rect), edges)
+        // Buffers kept per thread: a query allocates nothing once warm.
+        SWEEP.with_borrow_mut(|sweep| {
+            let Sweep {
+                clipped,
+                scratch,
+                buffers,
+            } = sweep;
+            clipped.clear();
+            for p in p0..p1 {
+                clipped.push_piece(self.pieces[p], self.contours_of(p), rect, scratch);
+            }
+            let edges = !clipped.points.is_empty();
+            (clipped.sweep(rect, buffers), edges)
+        })
     }
 
     /// Whether cell `(j, ix, iz)` of `leaf` is subdivided further, its exact
@@ -327,6 +336,59 @@ pub(crate) fn rect_of(level: u8, ix: u64, iz: u64) -> [f64; 4] {
     [x0, z0, x0 + side, z0 + side]
 }
 
+/// True when a point of the closed polygon `c`'s boundary lies in the
+/// closed rectangle (Liang–Barsky on each edge).
+fn touches_rect(c: &[Point], [x0, z0, x1, z1]: [f64; 4]) -> bool {
+    let n = c.len();
+    (0..n).any(|i| {
+        let (a, b) = (c[i], c[(i + 1) % n]);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        let d = [b[0] - a[0], b[1] - a[1]];
+        for (p, q) in [
+            (-d[0], a[0] - x0),
+            (d[0], x1 - a[0]),
+            (-d[1], a[1] - z0),
+            (d[1], z1 - a[1]),
+        ] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return false;
+                }
+            } else {
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r);
+                } else {
+                    t1 = t1.min(r);
+                }
+            }
+        }
+        t0 <= t1
+    })
+}
+
+thread_local! {
+    static SWEEP: std::cell::RefCell<Sweep> = std::cell::RefCell::new(Sweep::default());
+}
+
+/// What [`ContourLeaves::integral`] reuses between queries.
+#[derive(Default)]
+struct Sweep {
+    clipped: Clipped,
+    scratch: [Vec<Point>; 2],
+    buffers: SweepBuffers,
+}
+
+/// Scratch of [`Clipped::sweep`].
+#[derive(Default)]
+struct SweepBuffers {
+    /// `(lo, hi, piece, winding step when crossed left to right)`.
+    edges: Vec<(Point, Point, usize, i32)>,
+    heights: Vec<f64>,
+    crossings: Vec<(f64, usize, i32)>,
+    winding: Vec<i32>,
+}
+
 /// Pieces clipped to a rectangle, ready to sweep.
 #[derive(Default)]
 struct Clipped {
@@ -336,6 +398,12 @@ struct Clipped {
 }
 
 impl Clipped {
+    fn clear(&mut self) {
+        self.pieces.clear();
+        self.contours.clear();
+        self.points.clear();
+    }
+
     fn push_piece<'a>(
         &mut self,
         piece: LeafPiece,
@@ -346,7 +414,17 @@ impl Clipped {
         let first = self.contours.len();
         let mut piece = piece;
         let area = (rect[2] - rect[0]) * (rect[3] - rect[1]);
+        let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3])];
         for c in contours {
+            // No point of the contour in the closed rectangle: the
+            // rectangle is wholly inside or outside it, and its winding is
+            // the centre's (the common case for a small fragment).
+            if !touches_rect(c, rect) {
+                if area > 0.0 {
+                    piece.base += winding(c, centre);
+                }
+                continue;
+            }
             let start = self.points.len();
             clip_to_rect(c, rect, scratch, &mut self.points);
             let n = self.points.len() - start;
@@ -367,10 +445,15 @@ impl Clipped {
     }
 
     /// `∫ composite` over `rect`: the trapezoid sweep.
-    fn sweep(&self, rect: [f64; 4]) -> [f64; 4] {
+    fn sweep(&self, rect: [f64; 4], buffers: &mut SweepBuffers) -> [f64; 4] {
         let [x0, z0, x1, z1] = rect;
-        // (lo, hi, piece, winding step when crossed left to right)
-        let mut edges: Vec<(Point, Point, usize, i32)> = Vec::new();
+        let SweepBuffers {
+            edges,
+            heights,
+            crossings,
+            winding,
+        } = buffers;
+        edges.clear();
         for (pi, (_, cs)) in self.pieces.iter().enumerate() {
             for r in &self.contours[cs.clone()] {
                 let c = &self.points[r.clone()];
@@ -387,8 +470,9 @@ impl Clipped {
                 }
             }
         }
-        let mut heights = vec![z0, z1];
-        for e in &edges {
+        heights.clear();
+        heights.extend([z0, z1]);
+        for e in edges.iter() {
             heights.push(e.0[1]);
             heights.push(e.1[1]);
         }
@@ -407,8 +491,6 @@ impl Clipped {
         heights.sort_by(f64::total_cmp);
         heights.dedup();
         let mut total = [0.0; 4];
-        let mut crossings: Vec<(f64, usize, i32)> = Vec::new();
-        let mut winding: Vec<i32> = Vec::with_capacity(self.pieces.len());
         for slab in heights.windows(2) {
             let (za, zb) = (slab[0], slab[1]);
             let h = zb - za;
@@ -417,7 +499,7 @@ impl Clipped {
             }
             let zm = 0.5 * (za + zb);
             crossings.clear();
-            for e in &edges {
+            for e in edges.iter() {
                 if e.0[1] < zm && zm < e.1[1] {
                     let t = (zm - e.0[1]) / (e.1[1] - e.0[1]);
                     let x = (e.0[0] + t * (e.1[0] - e.0[0])).clamp(x0, x1);
@@ -446,7 +528,7 @@ impl Clipped {
                     *t += ck * width * h;
                 }
             };
-            for &(x, piece, step) in &crossings {
+            for &(x, piece, step) in crossings.iter() {
                 gap(left, x, &winding, &mut total);
                 winding[piece] += step;
                 left = x;

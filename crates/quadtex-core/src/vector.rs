@@ -1039,7 +1039,7 @@ fn range_width(range: &[[f64; 2]; 4]) -> f64 {
 
 /// Winding number of closed polygon `poly` around `p` (crossings of the ray
 /// to the right; half-open in `z`).
-fn winding(poly: &[Point], p: Point) -> i32 {
+pub(crate) fn winding(poly: &[Point], p: Point) -> i32 {
     let mut w = 0;
     for i in 0..poly.len() {
         let a = poly[i];
