@@ -529,11 +529,11 @@ impl Clipped {
                 }
             };
             for &(x, piece, step) in crossings.iter() {
-                gap(left, x, &winding, &mut total);
+                gap(left, x, winding, &mut total);
                 winding[piece] += step;
                 left = x;
             }
-            gap(left, x1, &winding, &mut total);
+            gap(left, x1, winding, &mut total);
         }
         total
     }
