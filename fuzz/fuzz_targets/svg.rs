@@ -12,7 +12,9 @@ fuzz_target!(|data: &[u8]| {
     let Ok(art) = quadtex_io::parse_svg(data, Path::new("fuzz.svg"), level, &limits) else { return };
     // A coarse smooth-colour tolerance: gradients split less (the checks
     // below hold at any tolerance), so more inputs run per second.
-    let options = VectorOptions { max_level: level, max_nodes: limits.max_nodes, tolerance: 1.0 / 64.0, ..VectorOptions::default() };
+    // Every other input also keeps contour leaves (budget 3 to 18 edges).
+    let contour_leaves = (data.len() % 2 == 1).then(|| 3 + data.len() % 16);
+    let options = VectorOptions { max_level: level, max_nodes: limits.max_nodes, tolerance: 1.0 / 64.0, contour_leaves, ..VectorOptions::default() };
     if let Ok((tree, _)) = QuadTree::from_vector(&art, &options) {
         let c = tree.average().to_array();
         assert!(c.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= 1.0), "{c:?}");

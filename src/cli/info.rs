@@ -133,6 +133,16 @@ pub fn run(args: Args) -> Result<()> {
         }
     )?;
     writeln!(out, "colours:     {}", tree.encoding().name())?;
+    if let Some(c) = tree.contour_leaves() {
+        writeln!(
+            out,
+            "contours:    {} leaves keep {} contour points (at most {} edges in one): flat art exact at any magnification; fragment integrals exact at every level, exact pixels see cells down to level {}",
+            c.count(),
+            c.point_count(),
+            c.max_leaf_edges(),
+            c.depth()
+        )?;
+    }
     if let Some(g) = tree.gradient_leaves() {
         writeln!(
             out,
