@@ -226,7 +226,7 @@ pub fn parse_camera_path(text: &str, path: &Path) -> Result<CameraPath, Error> {
 struct Context<'a> {
     text: &'a str,
     path: &'a Path,
-    textures: HashMap<(PathBuf, u8), Texture>,
+    textures: HashMap<(PathBuf, u8, Option<usize>), Texture>,
     limits: Limits,
 }
 
@@ -461,6 +461,7 @@ impl Context<'_> {
             "colour",
             "texture",
             "texture_level",
+            "contour_leaves",
             "wrap",
             "border",
             "uv_scale",
@@ -577,11 +578,24 @@ impl Context<'_> {
                 ));
             }
         };
+        let contour_leaves = match self.number(t, key, "contour_leaves")? {
+            None => None,
+            Some(n) if n.fract() == 0.0 && (3.0..=1024.0).contains(&n) => Some(n as usize),
+            Some(n) => {
+                return Err(self.err(
+                    &format!("{key}.contour_leaves"),
+                    &format!("{n}: must be an integer 3..=1024 (edges a contour leaf may hold)"),
+                ));
+            }
+        };
         let texture = match t.get("texture") {
             None => None,
-            Some(Value::String(s)) => {
-                Some(self.texture(s, &format!("{key}.texture"), svg_level)?)
-            }
+            Some(Value::String(s)) => Some(self.texture(
+                s,
+                &format!("{key}.texture"),
+                svg_level,
+                contour_leaves,
+            )?),
             Some(_) => return Err(self.err(&format!("{key}.texture"), "must be a string")),
         };
         let mode = |v: &Value| match v {
@@ -716,12 +730,18 @@ impl Context<'_> {
         parse_obj_with(&bytes, scale, translate, &self.limits).map_err(fail)
     }
 
-    fn texture(&mut self, spec: &str, key: &str, svg_level: u8) -> Result<Texture, Error> {
+    fn texture(
+        &mut self,
+        spec: &str,
+        key: &str,
+        svg_level: u8,
+        contour_leaves: Option<usize>,
+    ) -> Result<Texture, Error> {
         if let Some(name) = spec.strip_prefix("builtin:") {
             return builtin_texture(name).map_err(|e| self.err(key, &e.to_string()));
         }
         let file = self.path.parent().unwrap_or(Path::new(".")).join(spec);
-        let cache_key = (file.clone(), svg_level);
+        let cache_key = (file.clone(), svg_level, contour_leaves);
         if let Some(t) = self.textures.get(&cache_key) {
             return Ok(t.clone());
         }
@@ -749,7 +769,12 @@ impl Context<'_> {
                     .0
             }
             Some("svg") => {
-                quadtex_io::pack_svg(&file, svg_level, &self.limits)
+                let options = quadtex_core::VectorOptions {
+                    max_level: svg_level,
+                    contour_leaves,
+                    ..quadtex_core::VectorOptions::default()
+                };
+                quadtex_io::pack_svg_with_options(&file, &options, &self.limits)
                     .map_err(|e| self.err(key, &e.to_string()))?
                     .0
             }
