@@ -1005,6 +1005,13 @@ uv_scale = [0.5, 0.5]
             &["shape[0].texture_level", "0..=24"],
         );
         expect(
+            &GOOD.replace(
+                "texture = \"builtin:checker\"",
+                "texture = \"builtin:checker\"\ncontour_leaves = 2",
+            ),
+            &["shape[0].contour_leaves", "3..=1024"],
+        );
+        expect(
             &GOOD.replace("type = \"plane\"", "type = \"torus\""),
             &["test.toml:14:", "shape[0].type", "torus"],
         );
