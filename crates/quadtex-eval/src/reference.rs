@@ -225,7 +225,10 @@ impl Setup {
             return None;
         };
         let tree = &texture.tree;
-        if tree.depth() > 12 {
+        // Cells at the depth must be uniform: leaves that keep a gradient
+        // or contours are not.
+        if tree.depth() > 12 || tree.gradient_leaves().is_some() || tree.contour_leaves().is_some()
+        {
             return None;
         }
         let cells = 1usize << tree.depth();

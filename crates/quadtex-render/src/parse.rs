@@ -590,12 +590,9 @@ impl Context<'_> {
         };
         let texture = match t.get("texture") {
             None => None,
-            Some(Value::String(s)) => Some(self.texture(
-                s,
-                &format!("{key}.texture"),
-                svg_level,
-                contour_leaves,
-            )?),
+            Some(Value::String(s)) => {
+                Some(self.texture(s, &format!("{key}.texture"), svg_level, contour_leaves)?)
+            }
             Some(_) => return Err(self.err(&format!("{key}.texture"), "must be a string")),
         };
         let mode = |v: &Value| match v {
