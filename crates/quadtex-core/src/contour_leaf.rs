@@ -62,6 +62,8 @@ pub struct ContourLeaves {
     points: Vec<Point>,
     /// `(level, ix, iz)` of each leaf, found when attached to the tree.
     squares: Vec<(u8, u32, u32)>,
+    /// `[x0, z0, x1, z1]` of each contour: a query skips those it misses.
+    bounds: Vec<[f64; 4]>,
 }
 
 /// Flattened contour leaves, as [`ContourLeaves::new`] takes them and
@@ -176,6 +178,27 @@ impl ContourLeaves {
                 ));
             }
         }
+        let bounds = contour_points
+            .windows(2)
+            .map(|w| {
+                points[w[0] as usize..w[1] as usize].iter().fold(
+                    [
+                        f64::INFINITY,
+                        f64::INFINITY,
+                        f64::NEG_INFINITY,
+                        f64::NEG_INFINITY,
+                    ],
+                    |b, p| {
+                        [
+                            b[0].min(p[0]),
+                            b[1].min(p[1]),
+                            b[2].max(p[0]),
+                            b[3].max(p[1]),
+                        ]
+                    },
+                )
+            })
+            .collect();
         Ok(ContourLeaves {
             depth,
             nodes,
@@ -185,6 +208,7 @@ impl ContourLeaves {
             contour_points,
             points,
             squares: Vec::new(),
+            bounds,
         })
     }
 
@@ -234,7 +258,7 @@ impl ContourLeaves {
     pub fn memory_bytes(&self) -> u64 {
         (self.nodes.len() * (4 + 4 + 12)
             + self.pieces.len() * (std::mem::size_of::<LeafPiece>() + 4)
-            + self.contour_points.len() * 4
+            + self.contour_points.len() * (4 + 32)
             + self.points.len() * 16) as u64
     }
 
@@ -263,12 +287,20 @@ impl ContourLeaves {
     }
 
     fn contours_of(&self, piece: usize) -> impl Iterator<Item = &[Point]> + '_ {
+        self.bounded_contours_of(piece).map(|(c, _)| c)
+    }
+
+    /// The contours of `piece` with their bounds.
+    fn bounded_contours_of(&self, piece: usize) -> impl Iterator<Item = (&[Point], [f64; 4])> + '_ {
         let (c0, c1) = (
             self.piece_contours[piece] as usize,
             self.piece_contours[piece + 1] as usize,
         );
         (c0..c1).map(|c| {
-            &self.points[self.contour_points[c] as usize..self.contour_points[c + 1] as usize]
+            (
+                &self.points[self.contour_points[c] as usize..self.contour_points[c + 1] as usize],
+                self.bounds[c],
+            )
         })
     }
 
@@ -298,7 +330,7 @@ impl ContourLeaves {
             } = sweep;
             clipped.clear();
             for p in p0..p1 {
-                clipped.push_piece(self.pieces[p], self.contours_of(p), rect, scratch);
+                clipped.push_piece(self.pieces[p], self.bounded_contours_of(p), rect, scratch);
             }
             let edges = !clipped.points.is_empty();
             (clipped.sweep(rect, buffers), edges)
@@ -407,7 +439,7 @@ impl Clipped {
     fn push_piece<'a>(
         &mut self,
         piece: LeafPiece,
-        contours: impl Iterator<Item = &'a [Point]>,
+        contours: impl Iterator<Item = (&'a [Point], [f64; 4])>,
         rect: [f64; 4],
         scratch: &mut [Vec<Point>; 2],
     ) {
@@ -415,7 +447,11 @@ impl Clipped {
         let mut piece = piece;
         let area = (rect[2] - rect[0]) * (rect[3] - rect[1]);
         let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3])];
-        for c in contours {
+        for (c, b) in contours {
+            // Outside its bounds the contour winds 0 around every point.
+            if b[2] < rect[0] || b[0] > rect[2] || b[3] < rect[1] || b[1] > rect[3] {
+                continue;
+            }
             // No point of the contour in the closed rectangle: the
             // rectangle is wholly inside or outside it, and its winding is
             // the centre's (the common case for a small fragment).
