@@ -25,8 +25,8 @@
 //! kept as a winding offset (`base`) of its piece.
 
 use crate::Error;
-use crate::vector::{
-    FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area, winding,
+use crate::geometry::{
+    FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area, unit_side, winding,
 };
 
 type Point = [f64; 2];
@@ -363,7 +363,7 @@ impl ContourLeaves {
 
 /// `[x0, z0, x1, z1]` of square `(level, ix, iz)` of tree space.
 pub(crate) fn rect_of(level: u8, ix: u64, iz: u64) -> [f64; 4] {
-    let side = crate::tree::unit_side(level);
+    let side = unit_side(level);
     let (x0, z0) = (ix as f64 * side, iz as f64 * side);
     [x0, z0, x0 + side, z0 + side]
 }

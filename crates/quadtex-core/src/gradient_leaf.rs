@@ -355,7 +355,7 @@ impl GradientLeaves {
 
 /// Corners (counter-clockwise) of square `(level, ix, iz)` of tree space.
 pub(crate) fn square_corners(level: u8, ix: u64, iz: u64) -> [Point; 4] {
-    let side = crate::tree::unit_side(level);
+    let side = crate::geometry::unit_side(level);
     let (x0, z0) = (ix as f64 * side, iz as f64 * side);
     let (x1, z1) = (x0 + side, z0 + side);
     [[x0, z0], [x1, z0], [x1, z1], [x0, z1]]

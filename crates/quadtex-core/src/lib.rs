@@ -31,6 +31,7 @@ mod error;
 pub mod exact;
 pub mod footprint;
 mod fragment;
+mod geometry;
 pub mod gradient;
 pub mod gradient_leaf;
 pub mod image_paint;

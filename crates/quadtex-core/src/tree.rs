@@ -29,6 +29,8 @@ use crate::gradient_leaf::{GradientLeaves, square_corners};
 use crate::texel_block::TexelBlocks;
 use crate::variant::{self, Variant};
 
+pub(crate) use crate::geometry::unit_side;
+
 /// Deepest level a tree may have. A level-30 square has side `2^-30`, still
 /// exactly representable with room to spare in the `f64` coordinates.
 pub const MAX_DEPTH: u8 = 30;
@@ -459,19 +461,9 @@ impl QuadTree {
         let Some(c) = &self.contour_leaves else {
             return Ok(());
         };
-        for i in 0..c.count() {
-            let (_, mean, _) = c.cell_info(i, 0, 0, 0);
-            let node = c.node(i);
-            let stored = self.colour(node as usize + PAD).0;
-            if (0..4)
-                .any(|k| (mean[k].clamp(0.0, 1.0) * 65535.0 - f64::from(stored[k])).abs() > 1.0)
-            {
-                return Err(Error::MalformedTree(format!(
-                    "contour leaf {i} (node {node}): colour {stored:?} is not its art's mean {mean:?}"
-                )));
-            }
-        }
-        Ok(())
+        (0..c.count()).try_for_each(|i| {
+            self.check_leaf_mean("contour leaf", i, c.node(i), c.cell_info(i, 0, 0, 0).1)
+        })
     }
 
     /// Every gradient leaf's colour is its paint's mean over its square,
@@ -480,20 +472,32 @@ impl QuadTree {
         let Some(g) = &self.gradient_leaves else {
             return Ok(());
         };
-        for i in 0..g.count() {
+        (0..g.count()).try_for_each(|i| {
             let (level, ix, iz) = g.square(i);
-            let mean = g
-                .paint(i)
-                .mean_over(&square_corners(level, ix.into(), iz.into()));
-            let node = g.node(i);
-            let stored = self.colour(node as usize + PAD).0;
-            if (0..4)
-                .any(|c| (mean[c].clamp(0.0, 1.0) * 65535.0 - f64::from(stored[c])).abs() > 1.0)
-            {
-                return Err(Error::MalformedTree(format!(
-                    "gradient leaf {i} (node {node}): colour {stored:?} is not its paint's mean {mean:?}"
-                )));
-            }
+            let corners = square_corners(level, ix.into(), iz.into());
+            self.check_leaf_mean(
+                "gradient leaf",
+                i,
+                g.node(i),
+                g.paint(i).mean_over(&corners),
+            )
+        })
+    }
+
+    /// The colour stored for leaf `i` at unpadded `node` is `mean`, rounded.
+    fn check_leaf_mean(
+        &self,
+        what: &str,
+        i: usize,
+        node: u32,
+        mean: [f64; 4],
+    ) -> Result<(), Error> {
+        let stored = self.colour(node as usize + PAD).0;
+        let off = |c: usize| (mean[c].clamp(0.0, 1.0) * 65535.0 - f64::from(stored[c])).abs() > 1.0;
+        if (0..4).any(off) {
+            return Err(Error::MalformedTree(format!(
+                "{what} {i} (node {node}): colour {stored:?} is not the mean {mean:?} of what it keeps"
+            )));
         }
         Ok(())
     }
@@ -793,14 +797,15 @@ impl QuadTree {
     }
 
     /// Deepest level present, texels of blocks included (0 for a
-    /// single-colour texture); with gradient leaves, the level they answer
-    /// down to ([`GradientLeaves::depth`]).
+    /// single-colour texture); with gradient or contour leaves, the deepest
+    /// level they answer down to ([`GradientLeaves::depth`],
+    /// [`ContourLeaves::depth`]).
     pub fn depth(&self) -> u8 {
         self.depth
     }
 
     /// Deepest level of the stored nodes and texel blocks: [`QuadTree::depth`]
-    /// without gradient leaves.
+    /// without gradient or contour leaves.
     pub fn stored_depth(&self) -> u8 {
         let nodes = (self.level_starts.len() - 2) as u8;
         let blocks = self
@@ -1727,12 +1732,6 @@ struct Pending {
     vz: Variant,
     lo_x: f64,
     lo_z: f64,
-}
-
-/// Side of a square at `level`: `2^-level`, exact.
-#[inline]
-pub(crate) fn unit_side(level: u8) -> f64 {
-    f64::from_bits((1023 - u64::from(level)) << 52)
 }
 
 /// A stored channel in unorm16 units: the integer, or a half float × 65535.

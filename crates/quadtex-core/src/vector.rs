@@ -69,6 +69,8 @@ use crate::Error;
 use crate::blend::{BlendMode, blend, blend_range};
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::contour_leaf::{ContourLeaves, ContourParts, LeafPiece};
+pub use crate::geometry::FillRule;
+use crate::geometry::{clip_to_rect, crossing_height, on_rect_border, signed_area, winding};
 use crate::gradient::Gradient;
 use crate::gradient_leaf::{GradientLeaves, LeafPaint};
 use crate::image_paint::ImagePaint;
@@ -88,25 +90,6 @@ pub const MAX_VECTOR_COORDINATE: f64 = 1e12;
 
 /// Most polygon vertices one [`VectorArt`] may hold.
 pub const MAX_VECTOR_POINTS: usize = 1 << 24;
-
-/// Which points a set of contours covers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FillRule {
-    /// Points with a non-zero winding number.
-    NonZero,
-    /// Points with an odd winding number.
-    EvenOdd,
-}
-
-impl FillRule {
-    /// True when a point of winding number `winding` is inside.
-    pub fn covers(self, winding: i32) -> bool {
-        match self {
-            FillRule::NonZero => winding != 0,
-            FillRule::EvenOdd => winding & 1 != 0,
-        }
-    }
-}
 
 /// A translucent group (see [`VectorArt::group`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1037,24 +1020,6 @@ fn range_width(range: &[[f64; 2]; 4]) -> f64 {
     range.iter().map(|r| r[1] - r[0]).fold(0.0, f64::max)
 }
 
-/// Winding number of closed polygon `poly` around `p` (crossings of the ray
-/// to the right; half-open in `z`).
-pub(crate) fn winding(poly: &[Point], p: Point) -> i32 {
-    let mut w = 0;
-    for i in 0..poly.len() {
-        let a = poly[i];
-        let b = poly[(i + 1) % poly.len()];
-        if (a[1] <= p[1]) != (b[1] <= p[1]) {
-            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-            if x > p[0] {
-                // Downward edges wind positively (counter-clockwise contours are +1).
-                w += if b[1] < a[1] { 1 } else { -1 };
-            }
-        }
-    }
-    -w
-}
-
 /// Edges above which a leaf is swept quadrant by quadrant (see
 /// `VectorBuilder::sweep_split`).
 const SWEEP_EDGES: usize = 256;
@@ -1805,20 +1770,6 @@ fn edge_count(pieces: &Pieces) -> usize {
         .sum()
 }
 
-/// Height at which segments `a–b` and `c–d` cross, if they cross properly.
-pub(crate) fn crossing_height(a: Point, b: Point, c: Point, d: Point) -> Option<f64> {
-    let r = [b[0] - a[0], b[1] - a[1]];
-    let s = [d[0] - c[0], d[1] - c[1]];
-    let denom = r[0] * s[1] - r[1] * s[0];
-    if denom == 0.0 {
-        return None;
-    }
-    let q = [c[0] - a[0], c[1] - a[1]];
-    let t = (q[0] * s[1] - q[1] * s[0]) / denom;
-    let u = (q[0] * r[1] - q[1] * r[0]) / denom;
-    (t > 0.0 && t < 1.0 && u > 0.0 && u < 1.0).then(|| a[1] + t * r[1])
-}
-
 fn bounds_of(points: &[Point]) -> [f64; 4] {
     let mut b = [
         f64::INFINITY,
@@ -1837,37 +1788,9 @@ fn bounds_of(points: &[Point]) -> [f64; 4] {
     b
 }
 
-/// Twice-halved shoelace: positive for counter-clockwise contours.
-pub(crate) fn signed_area(points: &[Point]) -> f64 {
-    let n = points.len();
-    let Some(&o) = points.first() else {
-        return 0.0;
-    };
-    // Relative to a vertex: a small polygon far from the origin keeps its digits.
-    let mut a = 0.0;
-    for i in 0..n {
-        let (p, q) = (points[i], points[(i + 1) % n]);
-        a += (p[0] - o[0]) * (q[1] - o[1]) - (q[0] - o[0]) * (p[1] - o[1]);
-    }
-    0.5 * a
-}
-
 /// True when every edge of the (clipped) contour runs along the square's border.
 fn on_border(points: &[Point], sq: Square) -> bool {
     on_rect_border(points, [sq.x0, sq.z0, sq.x1(), sq.z1()])
-}
-
-/// True when every edge of the closed polygon lies on the border of
-/// `[x0, z0, x1, z1]`.
-pub(crate) fn on_rect_border(points: &[Point], [x0, z0, x1, z1]: [f64; 4]) -> bool {
-    let n = points.len();
-    (0..n).all(|i| {
-        let (p, q) = (points[i], points[(i + 1) % n]);
-        (p[0] == x0 && q[0] == x0)
-            || (p[0] == x1 && q[0] == x1)
-            || (p[1] == z0 && q[1] == z0)
-            || (p[1] == z1 && q[1] == z1)
-    })
 }
 
 /// Sutherland–Hodgman clipping of a closed polygon to `sq`, appended to
@@ -1880,64 +1803,6 @@ fn clip_to_square(
     out: &mut Vec<Point>,
 ) {
     clip_to_rect(points, [sq.x0, sq.z0, sq.x1(), sq.z1()], scratch, out);
-}
-
-/// [`clip_to_square`] for the rectangle `[x0, z0, x1, z1]`.
-pub(crate) fn clip_to_rect(
-    points: &[Point],
-    [x0, z0, x1, z1]: [f64; 4],
-    scratch: &mut [Vec<Point>; 2],
-    out: &mut Vec<Point>,
-) {
-    let [a, b] = scratch;
-    a.clear();
-    a.extend_from_slice(points);
-    let planes = [
-        (0usize, x0, true),
-        (0, x1, false),
-        (1, z0, true),
-        (1, z1, false),
-    ];
-    for (axis, bound, keep_above) in planes {
-        b.clear();
-        let inside = |p: &Point| {
-            if keep_above {
-                p[axis] >= bound
-            } else {
-                p[axis] <= bound
-            }
-        };
-        let n = a.len();
-        if n == 0 {
-            break;
-        }
-        for i in 0..n {
-            let prev = a[(i + n - 1) % n];
-            let cur = a[i];
-            let (pin, cin) = (inside(&prev), inside(&cur));
-            if pin != cin {
-                let t = (bound - prev[axis]) / (cur[axis] - prev[axis]);
-                let mut x = prev;
-                x[axis] = bound;
-                x[1 - axis] = prev[1 - axis] + t * (cur[1 - axis] - prev[1 - axis]);
-                b.push(x);
-            }
-            if cin {
-                b.push(cur);
-            }
-        }
-        std::mem::swap(a, b);
-    }
-    let start = out.len();
-    for p in a.iter() {
-        let p = [p[0].clamp(x0, x1), p[1].clamp(z0, z1)];
-        if out.len() == start || out.last() != Some(&p) {
-            out.push(p);
-        }
-    }
-    while out.len() > start + 1 && out[start] == out[out.len() - 1] {
-        out.pop();
-    }
 }
 
 #[cfg(test)]
