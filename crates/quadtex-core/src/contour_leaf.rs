@@ -40,7 +40,25 @@ pub struct LeafPiece {
     pub rule: FillRule,
     /// Winding of contours that enclose the whole square.
     pub base: i32,
+    /// The innermost translucent group the piece is drawn in, an index
+    /// into its leaf's groups.
+    pub group: Option<u32>,
 }
+
+/// A translucent group of a contour leaf: its members are composited in
+/// isolation, then faded by `opacity` and composited *over* what lies
+/// below (SVG's `<g opacity>`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeafGroup {
+    /// In `[0, 1]`.
+    pub opacity: f64,
+    /// The enclosing group, an index into the same leaf's groups, below
+    /// this one's.
+    pub parent: Option<u32>,
+}
+
+/// Deepest nesting of groups a contour leaf holds.
+pub const MAX_LEAF_GROUP_DEPTH: usize = 8;
 
 /// The contour leaves of a tree: per leaf its pieces (paint order), per
 /// piece its contours, per contour its points, flattened.
@@ -52,6 +70,9 @@ pub struct LeafPiece {
 pub struct ContourLeaves {
     depth: u8,
     nodes: Vec<u32>,
+    /// First group of each leaf, plus one past the last.
+    leaf_groups: Vec<u32>,
+    groups: Vec<LeafGroup>,
     /// First piece of each leaf, plus one past the last.
     leaf_pieces: Vec<u32>,
     pieces: Vec<LeafPiece>,
@@ -82,21 +103,29 @@ pub struct ContourParts {
     pub contour_points: Vec<u32>,
     /// Points of all contours, tree space.
     pub points: Vec<Point>,
+    /// First group of each leaf, plus one past the last.
+    pub leaf_groups: Vec<u32>,
+    /// Groups of all leaves.
+    pub groups: Vec<LeafGroup>,
 }
 
 impl ContourParts {
-    /// Appends a leaf of node `node` whose pieces are
-    /// `(piece, contours)` in paint order.
+    /// Appends a leaf of node `node` with translucent `groups` whose pieces
+    /// are `(piece, contours)` in paint order.
     pub fn push_leaf<'a>(
         &mut self,
         node: u32,
+        groups: &[LeafGroup],
         pieces: impl IntoIterator<Item = (LeafPiece, Vec<&'a [Point]>)>,
     ) {
         if self.leaf_pieces.is_empty() {
             self.leaf_pieces.push(0);
             self.piece_contours.push(0);
             self.contour_points.push(0);
+            self.leaf_groups.push(0);
         }
+        self.groups.extend_from_slice(groups);
+        self.leaf_groups.push(self.groups.len() as u32);
         self.nodes.push(node);
         for (piece, contours) in pieces {
             self.pieces.push(piece);
@@ -123,6 +152,8 @@ impl ContourLeaves {
             piece_contours,
             contour_points,
             points,
+            leaf_groups,
+            groups,
         } = parts;
         if depth > crate::MAX_DEPTH {
             return bad(format!("depth {depth} exceeds {}", crate::MAX_DEPTH));
@@ -147,6 +178,37 @@ impl ContourLeaves {
             Ok(())
         };
         ranges("leaf pieces", &leaf_pieces, nodes.len(), pieces.len())?;
+        ranges("leaf groups", &leaf_groups, nodes.len(), groups.len())?;
+        for (leaf, w) in leaf_groups.windows(2).enumerate() {
+            let count = w[1] - w[0];
+            for (k, g) in groups[w[0] as usize..w[1] as usize].iter().enumerate() {
+                if !(g.opacity.is_finite() && (0.0..=1.0).contains(&g.opacity))
+                    || g.parent.is_some_and(|p| p as usize >= k)
+                {
+                    return bad(format!(
+                        "leaf {leaf}, group {k}: opacity {} or parent {:?} (groups list parents first)",
+                        g.opacity, g.parent
+                    ));
+                }
+            }
+            let depth_of = |mut k: usize| {
+                let mut d = 1;
+                while let Some(p) = groups[w[0] as usize + k].parent {
+                    k = p as usize;
+                    d += 1;
+                }
+                d
+            };
+            if let Some(k) = (0..count as usize).find(|&k| depth_of(k) > MAX_LEAF_GROUP_DEPTH) {
+                return bad(format!(
+                    "leaf {leaf}, group {k}: nested deeper than {MAX_LEAF_GROUP_DEPTH}"
+                ));
+            }
+            let (p0, p1) = (leaf_pieces[leaf] as usize, leaf_pieces[leaf + 1] as usize);
+            if let Some(p) = (p0..p1).find(|&p| pieces[p].group.is_some_and(|g| g >= count)) {
+                return bad(format!("piece {p}: group {:?} of {count}", pieces[p].group));
+            }
+        }
         ranges(
             "piece contours",
             &piece_contours,
@@ -202,6 +264,8 @@ impl ContourLeaves {
         Ok(ContourLeaves {
             depth,
             nodes,
+            leaf_groups,
+            groups,
             leaf_pieces,
             pieces,
             piece_contours,
@@ -221,6 +285,8 @@ impl ContourLeaves {
             piece_contours: self.piece_contours.clone(),
             contour_points: self.contour_points.clone(),
             points: self.points.clone(),
+            leaf_groups: self.leaf_groups.clone(),
+            groups: self.groups.clone(),
         }
     }
 
@@ -333,7 +399,9 @@ impl ContourLeaves {
                 clipped.push_piece(self.pieces[p], self.bounded_contours_of(p), rect, scratch);
             }
             let edges = !clipped.points.is_empty();
-            (clipped.sweep(rect, buffers), edges)
+            let groups =
+                &self.groups[self.leaf_groups[leaf] as usize..self.leaf_groups[leaf + 1] as usize];
+            (clipped.sweep(rect, groups, buffers), edges)
         })
     }
 
@@ -419,6 +487,55 @@ struct SweepBuffers {
     heights: Vec<f64>,
     crossings: Vec<(f64, usize, i32)>,
     winding: Vec<i32>,
+    /// Colours and group chains of the pieces covering a gap.
+    covering: Vec<([f64; 4], Chain)>,
+    /// Each piece's group chain.
+    chains: Vec<Chain>,
+}
+
+/// A piece's groups, outermost first, and how many there are.
+type Chain = ([u32; MAX_LEAF_GROUP_DEPTH], u8);
+
+/// `c` composited *over* `out`.
+fn over(out: &mut [f64; 4], c: [f64; 4]) {
+    let keep = 1.0 - c[3];
+    for (o, ck) in out.iter_mut().zip(c) {
+        *o = ck + *o * keep;
+    }
+}
+
+/// The composite of `list` (paint order) at group depth `depth`: runs of
+/// pieces sharing their group at that depth are composited in isolation,
+/// faded by its opacity and laid *over* the rest, as the packer does.
+fn composite(list: &[([f64; 4], Chain)], depth: usize, groups: &[LeafGroup]) -> [f64; 4] {
+    let group_at = |i: usize| {
+        let (chain, len) = list[i].1;
+        (depth < usize::from(len)).then(|| chain[depth])
+    };
+    let mut out = [0.0; 4];
+    let mut i = 0;
+    while i < list.len() {
+        match group_at(i) {
+            Some(g) => {
+                let j = i
+                    + 1
+                    + (i + 1..list.len())
+                        .take_while(|&k| group_at(k) == Some(g))
+                        .count();
+                let o = groups[g as usize].opacity;
+                over(
+                    &mut out,
+                    composite(&list[i..j], depth + 1, groups).map(|v| v * o),
+                );
+                i = j;
+            }
+            None => {
+                over(&mut out, list[i].0);
+                i += 1;
+            }
+        }
+    }
+    out
 }
 
 /// Pieces clipped to a rectangle, ready to sweep.
@@ -481,14 +598,31 @@ impl Clipped {
     }
 
     /// `∫ composite` over `rect`: the trapezoid sweep.
-    fn sweep(&self, rect: [f64; 4], buffers: &mut SweepBuffers) -> [f64; 4] {
+    fn sweep(&self, rect: [f64; 4], groups: &[LeafGroup], buffers: &mut SweepBuffers) -> [f64; 4] {
         let [x0, z0, x1, z1] = rect;
         let SweepBuffers {
             edges,
             heights,
             crossings,
+            covering,
             winding,
+            chains,
         } = buffers;
+        chains.clear();
+        if !groups.is_empty() {
+            chains.extend(self.pieces.iter().map(|(p, _)| {
+                // Innermost first, then reversed: outermost first.
+                let mut chain = ([0u32; MAX_LEAF_GROUP_DEPTH], 0u8);
+                let mut g = p.group;
+                while let Some(k) = g.filter(|_| usize::from(chain.1) < MAX_LEAF_GROUP_DEPTH) {
+                    chain.0[usize::from(chain.1)] = k;
+                    chain.1 += 1;
+                    g = groups.get(k as usize).and_then(|x| x.parent);
+                }
+                chain.0[..usize::from(chain.1)].reverse();
+                chain
+            }));
+        }
         edges.clear();
         for (pi, (_, cs)) in self.pieces.iter().enumerate() {
             for r in &self.contours[cs.clone()] {
@@ -546,20 +680,29 @@ impl Clipped {
             winding.clear();
             winding.extend(self.pieces.iter().map(|(p, _)| p.base));
             let mut left = x0;
-            let gap = |left: f64, right: f64, winding: &[i32], total: &mut [f64; 4]| {
+            let mut gap = |left: f64, right: f64, winding: &[i32], total: &mut [f64; 4]| {
                 let width = right - left;
                 if width <= 0.0 {
                     return;
                 }
-                let mut c = [0.0; 4];
-                for ((p, _), &w) in self.pieces.iter().zip(winding) {
-                    if p.rule.covers(w) {
-                        let keep = 1.0 - p.colour[3];
-                        for (ck, pk) in c.iter_mut().zip(p.colour) {
-                            *ck = pk + *ck * keep;
+                let c = if groups.is_empty() {
+                    let mut c = [0.0; 4];
+                    for ((p, _), &w) in self.pieces.iter().zip(winding) {
+                        if p.rule.covers(w) {
+                            over(&mut c, p.colour);
                         }
                     }
-                }
+                    c
+                } else {
+                    covering.clear();
+                    for (((p, _), &w), chain) in self.pieces.iter().zip(winding).zip(chains.iter())
+                    {
+                        if p.rule.covers(w) {
+                            covering.push((p.colour, *chain));
+                        }
+                    }
+                    composite(covering, 0, groups)
+                };
                 for (t, ck) in total.iter_mut().zip(c) {
                     *t += ck * width * h;
                 }

@@ -54,7 +54,7 @@ pub mod wrap;
 
 pub use build::{BuildOptions, BuildReport, TexelGrid};
 pub use colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
-pub use contour_leaf::{ContourLeaves, ContourParts, LeafPiece};
+pub use contour_leaf::{ContourLeaves, ContourParts, LeafGroup, LeafPiece};
 pub use error::Error;
 pub use exact::{PixelFilter, Projection, RegionIntegral};
 pub use footprint::Footprint;

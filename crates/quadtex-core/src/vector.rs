@@ -68,7 +68,9 @@
 use crate::Error;
 use crate::blend::{BlendMode, blend, blend_range};
 use crate::colour::{Rgba, Unorm16Rgba};
-use crate::contour_leaf::{ContourLeaves, ContourParts, LeafPiece};
+use crate::contour_leaf::{
+    ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
+};
 pub use crate::geometry::FillRule;
 use crate::geometry::{clip_to_rect, crossing_height, on_rect_border, signed_area, winding};
 use crate::gradient::Gradient;
@@ -1192,8 +1194,9 @@ struct VectorBuilder<'a> {
     leaves: Vec<(u8, usize, u32)>,
     /// The edge budget of contour leaves, if they are made.
     contour_budget: Option<usize>,
-    /// Each contour leaf's pieces (paint order) and their contours.
-    contour_leaves: Vec<Vec<(LeafPiece, Vec<Vec<Point>>)>>,
+    /// Each contour leaf's groups, and its pieces (paint order) with their
+    /// contours.
+    contour_leaves: Vec<ContourLeaf>,
     /// `(level, index in level, contour leaf)` of each contour leaf.
     contour_nodes: Vec<(u8, usize, usize)>,
     /// The leaf [`VectorBuilder::square`] just made of its square.
@@ -1313,9 +1316,10 @@ impl QuadTree {
             order.sort_unstable();
             let mut parts = ContourParts::default();
             for (node, leaf) in order {
-                let pieces = std::mem::take(&mut b.contour_leaves[leaf]);
+                let (groups, pieces) = std::mem::take(&mut b.contour_leaves[leaf]);
                 parts.push_leaf(
                     node,
+                    &groups,
                     pieces.iter().map(|(piece, contours)| {
                         (*piece, contours.iter().map(Vec::as_slice).collect())
                     }),
@@ -1412,20 +1416,36 @@ impl VectorBuilder<'_> {
             && edge_count(here) <= budget
         {
             let mean = self.sweep(here, sq);
+            // The leaf's groups, parents first, by their global ids.
+            let mut local: Vec<(u32, LeafGroup)> = Vec::new();
             let pieces = here
                 .pieces
                 .iter()
                 .map(|p| {
                     let shape = &self.art.shapes[p.shape as usize];
+                    let mut parent = None;
+                    for &g in &shape.groups {
+                        let k = match local.iter().position(|(id, _)| *id == g) {
+                            Some(k) => k,
+                            None => {
+                                let opacity = self.art.group_opacity[g as usize];
+                                local.push((g, LeafGroup { opacity, parent }));
+                                local.len() - 1
+                            }
+                        };
+                        parent = Some(k as u32);
+                    }
                     let piece = LeafPiece {
                         colour: shape.colour,
                         rule: shape.rule,
                         base: p.base,
+                        group: parent,
                     };
                     (piece, here.contours_of(p).map(<[Point]>::to_vec).collect())
                 })
                 .collect();
-            self.contour_leaves.push(pieces);
+            let groups = local.into_iter().map(|(_, g)| g).collect();
+            self.contour_leaves.push((groups, pieces));
             self.made_leaf = Some(Made::Contour(self.contour_leaves.len() - 1));
             return Ok((mean, quantise(mean), true));
         }
@@ -1487,13 +1507,18 @@ impl VectorBuilder<'_> {
         }
     }
 
-    /// True when every piece is a solid fill outside groups, clip paths
-    /// and masks: what a contour leaf can hold.
+    /// True when every piece is a solid fill outside clip paths and masks,
+    /// in groups (if any) of plain opacity: what a contour leaf can hold.
     fn plain(&self, pieces: &Pieces) -> bool {
         pieces.pieces.iter().all(|p| {
             let shape = &self.art.shapes[p.shape as usize];
+            let plain_group = |&g: &u32| {
+                self.art.group_blend[g as usize] == BlendMode::Normal
+                    && self.art.group_masks[g as usize].is_empty()
+            };
             shape.gradient.is_none()
-                && shape.groups.is_empty()
+                && shape.groups.len() <= MAX_LEAF_GROUP_DEPTH
+                && shape.groups.iter().all(plain_group)
                 && shape.clip.is_none()
                 && !shape.member
                 && shape.mask_of.is_none()
@@ -1750,6 +1775,10 @@ impl VectorBuilder<'_> {
         total.map(|t| t / area)
     }
 }
+
+/// A contour leaf being built: its groups, and its pieces with their
+/// contours.
+type ContourLeaf = (Vec<LeafGroup>, Vec<(LeafPiece, Vec<Vec<Point>>)>);
 
 /// The leaf a square was made into.
 #[derive(Debug, Clone, Copy)]

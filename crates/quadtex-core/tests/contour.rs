@@ -140,7 +140,8 @@ fn contour_leaves_match_closed_form_areas_at_any_magnification() {
     }
 }
 
-/// Random overlapping translucent polygons (nonzero and even-odd): on the
+/// Random overlapping translucent polygons (nonzero and even-odd, some in
+/// nested translucent groups): on the
 /// grid of the maximum level both trees hold exact means of the same art,
 /// so they agree to rounding; with contour leaves there are far fewer
 /// nodes than the classic tree at that level.
@@ -148,7 +149,18 @@ fn contour_leaves_match_closed_form_areas_at_any_magnification() {
 fn contour_leaves_agree_with_the_classic_packer_at_its_level() {
     arbtest::arbtest(|u| {
         let mut art = VectorArt::new();
-        for _ in 0..u.int_in_range(1..=4u8)? {
+        // Shapes from `grouped` on sit in a translucent group, the last of
+        // them possibly in a second group inside it.
+        let shapes = u.int_in_range(1..=4u8)?;
+        let grouped = u.int_in_range(0..=shapes)?;
+        let outer = art
+            .group(f64::from(u.int_in_range(1..=4u8)?) / 4.0)
+            .unwrap();
+        let inner = art
+            .group(f64::from(u.int_in_range(1..=4u8)?) / 4.0)
+            .unwrap();
+        let nest = u.arbitrary::<bool>()?;
+        for shape in 0..shapes {
             let n = u.int_in_range(3..=7usize)?;
             let mut poly = Vec::new();
             for _ in 0..n {
@@ -167,11 +179,16 @@ fn contour_leaves_agree_with_the_classic_packer_at_its_level() {
             } else {
                 FillRule::NonZero
             };
+            let groups: &[quadtex_core::vector::GroupId] = match shape {
+                s if s + 1 == shapes && s >= grouped && nest => &[outer, inner],
+                s if s >= grouped => &[outer],
+                _ => &[],
+            };
             art.fill(
                 vec![poly],
                 rule,
                 Rgba::new(r as f32, g as f32, b as f32, a as f32),
-                &[],
+                groups,
             )
             .unwrap();
         }

@@ -7,8 +7,8 @@ use std::path::Path;
 use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
 use quadtex_core::texel_block::BLOCK_LOG2_SIDE;
 use quadtex_core::{
-    Aspect, BlockFormat, ColourEncoding, ContourLeaves, GradientLeaves, LeafPaint, LeafPiece,
-    QuadTree, SharedBytes, TexelBlocks,
+    Aspect, BlockFormat, ColourEncoding, ContourLeaves, GradientLeaves, LeafGroup, LeafPaint,
+    LeafPiece, QuadTree, SharedBytes, TexelBlocks,
 };
 
 use crate::atomic::{put, write_atomically};
@@ -167,8 +167,13 @@ const LEAF_KIND_GRADIENT: u8 = 1;
 /// gradient-leaf section, if any).
 const LEAF_KIND_CONTOUR: u8 = 2;
 
-/// Bytes of one contour-leaf piece.
+/// Bytes of one contour-leaf piece, leaf and group.
 const PIECE_BYTES: usize = 48;
+const LEAF_BYTES: usize = 16;
+const GROUP_BYTES: usize = 16;
+
+/// A contour leaf's piece or group outside any group.
+const NO_GROUP: u32 = u32::MAX;
 
 /// The contour-leaf section (`docs/format.md`), empty without leaves.
 fn encode_contour_leaves(tree: &QuadTree) -> Vec<u8> {
@@ -182,15 +187,28 @@ fn encode_contour_leaves(tree: &QuadTree) -> Vec<u8> {
     let contours = parts.contour_points.len().saturating_sub(1);
     for count in [
         parts.nodes.len(),
+        parts.groups.len(),
         parts.pieces.len(),
         contours,
         parts.points.len(),
     ] {
         body.extend((count as u64).to_le_bytes());
     }
-    for (node, first) in parts.nodes.iter().zip(&parts.leaf_pieces) {
+    for ((node, first), first_group) in parts
+        .nodes
+        .iter()
+        .zip(&parts.leaf_pieces)
+        .zip(&parts.leaf_groups)
+    {
         body.extend(node.to_le_bytes());
         body.extend(first.to_le_bytes());
+        body.extend(first_group.to_le_bytes());
+        body.extend([0u8; 4]);
+    }
+    for g in &parts.groups {
+        body.extend(g.opacity.to_le_bytes());
+        body.extend(g.parent.unwrap_or(NO_GROUP).to_le_bytes());
+        body.extend([0u8; 4]);
     }
     for (piece, first) in parts.pieces.iter().zip(&parts.piece_contours) {
         for v in piece.colour {
@@ -203,7 +221,7 @@ fn encode_contour_leaves(tree: &QuadTree) -> Vec<u8> {
         body.extend([0u8; 3]);
         body.extend(piece.base.to_le_bytes());
         body.extend(first.to_le_bytes());
-        body.extend([0u8; 4]);
+        body.extend(piece.group.unwrap_or(NO_GROUP).to_le_bytes());
     }
     for first in &parts.contour_points[..contours] {
         body.extend(first.to_le_bytes());
@@ -241,37 +259,56 @@ fn decode_contour_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<Contou
     {
         return Err(bad("reserved bytes are not zero".into()));
     }
-    let mut counts = [0u64; 4];
+    let mut counts = [0u64; 5];
     for c in &mut counts {
         *c = r.u64().ok_or_else(|| short("the counts"))?;
     }
-    let [leaves, pieces, contours, points] = counts;
-    if leaves == 0
-        || leaves > nodes
-        || pieces > u64::from(u32::MAX)
-        || contours > u64::from(u32::MAX)
-        || points > u64::from(u32::MAX)
-    {
+    let [leaves, groups, pieces, contours, points] = counts;
+    if leaves == 0 || leaves > nodes || counts[1..].iter().any(|&c| c >= u64::from(u32::MAX)) {
         return Err(bad(format!(
-            "{leaves} leaves, {pieces} pieces, {contours} contours, {points} points in a tree of {nodes} nodes"
+            "{leaves} leaves, {groups} groups, {pieces} pieces, {contours} contours, {points} points in a tree of {nodes} nodes"
         )));
     }
-    let need = leaves * 8 + pieces * PIECE_BYTES as u64 + contours * 4 + points * 16;
+    let need = leaves * LEAF_BYTES as u64
+        + groups * GROUP_BYTES as u64
+        + pieces * PIECE_BYTES as u64
+        + contours * 4
+        + points * 16;
     if need != r.remaining() as u64 {
         return Err(bad(format!(
-            "{leaves} leaves, {pieces} pieces, {contours} contours and {points} points need {need} bytes, {} remain",
+            "{leaves} leaves, {groups} groups, {pieces} pieces, {contours} contours and {points} points need {need} bytes, {} remain",
             r.remaining()
         )));
     }
     let mut parts = quadtex_core::ContourParts::default();
-    for _ in 0..leaves {
-        let (Some(node), Some(first)) = (r.u32(), r.u32()) else {
+    for i in 0..leaves {
+        let (Some(node), Some(first), Some(first_group), Some(reserved)) =
+            (r.u32(), r.u32(), r.u32(), r.u32())
+        else {
             return Err(short("the leaves"));
         };
+        if reserved != 0 {
+            return Err(bad(format!("leaf {i}: reserved bytes are not zero")));
+        }
         parts.nodes.push(node);
         parts.leaf_pieces.push(first);
+        parts.leaf_groups.push(first_group);
     }
     parts.leaf_pieces.push(pieces as u32);
+    parts.leaf_groups.push(groups as u32);
+    let group_ref = |v: u32| (v != NO_GROUP).then_some(v);
+    for i in 0..groups {
+        let (Some(opacity), Some(parent), Some(reserved)) = (r.f64(), r.u32(), r.u32()) else {
+            return Err(short("the groups"));
+        };
+        if reserved != 0 {
+            return Err(bad(format!("group {i}: reserved bytes are not zero")));
+        }
+        parts.groups.push(LeafGroup {
+            opacity,
+            parent: group_ref(parent),
+        });
+    }
     for i in 0..pieces {
         let colour = [(); 4].map(|_| r.f64().unwrap_or(f64::NAN));
         let head = r.take(4).ok_or_else(|| short("the pieces"))?;
@@ -283,16 +320,14 @@ fn decode_contour_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<Contou
         if head[1..] != [0, 0, 0] {
             return Err(bad(format!("piece {i}: reserved bytes are not zero")));
         }
-        let (Some(base), Some(first), Some(reserved)) = (r.u32(), r.u32(), r.u32()) else {
+        let (Some(base), Some(first), Some(group)) = (r.u32(), r.u32(), r.u32()) else {
             return Err(short("the pieces"));
         };
-        if reserved != 0 {
-            return Err(bad(format!("piece {i}: reserved bytes are not zero")));
-        }
         parts.pieces.push(LeafPiece {
             colour,
             rule,
             base: base as i32,
+            group: group_ref(group),
         });
         parts.piece_contours.push(first);
     }
@@ -1406,8 +1441,8 @@ mod tests {
         assert!(e.contains("outside its square"), "{e}");
         let section = HEADER_BYTES + n.div_ceil(8) + 8 * n;
         let mut lie = bytes.clone();
-        // The point count (the fourth count after length, depth and reserved).
-        let at = section + 8 + 8 + 24;
+        // The point count (the fifth count after length, depth and reserved).
+        let at = section + 8 + 8 + 32;
         let points = u64::from_le_bytes(lie[at..at + 8].try_into().unwrap());
         lie[at..at + 8].copy_from_slice(&(points + 1).to_le_bytes());
         reseal(&mut lie, n);
@@ -1417,7 +1452,8 @@ mod tests {
             refused(&lie)
         );
         let mut lie = bytes.clone();
-        let first_piece = section + 8 + 8 + 32 + 8 * leaves.count();
+        // No groups in this art: the pieces follow the leaves.
+        let first_piece = section + 8 + 8 + 40 + 16 * leaves.count();
         lie[first_piece + 32] = 9;
         reseal(&mut lie, n);
         assert!(refused(&lie).contains("fill rule 9"), "{}", refused(&lie));
