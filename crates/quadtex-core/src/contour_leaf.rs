@@ -1,8 +1,9 @@
 //! Contour leaves: terminal squares that keep the edges crossing them.
 //!
 //! A square of flat vector art (solid fills under the nonzero or even-odd
-//! rule, composited *over* in paint order; no gradients, groups, clip
-//! paths or masks) crossed by at most a budget of edges can be stored as
+//! rule, composited *over* in paint order, in translucent groups of plain
+//! opacity or not; no gradients, blend modes, clip paths or masks) crossed
+//! by at most a budget of edges can be stored as
 //! the shapes' contours clipped to it, instead of being split down to the
 //! maximum level. Memory then follows the art's edge length at the
 //! budget's scale, not `2^L`, and the art stays exact at any magnification:

@@ -1063,8 +1063,9 @@ pub struct VectorOptions {
     /// with its contours, instead of splitting it further
     /// ([`crate::contour_leaf`]): the art is then exact at any
     /// magnification, and the tree answers down to level 30. Only squares
-    /// whose shapes are solid fills outside groups, clip paths and masks
-    /// qualify. Off (`None`) by default.
+    /// whose shapes are solid fills outside clip paths and masks, in groups
+    /// of plain opacity (at most [`crate::contour_leaf::MAX_LEAF_GROUP_DEPTH`]
+    /// deep) or none, qualify. Off (`None`) by default.
     pub contour_leaves: Option<usize>,
 }
 
