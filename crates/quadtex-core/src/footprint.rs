@@ -180,6 +180,18 @@ impl Homography {
     /// continuous and one-to-one there).
     pub fn square_to_quad(p: &[[f64; 2]; 4]) -> Option<Homography> {
         let [p0, p1, p2, p3] = *p;
+        // A quad's area is half the cross product of its diagonals: below
+        // 1e-12 of the longer one's square it is a segment or a point to
+        // rounding (which would otherwise make a near-singular map).
+        let (d1, d2) = (
+            [p2[0] - p0[0], p2[1] - p0[1]],
+            [p3[0] - p1[0], p3[1] - p1[1]],
+        );
+        let cross = d1[0] * d2[1] - d1[1] * d2[0];
+        let longer = d1[0].hypot(d1[1]).max(d2[0].hypot(d2[1]));
+        if cross.abs() <= 1e-12 * longer * longer {
+            return None;
+        }
         let sx = p0[0] - p1[0] + p2[0] - p3[0];
         let sz = p0[1] - p1[1] + p2[1] - p3[1];
         let (g, h) = if sx == 0.0 && sz == 0.0 {

@@ -119,6 +119,40 @@ fn parallelograms_weigh_the_same_in_screen_and_texture_space() {
     });
 }
 
+/// Equal differentials make a segment, not a parallelogram: rounding left
+/// its homography a tiny determinant, so the screen weighting integrated a
+/// near-singular map to transparent where the texture weighting took the
+/// point lookup at the centre (arbtest seed 0xaac0f6c300000028). Both now
+/// take the point lookup.
+#[test]
+fn a_segment_footprint_filters_to_its_centre_under_both_weightings() {
+    let grid = TexelGrid::new(
+        4,
+        4,
+        (0..16)
+            .map(|i| {
+                Rgba::new(0.05 * (i % 4) as f32, 0.0, 0.0, 0.2 + 0.05 * (i / 4) as f32).to_unorm16()
+            })
+            .collect(),
+    )
+    .unwrap();
+    let tree = QuadTree::from_texels(&grid, &quadtex_core::BuildOptions::default())
+        .unwrap()
+        .0;
+    let texture = Texture::new(tree, Wrap::REPEAT);
+    let fp =
+        Footprint::from_differentials([0.434764, 0.0], [-0.25, -0.25], [-0.25, -0.25]).unwrap();
+    assert!(fp.homography().is_none());
+    let exact = FilterOptions::default().with_level(30);
+    let centre = texture.nearest(fp.centre());
+    for weighting in [Weighting::Screen, Weighting::Texture] {
+        assert_eq!(
+            texture.filter(&fp, &exact.with_weighting(weighting)),
+            centre
+        );
+    }
+}
+
 /// The colour of the pixel square mapped through the footprint's
 /// homography, by midpoint sampling on an `n × n` grid (the finest cell
 /// under each sample, wrap included).
