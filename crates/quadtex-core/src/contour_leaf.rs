@@ -323,7 +323,8 @@ impl ContourLeaves {
 
     /// Bytes held.
     pub fn memory_bytes(&self) -> u64 {
-        (self.nodes.len() * (4 + 4 + 12)
+        (self.nodes.len() * (4 + 4 + 4 + 12)
+            + self.groups.len() * std::mem::size_of::<LeafGroup>()
             + self.pieces.len() * (std::mem::size_of::<LeafPiece>() + 4)
             + self.contour_points.len() * (4 + 32)
             + self.points.len() * 16) as u64
