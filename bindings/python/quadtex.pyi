@@ -122,6 +122,7 @@ def pack(
     tolerance: float = 0.0,
     max_level: Optional[int] = None,
     hdr: bool = False,
+    contour_leaves: Optional[int] = None,
 ) -> Texture:
     """Packs an image into a texture, as ``quadtex pack`` does.
 
@@ -146,4 +147,8 @@ def pack(
     max_level: depth of the tree's finest cells (0..30; a raster builds at
         most 15). Default: the smallest level whose cells are no larger than
         a texel for rasters, 12 for SVG.
+    contour_leaves: SVG art only, 3..1024: squares of flat art crossed by
+        at most this many edges keep their contours (``quadtex pack
+        --contour-leaves``), exact at any magnification; the texture then
+        answers down to level 30. Default: off.
     """

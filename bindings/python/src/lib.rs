@@ -251,13 +251,14 @@ fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
 
 /// Packs an image file (PNG, JPEG, EXR, SVG) or a numpy array into a texture.
 #[pyfunction]
-#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false))]
+#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None))]
 fn pack(
     py: Python<'_>,
     source: &Bound<'_, PyAny>,
     tolerance: f64,
     max_level: Option<i64>,
     hdr: bool,
+    contour_leaves: Option<i64>,
 ) -> PyResult<Texture> {
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
         return Err(PyValueError::new_err(format!(
@@ -265,12 +266,26 @@ fn pack(
         )));
     }
     let max_level = max_level.map(|l| check_level(l, "max_level")).transpose()?;
+    let contour_leaves = match contour_leaves {
+        None => None,
+        Some(n @ 3..=1024) => Some(n as usize),
+        Some(n) => {
+            return Err(PyValueError::new_err(format!(
+                "contour_leaves must be in 3..=1024 (edges a contour leaf may hold), got {n}"
+            )));
+        }
+    };
     let is_path = source.is_instance_of::<PyString>()
         || source.is_instance_of::<PyBytes>()
         || source.hasattr("__fspath__")?;
     if is_path {
         let path: PathBuf = source.extract()?;
-        return pack_file(py, path, tolerance, max_level);
+        return pack_file(py, path, tolerance, max_level, contour_leaves);
+    }
+    if contour_leaves.is_some() {
+        return Err(PyValueError::new_err(
+            "contour_leaves applies to SVG art, not to arrays",
+        ));
     }
     let image = arrays::ImageArray::from_py(source)?;
     let image = image.view()?;
@@ -325,6 +340,7 @@ fn pack_file(
     path: PathBuf,
     tolerance: f64,
     max_level: Option<u8>,
+    contour_leaves: Option<usize>,
 ) -> PyResult<Texture> {
     let is_svg = path
         .extension()
@@ -337,8 +353,15 @@ fn pack_file(
             )));
         }
         let level = max_level.unwrap_or(DEFAULT_SVG_LEVEL);
+        let options = quadtex_core::VectorOptions {
+            max_level: level,
+            contour_leaves,
+            ..quadtex_core::VectorOptions::default()
+        };
         let (tree, _) = py
-            .detach(|| quadtex_io::pack_svg(&path, level, &quadtex_io::Limits::default()))
+            .detach(|| {
+                quadtex_io::pack_svg_with_options(&path, &options, &quadtex_io::Limits::default())
+            })
             .map_err(io_error)?;
         let side = 1u32 << level.min(31);
         return Ok(Texture {
@@ -346,6 +369,12 @@ fn pack_file(
             source: Some((side, side)),
             file: None,
         });
+    }
+    if contour_leaves.is_some() {
+        return Err(PyValueError::new_err(format!(
+            "{}: contour_leaves applies to SVG art, not to raster images",
+            path.display()
+        )));
     }
     let options = BuildOptions {
         tolerance,

@@ -163,6 +163,19 @@ def test_pack_svg_sample():
         quadtex.pack(svg, tolerance=0.1)
 
 
+def test_pack_svg_with_contour_leaves():
+    svg = REPO / "samples" / "threshold.svg"
+    plain = quadtex.pack(svg)
+    tex = quadtex.pack(svg, contour_leaves=16)
+    assert tex.depth == 30 and tex.node_count * 20 < plain.node_count
+    # Both trees hold the exact mean of the art over the whole texture.
+    assert np.allclose(tex.integrate(WHOLE)[0], plain.integrate(WHOLE)[0], atol=1e-4)
+    with pytest.raises(ValueError, match="contour_leaves must be in 3..=1024"):
+        quadtex.pack(svg, contour_leaves=2)
+    with pytest.raises(ValueError, match="applies to SVG art"):
+        quadtex.pack(np.zeros((4, 4), dtype=np.uint8), contour_leaves=16)
+
+
 def test_file_errors(tmp_path):
     missing = tmp_path / "missing.qtx"
     with pytest.raises(FileNotFoundError) as e:
