@@ -29,6 +29,7 @@ use crate::Error;
 use crate::geometry::{
     FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area, unit_side, winding,
 };
+use crate::leaf_nodes::LeafNodes;
 
 type Point = [f64; 2];
 
@@ -70,7 +71,8 @@ pub const MAX_LEAF_GROUP_DEPTH: usize = 8;
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContourLeaves {
     depth: u8,
-    nodes: Vec<u32>,
+    /// The leaves' nodes, and their squares once attached to the tree.
+    at: LeafNodes,
     /// First group of each leaf, plus one past the last.
     leaf_groups: Vec<u32>,
     groups: Vec<LeafGroup>,
@@ -82,8 +84,6 @@ pub struct ContourLeaves {
     /// First point of each contour, plus one past the last.
     contour_points: Vec<u32>,
     points: Vec<Point>,
-    /// `(level, ix, iz)` of each leaf, found when attached to the tree.
-    squares: Vec<(u8, u32, u32)>,
     /// `[x0, z0, x1, z1]` of each contour: a query skips those it misses.
     bounds: Vec<[f64; 4]>,
 }
@@ -264,7 +264,7 @@ impl ContourLeaves {
             .collect();
         Ok(ContourLeaves {
             depth,
-            nodes,
+            at: LeafNodes::new(nodes),
             leaf_groups,
             groups,
             leaf_pieces,
@@ -272,7 +272,6 @@ impl ContourLeaves {
             piece_contours,
             contour_points,
             points,
-            squares: Vec::new(),
             bounds,
         })
     }
@@ -280,7 +279,7 @@ impl ContourLeaves {
     /// The flattened parts (what [`ContourLeaves::new`] took).
     pub fn parts(&self) -> ContourParts {
         ContourParts {
-            nodes: self.nodes.clone(),
+            nodes: self.at.nodes().to_vec(),
             leaf_pieces: self.leaf_pieces.clone(),
             pieces: self.pieces.clone(),
             piece_contours: self.piece_contours.clone(),
@@ -298,7 +297,7 @@ impl ContourLeaves {
 
     /// Number of leaves.
     pub fn count(&self) -> usize {
-        self.nodes.len()
+        self.at.len()
     }
 
     /// Number of stored points (every contour's, clipped to its leaf).
@@ -323,28 +322,24 @@ impl ContourLeaves {
 
     /// Bytes held.
     pub fn memory_bytes(&self) -> u64 {
-        (self.nodes.len() * (4 + 4 + 4 + 12)
+        (self.at.len() * (4 + 4 + 4 + 12)
             + self.groups.len() * std::mem::size_of::<LeafGroup>()
             + self.pieces.len() * (std::mem::size_of::<LeafPiece>() + 4)
             + self.contour_points.len() * (4 + 32)
             + self.points.len() * 16) as u64
     }
 
-    #[inline]
-    pub(crate) fn index_of(&self, node: u32) -> Option<usize> {
-        self.nodes.binary_search(&node).ok()
+    /// The nodes the leaves end and their squares.
+    pub(crate) fn at(&self) -> &LeafNodes {
+        &self.at
     }
 
-    pub(crate) fn node(&self, leaf: usize) -> u32 {
-        self.nodes[leaf]
-    }
-
-    pub(crate) fn set_squares(&mut self, squares: Vec<(u8, u32, u32)>) {
-        self.squares = squares;
+    pub(crate) fn at_mut(&mut self) -> &mut LeafNodes {
+        &mut self.at
     }
 
     pub(crate) fn square(&self, leaf: usize) -> (u8, u32, u32) {
-        self.squares[leaf]
+        self.at.square(leaf)
     }
 
     fn piece_range(&self, leaf: usize) -> (usize, usize) {
@@ -374,7 +369,7 @@ impl ContourLeaves {
 
     /// True when every point of leaf `leaf` lies in its square.
     pub(crate) fn inside_square(&self, leaf: usize) -> bool {
-        let (level, ix, iz) = self.squares[leaf];
+        let (level, ix, iz) = self.at.square(leaf);
         let [x0, z0, x1, z1] = rect_of(level, ix.into(), iz.into());
         let (p0, p1) = self.piece_range(leaf);
         (p0..p1).all(|p| {
@@ -411,7 +406,7 @@ impl ContourLeaves {
     /// mean colour, and how far a point's colour may be from that mean (0
     /// when no edge crosses the cell, else full contrast).
     pub(crate) fn cell_info(&self, leaf: usize, j: u8, ix: u32, iz: u32) -> (bool, [f64; 4], f64) {
-        let (level, lx, lz) = self.squares[leaf];
+        let (level, lx, lz) = self.at.square(leaf);
         let level = level + j;
         let (cx, cz) = (
             (u64::from(lx) << j) + u64::from(ix),
@@ -426,7 +421,7 @@ impl ContourLeaves {
 
     /// The square `(level, ix, iz)` of cell `(j, ix, iz)` of `leaf`.
     pub(crate) fn cell_square(&self, leaf: usize, j: u8, ix: u32, iz: u32) -> (u8, u32, u32) {
-        let (level, lx, lz) = self.squares[leaf];
+        let (level, lx, lz) = self.at.square(leaf);
         (level + j, (lx << j) + ix, (lz << j) + iz)
     }
 }

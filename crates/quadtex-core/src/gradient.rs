@@ -202,14 +202,7 @@ impl Gradient {
         if g.iter().any(|v| !v.is_finite()) {
             return Err(bad("linear gradient is degenerate".into()));
         }
-        Ok(Gradient {
-            kind: Kind::Linear { g },
-            stops,
-            spread,
-            interpolation,
-            breaks: Vec::new(),
-        }
-        .with_breaks())
+        Gradient::linear_from_parameter(g, stops, spread, interpolation)
     }
 
     /// A radial (two-point conical) gradient in gradient space: `t = 0` on
@@ -247,21 +240,15 @@ impl Gradient {
         if !lipschitz.is_finite() {
             return Err(bad("radial gradient is degenerate".into()));
         }
-        Ok(Gradient {
-            kind: Kind::Radial {
-                map: gradient_from_texture,
-                focal,
-                focal_radius,
-                centre,
-                radius,
-                lipschitz,
-            },
-            stops,
-            spread,
-            interpolation,
-            breaks: Vec::new(),
-        }
-        .with_breaks())
+        let kind = Kind::Radial {
+            map: gradient_from_texture,
+            focal,
+            focal_radius,
+            centre,
+            radius,
+            lipschitz,
+        };
+        Ok(Gradient::assemble(kind, stops, spread, interpolation))
     }
 
     /// A linear gradient given by its parameter directly:
@@ -279,14 +266,12 @@ impl Gradient {
                 "linear gradient parameter {g:?} is not finite"
             )));
         }
-        Ok(Gradient {
-            kind: Kind::Linear { g },
+        Ok(Gradient::assemble(
+            Kind::Linear { g },
             stops,
             spread,
             interpolation,
-            breaks: Vec::new(),
-        }
-        .with_breaks())
+        ))
     }
 
     /// For a linear gradient, `g` with `t = g[0]·x + g[1]·z + g[2]`.
@@ -312,12 +297,17 @@ impl Gradient {
         self.interpolation
     }
 
-    /// The gradient with its [`Gradient::breaks`] computed.
-    fn with_breaks(mut self) -> Gradient {
+    /// The gradient of checked parts, its breaks computed from its stops.
+    fn assemble(
+        kind: Kind,
+        stops: Vec<Stop>,
+        spread: Spread,
+        interpolation: Interpolation,
+    ) -> Gradient {
         let mut breaks = vec![0.0, 1.0];
-        for (i, s) in self.stops.iter().enumerate() {
+        for (i, s) in stops.iter().enumerate() {
             breaks.push(s.offset);
-            if let (Some(next), Interpolation::Srgb) = (self.stops.get(i + 1), self.interpolation) {
+            if let (Some(next), Interpolation::Srgb) = (stops.get(i + 1), interpolation) {
                 for k in 0..3 {
                     let (a, b) = (s.colour[k], next.colour[k]);
                     let w = (0.04045 - a) / (b - a);
@@ -329,8 +319,13 @@ impl Gradient {
         }
         breaks.sort_by(f64::total_cmp);
         breaks.dedup();
-        self.breaks = breaks;
-        self
+        Gradient {
+            kind,
+            stops,
+            spread,
+            interpolation,
+            breaks,
+        }
     }
 
     /// True when every stop is opaque.

@@ -33,6 +33,7 @@
 
 use crate::Error;
 use crate::gradient::{Gradient, srgb_encode};
+use crate::leaf_nodes::LeafNodes;
 
 type Point = [f64; 2];
 
@@ -191,11 +192,9 @@ pub struct GradientLeaves {
     depth: u8,
     tolerance: f64,
     paints: Vec<LeafPaint>,
-    nodes: Vec<u32>,
+    /// The leaves' nodes, and their squares once attached to their tree.
+    at: LeafNodes,
     paint_of: Vec<u32>,
-    /// `(level, ix, iz)` of each leaf's square, found when the leaves are
-    /// attached to their tree.
-    squares: Vec<(u8, u32, u32)>,
 }
 
 impl GradientLeaves {
@@ -243,9 +242,8 @@ impl GradientLeaves {
             depth,
             tolerance,
             paints,
-            nodes: leaves.iter().map(|l| l.0).collect(),
+            at: LeafNodes::new(leaves.iter().map(|l| l.0).collect()),
             paint_of: leaves.iter().map(|l| l.1).collect(),
-            squares: Vec::new(),
         })
     }
 
@@ -266,12 +264,13 @@ impl GradientLeaves {
 
     /// Number of leaves.
     pub fn count(&self) -> usize {
-        self.nodes.len()
+        self.at.len()
     }
 
     /// `(node, paint)` of every leaf, in node order.
     pub fn leaves(&self) -> impl ExactSizeIterator<Item = (u32, u32)> + '_ {
-        self.nodes
+        self.at
+            .nodes()
             .iter()
             .copied()
             .zip(self.paint_of.iter().copied())
@@ -284,21 +283,16 @@ impl GradientLeaves {
             .iter()
             .map(|p| std::mem::size_of::<LeafPaint>() + std::mem::size_of_val(p.gradient.stops()))
             .sum();
-        (paints + self.nodes.len() * (8 + std::mem::size_of::<(u8, u32, u32)>())) as u64
+        (paints + self.at.len() * (8 + std::mem::size_of::<(u8, u32, u32)>())) as u64
     }
 
-    /// The leaf at unpadded node index `node`, if it is one.
-    #[inline]
-    pub(crate) fn index_of(&self, node: u32) -> Option<usize> {
-        self.nodes.binary_search(&node).ok()
+    /// The nodes the leaves end and their squares.
+    pub(crate) fn at(&self) -> &LeafNodes {
+        &self.at
     }
 
-    pub(crate) fn node(&self, leaf: usize) -> u32 {
-        self.nodes[leaf]
-    }
-
-    pub(crate) fn set_squares(&mut self, squares: Vec<(u8, u32, u32)>) {
-        self.squares = squares;
+    pub(crate) fn at_mut(&mut self) -> &mut LeafNodes {
+        &mut self.at
     }
 
     pub(crate) fn paint(&self, leaf: usize) -> &LeafPaint {
@@ -307,13 +301,13 @@ impl GradientLeaves {
 
     /// `(level, ix, iz)` of leaf `leaf`'s square.
     pub(crate) fn square(&self, leaf: usize) -> (u8, u32, u32) {
-        self.squares[leaf]
+        self.at.square(leaf)
     }
 
     /// The square of cell `(j, ix, iz)` of leaf `leaf` (`j` levels below
     /// it): `(level, corners)`, tree space.
     pub(crate) fn cell(&self, leaf: usize, j: u8, ix: u32, iz: u32) -> (u8, [Point; 4]) {
-        let (level, lx, lz) = self.squares[leaf];
+        let (level, lx, lz) = self.at.square(leaf);
         let level = level + j;
         let (cx, cz) = (
             (u64::from(lx) << j) + u64::from(ix),

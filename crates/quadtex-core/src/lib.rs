@@ -35,6 +35,7 @@ mod geometry;
 pub mod gradient;
 pub mod gradient_leaf;
 pub mod image_paint;
+mod leaf_nodes;
 
 pub mod build;
 pub mod memory;

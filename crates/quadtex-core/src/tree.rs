@@ -26,6 +26,7 @@ use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
 use crate::contour_leaf::ContourLeaves;
 use crate::fragment::{Fragment, overlap_1d};
 use crate::gradient_leaf::{GradientLeaves, square_corners};
+use crate::leaf_nodes::LeafNodes;
 use crate::texel_block::TexelBlocks;
 use crate::variant::{self, Variant};
 
@@ -462,7 +463,7 @@ impl QuadTree {
             return Ok(());
         };
         (0..c.count()).try_for_each(|i| {
-            self.check_leaf_mean("contour leaf", i, c.node(i), c.cell_info(i, 0, 0, 0).1)
+            self.check_leaf_mean("contour leaf", i, c.at().node(i), c.cell_info(i, 0, 0, 0).1)
         })
     }
 
@@ -478,7 +479,7 @@ impl QuadTree {
             self.check_leaf_mean(
                 "gradient leaf",
                 i,
-                g.node(i),
+                g.at().node(i),
                 g.paint(i).mean_over(&corners),
             )
         })
@@ -827,22 +828,12 @@ impl QuadTree {
     /// the stored nodes'; half-float trees and trees with texel blocks have
     /// no gradient leaves.
     pub fn with_gradient_leaves(mut self, mut leaves: GradientLeaves) -> Result<QuadTree, Error> {
-        let nodes: Vec<u32> = leaves.leaves().map(|l| l.0).collect();
-        let squares = self.leaf_squares("gradient leaves", &nodes, leaves.depth(), |n| {
-            leaves.index_of(n)
-        })?;
-        if let Some(c) = &self.contour_leaves
-            && let Some(&n) = nodes.iter().find(|&&n| c.index_of(n).is_some())
-        {
-            return Err(Error::MalformedTree(format!(
-                "gradient leaves: node {n} is also a contour leaf"
-            )));
-        }
-        leaves.set_squares(squares);
+        let other = self.contour_leaves.as_ref().map(ContourLeaves::at);
+        let squares = self.leaf_squares("gradient", leaves.at(), leaves.depth(), other)?;
+        leaves.at_mut().set_squares(squares);
         self.depth = self.depth.max(leaves.depth());
         self.gradient_leaves = Some(leaves);
-        self.grid = std::sync::OnceLock::new();
-        self.moments = std::sync::OnceLock::new();
+        self.forget_derived();
         Ok(self)
     }
 
@@ -850,42 +841,39 @@ impl QuadTree {
     /// ([`crate::contour_leaf`]); as [`QuadTree::with_gradient_leaves`],
     /// and every point must lie in its leaf's square.
     pub fn with_contour_leaves(mut self, mut leaves: ContourLeaves) -> Result<QuadTree, Error> {
-        let nodes: Vec<u32> = (0..leaves.count()).map(|i| leaves.node(i)).collect();
-        let squares = self.leaf_squares("contour leaves", &nodes, leaves.depth(), |n| {
-            leaves.index_of(n)
-        })?;
-        if let Some(g) = &self.gradient_leaves
-            && let Some(&n) = nodes.iter().find(|&&n| g.index_of(n).is_some())
-        {
-            return Err(Error::MalformedTree(format!(
-                "contour leaves: node {n} is also a gradient leaf"
-            )));
-        }
-        leaves.set_squares(squares);
+        let other = self.gradient_leaves.as_ref().map(GradientLeaves::at);
+        let squares = self.leaf_squares("contour", leaves.at(), leaves.depth(), other)?;
+        leaves.at_mut().set_squares(squares);
         if let Some(i) = (0..leaves.count()).find(|&i| !leaves.inside_square(i)) {
             return Err(Error::MalformedTree(format!(
                 "contour leaves: leaf {i} (node {}) has points outside its square",
-                leaves.node(i)
+                leaves.at().node(i)
             )));
         }
         self.depth = self.depth.max(leaves.depth());
         self.contour_leaves = Some(leaves);
-        self.grid = std::sync::OnceLock::new();
-        self.moments = std::sync::OnceLock::new();
+        self.forget_derived();
         Ok(self)
     }
 
-    /// The squares of leaves at unpadded `nodes` (increasing), checked:
-    /// terminal, not blocks, not in the pad, in a unorm16 tree whose stored
-    /// nodes do not reach below `depth`. `index_of` maps a node to its leaf.
+    /// Drops what was derived from the tree's colours on first use.
+    fn forget_derived(&mut self) {
+        self.grid = std::sync::OnceLock::new();
+        self.moments = std::sync::OnceLock::new();
+    }
+
+    /// The squares of `leaves` (of kind `what`), checked: terminal, not
+    /// blocks, not in the pad, not leaves of the `other` kind, in a
+    /// unorm16 tree whose stored nodes do not reach below `depth`.
     fn leaf_squares(
         &self,
         what: &str,
-        nodes: &[u32],
+        leaves: &LeafNodes,
         depth: u8,
-        index_of: impl Fn(u32) -> Option<usize>,
+        other: Option<&LeafNodes>,
     ) -> Result<Vec<(u8, u32, u32)>, Error> {
-        let bad = |why: String| Err(Error::MalformedTree(format!("{what}: {why}")));
+        let nodes = leaves.nodes();
+        let bad = |why: String| Err(Error::MalformedTree(format!("{what} leaves: {why}")));
         if self.encoding != ColourEncoding::Unorm16 || self.texel_blocks.is_some() {
             return bad("only in unorm16 trees without texel blocks".into());
         }
@@ -915,7 +903,7 @@ impl QuadTree {
                         2 * iz + (k >> 1) as u32,
                     ));
                 }
-            } else if let Some(i) = index_of((p - PAD) as u32) {
+            } else if let Some(i) = leaves.index_of((p - PAD) as u32) {
                 squares[i] = (level, ix, iz);
             }
         }
@@ -926,6 +914,11 @@ impl QuadTree {
             if self.aspect.is_pad(level, ix, iz) {
                 return bad(format!("leaf {i}: node {node} lies in the pad"));
             }
+            if other.is_some_and(|o| o.index_of(node).is_some()) {
+                return bad(format!(
+                    "leaf {i}: node {node} is also a leaf of the other kind"
+                ));
+            }
         }
         Ok(squares)
     }
@@ -934,14 +927,14 @@ impl QuadTree {
     #[inline]
     fn gradient_leaf(&self, p: usize) -> Option<(usize, &GradientLeaves)> {
         let g = self.gradient_leaves.as_ref()?;
-        g.index_of((p - PAD) as u32).map(|i| (i, g))
+        g.at().index_of((p - PAD) as u32).map(|i| (i, g))
     }
 
     /// The contour leaf at padded index `p`, if it is one.
     #[inline]
     fn contour_leaf(&self, p: usize) -> Option<(usize, &ContourLeaves)> {
         let c = self.contour_leaves.as_ref()?;
-        c.index_of((p - PAD) as u32).map(|i| (i, c))
+        c.at().index_of((p - PAD) as u32).map(|i| (i, c))
     }
 
     /// The contour leaves, if any ([`crate::contour_leaf`]).

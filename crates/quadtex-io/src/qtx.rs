@@ -175,15 +175,62 @@ const GROUP_BYTES: usize = 16;
 /// A contour leaf's piece or group outside any group.
 const NO_GROUP: u32 = u32::MAX;
 
+/// The start of a leaf section's body: its `depth` and 7 reserved bytes.
+fn section_body(depth: u8) -> Vec<u8> {
+    let mut body = vec![depth];
+    body.extend([0u8; 7]);
+    body
+}
+
+/// A leaf section: `body` behind its length.
+fn seal_section(body: Vec<u8>) -> Vec<u8> {
+    let mut out = (body.len() as u64).to_le_bytes().to_vec();
+    out.extend(body);
+    out
+}
+
+/// Errors naming `field` of the file at `path`.
+fn section_error<'p>(path: &'p Path, field: &'static str) -> impl Fn(String) -> Error + 'p {
+    move |message| Error::Format {
+        path: path.to_path_buf(),
+        field,
+        message,
+    }
+}
+
+/// Opens a leaf section (what [`seal_section`] wrote): checks its length
+/// and reserved bytes; the reader after them, and the section's depth.
+fn open_section<'a>(
+    bytes: &'a [u8],
+    bad: &impl Fn(String) -> Error,
+) -> Result<(Reader<'a>, u8), Error> {
+    let mut r = Reader { bytes, at: 0 };
+    let short = |what: &str| bad(format!("ends inside {what}"));
+    let declared = r.u64().ok_or_else(|| short("its length"))?;
+    if declared != bytes.len().saturating_sub(8) as u64 {
+        return Err(bad(format!(
+            "declares {declared} bytes, holds {}",
+            bytes.len().saturating_sub(8)
+        )));
+    }
+    let depth = r.u8().ok_or_else(|| short("the depth"))?;
+    if r.take(7)
+        .ok_or_else(|| short("the depth"))?
+        .iter()
+        .any(|&b| b != 0)
+    {
+        return Err(bad("reserved bytes are not zero".into()));
+    }
+    Ok((r, depth))
+}
+
 /// The contour-leaf section (`docs/format.md`), empty without leaves.
 fn encode_contour_leaves(tree: &QuadTree) -> Vec<u8> {
     let Some(c) = tree.contour_leaves() else {
         return Vec::new();
     };
     let parts = c.parts();
-    let mut body = Vec::new();
-    body.push(c.depth());
-    body.extend([0u8; 7]);
+    let mut body = section_body(c.depth());
     let contours = parts.contour_points.len().saturating_sub(1);
     for count in [
         parts.nodes.len(),
@@ -230,35 +277,14 @@ fn encode_contour_leaves(tree: &QuadTree) -> Vec<u8> {
         body.extend(p[0].to_le_bytes());
         body.extend(p[1].to_le_bytes());
     }
-    let mut out = (body.len() as u64).to_le_bytes().to_vec();
-    out.extend(body);
-    out
+    seal_section(body)
 }
 
 /// The contour-leaf section `bytes` for a tree of `nodes` nodes.
 fn decode_contour_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<ContourLeaves, Error> {
-    let bad = |message: String| Error::Format {
-        path: path.to_path_buf(),
-        field: "contour_leaves",
-        message,
-    };
-    let mut r = Reader { bytes, at: 0 };
+    let bad = section_error(path, "contour_leaves");
     let short = |what: &str| bad(format!("ends inside {what}"));
-    let declared = r.u64().ok_or_else(|| short("its length"))?;
-    if declared != (bytes.len() - 8) as u64 {
-        return Err(bad(format!(
-            "declares {declared} bytes, holds {}",
-            bytes.len() - 8
-        )));
-    }
-    let depth = r.u8().ok_or_else(|| short("the depth"))?;
-    if r.take(7)
-        .ok_or_else(|| short("the depth"))?
-        .iter()
-        .any(|&b| b != 0)
-    {
-        return Err(bad("reserved bytes are not zero".into()));
-    }
+    let (mut r, depth) = open_section(bytes, &bad)?;
     let mut counts = [0u64; 5];
     for c in &mut counts {
         *c = r.u64().ok_or_else(|| short("the counts"))?;
@@ -356,9 +382,7 @@ fn encode_gradient_leaves(tree: &QuadTree) -> Vec<u8> {
     let Some(g) = tree.gradient_leaves() else {
         return Vec::new();
     };
-    let mut body = Vec::new();
-    body.push(g.depth());
-    body.extend([0u8; 7]);
+    let mut body = section_body(g.depth());
     body.extend(g.tolerance().to_le_bytes());
     body.extend((g.paints().len() as u32).to_le_bytes());
     body.extend([0u8; 4]);
@@ -395,35 +419,20 @@ fn encode_gradient_leaves(tree: &QuadTree) -> Vec<u8> {
         body.extend(node.to_le_bytes());
         body.extend(paint.to_le_bytes());
     }
-    let mut out = (body.len() as u64).to_le_bytes().to_vec();
-    out.extend(body);
-    out
+    seal_section(body)
 }
 
 /// The gradient-leaf section `bytes` (after the colours) for a tree of
 /// `nodes` nodes.
 fn decode_gradient_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<GradientLeaves, Error> {
-    let bad = |message: String| Error::Format {
-        path: path.to_path_buf(),
-        field: "gradient_leaves",
-        message,
-    };
-    let mut r = Reader { bytes, at: 0 };
+    let bad = section_error(path, "gradient_leaves");
     let short = |what: &str| bad(format!("ends inside {what}"));
-    let declared = r.u64().ok_or_else(|| short("its length"))?;
-    if declared != (bytes.len() - 8) as u64 {
-        return Err(bad(format!(
-            "declares {declared} bytes, holds {}",
-            bytes.len() - 8
-        )));
-    }
-    let depth = r.u8().ok_or_else(|| short("the depth"))?;
-    let reserved = r.take(7).ok_or_else(|| short("the depth"))?;
+    let (mut r, depth) = open_section(bytes, &bad)?;
     let tolerance = r.f64().ok_or_else(|| short("the tolerance"))?;
     let paint_count = r.u32().ok_or_else(|| short("the paint count"))?;
-    let reserved2 = r.take(4).ok_or_else(|| short("the paint count"))?;
+    let reserved = r.take(4).ok_or_else(|| short("the paint count"))?;
     let leaf_count = r.u64().ok_or_else(|| short("the leaf count"))?;
-    if reserved.iter().chain(reserved2).any(|&b| b != 0) {
+    if reserved.iter().any(|&b| b != 0) {
         return Err(bad("reserved bytes are not zero".into()));
     }
     if leaf_count > nodes || u64::from(paint_count) > leaf_count {
