@@ -27,7 +27,7 @@
 
 use crate::Error;
 use crate::geometry::{
-    FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area, unit_side, winding,
+    FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area, unit_side,
 };
 use crate::leaf_nodes::LeafNodes;
 
@@ -322,11 +322,12 @@ impl ContourLeaves {
 
     /// Bytes held.
     pub fn memory_bytes(&self) -> u64 {
-        (self.at.len() * (4 + 4 + 4 + 12)
-            + self.groups.len() * std::mem::size_of::<LeafGroup>()
-            + self.pieces.len() * (std::mem::size_of::<LeafPiece>() + 4)
-            + self.contour_points.len() * (4 + 32)
-            + self.points.len() * 16) as u64
+        self.at.memory_bytes()
+            + (self.at.len() * (4 + 4)
+                + self.groups.len() * std::mem::size_of::<LeafGroup>()
+                + self.pieces.len() * (std::mem::size_of::<LeafPiece>() + 4)
+                + self.contour_points.len() * (4 + 32)
+                + self.points.len() * 16) as u64
     }
 
     /// The nodes the leaves end and their squares.
@@ -433,35 +434,64 @@ pub(crate) fn rect_of(level: u8, ix: u64, iz: u64) -> [f64; 4] {
     [x0, z0, x0 + side, z0 + side]
 }
 
-/// True when a point of the closed polygon `c`'s boundary lies in the
-/// closed rectangle (Liang–Barsky on each edge).
-fn touches_rect(c: &[Point], [x0, z0, x1, z1]: [f64; 4]) -> bool {
-    let n = c.len();
-    (0..n).any(|i| {
-        let (a, b) = (c[i], c[(i + 1) % n]);
-        let (mut t0, mut t1) = (0.0f64, 1.0f64);
-        let d = [b[0] - a[0], b[1] - a[1]];
-        for (p, q) in [
-            (-d[0], a[0] - x0),
-            (d[0], x1 - a[0]),
-            (-d[1], a[1] - z0),
-            (d[1], z1 - a[1]),
-        ] {
-            if p == 0.0 {
-                if q < 0.0 {
-                    return false;
-                }
-            } else {
-                let r = q / p;
-                if p < 0.0 {
-                    t0 = t0.max(r);
+/// The winding number of the closed polygon `c` around `p` (a point of
+/// the rectangle), or `None` when a point of `c`'s boundary lies in the
+/// closed rectangle. One pass: an edge whose bounds miss the rectangle
+/// only counts towards the winding; the others are tested by
+/// Liang–Barsky. Same convention as [`winding`], which it equals when it
+/// answers (a crossing of the ray from `p` that misses the rectangle lies
+/// right of it).
+fn winding_if_clear(c: &[Point], [x0, z0, x1, z1]: [f64; 4], p: Point) -> Option<i32> {
+    let mut w = 0;
+    let mut a = *c.last()?;
+    for &b in c {
+        let (lo_x, hi_x) = if a[0] < b[0] {
+            (a[0], b[0])
+        } else {
+            (b[0], a[0])
+        };
+        let (lo_z, hi_z) = if a[1] < b[1] {
+            (a[1], b[1])
+        } else {
+            (b[1], a[1])
+        };
+        if hi_x >= x0 && lo_x <= x1 && hi_z >= z0 && lo_z <= z1 {
+            let (mut t0, mut t1) = (0.0f64, 1.0f64);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let mut inside = true;
+            for (dp, q) in [
+                (-d[0], a[0] - x0),
+                (d[0], x1 - a[0]),
+                (-d[1], a[1] - z0),
+                (d[1], z1 - a[1]),
+            ] {
+                if dp == 0.0 {
+                    if q < 0.0 {
+                        inside = false;
+                        break;
+                    }
                 } else {
-                    t1 = t1.min(r);
+                    let r = q / dp;
+                    if dp < 0.0 {
+                        t0 = t0.max(r);
+                    } else {
+                        t1 = t1.min(r);
+                    }
                 }
             }
+            if inside && t0 <= t1 {
+                return None;
+            }
         }
-        t0 <= t1
-    })
+        if (a[1] <= p[1]) != (b[1] <= p[1]) {
+            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+            if x > p[0] {
+                w += if b[1] < a[1] { 1 } else { -1 };
+            }
+        }
+        a = b;
+    }
+    Some(-w)
 }
 
 thread_local! {
@@ -569,9 +599,9 @@ impl Clipped {
             // No point of the contour in the closed rectangle: the
             // rectangle is wholly inside or outside it, and its winding is
             // the centre's (the common case for a small fragment).
-            if !touches_rect(c, rect) {
+            if let Some(w) = winding_if_clear(c, rect, centre) {
                 if area > 0.0 {
-                    piece.base += winding(c, centre);
+                    piece.base += w;
                 }
                 continue;
             }
@@ -592,6 +622,33 @@ impl Clipped {
             }
         }
         self.pieces.push((piece, first..self.contours.len()));
+    }
+
+    /// The composite where each piece winds `winding` (`chains`: the
+    /// pieces' group chains, when there are groups).
+    fn colour_at(
+        &self,
+        winding: &[i32],
+        groups: &[LeafGroup],
+        chains: &[Chain],
+        covering: &mut Vec<([f64; 4], Chain)>,
+    ) -> [f64; 4] {
+        if groups.is_empty() {
+            let mut c = [0.0; 4];
+            for ((p, _), &w) in self.pieces.iter().zip(winding) {
+                if p.rule.covers(w) {
+                    over(&mut c, p.colour);
+                }
+            }
+            return c;
+        }
+        covering.clear();
+        for (((p, _), &w), chain) in self.pieces.iter().zip(winding).zip(chains) {
+            if p.rule.covers(w) {
+                covering.push((p.colour, *chain));
+            }
+        }
+        composite(covering, 0, groups)
     }
 
     /// `∫ composite` over `rect`: the trapezoid sweep.
@@ -619,6 +676,16 @@ impl Clipped {
                 chain.0[..usize::from(chain.1)].reverse();
                 chain
             }));
+        }
+        if self.contours.is_empty() {
+            // No edge inside: one colour, the bases' (the common case for
+            // a fragment small against its leaf).
+            winding.clear();
+            winding.extend(self.pieces.iter().map(|(p, _)| p.base));
+            let area = (x1 - x0) * (z1 - z0);
+            return self
+                .colour_at(winding, groups, chains, covering)
+                .map(|c| c * area);
         }
         edges.clear();
         for (pi, (_, cs)) in self.pieces.iter().enumerate() {
@@ -682,24 +749,7 @@ impl Clipped {
                 if width <= 0.0 {
                     return;
                 }
-                let c = if groups.is_empty() {
-                    let mut c = [0.0; 4];
-                    for ((p, _), &w) in self.pieces.iter().zip(winding) {
-                        if p.rule.covers(w) {
-                            over(&mut c, p.colour);
-                        }
-                    }
-                    c
-                } else {
-                    covering.clear();
-                    for (((p, _), &w), chain) in self.pieces.iter().zip(winding).zip(chains.iter())
-                    {
-                        if p.rule.covers(w) {
-                            covering.push((p.colour, *chain));
-                        }
-                    }
-                    composite(covering, 0, groups)
-                };
+                let c = self.colour_at(winding, groups, chains, covering);
                 for (t, ck) in total.iter_mut().zip(c) {
                     *t += ck * width * h;
                 }
@@ -712,5 +762,53 @@ impl Clipped {
             gap(left, x1, winding, &mut total);
         }
         total
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Point, winding_if_clear};
+    use crate::geometry::winding;
+
+    /// Whether a point of segment `a–b` lies in the closed rectangle,
+    /// by bisection-free dense sampling (enough for these coarse cases).
+    fn sampled_touch(a: Point, b: Point, [x0, z0, x1, z1]: [f64; 4]) -> bool {
+        (0..=4096).any(|i| {
+            let t = f64::from(i) / 4096.0;
+            let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+            p[0] >= x0 && p[0] <= x1 && p[1] >= z0 && p[1] <= z1
+        })
+    }
+
+    #[test]
+    fn winding_if_clear_is_the_winding_of_polygons_that_miss_the_rectangle() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut clear, mut touching) = (0, 0);
+        for _ in 0..3000 {
+            let n = 3 + (next() * 6.0) as usize;
+            let c: Vec<Point> = (0..n).map(|_| [next(), next()]).collect();
+            let (x, z, w) = (next() * 0.9, next() * 0.9, next() * 0.1);
+            let rect = [x, z, x + w, z + w];
+            let centre = [x + 0.5 * w, z + 0.5 * w];
+            let touches = (0..n).any(|i| sampled_touch(c[i], c[(i + 1) % n], rect));
+            match winding_if_clear(&c, rect, centre) {
+                Some(k) => {
+                    clear += 1;
+                    assert!(!touches, "{c:?} touches {rect:?}");
+                    assert_eq!(k, winding(&c, centre), "{c:?} around {centre:?}");
+                }
+                None => touching += 1,
+            }
+        }
+        assert!(
+            clear > 300 && touching > 300,
+            "{clear} clear, {touching} touching"
+        );
     }
 }

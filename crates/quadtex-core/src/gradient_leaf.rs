@@ -283,7 +283,7 @@ impl GradientLeaves {
             .iter()
             .map(|p| std::mem::size_of::<LeafPaint>() + std::mem::size_of_val(p.gradient.stops()))
             .sum();
-        (paints + self.at.len() * (8 + std::mem::size_of::<(u8, u32, u32)>())) as u64
+        paints as u64 + self.at.memory_bytes()
     }
 
     /// The nodes the leaves end and their squares.

@@ -1615,98 +1615,101 @@ impl QuadTree {
         }
 
         let mut acc = [0f64; 4];
-        let mut stack = [Pending::default(); STACK];
-        stack[0] = Pending {
-            node: start as u32,
-            level,
-            vx,
-            vz,
-            lo_x,
-            lo_z,
-        };
-        let mut top = 1usize;
         let mut visited = 0u64;
-        while top > 0 {
-            top -= 1;
-            let Pending {
+        // The pending squares live in a buffer kept per thread: a fresh
+        // array would be zeroed on every query (3 KiB), a cost measurable
+        // against the whole of a small one.
+        PENDING.with_borrow_mut(|stack| {
+            stack.clear();
+            stack.push(Pending {
+                node: start as u32,
+                level,
+                vx,
+                vz,
+                lo_x,
+                lo_z,
+            });
+            while let Some(Pending {
                 node,
                 level,
                 vx,
                 vz,
                 lo_x,
                 lo_z,
-            } = stack[top];
-            let child_level = level + 1;
-            let half = unit_side(child_level);
-            let child_area = half * half;
-            let (mx, mz) = (lo_x + half, lo_z + half);
-            let vxs = [
-                variant::f_low(x0, x1, mx, vx),
-                variant::f_high(x0, x1, mx, vx),
-            ];
-            let vzs = [
-                variant::f_low(z0, z1, mz, vz),
-                variant::f_high(z0, z1, mz, vz),
-            ];
-            let first = self.first_child(node as usize);
-            let block = self.blocks[first / 64].bits >> (first % 64);
-            let descend_allowed = child_level < k;
-            for c in 0..4 {
-                let (cvx, cvz): (Variant, Variant) = (vxs[c & 1], vzs[c >> 1]);
-                if variant::is_disjoint(cvx) || variant::is_disjoint(cvz) {
-                    continue;
-                }
-                visited += 1;
-                let colour = self.colour(first + c);
-                let (clo_x, clo_z) = (lo_x + (c & 1) as f64 * half, lo_z + (c >> 1) as f64 * half);
-                if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
-                    add::<HALF>(&mut acc, colour, child_area);
-                } else if block >> c & 1 == 0 || !descend_allowed {
-                    match self.block_at(first + c).filter(|_| descend_allowed) {
-                        Some(b) => self.add_block(
-                            &mut acc,
-                            b,
-                            child_level,
-                            [clo_x, clo_z],
-                            half,
-                            k,
-                            [x0, z0, x1, z1],
-                        ),
-                        None => {
-                            let (ox0, ox1) = (x0.max(clo_x), x1.min(clo_x + half));
-                            let (oz0, oz1) = (z0.max(clo_z), z1.min(clo_z + half));
-                            let leaves =
-                                self.gradient_leaves.is_some() || self.contour_leaves.is_some();
-                            match leaves
-                                .then(|| self.leaf_integral(first + c, k, [ox0, oz0, ox1, oz1]))
-                                .flatten()
-                            {
-                                Some(w) => {
-                                    for (a, v) in acc.iter_mut().zip(w) {
-                                        *a += v;
+            }) = stack.pop()
+            {
+                let child_level = level + 1;
+                let half = unit_side(child_level);
+                let child_area = half * half;
+                let (mx, mz) = (lo_x + half, lo_z + half);
+                let vxs = [
+                    variant::f_low(x0, x1, mx, vx),
+                    variant::f_high(x0, x1, mx, vx),
+                ];
+                let vzs = [
+                    variant::f_low(z0, z1, mz, vz),
+                    variant::f_high(z0, z1, mz, vz),
+                ];
+                let first = self.first_child(node as usize);
+                let block = self.blocks[first / 64].bits >> (first % 64);
+                let descend_allowed = child_level < k;
+                for c in 0..4 {
+                    let (cvx, cvz): (Variant, Variant) = (vxs[c & 1], vzs[c >> 1]);
+                    if variant::is_disjoint(cvx) || variant::is_disjoint(cvz) {
+                        continue;
+                    }
+                    visited += 1;
+                    let colour = self.colour(first + c);
+                    let (clo_x, clo_z) =
+                        (lo_x + (c & 1) as f64 * half, lo_z + (c >> 1) as f64 * half);
+                    if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
+                        add::<HALF>(&mut acc, colour, child_area);
+                    } else if block >> c & 1 == 0 || !descend_allowed {
+                        match self.block_at(first + c).filter(|_| descend_allowed) {
+                            Some(b) => self.add_block(
+                                &mut acc,
+                                b,
+                                child_level,
+                                [clo_x, clo_z],
+                                half,
+                                k,
+                                [x0, z0, x1, z1],
+                            ),
+                            None => {
+                                let (ox0, ox1) = (x0.max(clo_x), x1.min(clo_x + half));
+                                let (oz0, oz1) = (z0.max(clo_z), z1.min(clo_z + half));
+                                let leaves =
+                                    self.gradient_leaves.is_some() || self.contour_leaves.is_some();
+                                match leaves
+                                    .then(|| self.leaf_integral(first + c, k, [ox0, oz0, ox1, oz1]))
+                                    .flatten()
+                                {
+                                    Some(w) => {
+                                        for (a, v) in acc.iter_mut().zip(w) {
+                                            *a += v;
+                                        }
                                     }
-                                }
-                                None => {
-                                    let area = overlap_1d(x0, x1, clo_x, clo_x + half)
-                                        * overlap_1d(z0, z1, clo_z, clo_z + half);
-                                    add::<HALF>(&mut acc, colour, area);
+                                    None => {
+                                        let area = overlap_1d(x0, x1, clo_x, clo_x + half)
+                                            * overlap_1d(z0, z1, clo_z, clo_z + half);
+                                        add::<HALF>(&mut acc, colour, area);
+                                    }
                                 }
                             }
                         }
+                    } else {
+                        stack.push(Pending {
+                            node: (first + c) as u32,
+                            level: child_level,
+                            vx: cvx,
+                            vz: cvz,
+                            lo_x: clo_x,
+                            lo_z: clo_z,
+                        });
                     }
-                } else {
-                    stack[top] = Pending {
-                        node: (first + c) as u32,
-                        level: child_level,
-                        vx: cvx,
-                        vz: cvz,
-                        lo_x: clo_x,
-                        lo_z: clo_z,
-                    };
-                    top += 1;
                 }
             }
-        }
+        });
         {
             stats.nodes_visited += visited;
         }
@@ -1714,8 +1717,12 @@ impl QuadTree {
     }
 }
 
-/// Depth-first stack bound: each level leaves at most three siblings pending.
-const STACK: usize = 4 * MAX_DEPTH as usize + 8;
+thread_local! {
+    /// The traversal's pending squares: depth first, each level leaves at
+    /// most three siblings pending, so at most `3 · depth + 1`.
+    static PENDING: std::cell::RefCell<Vec<Pending>> =
+        std::cell::RefCell::new(Vec::with_capacity(4 * MAX_DEPTH as usize + 8));
+}
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Pending {
