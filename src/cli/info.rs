@@ -142,6 +142,17 @@ pub fn run(args: Args) -> Result<()> {
             c.max_leaf_edges(),
             c.depth()
         )?;
+        match c.curve_tolerance() {
+            Some(t) => writeln!(
+                out,
+                "curves:      flattened to within {t:.3e} of the texture's side (2^{:.1}); edges between their points are exact",
+                t.log2()
+            )?,
+            None => writeln!(
+                out,
+                "curves:      flattening not stated (written before quadtex recorded it)"
+            )?,
+        }
     }
     if let Some(g) = tree.gradient_leaves() {
         writeln!(

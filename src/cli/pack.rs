@@ -51,6 +51,12 @@ pub struct Args {
     #[arg(long, value_name = "EDGES", num_args = 0..=1, default_missing_value = "16",
           value_parser = clap::value_parser!(u16).range(3..=1024))]
     contour_leaves: Option<u16>,
+    /// SVG art: flatten curves to within T of the texture's longer side
+    /// (default 2^-22 with --contour-leaves, else a sixteenth of a square
+    /// at --max-level), at least 2^-40. `quadtex info` states it for trees
+    /// with contour leaves.
+    #[arg(long, value_name = "T", value_parser = curve_tolerance)]
+    curve_tolerance: Option<f64>,
     #[command(flatten)]
     memory: MemoryArgs,
 }
@@ -64,6 +70,15 @@ pub(crate) fn tolerance(text: &str) -> std::result::Result<f64, String> {
     Ok(t)
 }
 
+/// A value parser: a curve tolerance in `[2^-40, 1]`.
+fn curve_tolerance(text: &str) -> std::result::Result<f64, String> {
+    let t = text.parse::<f64>().map_err(|e| e.to_string())?;
+    if !(quadtex_io::MIN_CURVE_TOLERANCE..=1.0).contains(&t) {
+        return Err(format!("--curve-tolerance must be in [2^-40, 1], got {t}"));
+    }
+    Ok(t)
+}
+
 /// Runs `quadtex pack`.
 pub fn run(args: Args) -> Result<()> {
     let Args {
@@ -73,6 +88,7 @@ pub fn run(args: Args) -> Result<()> {
         max_level,
         no_gradient_leaves,
         contour_leaves,
+        curve_tolerance,
         memory,
     } = args;
     let limits = memory.limits();
@@ -87,10 +103,15 @@ pub fn run(args: Args) -> Result<()> {
     }
     if is_svg(&input) {
         let svg = quadtex_core::VectorOptions {
-            max_level: options.max_level.unwrap_or(DEFAULT_SVG_LEVEL),
+            max_level: options.max_level.unwrap_or(if contour_leaves.is_some() {
+                quadtex_core::vector::CONTOUR_MAX_LEVEL
+            } else {
+                DEFAULT_SVG_LEVEL
+            }),
             tolerance: tolerance.unwrap_or(quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE),
             gradient_leaves: !no_gradient_leaves,
             contour_leaves: contour_leaves.map(usize::from),
+            curve_tolerance,
             ..quadtex_core::VectorOptions::default()
         };
         return pack_svg(&input, &output, &svg, &limits);

@@ -352,7 +352,11 @@ fn pack_file(
                 path.display()
             )));
         }
-        let level = max_level.unwrap_or(DEFAULT_SVG_LEVEL);
+        let level = max_level.unwrap_or(if contour_leaves.is_some() {
+            quadtex_core::vector::CONTOUR_MAX_LEVEL
+        } else {
+            DEFAULT_SVG_LEVEL
+        });
         let options = quadtex_core::VectorOptions {
             max_level: level,
             contour_leaves,

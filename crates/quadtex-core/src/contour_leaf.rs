@@ -86,6 +86,8 @@ pub struct ContourLeaves {
     points: Vec<Point>,
     /// `[x0, z0, x1, z1]` of each contour: a query skips those it misses.
     bounds: Vec<[f64; 4]>,
+    /// How far the art's flattened curves may lie from the true ones.
+    curve_tolerance: Option<f64>,
 }
 
 /// Flattened contour leaves, as [`ContourLeaves::new`] takes them and
@@ -273,7 +275,29 @@ impl ContourLeaves {
             contour_points,
             points,
             bounds,
+            curve_tolerance: None,
         })
+    }
+
+    /// The leaves, stating that their curves were flattened to within
+    /// `tolerance` of the true ones (texture-space units); `None` states
+    /// nothing. [`Error::MalformedTree`] unless finite and in `(0, 1]`.
+    pub fn with_curve_tolerance(mut self, tolerance: Option<f64>) -> Result<ContourLeaves, Error> {
+        if let Some(t) = tolerance
+            && !(t.is_finite() && t > 0.0 && t <= 1.0)
+        {
+            return Err(Error::MalformedTree(format!(
+                "contour leaves: curve tolerance {t} is not in (0, 1]"
+            )));
+        }
+        self.curve_tolerance = tolerance;
+        Ok(self)
+    }
+
+    /// How far the flattened curves may lie from the art's true curves
+    /// (texture-space units), when the packer was told.
+    pub fn curve_tolerance(&self) -> Option<f64> {
+        self.curve_tolerance
     }
 
     /// The flattened parts (what [`ContourLeaves::new`] took).
@@ -385,6 +409,10 @@ impl ContourLeaves {
     /// edge crosses the rectangle's inside.
     pub(crate) fn integral(&self, leaf: usize, rect: [f64; 4]) -> ([f64; 4], bool) {
         let (p0, p1) = self.piece_range(leaf);
+        if let Some(mean) = self.uniform_over(leaf, rect) {
+            let area = (rect[2] - rect[0]) * (rect[3] - rect[1]);
+            return (mean.map(|v| v * area), false);
+        }
         // Buffers kept per thread: a query allocates nothing once warm.
         SWEEP.with_borrow_mut(|sweep| {
             let Sweep {
@@ -401,6 +429,38 @@ impl ContourLeaves {
                 &self.groups[self.leaf_groups[leaf] as usize..self.leaf_groups[leaf + 1] as usize];
             (clipped.sweep(rect, groups, buffers), edges)
         })
+    }
+
+    /// The one colour of `leaf` over `rect` when no edge enters the closed
+    /// rectangle and the leaf has no groups and at most
+    /// [`UNIFORM_PIECES`] pieces (the common case of a fragment small
+    /// against its leaf, answered without the sweep's buffers); `None`
+    /// otherwise.
+    fn uniform_over(&self, leaf: usize, rect: [f64; 4]) -> Option<[f64; 4]> {
+        let (p0, p1) = self.piece_range(leaf);
+        if p1 - p0 > UNIFORM_PIECES || self.leaf_groups[leaf] != self.leaf_groups[leaf + 1] {
+            return None;
+        }
+        let area = (rect[2] - rect[0]) * (rect[3] - rect[1]);
+        let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3])];
+        let mut colour = [0.0; 4];
+        for p in p0..p1 {
+            let piece = &self.pieces[p];
+            let mut w = piece.base;
+            for (c, b) in self.bounded_contours_of(p) {
+                if b[2] < rect[0] || b[0] > rect[2] || b[3] < rect[1] || b[1] > rect[3] {
+                    continue;
+                }
+                let k = winding_if_clear(c, rect, centre)?;
+                if area > 0.0 {
+                    w += k;
+                }
+            }
+            if piece.rule.covers(w) {
+                over(&mut colour, piece.colour);
+            }
+        }
+        Some(colour)
     }
 
     /// Whether cell `(j, ix, iz)` of `leaf` is subdivided further, its exact
@@ -493,6 +553,10 @@ fn winding_if_clear(c: &[Point], [x0, z0, x1, z1]: [f64; 4], p: Point) -> Option
     }
     Some(-w)
 }
+
+/// Most pieces [`ContourLeaves::uniform_over`] takes on (more is rare:
+/// the sweep is then the smaller part of the cost).
+const UNIFORM_PIECES: usize = 64;
 
 thread_local! {
     static SWEEP: std::cell::RefCell<Sweep> = std::cell::RefCell::new(Sweep::default());

@@ -240,12 +240,27 @@ pub struct VectorArt {
     /// Groups closed by a later shape outside them (groups are contiguous).
     group_closed: Vec<bool>,
     points: usize,
+    /// How far flattened curves may lie from the true ones, if stated.
+    curve_tolerance: Option<f64>,
 }
 
 impl VectorArt {
     /// Empty (transparent) art.
     pub fn new() -> VectorArt {
         VectorArt::default()
+    }
+
+    /// States that the art's curves were flattened to within `tolerance`
+    /// (texture-space units: the texture's longer side is 1) of the true
+    /// curves; contour leaves keep it, and `quadtex info` states it.
+    /// Ignored unless finite and positive.
+    pub fn set_curve_tolerance(&mut self, tolerance: f64) {
+        self.curve_tolerance = (tolerance.is_finite() && tolerance > 0.0).then_some(tolerance);
+    }
+
+    /// The tolerance stated by [`VectorArt::set_curve_tolerance`].
+    pub fn curve_tolerance(&self) -> Option<f64> {
+        self.curve_tolerance
     }
 
     /// A new translucent group with `opacity ∈ [0,1]`. Its shapes are
@@ -1065,8 +1080,45 @@ pub struct VectorOptions {
     /// magnification, and the tree answers down to level 30. Only squares
     /// whose shapes are solid fills outside clip paths and masks, in groups
     /// of plain opacity (at most [`crate::contour_leaf::MAX_LEAF_GROUP_DEPTH`]
-    /// deep) or none, qualify. Off (`None`) by default.
+    /// deep) or none, qualify. Squares at `max_level` that qualify keep
+    /// their contours whatever their count, so flat art is exact at any
+    /// magnification everywhere. Off (`None`) by default.
     pub contour_leaves: Option<usize>,
+    /// How close to the true curves a reader of SVG (`quadtex_io`)
+    /// flattens them, in texture-space units (the texture's longer side is
+    /// 1); the packer itself takes art already flattened. `None`: see
+    /// [`VectorOptions::curve_tolerance_or_default`].
+    pub curve_tolerance: Option<f64>,
+}
+
+/// Max level of trees with contour leaves when none is given (callers
+/// that pick a level for SVG art use it): squares split only while they
+/// hold more edges than the budget, so a deeper limit costs only where
+/// edges crowd (curves flattened finely, small text, stroke joins).
+pub const CONTOUR_MAX_LEVEL: u8 = 20;
+
+/// Curve flattening of trees with contour leaves, unless stated:
+/// 2⁻²² of the texture's side (2.4e-7; 0.24 mm on a 1 km texture): a
+/// quarter of a pixel when the texture spans 10⁶ pixels, and four times
+/// the `f32` resolution of the coordinates SVG readers hand over, so the
+/// bound is not lost in their rounding. A circle of radius 0.1 takes
+/// about 1 400 segments.
+pub const CONTOUR_CURVE_TOLERANCE: f64 = 1.0 / (1u64 << 22) as f64;
+
+impl VectorOptions {
+    /// [`VectorOptions::curve_tolerance`], or by default
+    /// [`CONTOUR_CURVE_TOLERANCE`] with contour leaves (exact at any
+    /// magnification, so the curves must not show their segments) and
+    /// `2^-(max_level + 4)`, a sixteenth of a square at `max_level`,
+    /// without them.
+    pub fn curve_tolerance_or_default(&self) -> f64 {
+        self.curve_tolerance
+            .unwrap_or(if self.contour_leaves.is_some() {
+                CONTOUR_CURVE_TOLERANCE
+            } else {
+                (-(f64::from(self.max_level) + 4.0)).exp2()
+            })
+    }
 }
 
 /// A quarter of an 8-bit step: the default [`VectorOptions::tolerance`].
@@ -1081,6 +1133,7 @@ impl Default for VectorOptions {
             tolerance: DEFAULT_SMOOTH_TOLERANCE,
             gradient_leaves: true,
             contour_leaves: None,
+            curve_tolerance: None,
         }
     }
 }
@@ -1327,7 +1380,8 @@ impl QuadTree {
                 );
             }
             b.report.contour_leaves = parts.nodes.len() as u64;
-            let leaves = ContourLeaves::new(MAX_DEPTH, parts)?;
+            let leaves = ContourLeaves::new(MAX_DEPTH, parts)?
+                .with_curve_tolerance(art.curve_tolerance())?;
             b.report.contour_leaf_points = leaves.point_count() as u64;
             tree = tree.with_contour_leaves(leaves)?;
         }
@@ -1414,7 +1468,7 @@ impl VectorBuilder<'_> {
         }
         if let Some(budget) = self.contour_budget
             && self.plain(here)
-            && edge_count(here) <= budget
+            && (edge_count(here) <= budget || level == self.max_level)
         {
             let mean = self.sweep(here, sq);
             // The leaf's groups, parents first, by their global ids.

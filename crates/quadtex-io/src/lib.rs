@@ -38,7 +38,10 @@ pub use qtx::{
     read_qtx_with_limits, write_qtx, write_qtx_to,
 };
 pub use query::parse_query_line;
-pub use svg::{load_svg, pack_svg, pack_svg_with_options, pack_svg_with_tolerance, parse_svg};
+pub use svg::{
+    MIN_CURVE_TOLERANCE, load_svg, load_svg_flattened, pack_svg, pack_svg_with_options,
+    pack_svg_with_tolerance, parse_svg, parse_svg_flattened,
+};
 pub use tiles::{TileFolder, pack_tiles};
 
 pub use quadtex_core::TexelGrid;

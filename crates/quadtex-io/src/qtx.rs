@@ -176,9 +176,9 @@ const GROUP_BYTES: usize = 16;
 const NO_GROUP: u32 = u32::MAX;
 
 /// The start of a leaf section's body: its `depth` and 7 reserved bytes.
-fn section_body(depth: u8) -> Vec<u8> {
+fn section_body(depth: u8, reserved: [u8; 7]) -> Vec<u8> {
     let mut body = vec![depth];
-    body.extend([0u8; 7]);
+    body.extend(reserved);
     body
 }
 
@@ -199,11 +199,13 @@ fn section_error<'p>(path: &'p Path, field: &'static str) -> impl Fn(String) -> 
 }
 
 /// Opens a leaf section (what [`seal_section`] wrote): checks its length
-/// and reserved bytes; the reader after them, and the section's depth.
+/// and that the reserved bytes after `used` are zero; the reader after
+/// them, the section's depth and its first `used` reserved bytes.
 fn open_section<'a>(
     bytes: &'a [u8],
+    used: usize,
     bad: &impl Fn(String) -> Error,
-) -> Result<(Reader<'a>, u8), Error> {
+) -> Result<(Reader<'a>, u8, &'a [u8]), Error> {
     let mut r = Reader { bytes, at: 0 };
     let short = |what: &str| bad(format!("ends inside {what}"));
     let declared = r.u64().ok_or_else(|| short("its length"))?;
@@ -214,14 +216,11 @@ fn open_section<'a>(
         )));
     }
     let depth = r.u8().ok_or_else(|| short("the depth"))?;
-    if r.take(7)
-        .ok_or_else(|| short("the depth"))?
-        .iter()
-        .any(|&b| b != 0)
-    {
+    let reserved = r.take(7).ok_or_else(|| short("the depth"))?;
+    if reserved[used..].iter().any(|&b| b != 0) {
         return Err(bad("reserved bytes are not zero".into()));
     }
-    Ok((r, depth))
+    Ok((r, depth, &reserved[..used]))
 }
 
 /// The contour-leaf section (`docs/format.md`), empty without leaves.
@@ -230,7 +229,19 @@ fn encode_contour_leaves(tree: &QuadTree) -> Vec<u8> {
         return Vec::new();
     };
     let parts = c.parts();
-    let mut body = section_body(c.depth());
+    // The curve tolerance rides in the first reserved bytes (0: unstated),
+    // rounded up to an f32 so the stated bound still holds.
+    let tolerance = c.curve_tolerance().map_or(0.0, |t| {
+        let f = t as f32;
+        if f64::from(f) < t {
+            f32::from_bits(f.to_bits() + 1)
+        } else {
+            f
+        }
+    });
+    let mut reserved = [0u8; 7];
+    reserved[..4].copy_from_slice(&tolerance.to_le_bytes());
+    let mut body = section_body(c.depth(), reserved);
     let contours = parts.contour_points.len().saturating_sub(1);
     for count in [
         parts.nodes.len(),
@@ -284,7 +295,13 @@ fn encode_contour_leaves(tree: &QuadTree) -> Vec<u8> {
 fn decode_contour_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<ContourLeaves, Error> {
     let bad = section_error(path, "contour_leaves");
     let short = |what: &str| bad(format!("ends inside {what}"));
-    let (mut r, depth) = open_section(bytes, &bad)?;
+    let (mut r, depth, tolerance) = open_section(bytes, 4, &bad)?;
+    let tolerance = f32::from_le_bytes([tolerance[0], tolerance[1], tolerance[2], tolerance[3]]);
+    let curve_tolerance = match tolerance {
+        0.0 => None,
+        t if t.is_finite() && t > 0.0 && t <= 1.0 => Some(f64::from(t)),
+        t => return Err(bad(format!("curve tolerance {t} is not in (0, 1]"))),
+    };
     let mut counts = [0u64; 5];
     for c in &mut counts {
         *c = r.u64().ok_or_else(|| short("the counts"))?;
@@ -370,7 +387,9 @@ fn decode_contour_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<Contou
         };
         parts.points.push([x, z]);
     }
-    ContourLeaves::new(depth, parts).map_err(|e| bad(e.to_string()))
+    ContourLeaves::new(depth, parts)
+        .and_then(|c| c.with_curve_tolerance(curve_tolerance))
+        .map_err(|e| bad(e.to_string()))
 }
 
 /// Bytes of one stop, and of a paint besides its stops.
@@ -382,7 +401,7 @@ fn encode_gradient_leaves(tree: &QuadTree) -> Vec<u8> {
     let Some(g) = tree.gradient_leaves() else {
         return Vec::new();
     };
-    let mut body = section_body(g.depth());
+    let mut body = section_body(g.depth(), [0; 7]);
     body.extend(g.tolerance().to_le_bytes());
     body.extend((g.paints().len() as u32).to_le_bytes());
     body.extend([0u8; 4]);
@@ -427,7 +446,7 @@ fn encode_gradient_leaves(tree: &QuadTree) -> Vec<u8> {
 fn decode_gradient_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<GradientLeaves, Error> {
     let bad = section_error(path, "gradient_leaves");
     let short = |what: &str| bad(format!("ends inside {what}"));
-    let (mut r, depth) = open_section(bytes, &bad)?;
+    let (mut r, depth, _) = open_section(bytes, 0, &bad)?;
     let tolerance = r.f64().ok_or_else(|| short("the tolerance"))?;
     let paint_count = r.u32().ok_or_else(|| short("the paint count"))?;
     let reserved = r.take(4).ok_or_else(|| short("the paint count"))?;
@@ -1421,6 +1440,7 @@ mod tests {
             &[],
         )
         .unwrap();
+        art.set_curve_tolerance(quadtex_core::vector::CONTOUR_CURVE_TOLERANCE);
         let options = VectorOptions {
             max_level: 8,
             contour_leaves: Some(8),
@@ -1428,6 +1448,10 @@ mod tests {
         };
         let (t, _) = QuadTree::from_vector(&art, &options).unwrap();
         let leaves = t.contour_leaves().expect("contour leaves");
+        assert_eq!(
+            leaves.curve_tolerance(),
+            Some(quadtex_core::vector::CONTOUR_CURVE_TOLERANCE)
+        );
         assert_eq!(t.depth(), 30);
         let path = temp("contour.qtx");
         write_qtx(&path, &t, None).unwrap();
@@ -1449,6 +1473,14 @@ mod tests {
         let e = refused(&lie);
         assert!(e.contains("outside its square"), "{e}");
         let section = HEADER_BYTES + n.div_ceil(8) + 8 * n;
+        // A stated curve tolerance that is no distance.
+        for bad in [-1.0f32, f32::NAN, 2.0] {
+            let mut lie = bytes.clone();
+            lie[section + 9..section + 13].copy_from_slice(&bad.to_le_bytes());
+            reseal(&mut lie, n);
+            let e = refused(&lie);
+            assert!(e.contains("curve tolerance"), "{e}");
+        }
         let mut lie = bytes.clone();
         // The point count (the fifth count after length, depth and reserved).
         let at = section + 8 + 8 + 32;

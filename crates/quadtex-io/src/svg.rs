@@ -126,7 +126,16 @@ pub fn pack_svg_with_options(
     options: &VectorOptions,
     limits: &Limits,
 ) -> Result<(QuadTree, VectorReport), Error> {
-    let art = load_svg(path, options.max_level, limits)?;
+    if options.max_level > quadtex_core::vector::MAX_VECTOR_LEVEL {
+        return Err(Error::Core {
+            path: path.to_path_buf(),
+            source: quadtex_core::Error::DepthTooLarge {
+                depth: options.max_level.into(),
+                max: quadtex_core::vector::MAX_VECTOR_LEVEL.into(),
+            },
+        });
+    }
+    let art = load_svg_flattened(path, options.curve_tolerance_or_default(), limits)?;
     let max_bytes = options
         .max_bytes
         .map_or(limits.max_memory, |b| b.min(limits.max_memory));
@@ -143,6 +152,18 @@ pub fn pack_svg_with_options(
 
 /// Reads an SVG file into vector art flattened for `max_level`.
 pub fn load_svg(path: &Path, max_level: u8, limits: &Limits) -> Result<VectorArt, Error> {
+    check_level(max_level, path)?;
+    load_svg_flattened(path, level_curve_tolerance(max_level), limits)
+}
+
+/// Reads an SVG file into vector art whose curves are flattened to within
+/// `curve_tolerance` of the texture's longer side (see
+/// [`parse_svg_flattened`]).
+pub fn load_svg_flattened(
+    path: &Path,
+    curve_tolerance: f64,
+    limits: &Limits,
+) -> Result<VectorArt, Error> {
     let len = std::fs::metadata(path)
         .map_err(|source| Error::Io {
             path: path.to_path_buf(),
@@ -154,21 +175,16 @@ pub fn load_svg(path: &Path, max_level: u8, limits: &Limits) -> Result<VectorArt
         path: path.to_path_buf(),
         source,
     })?;
-    parse_svg(&data, path, max_level, limits)
+    parse_svg_flattened(&data, path, curve_tolerance, limits)
 }
 
-/// Parses SVG text into vector art flattened for `max_level`; `path` names
-/// the source in errors.
-pub fn parse_svg(
-    data: &[u8],
-    path: &Path,
-    max_level: u8,
-    limits: &Limits,
-) -> Result<VectorArt, Error> {
-    let svg_err = |message: String| Error::Svg {
-        path: path.to_path_buf(),
-        message,
-    };
+/// Flattening for level `max_level`: a sixteenth of a square there.
+fn level_curve_tolerance(max_level: u8) -> f64 {
+    (-(f64::from(max_level) + 4.0)).exp2()
+}
+
+/// Refuses levels the vector packer cannot reach.
+fn check_level(max_level: u8, path: &Path) -> Result<(), Error> {
     if max_level > quadtex_core::vector::MAX_VECTOR_LEVEL {
         return Err(Error::Core {
             path: path.to_path_buf(),
@@ -177,6 +193,47 @@ pub fn parse_svg(
                 max: quadtex_core::vector::MAX_VECTOR_LEVEL.into(),
             },
         });
+    }
+    Ok(())
+}
+
+/// Finest curve flattening [`parse_svg_flattened`] accepts: 2⁻⁴⁰ of the
+/// texture's side (below it, a curve's segments would outnumber what its
+/// `f64` points resolve).
+pub const MIN_CURVE_TOLERANCE: f64 = 1.0 / (1u64 << 40) as f64;
+
+/// Parses SVG text into vector art flattened for `max_level` (curves
+/// within a sixteenth of a square at that level); `path` names the source
+/// in errors.
+pub fn parse_svg(
+    data: &[u8],
+    path: &Path,
+    max_level: u8,
+    limits: &Limits,
+) -> Result<VectorArt, Error> {
+    check_level(max_level, path)?;
+    parse_svg_flattened(data, path, level_curve_tolerance(max_level), limits)
+}
+
+/// Parses SVG text into vector art whose curves (fills and stroke
+/// outlines) lie within `curve_tolerance` of the true curves, in units of
+/// the texture's longer side, in `[MIN_CURVE_TOLERANCE, 1]`; the art
+/// states it ([`VectorArt::curve_tolerance`]). `path` names the source in
+/// errors.
+pub fn parse_svg_flattened(
+    data: &[u8],
+    path: &Path,
+    curve_tolerance: f64,
+    limits: &Limits,
+) -> Result<VectorArt, Error> {
+    let svg_err = |message: String| Error::Svg {
+        path: path.to_path_buf(),
+        message,
+    };
+    if !(MIN_CURVE_TOLERANCE..=1.0).contains(&curve_tolerance) {
+        return Err(svg_err(format!(
+            "curve tolerance {curve_tolerance} is outside [2^-40, 1]"
+        )));
     }
     let text = std::str::from_utf8(data).map_err(|e| svg_err(format!("not UTF-8: {e}")))?;
     count_elements(text, path, limits)?;
@@ -228,8 +285,8 @@ pub fn parse_svg(
         art: VectorArt::new(),
         path,
         to_unit: 1.0 / side,
-        tolerance: (-(f64::from(max_level) + 4.0)).exp2(),
-        res_scale: (f64::from(max_level) + 4.0).exp2() as f32 / side as f32,
+        tolerance: curve_tolerance,
+        res_scale: (1.0 / (curve_tolerance * side)) as f32,
         groups: Vec::new(),
         clip: None,
         limits,
@@ -237,6 +294,7 @@ pub fn parse_svg(
         decoded: HashMap::new(),
     };
     walker.group(tree.root(), usvg::Transform::identity())?;
+    walker.art.set_curve_tolerance(curve_tolerance);
     Ok(walker.art)
 }
 
@@ -1117,6 +1175,63 @@ mod tests {
         let (tree, _) = QuadTree::from_vector(&art, &options).unwrap();
         let f = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
         tree.weighted_colour(&f, 8).0[3]
+    }
+
+    /// A circle flattened to a stated tolerance, packed with contour
+    /// leaves: where its edge crosses a small fragment, the covered area
+    /// is within `tolerance × arc length` of the true circle's (and, for a
+    /// coarse tolerance, visibly not the true one).
+    #[test]
+    fn curves_are_flattened_to_the_stated_tolerance() {
+        let svg = r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 100 100"><circle cx="50" cy="50" r="40"/></svg>"#;
+        let (r, w) = (0.4, 0.004);
+        let f = Fragment::new(0.5 - w, 0.1 - w, 0.5 + w, 0.1 + w).unwrap();
+        // The true circle's area in the fragment (its edge nearly level
+        // there): ∫ (z1 − max(z0, 0.5 − √(r² − (x − 0.5)²))) dx, Simpson.
+        let n = 20_000;
+        let inside = |x: f64| f.z1() - f.z0().max(0.5 - (r * r - (x - 0.5) * (x - 0.5)).sqrt());
+        let h = (f.x1() - f.x0()) / f64::from(n);
+        let mut truth = inside(f.x0()) + inside(f.x1());
+        for i in 1..n {
+            truth += inside(f.x0() + f64::from(i) * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+        }
+        truth *= h / 3.0;
+        for tolerance in [1e-6, 1e-3] {
+            let art = parse_svg_flattened(
+                svg.as_bytes(),
+                Path::new("c.svg"),
+                tolerance,
+                &Limits::default(),
+            )
+            .unwrap();
+            assert_eq!(art.curve_tolerance(), Some(tolerance));
+            let options = VectorOptions {
+                max_level: 20,
+                contour_leaves: Some(16),
+                ..VectorOptions::default()
+            };
+            let (tree, _) = QuadTree::from_vector(&art, &options).unwrap();
+            assert_eq!(
+                tree.contour_leaves().unwrap().curve_tolerance(),
+                Some(tolerance)
+            );
+            let got = tree.weighted_colour(&f, u8::MAX).0[3];
+            let bound = tolerance * 2.0 * w * 1.01;
+            assert!(
+                (got - truth).abs() <= bound,
+                "{tolerance}: {got} vs {truth}, bound {bound}"
+            );
+            if tolerance >= 1e-3 {
+                assert!((got - truth).abs() > 0.01 * bound, "{got} vs {truth}");
+            }
+        }
+        let refused = parse_svg_flattened(
+            svg.as_bytes(),
+            Path::new("c.svg"),
+            1e-13,
+            &Limits::default(),
+        );
+        assert!(refused.unwrap_err().to_string().contains("curve tolerance"));
     }
 
     #[test]

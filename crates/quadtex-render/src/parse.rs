@@ -567,9 +567,9 @@ impl Context<'_> {
             .colour(t, key, "colour")?
             .unwrap_or(Rgba::opaque(1.0, 1.0, 1.0));
         let svg_level = match self.number(t, key, "texture_level")? {
-            None => DEFAULT_SVG_LEVEL,
+            None => None,
             Some(l) if l.fract() == 0.0 && (0.0..=f64::from(MAX_VECTOR_LEVEL)).contains(&l) => {
-                l as u8
+                Some(l as u8)
             }
             Some(l) => {
                 return Err(self.err(
@@ -588,6 +588,11 @@ impl Context<'_> {
                 ));
             }
         };
+        let svg_level = svg_level.unwrap_or(if contour_leaves.is_some() {
+            quadtex_core::vector::CONTOUR_MAX_LEVEL
+        } else {
+            DEFAULT_SVG_LEVEL
+        });
         let texture = match t.get("texture") {
             None => None,
             Some(Value::String(s)) => {
