@@ -203,6 +203,10 @@ pub fn texture_bytes(scene: &Scene, filter: Filter) -> u64 {
                 Filter::Quadtree { .. } => t.memory_bytes(),
                 Filter::Nearest | Filter::Bilinear | Filter::Supersample(_) => full,
                 Filter::Trilinear | Filter::Ewa { .. } => 4 * base * 4 / 3,
+                Filter::EwaSameMemory { .. } => {
+                    let l = quadtex_render::scene::same_memory_level(t.memory_bytes(), t.depth());
+                    16 * (1u64 << (2 * u32::from(l))) / 3
+                }
                 Filter::Sat { .. } => 16 * base,
             }
         })
@@ -219,7 +223,7 @@ fn lookups_per_pixel(filter: Filter, summary: &quadtex_render::RenderSummary) ->
         Filter::Bilinear => Some(4.0),
         Filter::Trilinear => Some(8.0),
         Filter::Supersample(n) => Some(f64::from(n * n)),
-        Filter::Ewa { .. } => None,
+        Filter::Ewa { .. } | Filter::EwaSameMemory { .. } => None,
     }
 }
 

@@ -52,6 +52,13 @@ pub fn default_contenders() -> Vec<Contender> {
             },
             Box,
         ),
+        Contender::new(
+            "EWA 32, same memory",
+            Filter::EwaSameMemory {
+                max_anisotropy: 32.0,
+            },
+            Box,
+        ),
         Contender::new("SAT", Filter::Sat(FilterOptions::default()), Box),
         Contender::new("supersample 4", Filter::Supersample(2), Box),
         Contender::new("supersample 16", Filter::Supersample(4), Box),

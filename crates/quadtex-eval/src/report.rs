@@ -32,6 +32,13 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 
 fn human(bytes: u64) -> String {
     let b = bytes as f64;
+    // Full-resolution rasters of deep trees (contour leaves answer to
+    // level 30) run to exbibytes: say so, not 4 294 967 296 GiB.
+    for (unit, shift) in [("EiB", 60), ("PiB", 50), ("TiB", 40)] {
+        if b >= (1u64 << shift) as f64 {
+            return format!("{:.2} {unit}", b / (1u64 << shift) as f64);
+        }
+    }
     if b >= 1024.0 * 1024.0 * 1024.0 {
         format!("{:.2} GiB", b / (1024.0 * 1024.0 * 1024.0))
     } else if b >= 1024.0 * 1024.0 {

@@ -25,6 +25,15 @@ pub enum Filter {
         /// Largest major/minor axis ratio (pbrt's default: 8).
         max_anisotropy: f64,
     },
+    /// Baseline: EWA as above on the largest raster that fits the tree's
+    /// memory: `2^L` texels a side, RGBA8 with mips (16/3 bytes a texel,
+    /// as a GPU stores it) within [`quadtex_core::QuadTree::memory_bytes`]
+    /// ([`crate::scene::same_memory_level`]). What a user with the same
+    /// memory budget would ship.
+    EwaSameMemory {
+        /// Largest major/minor axis ratio.
+        max_anisotropy: f64,
+    },
     /// Baseline: the same strips as `Quadtree` (with these options' quality
     /// and weighting), integrated exactly by a summed-area table (f64) of the
     /// rasterised tree, no uniform shortcut.

@@ -171,6 +171,14 @@ pub(crate) fn prepare_baselines(scene: &Scene, filter: Filter) -> Result<(), cra
             }
         }
     }
+    if matches!(filter, Filter::EwaSameMemory { .. }) {
+        for s in &scene.surfaces {
+            if let Some(t) = &s.texture {
+                t.same_memory_pyramid()
+                    .map_err(|e| crate::Error::Option(format!("raster baseline: {e}")))?;
+            }
+        }
+    }
     Ok(())
 }
 

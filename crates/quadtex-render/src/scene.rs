@@ -578,6 +578,9 @@ pub struct Texture {
     pub tree: Arc<QuadTree>,
     /// Raster baselines (mip pyramid, summed-area table), built on first use.
     baselines: Arc<std::sync::OnceLock<Result<Baselines, String>>>,
+    /// The mip pyramid of the largest raster within the tree's memory
+    /// ([`same_memory_level`]), built on first use.
+    same_memory: Arc<std::sync::OnceLock<Result<quadtex_core::mipmap::MipPyramid, String>>>,
     /// Bytes the baselines may take ([`baseline_bytes`]), `None`: no budget.
     memory_budget: Option<u64>,
 }
@@ -596,6 +599,16 @@ pub fn baseline_level(depth: u8) -> u8 {
     depth.clamp(10, 11)
 }
 
+/// The level `L` of the largest raster, `2^L` texels a side (at most
+/// [`baseline_level`]'s 2048²), whose RGBA8 texels with their mips (16/3
+/// bytes a texel) fit in `bytes`; 0 (one texel) when none does.
+pub fn same_memory_level(bytes: u64, depth: u8) -> u8 {
+    (0..=baseline_level(depth))
+        .rev()
+        .find(|&l| 16 * (1u64 << (2 * u32::from(l))) / 3 <= bytes)
+        .unwrap_or(0)
+}
+
 /// Bytes the raster baselines of one texture take at `level`: the raster
 /// (8 bytes a cell), the mip pyramid (16 bytes a cell, 4/3 for the levels)
 /// and the summed-area table (32 bytes a cell); 256 MiB at level 11.
@@ -612,6 +625,7 @@ impl Texture {
             name: name.into(),
             tree,
             baselines: Arc::default(),
+            same_memory: Arc::default(),
             memory_budget: None,
         }
     }
@@ -649,6 +663,24 @@ impl Texture {
                     pyramid: quadtex_core::mipmap::MipPyramid::new(&grid),
                     sat: quadtex_core::sat::SummedAreaTable::new(&grid),
                 })
+            })
+            .as_ref()
+            .map_err(String::as_str)
+    }
+}
+
+impl Texture {
+    /// The mip pyramid of the largest raster that fits the tree's memory
+    /// ([`same_memory_level`]), built once.
+    pub(crate) fn same_memory_pyramid(&self) -> Result<&quadtex_core::mipmap::MipPyramid, &str> {
+        self.same_memory
+            .get_or_init(|| {
+                let level = same_memory_level(self.tree.memory_bytes(), self.tree.depth());
+                let grid = self
+                    .tree
+                    .rasterise(level)
+                    .map_err(|e| format!("{}: {e}", self.name))?;
+                Ok(quadtex_core::mipmap::MipPyramid::new(&grid))
             })
             .as_ref()
             .map_err(String::as_str)

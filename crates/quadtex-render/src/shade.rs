@@ -78,6 +78,14 @@ pub(crate) fn texture_colour(
                 _ => b.pyramid.trilinear(&fp, surface.wrap),
             }
         }
+        Filter::EwaSameMemory { max_anisotropy } => {
+            let texture = surface.texture.as_ref();
+            let (Some(Ok(pyramid)), Some(fp)) = (texture.map(|t| t.same_memory_pyramid()), footprint())
+            else {
+                return sampler.nearest_counted(centre, traversal);
+            };
+            pyramid.ewa(&fp, max_anisotropy, surface.wrap)
+        }
         Filter::Sat(options) => {
             let (Ok(b), Some(fp)) = (surface_baselines(surface), footprint()) else {
                 return sampler.nearest_counted(centre, traversal);
