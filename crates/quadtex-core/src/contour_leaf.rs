@@ -27,7 +27,8 @@
 
 use crate::Error;
 use crate::geometry::{
-    FillRule, clip_to_rect, crossing_height, on_rect_border, signed_area, unit_side,
+    FillRule, SlabScratch, SweepEdge, clip_to_rect, for_each_slab, on_rect_border, signed_area,
+    unit_side,
 };
 use crate::leaf_nodes::LeafNodes;
 
@@ -573,9 +574,8 @@ struct Sweep {
 /// Scratch of [`Clipped::sweep`].
 #[derive(Default)]
 struct SweepBuffers {
-    /// `(lo, hi, piece, winding step when crossed left to right)`.
-    edges: Vec<(Point, Point, usize, i32)>,
-    heights: Vec<f64>,
+    edges: Vec<SweepEdge>,
+    slabs: SlabScratch,
     crossings: Vec<(f64, usize, i32)>,
     winding: Vec<i32>,
     /// Colours and group chains of the pieces covering a gap.
@@ -720,7 +720,7 @@ impl Clipped {
         let [x0, z0, x1, z1] = rect;
         let SweepBuffers {
             edges,
-            heights,
+            slabs,
             crossings,
             covering,
             winding,
@@ -756,53 +756,18 @@ impl Clipped {
             for r in &self.contours[cs.clone()] {
                 let c = &self.points[r.clone()];
                 for i in 0..c.len() {
-                    let (a, b) = (c[i], c[(i + 1) % c.len()]);
-                    if a[1] == b[1] {
-                        continue;
-                    }
-                    edges.push(if a[1] < b[1] {
-                        (a, b, pi, -1)
-                    } else {
-                        (b, a, pi, 1)
-                    });
+                    edges.extend(SweepEdge::new(c[i], c[(i + 1) % c.len()], pi));
                 }
             }
         }
-        heights.clear();
-        heights.extend([z0, z1]);
-        for e in edges.iter() {
-            heights.push(e.0[1]);
-            heights.push(e.1[1]);
-        }
-        for i in 0..edges.len() {
-            for j in i + 1..edges.len() {
-                let (e, f) = (&edges[i], &edges[j]);
-                if e.1[1] <= f.0[1] || f.1[1] <= e.0[1] {
-                    continue;
-                }
-                if let Some(z) = crossing_height(e.0, e.1, f.0, f.1) {
-                    heights.push(z);
-                }
-            }
-        }
-        heights.retain(|z| *z >= z0 && *z <= z1);
-        heights.sort_by(f64::total_cmp);
-        heights.dedup();
         let mut total = [0.0; 4];
-        for slab in heights.windows(2) {
-            let (za, zb) = (slab[0], slab[1]);
+        for_each_slab(edges, z0, z1, slabs, |za, zb, edges, active| {
             let h = zb - za;
-            if h <= 0.0 {
-                continue;
-            }
             let zm = 0.5 * (za + zb);
             crossings.clear();
-            for e in edges.iter() {
-                if e.0[1] < zm && zm < e.1[1] {
-                    let t = (zm - e.0[1]) / (e.1[1] - e.0[1]);
-                    let x = (e.0[0] + t * (e.1[0] - e.0[0])).clamp(x0, x1);
-                    crossings.push((x, e.2, e.3));
-                }
+            for &k in active {
+                let e = &edges[k];
+                crossings.push((e.x_at(zm).clamp(x0, x1), e.piece, e.step));
             }
             crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
             winding.clear();
@@ -824,7 +789,7 @@ impl Clipped {
                 left = x;
             }
             gap(left, x1, winding, &mut total);
-        }
+        });
         total
     }
 }

@@ -146,3 +146,130 @@ pub(crate) fn clip_to_rect(
         out.pop();
     }
 }
+
+/// A non-horizontal edge of the trapezoid sweep: `lo[1] < hi[1]`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SweepEdge {
+    pub(crate) lo: Point,
+    pub(crate) hi: Point,
+    /// The piece (shape) whose contour it belongs to.
+    pub(crate) piece: usize,
+    /// Winding change when crossing the edge from left to right.
+    pub(crate) step: i32,
+}
+
+impl SweepEdge {
+    /// The edge `a → b` of a contour of `piece`, or `None` when horizontal.
+    #[inline]
+    pub(crate) fn new(a: Point, b: Point, piece: usize) -> Option<SweepEdge> {
+        match a[1].total_cmp(&b[1]) {
+            std::cmp::Ordering::Less => Some(SweepEdge {
+                lo: a,
+                hi: b,
+                piece,
+                step: -1,
+            }),
+            std::cmp::Ordering::Greater => Some(SweepEdge {
+                lo: b,
+                hi: a,
+                piece,
+                step: 1,
+            }),
+            std::cmp::Ordering::Equal => None,
+        }
+    }
+
+    /// `x` where the edge meets height `z`.
+    #[inline]
+    pub(crate) fn x_at(&self, z: f64) -> f64 {
+        let t = (z - self.lo[1]) / (self.hi[1] - self.lo[1]);
+        self.lo[0] + t * (self.hi[0] - self.lo[0])
+    }
+}
+
+/// What [`for_each_slab`] reuses between calls.
+#[derive(Debug, Default)]
+pub(crate) struct SlabScratch {
+    heights: Vec<f64>,
+    active: Vec<usize>,
+}
+
+/// The trapezoid sweep's slabs: sorts `edges` by their lower end, finds
+/// every height where an edge ends or two edges cross, and calls
+/// `slab(z0, z1, edges, active)` for each slab of positive height between
+/// consecutive such heights within `[z_lo, z_hi]`, `active` indexing the
+/// (sorted) `edges` that span the slab (no edge ends or crosses another
+/// inside it).
+///
+/// Only edges whose heights overlap are tested for crossings and only the
+/// edges spanning a slab are handed to it (an active list, as in
+/// Bentley–Ottmann without its ordering): the cost follows the edges alive
+/// at once, not the square of all edges, so a square crossed by a long run
+/// of short edges (a dashed stroke) sweeps in near-linear time.
+pub(crate) fn for_each_slab(
+    edges: &mut [SweepEdge],
+    z_lo: f64,
+    z_hi: f64,
+    scratch: &mut SlabScratch,
+    slab: impl FnMut(f64, f64, &[SweepEdge], &[usize]),
+) {
+    slab_heights(edges, z_lo, z_hi, scratch);
+    for_each_prepared_slab(edges, scratch, slab);
+}
+
+/// The first half of [`for_each_slab`]: sorts `edges` and finds the
+/// heights, returning how many there are (the sweep then costs about
+/// that many slabs times the edges alive in each).
+pub(crate) fn slab_heights(
+    edges: &mut [SweepEdge],
+    z_lo: f64,
+    z_hi: f64,
+    scratch: &mut SlabScratch,
+) -> usize {
+    let SlabScratch { heights, active } = scratch;
+    edges.sort_unstable_by(|a, b| a.lo[1].total_cmp(&b.lo[1]));
+    heights.clear();
+    heights.extend([z_lo, z_hi]);
+    active.clear();
+    for (i, e) in edges.iter().enumerate() {
+        heights.push(e.lo[1]);
+        heights.push(e.hi[1]);
+        // Edges that ended at or below this one's start cannot cross it.
+        active.retain(|&k| edges[k].hi[1] > e.lo[1]);
+        for &k in active.iter() {
+            let f = &edges[k];
+            if let Some(z) = crossing_height(f.lo, f.hi, e.lo, e.hi) {
+                heights.push(z);
+            }
+        }
+        active.push(i);
+    }
+    heights.retain(|z| *z >= z_lo && *z <= z_hi);
+    heights.sort_by(f64::total_cmp);
+    heights.dedup();
+    heights.len()
+}
+
+/// The second half of [`for_each_slab`], on what [`slab_heights`] left.
+pub(crate) fn for_each_prepared_slab(
+    edges: &[SweepEdge],
+    scratch: &mut SlabScratch,
+    mut slab: impl FnMut(f64, f64, &[SweepEdge], &[usize]),
+) {
+    let SlabScratch { heights, active } = scratch;
+    active.clear();
+    let mut next = 0;
+    for w in heights.windows(2) {
+        let (z0, z1) = (w[0], w[1]);
+        if z1 - z0 <= 0.0 {
+            continue;
+        }
+        let zm = 0.5 * (z0 + z1);
+        while next < edges.len() && edges[next].lo[1] < zm {
+            active.push(next);
+            next += 1;
+        }
+        active.retain(|&k| edges[k].hi[1] > zm);
+        slab(z0, z1, edges, active);
+    }
+}

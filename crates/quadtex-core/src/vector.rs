@@ -72,7 +72,10 @@ use crate::contour_leaf::{
     ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
 };
 pub use crate::geometry::FillRule;
-use crate::geometry::{clip_to_rect, crossing_height, on_rect_border, signed_area, winding};
+use crate::geometry::{
+    SlabScratch, SweepEdge, clip_to_rect, for_each_prepared_slab, on_rect_border, signed_area,
+    slab_heights, winding,
+};
 use crate::gradient::Gradient;
 use crate::gradient_leaf::{GradientLeaves, LeafPaint};
 use crate::image_paint::ImagePaint;
@@ -1041,8 +1044,24 @@ fn range_width(range: &[[f64; 2]; 4]) -> f64 {
 /// `VectorBuilder::sweep_split`).
 const SWEEP_EDGES: usize = 256;
 
-/// Deepest a leaf is split for its sweep: `4^6` sub-squares at most.
+/// Deepest a leaf is split for its sweep while it holds more than
+/// [`SWEEP_EDGES`] edges: `4^6` sub-squares. Below, a square is swept
+/// whatever its edges (coincident edges never separate, so splitting
+/// further would not pay), unless it holds more than [`SWEEP_HUGE`].
 const SWEEP_SPLITS: u8 = 6;
+
+/// Edges above which a square keeps splitting past [`SWEEP_SPLITS`]:
+/// sweeping them whole could take minutes (thousands of edges crossing
+/// each other at as many heights, as dashed strokes piled on a point).
+/// Measured: splitting on by the sweep's estimated work instead, or from
+/// 64 edges, made such art slower still, or made coincident edges (which
+/// never separate) split to the floor.
+const SWEEP_HUGE: usize = 1024;
+
+/// Deepest a leaf is split for its sweep at all; a square there still
+/// holding more than [`SWEEP_HUGE`] edges takes its centre's colour (see
+/// `VectorBuilder::sweep_split`), at most `4^-20` of the leaf's area each.
+const SWEEP_FLOOR: u8 = 20;
 
 /// Options of [`QuadTree::from_vector`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -1081,8 +1100,10 @@ pub struct VectorOptions {
     /// whose shapes are solid fills outside clip paths and masks, in groups
     /// of plain opacity (at most [`crate::contour_leaf::MAX_LEAF_GROUP_DEPTH`]
     /// deep) or none, qualify. Squares at `max_level` that qualify keep
-    /// their contours whatever their count, so flat art is exact at any
-    /// magnification everywhere. Off (`None`) by default.
+    /// their contours up to 256 edges (or the budget, if larger), so flat
+    /// art is exact at any magnification everywhere but where more edges
+    /// crowd one square of `max_level` (a query would sweep them all).
+    /// Off (`None`) by default.
     pub contour_leaves: Option<usize>,
     /// How close to the true curves a reader of SVG (`quadtex_io`)
     /// flattens them, in texture-space units (the texture's longer side is
@@ -1266,23 +1287,13 @@ struct VectorBuilder<'a> {
 /// Buffers of [`VectorBuilder::sweep`], kept between leaves.
 #[derive(Debug, Default)]
 struct SweepScratch {
-    edges: Vec<Edge>,
-    heights: Vec<f64>,
+    edges: Vec<SweepEdge>,
+    slabs: SlabScratch,
     winding: Vec<i32>,
     /// `(x at mid-slab, piece, winding step, x at slab bottom, x at slab top)`.
     crossings: Vec<(f64, usize, i32, f64, f64)>,
     covered: Vec<u32>,
     visible: Vec<u32>,
-}
-
-/// A non-horizontal edge of a leaf's clipped contours.
-#[derive(Debug, Clone, Copy)]
-struct Edge {
-    lo: Point,
-    hi: Point,
-    piece: usize,
-    /// Winding change when crossing the edge from left to right.
-    step: i32,
 }
 
 impl QuadTree {
@@ -1468,7 +1479,8 @@ impl VectorBuilder<'_> {
         }
         if let Some(budget) = self.contour_budget
             && self.plain(here)
-            && (edge_count(here) <= budget || level == self.max_level)
+            && (edge_count(here) <= budget
+                || (level == self.max_level && edge_count(here) <= budget.max(SWEEP_EDGES)))
         {
             let mean = self.sweep(here, sq);
             // The leaf's groups, parents first, by their global ids.
@@ -1505,7 +1517,8 @@ impl VectorBuilder<'_> {
             return Ok((mean, quantise(mean), true));
         }
         if level == self.max_level {
-            let mean = self.sweep_split(here, sq, 0);
+            let (mean, bound) = self.sweep_split(here, sq, 0);
+            self.report.max_mean_error = self.report.max_mean_error.max(bound);
             return Ok((mean, quantise(mean), true));
         }
         self.nodes += 4;
@@ -1675,23 +1688,29 @@ impl VectorBuilder<'_> {
         }
     }
 
-    /// Exact mean colour of a leaf: the trapezoid sweep, run on its
-    /// quadrants instead (recursively, at most [`SWEEP_SPLITS`] deep) while
-    /// it holds more than [`SWEEP_EDGES`] edges. The sweep's cost grows
-    /// with the square of its edges (a dashed stroke packed at a low level
-    /// put 5 000 in one leaf: 4 s); the mean stays exact, the average of
-    /// the quadrants' exact means.
-    fn sweep_split(&mut self, pieces: &Pieces, sq: Square, depth: u8) -> [f64; 4] {
-        let edges: usize = pieces
-            .pieces
-            .iter()
-            .flat_map(|p| &pieces.contours[p.contours.clone()])
-            .map(|r| r.len())
-            .sum();
-        if edges <= SWEEP_EDGES || depth >= SWEEP_SPLITS {
-            return self.sweep(pieces, sq);
+    /// Mean colour of a leaf: the trapezoid sweep, run on its quadrants
+    /// instead (recursively, [`SWEEP_SPLITS`] deep) while it holds more
+    /// than [`SWEEP_EDGES`] edges, and deeper while more than
+    /// [`SWEEP_HUGE`]. The sweep's cost grows with the edges alive at once
+    /// times the heights where they end or cross (a dashed stroke packed
+    /// at a low level put 5 000 in one leaf: 4 s; a fuzzed star of dashed
+    /// spokes 13 000 meeting in one point: minutes); the mean stays exact,
+    /// the average of the quadrants' exact means. Where more than
+    /// [`SWEEP_HUGE`] edges still meet in a square [`SWEEP_FLOOR`] levels
+    /// below the leaf (they converge on a point), that square takes the
+    /// colour at its centre, and its share of the leaf's area (at most
+    /// `4^-SWEEP_FLOOR` each) goes into [`VectorReport::max_mean_error`].
+    /// Returns the mean and that bound.
+    fn sweep_split(&mut self, pieces: &Pieces, sq: Square, depth: u8) -> ([f64; 4], f64) {
+        let edges = edge_count(pieces);
+        if edges <= SWEEP_EDGES || (depth >= SWEEP_SPLITS && edges <= SWEEP_HUGE) {
+            return (self.sweep(pieces, sq), 0.0);
+        }
+        if depth >= SWEEP_FLOOR {
+            return (self.colour_at_centre(pieces, sq), 1.0);
         }
         let mut sum = [0.0; 4];
+        let mut bound = 0.0;
         let mut below = Pieces::default();
         for k in 0..4 {
             let csq = sq.child(k);
@@ -1706,92 +1725,97 @@ impl VectorBuilder<'_> {
                 );
             }
             self.cull(&mut below.pieces);
-            let mean = self.sweep_split(&below, csq, depth + 1);
+            let (mean, b) = self.sweep_split(&below, csq, depth + 1);
             for (s, m) in sum.iter_mut().zip(mean) {
                 *s += m / 4.0;
             }
+            bound += b / 4.0;
         }
-        sum
+        (sum, bound)
+    }
+
+    /// The composite at the centre of `sq` (each piece's winding there).
+    fn colour_at_centre(&mut self, pieces: &Pieces, sq: Square) -> [f64; 4] {
+        let centre = [sq.x0 + 0.5 * sq.side, sq.z0 + 0.5 * sq.side];
+        let covered = &mut self.sweep.covered;
+        covered.clear();
+        for p in &pieces.pieces {
+            let w = p.base
+                + pieces
+                    .contours_of(p)
+                    .map(|c| winding(c, centre))
+                    .sum::<i32>();
+            if self.art.shapes[p.shape as usize].rule.covers(w) {
+                covered.push(p.shape);
+            }
+        }
+        let visible = &mut self.sweep.visible;
+        self.art.visible(covered, visible);
+        let h = 1e-9 * sq.side;
+        let dot = [
+            [centre[0] - h, centre[1] - h],
+            [centre[0] + h, centre[1] - h],
+            [centre[0] + h, centre[1] + h],
+            [centre[0] - h, centre[1] + h],
+        ];
+        if self.art.any_gradient(covered) {
+            self.art.composite_over(visible, covered, &dot).0
+        } else {
+            self.art.composite(visible, 0, covered)
+        }
     }
 
     /// Exact mean colour of a leaf by the trapezoid sweep.
     fn sweep(&mut self, pieces: &Pieces, sq: Square) -> [f64; 4] {
+        self.prepare_sweep(pieces, sq);
+        self.prepared_sweep(pieces, sq)
+    }
+
+    /// Gathers the square's edges and the sweep's heights; returns their
+    /// product, about what the sweep will cost.
+    fn prepare_sweep(&mut self, pieces: &Pieces, sq: Square) -> usize {
+        let SweepScratch { edges, slabs, .. } = &mut self.sweep;
+        edges.clear();
+        for (pi, piece) in pieces.pieces.iter().enumerate() {
+            for c in pieces.contours_of(piece) {
+                for i in 0..c.len() {
+                    edges.extend(SweepEdge::new(c[i], c[(i + 1) % c.len()], pi));
+                }
+            }
+        }
+        slab_heights(edges, sq.z0, sq.z1(), slabs).saturating_mul(edges.len())
+    }
+
+    /// The sweep over what [`VectorBuilder::prepare_sweep`] gathered.
+    fn prepared_sweep(&mut self, pieces: &Pieces, sq: Square) -> [f64; 4] {
         let SweepScratch {
             edges,
-            heights,
+            slabs,
             winding,
             crossings,
             covered,
             visible,
         } = &mut self.sweep;
         let mean_error = &mut self.report.max_mean_error;
-        edges.clear();
-        for (pi, piece) in pieces.pieces.iter().enumerate() {
-            for c in pieces.contours_of(piece) {
-                for i in 0..c.len() {
-                    let (a, b) = (c[i], c[(i + 1) % c.len()]);
-                    if a[1] == b[1] {
-                        continue;
-                    }
-                    let (lo, hi, step) = if a[1] < b[1] { (a, b, -1) } else { (b, a, 1) };
-                    edges.push(Edge {
-                        lo,
-                        hi,
-                        piece: pi,
-                        step,
-                    });
-                }
-            }
-        }
         self.report.swept_leaves += 1;
         self.report.max_leaf_edges = self.report.max_leaf_edges.max(edges.len());
-        heights.clear();
-        heights.extend([sq.z0, sq.z1()]);
-        for e in edges.iter() {
-            heights.push(e.lo[1]);
-            heights.push(e.hi[1]);
-        }
-        for i in 0..edges.len() {
-            for j in i + 1..edges.len() {
-                let (e, f) = (&edges[i], &edges[j]);
-                if e.hi[1] <= f.lo[1] || f.hi[1] <= e.lo[1] {
-                    continue;
-                }
-                if let Some(z) = crossing_height(e.lo, e.hi, f.lo, f.hi) {
-                    heights.push(z);
-                }
-            }
-        }
-        heights.retain(|z| *z >= sq.z0 && *z <= sq.z1());
-        heights.sort_by(f64::total_cmp);
-        heights.dedup();
-        winding.clear();
-        winding.extend(pieces.pieces.iter().map(|p| p.base));
         let mut total = [0.0; 4];
         let art = self.art;
-        for slab in heights.windows(2) {
-            let (z0, z1) = (slab[0], slab[1]);
+        let (x0, x1) = (sq.x0, sq.x1());
+        for_each_prepared_slab(edges, slabs, |z0, z1, edges, active| {
             let h = z1 - z0;
-            if h <= 0.0 {
-                continue;
-            }
             let zm = 0.5 * (z0 + z1);
             crossings.clear();
-            for e in edges.iter() {
-                if e.lo[1] < zm && zm < e.hi[1] {
-                    let x_at = |z: f64| {
-                        let t = (z - e.lo[1]) / (e.hi[1] - e.lo[1]);
-                        (e.lo[0] + t * (e.hi[0] - e.lo[0])).clamp(sq.x0, sq.x1())
-                    };
-                    crossings.push((x_at(zm), e.piece, e.step, x_at(z0), x_at(z1)));
-                }
+            for &k in active {
+                let e = &edges[k];
+                let x_at = |z: f64| e.x_at(z).clamp(x0, x1);
+                crossings.push((x_at(zm), e.piece, e.step, x_at(z0), x_at(z1)));
             }
             crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
-            for (w, p) in winding.iter_mut().zip(&pieces.pieces) {
-                *w = p.base;
-            }
+            winding.clear();
+            winding.extend(pieces.pieces.iter().map(|p| p.base));
             // A boundary of a gap: x at the slab's middle, bottom and top.
-            let mut left = [sq.x0; 3];
+            let mut left = [x0; 3];
             let mut gap =
                 |left: [f64; 3], right: [f64; 3], winding: &[i32], total: &mut [f64; 4]| {
                     let width = right[0] - left[0];
@@ -1824,8 +1848,8 @@ impl VectorBuilder<'_> {
                 winding[piece] += step;
                 left = right;
             }
-            gap(left, [sq.x1(); 3], winding, &mut total);
-        }
+            gap(left, [x1; 3], winding, &mut total);
+        });
         let area = sq.side * sq.side;
         total.map(|t| t / area)
     }
@@ -2077,5 +2101,46 @@ mod tests {
         assert_eq!(report.swept_leaves, 8, "the diagonal crosses 8 leaves");
         let a = t.average().to_array();
         assert!((f64::from(a[3]) - 0.5).abs() < 1e-4, "{a:?}");
+    }
+
+    /// 1600 wedges meeting in the centre of the square: no split separates
+    /// them there, so the squares at the sweep's floor around that point
+    /// take their centre's colour and report their share as the bound.
+    #[test]
+    fn edges_converging_on_a_point_stop_at_the_sweep_floor_with_a_bound() {
+        let (n, r) = (1600, 0.4);
+        let period = std::f64::consts::TAU / f64::from(n);
+        let wedges = (0..n)
+            .map(|i| {
+                let a = f64::from(i) * period;
+                let b = a + 0.5 * period;
+                vec![
+                    [0.5, 0.5],
+                    [0.5 + r * a.cos(), 0.5 + r * a.sin()],
+                    [0.5 + r * b.cos(), 0.5 + r * b.sin()],
+                ]
+            })
+            .collect();
+        let mut art = VectorArt::new();
+        art.fill(wedges, FillRule::NonZero, Rgba::opaque(1.0, 1.0, 1.0), &[])
+            .unwrap();
+        let (t, report) = QuadTree::from_vector(
+            &art,
+            &VectorOptions {
+                max_level: 0,
+                ..VectorOptions::default()
+            },
+        )
+        .unwrap();
+        let exact = f64::from(n) * 0.5 * r * r * (0.5 * period).sin();
+        let a = f64::from(t.average().to_array()[3]);
+        assert!((a - exact).abs() <= 1.0 / 65535.0, "{a} vs {exact}");
+        // Floor squares near the centre only, 4^-20 of the leaf each.
+        let floor = 64.0 * 0.25f64.powi(i32::from(SWEEP_FLOOR));
+        assert!(
+            report.max_mean_error > 0.0 && report.max_mean_error <= floor * (1.0 + 1e-9),
+            "{} against {floor}",
+            report.max_mean_error
+        );
     }
 }

@@ -80,7 +80,8 @@ pub(crate) fn texture_colour(
         }
         Filter::EwaSameMemory { max_anisotropy } => {
             let texture = surface.texture.as_ref();
-            let (Some(Ok(pyramid)), Some(fp)) = (texture.map(|t| t.same_memory_pyramid()), footprint())
+            let (Some(Ok(pyramid)), Some(fp)) =
+                (texture.map(|t| t.same_memory_pyramid()), footprint())
             else {
                 return sampler.nearest_counted(centre, traversal);
             };
