@@ -218,14 +218,8 @@ pub(crate) fn for_each_slab(
 }
 
 /// The first half of [`for_each_slab`]: sorts `edges` and finds the
-/// heights, returning how many there are (the sweep then costs about
-/// that many slabs times the edges alive in each).
-pub(crate) fn slab_heights(
-    edges: &mut [SweepEdge],
-    z_lo: f64,
-    z_hi: f64,
-    scratch: &mut SlabScratch,
-) -> usize {
+/// heights.
+fn slab_heights(edges: &mut [SweepEdge], z_lo: f64, z_hi: f64, scratch: &mut SlabScratch) {
     let SlabScratch { heights, active } = scratch;
     edges.sort_unstable_by(|a, b| a.lo[1].total_cmp(&b.lo[1]));
     heights.clear();
@@ -247,11 +241,10 @@ pub(crate) fn slab_heights(
     heights.retain(|z| *z >= z_lo && *z <= z_hi);
     heights.sort_by(f64::total_cmp);
     heights.dedup();
-    heights.len()
 }
 
 /// The second half of [`for_each_slab`], on what [`slab_heights`] left.
-pub(crate) fn for_each_prepared_slab(
+fn for_each_prepared_slab(
     edges: &[SweepEdge],
     scratch: &mut SlabScratch,
     mut slab: impl FnMut(f64, f64, &[SweepEdge], &[usize]),

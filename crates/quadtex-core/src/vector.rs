@@ -73,8 +73,7 @@ use crate::contour_leaf::{
 };
 pub use crate::geometry::FillRule;
 use crate::geometry::{
-    SlabScratch, SweepEdge, clip_to_rect, for_each_prepared_slab, on_rect_border, signed_area,
-    slab_heights, winding,
+    SlabScratch, SweepEdge, clip_to_rect, for_each_slab, on_rect_border, signed_area, winding,
 };
 use crate::gradient::Gradient;
 use crate::gradient_leaf::{GradientLeaves, LeafPaint};
@@ -1767,27 +1766,6 @@ impl VectorBuilder<'_> {
 
     /// Exact mean colour of a leaf by the trapezoid sweep.
     fn sweep(&mut self, pieces: &Pieces, sq: Square) -> [f64; 4] {
-        self.prepare_sweep(pieces, sq);
-        self.prepared_sweep(pieces, sq)
-    }
-
-    /// Gathers the square's edges and the sweep's heights; returns their
-    /// product, about what the sweep will cost.
-    fn prepare_sweep(&mut self, pieces: &Pieces, sq: Square) -> usize {
-        let SweepScratch { edges, slabs, .. } = &mut self.sweep;
-        edges.clear();
-        for (pi, piece) in pieces.pieces.iter().enumerate() {
-            for c in pieces.contours_of(piece) {
-                for i in 0..c.len() {
-                    edges.extend(SweepEdge::new(c[i], c[(i + 1) % c.len()], pi));
-                }
-            }
-        }
-        slab_heights(edges, sq.z0, sq.z1(), slabs).saturating_mul(edges.len())
-    }
-
-    /// The sweep over what [`VectorBuilder::prepare_sweep`] gathered.
-    fn prepared_sweep(&mut self, pieces: &Pieces, sq: Square) -> [f64; 4] {
         let SweepScratch {
             edges,
             slabs,
@@ -1796,13 +1774,21 @@ impl VectorBuilder<'_> {
             covered,
             visible,
         } = &mut self.sweep;
+        edges.clear();
+        for (pi, piece) in pieces.pieces.iter().enumerate() {
+            for c in pieces.contours_of(piece) {
+                for i in 0..c.len() {
+                    edges.extend(SweepEdge::new(c[i], c[(i + 1) % c.len()], pi));
+                }
+            }
+        }
         let mean_error = &mut self.report.max_mean_error;
         self.report.swept_leaves += 1;
         self.report.max_leaf_edges = self.report.max_leaf_edges.max(edges.len());
         let mut total = [0.0; 4];
         let art = self.art;
         let (x0, x1) = (sq.x0, sq.x1());
-        for_each_prepared_slab(edges, slabs, |z0, z1, edges, active| {
+        for_each_slab(edges, sq.z0, sq.z1(), slabs, |z0, z1, edges, active| {
             let h = z1 - z0;
             let zm = 0.5 * (z0 + z1);
             crossings.clear();
