@@ -15,7 +15,7 @@ use quadtex_eval::report::{
     Figures, Provenance, ReportInfo, csv, file_stem, html_report, markdown_table, plot_svg,
 };
 use quadtex_io::LinearImage;
-use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
+use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene, scene};
 
 use super::output::Text;
 use super::{Result, in_range};
@@ -197,16 +197,15 @@ pub fn texture_bytes(scene: &Scene, filter: Filter) -> u64 {
         .map(|(_, texture)| {
             let t = &texture.tree;
             let full = 4u64.saturating_mul(1u64 << (2 * u32::from(t.depth()).min(31)));
-            let b = quadtex_render::scene::baseline_level(t.depth());
+            let b = scene::baseline_level(t.depth());
             let base = 1u64 << (2 * u32::from(b));
             match filter {
                 Filter::Quadtree { .. } => t.memory_bytes(),
                 Filter::Nearest | Filter::Bilinear | Filter::Supersample(_) => full,
-                Filter::Trilinear | Filter::Ewa { .. } => 4 * base * 4 / 3,
-                Filter::EwaSameMemory { .. } => {
-                    let l = quadtex_render::scene::same_memory_level(t.memory_bytes(), t.depth());
-                    16 * (1u64 << (2 * u32::from(l))) / 3
-                }
+                Filter::Trilinear | Filter::Ewa { .. } => scene::mipmapped_raster_bytes(b),
+                Filter::EwaSameMemory { .. } => scene::mipmapped_raster_bytes(
+                    scene::same_memory_level(t.memory_bytes(), t.depth()),
+                ),
                 Filter::Sat { .. } => 16 * base,
             }
         })

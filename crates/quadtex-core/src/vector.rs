@@ -1478,8 +1478,12 @@ impl VectorBuilder<'_> {
         }
         if let Some(budget) = self.contour_budget
             && self.plain(here)
-            && (edge_count(here) <= budget
-                || (level == self.max_level && edge_count(here) <= budget.max(SWEEP_EDGES)))
+            && edge_count(here)
+                <= if level == self.max_level {
+                    budget.max(SWEEP_EDGES)
+                } else {
+                    budget
+                }
         {
             let mean = self.sweep(here, sq);
             // The leaf's groups, parents first, by their global ids.

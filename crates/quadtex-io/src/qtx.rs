@@ -297,11 +297,8 @@ fn decode_contour_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<Contou
     let short = |what: &str| bad(format!("ends inside {what}"));
     let (mut r, depth, tolerance) = open_section(bytes, 4, &bad)?;
     let tolerance = f32::from_le_bytes([tolerance[0], tolerance[1], tolerance[2], tolerance[3]]);
-    let curve_tolerance = match tolerance {
-        0.0 => None,
-        t if t.is_finite() && t > 0.0 && t <= 1.0 => Some(f64::from(t)),
-        t => return Err(bad(format!("curve tolerance {t} is not in (0, 1]"))),
-    };
+    // Checked with the leaves (ContourLeaves::with_curve_tolerance).
+    let curve_tolerance = (tolerance != 0.0).then(|| f64::from(tolerance));
     let mut counts = [0u64; 5];
     for c in &mut counts {
         *c = r.u64().ok_or_else(|| short("the counts"))?;

@@ -126,15 +126,7 @@ pub fn pack_svg_with_options(
     options: &VectorOptions,
     limits: &Limits,
 ) -> Result<(QuadTree, VectorReport), Error> {
-    if options.max_level > quadtex_core::vector::MAX_VECTOR_LEVEL {
-        return Err(Error::Core {
-            path: path.to_path_buf(),
-            source: quadtex_core::Error::DepthTooLarge {
-                depth: options.max_level.into(),
-                max: quadtex_core::vector::MAX_VECTOR_LEVEL.into(),
-            },
-        });
-    }
+    check_level(options.max_level, path)?;
     let art = load_svg_flattened(path, options.curve_tolerance_or_default(), limits)?;
     let max_bytes = options
         .max_bytes

@@ -605,8 +605,14 @@ pub fn baseline_level(depth: u8) -> u8 {
 pub fn same_memory_level(bytes: u64, depth: u8) -> u8 {
     (0..=baseline_level(depth))
         .rev()
-        .find(|&l| 16 * (1u64 << (2 * u32::from(l))) / 3 <= bytes)
+        .find(|&l| mipmapped_raster_bytes(l) <= bytes)
         .unwrap_or(0)
+}
+
+/// Bytes of an RGBA8 raster `2^level` texels a side with its mips, as a
+/// GPU stores it: 16/3 bytes a texel.
+pub fn mipmapped_raster_bytes(level: u8) -> u64 {
+    16 * (1u64 << (2 * u32::from(level.min(30)))) / 3
 }
 
 /// Bytes the raster baselines of one texture take at `level`: the raster
