@@ -757,3 +757,47 @@ fn pack_tiles_builds_the_tree_of_the_whole_mosaic() {
     assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Art whose exact sweep would take seconds (a fuzzed star whose dashes pile
+/// on its centre) is refused under `--max-sweep-work`, naming the limit,
+/// and leaves no file behind; under the default it packs and the summary
+/// states the steps.
+#[test]
+fn svg_sweep_work_has_a_stated_limit() {
+    let dir = common::temp_dir("svg-sweep-work");
+    let slow = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/slow/dashed-star-15s.svg");
+    let qtx = dir.join("star.qtx");
+    let out = run(
+        &[
+            "pack",
+            slow.to_str().unwrap(),
+            "--max-level",
+            "4",
+            "--max-sweep-work",
+            "1000000",
+            "-o",
+            qtx.to_str().unwrap(),
+        ],
+        "",
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.starts_with("Error: ")
+            && stderr.contains("dashed-star-15s.svg")
+            && stderr.contains("above the limit of 1000000 (max sweep work)"),
+        "{stderr}"
+    );
+    assert!(!qtx.exists());
+    let star = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/star.svg");
+    let out = run(
+        &["pack", star.to_str().unwrap(), "-o", qtx.to_str().unwrap()],
+        "",
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains(" sweep steps)"),
+        "{stdout}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -94,6 +94,10 @@ fn encoded(c: [f32; 4]) -> [f64; 4] {
     [e(c[0]), e(c[1]), e(c[2]), f64::from(a) * 255.0]
 }
 
+/// The most sweep steps one file's packing took, and the file.
+static MOST_SWEEP_WORK: std::sync::Mutex<(u64, Option<PathBuf>)> =
+    std::sync::Mutex::new((0, None));
+
 fn check(svg: &Path) -> Outcome {
     let data = std::fs::read(svg).unwrap();
     let art = match parse_svg(&data, svg, LEVEL, &Limits::default()) {
@@ -114,8 +118,13 @@ fn check(svg: &Path) -> Outcome {
         tolerance: SMOOTH_TOLERANCE,
         ..VectorOptions::default()
     };
-    let (tree, _) = QuadTree::from_vector(&art, &options)
+    let (tree, packed) = QuadTree::from_vector(&art, &options)
         .unwrap_or_else(|e| panic!("{}: packing failed: {e}", svg.display()));
+    let mut most = MOST_SWEEP_WORK.lock().unwrap();
+    if packed.sweep_work > most.0 {
+        *most = (packed.sweep_work, Some(svg.to_path_buf()));
+    }
+    drop(most);
     let reference = load_linear_image(&svg.with_extension("png")).unwrap();
     let (w, h) = (reference.width, reference.height);
     let side = f64::from(w.max(h));
@@ -285,6 +294,20 @@ fn resvg_suite_packs_without_panics_and_matches() {
             report.push('\n');
         }
     }
+    // Real art packs far inside the default sweep budget, which is there
+    // for pathological art (fuzzed dashes piled on a point).
+    let (most, file) = MOST_SWEEP_WORK.lock().unwrap().clone();
+    let file = file.unwrap_or_default();
+    report.push_str(&format!(
+        "Most sweep steps in one file: {most} (`{}`), against the default limit of {}\n\n",
+        file.strip_prefix(&root).unwrap_or(&file).display(),
+        quadtex_core::vector::DEFAULT_MAX_SWEEP_WORK
+    ));
+    assert!(
+        most <= quadtex_core::vector::DEFAULT_MAX_SWEEP_WORK / 16,
+        "{}: {most} sweep steps, near the default limit",
+        file.display()
+    );
     eprintln!("{report}");
     if let Ok(path) = std::env::var("QUADTEX_SUITE_REPORT") {
         report.push_str("| file | outcome |\n|---|---|\n");

@@ -1,7 +1,7 @@
 //! Any bytes as an SVG file, packed at level 4 under tight limits (deeper
 //! levels only repeat the same code per square, and cost the fuzzer
-//! executions; queries still reach level 30): an
-//! error naming the problem, or a valid tree. Never a panic.
+//! executions; queries still reach level 30; the sweep's budget is small):
+//! an error naming the problem, or a valid tree. Never a panic.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 use quadtex_core::{QuadTree, VectorOptions};
@@ -16,7 +16,17 @@ fuzz_target!(|data: &[u8]| {
     // below hold at any tolerance), so more inputs run per second.
     // Every other input also keeps contour leaves (budget 3 to 18 edges).
     let contour_leaves = (data.len() % 2 == 1).then(|| 3 + data.len() % 16);
-    let options = VectorOptions { max_level: level, max_nodes: limits.max_nodes, tolerance: 1.0 / 64.0, contour_leaves, ..VectorOptions::default() };
+    // A sweep budget of 2^20 steps (tens of milliseconds): art beyond it
+    // (dashes piled on a point) is refused with `Error::SweepWork`, a clear
+    // error, instead of taking the fuzzer's time.
+    let options = VectorOptions {
+        max_level: level,
+        max_nodes: limits.max_nodes,
+        tolerance: 1.0 / 64.0,
+        contour_leaves,
+        max_sweep_work: 1 << 20,
+        ..VectorOptions::default()
+    };
     if let Ok((tree, _)) = QuadTree::from_vector(&art, &options) {
         let c = tree.average().to_array();
         assert!(c.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= 1.0), "{c:?}");

@@ -57,6 +57,13 @@ pub struct Args {
     /// with contour leaves.
     #[arg(long, value_name = "T", value_parser = curve_tolerance)]
     curve_tolerance: Option<f64>,
+    /// SVG art: refuse art whose exact trapezoid sweep needs more than
+    /// STEPS steps in all (pairs of edges tested for a crossing, plus each
+    /// edge in each slab between crossings), instead of packing it for
+    /// minutes; the summary states the steps used. Default 2^31, about a
+    /// minute.
+    #[arg(long, value_name = "STEPS", value_parser = clap::value_parser!(u64).range(1..))]
+    max_sweep_work: Option<u64>,
     #[command(flatten)]
     memory: MemoryArgs,
 }
@@ -89,6 +96,7 @@ pub fn run(args: Args) -> Result<()> {
         no_gradient_leaves,
         contour_leaves,
         curve_tolerance,
+        max_sweep_work,
         memory,
     } = args;
     let limits = memory.limits();
@@ -112,6 +120,7 @@ pub fn run(args: Args) -> Result<()> {
             gradient_leaves: !no_gradient_leaves,
             contour_leaves: contour_leaves.map(usize::from),
             curve_tolerance,
+            max_sweep_work: max_sweep_work.unwrap_or(quadtex_core::vector::DEFAULT_MAX_SWEEP_WORK),
             ..quadtex_core::VectorOptions::default()
         };
         return pack_svg(&input, &output, &svg, &limits);
@@ -184,7 +193,7 @@ fn pack_svg(
     let mut text = output.text();
     writeln!(
         text,
-        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept (at most {} edges in one){}; {:.2} s",
+        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept (at most {} edges in one, {} sweep steps){}; {:.2} s",
         input.display(),
         output,
         tree.node_count(),
@@ -195,6 +204,7 @@ fn pack_svg(
         mips as f64 / bytes as f64,
         report.swept_leaves,
         report.max_leaf_edges,
+        report.sweep_work,
         smooth_summary(&report),
         start.elapsed().as_secs_f64()
     )?;

@@ -761,7 +761,9 @@ impl Clipped {
             }
         }
         let mut total = [0.0; 4];
-        for_each_slab(edges, z0, z1, slabs, |za, zb, edges, active| {
+        // A leaf holds at most its budget of edges (256 at the max level):
+        // its sweep is bounded, so it is never refused.
+        let _ = for_each_slab(edges, z0, z1, slabs, u64::MAX, |za, zb, edges, active| {
             let h = zb - za;
             let zm = 0.5 * (za + zb);
             crossings.clear();

@@ -55,6 +55,16 @@ pub enum Error {
     },
     /// A tolerance that is negative or not finite.
     BadTolerance(f64),
+    /// Vector art whose exact trapezoid sweep needs more steps than
+    /// [`crate::VectorOptions::max_sweep_work`] allows (edges crossing
+    /// each other at thousands of heights in one square).
+    SweepWork {
+        /// Steps the packing had reached when the sweep of one more square
+        /// would have passed the budget (at least this many are needed).
+        needed: u64,
+        /// The budget.
+        max: u64,
+    },
     /// The node arrays given to [`crate::QuadTree::from_parts`] do not describe a
     /// quadtree; the message says which invariant fails.
     MalformedTree(String),
@@ -160,6 +170,12 @@ impl fmt::Display for Error {
             Error::BadTolerance(t) => {
                 write!(f, "tolerance must be finite and >= 0, got {t}")
             }
+            Error::SweepWork { needed, max } => write!(
+                f,
+                "vector art too complex to pack exactly: its edges cross at so many heights that the \
+                 trapezoid sweep needs more than {needed} steps, above the limit of {max} \
+                 (max sweep work); simplify the art (dashes or strokes piled on one point) or raise the limit"
+            ),
             Error::MalformedTree(why) => write!(f, "malformed quadtree: {why}"),
             Error::BadVector(why) => write!(f, "bad vector art: {why}"),
             Error::BadPolygon(why) => write!(f, "bad polygon: {why}"),

@@ -192,6 +192,7 @@ impl SweepEdge {
 pub(crate) struct SlabScratch {
     heights: Vec<f64>,
     active: Vec<usize>,
+    tops: Vec<f64>,
 }
 
 /// The trapezoid sweep's slabs: sorts `edges` by their lower end, finds
@@ -206,30 +207,47 @@ pub(crate) struct SlabScratch {
 /// Bentley–Ottmann without its ordering): the cost follows the edges alive
 /// at once, not the square of all edges, so a square crossed by a long run
 /// of short edges (a dashed stroke) sweeps in near-linear time.
+///
+/// The sweep's **work** is the pairs of edges tested for a crossing plus,
+/// over the slabs, the edges spanning each (what `slab` is handed). It is
+/// counted before any slab is swept: above `max_work`, no slab is and
+/// `Err(work)` is returned; otherwise `Ok(work)`. Edges crossing at
+/// thousands of heights (dashes piled on a point) make it grow as the
+/// square of the edges times their count.
 pub(crate) fn for_each_slab(
     edges: &mut [SweepEdge],
     z_lo: f64,
     z_hi: f64,
     scratch: &mut SlabScratch,
+    max_work: u64,
     slab: impl FnMut(f64, f64, &[SweepEdge], &[usize]),
-) {
-    slab_heights(edges, z_lo, z_hi, scratch);
+) -> Result<u64, u64> {
+    let pairs = slab_heights(edges, z_lo, z_hi, scratch);
+    let work = pairs.saturating_add(slab_work(edges, scratch));
+    if work > max_work {
+        return Err(work);
+    }
     for_each_prepared_slab(edges, scratch, slab);
+    Ok(work)
 }
 
 /// The first half of [`for_each_slab`]: sorts `edges` and finds the
-/// heights.
-fn slab_heights(edges: &mut [SweepEdge], z_lo: f64, z_hi: f64, scratch: &mut SlabScratch) {
-    let SlabScratch { heights, active } = scratch;
+/// heights; returns the pairs of edges tested for a crossing.
+fn slab_heights(edges: &mut [SweepEdge], z_lo: f64, z_hi: f64, scratch: &mut SlabScratch) -> u64 {
+    let SlabScratch {
+        heights, active, ..
+    } = scratch;
     edges.sort_unstable_by(|a, b| a.lo[1].total_cmp(&b.lo[1]));
     heights.clear();
     heights.extend([z_lo, z_hi]);
     active.clear();
+    let mut pairs = 0u64;
     for (i, e) in edges.iter().enumerate() {
         heights.push(e.lo[1]);
         heights.push(e.hi[1]);
         // Edges that ended at or below this one's start cannot cross it.
         active.retain(|&k| edges[k].hi[1] > e.lo[1]);
+        pairs += active.len() as u64;
         for &k in active.iter() {
             let f = &edges[k];
             if let Some(z) = crossing_height(f.lo, f.hi, e.lo, e.hi) {
@@ -241,6 +259,32 @@ fn slab_heights(edges: &mut [SweepEdge], z_lo: f64, z_hi: f64, scratch: &mut Sla
     heights.retain(|z| *z >= z_lo && *z <= z_hi);
     heights.sort_by(f64::total_cmp);
     heights.dedup();
+    pairs
+}
+
+/// Over the slabs [`slab_heights`] left, the edges spanning each: those
+/// starting below the slab's middle less those ending there or below
+/// (edges are sorted by their lower ends, their tops are sorted here).
+fn slab_work(edges: &[SweepEdge], scratch: &mut SlabScratch) -> u64 {
+    let SlabScratch { heights, tops, .. } = scratch;
+    tops.clear();
+    tops.extend(edges.iter().map(|e| e.hi[1]));
+    tops.sort_unstable_by(f64::total_cmp);
+    let (mut started, mut ended, mut work) = (0usize, 0usize, 0u64);
+    for w in heights.windows(2) {
+        if w[1] - w[0] <= 0.0 {
+            continue;
+        }
+        let zm = 0.5 * (w[0] + w[1]);
+        while started < edges.len() && edges[started].lo[1] < zm {
+            started += 1;
+        }
+        while ended < tops.len() && tops[ended] <= zm {
+            ended += 1;
+        }
+        work += started.saturating_sub(ended) as u64;
+    }
+    work
 }
 
 /// The second half of [`for_each_slab`], on what [`slab_heights`] left.
@@ -249,7 +293,9 @@ fn for_each_prepared_slab(
     scratch: &mut SlabScratch,
     mut slab: impl FnMut(f64, f64, &[SweepEdge], &[usize]),
 ) {
-    let SlabScratch { heights, active } = scratch;
+    let SlabScratch {
+        heights, active, ..
+    } = scratch;
     active.clear();
     let mut next = 0;
     for w in heights.windows(2) {
@@ -264,5 +310,62 @@ fn for_each_prepared_slab(
         }
         active.retain(|&k| edges[k].hi[1] > zm);
         slab(z0, z1, edges, active);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{SlabScratch, SweepEdge, for_each_slab};
+
+    #[test]
+    fn the_counted_work_is_the_pairs_tested_plus_the_edges_each_slab_is_handed() {
+        // A deterministic scatter of edges, some crossing, some stacked.
+        let mut seed = 12345u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for n in [0, 1, 2, 7, 40, 200] {
+            let mut edges: Vec<SweepEdge> = (0..n)
+                .filter_map(|i| SweepEdge::new([next(), next()], [next(), next()], i))
+                .collect();
+            let mut handed = 0u64;
+            let mut scratch = SlabScratch::default();
+            let work = for_each_slab(
+                &mut edges,
+                0.0,
+                1.0,
+                &mut scratch,
+                u64::MAX,
+                |_, _, _, a| {
+                    handed += a.len() as u64;
+                },
+            )
+            .unwrap();
+            // Pairs whose heights overlap, counted the obvious way.
+            let mut pairs = 0u64;
+            for (i, e) in edges.iter().enumerate() {
+                pairs += edges[..i].iter().filter(|f| f.hi[1] > e.lo[1]).count() as u64;
+            }
+            assert_eq!(work, pairs + handed, "{n} edges");
+            // A budget one short refuses without sweeping.
+            if work > 0 {
+                let mut called = false;
+                let refused = for_each_slab(
+                    &mut edges,
+                    0.0,
+                    1.0,
+                    &mut scratch,
+                    work - 1,
+                    |_, _, _, _| {
+                        called = true;
+                    },
+                );
+                assert_eq!(refused, Err(work));
+                assert!(!called);
+            }
+        }
     }
 }

@@ -64,6 +64,19 @@
 //! translucent overlaps differ from a browser's rendering (opaque art does
 //! not). A translucent group is composited in isolation and then faded by
 //! its opacity, as SVG specifies.
+//!
+//! ## Limits
+//!
+//! Besides nodes ([`VectorOptions::max_nodes`]) and memory
+//! ([`VectorOptions::max_bytes`]), the trapezoid sweep's **work** is
+//! budgeted ([`VectorOptions::max_sweep_work`]): per swept square, the
+//! pairs of edges tested for a crossing plus, over its slabs, the edges
+//! spanning each. It grows with the edges alive at once times the heights
+//! where they end or cross, so a few kilobytes of SVG whose dashes pile
+//! on one point can need billions of steps (minutes). The packer counts a
+//! square's steps before sweeping it and refuses with [`Error::SweepWork`]
+//! when the total would pass the budget; [`VectorReport::sweep_work`] is
+//! what a packing used.
 
 use crate::Error;
 use crate::blend::{BlendMode, blend, blend_range};
@@ -1109,7 +1122,21 @@ pub struct VectorOptions {
     /// 1); the packer itself takes art already flattened. `None`: see
     /// [`VectorOptions::curve_tolerance_or_default`].
     pub curve_tolerance: Option<f64>,
+    /// Budget of the exact trapezoid sweep over the whole packing, in its
+    /// steps (pairs of edges tested for a crossing, plus each edge handed
+    /// to each slab: see the module's *Limits*). Art that needs more is
+    /// refused with [`Error::SweepWork`] before the square that would pass
+    /// it is swept, instead of packing for minutes. The default,
+    /// [`DEFAULT_MAX_SWEEP_WORK`], is about a minute on one core.
+    pub max_sweep_work: u64,
 }
+
+/// The default [`VectorOptions::max_sweep_work`]: 2³¹ steps, about 70 s
+/// of one core where steps are dearest (measured: a fuzzed dashed star,
+/// 3.9 × 10⁸ steps in 13 s). The resvg test suite needs at most
+/// 6.6 × 10⁷ in one file (a pattern of strokes), 1/32 of it (its test
+/// checks the margin).
+pub const DEFAULT_MAX_SWEEP_WORK: u64 = 1 << 31;
 
 /// Max level of trees with contour leaves when none is given (callers
 /// that pick a level for SVG art use it): squares split only while they
@@ -1154,6 +1181,7 @@ impl Default for VectorOptions {
             gradient_leaves: true,
             contour_leaves: None,
             curve_tolerance: None,
+            max_sweep_work: DEFAULT_MAX_SWEEP_WORK,
         }
     }
 }
@@ -1165,6 +1193,9 @@ pub struct VectorReport {
     pub swept_leaves: u64,
     /// Most edges inside one swept leaf.
     pub max_leaf_edges: usize,
+    /// Steps of the trapezoid sweep, counted against
+    /// [`VectorOptions::max_sweep_work`].
+    pub sweep_work: u64,
     /// Largest deviation (per channel, sRGB-encoded, bounded as for
     /// [`VectorOptions::tolerance`]) between a point of a terminal square
     /// painted by gradients and the square's one colour. At most the
@@ -1281,6 +1312,8 @@ struct VectorBuilder<'a> {
     work: Vec<Pieces>,
     /// Scratch of the trapezoid sweep.
     sweep: SweepScratch,
+    /// The sweep's steps so far, and [`VectorOptions::max_sweep_work`].
+    sweep_work: (u64, u64),
 }
 
 /// Buffers of [`VectorBuilder::sweep`], kept between leaves.
@@ -1293,6 +1326,47 @@ struct SweepScratch {
     crossings: Vec<(f64, usize, i32, f64, f64)>,
     covered: Vec<u32>,
     visible: Vec<u32>,
+    memo: FlatColours,
+}
+
+/// The flat colours of the last few covered sets a sweep met: gaps
+/// between a dashed stroke's dashes alternate between two sets, and
+/// compositing is the sweep's dearest step after sorting.
+#[derive(Debug, Default)]
+struct FlatColours {
+    /// Each set's shapes, one after the other.
+    shapes: Vec<u32>,
+    /// Each set's end in `shapes`, and its colour.
+    sets: Vec<(usize, [f64; 4])>,
+}
+
+impl FlatColours {
+    /// Sets kept; one past them starts the memo afresh.
+    const SETS: usize = 8;
+
+    fn clear(&mut self) {
+        self.shapes.clear();
+        self.sets.clear();
+    }
+
+    fn get(&self, covered: &[u32]) -> Option<[f64; 4]> {
+        let mut start = 0;
+        for &(end, colour) in &self.sets {
+            if self.shapes[start..end] == *covered {
+                return Some(colour);
+            }
+            start = end;
+        }
+        None
+    }
+
+    fn put(&mut self, covered: &[u32], colour: [f64; 4]) {
+        if self.sets.len() == Self::SETS {
+            self.clear();
+        }
+        self.shapes.extend_from_slice(covered);
+        self.sets.push((self.shapes.len(), colour));
+    }
 }
 
 impl QuadTree {
@@ -1339,6 +1413,7 @@ impl QuadTree {
             scratch: [Vec::new(), Vec::new()],
             work: (0..=options.max_level).map(|_| Pieces::default()).collect(),
             sweep: SweepScratch::default(),
+            sweep_work: (0, options.max_sweep_work),
         };
         let root = Square {
             x0: 0.0,
@@ -1485,7 +1560,7 @@ impl VectorBuilder<'_> {
                     budget
                 }
         {
-            let mean = self.sweep(here, sq);
+            let mean = self.sweep(here, sq)?;
             // The leaf's groups, parents first, by their global ids.
             let mut local: Vec<(u32, LeafGroup)> = Vec::new();
             let pieces = here
@@ -1520,7 +1595,7 @@ impl VectorBuilder<'_> {
             return Ok((mean, quantise(mean), true));
         }
         if level == self.max_level {
-            let (mean, bound) = self.sweep_split(here, sq, 0);
+            let (mean, bound) = self.sweep_split(here, sq, 0)?;
             self.report.max_mean_error = self.report.max_mean_error.max(bound);
             return Ok((mean, quantise(mean), true));
         }
@@ -1704,13 +1779,18 @@ impl VectorBuilder<'_> {
     /// colour at its centre, and its share of the leaf's area (at most
     /// `4^-SWEEP_FLOOR` each) goes into [`VectorReport::max_mean_error`].
     /// Returns the mean and that bound.
-    fn sweep_split(&mut self, pieces: &Pieces, sq: Square, depth: u8) -> ([f64; 4], f64) {
+    fn sweep_split(
+        &mut self,
+        pieces: &Pieces,
+        sq: Square,
+        depth: u8,
+    ) -> Result<([f64; 4], f64), Error> {
         let edges = edge_count(pieces);
         if edges <= SWEEP_EDGES || (depth >= SWEEP_SPLITS && edges <= SWEEP_HUGE) {
-            return (self.sweep(pieces, sq), 0.0);
+            return Ok((self.sweep(pieces, sq)?, 0.0));
         }
         if depth >= SWEEP_FLOOR {
-            return (self.colour_at_centre(pieces, sq), 1.0);
+            return Ok((self.colour_at_centre(pieces, sq), 1.0));
         }
         let mut sum = [0.0; 4];
         let mut bound = 0.0;
@@ -1728,13 +1808,13 @@ impl VectorBuilder<'_> {
                 );
             }
             self.cull(&mut below.pieces);
-            let (mean, b) = self.sweep_split(&below, csq, depth + 1);
+            let (mean, b) = self.sweep_split(&below, csq, depth + 1)?;
             for (s, m) in sum.iter_mut().zip(mean) {
                 *s += m / 4.0;
             }
             bound += b / 4.0;
         }
-        (sum, bound)
+        Ok((sum, bound))
     }
 
     /// The composite at the centre of `sq` (each piece's winding there).
@@ -1768,8 +1848,9 @@ impl VectorBuilder<'_> {
         }
     }
 
-    /// Exact mean colour of a leaf by the trapezoid sweep.
-    fn sweep(&mut self, pieces: &Pieces, sq: Square) -> [f64; 4] {
+    /// Exact mean colour of a leaf by the trapezoid sweep, or
+    /// [`Error::SweepWork`] when it would pass the packing's budget.
+    fn sweep(&mut self, pieces: &Pieces, sq: Square) -> Result<[f64; 4], Error> {
         let SweepScratch {
             edges,
             slabs,
@@ -1777,7 +1858,9 @@ impl VectorBuilder<'_> {
             crossings,
             covered,
             visible,
+            memo,
         } = &mut self.sweep;
+        memo.clear();
         edges.clear();
         for (pi, piece) in pieces.pieces.iter().enumerate() {
             for c in pieces.contours_of(piece) {
@@ -1792,7 +1875,8 @@ impl VectorBuilder<'_> {
         let mut total = [0.0; 4];
         let art = self.art;
         let (x0, x1) = (sq.x0, sq.x1());
-        for_each_slab(edges, sq.z0, sq.z1(), slabs, |z0, z1, edges, active| {
+        let (done, max) = self.sweep_work;
+        let slab = |z0: f64, z1: f64, edges: &[SweepEdge], active: &[usize]| {
             let h = z1 - z0;
             let zm = 0.5 * (z0 + z1);
             crossings.clear();
@@ -1801,47 +1885,85 @@ impl VectorBuilder<'_> {
                 let x_at = |z: f64| e.x_at(z).clamp(x0, x1);
                 crossings.push((x_at(zm), e.piece, e.step, x_at(z0), x_at(z1)));
             }
+            // Stable: consecutive slabs' orders differ little, and runs sort fast.
             crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
             winding.clear();
             winding.extend(pieces.pieces.iter().map(|p| p.base));
+            // The colour of flat art between crossings changes only where
+            // a piece's coverage does: kept until then.
+            let mut flat: Option<[f64; 4]> = None;
             // A boundary of a gap: x at the slab's middle, bottom and top.
             let mut left = [x0; 3];
-            let mut gap =
-                |left: [f64; 3], right: [f64; 3], winding: &[i32], total: &mut [f64; 4]| {
-                    let width = right[0] - left[0];
-                    if width <= 0.0 {
-                        return;
-                    }
-                    covered.clear();
-                    for (p, w) in pieces.pieces.iter().zip(winding) {
-                        if art.shapes[p.shape as usize].rule.covers(*w) {
-                            covered.push(p.shape);
+            let mut gap = |left: [f64; 3],
+                           right: [f64; 3],
+                           winding: &[i32],
+                           flat: &mut Option<[f64; 4]>,
+                           total: &mut [f64; 4]| {
+                let width = right[0] - left[0];
+                if width <= 0.0 {
+                    return;
+                }
+                let c = match *flat {
+                    Some(c) => c,
+                    None => {
+                        covered.clear();
+                        for (p, w) in pieces.pieces.iter().zip(winding) {
+                            if art.shapes[p.shape as usize].rule.covers(*w) {
+                                covered.push(p.shape);
+                            }
+                        }
+                        if let Some(c) = memo.get(covered) {
+                            *flat = Some(c);
+                            c
+                        } else {
+                            art.visible(covered, visible);
+                            if art.any_gradient(covered) {
+                                let trapezoid =
+                                    [[left[1], z0], [right[1], z0], [right[2], z1], [left[2], z1]];
+                                let (mean, error) =
+                                    art.composite_over(visible, covered, &trapezoid);
+                                *mean_error = mean_error.max(error);
+                                mean
+                            } else {
+                                let c = art.composite(visible, 0, covered);
+                                memo.put(covered, c);
+                                *flat = Some(c);
+                                c
+                            }
                         }
                     }
-                    art.visible(covered, visible);
-                    let c = if art.any_gradient(covered) {
-                        let trapezoid =
-                            [[left[1], z0], [right[1], z0], [right[2], z1], [left[2], z1]];
-                        let (mean, error) = art.composite_over(visible, covered, &trapezoid);
-                        *mean_error = mean_error.max(error);
-                        mean
-                    } else {
-                        art.composite(visible, 0, covered)
-                    };
-                    for (t, v) in total.iter_mut().zip(c) {
-                        *t += v * width * h;
-                    }
                 };
+                for (t, v) in total.iter_mut().zip(c) {
+                    *t += v * width * h;
+                }
+            };
             for &(x, piece, step, x_lo, x_hi) in crossings.iter() {
                 let right = [x, x_lo, x_hi];
-                gap(left, right, winding, &mut total);
+                gap(left, right, winding, &mut flat, &mut total);
+                let rule = art.shapes[pieces.pieces[piece].shape as usize].rule;
+                let before = rule.covers(winding[piece]);
                 winding[piece] += step;
+                if rule.covers(winding[piece]) != before {
+                    flat = None;
+                }
                 left = right;
             }
-            gap(left, [x1; 3], winding, &mut total);
-        });
+            gap(left, [x1; 3], winding, &mut flat, &mut total);
+        };
+        match for_each_slab(edges, sq.z0, sq.z1(), slabs, max.saturating_sub(done), slab) {
+            Ok(work) => {
+                self.sweep_work.0 = done + work;
+                self.report.sweep_work = done + work;
+            }
+            Err(work) => {
+                return Err(Error::SweepWork {
+                    needed: done.saturating_add(work),
+                    max,
+                });
+            }
+        }
         let area = sq.side * sq.side;
-        total.map(|t| t / area)
+        Ok(total.map(|t| t / area))
     }
 }
 
@@ -2132,5 +2254,50 @@ mod tests {
             "{} against {floor}",
             report.max_mean_error
         );
+    }
+
+    #[test]
+    fn sweep_work_is_counted_and_its_budget_refuses_art_beyond_it() {
+        // Thin slanted bars crossing each other in one leaf: a sweep with
+        // many crossings.
+        let bars = (0..40)
+            .map(|i| {
+                let x = 0.1 + 0.02 * f64::from(i);
+                let lean = if i % 2 == 0 { 0.3 } else { -0.3 };
+                vec![
+                    [x, 0.1],
+                    [x + 0.01, 0.1],
+                    [x + 0.01 + lean, 0.9],
+                    [x + lean, 0.9],
+                ]
+            })
+            .collect();
+        let mut art = VectorArt::new();
+        art.fill(bars, FillRule::NonZero, Rgba::opaque(0.2, 0.6, 1.0), &[])
+            .unwrap();
+        let options = |max_sweep_work| VectorOptions {
+            max_level: 1,
+            max_sweep_work,
+            ..VectorOptions::default()
+        };
+        let (tree, report) = QuadTree::from_vector(&art, &options(u64::MAX)).unwrap();
+        let needed = report.sweep_work;
+        assert!(needed > 1000, "{needed}");
+        let (same, again) = QuadTree::from_vector(&art, &options(needed)).unwrap();
+        assert_eq!(again.sweep_work, needed);
+        assert_eq!(same.average(), tree.average());
+        match QuadTree::from_vector(&art, &options(needed - 1)) {
+            Err(
+                e @ Error::SweepWork {
+                    needed: at_least,
+                    max,
+                },
+            ) => {
+                assert_eq!(max, needed - 1);
+                assert!(at_least > max && at_least <= needed, "{at_least}");
+                assert!(e.to_string().contains("max sweep work"), "{e}");
+            }
+            other => panic!("{other:?}"),
+        }
     }
 }
