@@ -95,8 +95,7 @@ fn encoded(c: [f32; 4]) -> [f64; 4] {
 }
 
 /// The most sweep steps one file's packing took, and the file.
-static MOST_SWEEP_WORK: std::sync::Mutex<(u64, Option<PathBuf>)> =
-    std::sync::Mutex::new((0, None));
+static MOST_SWEEP_WORK: std::sync::Mutex<(u64, Option<PathBuf>)> = std::sync::Mutex::new((0, None));
 
 fn check(svg: &Path) -> Outcome {
     let data = std::fs::read(svg).unwrap();

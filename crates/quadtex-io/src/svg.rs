@@ -431,11 +431,24 @@ fn resolve_image(
     }
     if raster {
         // usvg skips an image whose size it cannot read, without a word.
-        image::ImageReader::new(std::io::Cursor::new(data.as_slice()))
+        let (w, h) = image::ImageReader::new(std::io::Cursor::new(data.as_slice()))
             .with_guessed_format()
             .map_err(|e| svg_err(format!("image: {e}")))?
             .into_dimensions()
             .map_err(|e| svg_err(format!("image: {e}")))?;
+        // And usvg 0.49 panics placing an image whose header claims a
+        // side in the billions (the placed rectangle overflows f32), so
+        // the side limit is checked before usvg sees it.
+        for v in [w, h] {
+            if v > limits.max_dimension {
+                return Err(Error::Limit {
+                    path: path.into(),
+                    limit: "max_dimension",
+                    value: v.into(),
+                    max: limits.max_dimension.into(),
+                });
+            }
+        }
     }
     match usvg::ImageHrefResolver::default_data_resolver()(mime, data, opts) {
         Some(kind) => Ok(Some(kind)),
@@ -1399,5 +1412,15 @@ mod tests {
             r#"<image width="10" height="10" href="data:image/png;base64,iVBORw0KGgoAAAA"/>"#,
         );
         assert!(e.contains("t.svg"), "{e}");
+        // Found by the SVG fuzz target: a PNG header claiming 8 × 2³¹ + 2
+        // texels (its CRC right), placed by a malformed `preserveAspectRatio`,
+        // made usvg 0.49 panic.
+        let e = parse(
+            r#"<image x="0" y="1" width="18" height="18" preserveAspectRatio="xMidYMx2 slice" href="data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAiAAAACCAIAAACMowr1AAAAC0lEQVR4nGNggAEAAAoAAX+AdF4AAAAASUVORK5CYII="/>"#,
+        );
+        assert!(
+            e.contains("t.svg") && e.contains("max_dimension") && e.contains("2147483650"),
+            "{e}"
+        );
     }
 }
