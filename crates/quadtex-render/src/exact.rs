@@ -49,7 +49,7 @@ pub(crate) fn seen_id(surface: usize, triangle: u32) -> Seen {
 }
 
 /// The surface and triangle of a (non-sky) id from [`seen_id`].
-fn surface_and_triangle(id: Seen) -> (usize, u32) {
+pub(crate) fn surface_and_triangle(id: Seen) -> (usize, u32) {
     (((id >> 32) as usize).wrapping_sub(1), id as u32)
 }
 

@@ -12,7 +12,7 @@
 
 use quadtex_core::Rgba;
 
-use crate::exact::{Seen, SurfaceViews, exact_pixel};
+use crate::exact::{Seen, SurfaceViews, exact_pixel, surface_and_triangle};
 use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter};
 use crate::shade::shade_ray;
@@ -26,6 +26,8 @@ pub(crate) struct Neighbourhood<'a> {
     pub primitives: &'a [Seen],
     /// Whether some centre sees the sky.
     pub sky: bool,
+    /// What the pixel's own centre sees (0: the sky), when known.
+    pub centre: Option<Seen>,
     /// The scene's planar views, built once per frame.
     pub views: &'a SurfaceViews,
 }
@@ -102,7 +104,7 @@ pub(crate) fn shade_pixel(
                     frame,
                     Filter::Nearest,
                     PixelFilter::Box,
-                    &scene.camera.ray(sx, sy),
+                    (&scene.camera.ray(sx, sy), None),
                     ScreenArea::pixel(sx, sy),
                     stats,
                 );
@@ -114,13 +116,20 @@ pub(crate) fn shade_pixel(
     }
     let (cx, cy) = (px + 0.5, py + 0.5);
     if near_silhouette && pixel == PixelFilter::Box {
-        return shade_area(frame, filter, ScreenArea::pixel(cx, cy), 0, stats);
+        return shade_area(
+            frame,
+            filter,
+            ScreenArea::pixel(cx, cy),
+            near.centre,
+            0,
+            stats,
+        );
     }
     shade_ray(
         frame,
         filter,
         pixel,
-        &scene.camera.ray(cx, cy),
+        (&scene.camera.ray(cx, cy), near.centre),
         ScreenArea::pixel(cx, cy),
         stats,
     )
@@ -130,11 +139,13 @@ pub(crate) fn shade_pixel(
 /// corners and centre do not all see the same surface (or all see the sky),
 /// the square straddles a silhouette, such as the horizon: it is split in
 /// four and each quarter shaded on its own, so each side of the silhouette
-/// is integrated over its own part of the pixel.
+/// is integrated over its own part of the pixel. `centre_seen`: what the
+/// visibility grid saw through the centre, when `area` is a whole pixel.
 fn shade_area(
     frame: &Frame<'_>,
     filter: Filter,
     area: ScreenArea,
+    centre_seen: Option<Seen>,
     splits: u32,
     stats: &mut PixelStats,
 ) -> Rgba {
@@ -144,7 +155,11 @@ fn shade_area(
     if splits < SILHOUETTE_SPLITS {
         let seen = |x: f64, y: f64| scene.nearest_index(&scene.camera.ray(x, y)).map(|(i, _)| i);
         let h = area.half;
-        let middle = seen(cx, cy);
+        let middle = match centre_seen {
+            Some(0) => None,
+            Some(id) => Some(surface_and_triangle(id).0),
+            None => seen(cx, cy),
+        };
         let straddles = [(-h, -h), (h, -h), (h, h), (-h, h)]
             .iter()
             .any(|&(dx, dy)| seen(cx + dx, cy + dy) != middle);
@@ -157,13 +172,20 @@ fn shade_area(
                     centre: [cx + dx, cy + dy],
                     half: q,
                 };
-                acc += shade_area(frame, filter, part, splits + 1, &mut parts) * 0.25;
+                acc += shade_area(frame, filter, part, None, splits + 1, &mut parts) * 0.25;
             }
             stats.merge_parts(&parts);
             return acc;
         }
     }
-    shade_ray(frame, filter, PixelFilter::Box, &centre_ray, area, stats)
+    shade_ray(
+        frame,
+        filter,
+        PixelFilter::Box,
+        (&centre_ray, centre_seen),
+        area,
+        stats,
+    )
 }
 
 /// A deterministic pseudo-random number in `[0, 1)` for sample `(i, j)` of

@@ -107,9 +107,12 @@ pub fn render(
                 .map(|x| {
                     let mut pixel = PixelStats::default();
                     let sky = neighbourhood(x, y, &mut ids);
+                    let centre = (!seen.is_empty())
+                        .then(|| seen[((i64::from(y) + pad) * gw + i64::from(x) + pad) as usize]);
                     let near = Neighbourhood {
                         primitives: &ids,
                         sky,
+                        centre,
                         views: &views,
                     };
                     let c = shade_pixel(

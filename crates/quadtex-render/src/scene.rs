@@ -295,11 +295,23 @@ impl Mesh {
         let (index, t) = self.bvh.nearest(ray, |i, _| {
             Self::crossing(&self.triangles[i as usize], ray).filter(|&t| t > t_min)
         })?;
+        Some(self.hit(index, t, ray))
+    }
+
+    /// Where `ray` meets triangle `index` beyond `t_min`, if it does: what
+    /// [`Mesh::intersect`] finds when that triangle is the nearest.
+    fn intersect_triangle(&self, index: u32, ray: &Ray, t_min: f64) -> Option<Hit> {
+        let tri = self.triangles.get(index as usize)?;
+        let t = Self::crossing(tri, ray).filter(|&t| t > t_min)?;
+        Some(self.hit(index, t, ray))
+    }
+
+    fn hit(&self, index: u32, t: f64, ray: &Ray) -> Hit {
         let tri = &self.triangles[index as usize];
         let point = ray.origin + ray.direction * t;
         let d = point - tri.p0;
         let uv = [tri.uv0[0] + tri.du.dot(d), tri.uv0[1] + tri.dv.dot(d)];
-        Some(Hit {
+        Hit {
             t,
             point,
             normal: tri.normal,
@@ -307,7 +319,7 @@ impl Mesh {
             du: tri.du,
             dv: tri.dv,
             triangle: index,
-        })
+        }
     }
 }
 
@@ -772,6 +784,23 @@ impl Scene {
             }
         }
         best
+    }
+
+    /// What [`Scene::nearest_index`] finds for `ray` when it is known to
+    /// see primitive `seen` (0: the sky), from the visibility grid cast
+    /// along the same ray: that primitive alone is intersected, not the
+    /// scene.
+    pub(crate) fn nearest_seen(&self, ray: &Ray, seen: crate::exact::Seen) -> Option<(usize, Hit)> {
+        if seen == 0 {
+            return None;
+        }
+        let (surface, triangle) = crate::exact::surface_and_triangle(seen);
+        let geometry = &self.surfaces.get(surface)?.geometry;
+        let hit = match geometry {
+            Geometry::Mesh(mesh) => mesh.intersect_triangle(triangle, ray, 1e-9),
+            _ => geometry.intersect(ray, 1e-9),
+        };
+        hit.map(|h| (surface, h))
     }
 
     /// Whether `ray` meets any surface (as [`Scene::nearest_index`] would

@@ -4,6 +4,7 @@
 use quadtex_core::texture::filter_footprint;
 use quadtex_core::{Rgba, Texture};
 
+use crate::exact::Seen;
 use crate::frame::{Frame, lambert, sky};
 use crate::math::Ray;
 use crate::options::{Filter, PixelFilter};
@@ -11,17 +12,23 @@ use crate::scene::{Hit, Surface};
 use crate::stats::PixelStats;
 use crate::view::{self, ScreenArea};
 
-/// The colour seen along `ray`, whose pixel (or part) is `area`.
+/// The colour seen along `ray`, whose pixel (or part) is `area`; `seen`,
+/// when known, is the primitive the visibility grid found along this very
+/// ray (so only it is intersected).
 pub(crate) fn shade_ray(
     frame: &Frame<'_>,
     filter: Filter,
     pixel_filter: PixelFilter,
-    ray: &Ray,
+    (ray, seen): (&Ray, Option<Seen>),
     area: ScreenArea,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
-    let Some((index, hit)) = scene.nearest_index(ray) else {
+    let nearest = match seen {
+        Some(id) => scene.nearest_seen(ray, id),
+        None => scene.nearest_index(ray),
+    };
+    let Some((index, hit)) = nearest else {
         return sky(scene, ray);
     };
     let surface = &scene.surfaces[index];
