@@ -59,8 +59,8 @@ pub enum Error {
     /// [`crate::VectorOptions::max_sweep_work`] allows (edges crossing
     /// each other at thousands of heights in one square).
     SweepWork {
-        /// Steps the packing had reached when the sweep of one more square
-        /// would have passed the budget (at least this many are needed).
+        /// Steps up to and including the square whose sweep would have
+        /// passed the budget (the art needs at least this many).
         needed: u64,
         /// The budget.
         max: u64,
