@@ -52,7 +52,9 @@ use std::sync::{Arc, Mutex, OnceLock};
 use quadtex_core::blend::BlendMode;
 use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
 use quadtex_core::image_paint::ImagePaint;
-use quadtex_core::vector::{ClipId, GroupId, MaskId, MaskKind};
+use quadtex_core::vector::{
+    ClipId, GroupId, MAX_VECTOR_COORDINATE, MAX_VECTOR_POINTS, MaskId, MaskKind,
+};
 use quadtex_core::{FillRule, Paint, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
 use usvg::tiny_skia_path::{self, PathSegment};
 
@@ -283,6 +285,7 @@ pub fn parse_svg_flattened(
         clip: None,
         limits,
         image_texels: 0,
+        flattened_points: 0,
         decoded: HashMap::new(),
     };
     walker.group(tree.root(), usvg::Transform::identity())?;
@@ -381,6 +384,8 @@ struct Walker<'p> {
     limits: &'p Limits,
     /// Texels of the images drawn so far, each pattern copy counted.
     image_texels: u64,
+    /// Points of the paths flattened so far.
+    flattened_points: usize,
     /// Images decoded so far, by the address of their bytes (a pattern
     /// draws the same image once per tile).
     decoded: HashMap<usize, Arc<quadtex_core::TexelGrid>>,
@@ -614,7 +619,7 @@ impl Walker<'_> {
                         continue;
                     };
                     let rule = fill_rule(fill.rule());
-                    let contours = self.flatten(p.data(), transform);
+                    let contours = self.flatten(p.data(), transform)?;
                     self.art
                         .add_to_clip(region, contours, rule, member_clip)
                         .map_err(|e| self.core(e))?;
@@ -732,7 +737,7 @@ impl Walker<'_> {
         let fill = |w: &mut Self| -> Result<(), Error> {
             if let Some(f) = p.fill() {
                 let rule = fill_rule(f.rule());
-                let contours = w.flatten(p.data(), transform);
+                let contours = w.flatten(p.data(), transform)?;
                 w.fill_with(
                     f.paint(),
                     f.opacity().get(),
@@ -764,7 +769,7 @@ impl Walker<'_> {
                     None => p.data(),
                 };
                 if let Some(outline) = source.stroke(&ts, res) {
-                    let contours = w.flatten(&outline, transform);
+                    let contours = w.flatten(&outline, transform)?;
                     let (paint, opacity) = (s.paint(), s.opacity().get());
                     w.fill_with(
                         paint,
@@ -999,7 +1004,14 @@ impl Walker<'_> {
     }
 
     /// The path's contours in unit-square coordinates, curves flattened.
-    fn flatten(&self, path: &tiny_skia_path::Path, t: usvg::Transform) -> Vec<Vec<[f64; 2]>> {
+    /// Refused before they are made: a point beyond the packer's
+    /// coordinate bound, and more points in all than the packer takes (a
+    /// circle stroked at a radius of 10¹⁹ flattened to 2 GB).
+    fn flatten(
+        &mut self,
+        path: &tiny_skia_path::Path,
+        t: usvg::Transform,
+    ) -> Result<Vec<Vec<[f64; 2]>>, Error> {
         let (sx, kx, ky, sy, tx, ty) = (
             f64::from(t.sx),
             f64::from(t.kx),
@@ -1009,9 +1021,33 @@ impl Walker<'_> {
             f64::from(t.ty),
         );
         let k = self.to_unit;
-        let map = |p: tiny_skia_path::Point| -> [f64; 2] {
+        let svg = self.path;
+        let map = |p: tiny_skia_path::Point| -> Result<[f64; 2], Error> {
             let (x, y) = (f64::from(p.x), f64::from(p.y));
-            [k * (sx * x + kx * y + tx), 1.0 - k * (ky * x + sy * y + ty)]
+            let q = [k * (sx * x + kx * y + tx), 1.0 - k * (ky * x + sy * y + ty)];
+            if q.iter().all(|v| v.abs() <= MAX_VECTOR_COORDINATE) {
+                Ok(q)
+            } else {
+                Err(Error::Svg {
+                    path: svg.to_path_buf(),
+                    message: format!(
+                        "a path point lands at {q:?} in texture units (the view box's longer side is 1), beyond ±{MAX_VECTOR_COORDINATE:e}"
+                    ),
+                })
+            }
+        };
+        let points = &mut self.flattened_points;
+        let mut spend = |n: usize| -> Result<(), Error> {
+            *points += n;
+            if *points > MAX_VECTOR_POINTS {
+                return Err(Error::Svg {
+                    path: svg.to_path_buf(),
+                    message: format!(
+                        "its paths flatten to more than {MAX_VECTOR_POINTS} points (curves drawn far outside the view box?)"
+                    ),
+                });
+            }
+            Ok(())
         };
         let tol = self.tolerance;
         let mut contours = Vec::new();
@@ -1023,14 +1059,19 @@ impl Walker<'_> {
                         contours.push(std::mem::take(&mut current));
                     }
                     current.clear();
-                    current.push(map(p));
+                    spend(1)?;
+                    current.push(map(p)?);
                 }
-                PathSegment::LineTo(p) => current.push(map(p)),
+                PathSegment::LineTo(p) => {
+                    spend(1)?;
+                    current.push(map(p)?);
+                }
                 PathSegment::QuadTo(c, p) => {
                     let p0 = *current.last().unwrap_or(&[0.0, 0.0]);
-                    let (p1, p2) = (map(c), map(p));
+                    let (p1, p2) = (map(c)?, map(p)?);
                     let d = norm(sub(add(p0, p2), scale(p1, 2.0)));
                     let n = segments_for(d / (4.0 * tol));
+                    spend(n)?;
                     for i in 1..=n {
                         let t = i as f64 / n as f64;
                         let u = 1.0 - t;
@@ -1042,10 +1083,11 @@ impl Walker<'_> {
                 }
                 PathSegment::CubicTo(c1, c2, p) => {
                     let p0 = *current.last().unwrap_or(&[0.0, 0.0]);
-                    let (p1, p2, p3) = (map(c1), map(c2), map(p));
+                    let (p1, p2, p3) = (map(c1)?, map(c2)?, map(p)?);
                     let d = norm(sub(add(p0, p2), scale(p1, 2.0)))
                         .max(norm(sub(add(p1, p3), scale(p2, 2.0))));
                     let n = segments_for(3.0 * d / (4.0 * tol));
+                    spend(n)?;
                     for i in 1..=n {
                         let t = i as f64 / n as f64;
                         let u = 1.0 - t;
@@ -1067,7 +1109,7 @@ impl Walker<'_> {
         if current.len() >= 3 {
             contours.push(current);
         }
-        contours
+        Ok(contours)
     }
 }
 
@@ -1420,6 +1462,36 @@ mod tests {
         );
         assert!(
             e.contains("t.svg") && e.contains("max_dimension") && e.contains("2147483650"),
+            "{e}"
+        );
+    }
+
+    /// Found by the SVG fuzz target: a stroked circle of radius 8 × 10¹⁸
+    /// flattened to 2 GB of points before the packer refused its
+    /// coordinates. Both bounds are now checked while flattening.
+    #[test]
+    fn far_away_curves_are_refused_before_they_are_flattened() {
+        let parse = |body: &str| {
+            let svg = format!(
+                r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 100 100">{body}</svg>"#
+            );
+            parse_svg(svg.as_bytes(), Path::new("far.svg"), 4, &Limits::default())
+                .unwrap_err()
+                .to_string()
+        };
+        let e = parse(
+            r#"<circle cx="88" cy="12" r="8111111111111111111.0" fill="none" stroke="black" stroke-width="0.4"/>"#,
+        );
+        assert!(
+            e.contains("far.svg") && e.contains("texture units") && e.contains("beyond ±1e12"),
+            "{e}"
+        );
+        // Within the coordinate bound, but each curve flattens to the most
+        // segments one curve may have (65 536).
+        let curves = " C 1e9 0 -1e9 100 0 100 C 1e9 100 -1e9 0 0 0".repeat(130);
+        let e = parse(&format!(r#"<path d="M0 0{curves}Z"/>"#));
+        assert!(
+            e.contains("far.svg") && e.contains("flatten to more than 16777216 points"),
             "{e}"
         );
     }
