@@ -99,16 +99,7 @@ fn decode_texels<R: std::io::BufRead + std::io::Seek>(
     let (w, h) = image::ImageDecoder::dimensions(&decoder);
     let decoded_bytes = image::ImageDecoder::total_bytes(&decoder);
     drop(decoder);
-    for v in [w, h] {
-        if v > limits.max_dimension {
-            return Err(Error::Limit {
-                path: path.into(),
-                limit: "max_dimension",
-                value: v.into(),
-                max: limits.max_dimension.into(),
-            });
-        }
-    }
+    limits.check_dimensions(path, w, h)?;
     let mut reader = open()?;
     // The decoder's buffer and the texels (8 bytes each) live together.
     let texel_bytes = 8 * u64::from(w) * u64::from(h);

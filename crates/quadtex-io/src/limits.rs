@@ -53,6 +53,28 @@ pub const QTX_READ_BYTES_PER_NODE: u64 = 9;
 pub const FALLBACK_MEMORY_BUDGET: u64 = 4 << 30;
 
 impl Limits {
+    /// Refuses an image whose width or height is above
+    /// [`Limits::max_dimension`].
+    pub(crate) fn check_dimensions(
+        &self,
+        path: &std::path::Path,
+        width: u32,
+        height: u32,
+    ) -> Result<(), crate::Error> {
+        match [width, height]
+            .into_iter()
+            .find(|&v| v > self.max_dimension)
+        {
+            Some(v) => Err(crate::Error::Limit {
+                path: path.to_path_buf(),
+                limit: "max_dimension",
+                value: v.into(),
+                max: self.max_dimension.into(),
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Refuses a file of `len` bytes above [`Limits::max_file_bytes`].
     pub(crate) fn check_file_size(
         &self,

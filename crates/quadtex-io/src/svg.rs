@@ -444,16 +444,7 @@ fn resolve_image(
         // And usvg 0.49 panics placing an image whose header claims a
         // side in the billions (the placed rectangle overflows f32), so
         // the side limit is checked before usvg sees it.
-        for v in [w, h] {
-            if v > limits.max_dimension {
-                return Err(Error::Limit {
-                    path: path.into(),
-                    limit: "max_dimension",
-                    value: v.into(),
-                    max: limits.max_dimension.into(),
-                });
-            }
-        }
+        limits.check_dimensions(path, w, h)?;
     }
     match usvg::ImageHrefResolver::default_data_resolver()(mime, data, opts) {
         Some(kind) => Ok(Some(kind)),

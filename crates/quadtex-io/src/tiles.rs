@@ -103,14 +103,7 @@ impl TileFolder {
                 format!("{w}x{h} texels: tiles must be squares of a power of two"),
             ));
         }
-        if w > limits.max_dimension {
-            return Err(Error::Limit {
-                path: first.clone(),
-                limit: "max_dimension",
-                value: w.into(),
-                max: limits.max_dimension.into(),
-            });
-        }
+        limits.check_dimensions(first, w, h)?;
         Ok(TileFolder {
             dir: dir.to_path_buf(),
             tiles,
