@@ -1312,8 +1312,9 @@ struct VectorBuilder<'a> {
     work: Vec<Pieces>,
     /// Scratch of the trapezoid sweep.
     sweep: SweepScratch,
-    /// The sweep's steps so far, and [`VectorOptions::max_sweep_work`].
-    sweep_work: (u64, u64),
+    /// [`VectorOptions::max_sweep_work`] (the steps so far are
+    /// [`VectorReport::sweep_work`]).
+    max_sweep_work: u64,
 }
 
 /// Buffers of [`VectorBuilder::sweep`], kept between leaves.
@@ -1413,7 +1414,7 @@ impl QuadTree {
             scratch: [Vec::new(), Vec::new()],
             work: (0..=options.max_level).map(|_| Pieces::default()).collect(),
             sweep: SweepScratch::default(),
-            sweep_work: (0, options.max_sweep_work),
+            max_sweep_work: options.max_sweep_work,
         };
         let root = Square {
             x0: 0.0,
@@ -1875,7 +1876,7 @@ impl VectorBuilder<'_> {
         let mut total = [0.0; 4];
         let art = self.art;
         let (x0, x1) = (sq.x0, sq.x1());
-        let (done, max) = self.sweep_work;
+        let (done, max) = (self.report.sweep_work, self.max_sweep_work);
         let slab = |z0: f64, z1: f64, edges: &[SweepEdge], active: &[usize]| {
             let h = z1 - z0;
             let zm = 0.5 * (z0 + z1);
@@ -1951,10 +1952,7 @@ impl VectorBuilder<'_> {
             gap(left, [x1; 3], winding, &mut flat, &mut total);
         };
         match for_each_slab(edges, sq.z0, sq.z1(), slabs, max.saturating_sub(done), slab) {
-            Ok(work) => {
-                self.sweep_work.0 = done + work;
-                self.report.sweep_work = done + work;
-            }
+            Ok(work) => self.report.sweep_work = done + work,
             Err(work) => {
                 return Err(Error::SweepWork {
                     needed: done.saturating_add(work),
