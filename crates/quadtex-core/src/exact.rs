@@ -355,9 +355,16 @@ pub(crate) fn integrate_region(
     stats.fragments += 1;
     stats.traversal.queries += 1;
     let mut out = RegionIntegral::default();
+    // Borrowed when the box filter takes it as it is; `clipped` and `kept`
+    // own what clipping makes of it (a polygon is a few hundred bytes, and
+    // this runs once per pixel).
+    let (clipped, kept);
     let mut region = match filter {
-        PixelFilter::Box => region.clone(),
-        _ => region.intersect(&filter.support(centre)),
+        PixelFilter::Box => region,
+        _ => {
+            clipped = region.intersect(&filter.support(centre));
+            &clipped
+        }
     };
     let (rlo, rhi) = region.bounds();
     if region.is_empty()
@@ -395,7 +402,8 @@ pub(crate) fn integrate_region(
         let sliver = region
             .clip(r[0], r[1], r[2])
             .clip(-r[0], -r[1], floor - r[2]);
-        region = region.clip(r[0], r[1], r[2] - floor);
+        kept = region.clip(r[0], r[1], r[2] - floor);
+        region = &kept;
         if !sliver.is_empty() {
             let c = tree.average();
             let wgt = filter.integral(&sliver, centre);
@@ -412,11 +420,7 @@ pub(crate) fn integrate_region(
     if !(area > 0.0 && area.is_finite()) {
         return out;
     }
-    let texture_region = ConvexPolygon::from_trusted(
-        region
-            .map(|s| apply(&projection.texture_from_screen, s))
-            .vertices(),
-    );
+    let texture_region = region.map_counter_clockwise(|s| apply(&projection.texture_from_screen, s));
     if texture_region
         .vertices()
         .iter()
@@ -428,7 +432,10 @@ pub(crate) fn integrate_region(
     // One terminal square under the whole region: its colour, exactly.
     let (lo, hi) = texture_region.bounds();
     if let Some(c) = uniform_colour_in(tree, lo, hi, wrap) {
-        let wgt = filter.integral(&region, centre);
+        let wgt = match filter {
+            PixelFilter::Box => area,
+            _ => filter.integral(region, centre),
+        };
         out.colour += WeightedColour::from_colour(c, wgt);
         out.weight += wgt;
         return out;
@@ -1474,13 +1481,18 @@ fn band_to_screen(
         let q = apply(m, t);
         *s = [q[0] - centre[0], q[1] - centre[1]];
     }
-    let n = texture.len();
-    (0..n)
-        .map(|i| {
-            let (a, b) = (screen[i], screen[(i + 1) % n]);
-            a[0] * b[1] - a[1] * b[0]
-        })
-        .sum()
+    let screen = &screen[..texture.len()];
+    let (Some(&first), Some(&last)) = (screen.first(), screen.last()) else {
+        return 0.0;
+    };
+    let cross = |a: [f64; 2], b: [f64; 2]| a[0] * b[1] - a[1] * b[0];
+    let mut sum = 0.0;
+    let mut a = first;
+    for &b in &screen[1..] {
+        sum += cross(a, b);
+        a = b;
+    }
+    sum + cross(last, first)
 }
 
 /// The doubled signed screen area of the part of a texture-space convex
@@ -1510,8 +1522,8 @@ fn band_left_of(
         let q = apply(m, [x_cut, a[1] + u * (b[1] - a[1])]);
         [q[0] - centre[0], q[1] - centre[1]]
     };
+    let mut prev = n.wrapping_sub(1);
     for i in 0..n {
-        let prev = (i + n - 1) % n;
         let (prev_in, cur_in) = (texture[prev][0] <= x_cut, texture[i][0] <= x_cut);
         if cur_in {
             if !prev_in {
@@ -1521,6 +1533,7 @@ fn band_left_of(
         } else if prev_in {
             emit(crossing(texture[prev], texture[i]));
         }
+        prev = i;
     }
     if let Some(f) = first {
         sum += last[0] * f[1] - last[1] * f[0];

@@ -280,6 +280,16 @@ impl ConvexPolygon {
         self.clip_lines(other.edge_lines())
     }
 
+    /// [`ConvexPolygon::map`], made counter-clockwise (a map that mirrors
+    /// reverses the order), as [`ConvexPolygon::from_trusted`] would.
+    pub(crate) fn map_counter_clockwise(&self, f: impl Fn([f64; 2]) -> [f64; 2]) -> ConvexPolygon {
+        let mut p = self.map(f);
+        if p.signed_area() < 0.0 {
+            p.v.reverse();
+        }
+        p
+    }
+
     /// The polygon with every vertex mapped by `f` (which must keep it
     /// convex, as an affine or a projective map on its visible side does).
     pub fn map(&self, f: impl Fn([f64; 2]) -> [f64; 2]) -> ConvexPolygon {

@@ -66,8 +66,11 @@ fn candidate_view<'a>(
     id: Seen,
 ) -> Option<Option<Cow<'a, View>>> {
     let (surface, triangle) = surface_and_triangle(id);
-    scene.surfaces.get(surface)?.geometry.planar(triangle)?;
-    Some(cache.get(scene, surface, triangle))
+    if let Some(Some(view)) = cache.views.get(surface) {
+        return Some(Some(Cow::Borrowed(view)));
+    }
+    let planar = scene.surfaces.get(surface)?.geometry.planar(triangle)?;
+    Some(View::new(scene, surface, &planar).map(Cow::Owned))
 }
 
 /// A planar primitive seen from the camera: rows `(a, b, c)` of affine
@@ -147,9 +150,16 @@ impl View {
     /// The part of `support` where this primitive lies (in front of the
     /// camera, inside its edges), ignoring occlusion.
     pub fn region(&self, support: &ConvexPolygon) -> ConvexPolygon {
-        support.clip_lines(
-            std::iter::once(self.w).chain(self.bounds[..self.bound_count].iter().copied()),
-        )
+        let lines = &self.bounds[..self.bound_count];
+        let inside = |&[x, y]: &[f64; 2]| {
+            let on = |l: &[f64; 3]| l[0] * x + l[1] * y + l[2] >= 0.0;
+            on(&self.w) && lines.iter().all(on)
+        };
+        // Most pixels lie inside: the clip would copy every vertex unchanged.
+        if support.vertices().iter().all(inside) {
+            return support.clone();
+        }
+        support.clip_lines(std::iter::once(self.w).chain(lines.iter().copied()))
     }
 
     /// The texture's integral over this primitive's part of `support`
