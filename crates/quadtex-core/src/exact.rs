@@ -420,7 +420,8 @@ pub(crate) fn integrate_region(
     if !(area > 0.0 && area.is_finite()) {
         return out;
     }
-    let texture_region = region.map_counter_clockwise(|s| apply(&projection.texture_from_screen, s));
+    let texture_region =
+        region.map_counter_clockwise(|s| apply(&projection.texture_from_screen, s));
     if texture_region
         .vertices()
         .iter()
@@ -745,9 +746,11 @@ impl Walk<'_> {
             let (a, b) = p.bounds();
             ((a[0] / h).floor() as i64, (b[0] / h).ceil() as i64)
         };
+        // `n` is a power of two: the tile is an arithmetic shift (a floor),
+        // the cell within it a mask (both exact for negative indices).
         let wrapped = |mode: WrapMode, m: i64| {
-            let (tile, c) = (m.div_euclid(n), m.rem_euclid(n));
-            if mode == WrapMode::Mirror && tile.rem_euclid(2) == 1 {
+            let (tile, c) = (m >> depth, m & (n - 1));
+            if mode == WrapMode::Mirror && tile & 1 == 1 {
                 (n - 1 - c) as usize
             } else {
                 c as usize
