@@ -123,6 +123,7 @@ def pack(
     max_level: Optional[int] = None,
     hdr: bool = False,
     contour_leaves: Optional[int] = None,
+    max_sweep_work: Optional[int] = None,
 ) -> Texture:
     """Packs an image into a texture, as ``quadtex pack`` does.
 
@@ -151,4 +152,8 @@ def pack(
         at most this many edges keep their contours (``quadtex pack
         --contour-leaves``), exact at any magnification; the texture then
         answers down to level 30. Default: off.
+    max_sweep_work: SVG art only, at least 1: the most steps the exact
+        coverage sweep may take (``quadtex pack --max-sweep-work``); art
+        needing more (thousands of dashes piled on a point) is a ValueError
+        naming the steps it needs. Default: 2**31, about a minute.
     """

@@ -251,7 +251,7 @@ fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
 
 /// Packs an image file (PNG, JPEG, EXR, SVG) or a numpy array into a texture.
 #[pyfunction]
-#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None))]
+#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None, max_sweep_work = None))]
 fn pack(
     py: Python<'_>,
     source: &Bound<'_, PyAny>,
@@ -259,6 +259,7 @@ fn pack(
     max_level: Option<i64>,
     hdr: bool,
     contour_leaves: Option<i64>,
+    max_sweep_work: Option<i64>,
 ) -> PyResult<Texture> {
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
         return Err(PyValueError::new_err(format!(
@@ -275,17 +276,30 @@ fn pack(
             )));
         }
     };
+    let max_sweep_work = match max_sweep_work {
+        None => None,
+        Some(n @ 1..) => Some(n as u64),
+        Some(n) => {
+            return Err(PyValueError::new_err(format!(
+                "max_sweep_work must be at least 1 (steps of the exact sweep), got {n}"
+            )));
+        }
+    };
+    let svg_only = SvgOnly {
+        contour_leaves,
+        max_sweep_work,
+    };
     let is_path = source.is_instance_of::<PyString>()
         || source.is_instance_of::<PyBytes>()
         || source.hasattr("__fspath__")?;
     if is_path {
         let path: PathBuf = source.extract()?;
-        return pack_file(py, path, tolerance, max_level, contour_leaves);
+        return pack_file(py, path, tolerance, max_level, svg_only);
     }
-    if contour_leaves.is_some() {
-        return Err(PyValueError::new_err(
-            "contour_leaves applies to SVG art, not to arrays",
-        ));
+    if let Some(name) = svg_only.given() {
+        return Err(PyValueError::new_err(format!(
+            "{name} applies to SVG art, not to arrays"
+        )));
     }
     let image = arrays::ImageArray::from_py(source)?;
     let image = image.view()?;
@@ -334,14 +348,38 @@ fn pack_tiles(py: Python<'_>, directory: PathBuf, tolerance: f64) -> PyResult<Te
     })
 }
 
+/// `pack`'s options that apply to SVG art only.
+#[derive(Debug, Clone, Copy)]
+struct SvgOnly {
+    contour_leaves: Option<usize>,
+    max_sweep_work: Option<u64>,
+}
+
+impl SvgOnly {
+    /// The name of the first option given, if any.
+    fn given(&self) -> Option<&'static str> {
+        if self.contour_leaves.is_some() {
+            Some("contour_leaves")
+        } else if self.max_sweep_work.is_some() {
+            Some("max_sweep_work")
+        } else {
+            None
+        }
+    }
+}
+
 /// `pack` of a file, as `quadtex pack` does it.
 fn pack_file(
     py: Python<'_>,
     path: PathBuf,
     tolerance: f64,
     max_level: Option<u8>,
-    contour_leaves: Option<usize>,
+    svg_only: SvgOnly,
 ) -> PyResult<Texture> {
+    let SvgOnly {
+        contour_leaves,
+        max_sweep_work,
+    } = svg_only;
     let is_svg = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
@@ -357,10 +395,12 @@ fn pack_file(
         } else {
             DEFAULT_SVG_LEVEL
         });
+        let defaults = quadtex_core::VectorOptions::default();
         let options = quadtex_core::VectorOptions {
             max_level: level,
             contour_leaves,
-            ..quadtex_core::VectorOptions::default()
+            max_sweep_work: max_sweep_work.unwrap_or(defaults.max_sweep_work),
+            ..defaults
         };
         let (tree, _) = py
             .detach(|| {
@@ -374,9 +414,9 @@ fn pack_file(
             file: None,
         });
     }
-    if contour_leaves.is_some() {
+    if let Some(name) = svg_only.given() {
         return Err(PyValueError::new_err(format!(
-            "{}: contour_leaves applies to SVG art, not to raster images",
+            "{}: {name} applies to SVG art, not to raster images",
             path.display()
         )));
     }

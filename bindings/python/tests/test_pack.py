@@ -176,6 +176,19 @@ def test_pack_svg_with_contour_leaves():
         quadtex.pack(np.zeros((4, 4), dtype=np.uint8), contour_leaves=16)
 
 
+def test_pack_svg_sweep_budget():
+    # Dashes piled on a point: 3.9e8 sweep steps at the default level.
+    slow = REPO / "fuzz" / "slow" / "dashed-star-15s.svg"
+    with pytest.raises(ValueError, match=r"above the limit of 1000000 \(max sweep work\)"):
+        quadtex.pack(slow, max_sweep_work=1_000_000)
+    svg = REPO / "samples" / "threshold.svg"
+    assert quadtex.pack(svg, max_sweep_work=1 << 40).node_count == quadtex.pack(svg).node_count
+    with pytest.raises(ValueError, match="max_sweep_work must be at least 1"):
+        quadtex.pack(svg, max_sweep_work=0)
+    with pytest.raises(ValueError, match="max_sweep_work applies to SVG art"):
+        quadtex.pack(np.zeros((4, 4), dtype=np.uint8), max_sweep_work=10)
+
+
 def test_file_errors(tmp_path):
     missing = tmp_path / "missing.qtx"
     with pytest.raises(FileNotFoundError) as e:
