@@ -190,6 +190,33 @@ typedef struct QtxFilterOptions {
 } QtxFilterOptions;
 
 /**
+ * Options of `qtx_pack_svg`. Start from `qtx_svg_options_default()` and
+ * change fields; `qtx_pack_svg` checks each and names the field at fault.
+ */
+typedef struct QtxSvgOptions {
+    /**
+     * `QTX_LEVEL_AUTO` (-1, the default) for `QTX_DEFAULT_SVG_LEVEL` (12;
+     * 20 with contour leaves, where squares split only while they hold
+     * more edges than the budget), or a level in 0..=`QTX_MAX_SVG_LEVEL`.
+     */
+    int max_level;
+    /**
+     * 0 (the default) for none, or 3..=1024: squares of flat art crossed by
+     * at most this many edges keep their contours, exact at any
+     * magnification (queries then reach level 30).
+     */
+    int contour_leaves;
+    /**
+     * The most steps the exact coverage sweep may take (pairs of edges
+     * tested for a crossing plus edges handed to each slab), at least 1;
+     * default 2^31, about a minute where steps are dearest. Art needing
+     * more (thousands of dashes piled on a point) is refused with
+     * `QTX_STATUS_LIMIT`, the message naming the steps it needs.
+     */
+    uint64_t max_sweep_work;
+} QtxSvgOptions;
+
+/**
  * What `qtx_texture_info` reports.
  */
 typedef struct QtxTextureInfo {
@@ -245,6 +272,12 @@ const char *qtx_last_error(void);
  * screen weighting, quality 1, error bound 1/512, `QTX_LEVEL_AUTO`.
  */
 struct QtxFilterOptions qtx_filter_options_default(void);
+
+/**
+ * The default SVG packing options: `QTX_LEVEL_AUTO`, no contour leaves,
+ * a sweep budget of 2^31 steps.
+ */
+struct QtxSvgOptions qtx_svg_options_default(void);
 
 /**
  * Opens a packed texture: a `.qtx` file written by `quadtex pack`. The file
@@ -319,6 +352,25 @@ enum QtxStatus qtx_verify(const struct QtxTexture *texture);
  * As `qtx_open`.
  */
 enum QtxStatus qtx_pack(const char *path, double tolerance, int max_level, struct QtxTexture **out);
+
+/**
+ * Packs SVG art into a texture with `options` (NULL for
+ * `qtx_svg_options_default()`), as `quadtex pack` does with
+ * `--max-level`, `--contour-leaves` and `--max-sweep-work`. The file must
+ * be SVG (`.svg`, any case).
+ *
+ * `path` and `out` as for `qtx_open`. Returns `QTX_STATUS_OK`;
+ * `QTX_STATUS_INVALID_ARGUMENT` (NULL `path` or `out`, a file that is not
+ * `.svg`, an option out of range: the message names the field,
+ * `options.contour_leaves`), and otherwise as `qtx_pack`; art beyond
+ * `options.max_sweep_work` is `QTX_STATUS_LIMIT`.
+ *
+ * # Safety
+ * As `qtx_open`; `options` is NULL or points to a `QtxSvgOptions`.
+ */
+enum QtxStatus qtx_pack_svg(const char *path,
+                            const struct QtxSvgOptions *options,
+                            struct QtxTexture **out);
 
 /**
  * Packs a folder of raster tiles into one texture, one tile in memory at a

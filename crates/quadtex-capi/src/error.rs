@@ -61,7 +61,7 @@ impl Failure {
 pub(crate) fn core_status(e: &quadtex_core::Error) -> QtxStatus {
     use quadtex_core::Error as E;
     match e {
-        E::DepthTooLarge { .. } | E::TooManyNodes { .. } => QtxStatus::Limit,
+        E::DepthTooLarge { .. } | E::TooManyNodes { .. } | E::SweepWork { .. } => QtxStatus::Limit,
         E::NonFiniteCoordinate { .. }
         | E::ReversedBounds { .. }
         | E::BadTolerance(_)

@@ -112,6 +112,27 @@ pub struct QtxFilterOptions {
     pub level: c_int,
 }
 
+/// Options of `qtx_pack_svg`. Start from `qtx_svg_options_default()` and
+/// change fields; `qtx_pack_svg` checks each and names the field at fault.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct QtxSvgOptions {
+    /// `QTX_LEVEL_AUTO` (-1, the default) for `QTX_DEFAULT_SVG_LEVEL` (12;
+    /// 20 with contour leaves, where squares split only while they hold
+    /// more edges than the budget), or a level in 0..=`QTX_MAX_SVG_LEVEL`.
+    pub max_level: c_int,
+    /// 0 (the default) for none, or 3..=1024: squares of flat art crossed by
+    /// at most this many edges keep their contours, exact at any
+    /// magnification (queries then reach level 30).
+    pub contour_leaves: c_int,
+    /// The most steps the exact coverage sweep may take (pairs of edges
+    /// tested for a crossing plus edges handed to each slab), at least 1;
+    /// default 2^31, about a minute where steps are dearest. Art needing
+    /// more (thousands of dashes piled on a point) is refused with
+    /// `QTX_STATUS_LIMIT`, the message naming the steps it needs.
+    pub max_sweep_work: u64,
+}
+
 /// What `qtx_texture_info` reports.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -153,6 +174,14 @@ pub extern "C" fn qtx_last_error() -> *const c_char {
 #[allow(unsafe_code)]
 pub extern "C" fn qtx_filter_options_default() -> QtxFilterOptions {
     ops::default_options()
+}
+
+/// The default SVG packing options: `QTX_LEVEL_AUTO`, no contour leaves,
+/// a sweep budget of 2^31 steps.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub extern "C" fn qtx_svg_options_default() -> QtxSvgOptions {
+    ops::default_svg_options()
 }
 
 /// Opens a packed texture: a `.qtx` file written by `quadtex pack`. The file
@@ -277,6 +306,41 @@ pub unsafe extern "C" fn qtx_pack(
         // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
         let path = unsafe { ptr::path_arg(path, "path") }?;
         out.set(ptr::into_raw(ops::pack(&path, tolerance, max_level)?));
+        Ok(())
+    })
+}
+
+/// Packs SVG art into a texture with `options` (NULL for
+/// `qtx_svg_options_default()`), as `quadtex pack` does with
+/// `--max-level`, `--contour-leaves` and `--max-sweep-work`. The file must
+/// be SVG (`.svg`, any case).
+///
+/// `path` and `out` as for `qtx_open`. Returns `QTX_STATUS_OK`;
+/// `QTX_STATUS_INVALID_ARGUMENT` (NULL `path` or `out`, a file that is not
+/// `.svg`, an option out of range: the message names the field,
+/// `options.contour_leaves`), and otherwise as `qtx_pack`; art beyond
+/// `options.max_sweep_work` is `QTX_STATUS_LIMIT`.
+///
+/// # Safety
+/// As `qtx_open`; `options` is NULL or points to a `QtxSvgOptions`.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_pack_svg(
+    path: *const c_char,
+    options: *const QtxSvgOptions,
+    out: *mut *mut QtxTexture,
+) -> QtxStatus {
+    guard(|| {
+        // SAFETY: `out` is NULL or writable, by this function's contract.
+        let mut out = unsafe { Out::new(out, "out") }?;
+        out.set(std::ptr::null_mut());
+        // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
+        let path = unsafe { ptr::path_arg(path, "path") }?;
+        // SAFETY: `options` is NULL or a readable struct, by contract.
+        let options = unsafe { ptr::optional_ref_arg(options, "options") }?
+            .copied()
+            .unwrap_or_else(ops::default_svg_options);
+        out.set(ptr::into_raw(ops::pack_svg(&path, &options)?));
         Ok(())
     })
 }

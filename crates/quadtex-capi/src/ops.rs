@@ -11,8 +11,8 @@ use quadtex_core::{
 
 use crate::error::Failure;
 use crate::{
-    QTX_DEFAULT_SVG_LEVEL, QtxFilterOptions, QtxLevel, QtxTexture, QtxTextureInfo, QtxWeighting,
-    QtxWrapMode,
+    QTX_DEFAULT_SVG_LEVEL, QtxFilterOptions, QtxLevel, QtxSvgOptions, QtxTexture, QtxTextureInfo,
+    QtxWeighting, QtxWrapMode,
 };
 
 /// A C string's bytes as a path. On Unix a file name is any bytes, so any
@@ -121,6 +121,62 @@ pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTex
     };
     let (tree, _) = QuadTree::from_texels(&grid, &options)
         .map_err(|e| Failure::from(e).context(&shown.to_string()))?;
+    Ok(QtxTexture::new(tree))
+}
+
+/// `qtx_svg_options_default`: as `quadtex pack` packs SVG by default.
+pub(crate) fn default_svg_options() -> QtxSvgOptions {
+    QtxSvgOptions {
+        max_level: QtxLevel::Auto as i32,
+        contour_leaves: 0,
+        max_sweep_work: quadtex_core::vector::DEFAULT_MAX_SWEEP_WORK,
+    }
+}
+
+/// `qtx_pack_svg`: SVG art with every packing option checked first.
+pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTexture, Failure> {
+    let shown = path.display();
+    if !is_svg(path) {
+        return Err(Failure::invalid(format!(
+            "{shown}: qtx_pack_svg packs SVG art (.svg); use qtx_pack for raster images"
+        )));
+    }
+    let contour_leaves = match options.contour_leaves {
+        0 => None,
+        n @ 3..=1024 => Some(n as usize),
+        n => {
+            return Err(Failure::invalid(format!(
+                "options.contour_leaves must be 0 (none) or in 3..=1024, got {n}"
+            )));
+        }
+    };
+    let max_level = match options.max_level {
+        l if l < 0 => match contour_leaves {
+            Some(_) => quadtex_core::vector::CONTOUR_MAX_LEVEL,
+            None => QTX_DEFAULT_SVG_LEVEL as u8,
+        },
+        l => u8::try_from(l)
+            .ok()
+            .filter(|&l| l <= MAX_VECTOR_LEVEL)
+            .ok_or_else(|| {
+                Failure::invalid(format!(
+                    "options.max_level must be QTX_LEVEL_AUTO or in 0..={MAX_VECTOR_LEVEL}, got {l}"
+                ))
+            })?,
+    };
+    if options.max_sweep_work == 0 {
+        return Err(Failure::invalid(
+            "options.max_sweep_work must be at least 1 (steps of the exact sweep), got 0",
+        ));
+    }
+    let vector = quadtex_core::VectorOptions {
+        max_level,
+        contour_leaves,
+        max_sweep_work: options.max_sweep_work,
+        ..quadtex_core::VectorOptions::default()
+    };
+    let (tree, _) =
+        quadtex_io::pack_svg_with_options(path, &vector, &quadtex_io::Limits::default())?;
     Ok(QtxTexture::new(tree))
 }
 

@@ -495,6 +495,94 @@ fn pack_svg_sample() {
     unsafe { qtx_free(texture) };
 }
 
+/// `depth` of a texture from `qtx_texture_info`.
+fn depth_of(texture: *const QtxTexture) -> u32 {
+    let mut info = std::mem::MaybeUninit::<QtxTextureInfo>::uninit();
+    assert_eq!(
+        unsafe { qtx_texture_info(texture, info.as_mut_ptr()) },
+        QtxStatus::Ok
+    );
+    unsafe { info.assume_init() }.depth
+}
+
+#[test]
+fn pack_svg_takes_its_options_and_names_the_one_at_fault() {
+    let svg = sample("threshold.svg");
+    let pack = |options: Option<&QtxSvgOptions>| {
+        let mut texture = null_mut();
+        let options = options.map_or(std::ptr::null(), |o| o as *const QtxSvgOptions);
+        let status = unsafe { qtx_pack_svg(svg.as_ptr(), options, &mut texture) };
+        (status, texture)
+    };
+    // NULL options: as qtx_pack at QTX_LEVEL_AUTO (level 12).
+    let (status, texture) = pack(None);
+    assert_eq!(status, QtxStatus::Ok, "{:?}", last_error());
+    assert_eq!(depth_of(texture), 12);
+    unsafe { qtx_free(texture) };
+    // Contour leaves answer down to level 30.
+    let mut options = qtx_svg_options_default();
+    options.contour_leaves = 16;
+    let (status, texture) = pack(Some(&options));
+    assert_eq!(status, QtxStatus::Ok, "{:?}", last_error());
+    assert_eq!(depth_of(texture), 30);
+    unsafe { qtx_free(texture) };
+    // Each field out of range is refused by name, `out` left NULL.
+    let defaults = qtx_svg_options_default();
+    for (options, field) in [
+        (
+            QtxSvgOptions {
+                contour_leaves: 2,
+                ..defaults
+            },
+            "options.contour_leaves",
+        ),
+        (
+            QtxSvgOptions {
+                max_level: 25,
+                ..defaults
+            },
+            "options.max_level",
+        ),
+        (
+            QtxSvgOptions {
+                max_sweep_work: 0,
+                ..defaults
+            },
+            "options.max_sweep_work",
+        ),
+    ] {
+        let (status, texture) = pack(Some(&options));
+        assert_eq!(status, QtxStatus::InvalidArgument, "{field}");
+        assert!(texture.is_null());
+        assert_error(&[field]);
+    }
+    // Art beyond the sweep budget: a limit, naming it (dashes piled on a
+    // point, 3.9e8 steps at the default level).
+    let slow =
+        c_path(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/slow/dashed-star-15s.svg"));
+    let mut texture = null_mut();
+    let tight = QtxSvgOptions {
+        max_sweep_work: 1_000_000,
+        ..defaults
+    };
+    assert_eq!(
+        unsafe { qtx_pack_svg(slow.as_ptr(), &tight, &mut texture) },
+        QtxStatus::Limit
+    );
+    assert!(texture.is_null());
+    assert_error(&[
+        "dashed-star-15s.svg",
+        "above the limit of 1000000 (max sweep work)",
+    ]);
+    // Not SVG.
+    let png = sample("photos/astronaut.png");
+    assert_eq!(
+        unsafe { qtx_pack_svg(png.as_ptr(), null(), &mut texture) },
+        QtxStatus::InvalidArgument
+    );
+    assert_error(&["astronaut.png", "qtx_pack"]);
+}
+
 #[test]
 fn panics_become_internal_errors() {
     let status = error::guard(|| panic!("boom"));
