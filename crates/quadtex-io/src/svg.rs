@@ -268,7 +268,23 @@ pub fn parse_svg_flattened(
         },
         ..usvg::Options::default()
     };
-    let tree = usvg::Tree::from_str(text, &options).map_err(|e| svg_err(e.to_string()))?;
+    // usvg (through tiny-skia's stroker) can panic on hostile input (an
+    // outline whose curvature search meets NaN, found by the SVG fuzz
+    // target): caught here and reported as this file's error, not a crash.
+    let parsed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        usvg::Tree::from_str(text, &options)
+    }))
+    .map_err(|panic| {
+        let what = panic
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic".to_string());
+        svg_err(format!(
+            "the SVG parser (usvg) failed on this document: {what}"
+        ))
+    })?;
+    let tree = parsed.map_err(|e| svg_err(e.to_string()))?;
     drop(options);
     if let Some(e) = failure.into_inner().unwrap_or_else(|p| p.into_inner()) {
         return Err(e);
@@ -1453,6 +1469,21 @@ mod tests {
         );
         assert!(
             e.contains("t.svg") && e.contains("max_dimension") && e.contains("2147483650"),
+            "{e}"
+        );
+    }
+
+    /// Found by the SVG fuzz target after 13 M executions: stroked text
+    /// whose outline sends tiny-skia's curvature search (inside usvg's
+    /// parser) to an `unwrap` on NaN. The panic is this file's error.
+    #[test]
+    fn a_panic_inside_the_svg_parser_is_an_error_naming_the_file() {
+        let data = include_bytes!("../tests/data/stroked-text-parser-panic.svg");
+        let e = parse_svg(data, Path::new("panic.svg"), 4, &Limits::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("panic.svg") && e.contains("the SVG parser (usvg) failed"),
             "{e}"
         );
     }
