@@ -81,14 +81,11 @@ pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTex
         }
         let level = match level {
             None => QTX_DEFAULT_SVG_LEVEL as u8,
-            Some(l) => u8::try_from(l)
-                .ok()
-                .filter(|&l| l <= MAX_VECTOR_LEVEL)
-                .ok_or_else(|| {
-                    Failure::invalid(format!(
-                        "{shown}: max_level {l} exceeds the vector packer's limit {MAX_VECTOR_LEVEL}"
-                    ))
-                })?,
+            Some(l) => svg_level(l).ok_or_else(|| {
+                Failure::invalid(format!(
+                    "{shown}: max_level {l} exceeds the vector packer's limit {MAX_VECTOR_LEVEL}"
+                ))
+            })?,
         };
         let (tree, _) = quadtex_io::pack_svg(path, level, &quadtex_io::Limits::default())?;
         return Ok(QtxTexture::new(tree));
@@ -124,6 +121,11 @@ pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTex
     Ok(QtxTexture::new(tree))
 }
 
+/// `level` if SVG art can be packed at it (0..=`MAX_VECTOR_LEVEL`).
+fn svg_level(level: i32) -> Option<u8> {
+    u8::try_from(level).ok().filter(|&l| l <= MAX_VECTOR_LEVEL)
+}
+
 /// `qtx_svg_options_default`: as `quadtex pack` packs SVG by default.
 pub(crate) fn default_svg_options() -> QtxSvgOptions {
     QtxSvgOptions {
@@ -155,14 +157,11 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
             Some(_) => quadtex_core::vector::CONTOUR_MAX_LEVEL,
             None => QTX_DEFAULT_SVG_LEVEL as u8,
         },
-        l => u8::try_from(l)
-            .ok()
-            .filter(|&l| l <= MAX_VECTOR_LEVEL)
-            .ok_or_else(|| {
-                Failure::invalid(format!(
-                    "options.max_level must be QTX_LEVEL_AUTO or in 0..={MAX_VECTOR_LEVEL}, got {l}"
-                ))
-            })?,
+        l => svg_level(l).ok_or_else(|| {
+            Failure::invalid(format!(
+                "options.max_level must be QTX_LEVEL_AUTO or in 0..={MAX_VECTOR_LEVEL}, got {l}"
+            ))
+        })?,
     };
     if options.max_sweep_work == 0 {
         return Err(Failure::invalid(
