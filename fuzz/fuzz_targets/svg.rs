@@ -2,13 +2,42 @@
 //! levels only repeat the same code per square, and cost the fuzzer
 //! executions; queries still reach level 30; the sweep's budget is small):
 //! an error naming the problem, or a valid tree. Never a panic.
+//!
+//! One exception, by design: a panic inside the SVG parser's own crates
+//! (usvg, tiny-skia; found by this target) is caught by
+//! `quadtex_io::parse_svg` and returned as the file's error. libfuzzer-sys's
+//! panic hook aborts before any unwinding, so it would report those caught
+//! panics as crashes; [`let_third_party_panics_unwind`] lets them unwind to
+//! the library's catch, and keeps the abort for every other panic (a panic
+//! that escapes the target is still a crash: libfuzzer-sys aborts on it).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 use quadtex_core::{QuadTree, VectorOptions};
 use quadtex_io::Limits;
 use std::path::Path;
+use std::sync::Once;
+
+/// Installs, once, a panic hook that stays silent for panics raised in
+/// crates.io dependencies (their source lives under Cargo's registry) and
+/// hands every other panic to libfuzzer-sys's hook (print, then abort).
+fn let_third_party_panics_unwind() {
+    static INSTALL: Once = Once::new();
+    INSTALL.call_once(|| {
+        let abort_hook = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            let in_dependency = info.location().is_some_and(|l| {
+                let file = l.file();
+                file.contains("/registry/src/") || file.contains("\\registry\\src\\")
+            });
+            if !in_dependency {
+                abort_hook(info);
+            }
+        }));
+    });
+}
 
 fuzz_target!(|data: &[u8]| {
+    let_third_party_panics_unwind();
     let limits = Limits { max_svg_elements: 2_000, max_nodes: 100_000, ..Limits::default() };
     let level = 4;
     let Ok(art) = quadtex_io::parse_svg(data, Path::new("fuzz.svg"), level, &limits) else { return };
