@@ -73,7 +73,8 @@ typedef enum QtxStatus {
     QTX_STATUS_UNSUPPORTED = 4,
     /**
      * A resource limit would be exceeded (image dimensions, file size, node
-     * count, tree depth); nothing was allocated.
+     * count, tree depth, sweep work, the memory budget), or the system
+     * refused the memory the input asked for; nothing was built.
      */
     QTX_STATUS_LIMIT = 5,
     /**

@@ -24,7 +24,8 @@ pub enum QtxStatus {
     /// filters, GIF/WebP/svgz images, patterns over too many tiles).
     Unsupported = 4,
     /// A resource limit would be exceeded (image dimensions, file size, node
-    /// count, tree depth); nothing was allocated.
+    /// count, tree depth, sweep work, the memory budget), or the system
+    /// refused the memory the input asked for; nothing was built.
     Limit = 5,
     /// A bug in quadtex (an internal panic, caught at the boundary). The
     /// library remains usable; please report the message.
@@ -61,7 +62,11 @@ impl Failure {
 pub(crate) fn core_status(e: &quadtex_core::Error) -> QtxStatus {
     use quadtex_core::Error as E;
     match e {
-        E::DepthTooLarge { .. } | E::TooManyNodes { .. } | E::SweepWork { .. } => QtxStatus::Limit,
+        E::DepthTooLarge { .. }
+        | E::TooManyNodes { .. }
+        | E::SweepWork { .. }
+        | E::MemoryBudget { .. }
+        | E::AllocationFailed { .. } => QtxStatus::Limit,
         E::NonFiniteCoordinate { .. }
         | E::ReversedBounds { .. }
         | E::BadTolerance(_)

@@ -1034,3 +1034,27 @@ fn mapped_open_and_verify() {
     assert_error(&["checker.qtx", "payload_crc"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn memory_refusals_are_limits() {
+    use quadtex_core::Error as E;
+    let budget = E::MemoryBudget {
+        what: "packing at level 20".into(),
+        estimate: 10 << 30,
+        budget: 4 << 30,
+        knobs: "lower max_level",
+    };
+    let refused = E::AllocationFailed {
+        what: "the node array".into(),
+        bytes: 1 << 40,
+    };
+    for e in [budget, refused] {
+        let message = e.to_string();
+        let failure = Failure::from(e);
+        assert_eq!(failure.status, QtxStatus::Limit, "{message}");
+        assert_eq!(failure.message, message);
+    }
+    // Other refusals keep their own status.
+    let bad = quadtex_core::Error::BadTolerance(f64::NAN);
+    assert_eq!(Failure::from(bad).status, QtxStatus::InvalidArgument);
+}
