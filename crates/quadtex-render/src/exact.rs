@@ -149,17 +149,32 @@ impl View {
 
     /// The part of `support` where this primitive lies (in front of the
     /// camera, inside its edges), ignoring occlusion.
-    pub fn region(&self, support: &ConvexPolygon) -> ConvexPolygon {
+    pub fn region<'s>(&self, support: &'s ConvexPolygon) -> Cow<'s, ConvexPolygon> {
         let lines = &self.bounds[..self.bound_count];
-        let inside = |&[x, y]: &[f64; 2]| {
-            let on = |l: &[f64; 3]| l[0] * x + l[1] * y + l[2] >= 0.0;
-            on(&self.w) && lines.iter().all(on)
-        };
-        // Most pixels lie inside: the clip would copy every vertex unchanged.
-        if support.vertices().iter().all(inside) {
-            return support.clone();
+        // Most pixels lie wholly inside (the clip would copy every vertex
+        // unchanged) or wholly beyond one line (the clip would build
+        // polygons line by line until one came out empty): both are
+        // decided from the support's vertices alone, with the clip's own
+        // side test.
+        let mut all_inside = true;
+        for l in std::iter::once(&self.w).chain(lines) {
+            let (mut some_in, mut some_out) = (false, false);
+            for &[x, y] in support.vertices() {
+                if l[0] * x + l[1] * y + l[2] >= 0.0 {
+                    some_in = true;
+                } else {
+                    some_out = true;
+                }
+            }
+            if !some_in {
+                return Cow::Owned(ConvexPolygon::EMPTY);
+            }
+            all_inside &= !some_out;
         }
-        support.clip_lines(std::iter::once(self.w).chain(lines.iter().copied()))
+        if all_inside {
+            return Cow::Borrowed(support);
+        }
+        Cow::Owned(support.clip_lines(std::iter::once(self.w).chain(lines.iter().copied())))
     }
 
     /// The texture's integral over this primitive's part of `support`
@@ -323,7 +338,10 @@ pub(crate) fn exact_pixel(
             _ => {}
         }
     }
-    let regions: Vec<ConvexPolygon> = views.iter().map(|v| v.region(&support)).collect();
+    let regions: Vec<ConvexPolygon> = views
+        .iter()
+        .map(|v| v.region(&support).into_owned())
+        .collect();
     let order = front_to_back(&views, &regions);
     let mut remaining = vec![support];
     for i in order {
@@ -534,9 +552,6 @@ fn sky_integral(
         let w = filter.integral(piece, centre);
         return (c.to_array().map(|v| f64::from(v) * w), w);
     }
-    let (lo, hi) = piece.bounds();
-    let step = 1.0 / SKY_CELLS;
-    let level = level_line(scene, 0.5 * (lo[0] + hi[0]));
     let whole = piece.area() >= filter.support(centre).area() * (1.0 - 1e-12);
     if whole
         && filter == PixelFilter::Box
@@ -546,6 +561,9 @@ fn sky_integral(
         let w = piece.area();
         return (c.map(|v| v * w), w);
     }
+    let (lo, hi) = piece.bounds();
+    let step = 1.0 / SKY_CELLS;
+    let level = level_line(scene, 0.5 * (lo[0] + hi[0]));
     if whole && level.is_none_or(|yh| yh < lo[1] - 1.0 || yh > hi[1] + 1.0) {
         // The whole support, away from the level line: the sky is smooth
         // there; 2×2 Gauss–Legendre points per unit cell of the filter.
