@@ -65,7 +65,9 @@ pub use polygon::ConvexPolygon;
 pub use shared::SharedBytes;
 pub use texel_block::{BlockFormat, TexelBlocks};
 pub use texture::{FilterOptions, FilterStats, LevelOfDetail, Texture, Weighting};
-pub use tree::{Aspect, LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats};
+pub use tree::{
+    Aspect, LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats, UNIFORM_SEARCH_NODES,
+};
 pub use vector::{ClipId, FillRule, Paint, VectorArt, VectorOptions, VectorReport};
 pub use wrap::{Wrap, WrapMode};
 

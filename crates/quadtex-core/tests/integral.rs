@@ -275,6 +275,33 @@ fn uniform_colour_is_exact_where_it_answers() {
         tree.uniform_colour(&Fragment::new(2.0, 2.0, 3.0, 3.0).unwrap())
             .is_none()
     );
+    // One odd texel at the origin (column 0, the last row: rows run down,
+    // z up): squares of one colour around it answer
+    // across their borders, unless the fragment reaches the odd texel or
+    // needs more squares than the search looks at.
+    let one_odd = |n: u32| {
+        let grid =
+            TexelGrid::from_fn(n, n, |c, r| PALETTE[usize::from(c == 0 && r == n - 1)]).unwrap();
+        QuadTree::from_texels(&grid, &BuildOptions::default())
+            .unwrap()
+            .0
+    };
+    let tree = one_odd(4);
+    let a = Some(PALETTE[0]);
+    let answer = |tree: &QuadTree, f: [f64; 4]| {
+        tree.uniform_colour(&Fragment::new(f[0], f[1], f[2], f[3]).unwrap())
+    };
+    // Across the two uniform quadrants of the far half.
+    assert_eq!(answer(&tree, [0.3, 0.6, 0.7, 0.9]), a);
+    // Across all four quadrants, the split one only on its odd-free texels.
+    assert_eq!(answer(&tree, [0.3, 0.3, 0.7, 0.7]), a);
+    // Onto the odd texel.
+    assert_eq!(answer(&tree, [0.1, 0.1, 0.6, 0.3]), None);
+    // Ending exactly where the odd texel begins (half-open): uniform.
+    assert_eq!(answer(&tree, [0.25, 0.0, 0.6, 0.2]), a);
+    // Off the odd texel of an 8x8 grid, down three levels beside it.
+    assert_eq!(answer(&one_odd(8), [0.13, 0.13, 0.99, 0.99]), a);
+    assert_eq!(answer(&one_odd(8), [0.12, 0.12, 0.99, 0.99]), None);
 }
 
 #[test]
