@@ -45,7 +45,7 @@ const PAD: usize = 3;
 /// Most squares [`QuadTree::uniform_colour`] looks at below the first
 /// square its fragment straddles (a footprint across a few squares of one
 /// colour answers; a longer search is left to the caller's integral).
-pub const UNIFORM_SEARCH_NODES: usize = 16;
+pub const UNIFORM_SEARCH_NODES: usize = 64;
 
 /// Deepest level of the direct-addressed top table.
 const MAX_TOP_LEVEL: u8 = 8;
