@@ -103,6 +103,9 @@ const UNCONTROLLED: f64 = 0.05;
 pub struct Projection {
     texture_from_screen: Mat3,
     screen_from_texture: Mat3,
+    /// `|∇w|` over the screen, for the horizon sliver's width (kept: a
+    /// view's projection serves every pixel it covers).
+    w_gradient: f64,
 }
 
 impl Projection {
@@ -132,6 +135,7 @@ impl Projection {
         Ok(Projection {
             texture_from_screen: m,
             screen_from_texture: inv,
+            w_gradient: m[2][0].hypot(m[2][1]),
         })
     }
 
@@ -142,6 +146,7 @@ impl Projection {
         Projection {
             texture_from_screen: id,
             screen_from_texture: id,
+            w_gradient: 0.0,
         }
     }
 
@@ -381,11 +386,12 @@ pub(crate) fn integrate_region(
     // bound: its width is an eighth of the error budget over the region's
     // diameter (1e-9 pixel under a fixed level).
     let r = projection.texture_from_screen[2];
-    let grad = r[0].hypot(r[1]);
+    let grad = projection.w_gradient;
     let sliver_width = match options.level_of_detail() {
         LevelOfDetail::ErrorBound(e) => {
-            let (lo, hi) = region.bounds();
-            let diam = (hi[0] - lo[0]).hypot(hi[1] - lo[1]).max(f64::MIN_POSITIVE);
+            // Within MAX_SCREEN_COORDINATE: the squares cannot overflow.
+            let (dx, dy) = (rhi[0] - rlo[0], rhi[1] - rlo[1]);
+            let diam = (dx * dx + dy * dy).sqrt().max(f64::MIN_POSITIVE);
             (e * region.area() / (8.0 * diam)).max(1e-9)
         }
         LevelOfDetail::Fixed(_) => 1e-9,

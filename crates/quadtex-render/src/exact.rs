@@ -278,7 +278,9 @@ pub(crate) fn exact_pixel(
         && let Some(view) = candidate_view(scene, cache, *id)?
     {
         let region = view.region(&support);
-        if region.area() >= support.area() * (1.0 - 1e-12) {
+        let whole =
+            matches!(region, Cow::Borrowed(_)) || region.area() >= support.area() * (1.0 - 1e-12);
+        if whole {
             let (c, w, b) = shade_piece(frame, &view, &region, filter, centre, options, &mut parts);
             add(c, w, b);
             stats.merge_parts(&parts);
@@ -297,7 +299,15 @@ pub(crate) fn exact_pixel(
             .flatten()
             .all(|v| v.region(&support).is_empty())
     {
-        let (c, w) = sky_integral(scene, &support, filter, centre, sky_tolerance(options));
+        let whole = Whole::Yes;
+        let (c, w) = sky_integral(
+            scene,
+            &support,
+            whole,
+            filter,
+            centre,
+            sky_tolerance(options),
+        );
         return Some(mean(c, w));
     }
     let mut views = Vec::with_capacity(candidates.len() + scene.surfaces.len());
@@ -359,7 +369,14 @@ pub(crate) fn exact_pixel(
         remaining = next;
     }
     for r in &remaining {
-        let (c, w) = sky_integral(scene, r, filter, centre, sky_tolerance(options));
+        let (c, w) = sky_integral(
+            scene,
+            r,
+            Whole::Unknown,
+            filter,
+            centre,
+            sky_tolerance(options),
+        );
         add(c, w, 0.0);
     }
     stats.merge_parts(&parts);
@@ -534,12 +551,20 @@ fn sky_at_centre(scene: &Scene, centre: [f64; 2]) -> Option<([f64; 4], f64)> {
     Some((sky(scene, &ray).to_array().map(f64::from), bound))
 }
 
+/// Whether a piece is the filter's whole support, when the caller knows.
+#[derive(Debug, Clone, Copy)]
+enum Whole {
+    Yes,
+    Unknown,
+}
+
 /// `(Σ sky·k, Σ k)` over screen piece `piece`. A whole box-filtered pixel
 /// is taken at its centre where [`sky_at_centre`]'s bound is within
 /// `tolerance`.
 fn sky_integral(
     scene: &Scene,
     piece: &ConvexPolygon,
+    whole: Whole,
     filter: PixelFilter,
     centre: [f64; 2],
     tolerance: f64,
@@ -552,7 +577,10 @@ fn sky_integral(
         let w = filter.integral(piece, centre);
         return (c.to_array().map(|v| f64::from(v) * w), w);
     }
-    let whole = piece.area() >= filter.support(centre).area() * (1.0 - 1e-12);
+    let whole = match whole {
+        Whole::Yes => true,
+        Whole::Unknown => piece.area() >= filter.support(centre).area() * (1.0 - 1e-12),
+    };
     if whole
         && filter == PixelFilter::Box
         && let Some((c, bound)) = sky_at_centre(scene, centre)
