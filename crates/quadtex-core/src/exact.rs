@@ -781,8 +781,7 @@ impl Walk<'_> {
                 let z = (k + 1) as f64 * h;
                 let [r0, r1] = &mut rests;
                 let (from, to) = if r == 0 { (&*r0, r1) } else { (&*r1, r0) };
-                from.clip_into(0.0, -1.0, z, &mut band);
-                from.clip_into(0.0, 1.0, -z, to);
+                from.split_into(0.0, -1.0, z, &mut band, to);
                 r ^= 1;
                 &band
             } else {
@@ -1438,10 +1437,22 @@ fn clip_axis(p: &ConvexPolygon, axis: usize, lo: f64, hi: f64) -> ConvexPolygon 
 /// tiles as wide as itself, not a `1/max(nx, nz)` share of its diameter),
 /// scaled by how much the density varies across the block.
 fn tile_diameter(q: &[[f64; 2]; 4], nx: f64, nz: f64, rmin: f64, rmax: f64) -> f64 {
-    let len = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    let len = |a: [f64; 2], b: [f64; 2]| length(a[0] - b[0], a[1] - b[1]);
     let along_x = len(q[1], q[0]).max(len(q[2], q[3])) / nx;
     let along_z = len(q[3], q[0]).max(len(q[2], q[1])) / nz;
     (along_x + along_z) * (rmax / rmin).max(1.0).sqrt()
+}
+
+/// `√(dx² + dy²)`, by `hypot` only where the squares overflow or
+/// underflow (`hypot` costs several times more, and this runs per block).
+#[inline]
+fn length(dx: f64, dy: f64) -> f64 {
+    let s = (dx * dx + dy * dy).sqrt();
+    if s.is_finite() && s > 1e-150 {
+        s
+    } else {
+        dx.hypot(dy)
+    }
 }
 
 /// The diagonal of the bounding box of `points`.

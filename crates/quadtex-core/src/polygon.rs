@@ -264,6 +264,57 @@ impl ConvexPolygon {
         }
     }
 
+    /// The parts on either side of the line `a·x + b·y + c = 0` into
+    /// `inside` (`≥ 0`) and `outside` (`≤ 0`), both cleared first, in one
+    /// pass: the same polygons as [`ConvexPolygon::clip_into`] with
+    /// `(a, b, c)` and with `(−a, −b, −c)` (negation is exact, so each
+    /// side value and crossing point is too).
+    pub(crate) fn split_into(
+        &self,
+        a: f64,
+        b: f64,
+        c: f64,
+        inside: &mut ConvexPolygon,
+        outside: &mut ConvexPolygon,
+    ) {
+        inside.v.clear();
+        outside.v.clear();
+        let v = self.vertices();
+        let n = v.len();
+        if n == 0 {
+            return;
+        }
+        let side = |p: [f64; 2]| a * p[0] + b * p[1] + c;
+        let mut prev = v[n - 1];
+        let mut s_prev = side(prev);
+        for &p in v {
+            let s = side(p);
+            let crosses_in = (s >= 0.0) != (s_prev >= 0.0);
+            let crosses_out = (s <= 0.0) != (s_prev <= 0.0);
+            if crosses_in || crosses_out {
+                let t = s_prev / (s_prev - s);
+                let q = [
+                    prev[0] + t * (p[0] - prev[0]),
+                    prev[1] + t * (p[1] - prev[1]),
+                ];
+                if crosses_in {
+                    let _ = inside.v.try_push(q);
+                }
+                if crosses_out {
+                    let _ = outside.v.try_push(q);
+                }
+            }
+            if s >= 0.0 {
+                let _ = inside.v.try_push(p);
+            }
+            if s <= 0.0 {
+                let _ = outside.v.try_push(p);
+            }
+            prev = p;
+            s_prev = s;
+        }
+    }
+
     /// Each edge as the line `(a, b, c)` with `a·x + b·y + c ≥ 0` on the
     /// inside (left of the edge, the polygon being counter-clockwise).
     pub fn edge_lines(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
@@ -439,6 +490,47 @@ mod tests {
         }
         let square = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
         assert_eq!(square.clip_lines(std::iter::empty()), square);
+    }
+
+    /// `split_into` against two clips, bit for bit (PartialEq on `f64`
+    /// coordinates; signed zeros compared by bits too), on random polygons,
+    /// random lines, lines through vertices and the horizontal lines the
+    /// cell scan cuts bands with.
+    #[test]
+    fn splitting_equals_clipping_both_sides() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut random = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
+        };
+        let bits = |p: &ConvexPolygon| -> Vec<[u64; 2]> {
+            p.vertices().iter().map(|v| v.map(f64::to_bits)).collect()
+        };
+        for i in 0..4000 {
+            let points: Vec<[f64; 2]> = (0..8).map(|_| [random(), random()]).collect();
+            let polygon = ConvexPolygon::hull(&points);
+            let line = match i % 3 {
+                0 => [random(), random(), random() * 0.5],
+                // Through a vertex: a side value of exactly zero.
+                1 => {
+                    let v = polygon.vertices()[0];
+                    let (a, b) = (random(), 0.0);
+                    [a, b, -a * v[0]]
+                }
+                _ => {
+                    let z = (random() * 8.0).round() / 8.0;
+                    [0.0, -1.0, z]
+                }
+            };
+            let (mut inside, mut outside) = (ConvexPolygon::EMPTY, ConvexPolygon::EMPTY);
+            polygon.split_into(line[0], line[1], line[2], &mut inside, &mut outside);
+            let want_in = polygon.clip(line[0], line[1], line[2]);
+            let want_out = polygon.clip(-line[0], -line[1], -line[2]);
+            assert_eq!(bits(&inside), bits(&want_in), "{polygon:?} {line:?}");
+            assert_eq!(bits(&outside), bits(&want_out), "{polygon:?} {line:?}");
+        }
     }
 
     #[test]
