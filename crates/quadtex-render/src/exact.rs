@@ -299,11 +299,10 @@ pub(crate) fn exact_pixel(
             .flatten()
             .all(|v| v.region(&support).is_empty())
     {
-        let whole = Whole::Yes;
         let (c, w) = sky_integral(
             scene,
             &support,
-            whole,
+            Whole::Yes,
             filter,
             centre,
             sky_tolerance(options),
