@@ -204,6 +204,7 @@ pub enum PixelFilter {
 
 impl PixelFilter {
     /// Half the side of the support, in pixels.
+    #[inline]
     pub fn radius(self) -> f64 {
         match self {
             PixelFilter::Box => 0.5,
@@ -240,6 +241,7 @@ impl PixelFilter {
     }
 
     /// The filter's support around `centre`.
+    #[inline]
     pub fn support(self, centre: [f64; 2]) -> ConvexPolygon {
         let r = self.radius();
         ConvexPolygon::rect(centre[0] - r, centre[1] - r, centre[0] + r, centre[1] + r)

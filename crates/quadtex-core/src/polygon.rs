@@ -72,6 +72,7 @@ impl ConvexPolygon {
     }
 
     /// The axis-aligned rectangle `[x0, x1] × [y0, y1]` (empty if reversed).
+    #[inline]
     pub fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> ConvexPolygon {
         if !(x0 < x1 && y0 < y1) {
             return ConvexPolygon::EMPTY;
@@ -93,26 +94,31 @@ impl ConvexPolygon {
     }
 
     /// The vertices.
+    #[inline]
     pub fn vertices(&self) -> &[[f64; 2]] {
         &self.v
     }
 
     /// True with fewer than three vertices.
+    #[inline]
     pub fn is_empty(&self) -> bool {
         self.v.len() < 3
     }
 
     /// Shoelace area, signed (positive for counter-clockwise).
+    #[inline]
     pub fn signed_area(&self) -> f64 {
         signed_area(self.vertices())
     }
 
     /// Area (`≥ 0`).
+    #[inline]
     pub fn area(&self) -> f64 {
         self.signed_area().abs()
     }
 
     /// The centroid (the vertices' mean for a degenerate polygon).
+    #[inline]
     pub fn centroid(&self) -> [f64; 2] {
         let v = self.vertices();
         let n = v.len();
@@ -171,6 +177,7 @@ impl ConvexPolygon {
     }
 
     /// Lower-left and upper-right corners of the bounding box.
+    #[inline]
     pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for p in self.vertices() {
