@@ -257,11 +257,7 @@ impl ConvexPolygon {
         for &p in v {
             let s = side(p);
             if (s >= 0.0) != (s_prev >= 0.0) {
-                let t = s_prev / (s_prev - s);
-                let _ = out.v.try_push([
-                    prev[0] + t * (p[0] - prev[0]),
-                    prev[1] + t * (p[1] - prev[1]),
-                ]);
+                let _ = out.v.try_push(crossing(prev, p, s_prev, s));
             }
             if s >= 0.0 {
                 let _ = out.v.try_push(p);
@@ -299,11 +295,7 @@ impl ConvexPolygon {
             let crosses_in = (s >= 0.0) != (s_prev >= 0.0);
             let crosses_out = (s <= 0.0) != (s_prev <= 0.0);
             if crosses_in || crosses_out {
-                let t = s_prev / (s_prev - s);
-                let q = [
-                    prev[0] + t * (p[0] - prev[0]),
-                    prev[1] + t * (p[1] - prev[1]),
-                ];
+                let q = crossing(prev, p, s_prev, s);
                 if crosses_in {
                     let _ = inside.v.try_push(q);
                 }
@@ -461,6 +453,19 @@ pub(crate) fn separable_integral(p: &[[f64; 2]], f: &Cubic, g: &Cubic) -> f64 {
         a = b;
     }
     total
+}
+
+/// Where the edge from `prev` (side value `s_prev`) to `p` (side value
+/// `s`, of the other sign) crosses the line: one formula for
+/// [`ConvexPolygon::clip_into`] and [`ConvexPolygon::split_into`], so the
+/// two agree bit for bit.
+#[inline]
+fn crossing(prev: [f64; 2], p: [f64; 2], s_prev: f64, s: f64) -> [f64; 2] {
+    let t = s_prev / (s_prev - s);
+    [
+        prev[0] + t * (p[0] - prev[0]),
+        prev[1] + t * (p[1] - prev[1]),
+    ]
 }
 
 #[cfg(test)]
