@@ -4,7 +4,8 @@
 # do not move). Runs `quadtex demo` under valgrind's callgrind three times:
 # the texture build alone (an 8-pixel-wide frame), the `nearest` frame and
 # the `quadtree` frame at WIDTH, and prints each frame's instructions less
-# the build's (writing the PNG included, the same for both filters), the
+# the build's and less writing the PNG (`Output::save_image`, inclusive:
+# the same for both filters, so leaving it in would flatter the ratio), the
 # ratio and the filter's share (quadtree − nearest) / nearest.
 #
 # Usage: bench/instructions.sh [QUADTEX_BINARY] [WIDTH]
@@ -18,10 +19,16 @@ command -v valgrind >/dev/null || { echo "valgrind not found (apt-get install va
 [ -x "$bin" ] || { echo "$bin: not an executable (cargo build --release first)" >&2; exit 1; }
 dir="$(mktemp -d)"
 trap 'rm -rf "$dir"' EXIT
+# Instructions of one run, less those of writing its image.
 count() {
-  valgrind --tool=callgrind --callgrind-out-file="$dir/out.$1.$2" "$bin" demo \
+  local out="$dir/out.$1.$2" total save
+  total=$(valgrind --tool=callgrind --callgrind-out-file="$out" "$bin" demo \
     --width "$2" --filter "$1" -o "$dir/frame.png" 2>&1 \
-    | sed -n 's/.*I *refs: *\([0-9,]*\).*/\1/p' | tr -d ,
+    | sed -n 's/.*I *refs: *\([0-9,]*\).*/\1/p' | tr -d ,)
+  save=$(callgrind_annotate --inclusive=yes --threshold=100 --auto=no "$out" 2>/dev/null \
+    | awk '/Output::save_image/ { gsub(",", "", $1); print $1; exit }')
+  [ -n "$save" ] || { echo "no Output::save_image in the profile of $1 at $2" >&2; exit 1; }
+  echo $(( total - save ))
 }
 build=$(count nearest 8)
 nearest=$(( $(count nearest "$width") - build ))

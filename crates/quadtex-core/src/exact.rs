@@ -746,6 +746,17 @@ impl Walk<'_> {
         let n = 1i64 << depth;
         let h = 1.0 / n as f64;
         let (k0, k1) = ((lo[1] / h).floor(), (hi[1] / h).ceil());
+        let (c0, c1) = ((lo[0] / h).floor(), (hi[0] / h).ceil());
+        // Bands run across the axis the region spans fewer cells of: a
+        // needle along z is cut into a few long columns, not many short
+        // rows (a band costs a split and the projection of its vertices,
+        // a box-filtered cell within it one cut). The region is transposed
+        // for it, `(x, z) → (z, x)`, with the screen map's columns swapped;
+        // the orientation this reverses does not matter to the box's
+        // areas, taken as absolute values. Other filters clip each cell by
+        // rows.
+        let transpose = self.filter == PixelFilter::Box && c1 - c0 < k1 - k0;
+        let (k0, k1) = if transpose { (c0, c1) } else { (k0, k1) };
         if (k1 - k0).is_nan() || k1 - k0 > SCAN_CELLS {
             return false;
         }
@@ -764,7 +775,16 @@ impl Walk<'_> {
                 c as usize
             }
         };
-        let m = self.screen_from_texture;
+        let mut m = self.screen_from_texture;
+        // Band `k` and cell `col` within it: grid offsets and wrap modes.
+        let (band_wrap, band_stride, cell_wrap, cell_stride) = if transpose {
+            for row in &mut m {
+                row.swap(0, 1);
+            }
+            (self.wrap.x, 1, self.wrap.z, n as usize)
+        } else {
+            (self.wrap.z, n as usize, self.wrap.x, 1)
+        };
         // One pass, bands cut off the rest of the region from the bottom up;
         // the sums stay local until the scan is known to fit.
         let (mut colour_sum, mut weight_sum, mut cells) = ([0.0; 4], 0.0, 0.0);
@@ -775,7 +795,12 @@ impl Walk<'_> {
             weight_sum += w;
         };
         let mut screen_buffer = [[0.0; 2]; crate::polygon::MAX_VERTICES];
-        let mut rests = [self.region.clone(), ConvexPolygon::EMPTY];
+        let region = if transpose {
+            self.region.map(|[x, z]| [z, x])
+        } else {
+            self.region.clone()
+        };
+        let mut rests = [region, ConvexPolygon::EMPTY];
         let mut band = ConvexPolygon::EMPTY;
         let mut r = 0;
         for k in k0..k1 {
@@ -797,7 +822,7 @@ impl Walk<'_> {
             if cells > SCAN_CELLS {
                 return false;
             }
-            let row = wrapped(self.wrap.z, k) * n as usize;
+            let row = wrapped(band_wrap, k) * band_stride;
             if self.filter == PixelFilter::Box {
                 // The box weight of a cell's piece is its screen area: the
                 // screen area of the band left of the cell's right side,
@@ -815,7 +840,7 @@ impl Walk<'_> {
                     };
                     let w = 0.5 * (upto - left).abs();
                     left = upto;
-                    add(grid[row + wrapped(self.wrap.x, col)], w);
+                    add(grid[row + wrapped(cell_wrap, col) * cell_stride], w);
                 }
                 continue;
             }
@@ -825,7 +850,7 @@ impl Walk<'_> {
                 if piece.is_empty() {
                     continue;
                 }
-                let colour = grid[row + wrapped(self.wrap.x, col)];
+                let colour = grid[row + wrapped(cell_wrap, col) * cell_stride];
                 let w = self
                     .filter
                     .integral(&self.to_screen_poly(&piece, &m), self.centre);
