@@ -73,6 +73,16 @@ fn candidate_view<'a>(
     Some(View::new(scene, surface, &planar).map(Cow::Owned))
 }
 
+/// Where a filter support lies against a [`View`]'s lines.
+enum Placement {
+    /// Wholly beyond one line: the region is empty.
+    Outside,
+    /// Within every line: the region is the support.
+    Inside,
+    /// Neither: the region is the support clipped.
+    Straddles,
+}
+
 /// A planar primitive seen from the camera: rows `(a, b, c)` of affine
 /// functions of the screen point `(px, py, 1)`.
 #[derive(Debug, Clone)]
@@ -150,12 +160,33 @@ impl View {
     /// The part of `support` where this primitive lies (in front of the
     /// camera, inside its edges), ignoring occlusion.
     pub fn region<'s>(&self, support: &'s ConvexPolygon) -> Cow<'s, ConvexPolygon> {
+        match self.placement(support) {
+            Placement::Outside => Cow::Owned(ConvexPolygon::EMPTY),
+            Placement::Inside => Cow::Borrowed(support),
+            Placement::Straddles => Cow::Owned(support.clip_lines(
+                std::iter::once(self.w).chain(self.bounds[..self.bound_count].iter().copied()),
+            )),
+        }
+    }
+
+    /// Whether this primitive's [`View::region`] of `support` is empty,
+    /// without building it where the support's corners decide (the sky's
+    /// check of every plane and quad no centre sees, most pixels).
+    pub fn misses(&self, support: &ConvexPolygon) -> bool {
+        match self.placement(support) {
+            Placement::Outside => true,
+            Placement::Inside => support.is_empty(),
+            Placement::Straddles => self.region(support).is_empty(),
+        }
+    }
+
+    /// Where `support` lies against this primitive's lines. Most pixels lie
+    /// wholly inside (the clip would copy every vertex unchanged) or wholly
+    /// beyond one line (the clip would build polygons line by line until
+    /// one came out empty): both are decided from the support's vertices
+    /// alone, with the clip's own side test.
+    fn placement(&self, support: &ConvexPolygon) -> Placement {
         let lines = &self.bounds[..self.bound_count];
-        // Most pixels lie wholly inside (the clip would copy every vertex
-        // unchanged) or wholly beyond one line (the clip would build
-        // polygons line by line until one came out empty): both are
-        // decided from the support's vertices alone, with the clip's own
-        // side test.
         let mut all_inside = true;
         for l in std::iter::once(&self.w).chain(lines) {
             let (mut some_in, mut some_out) = (false, false);
@@ -167,14 +198,15 @@ impl View {
                 }
             }
             if !some_in {
-                return Cow::Owned(ConvexPolygon::EMPTY);
+                return Placement::Outside;
             }
             all_inside &= !some_out;
         }
         if all_inside {
-            return Cow::Borrowed(support);
+            Placement::Inside
+        } else {
+            Placement::Straddles
         }
-        Cow::Owned(support.clip_lines(std::iter::once(self.w).chain(lines.iter().copied())))
     }
 
     /// The texture's integral over this primitive's part of `support`
@@ -291,13 +323,7 @@ pub(crate) fn exact_pixel(
     // Only the sky in reach: the sky over the whole support unless a plane
     // or quad no centre sees reaches into it (the case the general path
     // below covers; meshes are tried there only when a centre sees them).
-    if candidates.is_empty()
-        && sees_sky
-        && cache
-            .views
-            .iter()
-            .flatten()
-            .all(|v| v.region(&support).is_empty())
+    if candidates.is_empty() && sees_sky && cache.views.iter().flatten().all(|v| v.misses(&support))
     {
         let (c, w) = sky_integral(
             scene,
@@ -753,6 +779,40 @@ mod tests {
             closest > 0.05,
             "the bound is vacuous: at most {closest} of it"
         );
+    }
+
+    /// The corner decisions agree with the clip they stand in for: over
+    /// the demo's planes and quads and every 5th pixel of a 192×108 frame
+    /// (box and Mitchell supports), `misses` is the clipped region's
+    /// emptiness and `region` is the clip itself, and each of the three
+    /// placements occurs.
+    #[test]
+    fn corner_decisions_agree_with_clipping() {
+        let demo = crate::demo_scene().unwrap();
+        let scene = Scene {
+            camera: demo.camera.with_size(192, 108),
+            ..demo
+        };
+        let views = SurfaceViews::new(&scene);
+        let mut seen = [0usize; 3];
+        for view in views.views.iter().flatten() {
+            let lines: Vec<[f64; 3]> = std::iter::once(view.w)
+                .chain(view.bounds[..view.bound_count].iter().copied())
+                .collect();
+            for y in (0..108).step_by(5) {
+                for x in (0..192).step_by(5) {
+                    let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+                    for filter in [PixelFilter::Box, PixelFilter::Mitchell] {
+                        let support = filter.support(centre);
+                        let clipped = support.clip_lines(lines.iter().copied());
+                        assert_eq!(view.misses(&support), clipped.is_empty());
+                        assert_eq!(*view.region(&support), clipped);
+                        seen[view.placement(&support) as usize] += 1;
+                    }
+                }
+            }
+        }
+        assert!(seen.iter().all(|&n| n > 0), "placements seen: {seen:?}");
     }
 
     /// Pixels just below the checker plane's horizon see thin needles
