@@ -163,10 +163,14 @@ impl View {
         match self.placement(support) {
             Placement::Outside => Cow::Owned(ConvexPolygon::EMPTY),
             Placement::Inside => Cow::Borrowed(support),
-            Placement::Straddles => Cow::Owned(support.clip_lines(
-                std::iter::once(self.w).chain(self.bounds[..self.bound_count].iter().copied()),
-            )),
+            Placement::Straddles => Cow::Owned(support.clip_lines(self.lines())),
         }
+    }
+
+    /// The half-planes `a·x + b·y + c ≥ 0` this primitive is seen within:
+    /// in front of the camera, then inside each of its edges.
+    fn lines(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
+        std::iter::once(self.w).chain(self.bounds[..self.bound_count].iter().copied())
     }
 
     /// Whether this primitive's [`View::region`] of `support` is empty,
@@ -186,9 +190,8 @@ impl View {
     /// one came out empty): both are decided from the support's vertices
     /// alone, with the clip's own side test.
     fn placement(&self, support: &ConvexPolygon) -> Placement {
-        let lines = &self.bounds[..self.bound_count];
         let mut all_inside = true;
-        for l in std::iter::once(&self.w).chain(lines) {
+        for l in self.lines() {
             let (mut some_in, mut some_out) = (false, false);
             for &[x, y] in support.vertices() {
                 if l[0] * x + l[1] * y + l[2] >= 0.0 {
@@ -694,6 +697,15 @@ fn sky_integral(
 mod tests {
     use super::*;
 
+    /// The built-in demo scene with its camera at `width × height`.
+    fn demo_at(width: u32, height: u32) -> Scene {
+        let demo = crate::demo_scene().unwrap();
+        Scene {
+            camera: demo.camera.with_size(width, height),
+            ..demo
+        }
+    }
+
     /// RMS over every 7th pixel of row `y` of `scenes/checker.toml` at
     /// 960×540: default options against the finished integral.
     fn row_rms(y: f64) -> f64 {
@@ -732,11 +744,7 @@ mod tests {
     /// rows at the level line.
     #[test]
     fn the_sky_at_a_pixels_centre_is_within_its_bound() {
-        let demo = crate::demo_scene().unwrap();
-        let scene = Scene {
-            camera: demo.camera.with_size(96, 54),
-            ..demo
-        };
+        let scene = demo_at(96, 54);
         let (mut refused, mut closest) = (0, 0.0f64);
         for y in 0..54 {
             for x in (0..96).step_by(13) {
@@ -788,23 +796,16 @@ mod tests {
     /// placements occurs.
     #[test]
     fn corner_decisions_agree_with_clipping() {
-        let demo = crate::demo_scene().unwrap();
-        let scene = Scene {
-            camera: demo.camera.with_size(192, 108),
-            ..demo
-        };
+        let scene = demo_at(192, 108);
         let views = SurfaceViews::new(&scene);
         let mut seen = [0usize; 3];
         for view in views.views.iter().flatten() {
-            let lines: Vec<[f64; 3]> = std::iter::once(view.w)
-                .chain(view.bounds[..view.bound_count].iter().copied())
-                .collect();
             for y in (0..108).step_by(5) {
                 for x in (0..192).step_by(5) {
                     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
                     for filter in [PixelFilter::Box, PixelFilter::Mitchell] {
                         let support = filter.support(centre);
-                        let clipped = support.clip_lines(lines.iter().copied());
+                        let clipped = support.clip_lines(view.lines());
                         assert_eq!(view.misses(&support), clipped.is_empty());
                         assert_eq!(*view.region(&support), clipped);
                         seen[view.placement(&support) as usize] += 1;
