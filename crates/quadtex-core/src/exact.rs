@@ -89,6 +89,16 @@ const MAX_TILES_DESCENDED: f64 = 16.0;
 /// time the walk spends on its default budget of squares.
 const SCAN_CELLS: f64 = 512.0;
 
+/// The walk starts below the root ([`Walk::start_node`]) only for error
+/// bounds below this fraction of full contrast: above it, a square holding
+/// the whole region might be taken whole.
+const MAX_SKIPPED_EPSILON: f64 = 0.5;
+
+/// How far (tree units) a region's bounds must keep from a square's middle
+/// lines for [`Walk::start_node`] to place it in one half: many times the
+/// rounding of a tile frame's edges (a few ulps of the tile index).
+const START_MARGIN: f64 = 1e-9;
+
 /// A refinement over more than [`MAX_TILES_DESCENDED`] tiles that the
 /// budget stops with its bound above this fraction of full contrast is
 /// replaced by the coarse sum (see `Walk::run`).
@@ -1022,7 +1032,8 @@ impl Walk<'_> {
         }
         if i0 == i1 && j0 == j1 {
             let frame = self.tile_frame(i0, j0);
-            return self.evaluate_node(frame, QuadTree::ROOT, 0, 0, 0);
+            let (node, level, ix, iz) = self.start_node(i0, j0);
+            return self.evaluate_node(frame, node, level, ix, iz);
         }
         self.visited += 1;
         let m = self.screen_from_texture;
@@ -1151,6 +1162,62 @@ impl Walk<'_> {
             det: self.screen_det * aspect.area_ratio(),
         });
         self.frames.len() - 1
+    }
+
+    /// Where the walk over tile `(i, j)` starts: the deepest node whose
+    /// square holds the region's part of the tile strictly inside one
+    /// child, down from the root through nodes of full contrast
+    /// ([`QuadTree::splits_fully`]). The walk would refine each node above
+    /// it first thing: its bound there is the region's whole weight (unit
+    /// contrast over all of it), above any target of an error bound below
+    /// [`MAX_SKIPPED_EPSILON`], and of its four children the other three
+    /// miss the region. Starting below them skips evaluating four squares
+    /// a level for nothing (a region of a pixel or two over a deep raster:
+    /// most of the walk's squares before).
+    fn start_node(&self, i: i64, j: i64) -> (NodeRef, u8, u32, u32) {
+        let mut at = (QuadTree::ROOT, 0u8, 0u32, 0u32);
+        if self.target >= MAX_SKIPPED_EPSILON * self.k_max * self.area {
+            return at;
+        }
+        // The region's bounds in the tile's local (tree) coordinates:
+        // texture = sign·local/extent + offset (`tile_frame`).
+        let (lo, hi) = self.region.bounds();
+        let extent = self.tree.aspect().scale();
+        let local = |axis: usize, mode: WrapMode, tile: i64| {
+            let (sign, offset) = tile_map(mode, tile);
+            let a = (lo[axis] - offset) * sign * extent[axis];
+            let b = (hi[axis] - offset) * sign * extent[axis];
+            (a.min(b), a.max(b))
+        };
+        let (x, z) = (local(0, self.wrap.x, i), local(1, self.wrap.z, j));
+        // Which half of `[c0, c0 + 2·side)` holds `(a, b)` with room to
+        // spare for the rounding of the tile frame's edges.
+        let half = |(a, b): (f64, f64), mid: f64| {
+            if b < mid - START_MARGIN {
+                Some(0)
+            } else if a > mid + START_MARGIN {
+                Some(1)
+            } else {
+                None
+            }
+        };
+        loop {
+            let (node, level, ix, iz) = at;
+            if self.fixed.is_some_and(|k| level >= k) || !self.tree.splits_fully(node) {
+                return at;
+            }
+            let side = unit_side(level + 1);
+            let (mx, mz) = (f64::from(2 * ix + 1) * side, f64::from(2 * iz + 1) * side);
+            let (Some(hx), Some(hz)) = (half(x, mx), half(z, mz)) else {
+                return at;
+            };
+            at = (
+                self.tree.child_ref(node, (hx + 2 * hz) as usize),
+                level + 1,
+                2 * ix + hx,
+                2 * iz + hz,
+            );
+        }
     }
 
     fn evaluate_node(&mut self, frame: usize, p: NodeRef, level: u8, ix: u32, iz: u32) -> Outcome {

@@ -1332,6 +1332,28 @@ impl QuadTree {
         (inner, colour, if inner { 1.0 } else { 0.0 })
     }
 
+    /// Whether node `n` has four children and the full contrast bound (1)
+    /// of [`QuadTree::node_detail`], without its colour: a stored inner
+    /// node or texel block, or a block's cell above its texels. A cell
+    /// whose texels happen to be one colour counts too (its children are
+    /// that colour as well). Gradient and contour leaves do not (their
+    /// contrast is their own).
+    #[inline]
+    pub(crate) fn splits_fully(&self, n: NodeRef) -> bool {
+        if n.as_gradient_cell().is_some() {
+            return false;
+        }
+        if let Some((_, j, _, _)) = n.as_cell() {
+            return self
+                .texel_blocks
+                .as_ref()
+                .is_some_and(|tb| j < tb.log2_side());
+        }
+        // Gradient and contour leaves are stored terminal squares.
+        let p = n.0 as usize;
+        self.is_inner(p) || self.block_at(p).is_some()
+    }
+
     /// Child `c` (`low-x low-z, high-x low-z, low-x high-z, high-x high-z`)
     /// of node `n`, which has children ([`QuadTree::node_info`]).
     #[inline]
