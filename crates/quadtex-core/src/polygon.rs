@@ -153,6 +153,12 @@ impl ConvexPolygon {
         }
         let mut rest = self.clone();
         for [a, b, c] in other.edge_lines() {
+            // A repeated vertex (a clip can leave one) has no line: both
+            // sides of `0 ≥ 0` would keep everything, and `rest` would be
+            // given out whole while still inside.
+            if a == 0.0 && b == 0.0 {
+                continue;
+            }
             let outside = rest.clip(-a, -b, -c);
             if outside.area() > 0.0 {
                 out(outside);
@@ -573,6 +579,25 @@ mod tests {
         a.subtract(&b, |p| area += p.area());
         assert!((area - 3.0).abs() < 1e-14);
         assert_eq!(a.centroid(), [1.0, 1.0]);
+    }
+
+    /// A repeated vertex (clipping leaves them where a vertex lies on the
+    /// line) has no edge line: what lies inside is not given out as well.
+    #[test]
+    fn a_repeated_vertex_does_not_leak_the_inside() {
+        let region =
+            ConvexPolygon::new(&[[0.0, 0.0], [2.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
+                .unwrap();
+        let inside = ConvexPolygon::rect(0.5, 0.5, 1.5, 1.5);
+        let mut outside = 0.0;
+        inside.subtract(&region, |p| outside += p.area());
+        assert_eq!(outside, 0.0);
+        assert_eq!(inside.intersect(&region).area(), 1.0);
+        // Half out: the parts still add up to the whole.
+        let straddling = ConvexPolygon::rect(1.5, 0.5, 2.5, 1.5);
+        let mut outside = 0.0;
+        straddling.subtract(&region, |p| outside += p.area());
+        assert_eq!(outside + straddling.intersect(&region).area(), 1.0);
     }
 
     #[test]

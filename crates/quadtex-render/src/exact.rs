@@ -16,9 +16,15 @@
 //! the centroid of each pair's screen overlap (planar primitives that do
 //! not cross each other inside the pixel have one depth order there), and
 //! the support is clipped against them in that order: each primitive gets
-//! what the ones in front left, the sky the rest. Limits, stated: a
-//! primitive no centre in reach sees (thinner than a pixel and between
-//! centres) is missed; primitives that intersect inside the pixel are
+//! what the ones in front left. What none of them covers is searched: the
+//! ray through each gap's centroid finds the primitive there (a large
+//! mesh's triangles smaller than a pixel lie between the centres), which
+//! joins the list, until the gaps are sky or slivers of rounding, or
+//! [`MAX_GAP_PRIMITIVES`] have joined (past that, a gap takes the colour of
+//! the primitive its ray meets over all of it, its weight added to the
+//! bound). Limits, stated: a primitive reaching into a pixel whose centres
+//! in reach all see the sky is missed (a planar scene's planes and quads
+//! are always tried); primitives that intersect inside the pixel are
 //! ordered at one point. Spheres are not planar: pixels that involve one
 //! are left to the tangent-plane path ([`crate::pixel`]).
 //!
@@ -40,8 +46,17 @@ use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
 use crate::stats::PixelStats;
 
 /// Meshes up to this many triangles have every triangle tried at a
-/// silhouette pixel (larger ones: the triangles the centres see).
+/// silhouette pixel (larger ones: the triangles the centres see, and those
+/// found in the gaps they leave).
 const MAX_MESH_SCAN: usize = 256;
+
+/// Parts of a support no listed primitive covers, at most this fraction of
+/// its area, are slivers the cuts leave along shared edges (rounding), not
+/// gaps: they take the sky at one point, with a bound, and are not searched.
+const GAP_AREA: f64 = 1e-9;
+
+/// Most primitives a pixel adds to its list from gaps between the centres.
+const MAX_GAP_PRIMITIVES: usize = 16;
 
 /// What a pixel centre sees: `0` for the sky, else
 /// `(surface + 1) << 32 | triangle`.
@@ -339,8 +354,12 @@ pub(crate) fn exact_pixel(
         return Some(mean(c, w));
     }
     let mut views = Vec::with_capacity(candidates.len() + scene.surfaces.len());
+    // Every primitive tried so far and its view's index (none: edge-on).
+    let mut tried: Vec<(Seen, Option<usize>)> = Vec::with_capacity(candidates.len() + 4);
     for &id in candidates {
-        views.extend(candidate_view(scene, cache, id)?);
+        let view = candidate_view(scene, cache, id)?;
+        tried.push((id, view.is_some().then_some(views.len())));
+        views.extend(view);
     }
     // The centres in reach may all miss a primitive that still reaches into
     // the support (a quad's corner, a triangle's tip near a vertex): every
@@ -350,9 +369,9 @@ pub(crate) fn exact_pixel(
         let seen_here = |t: u32| candidates.contains(&seen_id(surface, t));
         match &s.geometry {
             Geometry::Plane { .. } | Geometry::Quad { .. } if !seen_here(0) => {
-                if let Some(v) = cache.get(scene, surface, 0) {
-                    views.push(v);
-                }
+                let view = cache.get(scene, surface, 0);
+                tried.push((seen_id(surface, 0), view.is_some().then_some(views.len())));
+                views.extend(view);
             }
             Geometry::Mesh(mesh)
                 if mesh.len() <= MAX_MESH_SCAN
@@ -364,52 +383,215 @@ pub(crate) fn exact_pixel(
                     if seen_here(t) {
                         continue;
                     }
-                    if let Some(v) = s
+                    let view = s
                         .geometry
                         .planar(t)
-                        .and_then(|p| View::new(scene, surface, &p))
-                    {
-                        views.push(Cow::Owned(v));
-                    }
+                        .and_then(|p| View::new(scene, surface, &p));
+                    tried.push((seen_id(surface, t), view.is_some().then_some(views.len())));
+                    views.extend(view.map(Cow::Owned));
                 }
             }
             _ => {}
         }
     }
-    let regions: Vec<ConvexPolygon> = views
+    let support_area = support.area();
+    let mut regions: Vec<ConvexPolygon> = views
         .iter()
         .map(|v| v.region(&support).into_owned())
         .collect();
-    let order = front_to_back(&views, &regions);
-    let mut remaining = vec![support];
+    let mut found = 0;
+    let (mut pieces, mut remaining) = visible_pieces(&views, &regions, &support);
+    let (pieces, gaps) = loop {
+        // What no primitive in the list covers is sky, or primitives
+        // between the centres (a large mesh's triangles smaller than a
+        // pixel): the one the ray through a gap's centroid meets joins the
+        // list, and the support is cut again (it may hide parts of the
+        // others).
+        let mut gaps = Vec::with_capacity(remaining.len());
+        let mut grew = false;
+        let listed = views.len();
+        for r in remaining {
+            if r.area() <= GAP_AREA * support_area {
+                gaps.push((r, Gap::Sliver));
+                continue;
+            }
+            let c = r.centroid();
+            let Some((surface, hit)) = scene.nearest_index(&scene.camera.ray(c[0], c[1])) else {
+                gaps.push((r, Gap::Sky));
+                continue;
+            };
+            let id = seen_id(surface, hit.triangle);
+            if let Some(&(_, view)) = tried.iter().find(|(t, _)| *t == id) {
+                gaps.push((r, Gap::Seen(id, view)));
+                continue;
+            }
+            let view = if found < MAX_GAP_PRIMITIVES {
+                found += 1;
+                let view = candidate_view(scene, cache, id)?;
+                if let Some(v) = &view {
+                    regions.push(v.region(&support).into_owned());
+                    grew = true;
+                }
+                tried.push((id, view.is_some().then_some(views.len())));
+                views.extend(view);
+                tried.last().and_then(|t| t.1)
+            } else {
+                None
+            };
+            gaps.push((r, Gap::Seen(id, view)));
+        }
+        if !grew {
+            break (pieces, gaps);
+        }
+        // New primitives that overlap none listed (a mesh's triangles
+        // around those the centres see) only fill gaps: the rest of the
+        // cut stands. Otherwise the support is cut again.
+        let overlaps = (listed..views.len()).any(|v| {
+            (0..views.len()).any(|u| u != v && overlap(&regions[u], &regions[v]).is_some())
+        });
+        if overlaps {
+            (pieces, remaining) = visible_pieces(&views, &regions, &support);
+        } else {
+            remaining = gaps.into_iter().map(|(r, _)| r).collect();
+            for (v, region) in regions.iter().enumerate().skip(listed) {
+                let mut next = Vec::with_capacity(remaining.len() + 4);
+                for r in &remaining {
+                    let piece = r.intersect(region);
+                    if piece.area() > 0.0 {
+                        pieces.push((v, piece));
+                    }
+                    r.subtract(region, |p| next.push(p));
+                }
+                remaining = next;
+            }
+        }
+    };
+    for (i, piece) in &pieces {
+        let (c, w, b) = shade_piece(
+            frame, &views[*i], piece, filter, centre, options, &mut parts,
+        );
+        add(c, w, b);
+    }
+    for (r, gap) in &gaps {
+        match *gap {
+            Gap::Sliver => {
+                // The sky at its centroid, its whole weight times the sky's
+                // range as the bound.
+                let w = filter.integral(r, centre);
+                let c = r.centroid();
+                let colour = sky(scene, &scene.camera.ray(c[0], c[1])).to_array();
+                add(
+                    colour.map(|v| f64::from(v) * w),
+                    w,
+                    w.abs() * sky_range(scene),
+                );
+            }
+            Gap::Sky => {
+                let (c, w) = sky_integral(
+                    scene,
+                    r,
+                    Whole::Unknown,
+                    filter,
+                    centre,
+                    sky_tolerance(options),
+                );
+                add(c, w, 0.0);
+            }
+            Gap::Seen(id, view) => {
+                // A gap the list leaves open (past the cap, or where a
+                // listed primitive's edge and the ray disagree): the
+                // primitive the ray through its centroid meets, as if it
+                // covered the gap, with the gap's whole weight (full
+                // contrast) as the bound.
+                let view = match view {
+                    Some(i) => Some(Cow::Borrowed(&*views[i])),
+                    None => candidate_view(scene, cache, id)?,
+                };
+                if let Some(view) = view {
+                    let (c, w, b) =
+                        shade_piece(frame, &view, r, filter, centre, options, &mut parts);
+                    add(c, w, b + w.abs());
+                } else {
+                    let (c, w) = sky_integral(
+                        scene,
+                        r,
+                        Whole::Unknown,
+                        filter,
+                        centre,
+                        sky_tolerance(options),
+                    );
+                    add(c, w, w.abs());
+                }
+            }
+        }
+    }
+    stats.merge_parts(&parts);
+    stats.filter.record_bound(bound / weight.abs().max(1e-300));
+    Some(mean(acc, weight))
+}
+
+/// Where regions `a` and `b` overlap, if they do with some area.
+fn overlap(a: &ConvexPolygon, b: &ConvexPolygon) -> Option<ConvexPolygon> {
+    let ((alo, ahi), (blo, bhi)) = (a.bounds(), b.bounds());
+    if a.is_empty()
+        || b.is_empty()
+        || alo[0] >= bhi[0]
+        || blo[0] >= ahi[0]
+        || alo[1] >= bhi[1]
+        || blo[1] >= ahi[1]
+    {
+        return None;
+    }
+    let o = a.intersect(b);
+    (o.area() > 0.0).then_some(o)
+}
+
+/// What a part of a support no listed primitive covers shows.
+enum Gap {
+    /// A sliver of at most [`GAP_AREA`] of the support.
+    Sliver,
+    /// The ray through its centroid meets nothing.
+    Sky,
+    /// The ray through its centroid meets this primitive (and its view's
+    /// index, if it has one in the list).
+    Seen(Seen, Option<usize>),
+}
+
+/// The support cut among `views` (their `regions` of it) front to back:
+/// each view's visible pieces (by index into `views`), and what none of
+/// them covers.
+fn visible_pieces(
+    views: &[Cow<'_, View>],
+    regions: &[ConvexPolygon],
+    support: &ConvexPolygon,
+) -> (Vec<(usize, ConvexPolygon)>, Vec<ConvexPolygon>) {
+    let order = front_to_back(views, regions);
+    let mut pieces = Vec::with_capacity(order.len());
+    let mut remaining = vec![support.clone()];
     for i in order {
         let mut next = Vec::with_capacity(remaining.len() + 4);
         for r in &remaining {
             let piece = r.intersect(&regions[i]);
             if piece.area() > 0.0 {
-                let (c, w, b) = shade_piece(
-                    frame, &views[i], &piece, filter, centre, options, &mut parts,
-                );
-                add(c, w, b);
+                pieces.push((i, piece));
             }
             r.subtract(&regions[i], |p| next.push(p));
         }
         remaining = next;
     }
-    for r in &remaining {
-        let (c, w) = sky_integral(
-            scene,
-            r,
-            Whole::Unknown,
-            filter,
-            centre,
-            sky_tolerance(options),
-        );
-        add(c, w, 0.0);
+    (pieces, remaining)
+}
+
+/// The largest difference between the sky's colours in any channel: how
+/// far its colour anywhere is from its colour at one point.
+fn sky_range(scene: &Scene) -> f64 {
+    match scene.sky {
+        crate::scene::Sky::Solid(_) => 0.0,
+        crate::scene::Sky::Gradient { horizon, zenith } => (horizon - zenith)
+            .to_array()
+            .iter()
+            .fold(0.0, |m, v| m.max(f64::from(v.abs()))),
     }
-    stats.merge_parts(&parts);
-    stats.filter.record_bound(bound / weight.abs().max(1e-300));
-    Some(mean(acc, weight))
 }
 
 fn mean(acc: [f64; 4], weight: f64) -> Rgba {
@@ -426,35 +608,46 @@ fn mean(acc: [f64; 4], weight: f64) -> Rgba {
 /// view is in front of where their regions overlap (the nearest at its own
 /// centroid if occlusion is cyclic).
 fn front_to_back(views: &[Cow<'_, View>], regions: &[ConvexPolygon]) -> Vec<usize> {
-    let mut left: Vec<usize> = (0..views.len())
+    let left: Vec<usize> = (0..views.len())
         .filter(|&i| !regions[i].is_empty())
         .collect();
-    let mut order = Vec::with_capacity(left.len());
-    while !left.is_empty() {
-        let in_front_of = |i: usize, j: usize| {
-            let overlap = regions[i].intersect(&regions[j]);
-            if overlap.area() <= 0.0 {
-                return false;
-            }
+    let n = left.len();
+    // `behind[a·n + b]`: `left[b]` is in front of `left[a]` where their
+    // regions overlap (decided once a pair, at the overlap's centroid).
+    let mut behind = vec![false; n * n];
+    for a in 0..n {
+        for b in a + 1..n {
+            let (i, j) = (left[a], left[b]);
+            let Some(overlap) = overlap(&regions[i], &regions[j]) else {
+                continue;
+            };
             let c = overlap.centroid();
-            views[j].depth_at(c) < views[i].depth_at(c)
-        };
-        let pick = left
-            .iter()
-            .position(|&i| !left.iter().any(|&j| j != i && in_front_of(i, j)))
-            .unwrap_or_else(|| {
-                let depth = |&i: &usize| views[i].depth_at(regions[i].centroid());
-                let best =
-                    left.iter()
-                        .map(depth)
-                        .enumerate()
-                        .fold(
-                            (0, f64::INFINITY),
-                            |b, (k, d)| if d < b.1 { (k, d) } else { b },
-                        );
-                best.0
-            });
-        order.push(left.remove(pick));
+            let (di, dj) = (views[i].depth_at(c), views[j].depth_at(c));
+            behind[a * n + b] = dj < di;
+            behind[b * n + a] = di < dj;
+        }
+    }
+    let mut placed = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    for _ in 0..n {
+        let free = |a: usize| !placed[a] && (0..n).all(|b| placed[b] || !behind[a * n + b]);
+        let pick = (0..n).find(|&a| free(a)).unwrap_or_else(|| {
+            // Cyclic occlusion: the nearest at its own centroid.
+            let depth = |a: usize| views[left[a]].depth_at(regions[left[a]].centroid());
+            (0..n)
+                .filter(|&a| !placed[a])
+                .fold((usize::MAX, f64::INFINITY), |best, a| {
+                    let d = depth(a);
+                    if d < best.1 || best.0 == usize::MAX {
+                        (a, d)
+                    } else {
+                        best
+                    }
+                })
+                .0
+        });
+        placed[pick] = true;
+        order.push(left[pick]);
     }
     order
 }

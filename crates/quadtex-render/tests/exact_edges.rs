@@ -142,3 +142,84 @@ wrap = "clamp"
     );
     assert!(err < 1e-6, "crease and edge pixels off by {err}");
 }
+
+/// A mesh of 12 800 triangles, each about a sixth of a pixel, in two
+/// colours like a checkerboard, filling the view: a pixel holds more
+/// triangles than the nine centres in its reach can see, and is still each
+/// triangle's colour times its exact coverage, none of it the sky's (the
+/// triangles are found in the gaps the seen ones leave).
+#[test]
+fn triangles_between_pixel_centres_are_found() {
+    let dir = std::env::temp_dir().join(format!("quadtex-fine-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let n = 80;
+    let side = 2.0 / f64::from(n);
+    let corner =
+        |i: u32, j: u32| Vec3::new(-1.0 + f64::from(i) * side, 0.0, -1.0 + f64::from(j) * side);
+    let mut obj = String::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let p = corner(i, j);
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+    }
+    // Two UV triangles, each inside one cell of the 2 × 2 checker.
+    obj += "vt 0.1 0.1\nvt 0.4 0.1\nvt 0.25 0.4\nvt 0.6 0.1\nvt 0.9 0.1\nvt 0.75 0.4\n";
+    let mut faces = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let v = |di: u32, dj: u32| (j + dj) * (n + 1) + i + di + 1;
+            for (k, tri) in [[(0, 0), (1, 0), (1, 1)], [(0, 0), (1, 1), (0, 1)]]
+                .into_iter()
+                .enumerate()
+            {
+                let cell = (i + j + k as u32) % 2;
+                let [a, b, c] = tri.map(|(di, dj)| v(di, dj));
+                let t = 3 * cell + 1;
+                obj += &format!("f {a}/{t} {b}/{} {c}/{}\n", t + 1, t + 2);
+                faces.push((tri.map(|(di, dj)| corner(i + di, j + dj)).to_vec(), cell));
+            }
+        }
+    }
+    std::fs::write(dir.join("fine.obj"), obj).unwrap();
+    let text = r#"
+[camera]
+position = [0.02, 1.2, 0.1]
+look_at = [0, 0, 0]
+fov = 40
+width = 28
+height = 20
+
+[sky]
+colour = [0, 0, 0]
+
+[[shape]]
+type = "mesh"
+file = "fine.obj"
+texture = "builtin:checker"
+wrap = "clamp"
+"#;
+    let scene = parse_scene(text, &dir.join("fine.toml")).unwrap();
+    let surface = &scene.surfaces[0];
+    let sampler = surface.texture.as_ref().unwrap().sampler(surface.wrap);
+    let colour = |uv: [f64; 2]| sampler.nearest(surface.uv_transform.apply(uv));
+    let colours = [colour([0.25, 0.2]), colour([0.75, 0.2])];
+    assert!(colours[0] != colours[1]);
+    // Some pixel overlaps more triangles than the 3 × 3 centres around it.
+    let crowded = (0..scene.camera.width()).any(|x| {
+        faces
+            .iter()
+            .filter(|(f, _)| coverage(&scene, f, x, 10) > 0.0)
+            .count()
+            > 9
+    });
+    assert!(crowded, "the triangles must be smaller than the pixels");
+    let faces: Vec<(Vec<Vec3>, Rgba)> = faces
+        .into_iter()
+        .map(|(f, cell)| (f, colours[cell as usize]))
+        .collect();
+    let (err, partial) = worst(&scene, &faces);
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(partial, 0, "the mesh fills the view");
+    assert!(err < 1e-6, "pixels off by {err}");
+}
