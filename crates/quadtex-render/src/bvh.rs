@@ -200,6 +200,29 @@ impl Bvh {
         self.nodes.len()
     }
 
+    /// Moves `items` (one per primitive) into the order the leaves visit
+    /// them, and the leaves to refer to them there: a leaf's primitives
+    /// become adjacent in memory, not scattered over the whole array.
+    /// Returns the permutation applied (`new[k] = old[result[k]]`).
+    pub fn reorder_to_leaves<T>(&mut self, items: &mut [T]) -> Vec<u32> {
+        let order = std::mem::replace(&mut self.order, (0..items.len() as u32).collect());
+        // In place, cycle by cycle: `new[k] = old[order[k]]`.
+        let mut done = vec![false; items.len()];
+        for start in 0..items.len() {
+            let mut k = start;
+            while !done[k] {
+                done[k] = true;
+                let next = order[k] as usize;
+                if next == start {
+                    break;
+                }
+                items.swap(k, next);
+                k = next;
+            }
+        }
+        order
+    }
+
     /// Bytes the hierarchy holds.
     pub fn memory_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<Node>() + self.order.len() * 4
@@ -404,6 +427,14 @@ mod tests {
             let tris = soup(n, &mut seed);
             let bvh = Bvh::build(n, |i| bounds(&tris[i]));
             assert!(bvh.node_count() <= 2 * n);
+            // The same hierarchy over the triangles moved into leaf order.
+            let (mut leaf_bvh, mut leaf) = (bvh.clone(), tris.clone());
+            let moved = leaf_bvh.reorder_to_leaves(&mut leaf);
+            let mut seen = vec![false; n];
+            for (k, &from) in moved.iter().enumerate() {
+                assert_eq!(leaf[k], tris[from as usize]);
+                assert!(!std::mem::replace(&mut seen[from as usize], true));
+            }
             let mut hits = 0;
             let rays = if n > 10_000 { 400 } else { 2000 };
             for k in 0..rays {
@@ -433,6 +464,9 @@ mod tests {
                     .fold(None, |b: Option<f64>, t| Some(b.map_or(t, |b| b.min(t))));
                 let found = bvh.nearest(&ray, |i, _| crossing(&tris[i as usize], &ray));
                 assert_eq!(found.map(|f| f.1), brute, "n = {n}");
+                let in_leaf_order =
+                    leaf_bvh.nearest(&ray, |i, _| crossing(&leaf[i as usize], &ray));
+                assert_eq!(in_leaf_order.map(|f| f.1), brute, "n = {n}, leaf order");
                 // Any hit (shadow rays) exactly when there is a nearest one.
                 let any = bvh.any(&ray, |i| crossing(&tris[i as usize], &ray).is_some());
                 assert_eq!(any, brute.is_some(), "n = {n}");

@@ -234,9 +234,9 @@ pub struct Mesh {
 impl Mesh {
     /// A mesh from triangles, with its hierarchy built; `None` when there
     /// are none.
-    pub fn new(triangles: Vec<Triangle>) -> Option<Mesh> {
+    pub fn new(mut triangles: Vec<Triangle>) -> Option<Mesh> {
         triangles.first()?;
-        let bvh = Bvh::build(triangles.len(), |i| {
+        let mut bvh = Bvh::build(triangles.len(), |i| {
             let t = &triangles[i];
             let mut b = Aabb { lo: t.p0, hi: t.p0 };
             for p in [t.p0 + t.e1, t.p0 + t.e2] {
@@ -245,6 +245,10 @@ impl Mesh {
             }
             b
         });
+        // Triangle indices are the mesh's own (hits, visibility ids): they
+        // may follow the hierarchy's leaves, which keeps a leaf's triangles
+        // in adjacent cache lines.
+        bvh.reorder_to_leaves(&mut triangles);
         Some(Mesh { triangles, bvh })
     }
 
