@@ -50,9 +50,10 @@ use crate::stats::PixelStats;
 /// found in the gaps they leave).
 const MAX_MESH_SCAN: usize = 256;
 
-/// Parts of a support no listed primitive covers, at most this fraction of
-/// its area, are slivers the cuts leave along shared edges (rounding), not
-/// gaps: they take the sky at one point, with a bound, and are not searched.
+/// Pieces of a cut support (covered or not) of at most this fraction of
+/// its area are slivers the cuts leave along shared edges (rounding): they
+/// take the sky at one point, their weight as the bound, and are neither
+/// cut further, integrated over a texture nor searched.
 const GAP_AREA: f64 = 1e-9;
 
 /// Most primitives a pixel adds to its list from gaps between the centres.
@@ -394,27 +395,22 @@ pub(crate) fn exact_pixel(
             _ => {}
         }
     }
-    let support_area = support.area();
     let mut regions: Vec<ConvexPolygon> = views
         .iter()
         .map(|v| v.region(&support).into_owned())
         .collect();
     let mut found = 0;
-    let (mut pieces, mut remaining) = visible_pieces(&views, &regions, &support);
-    let (pieces, gaps) = loop {
+    let mut cut = Cut::new(&views, &regions, &support);
+    let gaps = loop {
         // What no primitive in the list covers is sky, or primitives
         // between the centres (a large mesh's triangles smaller than a
         // pixel): the one the ray through a gap's centroid meets joins the
         // list, and the support is cut again (it may hide parts of the
         // others).
-        let mut gaps = Vec::with_capacity(remaining.len());
+        let mut gaps = Vec::with_capacity(cut.remaining.len());
         let mut grew = false;
         let listed = views.len();
-        for r in remaining {
-            if r.area() <= GAP_AREA * support_area {
-                gaps.push((r, Gap::Sliver));
-                continue;
-            }
+        for r in std::mem::take(&mut cut.remaining) {
             let c = r.centroid();
             let Some((surface, hit)) = scene.nearest_index(&scene.camera.ray(c[0], c[1])) else {
                 gaps.push((r, Gap::Sky));
@@ -441,7 +437,7 @@ pub(crate) fn exact_pixel(
             gaps.push((r, Gap::Seen(id, view)));
         }
         if !grew {
-            break (pieces, gaps);
+            break gaps;
         }
         // New primitives that overlap none listed (a mesh's triangles
         // around those the centres see) only fill gaps: the rest of the
@@ -450,42 +446,38 @@ pub(crate) fn exact_pixel(
             (0..views.len()).any(|u| u != v && overlap(&regions[u], &regions[v]).is_some())
         });
         if overlaps {
-            (pieces, remaining) = visible_pieces(&views, &regions, &support);
+            cut = Cut::new(&views, &regions, &support);
         } else {
-            remaining = gaps.into_iter().map(|(r, _)| r).collect();
+            cut.remaining = gaps.into_iter().map(|(r, _)| r).collect();
             for (v, region) in regions.iter().enumerate().skip(listed) {
-                let mut next = Vec::with_capacity(remaining.len() + 4);
-                for r in &remaining {
-                    let piece = r.intersect(region);
-                    if piece.area() > 0.0 {
-                        pieces.push((v, piece));
-                    }
-                    r.subtract(region, |p| next.push(p));
-                }
-                remaining = next;
+                cut.take(v, region);
             }
         }
     };
+    let Cut {
+        pieces, slivers, ..
+    } = cut;
     for (i, piece) in &pieces {
         let (c, w, b) = shade_piece(
             frame, &views[*i], piece, filter, centre, options, &mut parts,
         );
         add(c, w, b);
     }
+    for r in &slivers {
+        // The sky at its centroid, whatever covers it: its whole weight
+        // times the larger of full contrast and the sky's range as the
+        // bound (at most 1e-9 of the support's).
+        let w = filter.integral(r, centre);
+        let c = r.centroid();
+        let colour = sky(scene, &scene.camera.ray(c[0], c[1])).to_array();
+        add(
+            colour.map(|v| f64::from(v) * w),
+            w,
+            w.abs() * sky_range(scene).max(1.0),
+        );
+    }
     for (r, gap) in &gaps {
         match *gap {
-            Gap::Sliver => {
-                // The sky at its centroid, its whole weight times the sky's
-                // range as the bound.
-                let w = filter.integral(r, centre);
-                let c = r.centroid();
-                let colour = sky(scene, &scene.camera.ray(c[0], c[1])).to_array();
-                add(
-                    colour.map(|v| f64::from(v) * w),
-                    w,
-                    w.abs() * sky_range(scene),
-                );
-            }
             Gap::Sky => {
                 let (c, w) = sky_integral(
                     scene,
@@ -548,8 +540,6 @@ fn overlap(a: &ConvexPolygon, b: &ConvexPolygon) -> Option<ConvexPolygon> {
 
 /// What a part of a support no listed primitive covers shows.
 enum Gap {
-    /// A sliver of at most [`GAP_AREA`] of the support.
-    Sliver,
     /// The ray through its centroid meets nothing.
     Sky,
     /// The ray through its centroid meets this primitive (and its view's
@@ -557,29 +547,63 @@ enum Gap {
     Seen(Seen, Option<usize>),
 }
 
-/// The support cut among `views` (their `regions` of it) front to back:
-/// each view's visible pieces (by index into `views`), and what none of
-/// them covers.
-fn visible_pieces(
-    views: &[Cow<'_, View>],
-    regions: &[ConvexPolygon],
-    support: &ConvexPolygon,
-) -> (Vec<(usize, ConvexPolygon)>, Vec<ConvexPolygon>) {
-    let order = front_to_back(views, regions);
-    let mut pieces = Vec::with_capacity(order.len());
-    let mut remaining = vec![support.clone()];
-    for i in order {
-        let mut next = Vec::with_capacity(remaining.len() + 4);
-        for r in &remaining {
-            let piece = r.intersect(&regions[i]);
-            if piece.area() > 0.0 {
-                pieces.push((i, piece));
-            }
-            r.subtract(&regions[i], |p| next.push(p));
+/// A support cut among primitives: the visible pieces of each (by index
+/// into the views), the parts none covers yet, and slivers.
+struct Cut {
+    pieces: Vec<(usize, ConvexPolygon)>,
+    remaining: Vec<ConvexPolygon>,
+    /// Pieces of at most `sliver_area` (rounding along shared edges): not
+    /// cut further, nor integrated over a texture.
+    slivers: Vec<ConvexPolygon>,
+    sliver_area: f64,
+}
+
+impl Cut {
+    /// The support cut among `views` (their `regions` of it) front to back.
+    fn new(views: &[Cow<'_, View>], regions: &[ConvexPolygon], support: &ConvexPolygon) -> Cut {
+        let mut cut = Cut {
+            pieces: Vec::with_capacity(views.len()),
+            remaining: vec![support.clone()],
+            slivers: Vec::new(),
+            sliver_area: GAP_AREA * support.area(),
+        };
+        for i in front_to_back(views, regions) {
+            cut.take(i, &regions[i]);
         }
-        remaining = next;
+        cut
     }
-    (pieces, remaining)
+
+    /// Gives view `v` what its `region` covers of the parts not yet
+    /// covered (it lies behind every view taken before).
+    fn take(&mut self, v: usize, region: &ConvexPolygon) {
+        if region.is_empty() {
+            return;
+        }
+        let (lo, hi) = region.bounds();
+        let mut next = Vec::with_capacity(self.remaining.len() + 4);
+        for r in std::mem::take(&mut self.remaining) {
+            let (rlo, rhi) = r.bounds();
+            if rlo[0] >= hi[0] || lo[0] >= rhi[0] || rlo[1] >= hi[1] || lo[1] >= rhi[1] {
+                next.push(r);
+                continue;
+            }
+            let piece = r.intersect(region);
+            let area = piece.area();
+            if area > self.sliver_area {
+                self.pieces.push((v, piece));
+            } else if area > 0.0 {
+                self.slivers.push(piece);
+            }
+            r.subtract(region, |p| {
+                if p.area() > self.sliver_area {
+                    next.push(p);
+                } else {
+                    self.slivers.push(p);
+                }
+            });
+        }
+        self.remaining = next;
+    }
 }
 
 /// The largest difference between the sky's colours in any channel: how
