@@ -587,6 +587,38 @@ impl Cut {
                 next.push(r);
                 continue;
             }
+            // Decided from the vertices, with the clip's own side test,
+            // where they lie beyond one of the region's lines (missed) or
+            // within all (covered: the clip would copy every vertex).
+            let mut covered = true;
+            let mut missed = false;
+            for [a, b, c] in region.edge_lines() {
+                let (mut some_in, mut some_out) = (false, false);
+                for &[x, y] in r.vertices() {
+                    if a * x + b * y + c >= 0.0 {
+                        some_in = true;
+                    } else {
+                        some_out = true;
+                    }
+                }
+                if !some_in {
+                    missed = true;
+                    break;
+                }
+                covered &= !some_out;
+            }
+            if missed {
+                next.push(r);
+                continue;
+            }
+            if covered {
+                if r.area() > self.sliver_area {
+                    self.pieces.push((v, r));
+                } else {
+                    self.slivers.push(r);
+                }
+                continue;
+            }
             let piece = r.intersect(region);
             let area = piece.area();
             if area > self.sliver_area {
