@@ -476,17 +476,20 @@ pub(crate) fn exact_pixel(
             w.abs() * sky_range(scene).max(1.0),
         );
     }
+    let sky_over = |r: &ConvexPolygon| {
+        sky_integral(
+            scene,
+            r,
+            Whole::Unknown,
+            filter,
+            centre,
+            sky_tolerance(options),
+        )
+    };
     for (r, gap) in &gaps {
         match *gap {
             Gap::Sky => {
-                let (c, w) = sky_integral(
-                    scene,
-                    r,
-                    Whole::Unknown,
-                    filter,
-                    centre,
-                    sky_tolerance(options),
-                );
+                let (c, w) = sky_over(r);
                 add(c, w, 0.0);
             }
             Gap::Seen(id, view) => {
@@ -504,14 +507,7 @@ pub(crate) fn exact_pixel(
                         shade_piece(frame, &view, r, filter, centre, options, &mut parts);
                     add(c, w, b + w.abs());
                 } else {
-                    let (c, w) = sky_integral(
-                        scene,
-                        r,
-                        Whole::Unknown,
-                        filter,
-                        centre,
-                        sky_tolerance(options),
-                    );
+                    let (c, w) = sky_over(r);
                     add(c, w, w.abs());
                 }
             }

@@ -50,6 +50,26 @@ fn worst(scene: &Scene, faces: &[(Vec<Vec3>, Rgba)]) -> (f64, usize) {
     (worst, partial)
 }
 
+/// A scene of mesh `obj` (written as `name.obj` into `dir`) textured with
+/// the 2 × 2 checker under `camera` (a TOML table's lines) over a black
+/// sky, and the checker's two colours at UVs `(0.25, 0.2)` and
+/// `(0.75, 0.2)`.
+fn checker_mesh(dir: &Path, name: &str, obj: &str, camera: &str) -> (Scene, [Rgba; 2]) {
+    std::fs::write(dir.join(format!("{name}.obj")), obj).unwrap();
+    let text = format!(
+        "[camera]\n{camera}\n\n[sky]\ncolour = [0, 0, 0]\n\n\
+         [[shape]]\ntype = \"mesh\"\nfile = \"{name}.obj\"\n\
+         texture = \"builtin:checker\"\nwrap = \"clamp\"\n"
+    );
+    let scene = parse_scene(&text, &dir.join(format!("{name}.toml"))).unwrap();
+    let surface = &scene.surfaces[0];
+    let sampler = surface.texture.as_ref().unwrap().sampler(surface.wrap);
+    let colour = |uv: [f64; 2]| sampler.nearest(surface.uv_transform.apply(uv));
+    let colours = [colour([0.25, 0.2]), colour([0.75, 0.2])];
+    assert!(colours[0] != colours[1]);
+    (scene, colours)
+}
+
 /// A flat-coloured quad at a slant over a black sky: every pixel is its
 /// colour times the quad's exact coverage of the pixel.
 #[test]
@@ -94,36 +114,12 @@ fn crease_pixels_on_a_folded_mesh_are_exact() {
     std::fs::create_dir_all(&dir).unwrap();
     // Floor triangle (y = 0) and wall triangle (z = 0), sharing the edge
     // from (-1,0,0) to (1,0,0); UVs inside two different checker cells.
-    std::fs::write(
-        dir.join("fold.obj"),
-        "v -1 0 0\nv 1 0 0\nv 0 0 1.5\nv 0 1.5 0\n\
+    let obj = "v -1 0 0\nv 1 0 0\nv 0 0 1.5\nv 0 1.5 0\n\
          vt 0.1 0.1\nvt 0.4 0.1\nvt 0.25 0.4\nvt 0.6 0.1\nvt 0.9 0.1\nvt 0.75 0.4\n\
-         f 1/1 2/2 3/3\nf 2/5 1/4 4/6\n",
-    )
-    .unwrap();
-    let text = r#"
-[camera]
-position = [0.4, 2.0, 3.0]
-look_at = [0, 0.3, 0.2]
-fov = 45
-width = 40
-height = 30
-
-[sky]
-colour = [0, 0, 0]
-
-[[shape]]
-type = "mesh"
-file = "fold.obj"
-texture = "builtin:checker"
-wrap = "clamp"
-"#;
-    let scene = parse_scene(text, &dir.join("fold.toml")).unwrap();
-    let surface = &scene.surfaces[0];
-    let sampler = surface.texture.as_ref().unwrap().sampler(surface.wrap);
-    let colour = |uv: [f64; 2]| sampler.nearest(surface.uv_transform.apply(uv));
-    let (floor_colour, wall_colour) = (colour([0.25, 0.2]), colour([0.75, 0.2]));
-    assert!(floor_colour != wall_colour);
+         f 1/1 2/2 3/3\nf 2/5 1/4 4/6\n";
+    let camera =
+        "position = [0.4, 2.0, 3.0]\nlook_at = [0, 0.3, 0.2]\nfov = 45\nwidth = 40\nheight = 30";
+    let (scene, [floor_colour, wall_colour]) = checker_mesh(&dir, "fold", obj, camera);
     let floor = vec![
         Vec3::new(-1.0, 0.0, 0.0),
         Vec3::new(1.0, 0.0, 0.0),
@@ -181,30 +177,9 @@ fn triangles_between_pixel_centres_are_found() {
             }
         }
     }
-    std::fs::write(dir.join("fine.obj"), obj).unwrap();
-    let text = r#"
-[camera]
-position = [0.02, 1.2, 0.1]
-look_at = [0, 0, 0]
-fov = 40
-width = 28
-height = 20
-
-[sky]
-colour = [0, 0, 0]
-
-[[shape]]
-type = "mesh"
-file = "fine.obj"
-texture = "builtin:checker"
-wrap = "clamp"
-"#;
-    let scene = parse_scene(text, &dir.join("fine.toml")).unwrap();
-    let surface = &scene.surfaces[0];
-    let sampler = surface.texture.as_ref().unwrap().sampler(surface.wrap);
-    let colour = |uv: [f64; 2]| sampler.nearest(surface.uv_transform.apply(uv));
-    let colours = [colour([0.25, 0.2]), colour([0.75, 0.2])];
-    assert!(colours[0] != colours[1]);
+    let camera =
+        "position = [0.02, 1.2, 0.1]\nlook_at = [0, 0, 0]\nfov = 40\nwidth = 28\nheight = 20";
+    let (scene, colours) = checker_mesh(&dir, "fine", &obj, camera);
     // Some pixel overlaps more triangles than the 3 × 3 centres around it.
     let crowded = (0..scene.camera.width()).any(|x| {
         faces
