@@ -219,7 +219,7 @@ impl Triangle {
 }
 
 /// Bytes a mesh holds per triangle once parsed: the triangle (160), its
-/// share of the hierarchy (about 20: 32-byte nodes) and the parsed file's arrays alongside
+/// share of the hierarchy (about 33) and the parsed file's arrays alongside
 /// while it is built (up to about 100), rounded up. Loaders check a mesh
 /// against the memory budget at this rate before building it.
 pub const MESH_BYTES_PER_TRIANGLE: u64 = 320;
