@@ -70,7 +70,7 @@ impl Aabb {
     }
 
     /// Whether a box the ray entered at `t_enter` (from [`Aabb::entry`])
-    /// would still pass [`Aabb::entry`] with `t_max` lowered to `t_max`:
+    /// would still pass [`Aabb::entry`] with its `t_max` lowered to `t_max`:
     /// the same comparison, its exit side unchanged.
     #[inline]
     fn still_entered(t_enter: f64, t_max: f64) -> bool {
