@@ -89,14 +89,48 @@ fn candidate_view<'a>(
     Some(View::new(scene, surface, &planar).map(Cow::Owned))
 }
 
-/// Where a filter support lies against a [`View`]'s lines.
+/// Where a polygon lies against the half-planes `a·x + b·y + c ≥ 0` of a
+/// view's lines or a region's edges ([`placement`]).
 enum Placement {
-    /// Wholly beyond one line: the region is empty.
+    /// Wholly beyond one line: the clip is empty.
     Outside,
-    /// Within every line: the region is the support.
+    /// Within every line: the clip is the polygon itself.
     Inside,
-    /// Neither: the region is the support clipped.
+    /// Neither: the clip cuts it.
     Straddles,
+}
+
+/// Where `polygon` lies against `lines`, decided from its vertices alone
+/// with the clip's own side test: wholly inside (the clip would copy every
+/// vertex unchanged) or wholly beyond one line (the clip would come out
+/// empty) needs no clip.
+fn placement(polygon: &ConvexPolygon, lines: impl Iterator<Item = [f64; 3]>) -> Placement {
+    let mut all_inside = true;
+    for [a, b, c] in lines {
+        let (mut some_in, mut some_out) = (false, false);
+        for &[x, y] in polygon.vertices() {
+            if a * x + b * y + c >= 0.0 {
+                some_in = true;
+            } else {
+                some_out = true;
+            }
+        }
+        if !some_in {
+            return Placement::Outside;
+        }
+        all_inside &= !some_out;
+    }
+    if all_inside {
+        Placement::Inside
+    } else {
+        Placement::Straddles
+    }
+}
+
+/// Whether boxes `(lo, hi)` are apart (or touch along a line): polygons
+/// within them overlap in no area.
+fn boxes_apart((alo, ahi): ([f64; 2], [f64; 2]), (blo, bhi): ([f64; 2], [f64; 2])) -> bool {
+    alo[0] >= bhi[0] || blo[0] >= ahi[0] || alo[1] >= bhi[1] || blo[1] >= ahi[1]
 }
 
 /// A planar primitive seen from the camera: rows `(a, b, c)` of affine
@@ -200,32 +234,10 @@ impl View {
         }
     }
 
-    /// Where `support` lies against this primitive's lines. Most pixels lie
-    /// wholly inside (the clip would copy every vertex unchanged) or wholly
-    /// beyond one line (the clip would build polygons line by line until
-    /// one came out empty): both are decided from the support's vertices
-    /// alone, with the clip's own side test.
+    /// Where `support` lies against this primitive's lines ([`placement`]):
+    /// most pixels lie wholly inside or wholly beyond one line.
     fn placement(&self, support: &ConvexPolygon) -> Placement {
-        let mut all_inside = true;
-        for l in self.lines() {
-            let (mut some_in, mut some_out) = (false, false);
-            for &[x, y] in support.vertices() {
-                if l[0] * x + l[1] * y + l[2] >= 0.0 {
-                    some_in = true;
-                } else {
-                    some_out = true;
-                }
-            }
-            if !some_in {
-                return Placement::Outside;
-            }
-            all_inside &= !some_out;
-        }
-        if all_inside {
-            Placement::Inside
-        } else {
-            Placement::Straddles
-        }
+        placement(support, self.lines())
     }
 
     /// The texture's integral over this primitive's part of `support`
@@ -520,14 +532,7 @@ pub(crate) fn exact_pixel(
 
 /// Where regions `a` and `b` overlap, if they do with some area.
 fn overlap(a: &ConvexPolygon, b: &ConvexPolygon) -> Option<ConvexPolygon> {
-    let ((alo, ahi), (blo, bhi)) = (a.bounds(), b.bounds());
-    if a.is_empty()
-        || b.is_empty()
-        || alo[0] >= bhi[0]
-        || blo[0] >= ahi[0]
-        || alo[1] >= bhi[1]
-        || blo[1] >= ahi[1]
-    {
+    if a.is_empty() || b.is_empty() || boxes_apart(a.bounds(), b.bounds()) {
         return None;
     }
     let o = a.intersect(b);
@@ -575,45 +580,27 @@ impl Cut {
         if region.is_empty() {
             return;
         }
-        let (lo, hi) = region.bounds();
+        let bounds = region.bounds();
         let mut next = Vec::with_capacity(self.remaining.len() + 4);
         for r in std::mem::take(&mut self.remaining) {
-            let (rlo, rhi) = r.bounds();
-            if rlo[0] >= hi[0] || lo[0] >= rhi[0] || rlo[1] >= hi[1] || lo[1] >= rhi[1] {
+            if boxes_apart(r.bounds(), bounds) {
                 next.push(r);
                 continue;
             }
-            // Decided from the vertices, with the clip's own side test,
-            // where they lie beyond one of the region's lines (missed) or
-            // within all (covered: the clip would copy every vertex).
-            let mut covered = true;
-            let mut missed = false;
-            for [a, b, c] in region.edge_lines() {
-                let (mut some_in, mut some_out) = (false, false);
-                for &[x, y] in r.vertices() {
-                    if a * x + b * y + c >= 0.0 {
-                        some_in = true;
+            match placement(&r, region.edge_lines()) {
+                Placement::Outside => {
+                    next.push(r);
+                    continue;
+                }
+                Placement::Inside => {
+                    if r.area() > self.sliver_area {
+                        self.pieces.push((v, r));
                     } else {
-                        some_out = true;
+                        self.slivers.push(r);
                     }
+                    continue;
                 }
-                if !some_in {
-                    missed = true;
-                    break;
-                }
-                covered &= !some_out;
-            }
-            if missed {
-                next.push(r);
-                continue;
-            }
-            if covered {
-                if r.area() > self.sliver_area {
-                    self.pieces.push((v, r));
-                } else {
-                    self.slivers.push(r);
-                }
-                continue;
+                Placement::Straddles => {}
             }
             let piece = r.intersect(region);
             let area = piece.area();
