@@ -211,6 +211,47 @@ impl Bvh {
         false
     }
 
+    /// Calls `visit(i)` for every primitive in a leaf whose box is not
+    /// wholly outside one of `planes` (`n·p + d ≥ 0` inside, `[n.x, n.y,
+    /// n.z, d]`), until `visit` returns true; returns whether it did. The
+    /// box test is conservative: a box that reaches into every half-space
+    /// may still miss their intersection.
+    pub fn overlapping(&self, planes: &[[f64; 4]], mut visit: impl FnMut(u32) -> bool) -> bool {
+        let outside = |b: &Aabb| {
+            planes.iter().any(|&[x, y, z, d]| {
+                // The corner farthest along the normal.
+                let far = |n: f64, lo: f64, hi: f64| n * if n > 0.0 { hi } else { lo };
+                far(x, b.lo.x, b.hi.x) + far(y, b.lo.y, b.hi.y) + far(z, b.lo.z, b.hi.z) + d < 0.0
+            })
+        };
+        if outside(&self.nodes[0].bounds) {
+            return false;
+        }
+        let mut stack = [0u32; MAX_DEPTH + 2];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.count > 0 {
+                let s = node.start as usize;
+                if self.order[s..s + node.count as usize]
+                    .iter()
+                    .any(|&i| visit(i))
+                {
+                    return true;
+                }
+                continue;
+            }
+            for child in [node.start as usize, node.start as usize + 1] {
+                if !outside(&self.nodes[child].bounds) {
+                    stack[top] = child as u32;
+                    top += 1;
+                }
+            }
+        }
+        false
+    }
+
     /// Nodes in the hierarchy.
     #[cfg(test)]
     pub fn node_count(&self) -> usize {
@@ -493,6 +534,61 @@ mod tests {
                 hits >= rays * 45 / 100,
                 "too few hits to mean anything: {hits}"
             );
+        }
+    }
+
+    /// Every box is a conservative test: the frustum query visits every
+    /// primitive whose vertices are not all outside one plane (the
+    /// brute-force set), and stops at the first `visit` that says so.
+    #[test]
+    fn frustum_queries_miss_no_primitive_a_scan_keeps() {
+        let mut seed = 11u64;
+        for n in [1, 5, 60, 900] {
+            let tris = soup(n, &mut seed);
+            let bvh = Bvh::build(n, |i| bounds(&tris[i]));
+            for _ in 0..40 {
+                // Four planes through a random apex around a random axis,
+                // and one across it: a pyramid-like frustum.
+                let apex = Vec3::new(rng(&mut seed), rng(&mut seed), rng(&mut seed)) * 14.0
+                    - Vec3::new(2.0, 2.0, 2.0);
+                let aim = Vec3::new(5.0, 5.0, 5.0) - apex;
+                let spread = 0.05 + rng(&mut seed);
+                let axis = aim.normalized().unwrap();
+                let side = axis.cross(Vec3::new(0.3, 1.0, 0.1)).normalized().unwrap();
+                let up = axis.cross(side);
+                let mut planes = vec![[axis.x, axis.y, axis.z, -axis.dot(apex)]];
+                for e in [side, -side, up, -up] {
+                    let n = axis * spread - e;
+                    planes.push([n.x, n.y, n.z, -n.dot(apex)]);
+                }
+                let outside = |t: &[Vec3; 3]| {
+                    planes.iter().any(|&[x, y, z, d]| {
+                        t.iter().all(|p| x * p.x + y * p.y + z * p.z + d < 0.0)
+                    })
+                };
+                let kept: Vec<u32> = (0..n as u32)
+                    .filter(|&i| !outside(&tris[i as usize]))
+                    .collect();
+                let mut visited = Vec::new();
+                assert!(!bvh.overlapping(&planes, |i| {
+                    visited.push(i);
+                    false
+                }));
+                visited.sort_unstable();
+                assert!(visited.windows(2).all(|w| w[0] < w[1]), "visited twice");
+                assert!(
+                    kept.iter().all(|i| visited.binary_search(i).is_ok()),
+                    "n = {n}"
+                );
+                if let Some(&first) = kept.first() {
+                    let mut calls = 0;
+                    assert!(bvh.overlapping(&planes, |i| {
+                        calls += 1;
+                        i == first
+                    }));
+                    assert!(calls <= visited.len());
+                }
+            }
         }
     }
 

@@ -22,10 +22,12 @@
 //! joins the list, until the gaps are sky or slivers of rounding, or
 //! [`MAX_GAP_PRIMITIVES`] have joined (past that, a gap takes the colour of
 //! the primitive its ray meets over all of it, its weight added to the
-//! bound). Limits, stated: a primitive reaching into a pixel whose centres
-//! in reach all see the sky is missed (a planar scene's planes and quads
-//! are always tried); primitives that intersect inside the pixel are
-//! ordered at one point. Spheres are not planar: pixels that involve one
+//! bound). A gap whose ray meets nothing is sky only once no mesh triangle
+//! reaches into it: the meshes' hierarchies are searched with the gap's
+//! frustum ([`SurfaceViews::meshes_in`]) and what overlaps it joins the
+//! list too; a pixel whose centres in reach all see the sky is searched
+//! the same way (planes and quads are always tried). Limit, stated:
+//! primitives that intersect inside the pixel are ordered at one point. Spheres are not planar: pixels that involve one
 //! are left to the tangent-plane path ([`crate::pixel`]).
 //!
 //! **Shading.** Lambert lighting is constant over a planar piece except for
@@ -277,6 +279,8 @@ impl View {
 #[derive(Debug)]
 pub(crate) struct SurfaceViews {
     views: Vec<Option<View>>,
+    /// The surfaces that are meshes.
+    meshes: Vec<usize>,
 }
 
 impl SurfaceViews {
@@ -292,7 +296,33 @@ impl SurfaceViews {
                 _ => None,
             })
             .collect();
-        SurfaceViews { views }
+        let meshes = (scene.surfaces.iter().enumerate())
+            .filter(|(_, s)| matches!(s.geometry, Geometry::Mesh(_)))
+            .map(|(i, _)| i)
+            .collect();
+        SurfaceViews { views, meshes }
+    }
+
+    /// Calls `visit(id)` for every mesh triangle that may reach into screen
+    /// polygon `polygon` (not wholly outside the planes through the camera
+    /// and its edges, nor behind the camera), until `visit` returns true;
+    /// returns whether it did.
+    fn meshes_in(
+        &self,
+        scene: &Scene,
+        polygon: &ConvexPolygon,
+        mut visit: impl FnMut(Seen) -> bool,
+    ) -> bool {
+        if self.meshes.is_empty() {
+            return false;
+        }
+        let planes = frustum(scene, polygon);
+        self.meshes
+            .iter()
+            .any(|&surface| match &scene.surfaces[surface].geometry {
+                Geometry::Mesh(mesh) => mesh.overlapping(&planes, |t| visit(seen_id(surface, t))),
+                _ => false,
+            })
     }
 
     /// The view of primitive `triangle` of surface `surface`.
@@ -305,6 +335,28 @@ impl SurfaceViews {
             }
         }
     }
+}
+
+/// The half-spaces `n·p + d ≥ 0` (`[n.x, n.y, n.z, d]`) whose intersection
+/// holds every world point that projects into screen polygon `polygon`:
+/// one plane through the camera and each edge, and the camera's plane.
+fn frustum(scene: &Scene, polygon: &ConvexPolygon) -> Vec<[f64; 4]> {
+    let cam = &scene.camera;
+    let c = cam.position;
+    let plane = |n: Vec3| [n.x, n.y, n.z, -n.dot(c)];
+    let v = polygon.vertices();
+    let mut planes = Vec::with_capacity(v.len() + 1);
+    planes.push(plane(cam.forward()));
+    let centroid = polygon.centroid();
+    let inward = cam.direction(centroid[0], centroid[1]);
+    for (i, a) in v.iter().enumerate() {
+        let b = v[(i + 1) % v.len()];
+        let n = cam.direction(a[0], a[1]).cross(cam.direction(b[0], b[1]));
+        if n.dot(n) > 0.0 && n.is_finite() {
+            planes.push(plane(if n.dot(inward) < 0.0 { -n } else { n }));
+        }
+    }
+    planes
 }
 
 /// The filtered colour of pixel `(x, y)` whose neighbourhood's centres see
@@ -354,7 +406,10 @@ pub(crate) fn exact_pixel(
     // Only the sky in reach: the sky over the whole support unless a plane
     // or quad no centre sees reaches into it (the case the general path
     // below covers; meshes are tried there only when a centre sees them).
-    if candidates.is_empty() && sees_sky && cache.views.iter().flatten().all(|v| v.misses(&support))
+    if candidates.is_empty()
+        && sees_sky
+        && cache.views.iter().flatten().all(|v| v.misses(&support))
+        && !cache.meshes_in(scene, &support, |_| true)
     {
         let (c, w) = sky_integral(
             scene,
@@ -425,7 +480,33 @@ pub(crate) fn exact_pixel(
         for r in std::mem::take(&mut cut.remaining) {
             let c = r.centroid();
             let Some((surface, hit)) = scene.nearest_index(&scene.camera.ray(c[0], c[1])) else {
-                gaps.push((r, Gap::Sky));
+                // The ray meets nothing, but a mesh's triangles may still
+                // reach into the gap around it: each one whose region
+                // overlaps the gap joins the list.
+                let mut more = false;
+                cache.meshes_in(scene, &r, |id| {
+                    if tried.iter().any(|(t, _)| *t == id) {
+                        return false;
+                    }
+                    let Some(Some(view)) = candidate_view(scene, cache, id) else {
+                        return false;
+                    };
+                    let region = view.region(&support).into_owned();
+                    if overlap(&region, &r).is_none() {
+                        return false;
+                    }
+                    if found == MAX_GAP_PRIMITIVES {
+                        more = true;
+                        return true;
+                    }
+                    found += 1;
+                    tried.push((id, Some(views.len())));
+                    views.push(view);
+                    regions.push(region);
+                    grew = true;
+                    false
+                });
+                gaps.push((r, if more { Gap::SkyAmong } else { Gap::Sky }));
                 continue;
             };
             let id = seen_id(surface, hit.triangle);
@@ -504,6 +585,10 @@ pub(crate) fn exact_pixel(
                 let (c, w) = sky_over(r);
                 add(c, w, 0.0);
             }
+            Gap::SkyAmong => {
+                let (c, w) = sky_over(r);
+                add(c, w, w.abs());
+            }
             Gap::Seen(id, view) => {
                 // A gap the list leaves open (past the cap, or where a
                 // listed primitive's edge and the ray disagree): the
@@ -541,8 +626,13 @@ fn overlap(a: &ConvexPolygon, b: &ConvexPolygon) -> Option<ConvexPolygon> {
 
 /// What a part of a support no listed primitive covers shows.
 enum Gap {
-    /// The ray through its centroid meets nothing.
+    /// The ray through its centroid meets nothing, nor does a mesh reach
+    /// into it.
     Sky,
+    /// The ray through its centroid meets nothing, but mesh triangles
+    /// reach into it past [`MAX_GAP_PRIMITIVES`]: the sky, its whole
+    /// weight as the bound.
+    SkyAmong,
     /// The ray through its centroid meets this primitive (and its view's
     /// index, if it has one in the list).
     Seen(Seen, Option<usize>),

@@ -295,6 +295,26 @@ impl Mesh {
         })
     }
 
+    /// Calls `visit(i)` for every triangle not wholly outside one of
+    /// `planes` (as [`Bvh::overlapping`], each triangle tested by its
+    /// vertices), until `visit` returns true; returns whether it did.
+    pub(crate) fn overlapping(
+        &self,
+        planes: &[[f64; 4]],
+        mut visit: impl FnMut(u32) -> bool,
+    ) -> bool {
+        self.bvh.overlapping(planes, |i| {
+            let t = &self.triangles[i as usize];
+            let corners = [t.p0, t.p0 + t.e1, t.p0 + t.e2];
+            let outside = planes.iter().any(|&[x, y, z, d]| {
+                corners
+                    .iter()
+                    .all(|p| x * p.x + y * p.y + z * p.z + d < 0.0)
+            });
+            !outside && visit(i)
+        })
+    }
+
     fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
         let (index, t) = self.bvh.nearest(ray, |i, _| {
             Self::crossing(&self.triangles[i as usize], ray).filter(|&t| t > t_min)

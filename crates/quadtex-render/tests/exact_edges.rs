@@ -198,3 +198,69 @@ fn triangles_between_pixel_centres_are_found() {
     assert_eq!(partial, 0, "the mesh fills the view");
     assert!(err < 1e-6, "pixels off by {err}");
 }
+
+/// Needles of a mesh, each a fifth of a pixel wide and lying between two
+/// columns of pixel centres, over a black sky: no centre sees them, and
+/// every pixel is still their colour times their exact coverage (the
+/// pixels around them find them by their frustum, not by a ray).
+#[test]
+fn needles_between_the_centres_are_found_against_the_sky() {
+    let dir = std::env::temp_dir().join(format!("quadtex-needles-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let camera =
+        "position = [0.02, 1.2, 0.1]\nlook_at = [0, 0, 0]\nfov = 40\nwidth = 28\nheight = 20";
+    let probe = parse_scene(
+        &format!(
+            "[camera]\n{camera}\n\n[[shape]]\ntype = \"sphere\"\ncentre = [0, 0, 0]\nradius = 0.1\n"
+        ),
+        &dir.join("probe.toml"),
+    )
+    .unwrap();
+    // The point of the plane y = 0 seen at screen point (x, y).
+    let on_ground = |x: f64, y: f64| {
+        let ray = probe.camera.ray(x, y);
+        ray.origin + ray.direction * (-ray.origin.y / ray.direction.y)
+    };
+    let screen: Vec<[[f64; 2]; 3]> = (0..8)
+        .map(|k| {
+            let x = f64::from(2 + 3 * k);
+            [
+                [x + 0.6, 2.3],
+                [x + 0.8, 2.3 + 0.1 * f64::from(k)],
+                [x + 0.7, 17.6],
+            ]
+        })
+        .collect();
+    let inside = |t: &[[f64; 2]; 3], p: [f64; 2]| {
+        let side = |a: [f64; 2], b: [f64; 2]| {
+            (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+        };
+        let s = [side(t[0], t[1]), side(t[1], t[2]), side(t[2], t[0])];
+        s.iter().all(|&v| v >= 0.0) || s.iter().all(|&v| v <= 0.0)
+    };
+    for t in &screen {
+        for y in 0..20 {
+            for x in 0..28 {
+                let c = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+                assert!(!inside(t, c), "a centre sees a needle");
+            }
+        }
+    }
+    let mut obj = String::from("vt 0.1 0.1\nvt 0.4 0.1\nvt 0.25 0.4\n");
+    let mut faces = Vec::new();
+    for (k, t) in screen.iter().enumerate() {
+        let world = t.map(|[x, y]| on_ground(x, y));
+        for p in &world {
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+        let v = 3 * k + 1;
+        obj += &format!("f {v}/1 {}/2 {}/3\n", v + 1, v + 2);
+        faces.push(world.to_vec());
+    }
+    let (scene, colours) = checker_mesh(&dir, "needles", &obj, camera);
+    let faces: Vec<(Vec<Vec3>, Rgba)> = faces.into_iter().map(|f| (f, colours[0])).collect();
+    let (err, partial) = worst(&scene, &faces);
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(partial > 100, "the needles cross many pixels: {partial}");
+    assert!(err < 1e-6, "pixels off by {err}");
+}
