@@ -322,6 +322,48 @@ fn a_million_tiles_cost_little() {
     assert!(nodes[2] < 2 * nodes[0], "{nodes:?}");
 }
 
+/// A needle a fraction of a tile wide over thousands of repeating tiles
+/// (a pixel below the horizon): its boundary crosses more tiles than the
+/// budget has squares and its coarse bound is its whole weight, so it takes
+/// the coarse sum without refining. The answer stays within its bound of
+/// one refined under a budget large enough to refine it.
+#[test]
+fn needles_over_many_tiles_take_the_coarse_sum_at_once() {
+    let grid =
+        quadtex_core::TexelGrid::from_fn(4, 4, |c, r| PALETTE[((c + 2 * r) % 5) as usize]).unwrap();
+    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0;
+    let texture = Texture::new(tree, Wrap::REPEAT);
+    for length in [300.0, 3000.0] {
+        let corners = [[0.1, 0.2], [length, 0.5], [length, 0.9], [0.1, 0.45]];
+        let fp = Footprint::from_corners(corners).unwrap();
+        let run = |options: &FilterOptions| {
+            let mut stats = FilterStats::default();
+            let c = texture.filter_counted(&fp, options, &mut stats);
+            (c, stats)
+        };
+        let (coarse, quick) = run(&FilterOptions::default());
+        let (refined, slow) = run(&FilterOptions::default().with_budget(1 << 16).unwrap());
+        assert!(
+            quick.traversal.nodes_visited < 16,
+            "length {length}: {} squares",
+            quick.traversal.nodes_visited
+        );
+        assert!(
+            slow.traversal.nodes_visited > 64,
+            "the large budget refines"
+        );
+        let bound = quick.max_error_bound + slow.max_error_bound;
+        assert!(
+            max_diff(coarse, refined) <= bound + 1e-9,
+            "length {length}: {coarse:?} vs {refined:?}, bounds {} + {}",
+            quick.max_error_bound,
+            slow.max_error_bound
+        );
+    }
+}
+
 /// A repeating 2×2 checker of opaque white and transparent cells.
 fn white_and_clear_checker() -> Texture {
     let grid = quadtex_core::TexelGrid::from_fn(2, 2, |c, r| {
