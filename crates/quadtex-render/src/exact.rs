@@ -479,7 +479,8 @@ pub(crate) fn exact_pixel(
         let listed = views.len();
         for r in std::mem::take(&mut cut.remaining) {
             let c = r.centroid();
-            let Some((surface, hit)) = scene.nearest_index(&scene.camera.ray(c[0], c[1])) else {
+            let Some((surface, hit)) = frame.rays.nearest_index(&scene.camera.ray(c[0], c[1]))
+            else {
                 // The ray meets nothing, but a mesh's triangles may still
                 // reach into the gap around it: each one whose region
                 // overlaps the gap joins the list.
@@ -824,7 +825,7 @@ fn shade_piece(
             // The camera's ray is normalised; depth_at is per unnormalised d.
             let d = scene.camera.direction(s[0], s[1]);
             let point = scene.camera.position + d * t;
-            let k = lambert(scene, view.normal, point, &ray);
+            let k = lambert(&frame.rays, view.normal, point, &ray);
             for (v, f) in c.iter_mut().zip(k) {
                 *v *= f64::from(f);
             }

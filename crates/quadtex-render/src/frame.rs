@@ -4,12 +4,14 @@
 use quadtex_core::{Rgba, Texture};
 
 use crate::math::{Ray, Vec3};
-use crate::scene::{Lighting, Scene, Sky};
+use crate::scene::{Caster, Lighting, Scene, Sky};
 
 /// A scene ready to shade: each surface's texture bound to its wrap once,
 /// so shading a pixel does not touch reference counts.
 pub(crate) struct Frame<'a> {
     pub scene: &'a Scene,
+    /// The surfaces ready for rays.
+    pub rays: Caster<'a>,
     samplers: Vec<Option<Texture>>,
 }
 
@@ -20,7 +22,11 @@ impl<'a> Frame<'a> {
             .iter()
             .map(|s| s.texture.as_ref().map(|t| t.sampler(s.wrap)))
             .collect();
-        Frame { scene, samplers }
+        Frame {
+            scene,
+            rays: Caster::new(scene),
+            samplers,
+        }
     }
 
     /// The filtering view of surface `index`'s texture.
@@ -43,8 +49,8 @@ pub(crate) fn sky(scene: &Scene, ray: &Ray) -> Rgba {
 /// The lighting factor per colour channel at `point` (normal `normal`)
 /// seen along `ray`: ambient plus the sun's `cos` unless shadowed; 1 when
 /// the scene is unlit.
-pub(crate) fn lambert(scene: &Scene, normal: Vec3, point: Vec3, ray: &Ray) -> [f32; 3] {
-    match scene.lighting {
+pub(crate) fn lambert(rays: &Caster<'_>, normal: Vec3, point: Vec3, ray: &Ray) -> [f32; 3] {
+    match rays.scene.lighting {
         Lighting::Unlit => [1.0; 3],
         Lighting::Lambert {
             direction,
@@ -63,7 +69,7 @@ pub(crate) fn lambert(scene: &Scene, normal: Vec3, point: Vec3, ray: &Ray) -> [f
                     origin: point + n * 1e-6 * (1.0 + distance),
                     direction,
                 };
-                !scene.occluded(&shadow)
+                !rays.occluded(&shadow)
             };
             let k = if lit { cos as f32 } else { 0.0 };
             [0, 1, 2].map(|i| ambient[i] + k * colour[i])

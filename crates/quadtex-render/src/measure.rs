@@ -10,7 +10,7 @@ use quadtex_io::LinearImage;
 use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter};
 use crate::render::{prepare_baselines, sized_scene};
-use crate::scene::{Hit, Lighting, Scene, Sky};
+use crate::scene::{Caster, Hit, Lighting, Scene, Sky};
 use crate::shade::texture_colour;
 use crate::stats::PixelStats;
 use crate::view::{self, ScreenArea};
@@ -20,7 +20,7 @@ use crate::view::{self, ScreenArea};
 pub fn centre_distance(scene: &Scene) -> Option<f64> {
     let c = &scene.camera;
     let ray = c.ray(f64::from(c.width()) / 2.0, f64::from(c.height()) / 2.0);
-    scene.nearest_hit(&ray).map(|(_, h)| h.t)
+    Caster::new(scene).nearest_hit(&ray).map(|(_, h)| h.t)
 }
 
 /// The centre hits of the textured pixels of `scene` at its camera's size:
@@ -28,10 +28,11 @@ pub fn centre_distance(scene: &Scene) -> Option<f64> {
 fn textured_hits(scene: &Scene) -> Vec<(usize, usize, Hit)> {
     let (w, h) = (scene.camera.width(), scene.camera.height());
     let mut out = Vec::new();
+    let rays = Caster::new(scene);
     for y in 0..h {
         for x in 0..w {
             let ray = scene.camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-            if let Some((index, hit)) = scene.nearest_index(&ray)
+            if let Some((index, hit)) = rays.nearest_index(&ray)
                 && scene.surfaces[index].texture.is_some()
             {
                 out.push(((y * w + x) as usize, index, hit));

@@ -153,7 +153,11 @@ fn shade_area(
     let [cx, cy] = area.centre;
     let centre_ray = scene.camera.ray(cx, cy);
     if splits < SILHOUETTE_SPLITS {
-        let seen = |x: f64, y: f64| scene.nearest_index(&scene.camera.ray(x, y)).map(|(i, _)| i);
+        let seen = |x: f64, y: f64| {
+            (frame.rays)
+                .nearest_index(&scene.camera.ray(x, y))
+                .map(|(i, _)| i)
+        };
         let h = area.half;
         let middle = match centre_seen {
             Some(0) => None,

@@ -62,13 +62,12 @@ pub fn render(
         (0..gh)
             .into_par_iter()
             .flat_map_iter(|gy| {
-                let scene = &scene;
+                let (scene, rays) = (&scene, &frame.rays);
                 (0..gw).map(move |gx| {
                     let ray = scene
                         .camera
                         .ray((gx - pad) as f64 + 0.5, (gy - pad) as f64 + 0.5);
-                    scene
-                        .nearest_index(&ray)
+                    rays.nearest_index(&ray)
                         .map_or(0, |(i, hit)| seen_id(i, hit.triangle))
                 })
             })

@@ -440,15 +440,6 @@ impl Geometry {
         }
     }
 
-    /// Whether the ray meets the surface beyond `t_min`: what
-    /// [`Geometry::intersect`] finds, without finding the nearest point.
-    pub(crate) fn occludes(&self, ray: &Ray, t_min: f64) -> bool {
-        match self {
-            Geometry::Mesh(mesh) => mesh.occludes(ray, t_min),
-            _ => self.intersect(ray, t_min).is_some(),
-        }
-    }
-
     pub(crate) fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
         match *self {
             Geometry::Plane {
@@ -480,30 +471,7 @@ impl Geometry {
                 origin,
                 edge_u,
                 edge_v,
-            } => {
-                let normal = edge_u.cross(edge_v).normalized()?;
-                let denom = ray.direction.dot(normal);
-                if denom.abs() < 1e-12 {
-                    return None;
-                }
-                let t = (origin - ray.origin).dot(normal) / denom;
-                if !(t > t_min && t.is_finite()) {
-                    return None;
-                }
-                let p = ray.origin + ray.direction * t;
-                let (du, dv) = quad_gradients(edge_u, edge_v);
-                let rel = p - origin;
-                let uv = [rel.dot(du), rel.dot(dv)];
-                ((0.0..=1.0).contains(&uv[0]) && (0.0..=1.0).contains(&uv[1])).then_some(Hit {
-                    t,
-                    point: p,
-                    normal,
-                    uv,
-                    du,
-                    dv,
-                    triangle: 0,
-                })
-            }
+            } => QuadFrame::new(edge_u, edge_v)?.hit(origin, ray, t_min),
             Geometry::Mesh(ref mesh) => mesh.intersect(ray, t_min),
             Geometry::Sphere { centre, radius } => {
                 let oc = ray.origin - centre;
@@ -550,6 +518,51 @@ fn quad_gradients(a: Vec3, b: Vec3) -> (Vec3, Vec3) {
     let du = (a * bb - b * ab) * (1.0 / det);
     let dv = (b * aa - a * ab) * (1.0 / det);
     (du, dv)
+}
+
+/// A quad's unit normal and UV gradients: what its ray test needs beyond
+/// its corner, solved once per frame by [`Caster`] (and per ray by
+/// [`Geometry::intersect`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct QuadFrame {
+    normal: Vec3,
+    du: Vec3,
+    dv: Vec3,
+}
+
+impl QuadFrame {
+    /// `None` for a degenerate quad (parallel edges).
+    fn new(edge_u: Vec3, edge_v: Vec3) -> Option<QuadFrame> {
+        let normal = edge_u.cross(edge_v).normalized()?;
+        let (du, dv) = quad_gradients(edge_u, edge_v);
+        Some(QuadFrame { normal, du, dv })
+    }
+
+    /// Where `ray` meets the quad with corner `origin` beyond `t_min`.
+    #[inline]
+    fn hit(&self, origin: Vec3, ray: &Ray, t_min: f64) -> Option<Hit> {
+        let QuadFrame { normal, du, dv } = *self;
+        let denom = ray.direction.dot(normal);
+        if denom.abs() < 1e-12 {
+            return None;
+        }
+        let t = (origin - ray.origin).dot(normal) / denom;
+        if !(t > t_min && t.is_finite()) {
+            return None;
+        }
+        let p = ray.origin + ray.direction * t;
+        let rel = p - origin;
+        let uv = [rel.dot(du), rel.dot(dv)];
+        ((0.0..=1.0).contains(&uv[0]) && (0.0..=1.0).contains(&uv[1])).then_some(Hit {
+            t,
+            point: p,
+            normal,
+            uv,
+            du,
+            dv,
+            triangle: 0,
+        })
+    }
 }
 
 /// UV → texture space: `rotate(uv ⊙ scale) + offset`, rotation in degrees
@@ -797,48 +810,6 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// The index of the first surface `ray` meets, and where.
-    pub(crate) fn nearest_index(&self, ray: &Ray) -> Option<(usize, Hit)> {
-        let mut best: Option<(usize, Hit)> = None;
-        for (i, s) in self.surfaces.iter().enumerate() {
-            if let Some(hit) = s.geometry.intersect(ray, 1e-9)
-                && best.as_ref().is_none_or(|(_, b)| hit.t < b.t)
-            {
-                best = Some((i, hit));
-            }
-        }
-        best
-    }
-
-    /// What [`Scene::nearest_index`] finds for `ray` when it is known to
-    /// see primitive `seen` (0: the sky), from the visibility grid cast
-    /// along the same ray: that primitive alone is intersected, not the
-    /// scene.
-    pub(crate) fn nearest_seen(&self, ray: &Ray, seen: crate::exact::Seen) -> Option<(usize, Hit)> {
-        if seen == 0 {
-            return None;
-        }
-        let (surface, triangle) = crate::exact::surface_and_triangle(seen);
-        let geometry = &self.surfaces.get(surface)?.geometry;
-        let hit = match geometry {
-            Geometry::Mesh(mesh) => mesh.intersect_triangle(triangle, ray, 1e-9),
-            _ => geometry.intersect(ray, 1e-9),
-        };
-        hit.map(|h| (surface, h))
-    }
-
-    /// Whether `ray` meets any surface (as [`Scene::nearest_index`] would
-    /// find one): for shadow rays.
-    pub(crate) fn occluded(&self, ray: &Ray) -> bool {
-        self.surfaces.iter().any(|s| s.geometry.occludes(ray, 1e-9))
-    }
-
-    /// The first surface `ray` meets, and where.
-    pub(crate) fn nearest_hit(&self, ray: &Ray) -> Option<(&Surface, Hit)> {
-        self.nearest_index(ray)
-            .map(|(i, hit)| (&self.surfaces[i], hit))
-    }
-
     /// The scene's textures, each tree once, in order of first use, with the
     /// index of the first surface that uses it.
     pub fn distinct_textures(&self) -> Vec<(usize, &Texture)> {
@@ -851,5 +822,80 @@ impl Scene {
             }
         }
         out
+    }
+}
+
+/// A scene's surfaces ready for rays: each quad's [`QuadFrame`] solved
+/// once, not for every ray (visibility grid, shadows, gap search).
+#[derive(Debug)]
+pub(crate) struct Caster<'a> {
+    pub scene: &'a Scene,
+    quads: Vec<Option<QuadFrame>>,
+}
+
+impl<'a> Caster<'a> {
+    pub fn new(scene: &'a Scene) -> Caster<'a> {
+        let quads = (scene.surfaces.iter())
+            .map(|s| match s.geometry {
+                Geometry::Quad { edge_u, edge_v, .. } => QuadFrame::new(edge_u, edge_v),
+                _ => None,
+            })
+            .collect();
+        Caster { scene, quads }
+    }
+
+    /// Where `ray` meets surface `index` beyond `t_min`.
+    #[inline]
+    fn intersect(&self, index: usize, ray: &Ray, t_min: f64) -> Option<Hit> {
+        let geometry = &self.scene.surfaces[index].geometry;
+        match (geometry, &self.quads[index]) {
+            (Geometry::Quad { origin, .. }, Some(frame)) => frame.hit(*origin, ray, t_min),
+            _ => geometry.intersect(ray, t_min),
+        }
+    }
+
+    /// The index of the first surface `ray` meets, and where.
+    pub fn nearest_index(&self, ray: &Ray) -> Option<(usize, Hit)> {
+        let mut best: Option<(usize, Hit)> = None;
+        for i in 0..self.scene.surfaces.len() {
+            if let Some(hit) = self.intersect(i, ray, 1e-9)
+                && best.as_ref().is_none_or(|(_, b)| hit.t < b.t)
+            {
+                best = Some((i, hit));
+            }
+        }
+        best
+    }
+
+    /// What [`Caster::nearest_index`] finds for `ray` when it is known to
+    /// see primitive `seen` (0: the sky), from the visibility grid cast
+    /// along the same ray: that primitive alone is intersected, not the
+    /// scene.
+    pub fn nearest_seen(&self, ray: &Ray, seen: crate::exact::Seen) -> Option<(usize, Hit)> {
+        if seen == 0 {
+            return None;
+        }
+        let (surface, triangle) = crate::exact::surface_and_triangle(seen);
+        let hit = match &self.scene.surfaces.get(surface)?.geometry {
+            Geometry::Mesh(mesh) => mesh.intersect_triangle(triangle, ray, 1e-9),
+            _ => self.intersect(surface, ray, 1e-9),
+        };
+        hit.map(|h| (surface, h))
+    }
+
+    /// Whether `ray` meets any surface (as [`Caster::nearest_index`] would
+    /// find one), without finding the nearest point: for shadow rays.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        (self.scene.surfaces.iter().enumerate()).any(|(i, s)| match &s.geometry {
+            Geometry::Mesh(mesh) => mesh.occludes(ray, 1e-9),
+            _ => self.intersect(i, ray, 1e-9).is_some(),
+        })
+    }
+
+    /// The first surface `ray` meets, and where.
+    pub fn nearest_hit(&self, ray: &Ray) -> Option<(&'a Surface, Hit)> {
+        let scene = self.scene;
+        self.nearest_index(ray)
+            .map(|(i, hit)| (&scene.surfaces[i], hit))
     }
 }

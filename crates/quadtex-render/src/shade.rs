@@ -25,8 +25,8 @@ pub(crate) fn shade_ray(
 ) -> Rgba {
     let scene = frame.scene;
     let nearest = match seen {
-        Some(id) => scene.nearest_seen(ray, id),
-        None => scene.nearest_index(ray),
+        Some(id) => frame.rays.nearest_seen(ray, id),
+        None => frame.rays.nearest_index(ray),
     };
     let Some((index, hit)) = nearest else {
         return sky(scene, ray);
@@ -50,7 +50,7 @@ pub(crate) fn shade_ray(
             tex * surface.colour
         }
     };
-    let k = lambert(scene, hit.normal, hit.point, ray);
+    let k = lambert(&frame.rays, hit.normal, hit.point, ray);
     Rgba::new(base.r * k[0], base.g * k[1], base.b * k[2], base.a)
 }
 
