@@ -174,16 +174,34 @@ impl Bvh {
     /// Whether `test` holds for a primitive whose box the ray enters: any
     /// one, in no particular order, stopping at the first (a shadow ray
     /// needs to know that something is in the way, not what is nearest).
-    pub fn any(&self, ray: &Ray, mut test: impl FnMut(u32) -> bool) -> bool {
+    pub fn any(&self, ray: &Ray, test: impl FnMut(u32) -> bool) -> bool {
         let d = ray.direction;
         let inv = Vec3::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
-        let enters = |n: usize| {
-            self.nodes[n]
-                .bounds
-                .entry(ray.origin, inv, f64::INFINITY)
-                .is_some()
+        self.first_in(|b| b.entry(ray.origin, inv, f64::INFINITY).is_some(), test)
+    }
+
+    /// Calls `visit(i)` for every primitive in a leaf whose box is not
+    /// wholly outside one of `planes` (`n·p + d ≥ 0` inside, `[n.x, n.y,
+    /// n.z, d]`), until `visit` returns true; returns whether it did. The
+    /// box test is conservative: a box that reaches into every half-space
+    /// may still miss their intersection.
+    pub fn overlapping(&self, planes: &[[f64; 4]], visit: impl FnMut(u32) -> bool) -> bool {
+        let outside = |b: &Aabb| {
+            planes.iter().any(|&[x, y, z, d]| {
+                // The corner farthest along the normal.
+                let far = |n: f64, lo: f64, hi: f64| n * if n > 0.0 { hi } else { lo };
+                far(x, b.lo.x, b.hi.x) + far(y, b.lo.y, b.hi.y) + far(z, b.lo.z, b.hi.z) + d < 0.0
+            })
         };
-        if !enters(0) {
+        self.first_in(|b| !outside(b), visit)
+    }
+
+    /// Whether `test` holds for a primitive in a leaf reached through boxes
+    /// that all pass `enters`, stopping at the first (depth first, no
+    /// particular order).
+    #[inline]
+    fn first_in(&self, enters: impl Fn(&Aabb) -> bool, mut test: impl FnMut(u32) -> bool) -> bool {
+        if !enters(&self.nodes[0].bounds) {
             return false;
         }
         let mut stack = [0u32; MAX_DEPTH + 2];
@@ -202,48 +220,7 @@ impl Bvh {
                 continue;
             }
             for child in [node.start as usize, node.start as usize + 1] {
-                if enters(child) {
-                    stack[top] = child as u32;
-                    top += 1;
-                }
-            }
-        }
-        false
-    }
-
-    /// Calls `visit(i)` for every primitive in a leaf whose box is not
-    /// wholly outside one of `planes` (`n·p + d ≥ 0` inside, `[n.x, n.y,
-    /// n.z, d]`), until `visit` returns true; returns whether it did. The
-    /// box test is conservative: a box that reaches into every half-space
-    /// may still miss their intersection.
-    pub fn overlapping(&self, planes: &[[f64; 4]], mut visit: impl FnMut(u32) -> bool) -> bool {
-        let outside = |b: &Aabb| {
-            planes.iter().any(|&[x, y, z, d]| {
-                // The corner farthest along the normal.
-                let far = |n: f64, lo: f64, hi: f64| n * if n > 0.0 { hi } else { lo };
-                far(x, b.lo.x, b.hi.x) + far(y, b.lo.y, b.hi.y) + far(z, b.lo.z, b.hi.z) + d < 0.0
-            })
-        };
-        if outside(&self.nodes[0].bounds) {
-            return false;
-        }
-        let mut stack = [0u32; MAX_DEPTH + 2];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if node.count > 0 {
-                let s = node.start as usize;
-                if self.order[s..s + node.count as usize]
-                    .iter()
-                    .any(|&i| visit(i))
-                {
-                    return true;
-                }
-                continue;
-            }
-            for child in [node.start as usize, node.start as usize + 1] {
-                if !outside(&self.nodes[child].bounds) {
+                if enters(&self.nodes[child].bounds) {
                     stack[top] = child as u32;
                     top += 1;
                 }
