@@ -287,16 +287,21 @@ fn kernels_are_normalised() {
     }
 }
 
+/// A 4 × 4 tile of the palette's colours in diagonal stripes.
+fn palette_tile() -> QuadTree {
+    let grid =
+        quadtex_core::TexelGrid::from_fn(4, 4, |c, r| PALETTE[((c + 2 * r) % 5) as usize]).unwrap();
+    QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0
+}
+
 /// A footprint over a million repeating tiles costs a bounded number of
 /// nodes (whole tiles are taken in blocks) and gives the tile mean within
 /// the reported bound.
 #[test]
 fn a_million_tiles_cost_little() {
-    let grid =
-        quadtex_core::TexelGrid::from_fn(4, 4, |c, r| PALETTE[((c + 2 * r) % 5) as usize]).unwrap();
-    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
-        .unwrap()
-        .0;
+    let tree = palette_tile();
     let mean = tree.average();
     let texture = Texture::new(tree, Wrap::REPEAT);
     let corners = [
@@ -329,12 +334,7 @@ fn a_million_tiles_cost_little() {
 /// one refined under a budget large enough to refine it.
 #[test]
 fn needles_over_many_tiles_take_the_coarse_sum_at_once() {
-    let grid =
-        quadtex_core::TexelGrid::from_fn(4, 4, |c, r| PALETTE[((c + 2 * r) % 5) as usize]).unwrap();
-    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
-        .unwrap()
-        .0;
-    let texture = Texture::new(tree, Wrap::REPEAT);
+    let texture = Texture::new(palette_tile(), Wrap::REPEAT);
     for length in [300.0, 3000.0] {
         let corners = [[0.1, 0.2], [length, 0.5], [length, 0.9], [0.1, 0.45]];
         let fp = Footprint::from_corners(corners).unwrap();
