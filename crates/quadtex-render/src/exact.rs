@@ -27,8 +27,9 @@
 //! frustum ([`SurfaceViews::meshes_in`]) and what overlaps it joins the
 //! list too; a pixel whose centres in reach all see the sky is searched
 //! the same way (planes and quads are always tried). Limit, stated:
-//! primitives that intersect inside the pixel are ordered at one point. Spheres are not planar: pixels that involve one
-//! are left to the tangent-plane path ([`crate::pixel`]).
+//! primitives that intersect inside the pixel are ordered at one point.
+//! Spheres are not planar: pixels that involve one are left to the
+//! tangent-plane path ([`crate::pixel`]).
 //!
 //! **Shading.** Lambert lighting is constant over a planar piece except for
 //! shadows, taken at the piece's centroid. The sky's gradient over a whole
@@ -403,9 +404,9 @@ pub(crate) fn exact_pixel(
             return Some(mean(acc, weight));
         }
     }
-    // Only the sky in reach: the sky over the whole support unless a plane
-    // or quad no centre sees reaches into it (the case the general path
-    // below covers; meshes are tried there only when a centre sees them).
+    // Only the sky in reach: the sky over the whole support unless a plane,
+    // quad or mesh triangle no centre sees reaches into it (the case the
+    // general path below covers).
     if candidates.is_empty()
         && sees_sky
         && cache.views.iter().flatten().all(|v| v.misses(&support))
