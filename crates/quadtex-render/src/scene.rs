@@ -413,8 +413,7 @@ impl Geometry {
                 edge_u,
                 edge_v,
             } => {
-                let normal = edge_u.cross(edge_v).normalized()?;
-                let (du, dv) = quad_gradients(edge_u, edge_v);
+                let QuadFrame { normal, du, dv } = QuadFrame::new(edge_u, edge_v)?;
                 Some(Planar {
                     point: origin,
                     uv: [0.0, 0.0],
