@@ -474,10 +474,11 @@ pub(crate) fn integrate_region(
         LevelOfDetail::Fixed(k) => Some(k.min(tree.depth())),
         LevelOfDetail::ErrorBound(_) => None,
     };
+    let buffers = WalkBuffers::lend();
     let mut walk = Walk {
-        frames: Vec::new(),
-        pending: Vec::new(),
-        queue: std::collections::BinaryHeap::new(),
+        frames: buffers.frames,
+        pending: buffers.pending,
+        queue: buffers.queue,
         queued_bound: 0.0,
         target: epsilon * filter.k_max() * area,
         area,
@@ -503,7 +504,62 @@ pub(crate) fn integrate_region(
     stats.traversal.nodes_visited += walk.visited;
     // The walk's bounds assume colour channels in [0, 1]; HDR colours span more.
     walk.out.error_bound = before + (walk.out.error_bound - before) * tree.bound_scale();
-    finite_or_nothing(walk.out)
+    let out = walk.out;
+    WalkBuffers {
+        frames: walk.frames,
+        pending: walk.pending,
+        queue: walk.queue,
+    }
+    .give_back();
+    finite_or_nothing(out)
+}
+
+/// The growable parts of a [`Walk`], kept per thread between regions so
+/// that a walk allocates nothing once they have grown (a pixel's regions
+/// are many and small).
+#[derive(Default)]
+struct WalkBuffers {
+    frames: Vec<TileFrame>,
+    pending: Vec<Pending>,
+    queue: std::collections::BinaryHeap<(u64, u32)>,
+}
+
+thread_local! {
+    static WALK_BUFFERS: std::cell::RefCell<WalkBuffers> =
+        std::cell::RefCell::new(WalkBuffers::default());
+}
+
+impl WalkBuffers {
+    /// Parts longer than this are dropped rather than kept (a walk under a
+    /// fixed level may hold [`FIXED_LEVEL_CAP`] of them).
+    const KEEP: usize = 1 << 12;
+
+    /// This thread's buffers, empty (new ones if they are lent already).
+    fn lend() -> WalkBuffers {
+        WALK_BUFFERS
+            .try_with(|b| b.try_borrow_mut().map(|mut b| std::mem::take(&mut *b)))
+            .ok()
+            .and_then(Result::ok)
+            .unwrap_or_default()
+    }
+
+    /// Returns the buffers, emptied, for the thread's next walk.
+    fn give_back(mut self) {
+        if self.frames.capacity() > Self::KEEP
+            || self.pending.capacity() > Self::KEEP
+            || self.queue.capacity() > Self::KEEP
+        {
+            return;
+        }
+        self.frames.clear();
+        self.pending.clear();
+        self.queue.clear();
+        let _ = WALK_BUFFERS.try_with(|b| {
+            if let Ok(mut b) = b.try_borrow_mut() {
+                *b = self;
+            }
+        });
+    }
 }
 
 /// The integral if every figure is finite; nothing otherwise (a map that

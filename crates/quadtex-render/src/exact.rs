@@ -327,16 +327,17 @@ impl SurfaceViews {
         &self,
         scene: &Scene,
         polygon: &ConvexPolygon,
+        planes: &mut Vec<[f64; 4]>,
         mut visit: impl FnMut(Seen) -> bool,
     ) -> bool {
         if self.meshes.is_empty() {
             return false;
         }
-        let planes = frustum(scene, polygon);
+        frustum(scene, polygon, planes);
         self.meshes
             .iter()
             .any(|&surface| match &scene.surfaces[surface].geometry {
-                Geometry::Mesh(mesh) => mesh.overlapping(&planes, |t| visit(seen_id(surface, t))),
+                Geometry::Mesh(mesh) => mesh.overlapping(planes, |t| visit(seen_id(surface, t))),
                 _ => false,
             })
     }
@@ -356,12 +357,12 @@ impl SurfaceViews {
 /// The half-spaces `n·p + d ≥ 0` (`[n.x, n.y, n.z, d]`) whose intersection
 /// holds every world point that projects into screen polygon `polygon`:
 /// one plane through the camera and each edge, and the camera's plane.
-fn frustum(scene: &Scene, polygon: &ConvexPolygon) -> Vec<[f64; 4]> {
+fn frustum(scene: &Scene, polygon: &ConvexPolygon, planes: &mut Vec<[f64; 4]>) {
     let cam = &scene.camera;
     let c = cam.position;
     let plane = |n: Vec3| [n.x, n.y, n.z, -n.dot(c)];
     let v = polygon.vertices();
-    let mut planes = Vec::with_capacity(v.len() + 1);
+    planes.clear();
     planes.push(plane(cam.forward()));
     let centroid = polygon.centroid();
     let inward = cam.direction(centroid[0], centroid[1]);
@@ -372,23 +373,33 @@ fn frustum(scene: &Scene, polygon: &ConvexPolygon) -> Vec<[f64; 4]> {
             planes.push(plane(if n.dot(inward) < 0.0 { -n } else { n }));
         }
     }
-    planes
 }
 
 /// The filtered colour of pixel `(x, y)` whose neighbourhood's centres see
 /// `candidates` (and the sky if `sky`), or `None` when a candidate is not
 /// planar (a sphere): the caller then takes the tangent-plane path.
+/// `scratch`: the calling thread's buffers.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn exact_pixel(
+pub(crate) fn exact_pixel<'a>(
     frame: &Frame<'_>,
     options: &FilterOptions,
     filter: PixelFilter,
     (x, y): (u32, u32),
     candidates: &[Seen],
     sees_sky: bool,
-    cache: &SurfaceViews,
+    cache: &'a SurfaceViews,
+    scratch: &mut Scratch<'a>,
     stats: &mut PixelStats,
 ) -> Option<Rgba> {
+    let Scratch {
+        views,
+        tried,
+        regions,
+        gaps,
+        cut,
+        order,
+        planes,
+    } = scratch;
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
     let support = filter.support(centre);
@@ -425,7 +436,7 @@ pub(crate) fn exact_pixel(
     if candidates.is_empty()
         && sees_sky
         && cache.views.iter().flatten().all(|v| v.misses(&support))
-        && !cache.meshes_in(scene, &support, |_| true)
+        && !cache.meshes_in(scene, &support, planes, |_| true)
     {
         let (c, w) = sky_integral(
             scene,
@@ -437,9 +448,9 @@ pub(crate) fn exact_pixel(
         );
         return Some(mean(c, w));
     }
-    let mut views = Vec::with_capacity(candidates.len() + scene.surfaces.len());
+    views.clear();
     // Every primitive tried so far and its view's index (none: edge-on).
-    let mut tried: Vec<(Seen, Option<usize>)> = Vec::with_capacity(candidates.len() + 4);
+    tried.clear();
     for &id in candidates {
         let view = candidate_view(scene, cache, id)?;
         tried.push((id, view.is_some().then_some(views.len())));
@@ -478,22 +489,20 @@ pub(crate) fn exact_pixel(
             _ => {}
         }
     }
-    let mut regions: Vec<ConvexPolygon> = views
-        .iter()
-        .map(|v| v.region(&support).into_owned())
-        .collect();
+    regions.clear();
+    regions.extend(views.iter().map(|v| v.region(&support).into_owned()));
     let mut found = 0;
-    let mut cut = Cut::new(&views, &regions, &support);
-    let gaps = loop {
+    cut.among(views, regions, &support, order);
+    loop {
         // What no primitive in the list covers is sky, or primitives
         // between the centres (a large mesh's triangles smaller than a
         // pixel): the one the ray through a gap's centroid meets joins the
         // list, and the support is cut again (it may hide parts of the
         // others).
-        let mut gaps = Vec::with_capacity(cut.remaining.len());
+        gaps.clear();
         let mut grew = false;
         let listed = views.len();
-        for r in std::mem::take(&mut cut.remaining) {
+        for r in cut.remaining.drain(..) {
             let c = r.centroid();
             let Some((surface, hit)) = frame.rays.nearest_index(&scene.camera.ray(c[0], c[1]))
             else {
@@ -501,7 +510,7 @@ pub(crate) fn exact_pixel(
                 // reach into the gap around it: each one whose region
                 // overlaps the gap joins the list.
                 let mut more = false;
-                cache.meshes_in(scene, &r, |id| {
+                cache.meshes_in(scene, &r, planes, |id| {
                     if tried.iter().any(|(t, _)| *t == id) {
                         return false;
                     }
@@ -547,7 +556,7 @@ pub(crate) fn exact_pixel(
             gaps.push((r, Gap::Seen(id, view)));
         }
         if !grew {
-            break gaps;
+            break;
         }
         // New primitives that overlap none listed (a mesh's triangles
         // around those the centres see) only fill gaps: the rest of the
@@ -556,30 +565,24 @@ pub(crate) fn exact_pixel(
             (0..views.len()).any(|u| u != v && overlap(&regions[u], &regions[v]).is_some())
         });
         if overlaps {
-            cut = Cut::new(&views, &regions, &support);
+            cut.among(views, regions, &support, order);
         } else {
-            cut.remaining = gaps.into_iter().map(|(r, _)| r).collect();
+            cut.remaining.extend(gaps.drain(..).map(|(r, _)| r));
             for (v, region) in regions.iter().enumerate().skip(listed) {
                 cut.take(v, region);
             }
         }
-    };
-    let Cut {
-        pieces,
-        slivers,
-        unaccounted,
-        ..
-    } = cut;
+    }
     // Weight no piece has, or two have (|k| ≤ 1 for every pixel filter):
     // at most the larger of full contrast and the sky's range off.
-    add([0.0; 4], 0.0, unaccounted * sky_range(scene).max(1.0));
-    for (i, piece) in &pieces {
+    add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
+    for (i, piece) in &cut.pieces {
         let (c, w, b) = shade_piece(
             frame, &views[*i], piece, filter, centre, options, &mut parts,
         );
         add(c, w, b);
     }
-    for r in &slivers {
+    for r in &cut.slivers {
         // The sky at its centroid, whatever covers it: its whole weight
         // times the larger of full contrast and the sky's range as the
         // bound (at most 1e-9 of the support's).
@@ -602,7 +605,7 @@ pub(crate) fn exact_pixel(
             sky_tolerance(options),
         )
     };
-    for (r, gap) in &gaps {
+    for (r, gap) in gaps.iter() {
         match *gap {
             Gap::Sky => {
                 let (c, w) = sky_over(r);
@@ -662,10 +665,14 @@ enum Gap {
 }
 
 /// A support cut among primitives: the visible pieces of each (by index
-/// into the views), the parts none covers yet, and slivers.
+/// into the views), the parts none covers yet, and slivers. Its buffers
+/// are reused from pixel to pixel ([`Scratch`]).
+#[derive(Default)]
 struct Cut {
     pieces: Vec<(usize, ConvexPolygon)>,
     remaining: Vec<ConvexPolygon>,
+    /// What [`Cut::take`] builds the next `remaining` in.
+    spare: Vec<ConvexPolygon>,
     /// Pieces of at most `sliver_area` (rounding along shared edges): not
     /// cut further, nor integrated over a texture.
     slivers: Vec<ConvexPolygon>,
@@ -677,36 +684,41 @@ struct Cut {
 }
 
 impl Cut {
-    /// The support cut among `views` (their `regions` of it) front to back.
-    fn new(views: &[Cow<'_, View>], regions: &[ConvexPolygon], support: &ConvexPolygon) -> Cut {
-        let sliver_area = GAP_AREA * support.area();
-        if let Some(cut) = Cut::tiling(regions, support, sliver_area) {
-            return cut;
+    /// Cuts the support among `views` (their `regions` of it) front to
+    /// back, replacing what the cut held.
+    fn among(
+        &mut self,
+        views: &[Cow<'_, View>],
+        regions: &[ConvexPolygon],
+        support: &ConvexPolygon,
+        order: &mut Order,
+    ) {
+        self.pieces.clear();
+        self.remaining.clear();
+        self.slivers.clear();
+        self.sliver_area = GAP_AREA * support.area();
+        self.unaccounted = 0.0;
+        if self.tiling(regions, support) {
+            return;
         }
-        let mut cut = Cut {
-            pieces: Vec::with_capacity(views.len()),
-            remaining: vec![support.clone()],
-            slivers: Vec::new(),
-            sliver_area,
-            unaccounted: 0.0,
-        };
-        for i in front_to_back(views, regions) {
-            cut.take(i, &regions[i]);
+        self.remaining.push(support.clone());
+        for &i in order.front_to_back(views, regions) {
+            self.take(i, &regions[i]);
         }
-        cut
     }
 
     /// The cut when the `regions` tile the support (the triangles of a
     /// mesh around a pixel, most often): where no two overlap by more than
     /// a sliver and together they cover it but for a sliver, each view
     /// sees its whole region, whatever their order, and nothing is left.
-    /// `None` otherwise. The area counted twice or not at all (at most
-    /// three slivers) is kept in `unaccounted`, for the error bound.
-    fn tiling(regions: &[ConvexPolygon], support: &ConvexPolygon, sliver_area: f64) -> Option<Cut> {
+    /// Returns false, the cut untouched, otherwise. The area counted twice
+    /// or not at all (at most three slivers) is kept in `unaccounted`, for
+    /// the error bound.
+    fn tiling(&mut self, regions: &[ConvexPolygon], support: &ConvexPolygon) -> bool {
         let total: f64 = regions.iter().map(ConvexPolygon::area).sum();
         let short = (support.area() - total).abs();
-        if short > sliver_area {
-            return None;
+        if short > self.sliver_area {
+            return false;
         }
         let mut overlapping = 0.0;
         for (i, a) in regions.iter().enumerate() {
@@ -719,21 +731,18 @@ impl Cut {
                     continue;
                 }
                 overlapping += a.intersect(b).area();
-                if overlapping > sliver_area {
-                    return None;
+                if overlapping > self.sliver_area {
+                    return false;
                 }
             }
         }
-        Some(Cut {
-            pieces: (regions.iter().enumerate())
+        self.pieces.extend(
+            (regions.iter().enumerate())
                 .filter(|(_, r)| !r.is_empty())
-                .map(|(i, r)| (i, r.clone()))
-                .collect(),
-            remaining: Vec::new(),
-            slivers: Vec::new(),
-            sliver_area,
-            unaccounted: short + 2.0 * overlapping,
-        })
+                .map(|(i, r)| (i, r.clone())),
+        );
+        self.unaccounted = short + 2.0 * overlapping;
+        true
     }
 
     /// Gives view `v` what its `region` covers of the parts not yet
@@ -743,8 +752,9 @@ impl Cut {
             return;
         }
         let bounds = region.bounds();
-        let mut next = Vec::with_capacity(self.remaining.len() + 4);
-        for r in std::mem::take(&mut self.remaining) {
+        let mut next = std::mem::take(&mut self.spare);
+        next.clear();
+        for r in self.remaining.drain(..) {
             if boxes_apart(r.bounds(), bounds) {
                 next.push(r);
                 continue;
@@ -779,8 +789,22 @@ impl Cut {
                 }
             });
         }
-        self.remaining = next;
+        self.spare = std::mem::replace(&mut self.remaining, next);
     }
+}
+
+/// Buffers one thread reuses from pixel to pixel, so that the exact pixel
+/// allocates nothing once they have grown to the largest neighbourhood.
+#[derive(Default)]
+pub(crate) struct Scratch<'a> {
+    views: Vec<Cow<'a, View>>,
+    /// Every primitive tried so far and its view's index (none: edge-on).
+    tried: Vec<(Seen, Option<usize>)>,
+    regions: Vec<ConvexPolygon>,
+    gaps: Vec<(ConvexPolygon, Gap)>,
+    cut: Cut,
+    order: Order,
+    planes: Vec<[f64; 4]>,
 }
 
 /// The largest difference between the sky's colours in any channel: how
@@ -805,52 +829,70 @@ fn mean(acc: [f64; 4], weight: f64) -> Rgba {
     .unwrap_or(Rgba::TRANSPARENT)
 }
 
-/// Indices of `views` front to back: repeatedly the one no other remaining
-/// view is in front of where their regions overlap (the nearest at its own
-/// centroid if occlusion is cyclic).
-fn front_to_back(views: &[Cow<'_, View>], regions: &[ConvexPolygon]) -> Vec<usize> {
-    let left: Vec<usize> = (0..views.len())
-        .filter(|&i| !regions[i].is_empty())
-        .collect();
-    let n = left.len();
-    // `behind[a·n + b]`: `left[b]` is in front of `left[a]` where their
-    // regions overlap (decided once a pair, at the overlap's centroid).
-    let mut behind = vec![false; n * n];
-    for a in 0..n {
-        for b in a + 1..n {
-            let (i, j) = (left[a], left[b]);
-            let Some(overlap) = overlap(&regions[i], &regions[j]) else {
-                continue;
-            };
-            let c = overlap.centroid();
-            let (di, dj) = (views[i].depth_at(c), views[j].depth_at(c));
-            behind[a * n + b] = dj < di;
-            behind[b * n + a] = di < dj;
+/// The buffers of [`Order::front_to_back`].
+#[derive(Default)]
+struct Order {
+    left: Vec<usize>,
+    behind: Vec<bool>,
+    placed: Vec<bool>,
+    order: Vec<usize>,
+}
+
+impl Order {
+    /// Indices of `views` front to back: repeatedly the one no other
+    /// remaining view is in front of where their regions overlap (the
+    /// nearest at its own centroid if occlusion is cyclic).
+    fn front_to_back(&mut self, views: &[Cow<'_, View>], regions: &[ConvexPolygon]) -> &[usize] {
+        let Order {
+            left,
+            behind,
+            placed,
+            order,
+        } = self;
+        left.clear();
+        left.extend((0..views.len()).filter(|&i| !regions[i].is_empty()));
+        let n = left.len();
+        // `behind[a·n + b]`: `left[b]` is in front of `left[a]` where their
+        // regions overlap (decided once a pair, at the overlap's centroid).
+        behind.clear();
+        behind.resize(n * n, false);
+        for a in 0..n {
+            for b in a + 1..n {
+                let (i, j) = (left[a], left[b]);
+                let Some(overlap) = overlap(&regions[i], &regions[j]) else {
+                    continue;
+                };
+                let c = overlap.centroid();
+                let (di, dj) = (views[i].depth_at(c), views[j].depth_at(c));
+                behind[a * n + b] = dj < di;
+                behind[b * n + a] = di < dj;
+            }
         }
+        placed.clear();
+        placed.resize(n, false);
+        order.clear();
+        for _ in 0..n {
+            let free = |a: usize| !placed[a] && (0..n).all(|b| placed[b] || !behind[a * n + b]);
+            let pick = (0..n).find(|&a| free(a)).unwrap_or_else(|| {
+                // Cyclic occlusion: the nearest at its own centroid.
+                let depth = |a: usize| views[left[a]].depth_at(regions[left[a]].centroid());
+                (0..n)
+                    .filter(|&a| !placed[a])
+                    .fold((usize::MAX, f64::INFINITY), |best, a| {
+                        let d = depth(a);
+                        if d < best.1 || best.0 == usize::MAX {
+                            (a, d)
+                        } else {
+                            best
+                        }
+                    })
+                    .0
+            });
+            placed[pick] = true;
+            order.push(left[pick]);
+        }
+        order
     }
-    let mut placed = vec![false; n];
-    let mut order = Vec::with_capacity(n);
-    for _ in 0..n {
-        let free = |a: usize| !placed[a] && (0..n).all(|b| placed[b] || !behind[a * n + b]);
-        let pick = (0..n).find(|&a| free(a)).unwrap_or_else(|| {
-            // Cyclic occlusion: the nearest at its own centroid.
-            let depth = |a: usize| views[left[a]].depth_at(regions[left[a]].centroid());
-            (0..n)
-                .filter(|&a| !placed[a])
-                .fold((usize::MAX, f64::INFINITY), |best, a| {
-                    let d = depth(a);
-                    if d < best.1 || best.0 == usize::MAX {
-                        (a, d)
-                    } else {
-                        best
-                    }
-                })
-                .0
-        });
-        placed[pick] = true;
-        order.push(left[pick]);
-    }
-    order
 }
 
 /// `(Σ colour·k, Σ k, bound)` of surface `view` over screen `piece`.
@@ -1145,6 +1187,15 @@ mod tests {
         areas
     }
 
+    /// The cut of `support` among `regions` when they tile it.
+    fn tiling(regions: &[ConvexPolygon], support: &ConvexPolygon) -> Option<Cut> {
+        let mut cut = Cut {
+            sliver_area: GAP_AREA * support.area(),
+            ..Cut::default()
+        };
+        cut.tiling(regions, support).then_some(cut)
+    }
+
     #[test]
     fn regions_that_tile_the_support_are_taken_whole() {
         let support = ConvexPolygon::rect(10.0, 20.0, 11.0, 21.0);
@@ -1163,16 +1214,14 @@ mod tests {
             let fan: Vec<ConvexPolygon> = (0..4)
                 .map(|i| tri(&[corners[i], corners[(i + 1) % 4], p]))
                 .collect();
-            let whole = Cut::tiling(&fan, &support, sliver).expect("a fan tiles the pixel");
+            let whole = tiling(&fan, &support).expect("a fan tiles the pixel");
             assert_eq!(whole.pieces.len(), 4);
             assert!(whole.remaining.is_empty() && whole.slivers.is_empty());
             assert!(whole.unaccounted <= 3.0 * sliver, "{}", whole.unaccounted);
             let mut cut = Cut {
-                pieces: Vec::new(),
                 remaining: vec![support.clone()],
-                slivers: Vec::new(),
                 sliver_area: sliver,
-                unaccounted: 0.0,
+                ..Cut::default()
             };
             for (v, region) in fan.iter().enumerate() {
                 cut.take(v, region);
@@ -1183,12 +1232,12 @@ mod tests {
         }
         // A gap: not a tiling.
         let lower = tri(&[[10.0, 20.0], [11.0, 20.0], [11.0, 21.0]]);
-        assert!(Cut::tiling(std::slice::from_ref(&lower), &support, sliver).is_none());
+        assert!(tiling(std::slice::from_ref(&lower), &support).is_none());
         // Areas that add up to the pixel's, but overlap (and leave a gap).
         let left = ConvexPolygon::rect(10.0, 20.0, 10.5, 21.0);
         let right = ConvexPolygon::rect(10.4, 20.0, 10.9, 21.0);
         assert!((left.area() + right.area() - support.area()).abs() < 1e-12);
-        assert!(Cut::tiling(&[left, right], &support, sliver).is_none());
+        assert!(tiling(&[left, right], &support).is_none());
     }
 
     #[test]

@@ -12,7 +12,7 @@
 
 use quadtex_core::Rgba;
 
-use crate::exact::{Seen, SurfaceViews, exact_pixel, surface_and_triangle};
+use crate::exact::{Scratch, Seen, SurfaceViews, exact_pixel, surface_and_triangle};
 use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter};
 use crate::shade::shade_ray;
@@ -21,7 +21,7 @@ use crate::view::ScreenArea;
 
 /// What the pixel centres within reach of a pixel's filter support see.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Neighbourhood<'a> {
+pub(crate) struct Neighbourhood<'a, 'v> {
     /// The primitives seen, each once.
     pub primitives: &'a [Seen],
     /// Whether some centre sees the sky.
@@ -29,10 +29,10 @@ pub(crate) struct Neighbourhood<'a> {
     /// What the pixel's own centre sees (0: the sky), when known.
     pub centre: Option<Seen>,
     /// The scene's planar views, built once per frame.
-    pub views: &'a SurfaceViews,
+    pub views: &'v SurfaceViews,
 }
 
-impl Neighbourhood<'_> {
+impl Neighbourhood<'_, '_> {
     /// True when the centres do not all see the same surface (the
     /// triangles of one mesh count as one, as the corner test of
     /// `shade_area` compares surfaces: a mesh's inner edges are not
@@ -54,14 +54,17 @@ const SILHOUETTE_SPLITS: u32 = 1;
 
 /// The colour of pixel `(x, y)`; `near_silhouette` when a neighbour's
 /// centre sees another surface (or the sky), so the pixel may straddle an
-/// edge and is checked at its corners.
-pub(crate) fn shade_pixel(
+/// edge and is checked at its corners. `scratch`: the calling thread's
+/// buffers for the exact pixel.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn shade_pixel<'v>(
     frame: &Frame<'_>,
     filter: Filter,
     pixel: PixelFilter,
     (x, y): (u32, u32),
-    near: &Neighbourhood<'_>,
+    near: &Neighbourhood<'_, 'v>,
     seed: u64,
+    scratch: &mut Scratch<'v>,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
@@ -75,6 +78,7 @@ pub(crate) fn shade_pixel(
             near.primitives,
             near.sky,
             near.views,
+            scratch,
             stats,
         )
     {

@@ -16,7 +16,7 @@ use quadtex_core::Rgba;
 use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
-use crate::exact::{Seen, SurfaceViews, seen_id};
+use crate::exact::{Scratch, Seen, SurfaceViews, seen_id};
 use crate::frame::Frame;
 use crate::options::{Filter, RenderOptions};
 use crate::pixel::{Neighbourhood, shade_pixel};
@@ -102,6 +102,7 @@ pub fn render(
         .map(|y| {
             let mut stats = PixelStats::default();
             let mut ids = Vec::new();
+            let mut scratch = Scratch::default();
             let row = (0..w)
                 .map(|x| {
                     let mut pixel = PixelStats::default();
@@ -121,6 +122,7 @@ pub fn render(
                         (x, y),
                         &near,
                         options.seed,
+                        &mut scratch,
                         &mut pixel,
                     );
                     stats.merge_parts(&pixel);
