@@ -78,18 +78,44 @@ pub(crate) fn surface_and_triangle(id: Seen) -> (usize, u32) {
 
 /// The view of candidate `id`: `None` when it is not planar (a sphere: the
 /// pixel takes the tangent-plane path), `Some(None)` when it is seen
-/// edge-on.
+/// edge-on. A mesh triangle's view comes from `memo` when a neighbouring
+/// pixel built it.
 fn candidate_view<'a>(
     scene: &Scene,
     cache: &'a SurfaceViews,
+    memo: &mut ViewMemo,
     id: Seen,
 ) -> Option<Option<Cow<'a, View>>> {
     let (surface, triangle) = surface_and_triangle(id);
     if let Some(Some(view)) = cache.views.get(surface) {
         return Some(Some(Cow::Borrowed(view)));
     }
-    let planar = scene.surfaces.get(surface)?.geometry.planar(triangle)?;
-    Some(View::new(scene, surface, &planar).map(Cow::Owned))
+    if memo.slots.is_empty() {
+        memo.slots.resize(ViewMemo::SLOTS, (0, None));
+    }
+    let slot = &mut memo.slots[ViewMemo::slot(id)];
+    if slot.0 != id {
+        let planar = scene.surfaces.get(surface)?.geometry.planar(triangle)?;
+        *slot = (id, View::new(scene, surface, &planar));
+    }
+    Some(slot.1.clone().map(Cow::Owned))
+}
+
+/// The views of the mesh triangles recent pixels built, by id (a pixel's
+/// neighbour sees mostly the same triangles): a direct-mapped table.
+#[derive(Default)]
+struct ViewMemo {
+    /// `(id, view)`; id 0 (the sky) marks an empty slot.
+    slots: Vec<(Seen, Option<View>)>,
+}
+
+impl ViewMemo {
+    const SLOTS: usize = 64;
+
+    fn slot(id: Seen) -> usize {
+        // Fibonacci hashing: neighbouring triangle numbers spread out.
+        (id.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 58) as usize
+    }
 }
 
 /// Where a polygon lies against the half-planes `a·x + b·y + c ≥ 0` of a
@@ -399,6 +425,7 @@ pub(crate) fn exact_pixel<'a>(
         cut,
         order,
         planes,
+        memo,
     } = scratch;
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
@@ -417,7 +444,7 @@ pub(crate) fn exact_pixel<'a>(
     // One primitive over the whole support: one integral.
     if let [id] = candidates
         && !sees_sky
-        && let Some(view) = candidate_view(scene, cache, *id)?
+        && let Some(view) = candidate_view(scene, cache, memo, *id)?
     {
         let region = view.region(&support);
         let whole =
@@ -452,7 +479,7 @@ pub(crate) fn exact_pixel<'a>(
     // Every primitive tried so far and its view's index (none: edge-on).
     tried.clear();
     for &id in candidates {
-        let view = candidate_view(scene, cache, id)?;
+        let view = candidate_view(scene, cache, memo, id)?;
         tried.push((id, view.is_some().then_some(views.len())));
         views.extend(view);
     }
@@ -514,7 +541,7 @@ pub(crate) fn exact_pixel<'a>(
                     if tried.iter().any(|(t, _)| *t == id) {
                         return false;
                     }
-                    let Some(Some(view)) = candidate_view(scene, cache, id) else {
+                    let Some(Some(view)) = candidate_view(scene, cache, memo, id) else {
                         return false;
                     };
                     let region = view.region(&support).into_owned();
@@ -542,7 +569,7 @@ pub(crate) fn exact_pixel<'a>(
             }
             let view = if found < MAX_GAP_PRIMITIVES {
                 found += 1;
-                let view = candidate_view(scene, cache, id)?;
+                let view = candidate_view(scene, cache, memo, id)?;
                 if let Some(v) = &view {
                     regions.push(v.region(&support).into_owned());
                     grew = true;
@@ -623,7 +650,7 @@ pub(crate) fn exact_pixel<'a>(
                 // contrast) as the bound.
                 let view = match view {
                     Some(i) => Some(Cow::Borrowed(&*views[i])),
-                    None => candidate_view(scene, cache, id)?,
+                    None => candidate_view(scene, cache, memo, id)?,
                 };
                 if let Some(view) = view {
                     let (c, w, b) =
@@ -805,6 +832,7 @@ pub(crate) struct Scratch<'a> {
     cut: Cut,
     order: Order,
     planes: Vec<[f64; 4]>,
+    memo: ViewMemo,
 }
 
 /// The largest difference between the sky's colours in any channel: how
