@@ -84,12 +84,12 @@ pub fn render(
             return false;
         }
         for dy in -reach..=reach {
-            for dx in -reach..=reach {
-                let (gx, gy) = (i64::from(x) + pad + dx, i64::from(y) + pad + dy);
-                let id = seen[(gy * gw + gx) as usize];
+            let centre = (i64::from(y) + pad + dy) * gw + i64::from(x) + pad;
+            let row = &seen[(centre - reach) as usize..=(centre + reach) as usize];
+            for &id in row {
                 if id == 0 {
                     sky = true;
-                } else if !ids.contains(&id) {
+                } else if ids.last() != Some(&id) && !ids.contains(&id) {
                     ids.push(id);
                 }
             }
