@@ -159,13 +159,15 @@ fn placement(polygon: &ConvexPolygon, lines: impl Iterator<Item = [f64; 3]>) -> 
 /// Whether an edge line of one of two convex polygons has the other wholly
 /// on its outer side (or on it): their overlap has no area. Exact sign
 /// tests: a vertex that rounding puts a hair inside fails it (the caller
-/// then measures the overlap).
+/// then measures the overlap). A repeated vertex's edge has no line
+/// (`0 ≤ 0` everywhere) and separates nothing.
 fn separated(a: &ConvexPolygon, b: &ConvexPolygon) -> bool {
     let outside = |p: &ConvexPolygon, q: &ConvexPolygon| {
         p.edge_lines().any(|[l0, l1, l2]| {
-            q.vertices()
-                .iter()
-                .all(|&[x, y]| l0 * x + l1 * y + l2 <= 0.0)
+            (l0 != 0.0 || l1 != 0.0)
+                && q.vertices()
+                    .iter()
+                    .all(|&[x, y]| l0 * x + l1 * y + l2 <= 0.0)
         })
     };
     outside(a, b) || outside(b, a)
@@ -1258,6 +1260,19 @@ mod tests {
                 assert!((a - b).abs() < 1e-12, "{a} vs {b}");
             }
         }
+        // A repeated vertex (a clip through a corner) separates nothing:
+        // overlapping halves that leave a gap of the same area are still
+        // not a tiling.
+        let left =
+            ConvexPolygon::new(&[[10.0, 20.0], [10.5, 20.0], [10.5, 21.0], [10.0, 21.0]]).unwrap();
+        let twice = |p: [f64; 2]| [p, p];
+        let right = [[10.4, 20.0], [10.9, 20.0], [10.9, 21.0], [10.4, 21.0]]
+            .into_iter()
+            .flat_map(twice)
+            .collect::<Vec<_>>();
+        let right = ConvexPolygon::new(&right).unwrap();
+        assert!(!separated(&left, &right) && !separated(&right, &left));
+        assert!(tiling(&[left, right], &support).is_none());
         // A gap: not a tiling.
         let lower = tri(&[[10.0, 20.0], [11.0, 20.0], [11.0, 21.0]]);
         assert!(tiling(std::slice::from_ref(&lower), &support).is_none());
