@@ -15,7 +15,7 @@ use common::{run, temp_dir};
 
 use quadtex_core::{BuildOptions, QuadTree, synth};
 
-fn dir(case: &str) -> PathBuf {
+fn dir(case: &str) -> common::TempDir {
     temp_dir(&format!("bad-{case}"))
 }
 

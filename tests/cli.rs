@@ -15,7 +15,7 @@ use quadtex_core::{Fragment, Rgba};
 use quadtex_io::{LinearImage, load_texels, save_image};
 
 /// A packed sample in a fresh directory: `(dir, png, qtx)`.
-fn packed_shapes(case: &str, extra: &[&str]) -> (PathBuf, PathBuf, PathBuf) {
+fn packed_shapes(case: &str, extra: &[&str]) -> (common::TempDir, PathBuf, PathBuf) {
     let dir = temp_dir(case);
     let png = dir.join("shapes.png");
     let qtx = dir.join("shapes.qtx");
