@@ -265,7 +265,7 @@ impl View {
 
     /// The half-planes `a·x + b·y + c ≥ 0` this primitive is seen within:
     /// in front of the camera, then inside each of its edges.
-    fn lines(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
+    pub(crate) fn lines(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
         std::iter::once(self.w).chain(self.bounds[..self.bound_count].iter().copied())
     }
 
@@ -304,6 +304,18 @@ impl View {
             options,
             &mut quadtex_core::FilterStats::default(),
         )
+    }
+
+    /// The surface this primitive belongs to.
+    pub(crate) fn surface(&self) -> usize {
+        self.surface
+    }
+
+    /// `(w, depth)`: the ray parameter of the camera's unnormalised ray
+    /// through `s` is `depth / w(s)` where `w(s) = w · (s, 1) > 0`
+    /// ([`View::lines`] starts with `w`).
+    pub(crate) fn depth_parts(&self) -> ([f64; 3], f64) {
+        (self.w, self.depth)
     }
 
     /// Ray parameter (for the camera's unnormalised ray through `s`) of
@@ -368,6 +380,12 @@ impl SurfaceViews {
                 Geometry::Mesh(mesh) => mesh.overlapping(planes, |t| visit(seen_id(surface, t))),
                 _ => false,
             })
+    }
+
+    /// The views of the planes and quads, by surface (`None`: another
+    /// shape, or seen edge-on).
+    pub(crate) fn planar_views(&self) -> &[Option<View>] {
+        &self.views
     }
 
     /// The view of primitive `triangle` of surface `surface`.

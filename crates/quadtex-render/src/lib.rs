@@ -33,6 +33,7 @@ mod shade;
 mod stats;
 pub mod terrain;
 mod view;
+mod visibility;
 
 use std::fmt;
 use std::path::PathBuf;

@@ -16,7 +16,7 @@ use quadtex_core::Rgba;
 use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
-use crate::exact::{Scratch, Seen, SurfaceViews, seen_id};
+use crate::exact::{Scratch, Seen, SurfaceViews};
 use crate::frame::Frame;
 use crate::options::{Filter, RenderOptions};
 use crate::pixel::{Neighbourhood, shade_pixel};
@@ -59,19 +59,13 @@ pub fn render(
     let pad = PAD as i64;
     let (gw, gh) = (i64::from(w) + 2 * pad, i64::from(h) + 2 * pad);
     let seen: Vec<Seen> = if !matches!(options.filter, Filter::Supersample(_)) {
-        (0..gh)
-            .into_par_iter()
-            .flat_map_iter(|gy| {
-                let (scene, rays) = (&scene, &frame.rays);
-                (0..gw).map(move |gx| {
-                    let ray = scene
-                        .camera
-                        .ray((gx - pad) as f64 + 0.5, (gy - pad) as f64 + 0.5);
-                    rays.nearest_index(&ray)
-                        .map_or(0, |(i, hit)| seen_id(i, hit.triangle))
-                })
-            })
-            .collect()
+        crate::visibility::visibility_grid(
+            &scene,
+            &frame.rays,
+            &views,
+            (gw as usize, gh as usize),
+            pad as f64,
+        )
     } else {
         Vec::new()
     };
