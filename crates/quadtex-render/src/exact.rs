@@ -306,11 +306,6 @@ impl View {
         )
     }
 
-    /// The surface this primitive belongs to.
-    pub(crate) fn surface(&self) -> usize {
-        self.surface
-    }
-
     /// `(w, depth)`: the ray parameter of the camera's unnormalised ray
     /// through `s` is `depth / w(s)` where `w(s) = w · (s, 1) > 0`
     /// ([`View::lines`] starts with `w`).

@@ -267,6 +267,13 @@ impl Mesh {
         self.triangles.is_empty()
     }
 
+    /// The corners of triangle `index`, and `|e1 × e2|` (twice its area),
+    /// the scale of [`Mesh::crossing`]'s determinant.
+    pub(crate) fn corners(&self, index: usize) -> Option<([Vec3; 3], f64)> {
+        let t = self.triangles.get(index)?;
+        Some(([t.p0, t.p0 + t.e1, t.p0 + t.e2], t.e1.cross(t.e2).length()))
+    }
+
     /// Möller–Trumbore: the distance at which `ray` crosses triangle `tri`.
     fn crossing(tri: &Triangle, ray: &Ray) -> Option<f64> {
         let p = ray.direction.cross(tri.e2);

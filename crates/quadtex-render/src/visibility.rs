@@ -3,23 +3,27 @@
 //! grid padded by `pad` pixels around the image (grid cell `(gx, gy)` is the
 //! centre `(gx − pad + ½, gy − pad + ½)`).
 //!
-//! **Rasterised where that is the same answer.** When every surface is a
-//! plane or a quad, each one's screen region is a few half-planes and its
-//! ray parameter `depth / w(s)` with `w` affine in the screen point
-//! ([`crate::exact::View`]), so the grid is a z-buffer: per row, each
-//! primitive's span of centres is found from its lines, and each centre in
-//! it keeps the nearest primitive. That is what casting the ray finds,
-//! except where rounding could make the two disagree; those centres are
-//! cast as rays instead: a centre within [`EDGE_MARGIN`] pixel of an edge
-//! line (or within a relative `10⁻¹²` of the line's range over the
-//! screen), two primitives within a relative [`DEPTH_TIE`] in depth, a ray
-//! parameter under `10⁻⁶` or a surface nearly parallel to the ray. Scenes
-//! with spheres or meshes are cast ray by ray.
+//! **Rasterised where that is the same answer.** Planes, quads and mesh
+//! triangles are planar: each one's screen region is a few half-planes and
+//! its ray parameter is `depth / w(s)` with `w` affine in the screen point
+//! ([`crate::exact::View`]), so the grid is a z-buffer. Planes and quads are
+//! drawn into every row; mesh triangles are binned first by the rows their
+//! projected corners reach (bands of [`BAND`] rows; a triangle reaching
+//! behind the camera's plane goes to every row, one wholly behind it to
+//! none), then drawn band by band in parallel. Per row, each primitive's
+//! span of centres comes from its lines, and each centre in it keeps the
+//! nearest primitive. That is what casting the ray finds, except where
+//! rounding could make the two disagree; those centres are cast as rays
+//! instead: a centre within [`EDGE_MARGIN`] pixel of an edge line (or
+//! within a relative `10⁻¹²` of the line's range over the screen), two
+//! primitives within a relative [`DEPTH_TIE`] in depth, a ray parameter
+//! under [`MIN_DEPTH`], a surface nearly parallel to the ray. A scene with a
+//! sphere is cast ray by ray.
 
 use rayon::prelude::*;
 
-use crate::exact::{Seen, SurfaceViews, seen_id};
-use crate::scene::{Caster, Geometry, Scene};
+use crate::exact::{Seen, SurfaceViews, View, seen_id};
+use crate::scene::{Caster, Geometry, Mesh, Scene};
 
 /// Screen distance (pixels) from an edge line within which a centre is
 /// cast as a ray rather than decided by the line's sign: many orders of
@@ -33,6 +37,9 @@ const DEPTH_TIE: f64 = 1e-9;
 /// Smallest ray parameter (unnormalised ray) decided without a ray: the
 /// ray cast's own near limit is `10⁻⁹` on the normalised one.
 const MIN_DEPTH: f64 = 1e-6;
+
+/// Grid rows per band of the mesh triangles' bins.
+const BAND: usize = 8;
 
 /// Which primitive each centre of the padded grid sees, `gw × gh` cells,
 /// row by row.
@@ -48,25 +55,28 @@ pub(crate) fn visibility_grid(
         rays.nearest_index(&ray)
             .map_or(0, |(i, hit)| seen_id(i, hit.triangle))
     };
-    let raster = Raster::new(scene, views, (gw, gh), pad);
     let mut grid = vec![0; gw * gh];
-    grid.par_chunks_mut(gw.max(1))
-        .enumerate()
-        .for_each(|(gy, row)| match &raster {
-            Some(r) => r.row(gy, row, |gx| cast(gx, gy)),
-            None => {
-                for (gx, id) in row.iter_mut().enumerate() {
-                    *id = cast(gx, gy);
-                }
+    if gw == 0 {
+        return grid;
+    }
+    match Raster::new(scene, views, (gw, gh), pad) {
+        Some(raster) => grid
+            .par_chunks_mut(gw * BAND)
+            .enumerate()
+            .for_each(|(band, cells)| raster.band(band, cells, gw, &cast)),
+        None => grid.par_chunks_mut(gw).enumerate().for_each(|(gy, row)| {
+            for (gx, id) in row.iter_mut().enumerate() {
+                *id = cast(gx, gy);
             }
-        });
+        }),
+    }
     grid
 }
 
 /// Most lines of a view: `w` and a quad's four edges.
 const MAX_LINES: usize = 5;
 
-/// One plane or quad as the z-buffer sees it.
+/// One plane, quad or triangle as the z-buffer sees it.
 struct Primitive {
     id: Seen,
     /// `w` first, then the edges: `a·x + b·y + c ≥ 0` inside.
@@ -76,144 +86,282 @@ struct Primitive {
     count: usize,
     /// `t = depth / w(s)` (unnormalised ray).
     depth: f64,
-}
-
-/// The z-buffer over a scene of planes and quads.
-struct Raster {
-    primitives: Vec<Primitive>,
-    pad: f64,
     /// Below this `w(s)` the surface is too near parallel to the ray to be
-    /// decided without it (the ray cast rejects `|n·d̂| < 10⁻¹²`).
+    /// decided without it (the ray cast rejects `|n·d̂| < 10⁻¹²`, and a
+    /// triangle `|det| < 10⁻¹⁴`).
     min_w: f64,
 }
 
-impl Raster {
-    /// `None` unless every surface is a plane or quad with a view.
+/// A mesh triangle binned to a band: surface, triangle, first and last
+/// grid row its screen box reaches.
+type Binned = (u32, u32, u32, u32);
+
+/// The z-buffer over a scene of planes, quads and meshes.
+struct Raster<'s> {
+    scene: &'s Scene,
+    /// Planes and quads: in every row.
+    shared: Vec<Primitive>,
+    /// Mesh triangles by band of [`BAND`] rows.
+    bands: Vec<Vec<Binned>>,
+    pad: f64,
+    /// Screen extent of the grid, for the lines' relative margins.
+    extent: [f64; 2],
+    /// The longest unnormalised ray direction over the grid.
+    d_max: f64,
+}
+
+impl<'s> Raster<'s> {
+    /// `None` when a surface is a sphere, or a plane or quad seen edge-on.
     fn new(
-        scene: &Scene,
+        scene: &'s Scene,
         views: &SurfaceViews,
         (gw, gh): (usize, usize),
         pad: f64,
-    ) -> Option<Raster> {
+    ) -> Option<Raster<'s>> {
         let planar = views.planar_views();
-        let mut primitives = Vec::with_capacity(scene.surfaces.len());
-        // Screen extent of the grid, for the lines' relative margins.
-        let (x_max, y_max) = (gw as f64 + pad, gh as f64 + pad);
-        for (i, s) in scene.surfaces.iter().enumerate() {
-            if !matches!(s.geometry, Geometry::Plane { .. } | Geometry::Quad { .. }) {
-                return None;
-            }
-            let view = planar.get(i)?.as_ref()?;
-            debug_assert_eq!(view.surface(), i);
-            let (_, depth) = view.depth_parts();
-            let mut p = Primitive {
-                id: seen_id(i, 0),
-                lines: [[0.0; 3]; MAX_LINES],
-                margins: [0.0; MAX_LINES],
-                count: 0,
-                depth,
-            };
-            for [a, b, c] in view.lines() {
-                if p.count == MAX_LINES || ![a, b, c].iter().all(|v| v.is_finite()) {
-                    return None;
-                }
-                p.lines[p.count] = [a, b, c];
-                p.margins[p.count] = EDGE_MARGIN * a.hypot(b)
-                    + 1e-12 * (a.abs() * x_max + b.abs() * y_max + c.abs());
-                p.count += 1;
-            }
-            if !depth.is_finite() || p.count == 0 {
-                return None;
-            }
-            primitives.push(p);
-        }
+        let extent = [gw as f64 + pad, gh as f64 + pad];
         // |d| is convex in the screen point: largest at a corner.
         let cam = &scene.camera;
-        let d_max = [(-pad, -pad), (x_max, -pad), (-pad, y_max), (x_max, y_max)]
-            .iter()
-            .map(|&(x, y)| cam.direction(x, y).length())
-            .fold(0.0, f64::max);
-        Some(Raster {
-            primitives,
+        let d_max = [
+            (-pad, -pad),
+            (extent[0], -pad),
+            (-pad, extent[1]),
+            (extent[0], extent[1]),
+        ]
+        .iter()
+        .map(|&(x, y)| cam.direction(x, y).length())
+        .fold(0.0, f64::max);
+        let mut raster = Raster {
+            scene,
+            shared: Vec::new(),
+            bands: vec![Vec::new(); gh.div_ceil(BAND)],
             pad,
-            min_w: 1e-9 * d_max,
-        })
+            extent,
+            d_max,
+        };
+        for (i, s) in scene.surfaces.iter().enumerate() {
+            match &s.geometry {
+                Geometry::Plane { .. } | Geometry::Quad { .. } => {
+                    let view = planar.get(i)?.as_ref()?;
+                    raster
+                        .shared
+                        .push(raster.primitive(view, seen_id(i, 0), 0.0)?);
+                }
+                Geometry::Mesh(mesh) => raster.bin(i, mesh, (gw, gh)),
+                Geometry::Sphere { .. } => return None,
+            }
+        }
+        Some(raster)
     }
 
-    /// Fills grid row `gy`; `cast(gx)` is the ray cast for a centre the
-    /// lines and depths do not settle.
-    fn row(&self, gy: usize, row: &mut [Seen], cast: impl Fn(usize) -> Seen) {
-        let y = gy as f64 - self.pad + 0.5;
-        let n = row.len();
-        let mut best = vec![f64::INFINITY; n];
-        let mut unsure = vec![false; n];
-        row.fill(0);
-        for p in &self.primitives {
-            let (lines, margins) = (&p.lines[..p.count], &p.margins[..p.count]);
-            // Each line along the row: a·x + e ≥ 0, e = b·y + c.
-            let mut slope = [0f64; MAX_LINES];
-            let mut offset = [0f64; MAX_LINES];
-            let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-            for (k, (&[a, b, c], &m)) in lines.iter().zip(margins).enumerate() {
-                let e = b * y + c;
-                (slope[k], offset[k]) = (a, e);
-                // Loosely inside: a·x + e ≥ −m.
-                if a > 0.0 {
-                    lo = lo.max((-m - e) / a);
-                } else if a < 0.0 {
-                    hi = hi.min((-m - e) / a);
-                } else if e < -m {
-                    hi = f64::NEG_INFINITY;
-                }
-            }
-            if lo > hi || n == 0 {
-                continue;
-            }
-            // Centres x = gx − pad + ½, with a cell of slack each side.
-            let to_cell = |x: f64| (x + self.pad - 0.5).clamp(-2.0, n as f64 + 1.0);
-            let first = (to_cell(lo).floor() - 1.0).max(0.0) as usize;
-            let last = ((to_cell(hi).ceil() + 1.0).max(0.0) as usize).min(n - 1);
-            for gx in first..=last {
-                let x = gx as f64 - self.pad + 0.5;
-                let mut on_edge = false;
-                let mut outside = false;
-                for k in 0..p.count {
-                    let v = slope[k] * x + offset[k];
-                    if v < -margins[k] {
-                        outside = true;
-                        break;
-                    }
-                    on_edge |= v < margins[k];
-                }
-                if outside {
-                    continue;
-                }
-                let w = slope[0] * x + offset[0];
-                if on_edge || w < self.min_w {
-                    unsure[gx] = true;
-                    continue;
-                }
-                let t = p.depth / w;
-                if !(t > MIN_DEPTH && t.is_finite()) {
-                    unsure[gx] = true;
-                    continue;
-                }
-                let b = best[gx];
-                if (t - b).abs() <= DEPTH_TIE * t.min(b) {
-                    unsure[gx] = true;
-                }
-                if t < b {
-                    best[gx] = t;
-                    row[gx] = p.id;
-                }
-            }
+    /// The z-buffer's form of `view`; `det_scale`: a triangle's `|e1×e2|`
+    /// (0 for planes and quads). `None` if a figure is not finite.
+    fn primitive(&self, view: &View, id: Seen, det_scale: f64) -> Option<Primitive> {
+        let (_, depth) = view.depth_parts();
+        let [x_max, y_max] = self.extent;
+        let mut min_w = 1e-9 * self.d_max;
+        if det_scale > 0.0 {
+            min_w = min_w.max(1e-12 * self.d_max / det_scale);
         }
-        for (gx, id) in row.iter_mut().enumerate() {
-            if unsure[gx] {
-                *id = cast(gx);
+        let mut p = Primitive {
+            id,
+            lines: [[0.0; 3]; MAX_LINES],
+            margins: [0.0; MAX_LINES],
+            count: 0,
+            depth,
+            min_w,
+        };
+        for [a, b, c] in view.lines() {
+            if p.count == MAX_LINES || ![a, b, c].iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            p.lines[p.count] = [a, b, c];
+            p.margins[p.count] =
+                EDGE_MARGIN * a.hypot(b) + 1e-12 * (a.abs() * x_max + b.abs() * y_max + c.abs());
+            p.count += 1;
+        }
+        (depth.is_finite() && min_w.is_finite() && p.count > 0).then_some(p)
+    }
+
+    /// Bins mesh `surface`'s triangles by the grid rows their screen boxes
+    /// reach (every row for one reaching behind the camera's plane).
+    fn bin(&mut self, surface: usize, mesh: &Mesh, (gw, gh): (usize, usize)) {
+        let cam = &self.scene.camera;
+        let pad = self.pad;
+        let rows: Vec<Option<(u32, u32)>> = (0..mesh.len())
+            .into_par_iter()
+            .map(|t| {
+                let (corners, _) = mesh.corners(t)?;
+                let mut lo = [f64::INFINITY; 2];
+                let mut hi = [f64::NEG_INFINITY; 2];
+                // Every ray's direction has `d·forward = 1`: a point with
+                // `(p − c)·forward ≤ 0` is never hit.
+                let behind = corners
+                    .iter()
+                    .filter(|&&p| (p - cam.position).dot(cam.forward) <= 0.0)
+                    .count();
+                if behind == 3 {
+                    return None;
+                }
+                for p in corners {
+                    let Some(s) = cam.project(p) else {
+                        return Some((0, gh as u32 - 1));
+                    };
+                    for k in 0..2 {
+                        lo[k] = lo[k].min(s[k]);
+                        hi[k] = hi[k].max(s[k]);
+                    }
+                }
+
+                // Grid cell of centre x: x + pad − ½; a cell of slack.
+                let cell = |v: f64| v + pad - 0.5;
+                let (x0, x1) = (cell(lo[0]).floor() - 1.0, cell(hi[0]).ceil() + 1.0);
+                let (y0, y1) = (cell(lo[1]).floor() - 1.0, cell(hi[1]).ceil() + 1.0);
+                if !(x1 >= 0.0 && x0 < gw as f64 && y1 >= 0.0 && y0 < gh as f64) {
+                    return None;
+                }
+                Some((y0.max(0.0) as u32, y1.min(gh as f64 - 1.0) as u32))
+            })
+            .collect();
+        for (t, r) in rows.into_iter().enumerate() {
+            let Some((first, last)) = r else { continue };
+            for band in first as usize / BAND..=last as usize / BAND {
+                self.bands[band].push((surface as u32, t as u32, first, last));
             }
         }
     }
+
+    /// Fills band `band` (`cells`: its rows, `gw` wide); `cast(gx, gy)` is
+    /// the ray cast for a centre the lines and depths do not settle.
+    fn band(
+        &self,
+        band: usize,
+        cells: &mut [Seen],
+        gw: usize,
+        cast: &impl Fn(usize, usize) -> Seen,
+    ) {
+        let first_row = band * BAND;
+        let rows = cells.len() / gw;
+        let mut best = vec![f64::INFINITY; cells.len()];
+        let mut unsure = vec![false; cells.len()];
+        cells.fill(0);
+        let mut z = ZBuffer {
+            ids: cells,
+            best: &mut best,
+            unsure: &mut unsure,
+            gw,
+        };
+        for p in &self.shared {
+            for r in 0..rows {
+                self.draw(p, first_row + r, r, &mut z);
+            }
+        }
+        for &(surface, triangle, lo, hi) in &self.bands[band] {
+            let surface = surface as usize;
+            let geometry = &self.scene.surfaces[surface].geometry;
+            let Geometry::Mesh(mesh) = geometry else {
+                continue;
+            };
+            let id = seen_id(surface, triangle);
+            let view = geometry
+                .planar(triangle)
+                .and_then(|p| View::new(self.scene, surface, &p));
+            let scale = mesh.corners(triangle as usize).map_or(0.0, |(_, s)| s);
+            let Some(p) = view.and_then(|v| self.primitive(&v, id, scale)) else {
+                // Edge-on or not finite: its rows are cast.
+                for gy in (lo as usize).max(first_row)..=(hi as usize).min(first_row + rows - 1) {
+                    z.unsure[(gy - first_row) * gw..][..gw].fill(true);
+                }
+                continue;
+            };
+            for gy in (lo as usize).max(first_row)..=(hi as usize).min(first_row + rows - 1) {
+                self.draw(&p, gy, gy - first_row, &mut z);
+            }
+        }
+        for (i, id) in cells.iter_mut().enumerate() {
+            if unsure[i] {
+                *id = cast(i % gw, first_row + i / gw);
+            }
+        }
+    }
+
+    /// Draws primitive `p` into row `r` of the band (grid row `gy`).
+    fn draw(&self, p: &Primitive, gy: usize, r: usize, z: &mut ZBuffer<'_>) {
+        let y = gy as f64 - self.pad + 0.5;
+        let n = z.gw;
+        let (ids, best, unsure) = (
+            &mut z.ids[r * n..][..n],
+            &mut z.best[r * n..][..n],
+            &mut z.unsure[r * n..][..n],
+        );
+        let margins = &p.margins[..p.count];
+        // Each line along the row: a·x + e ≥ 0, e = b·y + c.
+        let mut slope = [0f64; MAX_LINES];
+        let mut offset = [0f64; MAX_LINES];
+        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        for (k, (&[a, b, c], &m)) in p.lines[..p.count].iter().zip(margins).enumerate() {
+            let e = b * y + c;
+            (slope[k], offset[k]) = (a, e);
+            // Loosely inside: a·x + e ≥ −m.
+            if a > 0.0 {
+                lo = lo.max((-m - e) / a);
+            } else if a < 0.0 {
+                hi = hi.min((-m - e) / a);
+            } else if e < -m {
+                hi = f64::NEG_INFINITY;
+            }
+        }
+        if lo > hi {
+            return;
+        }
+        // Centres x = gx − pad + ½, with a cell of slack each side.
+        let to_cell = |x: f64| (x + self.pad - 0.5).clamp(-2.0, n as f64 + 1.0);
+        let first = (to_cell(lo).floor() - 1.0).max(0.0) as usize;
+        let last = ((to_cell(hi).ceil() + 1.0).max(0.0) as usize).min(n - 1);
+        for gx in first..=last {
+            let x = gx as f64 - self.pad + 0.5;
+            let mut on_edge = false;
+            let mut outside = false;
+            for k in 0..p.count {
+                let v = slope[k] * x + offset[k];
+                if v < -margins[k] {
+                    outside = true;
+                    break;
+                }
+                on_edge |= v < margins[k];
+            }
+            if outside {
+                continue;
+            }
+            let w = slope[0] * x + offset[0];
+            if on_edge || w < p.min_w {
+                unsure[gx] = true;
+                continue;
+            }
+            let t = p.depth / w;
+            if !(t > MIN_DEPTH && t.is_finite()) {
+                unsure[gx] = true;
+                continue;
+            }
+            let b = best[gx];
+            if (t - b).abs() <= DEPTH_TIE * t.min(b) {
+                unsure[gx] = true;
+            }
+            if t < b {
+                best[gx] = t;
+                ids[gx] = p.id;
+            }
+        }
+    }
+}
+
+/// A band's cells: the nearest primitive, its depth, and whether a ray
+/// must settle the cell.
+struct ZBuffer<'a> {
+    ids: &'a mut [Seen],
+    best: &'a mut [f64],
+    unsure: &'a mut [bool],
+    gw: usize,
 }
 
 #[cfg(test)]
@@ -222,6 +370,7 @@ mod tests {
     use crate::math::Vec3;
     use crate::scene::{Camera, Lighting, Sky, Surface, UvTransform};
     use quadtex_core::{Rgba, Wrap};
+    use std::sync::Arc;
 
     /// Every cell of the grid against the ray cast, and how many cells the
     /// raster left to rays.
@@ -233,26 +382,27 @@ mod tests {
             scene.camera.height() as usize,
         );
         let (gw, gh) = (w + 2 * pad, h + 2 * pad);
-        let raster = Raster::new(scene, &views, (gw, gh), pad as f64).expect("planes and quads");
+        let raster = Raster::new(scene, &views, (gw, gh), pad as f64).expect("no spheres");
         let cast = |gx: usize, gy: usize| {
             let ray =
                 (scene.camera).ray(gx as f64 - pad as f64 + 0.5, gy as f64 - pad as f64 + 0.5);
             rays.nearest_index(&ray)
                 .map_or(0, |(i, hit)| seen_id(i, hit.triangle))
         };
-        let mut casts = 0;
-        let mut row = vec![0; gw];
-        for gy in 0..gh {
-            let counted = std::cell::Cell::new(0);
-            raster.row(gy, &mut row, |gx| {
-                counted.set(counted.get() + 1);
-                cast(gx, gy)
-            });
-            casts += counted.get();
-            for (gx, &id) in row.iter().enumerate() {
-                assert_eq!(id, cast(gx, gy), "cell ({gx}, {gy})");
-            }
+        let casts = std::cell::Cell::new(0);
+        let counted = |gx: usize, gy: usize| {
+            casts.set(casts.get() + 1);
+            cast(gx, gy)
+        };
+        let mut grid = vec![0; gw * gh];
+        for (band, cells) in grid.chunks_mut(gw * BAND).enumerate() {
+            raster.band(band, cells, gw, &counted);
         }
+        for (i, &id) in grid.iter().enumerate() {
+            let (gx, gy) = (i % gw, i / gw);
+            assert_eq!(id, cast(gx, gy), "cell ({gx}, {gy})");
+        }
+        let casts = casts.get();
         assert_eq!(
             visibility_grid(scene, &rays, &views, (gw, gh), pad as f64)[..gw],
             (0..gw).map(|gx| cast(gx, 0)).collect::<Vec<_>>()[..]
@@ -345,6 +495,86 @@ mod tests {
         }
         // Decals coplanar with the ground are ties: cast, as they must be.
         assert!(casts * 4 < cells, "{casts} of {cells} cells cast");
+    }
+
+    /// A wavy heightfield mesh (triangles sharing edges, hills hiding
+    /// valleys) over a quad, and a few loose triangles, some crossing the
+    /// camera's plane: the raster must agree with the ray cast everywhere.
+    #[test]
+    fn meshes_match_the_ray_cast() {
+        use crate::scene::{Mesh, Triangle};
+        let n = 24;
+        let height = |i: usize, j: usize| {
+            let (x, z) = (i as f64, j as f64);
+            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
+        };
+        let point = |i: usize, j: usize| Vec3::new(i as f64 - 12.0, height(i, j), -(j as f64));
+        let uv = |i: usize, j: usize| [i as f64 / n as f64, j as f64 / n as f64];
+        let mut triangles = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let c = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)];
+                for [a, b, d] in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
+                    triangles.extend(Triangle::new(
+                        [point(a.0, a.1), point(b.0, b.1), point(d.0, d.1)],
+                        [uv(a.0, a.1), uv(b.0, b.1), uv(d.0, d.1)],
+                    ));
+                }
+            }
+        }
+        // Loose triangles, one reaching behind the camera.
+        let loose = [
+            [
+                Vec3::new(-3.0, 2.0, -5.0),
+                Vec3::new(2.0, 4.0, -6.0),
+                Vec3::new(0.0, 1.0, -3.0),
+            ],
+            [
+                Vec3::new(-2.0, 2.5, 20.0),
+                Vec3::new(2.0, 2.5, 20.0),
+                Vec3::new(0.0, 2.0, -8.0),
+            ],
+        ];
+        for p in loose {
+            triangles.extend(Triangle::new(p, [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]));
+        }
+        let mesh = Mesh::new(triangles).unwrap();
+        let (mut casts, mut cells) = (0, 0);
+        for (k, position) in [
+            Vec3::new(0.0, 6.0, 8.0),
+            Vec3::new(-14.0, 2.5, 2.0),
+            Vec3::new(3.0, 1.2, -4.0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let camera = Camera::new(
+                position,
+                Vec3::new(0.0, 0.0, -12.0),
+                Vec3::new(0.0, 1.0, 0.0),
+                50.0 + 10.0 * k as f64,
+                120,
+                70,
+            )
+            .unwrap();
+            let scene = Scene {
+                camera,
+                surfaces: vec![
+                    surface(Geometry::Mesh(Arc::new(mesh.clone()))),
+                    quad(
+                        Vec3::new(-12.0, -0.5, 0.0),
+                        Vec3::new(24.0, 0.0, 0.0),
+                        Vec3::new(0.0, 0.0, -24.0),
+                    ),
+                ],
+                sky: Sky::Solid(Rgba::opaque(0.5, 0.5, 0.5)),
+                lighting: Lighting::Unlit,
+            };
+            let (c, n) = check(&scene, 3);
+            casts += c;
+            cells += n;
+        }
+        assert!(casts * 20 < cells, "{casts} of {cells} cells cast");
     }
 
     #[test]
