@@ -60,8 +60,14 @@ impl Aabb {
             (origin.y, inv.y, self.lo.y, self.hi.y),
             (origin.z, inv.z, self.lo.z, self.hi.z),
         ] {
-            let (a, b) = ((lo - o) * i, (hi - o) * i);
-            let (a, b) = if a <= b { (a, b) } else { (b, a) };
+            // Ordered by the direction's sign, not by comparing: a ray in a
+            // slab's plane gives NaN there, which must not be swapped onto
+            // the other side (it then leaves t0 or t1 as it was).
+            let (a, b) = if i >= 0.0 {
+                ((lo - o) * i, (hi - o) * i)
+            } else {
+                ((hi - o) * i, (lo - o) * i)
+            };
             t0 = if a > t0 { a } else { t0 };
             t1 = if b < t1 { b } else { t1 };
         }
@@ -444,6 +450,41 @@ mod tests {
         let b2 = ray.direction.dot(q) / det;
         let d = e2.dot(q) / det;
         ((0.0..=1.0).contains(&b1) && b2 >= 0.0 && b1 + b2 <= 1.0 && d > 1e-9).then_some(d)
+    }
+
+    /// A ray parallel to a slab and lying in its plane (an origin on a
+    /// box's face, a direction with a zero there) is inside that slab:
+    /// `0·∞` is NaN there, which must keep the interval, on either face and
+    /// for either sign of zero.
+    #[test]
+    fn rays_in_a_face_plane_enter_the_box() {
+        let b = Aabb {
+            lo: Vec3::new(12.0, 0.0, 44.0),
+            hi: Vec3::new(13.0, 1.0, 45.0),
+        };
+        for (x, z) in [(12.0, 44.0), (13.0, 44.5), (12.5, 45.0), (13.0, 45.0)] {
+            for d in [Vec3::new(0.0, 1.0, 0.0), Vec3::new(-0.0, 1.0, -0.0)] {
+                let inv = Vec3::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+                let origin = Vec3::new(x, -1.0, z);
+                assert_eq!(
+                    b.entry(origin, inv, f64::INFINITY),
+                    Some(1.0),
+                    "{origin:?} {d:?}"
+                );
+                // Beside the face, it misses.
+                let out = |v: f64, lo: f64, hi: f64| match v {
+                    v if v == lo => v - 1e-9,
+                    v if v == hi => v + 1e-9,
+                    v => v,
+                };
+                let beside = if x == 12.0 || x == 13.0 {
+                    Vec3::new(out(x, 12.0, 13.0), -1.0, z)
+                } else {
+                    Vec3::new(x, -1.0, out(z, 44.0, 45.0))
+                };
+                assert_eq!(b.entry(beside, inv, f64::INFINITY), None, "{beside:?}");
+            }
+        }
     }
 
     fn bounds(t: &[Vec3; 3]) -> Aabb {
