@@ -24,7 +24,7 @@ impl<'a> Frame<'a> {
             .collect();
         Frame {
             scene,
-            rays: Caster::new(scene),
+            rays: Caster::new(scene).with_sun_grids(),
             samplers,
         }
     }

@@ -31,6 +31,7 @@ mod render;
 pub mod scene;
 mod shade;
 mod stats;
+mod sun_grid;
 pub mod terrain;
 mod view;
 mod visibility;

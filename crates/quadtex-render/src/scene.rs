@@ -14,6 +14,7 @@ use quadtex_core::{QuadTree, Rgba, Wrap};
 
 use crate::bvh::{Aabb, Bvh};
 use crate::math::{Ray, Vec3};
+use crate::sun_grid::SunGrid;
 
 /// A pinhole camera.
 #[derive(Debug, Clone, PartialEq)]
@@ -295,8 +296,16 @@ impl Mesh {
         Some(tri.e2.dot(q) * inv)
     }
 
+    /// Whether `ray` crosses triangle `index` beyond `t_min` (the test of
+    /// [`Mesh::occludes`]).
+    pub(crate) fn crosses_beyond(&self, index: u32, ray: &Ray, t_min: f64) -> bool {
+        (self.triangles.get(index as usize))
+            .and_then(|tri| Self::crossing(tri, ray))
+            .is_some_and(|t| t > t_min)
+    }
+
     /// Whether the ray meets a triangle beyond `t_min` (any one).
-    fn occludes(&self, ray: &Ray, t_min: f64) -> bool {
+    pub(crate) fn occludes(&self, ray: &Ray, t_min: f64) -> bool {
         self.bvh.any(ray, |i| {
             Self::crossing(&self.triangles[i as usize], ray).is_some_and(|t| t > t_min)
         })
@@ -837,6 +846,9 @@ impl Scene {
 pub(crate) struct Caster<'a> {
     pub scene: &'a Scene,
     quads: Vec<Option<QuadFrame>>,
+    /// Per surface, a large mesh's triangles binned along the sun's
+    /// direction for shadow rays ([`Caster::with_sun_grids`]).
+    suns: Vec<Option<Arc<SunGrid>>>,
 }
 
 impl<'a> Caster<'a> {
@@ -847,7 +859,27 @@ impl<'a> Caster<'a> {
                 _ => None,
             })
             .collect();
-        Caster { scene, quads }
+        Caster {
+            scene,
+            quads,
+            suns: Vec::new(),
+        }
+    }
+
+    /// With each large mesh's triangles binned along the sun's direction
+    /// ([`SunGrid`], built once per mesh and direction), when the scene is
+    /// lit: shadow rays then test one cell's triangles instead of walking
+    /// the hierarchy (same answers).
+    pub fn with_sun_grids(mut self) -> Caster<'a> {
+        if let Lighting::Lambert { direction, .. } = self.scene.lighting {
+            self.suns = (self.scene.surfaces.iter())
+                .map(|s| match &s.geometry {
+                    Geometry::Mesh(mesh) => crate::sun_grid::shared(mesh, direction),
+                    _ => None,
+                })
+                .collect();
+        }
+        self
     }
 
     /// Where `ray` meets surface `index` beyond `t_min`.
@@ -893,7 +925,10 @@ impl<'a> Caster<'a> {
     /// find one), without finding the nearest point: for shadow rays.
     pub fn occluded(&self, ray: &Ray) -> bool {
         (self.scene.surfaces.iter().enumerate()).any(|(i, s)| match &s.geometry {
-            Geometry::Mesh(mesh) => mesh.occludes(ray, 1e-9),
+            Geometry::Mesh(mesh) => match self.suns.get(i) {
+                Some(Some(grid)) if grid.serves(ray.direction) => grid.occludes(mesh, ray, 1e-9),
+                _ => mesh.occludes(ray, 1e-9),
+            },
             _ => self.intersect(i, ray, 1e-9).is_some(),
         })
     }
