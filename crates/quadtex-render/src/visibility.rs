@@ -17,12 +17,14 @@
 //! instead: a centre within [`EDGE_MARGIN`] pixel of an edge line (or
 //! within a relative `10⁻¹²` of the line's range over the screen), two
 //! primitives within a relative [`DEPTH_TIE`] in depth, a ray parameter
-//! under [`MIN_DEPTH`], a surface nearly parallel to the ray. A scene with a
-//! sphere is cast ray by ray.
+//! under [`MIN_DEPTH`], a surface nearly parallel to the ray. A sphere is
+//! not planar: the cells of its projected bounding cube's screen box are
+//! cast.
 
 use rayon::prelude::*;
 
 use crate::exact::{Seen, SurfaceViews, View, seen_id};
+use crate::math::Vec3;
 use crate::scene::{Caster, Geometry, Mesh, Scene};
 
 /// Screen distance (pixels) from an edge line within which a centre is
@@ -101,6 +103,9 @@ struct Raster<'s> {
     scene: &'s Scene,
     /// Planes and quads: in every row.
     shared: Vec<Primitive>,
+    /// Grid boxes `[gx0, gy0, gx1, gy1]` (inclusive) that a sphere may
+    /// cover: their cells are cast as rays.
+    cast_boxes: Vec<[usize; 4]>,
     /// Mesh triangles by band of [`BAND`] rows.
     bands: Vec<Vec<Binned>>,
     pad: f64,
@@ -111,7 +116,7 @@ struct Raster<'s> {
 }
 
 impl<'s> Raster<'s> {
-    /// `None` when a surface is a sphere, or a plane or quad seen edge-on.
+    /// `None` when a plane or quad is seen edge-on.
     fn new(
         scene: &'s Scene,
         views: &SurfaceViews,
@@ -134,6 +139,7 @@ impl<'s> Raster<'s> {
         let mut raster = Raster {
             scene,
             shared: Vec::new(),
+            cast_boxes: Vec::new(),
             bands: vec![Vec::new(); gh.div_ceil(BAND)],
             pad,
             extent,
@@ -148,7 +154,11 @@ impl<'s> Raster<'s> {
                         .push(raster.primitive(view, seen_id(i, 0), 0.0)?);
                 }
                 Geometry::Mesh(mesh) => raster.bin(i, mesh, (gw, gh)),
-                Geometry::Sphere { .. } => return None,
+                Geometry::Sphere { centre, radius } => {
+                    raster
+                        .cast_boxes
+                        .push(raster.sphere_box(*centre, *radius, (gw, gh)));
+                }
             }
         }
         Some(raster)
@@ -181,6 +191,39 @@ impl<'s> Raster<'s> {
             p.count += 1;
         }
         (depth.is_finite() && min_w.is_finite() && p.count > 0).then_some(p)
+    }
+
+    /// The grid cells a sphere's projection may reach: those of the
+    /// projected corners of its bounding cube (the projection of their
+    /// convex hull holds the sphere's), the whole grid when a corner lies
+    /// behind the camera's plane.
+    fn sphere_box(&self, centre: Vec3, radius: f64, (gw, gh): (usize, usize)) -> [usize; 4] {
+        let whole = [0, 0, gw - 1, gh - 1];
+        let cam = &self.scene.camera;
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for k in 0..8 {
+            let sign = |bit: usize| if k >> bit & 1 == 1 { radius } else { -radius };
+            let corner = centre + Vec3::new(sign(0), sign(1), sign(2));
+            let Some(s) = cam.project(corner) else {
+                return whole;
+            };
+            for a in 0..2 {
+                lo[a] = lo[a].min(s[a]);
+                hi[a] = hi[a].max(s[a]);
+            }
+        }
+        let cell = |v: f64, n: usize| (v + self.pad - 0.5).clamp(-2.0, n as f64 + 1.0);
+        let first = |v: f64, n: usize| (cell(v, n).floor() - 1.0).max(0.0) as usize;
+        let last = |v: f64, n: usize| ((cell(v, n).ceil() + 1.0).max(0.0) as usize).min(n - 1);
+        if lo.iter().chain(&hi).any(|v| v.is_nan()) {
+            return whole;
+        }
+        [
+            first(lo[0], gw),
+            first(lo[1], gh),
+            last(hi[0], gw),
+            last(hi[1], gh),
+        ]
     }
 
     /// Bins mesh `surface`'s triangles by the grid rows their screen boxes
@@ -276,6 +319,11 @@ impl<'s> Raster<'s> {
             };
             for gy in (lo as usize).max(first_row)..=(hi as usize).min(first_row + rows - 1) {
                 self.draw(&p, gy, gy - first_row, &mut z);
+            }
+        }
+        for &[x0, y0, x1, y1] in &self.cast_boxes {
+            for gy in y0.max(first_row)..=y1.min(first_row + rows - 1) {
+                unsure[(gy - first_row) * gw..][x0..=x1].fill(true);
             }
         }
         for (i, id) in cells.iter_mut().enumerate() {
@@ -577,14 +625,34 @@ mod tests {
         assert!(casts * 20 < cells, "{casts} of {cells} cells cast");
     }
 
+    /// Spheres in front of quads and a plane, one reaching behind the
+    /// camera: cells of their boxes are cast, the rest rasterised.
     #[test]
-    fn scenes_with_spheres_are_cast() {
-        let mut scene = crate::demo_scene().unwrap();
-        scene.surfaces.push(surface(Geometry::Sphere {
-            centre: Vec3::new(0.0, 2.0, -50.0),
-            radius: 2.0,
-        }));
-        let views = SurfaceViews::new(&scene);
-        assert!(Raster::new(&scene, &views, (10, 10), 0.0).is_none());
+    fn spheres_are_cast_in_their_boxes() {
+        let demo = crate::demo_scene().unwrap();
+        let mut scene = Scene {
+            camera: demo.camera.with_size(240, 135),
+            ..demo
+        };
+        for (c, r, everywhere) in [
+            (Vec3::new(0.0, 5.0, -50.0), 5.0, false),
+            (Vec3::new(-30.0, 2.0, -400.0), 30.0, false),
+            // Around the camera: its box is the whole grid.
+            (Vec3::new(8.0, 14.0, 118.0), 4.0, true),
+        ] {
+            scene.surfaces.push(surface(Geometry::Sphere {
+                centre: c,
+                radius: r,
+            }));
+            let (casts, cells) = check(&scene, 3);
+            if everywhere {
+                assert_eq!(casts, cells);
+            } else {
+                assert!(
+                    casts > 0 && casts * 4 < cells,
+                    "{casts} of {cells} cells cast"
+                );
+            }
+        }
     }
 }
