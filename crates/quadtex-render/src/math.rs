@@ -78,3 +78,13 @@ pub struct Ray {
     /// Direction (unit length).
     pub direction: Vec3,
 }
+
+/// A deterministic uniform number in `[lo, hi)` from xorshift state
+/// `state` (nonzero), for the crate's randomised tests.
+#[cfg(test)]
+pub(crate) fn test_uniform(state: &mut u64, lo: f64, hi: f64) -> f64 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    lo + (hi - lo) * ((*state >> 11) as f64 / (1u64 << 53) as f64)
+}

@@ -255,12 +255,7 @@ mod tests {
     fn the_grid_answers_as_the_hierarchy() {
         let mesh = terrain(48);
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut rnd = |lo: f64, hi: f64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            lo + (hi - lo) * ((state >> 11) as f64 / (1u64 << 53) as f64)
-        };
+        let mut rnd = |lo: f64, hi: f64| crate::math::test_uniform(&mut state, lo, hi);
         for sun in [
             Vec3::new(-0.8, 0.5, 0.55),
             Vec3::new(0.2, 0.1, -1.0),

@@ -493,12 +493,7 @@ mod tests {
     #[test]
     fn random_quads_match_the_ray_cast() {
         let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut rnd = |lo: f64, hi: f64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            lo + (hi - lo) * ((state >> 11) as f64 / (1u64 << 53) as f64)
-        };
+        let mut rnd = |lo: f64, hi: f64| crate::math::test_uniform(&mut state, lo, hi);
         let (mut casts, mut cells) = (0, 0);
         for _ in 0..12 {
             let mut surfaces = vec![surface(Geometry::Plane {
