@@ -43,6 +43,7 @@ use std::borrow::Cow;
 
 use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Projection, Rgba};
 
+use crate::caster::{Seen, seen_id, surface_and_triangle};
 use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
@@ -61,20 +62,6 @@ const GAP_AREA: f64 = 1e-9;
 
 /// Most primitives a pixel adds to its list from gaps between the centres.
 const MAX_GAP_PRIMITIVES: usize = 16;
-
-/// What a pixel centre sees: `0` for the sky, else
-/// `(surface + 1) << 32 | triangle`.
-pub(crate) type Seen = u64;
-
-/// The id of primitive `triangle` of surface `surface`.
-pub(crate) fn seen_id(surface: usize, triangle: u32) -> Seen {
-    ((surface as u64 + 1) << 32) | u64::from(triangle)
-}
-
-/// The surface and triangle of a (non-sky) id from [`seen_id`].
-pub(crate) fn surface_and_triangle(id: Seen) -> (usize, u32) {
-    (((id >> 32) as usize).wrapping_sub(1), id as u32)
-}
 
 /// The view of candidate `id`: `None` when it is not planar (a sphere: the
 /// pixel takes the tangent-plane path), `Some(None)` when it is seen

@@ -3,8 +3,9 @@
 
 use quadtex_core::{Rgba, Texture};
 
+use crate::caster::Caster;
 use crate::math::{Ray, Vec3};
-use crate::scene::{Caster, Lighting, Scene, Sky};
+use crate::scene::{Lighting, Scene, Sky};
 
 /// A scene ready to shade: each surface's texture bound to its wrap once,
 /// so shading a pixel does not touch reference counts.

@@ -17,6 +17,7 @@
 #![forbid(unsafe_code)]
 
 mod bvh;
+mod caster;
 mod demo;
 mod exact;
 mod frame;

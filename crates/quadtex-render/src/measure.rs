@@ -7,10 +7,11 @@ use std::time::Instant;
 use quadtex_core::{Footprint, Rgba};
 use quadtex_io::LinearImage;
 
+use crate::caster::Caster;
 use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter};
 use crate::render::{prepare_baselines, sized_scene};
-use crate::scene::{Caster, Hit, Lighting, Scene, Sky};
+use crate::scene::{Hit, Lighting, Scene, Sky};
 use crate::shade::texture_colour;
 use crate::stats::PixelStats;
 use crate::view::{self, ScreenArea};

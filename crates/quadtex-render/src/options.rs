@@ -49,7 +49,7 @@ impl Default for Filter {
 /// The pixel's reconstruction filter in screen space (box, tent, Mitchell):
 /// the core's [`quadtex_core::PixelFilter`]. The quadtree filter integrates
 /// it exactly over each planar primitive's part of the support
-/// ([`crate::exact`] in the source); supersampling weighs its samples by it.
+/// (`crate::exact` in the source); supersampling weighs its samples by it.
 pub use quadtex_core::PixelFilter;
 
 /// The jitter stream references are rendered with

@@ -12,7 +12,8 @@
 
 use quadtex_core::Rgba;
 
-use crate::exact::{Scratch, Seen, SurfaceViews, exact_pixel, surface_and_triangle};
+use crate::caster::{Seen, surface_and_triangle};
+use crate::exact::{Scratch, SurfaceViews, exact_pixel};
 use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter};
 use crate::shade::shade_ray;

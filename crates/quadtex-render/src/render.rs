@@ -16,7 +16,8 @@ use quadtex_core::Rgba;
 use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
-use crate::exact::{Scratch, Seen, SurfaceViews};
+use crate::caster::Seen;
+use crate::exact::{Scratch, SurfaceViews};
 use crate::frame::Frame;
 use crate::options::{Filter, RenderOptions};
 use crate::pixel::{Neighbourhood, shade_pixel};

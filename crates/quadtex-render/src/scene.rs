@@ -14,7 +14,6 @@ use quadtex_core::{QuadTree, Rgba, Wrap};
 
 use crate::bvh::{Aabb, Bvh};
 use crate::math::{Ray, Vec3};
-use crate::sun_grid::SunGrid;
 
 /// A pinhole camera.
 #[derive(Debug, Clone, PartialEq)]
@@ -340,7 +339,7 @@ impl Mesh {
 
     /// Where `ray` meets triangle `index` beyond `t_min`, if it does: what
     /// [`Mesh::intersect`] finds when that triangle is the nearest.
-    fn intersect_triangle(&self, index: u32, ray: &Ray, t_min: f64) -> Option<Hit> {
+    pub(crate) fn intersect_triangle(&self, index: u32, ray: &Ray, t_min: f64) -> Option<Hit> {
         let tri = self.triangles.get(index as usize)?;
         let t = Self::crossing(tri, ray).filter(|&t| t > t_min)?;
         Some(self.hit(index, t, ray))
@@ -536,7 +535,7 @@ fn quad_gradients(a: Vec3, b: Vec3) -> (Vec3, Vec3) {
 }
 
 /// A quad's unit normal and UV gradients: what its ray test needs beyond
-/// its corner, solved once per frame by [`Caster`] (and per ray by
+/// its corner, solved once per frame by the ray caster (and per ray by
 /// [`Geometry::intersect`]).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct QuadFrame {
@@ -547,7 +546,7 @@ pub(crate) struct QuadFrame {
 
 impl QuadFrame {
     /// `None` for a degenerate quad (parallel edges).
-    fn new(edge_u: Vec3, edge_v: Vec3) -> Option<QuadFrame> {
+    pub(crate) fn new(edge_u: Vec3, edge_v: Vec3) -> Option<QuadFrame> {
         let normal = edge_u.cross(edge_v).normalized()?;
         let (du, dv) = quad_gradients(edge_u, edge_v);
         Some(QuadFrame { normal, du, dv })
@@ -555,7 +554,7 @@ impl QuadFrame {
 
     /// Where `ray` meets the quad with corner `origin` beyond `t_min`.
     #[inline]
-    fn hit(&self, origin: Vec3, ray: &Ray, t_min: f64) -> Option<Hit> {
+    pub(crate) fn hit(&self, origin: Vec3, ray: &Ray, t_min: f64) -> Option<Hit> {
         let QuadFrame { normal, du, dv } = *self;
         let denom = ray.direction.dot(normal);
         if denom.abs() < 1e-12 {
@@ -837,106 +836,5 @@ impl Scene {
             }
         }
         out
-    }
-}
-
-/// A scene's surfaces ready for rays: each quad's [`QuadFrame`] solved
-/// once, not for every ray (visibility grid, shadows, gap search).
-#[derive(Debug)]
-pub(crate) struct Caster<'a> {
-    pub scene: &'a Scene,
-    quads: Vec<Option<QuadFrame>>,
-    /// Per surface, a large mesh's triangles binned along the sun's
-    /// direction for shadow rays ([`Caster::with_sun_grids`]).
-    suns: Vec<Option<Arc<SunGrid>>>,
-}
-
-impl<'a> Caster<'a> {
-    pub fn new(scene: &'a Scene) -> Caster<'a> {
-        let quads = (scene.surfaces.iter())
-            .map(|s| match s.geometry {
-                Geometry::Quad { edge_u, edge_v, .. } => QuadFrame::new(edge_u, edge_v),
-                _ => None,
-            })
-            .collect();
-        Caster {
-            scene,
-            quads,
-            suns: Vec::new(),
-        }
-    }
-
-    /// With each large mesh's triangles binned along the sun's direction
-    /// ([`SunGrid`], built once per mesh and direction), when the scene is
-    /// lit: shadow rays then test one cell's triangles instead of walking
-    /// the hierarchy (same answers).
-    pub fn with_sun_grids(mut self) -> Caster<'a> {
-        if let Lighting::Lambert { direction, .. } = self.scene.lighting {
-            self.suns = (self.scene.surfaces.iter())
-                .map(|s| match &s.geometry {
-                    Geometry::Mesh(mesh) => crate::sun_grid::shared(mesh, direction),
-                    _ => None,
-                })
-                .collect();
-        }
-        self
-    }
-
-    /// Where `ray` meets surface `index` beyond `t_min`.
-    #[inline]
-    fn intersect(&self, index: usize, ray: &Ray, t_min: f64) -> Option<Hit> {
-        let geometry = &self.scene.surfaces[index].geometry;
-        match (geometry, &self.quads[index]) {
-            (Geometry::Quad { origin, .. }, Some(frame)) => frame.hit(*origin, ray, t_min),
-            _ => geometry.intersect(ray, t_min),
-        }
-    }
-
-    /// The index of the first surface `ray` meets, and where.
-    pub fn nearest_index(&self, ray: &Ray) -> Option<(usize, Hit)> {
-        let mut best: Option<(usize, Hit)> = None;
-        for i in 0..self.scene.surfaces.len() {
-            if let Some(hit) = self.intersect(i, ray, 1e-9)
-                && best.as_ref().is_none_or(|(_, b)| hit.t < b.t)
-            {
-                best = Some((i, hit));
-            }
-        }
-        best
-    }
-
-    /// What [`Caster::nearest_index`] finds for `ray` when it is known to
-    /// see primitive `seen` (0: the sky), from the visibility grid cast
-    /// along the same ray: that primitive alone is intersected, not the
-    /// scene.
-    pub fn nearest_seen(&self, ray: &Ray, seen: crate::exact::Seen) -> Option<(usize, Hit)> {
-        if seen == 0 {
-            return None;
-        }
-        let (surface, triangle) = crate::exact::surface_and_triangle(seen);
-        let hit = match &self.scene.surfaces.get(surface)?.geometry {
-            Geometry::Mesh(mesh) => mesh.intersect_triangle(triangle, ray, 1e-9),
-            _ => self.intersect(surface, ray, 1e-9),
-        };
-        hit.map(|h| (surface, h))
-    }
-
-    /// Whether `ray` meets any surface (as [`Caster::nearest_index`] would
-    /// find one), without finding the nearest point: for shadow rays.
-    pub fn occluded(&self, ray: &Ray) -> bool {
-        (self.scene.surfaces.iter().enumerate()).any(|(i, s)| match &s.geometry {
-            Geometry::Mesh(mesh) => match self.suns.get(i) {
-                Some(Some(grid)) if grid.serves(ray.direction) => grid.occludes(mesh, ray, 1e-9),
-                _ => mesh.occludes(ray, 1e-9),
-            },
-            _ => self.intersect(i, ray, 1e-9).is_some(),
-        })
-    }
-
-    /// The first surface `ray` meets, and where.
-    pub fn nearest_hit(&self, ray: &Ray) -> Option<(&'a Surface, Hit)> {
-        let scene = self.scene;
-        self.nearest_index(ray)
-            .map(|(i, hit)| (&scene.surfaces[i], hit))
     }
 }

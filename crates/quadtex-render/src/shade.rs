@@ -4,7 +4,7 @@
 use quadtex_core::texture::filter_footprint;
 use quadtex_core::{Rgba, Texture};
 
-use crate::exact::Seen;
+use crate::caster::Seen;
 use crate::frame::{Frame, lambert, sky};
 use crate::math::Ray;
 use crate::options::{Filter, PixelFilter};

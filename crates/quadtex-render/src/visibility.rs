@@ -1,5 +1,5 @@
 //! The visibility grid: which primitive the camera's ray through each
-//! pixel centre meets first ([`crate::exact::Seen`], `0` for the sky), on a
+//! pixel centre meets first ([`crate::caster::Seen`], `0` for the sky), on a
 //! grid padded by `pad` pixels around the image (grid cell `(gx, gy)` is the
 //! centre `(gx − pad + ½, gy − pad + ½)`).
 //!
@@ -23,9 +23,10 @@
 
 use rayon::prelude::*;
 
-use crate::exact::{Seen, SurfaceViews, View, seen_id};
+use crate::caster::{Caster, Seen, seen_id};
+use crate::exact::{SurfaceViews, View};
 use crate::math::Vec3;
-use crate::scene::{Caster, Geometry, Mesh, Scene};
+use crate::scene::{Geometry, Mesh, Scene};
 
 /// Screen distance (pixels) from an edge line within which a centre is
 /// cast as a ray rather than decided by the line's sign: many orders of

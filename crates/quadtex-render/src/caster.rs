@@ -1,0 +1,124 @@
+//! Rays against a scene: the nearest surface along a ray, a known
+//! primitive's hit, and shadow rays ([`Caster`]); the ids of the primitives
+//! rays meet ([`Seen`]).
+
+use std::sync::Arc;
+
+use crate::math::Ray;
+use crate::scene::{Geometry, Hit, Lighting, QuadFrame, Scene, Surface};
+use crate::sun_grid::{self, SunGrid};
+
+/// What a pixel centre sees: `0` for the sky, else
+/// `(surface + 1) << 32 | triangle`.
+pub(crate) type Seen = u64;
+
+/// The id of primitive `triangle` of surface `surface`.
+pub(crate) fn seen_id(surface: usize, triangle: u32) -> Seen {
+    ((surface as u64 + 1) << 32) | u64::from(triangle)
+}
+
+/// The surface and triangle of a (non-sky) id from [`seen_id`].
+pub(crate) fn surface_and_triangle(id: Seen) -> (usize, u32) {
+    (((id >> 32) as usize).wrapping_sub(1), id as u32)
+}
+
+/// A scene's surfaces ready for rays: each quad's [`QuadFrame`] solved
+/// once, not for every ray (visibility grid, shadows, gap search).
+#[derive(Debug)]
+pub(crate) struct Caster<'a> {
+    pub scene: &'a Scene,
+    quads: Vec<Option<QuadFrame>>,
+    /// Per surface, a large mesh's triangles binned along the sun's
+    /// direction for shadow rays ([`Caster::with_sun_grids`]).
+    suns: Vec<Option<Arc<SunGrid>>>,
+}
+
+impl<'a> Caster<'a> {
+    pub fn new(scene: &'a Scene) -> Caster<'a> {
+        let quads = (scene.surfaces.iter())
+            .map(|s| match s.geometry {
+                Geometry::Quad { edge_u, edge_v, .. } => QuadFrame::new(edge_u, edge_v),
+                _ => None,
+            })
+            .collect();
+        Caster {
+            scene,
+            quads,
+            suns: Vec::new(),
+        }
+    }
+
+    /// With each large mesh's triangles binned along the sun's direction
+    /// ([`SunGrid`], built once per mesh and direction), when the scene is
+    /// lit: shadow rays then test one cell's triangles instead of walking
+    /// the hierarchy (same answers).
+    pub fn with_sun_grids(mut self) -> Caster<'a> {
+        if let Lighting::Lambert { direction, .. } = self.scene.lighting {
+            self.suns = (self.scene.surfaces.iter())
+                .map(|s| match &s.geometry {
+                    Geometry::Mesh(mesh) => sun_grid::shared(mesh, direction),
+                    _ => None,
+                })
+                .collect();
+        }
+        self
+    }
+
+    /// Where `ray` meets surface `index` beyond `t_min`.
+    #[inline]
+    fn intersect(&self, index: usize, ray: &Ray, t_min: f64) -> Option<Hit> {
+        let geometry = &self.scene.surfaces[index].geometry;
+        match (geometry, &self.quads[index]) {
+            (Geometry::Quad { origin, .. }, Some(frame)) => frame.hit(*origin, ray, t_min),
+            _ => geometry.intersect(ray, t_min),
+        }
+    }
+
+    /// The index of the first surface `ray` meets, and where.
+    pub fn nearest_index(&self, ray: &Ray) -> Option<(usize, Hit)> {
+        let mut best: Option<(usize, Hit)> = None;
+        for i in 0..self.scene.surfaces.len() {
+            if let Some(hit) = self.intersect(i, ray, 1e-9)
+                && best.as_ref().is_none_or(|(_, b)| hit.t < b.t)
+            {
+                best = Some((i, hit));
+            }
+        }
+        best
+    }
+
+    /// What [`Caster::nearest_index`] finds for `ray` when it is known to
+    /// see primitive `seen` (0: the sky), from the visibility grid cast
+    /// along the same ray: that primitive alone is intersected, not the
+    /// scene.
+    pub fn nearest_seen(&self, ray: &Ray, seen: Seen) -> Option<(usize, Hit)> {
+        if seen == 0 {
+            return None;
+        }
+        let (surface, triangle) = surface_and_triangle(seen);
+        let hit = match &self.scene.surfaces.get(surface)?.geometry {
+            Geometry::Mesh(mesh) => mesh.intersect_triangle(triangle, ray, 1e-9),
+            _ => self.intersect(surface, ray, 1e-9),
+        };
+        hit.map(|h| (surface, h))
+    }
+
+    /// Whether `ray` meets any surface (as [`Caster::nearest_index`] would
+    /// find one), without finding the nearest point: for shadow rays.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        (self.scene.surfaces.iter().enumerate()).any(|(i, s)| match &s.geometry {
+            Geometry::Mesh(mesh) => match self.suns.get(i) {
+                Some(Some(grid)) if grid.serves(ray.direction) => grid.occludes(mesh, ray, 1e-9),
+                _ => mesh.occludes(ray, 1e-9),
+            },
+            _ => self.intersect(i, ray, 1e-9).is_some(),
+        })
+    }
+
+    /// The first surface `ray` meets, and where.
+    pub fn nearest_hit(&self, ray: &Ray) -> Option<(&'a Surface, Hit)> {
+        let scene = self.scene;
+        self.nearest_index(ray)
+            .map(|(i, hit)| (&scene.surfaces[i], hit))
+    }
+}
