@@ -32,6 +32,16 @@ const MAX_CELLS: usize = 1 << 22;
 /// A triangle spanning more cells goes to the list every query tests.
 const MAX_CELLS_PER_TRIANGLE: u64 = 64;
 
+/// A mesh whose triangles fill more cell slots than this per triangle (4
+/// bytes each), or have more than [`MAX_LARGE`] in the list every query
+/// tests, keeps to the hierarchy: the grid stays within 36 bytes a
+/// triangle (cell starts and slots), besides 16 bytes a triangle while it
+/// is built. The 1 M-triangle terrain fills 6.1 slots a triangle.
+const MAX_ITEMS_PER_TRIANGLE: u64 = 8;
+
+/// Most triangles every query tests (see [`MAX_ITEMS_PER_TRIANGLE`]).
+const MAX_LARGE: usize = 64;
+
 /// The grid of `mesh` along `direction`, built once per process for each
 /// mesh and direction (a camera path renders the same scene many times,
 /// as its hierarchy is built once at load); `None` as [`SunGrid::build`].
@@ -88,37 +98,62 @@ impl SunGrid {
         let b = direction.cross(a).normalized()?;
         let project = |p: Vec3| [p.dot(a), p.dot(b)];
         // Each triangle's projected box, widened against rounding.
-        let boxes: Vec<[f64; 4]> = (0..mesh.len())
-            .into_par_iter()
-            .map(|t| {
-                let Some((corners, _)) = mesh.corners(t) else {
-                    return [f64::NAN; 4];
-                };
-                let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-                for p in corners {
-                    let q = project(p);
-                    for k in 0..2 {
-                        lo[k] = lo[k].min(q[k]);
-                        hi[k] = hi[k].max(q[k]);
-                    }
+        let box_of = |t: usize| {
+            let (corners, _) = mesh.corners(t)?;
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for p in corners {
+                let q = project(p);
+                for k in 0..2 {
+                    lo[k] = lo[k].min(q[k]);
+                    hi[k] = hi[k].max(q[k]);
                 }
-                let slack = |l: f64, h: f64| 1e-9 * (l.abs().max(h.abs()) + (h - l));
-                let (sx, sy) = (slack(lo[0], hi[0]), slack(lo[1], hi[1]));
-                [lo[0] - sx, lo[1] - sy, hi[0] + sx, hi[1] + sy]
-            })
-            .collect();
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for b in &boxes {
-            for k in 0..2 {
-                lo[k] = lo[k].min(b[k]);
-                hi[k] = hi[k].max(b[k + 2]);
             }
-        }
+            let slack = |l: f64, h: f64| 1e-9 * (l.abs().max(h.abs()) + (h - l));
+            let (sx, sy) = (slack(lo[0], hi[0]), slack(lo[1], hi[1]));
+            let b = [lo[0] - sx, lo[1] - sy, hi[0] + sx, hi[1] + sy];
+            b.iter().all(|v| v.is_finite()).then_some(b)
+        };
+        let (lo, hi) = (0..mesh.len())
+            .into_par_iter()
+            .filter_map(box_of)
+            .map(|b| ([b[0], b[1]], [b[2], b[3]]))
+            .reduce(
+                || ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+                |(l0, h0), (l1, h1)| {
+                    (
+                        [l0[0].min(l1[0]), l0[1].min(l1[1])],
+                        [h0[0].max(h1[0]), h0[1].max(h1[1])],
+                    )
+                },
+            );
         let size = [hi[0] - lo[0], hi[1] - lo[1]];
         if !(size[0] > 0.0 && size[1] > 0.0 && size.iter().all(|s| s.is_finite())) {
             return None;
         }
-        let cells = (CELLS_PER_TRIANGLE * mesh.len() as f64).min(MAX_CELLS as f64);
+        let mut cells = (CELLS_PER_TRIANGLE * mesh.len() as f64).min(MAX_CELLS as f64);
+        // Coarser cells, up to twice, when the triangles fill too many.
+        for _ in 0..3 {
+            if let Some(grid) = Self::binned(mesh, direction, [a, b], (lo, size), cells, &box_of) {
+                return Some(grid);
+            }
+            cells /= 4.0;
+        }
+        None
+    }
+
+    /// The grid of about `cells` cells over the projected box `(lo,
+    /// size)`, or `None` when its triangles fill more than
+    /// [`MAX_ITEMS_PER_TRIANGLE`] slots a triangle or [`MAX_LARGE`] span
+    /// too many cells.
+    fn binned(
+        mesh: &Mesh,
+        direction: Vec3,
+        [a, b]: [Vec3; 2],
+        (lo, size): ([f64; 2], [f64; 2]),
+        cells: f64,
+        box_of: &(impl Fn(usize) -> Option<[f64; 4]> + Sync),
+    ) -> Option<SunGrid> {
+        let cells = cells.max(1.0);
         let nx = ((cells * size[0] / size[1]).sqrt().ceil()).clamp(1.0, cells) as usize;
         let ny = ((cells / nx as f64).ceil()).max(1.0) as usize;
         let scale = [nx as f64 / size[0], ny as f64 / size[1]];
@@ -132,28 +167,37 @@ impl SunGrid {
             items: Vec::new(),
             large: Vec::new(),
         };
-        let ranges: Vec<Option<[usize; 4]>> = boxes
-            .par_iter()
-            .map(|b| {
-                if b.iter().any(|v| v.is_nan()) {
-                    return None;
+        // Each triangle's cells, `[x0, y0, x1, y1]`; `x0 = u32::MAX`: none.
+        let ranges: Vec<[u32; 4]> = (0..mesh.len())
+            .into_par_iter()
+            .map(|t| match box_of(t) {
+                Some(b) => {
+                    let [x0, y0] = grid.cell([b[0], b[1]]);
+                    let [x1, y1] = grid.cell([b[2], b[3]]);
+                    [x0, y0, x1, y1].map(|v| v as u32)
                 }
-                let [x0, y0] = grid.cell([b[0], b[1]]);
-                let [x1, y1] = grid.cell([b[2], b[3]]);
-                Some([x0, y0, x1, y1])
+                None => [u32::MAX; 4],
             })
             .collect();
+        let span = |r: &[u32; 4]| u64::from(r[2] - r[0] + 1) * u64::from(r[3] - r[1] + 1);
+        let mut items = 0u64;
         for (t, r) in ranges.iter().enumerate() {
-            let Some([x0, y0, x1, y1]) = *r else { continue };
-            if ((x1 - x0 + 1) as u64) * ((y1 - y0 + 1) as u64) > MAX_CELLS_PER_TRIANGLE {
+            if r[0] == u32::MAX {
+                continue;
+            }
+            if span(r) > MAX_CELLS_PER_TRIANGLE {
                 grid.large.push(t as u32);
                 continue;
             }
-            for y in y0..=y1 {
-                for x in x0..=x1 {
+            items += span(r);
+            for y in r[1] as usize..=r[3] as usize {
+                for x in r[0] as usize..=r[2] as usize {
                     grid.starts[y * nx + x + 1] += 1;
                 }
             }
+        }
+        if items > MAX_ITEMS_PER_TRIANGLE * mesh.len() as u64 || grid.large.len() > MAX_LARGE {
+            return None;
         }
         for c in 0..nx * ny {
             grid.starts[c + 1] += grid.starts[c];
@@ -161,12 +205,11 @@ impl SunGrid {
         let mut fill: Vec<u32> = grid.starts[..nx * ny].to_vec();
         grid.items = vec![0; grid.starts[nx * ny] as usize];
         for (t, r) in ranges.iter().enumerate() {
-            let Some([x0, y0, x1, y1]) = *r else { continue };
-            if ((x1 - x0 + 1) as u64) * ((y1 - y0 + 1) as u64) > MAX_CELLS_PER_TRIANGLE {
+            if r[0] == u32::MAX || span(r) > MAX_CELLS_PER_TRIANGLE {
                 continue;
             }
-            for y in y0..=y1 {
-                for x in x0..=x1 {
+            for y in r[1] as usize..=r[3] as usize {
+                for x in r[0] as usize..=r[2] as usize {
                     let slot = &mut fill[y * nx + x];
                     grid.items[*slot as usize] = t as u32;
                     *slot += 1;
