@@ -183,10 +183,21 @@ pub(crate) struct View {
     normal: Vec3,
 }
 
-impl View {
-    /// The view of `planar`, a part of surface `surface`; `None` when the
-    /// camera lies in its plane (it is then seen edge-on: nothing).
-    pub fn new(scene: &Scene, surface: usize, planar: &Planar) -> Option<View> {
+/// A planar primitive's affine rows over the screen point `(px, py, 1)`:
+/// `w` (positive in front of the camera), the depth numerator, `u·w` and
+/// `v·w`, and the half-planes of its edges.
+struct Rows {
+    w: [f64; 3],
+    depth: f64,
+    u: [f64; 3],
+    v: [f64; 3],
+    bounds: [[f64; 3]; 4],
+    bound_count: usize,
+}
+
+impl Rows {
+    /// `None` when the camera lies in the primitive's plane.
+    fn new(scene: &Scene, planar: &Planar) -> Option<Rows> {
         let cam = &scene.camera;
         // The ray direction through (px, py), affine: d = d0 + dx·px + dy·py.
         let d0 = cam.direction(0.0, 0.0);
@@ -220,6 +231,29 @@ impl View {
                 ([b1, b2, minus(minus(w, b1), b2), [0.0; 3]], 3)
             }
         };
+        Some(Rows {
+            w,
+            depth: np.abs(),
+            u,
+            v,
+            bounds,
+            bound_count,
+        })
+    }
+}
+
+impl View {
+    /// The view of `planar`, a part of surface `surface`; `None` when the
+    /// camera lies in its plane (it is then seen edge-on: nothing).
+    pub fn new(scene: &Scene, surface: usize, planar: &Planar) -> Option<View> {
+        let Rows {
+            w,
+            depth,
+            u,
+            v,
+            bounds,
+            bound_count,
+        } = Rows::new(scene, planar)?;
         let transform = scene.surfaces[surface].uv_transform;
         let o = transform.apply([0.0, 0.0]);
         let ex = transform.apply([1.0, 0.0]);
@@ -232,12 +266,23 @@ impl View {
         Some(View {
             surface,
             w,
-            depth: np.abs(),
+            depth,
             bounds,
             bound_count,
             projection,
-            normal: n,
+            normal: planar.normal,
         })
+    }
+
+    /// What the visibility grid needs of `planar`, without the texture
+    /// map: its lines ([`View::lines`]: `w`, then the edges) and its depth
+    /// numerator ([`View::depth_parts`]); `None` when seen edge-on.
+    pub(crate) fn edges(scene: &Scene, planar: &Planar) -> Option<([[f64; 3]; 5], usize, f64)> {
+        let rows = Rows::new(scene, planar)?;
+        let mut lines = [[0.0; 3]; 5];
+        lines[0] = rows.w;
+        lines[1..=rows.bound_count].copy_from_slice(&rows.bounds[..rows.bound_count]);
+        Some((lines, rows.bound_count + 1, rows.depth))
     }
 
     /// The part of `support` where this primitive lies (in front of the

@@ -150,9 +150,12 @@ impl<'s> Raster<'s> {
             match &s.geometry {
                 Geometry::Plane { .. } | Geometry::Quad { .. } => {
                     let view = planar.get(i)?.as_ref()?;
-                    raster
-                        .shared
-                        .push(raster.primitive(view, seen_id(i, 0), 0.0)?);
+                    raster.shared.push(raster.primitive(
+                        view.lines(),
+                        view.depth_parts().1,
+                        seen_id(i, 0),
+                        0.0,
+                    )?);
                 }
                 Geometry::Mesh(mesh) => raster.bin(i, mesh, (gw, gh)),
                 Geometry::Sphere { centre, radius } => {
@@ -165,10 +168,16 @@ impl<'s> Raster<'s> {
         Some(raster)
     }
 
-    /// The z-buffer's form of `view`; `det_scale`: a triangle's `|e1×e2|`
-    /// (0 for planes and quads). `None` if a figure is not finite.
-    fn primitive(&self, view: &View, id: Seen, det_scale: f64) -> Option<Primitive> {
-        let (_, depth) = view.depth_parts();
+    /// The z-buffer's form of a view's `lines` (`w` first) and depth
+    /// numerator; `det_scale`: a triangle's `|e1×e2|` (0 for planes and
+    /// quads). `None` if a figure is not finite.
+    fn primitive(
+        &self,
+        lines: impl Iterator<Item = [f64; 3]>,
+        depth: f64,
+        id: Seen,
+        det_scale: f64,
+    ) -> Option<Primitive> {
         let [x_max, y_max] = self.extent;
         let mut min_w = 1e-9 * self.d_max;
         if det_scale > 0.0 {
@@ -182,13 +191,15 @@ impl<'s> Raster<'s> {
             depth,
             min_w,
         };
-        for [a, b, c] in view.lines() {
+        for [a, b, c] in lines {
             if p.count == MAX_LINES || ![a, b, c].iter().all(|v| v.is_finite()) {
                 return None;
             }
             p.lines[p.count] = [a, b, c];
-            p.margins[p.count] =
-                EDGE_MARGIN * a.hypot(b) + 1e-12 * (a.abs() * x_max + b.abs() * y_max + c.abs());
+            // Not `hypot`: its care for overflow costs a tenth of the
+            // pass; an overflow here only widens the margin to ∞ (cast).
+            p.margins[p.count] = EDGE_MARGIN * (a * a + b * b).sqrt()
+                + 1e-12 * (a.abs() * x_max + b.abs() * y_max + c.abs());
             p.count += 1;
         }
         (depth.is_finite() && min_w.is_finite() && p.count > 0).then_some(p)
@@ -267,6 +278,17 @@ impl<'s> Raster<'s> {
                 Some((y0.max(0.0) as u32, y1.min(gh as f64 - 1.0) as u32))
             })
             .collect();
+        // Sized first: pushing a million entries into growing vectors
+        // copies them over and over.
+        let mut counts = vec![0usize; self.bands.len()];
+        for &(first, last) in rows.iter().flatten() {
+            for count in &mut counts[first as usize / BAND..=last as usize / BAND] {
+                *count += 1;
+            }
+        }
+        for (band, count) in self.bands.iter_mut().zip(counts) {
+            band.reserve(count);
+        }
         for (t, r) in rows.into_iter().enumerate() {
             let Some((first, last)) = r else { continue };
             for band in first as usize / BAND..=last as usize / BAND {
@@ -307,11 +329,12 @@ impl<'s> Raster<'s> {
                 continue;
             };
             let id = seen_id(surface, triangle);
-            let view = geometry
-                .planar(triangle)
-                .and_then(|p| View::new(self.scene, surface, &p));
+            let edges = (geometry.planar(triangle)).and_then(|p| View::edges(self.scene, &p));
             let scale = mesh.corners(triangle as usize).map_or(0.0, |(_, s)| s);
-            let Some(p) = view.and_then(|v| self.primitive(&v, id, scale)) else {
+            let primitive = edges.and_then(|(lines, count, depth)| {
+                self.primitive(lines[..count].iter().copied(), depth, id, scale)
+            });
+            let Some(p) = primitive else {
                 // Edge-on or not finite: its rows are cast.
                 for gy in (lo as usize).max(first_row)..=(hi as usize).min(first_row + rows - 1) {
                     z.unsure[(gy - first_row) * gw..][..gw].fill(true);
