@@ -270,11 +270,17 @@ impl Mesh {
         self.triangles.is_empty()
     }
 
-    /// The corners of triangle `index`, and `|e1 × e2|` (twice its area),
-    /// the scale of [`Mesh::crossing`]'s determinant.
-    pub(crate) fn corners(&self, index: usize) -> Option<([Vec3; 3], f64)> {
+    /// The corners of triangle `index`.
+    pub(crate) fn corners(&self, index: usize) -> Option<[Vec3; 3]> {
         let t = self.triangles.get(index)?;
-        Some(([t.p0, t.p0 + t.e1, t.p0 + t.e2], t.e1.cross(t.e2).length()))
+        Some([t.p0, t.p0 + t.e1, t.p0 + t.e2])
+    }
+
+    /// `|e1 × e2|` of triangle `index` (twice its area): the scale of
+    /// [`Mesh::crossing`]'s determinant.
+    pub(crate) fn determinant_scale(&self, index: usize) -> Option<f64> {
+        let t = self.triangles.get(index)?;
+        Some(t.e1.cross(t.e2).length())
     }
 
     /// Möller–Trumbore: the distance at which `ray` crosses triangle `tri`.

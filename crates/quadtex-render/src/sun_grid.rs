@@ -99,7 +99,7 @@ impl SunGrid {
         let project = |p: Vec3| [p.dot(a), p.dot(b)];
         // Each triangle's projected box, widened against rounding.
         let box_of = |t: usize| {
-            let (corners, _) = mesh.corners(t)?;
+            let corners = mesh.corners(t)?;
             let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
             for p in corners {
                 let q = project(p);

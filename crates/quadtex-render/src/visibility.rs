@@ -159,9 +159,8 @@ impl<'s> Raster<'s> {
                 }
                 Geometry::Mesh(mesh) => raster.bin(i, mesh, (gw, gh)),
                 Geometry::Sphere { centre, radius } => {
-                    raster
-                        .cast_boxes
-                        .push(raster.sphere_box(*centre, *radius, (gw, gh)));
+                    let cells = raster.sphere_box(*centre, *radius, (gw, gh));
+                    raster.cast_boxes.extend(cells);
                 }
             }
         }
@@ -208,9 +207,14 @@ impl<'s> Raster<'s> {
     /// The grid cells a sphere's projection may reach: those of the
     /// projected corners of its bounding cube (the projection of their
     /// convex hull holds the sphere's), the whole grid when a corner lies
-    /// behind the camera's plane.
-    fn sphere_box(&self, centre: Vec3, radius: f64, (gw, gh): (usize, usize)) -> [usize; 4] {
-        let whole = [0, 0, gw - 1, gh - 1];
+    /// behind the camera's plane; `None` when it misses the grid.
+    fn sphere_box(
+        &self,
+        centre: Vec3,
+        radius: f64,
+        (gw, gh): (usize, usize),
+    ) -> Option<[usize; 4]> {
+        let whole = Some([0, 0, gw - 1, gh - 1]);
         let cam = &self.scene.camera;
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for k in 0..8 {
@@ -224,29 +228,32 @@ impl<'s> Raster<'s> {
                 hi[a] = hi[a].max(s[a]);
             }
         }
-        let cell = |v: f64, n: usize| (v + self.pad - 0.5).clamp(-2.0, n as f64 + 1.0);
-        let first = |v: f64, n: usize| (cell(v, n).floor() - 1.0).max(0.0) as usize;
-        let last = |v: f64, n: usize| ((cell(v, n).ceil() + 1.0).max(0.0) as usize).min(n - 1);
-        if lo.iter().chain(&hi).any(|v| v.is_nan()) {
-            return whole;
+        let (x0, x1) = self.cells(lo[0], hi[0], gw)?;
+        let (y0, y1) = self.cells(lo[1], hi[1], gh)?;
+        Some([x0, y0, x1, y1])
+    }
+
+    /// The grid cells `first..=last` (of `n`, on one axis) whose centres
+    /// may lie in screen interval `[lo, hi]`, with a cell of slack each
+    /// side; `None` when none do. Centre of cell `g`: `g − pad + ½`.
+    fn cells(&self, lo: f64, hi: f64, n: usize) -> Option<(usize, usize)> {
+        if lo.is_nan() || hi.is_nan() {
+            return (n > 0).then(|| (0, n - 1));
         }
-        [
-            first(lo[0], gw),
-            first(lo[1], gh),
-            last(hi[0], gw),
-            last(hi[1], gh),
-        ]
+        let cell = |v: f64| (v + self.pad - 0.5).clamp(-2.0, n as f64 + 1.0);
+        let first = (cell(lo).floor() - 1.0).max(0.0) as usize;
+        let last = ((cell(hi).ceil() + 1.0).max(0.0) as usize).min(n.checked_sub(1)?);
+        (first <= last).then_some((first, last))
     }
 
     /// Bins mesh `surface`'s triangles by the grid rows their screen boxes
     /// reach (every row for one reaching behind the camera's plane).
     fn bin(&mut self, surface: usize, mesh: &Mesh, (gw, gh): (usize, usize)) {
         let cam = &self.scene.camera;
-        let pad = self.pad;
         let rows: Vec<Option<(u32, u32)>> = (0..mesh.len())
             .into_par_iter()
             .map(|t| {
-                let (corners, _) = mesh.corners(t)?;
+                let corners = mesh.corners(t)?;
                 let mut lo = [f64::INFINITY; 2];
                 let mut hi = [f64::NEG_INFINITY; 2];
                 // Every ray's direction has `d·forward = 1`: a point with
@@ -267,15 +274,9 @@ impl<'s> Raster<'s> {
                         hi[k] = hi[k].max(s[k]);
                     }
                 }
-
-                // Grid cell of centre x: x + pad − ½; a cell of slack.
-                let cell = |v: f64| v + pad - 0.5;
-                let (x0, x1) = (cell(lo[0]).floor() - 1.0, cell(hi[0]).ceil() + 1.0);
-                let (y0, y1) = (cell(lo[1]).floor() - 1.0, cell(hi[1]).ceil() + 1.0);
-                if !(x1 >= 0.0 && x0 < gw as f64 && y1 >= 0.0 && y0 < gh as f64) {
-                    return None;
-                }
-                Some((y0.max(0.0) as u32, y1.min(gh as f64 - 1.0) as u32))
+                self.cells(lo[0], hi[0], gw)?;
+                let (first, last) = self.cells(lo[1], hi[1], gh)?;
+                Some((first as u32, last as u32))
             })
             .collect();
         // Sized first: pushing a million entries into growing vectors
@@ -330,19 +331,15 @@ impl<'s> Raster<'s> {
             };
             let id = seen_id(surface, triangle);
             let edges = (geometry.planar(triangle)).and_then(|p| View::edges(self.scene, &p));
-            let scale = mesh.corners(triangle as usize).map_or(0.0, |(_, s)| s);
+            let scale = mesh.determinant_scale(triangle as usize).unwrap_or(0.0);
             let primitive = edges.and_then(|(lines, count, depth)| {
                 self.primitive(lines[..count].iter().copied(), depth, id, scale)
             });
-            let Some(p) = primitive else {
+            let reach = (lo as usize).max(first_row)..=(hi as usize).min(first_row + rows - 1);
+            match primitive {
+                Some(p) => reach.for_each(|gy| self.draw(&p, gy, gy - first_row, &mut z)),
                 // Edge-on or not finite: its rows are cast.
-                for gy in (lo as usize).max(first_row)..=(hi as usize).min(first_row + rows - 1) {
-                    z.unsure[(gy - first_row) * gw..][..gw].fill(true);
-                }
-                continue;
-            };
-            for gy in (lo as usize).max(first_row)..=(hi as usize).min(first_row + rows - 1) {
-                self.draw(&p, gy, gy - first_row, &mut z);
+                None => reach.for_each(|gy| z.unsure[(gy - first_row) * gw..][..gw].fill(true)),
             }
         }
         for &[x0, y0, x1, y1] in &self.cast_boxes {
@@ -386,10 +383,9 @@ impl<'s> Raster<'s> {
         if lo > hi {
             return;
         }
-        // Centres x = gx − pad + ½, with a cell of slack each side.
-        let to_cell = |x: f64| (x + self.pad - 0.5).clamp(-2.0, n as f64 + 1.0);
-        let first = (to_cell(lo).floor() - 1.0).max(0.0) as usize;
-        let last = ((to_cell(hi).ceil() + 1.0).max(0.0) as usize).min(n - 1);
+        let Some((first, last)) = self.cells(lo, hi, n) else {
+            return;
+        };
         for gx in first..=last {
             let x = gx as f64 - self.pad + 0.5;
             let mut on_edge = false;
