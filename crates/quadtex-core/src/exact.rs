@@ -89,6 +89,18 @@ const MAX_TILES_DESCENDED: f64 = 16.0;
 /// time the walk spends on its default budget of squares.
 const SCAN_CELLS: f64 = 512.0;
 
+/// Most cells of the grid at the tree's depth [`Walk::scan_texels`] takes
+/// a region's part of a tile over, texel by texel, instead of walking it.
+const TEXEL_SCAN_CELLS: f64 = 256.0;
+
+/// [`Walk::scan_texels`] scans below a node at most this many levels above
+/// the texel blocks: a region within 4 × 4 blocks (16 × 16 texels of
+/// 4-texel blocks). Measured at 960×540 with 256 cells: the terrain's
+/// texture integrals 6.02 → 3.68 G instructions (scanning below any node:
+/// faster still there, but the demo's frame +95 M, its runway's uniform
+/// squares taken cell by cell instead of whole).
+const TEXEL_SCAN_LEVELS_ABOVE_BLOCKS: u8 = 2;
+
 /// The walk starts below the root ([`Walk::start_node`]) only for error
 /// bounds below this fraction of full contrast: above it, a square holding
 /// the whole region might be taken whole.
@@ -497,6 +509,11 @@ pub(crate) fn integrate_region(
         lipschitz: filter.lipschitz(),
         out,
         visited: 0,
+        texel_scan: fixed.is_none()
+            && tree.texel_blocks().is_some()
+            && tree.aspect().is_square()
+            && tree.gradient_leaves().is_none()
+            && tree.contour_leaves().is_none(),
         edge_means: [None; 4],
     };
     let before = walk.out.error_bound;
@@ -738,6 +755,11 @@ struct Walk<'a> {
     lipschitz: f64,
     out: RegionIntegral,
     visited: u64,
+    /// Whether [`Walk::scan_texels`] may take tiles texel by texel: a
+    /// square tree with texel blocks and no gradient or contour leaves
+    /// (every terminal square uniform), walked to an error bound (a fixed
+    /// level asks for that level's approximation).
+    texel_scan: bool,
     /// Mean colour along each edge (x low, x high, z low, z high), for
     /// clamp stripes over many tiles, computed when first needed.
     edge_means: [Option<[f64; 4]>; 4],
@@ -751,10 +773,7 @@ impl Walk<'_> {
             Some(Segment::Tiles(a, b)) if s[1].is_none() => Some((b - a + 1) as f64),
             _ => None,
         };
-        if tiles(&xs).is_some()
-            && tiles(&zs).is_some()
-            && self.fixed.is_none()
-            && self.scan_cells(lo, hi)
+        if tiles(&xs).is_some() && tiles(&zs).is_some() && self.fixed.is_none() && self.scan_cells()
         {
             return;
         }
@@ -826,7 +845,7 @@ impl Walk<'_> {
     /// It matters for the thin needles below a horizon: the walk's blocks
     /// do not fit inside them and refining tile by tile costs more squares
     /// than the budget, while a cell here costs a clip and an area.
-    fn scan_cells(&mut self, lo: [f64; 2], hi: [f64; 2]) -> bool {
+    fn scan_cells(&mut self) -> bool {
         let Some(grid) = self.tree.flat_grid() else {
             return false;
         };
@@ -835,27 +854,6 @@ impl Walk<'_> {
             return false;
         }
         let n = 1i64 << depth;
-        let h = 1.0 / n as f64;
-        let (k0, k1) = ((lo[1] / h).floor(), (hi[1] / h).ceil());
-        let (c0, c1) = ((lo[0] / h).floor(), (hi[0] / h).ceil());
-        // Bands run across the axis the region spans fewer cells of: a
-        // needle along z is cut into a few long columns, not many short
-        // rows (a band costs a split and the projection of its vertices,
-        // a box-filtered cell within it one cut). The region is transposed
-        // for it, `(x, z) → (z, x)`, with the screen map's columns swapped;
-        // the orientation this reverses does not matter to the box's
-        // areas, taken as absolute values. Other filters clip each cell by
-        // rows.
-        let transpose = self.filter == PixelFilter::Box && c1 - c0 < k1 - k0;
-        let (k0, k1) = if transpose { (c0, c1) } else { (k0, k1) };
-        if (k1 - k0).is_nan() || k1 - k0 > SCAN_CELLS {
-            return false;
-        }
-        let (k0, k1) = (k0 as i64, k1 as i64);
-        let columns = |p: &ConvexPolygon| {
-            let (a, b) = p.bounds();
-            ((a[0] / h).floor() as i64, (b[0] / h).ceil() as i64)
-        };
         // `n` is a power of two: the tile is an arithmetic shift (a floor),
         // the cell within it a mask (both exact for negative indices).
         let wrapped = |mode: WrapMode, m: i64| {
@@ -866,94 +864,100 @@ impl Walk<'_> {
                 c as usize
             }
         };
-        let mut m = self.screen_from_texture;
-        // Band `k` and cell `col` within it: grid offsets and wrap modes.
-        let (band_wrap, band_stride, cell_wrap, cell_stride) = if transpose {
-            for row in &mut m {
-                row.swap(0, 1);
-            }
-            (self.wrap.x, 1, self.wrap.z, n as usize)
-        } else {
-            (self.wrap.z, n as usize, self.wrap.x, 1)
+        let (wrap_x, wrap_z) = (self.wrap.x, self.wrap.z);
+        let colour =
+            |x: i64, z: i64| Some(grid[wrapped(wrap_z, z) * n as usize + wrapped(wrap_x, x)]);
+        let Some((colour_sum, weight_sum, cells)) = scan_grid(
+            &self.region,
+            &self.screen_from_texture,
+            1.0 / n as f64,
+            self.filter,
+            self.centre,
+            SCAN_CELLS,
+            colour,
+        ) else {
+            return false;
         };
-        // One pass, bands cut off the rest of the region from the bottom up;
-        // the sums stay local until the scan is known to fit.
-        let (mut colour_sum, mut weight_sum, mut cells) = ([0.0; 4], 0.0, 0.0);
-        let mut add = |colour: [f64; 4], w: f64| {
-            for (a, c) in colour_sum.iter_mut().zip(colour) {
-                *a += c * w;
-            }
-            weight_sum += w;
-        };
-        let mut screen_buffer = [[0.0; 2]; crate::polygon::MAX_VERTICES];
-        let region = if transpose {
-            self.region.map(|[x, z]| [z, x])
-        } else {
-            self.region.clone()
-        };
-        let mut rests = [region, ConvexPolygon::EMPTY];
-        let mut band = ConvexPolygon::EMPTY;
-        let mut r = 0;
-        for k in k0..k1 {
-            let p = if k + 1 < k1 {
-                let z = (k + 1) as f64 * h;
-                let [r0, r1] = &mut rests;
-                let (from, to) = if r == 0 { (&*r0, r1) } else { (&*r1, r0) };
-                from.split_into(0.0, -1.0, z, &mut band, to);
-                r ^= 1;
-                &band
-            } else {
-                &rests[r]
-            };
-            if p.is_empty() {
-                continue;
-            }
-            let (m0, m1) = columns(p);
-            cells += (m1 - m0) as f64;
-            if cells > SCAN_CELLS {
-                return false;
-            }
-            let row = wrapped(band_wrap, k) * band_stride;
-            if self.filter == PixelFilter::Box {
-                // The box weight of a cell's piece is its screen area: the
-                // screen area of the band left of the cell's right side,
-                // less that left of its left side. One pass over the band's
-                // vertices a cell, no polygon built.
-                let texture = p.vertices();
-                let screen = &mut screen_buffer[..texture.len()];
-                let total = band_to_screen(texture, &m, self.centre, screen);
-                let mut left = 0.0;
-                for col in m0..m1 {
-                    let upto = if col + 1 == m1 {
-                        total
-                    } else {
-                        band_left_of(texture, screen, (col + 1) as f64 * h, &m, self.centre)
-                    };
-                    let w = 0.5 * (upto - left).abs();
-                    left = upto;
-                    add(grid[row + wrapped(cell_wrap, col) * cell_stride], w);
-                }
-                continue;
-            }
-            for col in m0..m1 {
-                let x = col as f64 * h;
-                let piece = p.clip_rect(x, f64::NEG_INFINITY, x + h, f64::INFINITY);
-                if piece.is_empty() {
-                    continue;
-                }
-                let colour = grid[row + wrapped(cell_wrap, col) * cell_stride];
-                let w = self
-                    .filter
-                    .integral(&self.to_screen_poly(&piece, &m), self.centre);
-                add(colour, w);
-            }
-        }
         for (a, c) in self.out.colour.0.iter_mut().zip(colour_sum) {
             *a += c;
         }
         self.out.weight += weight_sum;
         self.visited += cells as u64;
         true
+    }
+
+    /// Tile `(i, j)`'s part of the region, exactly, texel by texel: when
+    /// `start`, the node the walk would start from ([`Walk::start_node`]),
+    /// lies at most [`TEXEL_SCAN_LEVELS_ABOVE_BLOCKS`] levels above the
+    /// texel blocks, and the region's part of it spans at most
+    /// [`TEXEL_SCAN_CELLS`] cells of the grid at the tree's depth, all
+    /// under uniform squares (texels or stored terminal squares). `None`
+    /// (nothing added) otherwise.
+    ///
+    /// A region of a pixel or less over a raster (a mesh's triangle, a
+    /// magnified or mildly minified photograph) spans a few texels; the
+    /// walk refines it square by square down to them, each square clipped,
+    /// bounded and queued, where here each texel costs one cut of its band.
+    fn scan_texels(
+        &mut self,
+        frame: usize,
+        (i, j): (i64, i64),
+        (node, level, ix, iz): (NodeRef, u8, u32, u32),
+    ) -> Option<Contribution> {
+        if !self.texel_scan {
+            return None;
+        }
+        // Only among texel blocks: above them the tree keeps uniform
+        // squares the walk takes whole, where a scan would take each cell.
+        let blocks = self.tree.texel_blocks()?;
+        if level + TEXEL_SCAN_LEVELS_ABOVE_BLOCKS < blocks.level() {
+            return None;
+        }
+        // Local (tree) coordinates of a square tree: texture = sign·local
+        // + offset ([`Walk::tile_frame`]), sign ±1.
+        let (sx, ox) = tile_map(self.wrap.x, i);
+        let (sz, oz) = tile_map(self.wrap.z, j);
+        let side = unit_side(level);
+        let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
+        let mut local = self
+            .region
+            .map_counter_clockwise(|[x, z]| [(x - ox) * sx, (z - oz) * sz]);
+        let (lo, hi) = local.bounds();
+        if lo[0] < x0 || lo[1] < z0 || hi[0] > x0 + side || hi[1] > z0 + side {
+            local = local.clip_rect(x0, z0, x0 + side, z0 + side);
+        }
+        let (lo, hi) = local.bounds();
+        let h = unit_side(self.tree.depth());
+        let span = |a: f64, b: f64| (b / h).ceil() - (a / h).floor();
+        if local.is_empty() || span(lo[0], hi[0]) * span(lo[1], hi[1]) > TEXEL_SCAN_CELLS {
+            return None;
+        }
+        let tree = self.tree;
+        let colour = |x: i64, z: i64| {
+            tree.finest_colour(
+                node,
+                level,
+                ix,
+                iz,
+                u32::try_from(x).ok()?,
+                u32::try_from(z).ok()?,
+            )
+        };
+        let (colour, weight, cells) = scan_grid(
+            &local,
+            &self.frames[frame].to_screen,
+            h,
+            self.filter,
+            self.centre,
+            TEXEL_SCAN_CELLS,
+            colour,
+        )?;
+        self.visited += cells as u64;
+        Some(Contribution {
+            colour,
+            weight,
+            bound: 0.0,
+        })
     }
 
     /// Adds `colour` over the screen polygon `piece`; `approximate` pieces
@@ -1113,7 +1117,11 @@ impl Walk<'_> {
         }
         if i0 == i1 && j0 == j1 {
             let frame = self.tile_frame(i0, j0);
-            let (node, level, ix, iz) = self.start_node(i0, j0);
+            let start = self.start_node(i0, j0);
+            if let Some(c) = self.scan_texels(frame, (i0, j0), start) {
+                return Outcome::Final(c);
+            }
+            let (node, level, ix, iz) = start;
             return self.evaluate_node(frame, node, level, ix, iz);
         }
         self.visited += 1;
@@ -1663,9 +1671,131 @@ fn density_range_det(m: &Mat3, det: f64, corners: &[[f64; 2]; 4]) -> (f64, f64) 
     (lo, hi)
 }
 
+/// The integral under `filter` centred at `centre` over `region` (grid
+/// coordinates: cell `(x, z)` is `[x·h, (x+1)·h) × [z·h, (z+1)·h)`, mapped to
+/// the screen by `m`) of the colour `colour(x, z)` of each cell it crosses,
+/// exactly: band by band of cells, each cell's piece clipped and weighted.
+/// `(Σ colour·k, Σ k, cells)`, or `None` (nothing computed) past
+/// `max_cells` cells or where `colour` gives none.
+#[inline(always)]
+fn scan_grid(
+    region: &ConvexPolygon,
+    m: &Mat3,
+    h: f64,
+    filter: PixelFilter,
+    centre: [f64; 2],
+    max_cells: f64,
+    mut colour: impl FnMut(i64, i64) -> Option<[f64; 4]>,
+) -> Option<([f64; 4], f64, f64)> {
+    let (lo, hi) = region.bounds();
+    let (k0, k1) = ((lo[1] / h).floor(), (hi[1] / h).ceil());
+    let (c0, c1) = ((lo[0] / h).floor(), (hi[0] / h).ceil());
+    // Bands run across the axis the region spans fewer cells of: a
+    // needle along z is cut into a few long columns, not many short
+    // rows (a band costs a split and the projection of its vertices,
+    // a box-filtered cell within it one cut). The region is transposed
+    // for it, `(x, z) → (z, x)`, with the screen map's columns swapped;
+    // the orientation this reverses does not matter to the box's
+    // areas, taken as absolute values. Other filters clip each cell by
+    // rows.
+    let transpose = filter == PixelFilter::Box && c1 - c0 < k1 - k0;
+    let (k0, k1) = if transpose { (c0, c1) } else { (k0, k1) };
+    if (k1 - k0).is_nan() || k1 - k0 > max_cells {
+        return None;
+    }
+    let (k0, k1) = (k0 as i64, k1 as i64);
+    let columns = |p: &ConvexPolygon| {
+        let (a, b) = p.bounds();
+        ((a[0] / h).floor() as i64, (b[0] / h).ceil() as i64)
+    };
+    let mut m = *m;
+    if transpose {
+        for row in &mut m {
+            row.swap(0, 1);
+        }
+    }
+    // Band `k`, cell `col` within it: the cell's grid position.
+    let mut colour = |k: i64, col: i64| {
+        if transpose {
+            colour(k, col)
+        } else {
+            colour(col, k)
+        }
+    };
+    let (mut colour_sum, mut weight_sum, mut cells) = ([0.0; 4], 0.0, 0.0);
+    let mut add = |colour: [f64; 4], w: f64| {
+        for (a, c) in colour_sum.iter_mut().zip(colour) {
+            *a += c * w;
+        }
+        weight_sum += w;
+    };
+    let mut screen_buffer = [[0.0; 2]; crate::polygon::MAX_VERTICES];
+    let region = if transpose {
+        region.map(|[x, z]| [z, x])
+    } else {
+        region.clone()
+    };
+    // One pass, bands cut off the rest of the region from the bottom up.
+    let mut rests = [region, ConvexPolygon::EMPTY];
+    let mut band = ConvexPolygon::EMPTY;
+    let mut r = 0;
+    for k in k0..k1 {
+        let p = if k + 1 < k1 {
+            let z = (k + 1) as f64 * h;
+            let [r0, r1] = &mut rests;
+            let (from, to) = if r == 0 { (&*r0, r1) } else { (&*r1, r0) };
+            from.split_into(0.0, -1.0, z, &mut band, to);
+            r ^= 1;
+            &band
+        } else {
+            &rests[r]
+        };
+        if p.is_empty() {
+            continue;
+        }
+        let (m0, m1) = columns(p);
+        cells += (m1 - m0) as f64;
+        if cells > max_cells {
+            return None;
+        }
+        if filter == PixelFilter::Box {
+            // The box weight of a cell's piece is its screen area: the
+            // screen area of the band left of the cell's right side,
+            // less that left of its left side. One pass over the band's
+            // vertices a cell, no polygon built.
+            let texture = p.vertices();
+            let screen = &mut screen_buffer[..texture.len()];
+            let total = band_to_screen(texture, &m, centre, screen);
+            let mut left = 0.0;
+            for col in m0..m1 {
+                let upto = if col + 1 == m1 {
+                    total
+                } else {
+                    band_left_of(texture, screen, (col + 1) as f64 * h, &m, centre)
+                };
+                let w = 0.5 * (upto - left).abs();
+                left = upto;
+                add(colour(k, col)?, w);
+            }
+            continue;
+        }
+        for col in m0..m1 {
+            let x = col as f64 * h;
+            let piece = p.clip_rect(x, f64::NEG_INFINITY, x + h, f64::INFINITY);
+            if piece.is_empty() {
+                continue;
+            }
+            let w = filter.integral(&piece.map(|t| apply(&m, t)), centre);
+            add(colour(k, col)?, w);
+        }
+    }
+    Some((colour_sum, weight_sum, cells))
+}
+
 /// Maps the texture-space `texture` vertices to screen coordinates relative
 /// to `centre` (so that shoelace sums stay at the polygon's own scale) into
 /// `screen`, and returns their doubled signed area.
+#[inline(always)]
 fn band_to_screen(
     texture: &[[f64; 2]],
     m: &Mat3,
@@ -1694,6 +1824,7 @@ fn band_to_screen(
 /// polygon with `x <= x_cut`: Sutherland–Hodgman against one half-plane,
 /// the clipped vertices fed straight into the shoelace sum. `screen` holds
 /// the vertices as [`band_to_screen`] mapped them.
+#[inline(always)]
 fn band_left_of(
     texture: &[[f64; 2]],
     screen: &[[f64; 2]],

@@ -278,6 +278,7 @@ impl ConvexPolygon {
     /// pass: the same polygons as [`ConvexPolygon::clip_into`] with
     /// `(a, b, c)` and with `(−a, −b, −c)` (negation is exact, so each
     /// side value and crossing point is too).
+    #[inline(always)]
     pub(crate) fn split_into(
         &self,
         a: f64,

@@ -1332,6 +1332,50 @@ impl QuadTree {
         (inner, colour, if inner { 1.0 } else { 0.0 })
     }
 
+    /// The colour of cell `(cx, cz)` of the grid at [`QuadTree::depth`]
+    /// when a uniform square holds it (a texel of a block, or a stored
+    /// terminal square), as [`QuadTree::node_detail`] gives that square's;
+    /// `None` under a gradient or contour leaf (its colour varies within
+    /// it) or when the cell is not under node `n` at `(level, ix, iz)`.
+    pub(crate) fn finest_colour(
+        &self,
+        mut n: NodeRef,
+        level: u8,
+        ix: u32,
+        iz: u32,
+        cx: u32,
+        cz: u32,
+    ) -> Option<[f64; 4]> {
+        let mut down = self.depth.checked_sub(level)?;
+        if down >= 32 || cx >> down != ix || cz >> down != iz {
+            return None;
+        }
+        loop {
+            if n.as_gradient_cell().is_some() {
+                return None;
+            }
+            let splits = if let Some((b, j, bx, bz)) = n.as_cell() {
+                let tb = self.texel_blocks.as_ref()?;
+                if j >= tb.log2_side() {
+                    return Some(tb.cell_mean(b, j, bx, bz));
+                }
+                true
+            } else {
+                let p = n.0 as usize;
+                if self.gradient_leaf(p).is_some() || self.contour_leaf(p).is_some() {
+                    return None;
+                }
+                self.is_inner(p) || self.block_at(p).is_some()
+            };
+            if !splits {
+                return Some(self.encoding.decode_colour(self.colour(n.0 as usize)));
+            }
+            down = down.checked_sub(1)?;
+            let c = (cx >> down & 1) | (cz >> down & 1) << 1;
+            n = self.child_ref(n, c as usize);
+        }
+    }
+
     /// Whether node `n` has four children and the full contrast bound (1)
     /// of [`QuadTree::node_detail`], without its colour: a stored inner
     /// node or texel block, or a block's cell above its texels. A cell

@@ -167,6 +167,83 @@ fn box_pixels_match_the_cell_by_cell_sum_and_the_bound_holds() {
     .budget_ms(4_000);
 }
 
+/// A footprint of a few texels over a photograph-like raster (noisy 4×4
+/// texel blocks, some uniform ones kept as stored terminal squares), inside
+/// one aligned square of 16×16 texels (four blocks a side), is integrated
+/// texel by texel, exactly, at the default level of detail too: the result
+/// is the cell-by-cell sum and the reported bound is zero. (Walked square
+/// by square instead, it stops once its bound is below the default target,
+/// off the sum.)
+#[test]
+fn small_footprints_over_rasters_are_exact_at_the_default_level() {
+    arbtest::arbtest(|u| {
+        let side = 1u32 << u.int_in_range(4..=6u32)?;
+        let blocks = side / 4;
+        let mut uniform = Vec::with_capacity((blocks * blocks) as usize);
+        for _ in 0..blocks * blocks {
+            uniform.push(u.ratio(1, 3)?.then_some(*u.choose(&[0u8, 128, 255])?));
+        }
+        let mut bytes = Vec::with_capacity((side * side) as usize);
+        for k in 0..side * side {
+            let (c, r) = (k % side, k / side);
+            let v = match uniform[((r / 4) * blocks + c / 4) as usize] {
+                Some(v) => v,
+                None => *u.choose(&[0u8, 40, 128, 200, 255])?,
+            };
+            bytes.push([v, 255 - v, v / 2, 255]);
+        }
+        let grid = quadtex_core::TexelGrid::from_srgb8(side, side, bytes).unwrap();
+        let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
+            .unwrap()
+            .0;
+        let texture = Texture::new(tree, wrap(u)?);
+        let wrap = texture.wrap();
+        // Which aligned 16×16 square, in which tile (any, on a repeated or
+        // mirrored axis; the texture's own beyond a clamp or border edge).
+        let texel = 1.0 / f64::from(side);
+        let mut origin = [0.0; 2];
+        for (axis, mode) in [wrap.x, wrap.z].into_iter().enumerate() {
+            let tile = if matches!(mode, WrapMode::Repeat | WrapMode::Mirror) {
+                f64::from(u.int_in_range(-2..=2i32)?)
+            } else {
+                0.0
+            };
+            let window = f64::from(u.int_in_range(0..=blocks / 4 - 1)?);
+            origin[axis] = tile + window * 16.0 * texel;
+        }
+        // A perspective quad at most 6 texels across, centred in the
+        // middle 4×4 texels of the square.
+        let cx = origin[0] + texel * unit(u, 6.0, 10.0)?;
+        let cz = origin[1] + texel * unit(u, 6.0, 10.0)?;
+        let near = texel * unit(u, 0.2, 3.0)?;
+        let far = near * unit(u, 0.3, 2.0)?;
+        let depth = texel * unit(u, 0.2, 3.0)?;
+        let angle = unit(u, 0.0, std::f64::consts::TAU)?;
+        let (s, c) = angle.sin_cos();
+        let rot = |p: [f64; 2]| [cx + c * p[0] - s * p[1], cz + s * p[0] + c * p[1]];
+        let fp = Footprint::from_corners([
+            rot([-near / 2.0, -depth / 2.0]),
+            rot([near / 2.0, -depth / 2.0]),
+            rot([far / 2.0, depth / 2.0]),
+            rot([-far / 2.0, depth / 2.0]),
+        ])
+        .unwrap();
+        if fp.homography().is_none() {
+            return Ok(());
+        }
+        let truth = brute_force_box(&texture, &fp);
+        let mut stats = FilterStats::default();
+        let fast = texture.filter_counted(&fp, &FilterOptions::default(), &mut stats);
+        assert!(
+            max_diff(fast, truth) < 2e-6,
+            "{fast:?} vs {truth:?} for {fp:?} under {wrap:?}"
+        );
+        assert_eq!(stats.max_error_bound, 0.0, "{fp:?} under {wrap:?}");
+        Ok(())
+    })
+    .budget_ms(3_000);
+}
+
 /// The tent and Mitchell integrals over a projected support match dense
 /// sampling of the support weighted by the filter; a fully visible support
 /// weighs exactly 1.
