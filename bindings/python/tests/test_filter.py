@@ -146,11 +146,12 @@ def test_projective_screen_weighting_favours_the_near_side():
     assert texture > screen + 0.1, (screen, texture)
 
 
-def test_budget_refines_towards_the_exact_value(random_texels):
-    tex = quadtex.pack(random_texels)
-    # A long grazing footprint: many squares along its edges. Clamped: a
-    # small repeated texture would be scanned cell by cell, exactly, with
-    # no budget to spend.
+def test_budget_refines_towards_the_exact_value(rng):
+    # A long grazing footprint: many squares along its edges. Clamped, and
+    # 64 texels a side: a small repeated texture would be scanned cell by
+    # cell, and a region of at most 256 texels texel by texel, exactly,
+    # with no budget to spend.
+    tex = quadtex.pack(rng.integers(0, 65536, size=(64, 64, 3)) / 65535.0)
     quad = np.array([[[0.30, 0.05], [0.32, 0.05], [0.95, 0.95], [0.05, 0.95]]])
     exact = tex.filter(quad, level=30, wrap="clamp")
     coarse = tex.filter(quad, budget=4, error_bound=1e-6, wrap="clamp")
