@@ -1678,7 +1678,6 @@ fn density_range_det(m: &Mat3, det: f64, corners: &[[f64; 2]; 4]) -> (f64, f64) 
 /// exactly: band by band of cells, each cell's piece clipped and weighted.
 /// `(Σ colour·k, Σ k, cells)`, or `None` (nothing computed) past
 /// `max_cells` cells or where `colour` gives none.
-#[inline(always)]
 fn scan_grid(
     region: &ConvexPolygon,
     m: &Mat3,

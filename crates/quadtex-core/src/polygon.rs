@@ -278,7 +278,6 @@ impl ConvexPolygon {
     /// pass: the same polygons as [`ConvexPolygon::clip_into`] with
     /// `(a, b, c)` and with `(−a, −b, −c)` (negation is exact, so each
     /// side value and crossing point is too).
-    #[inline(always)]
     pub(crate) fn split_into(
         &self,
         a: f64,

@@ -1350,30 +1350,15 @@ impl QuadTree {
         if down >= 32 || cx >> down != ix || cz >> down != iz {
             return None;
         }
-        loop {
-            if n.as_gradient_cell().is_some() {
-                return None;
-            }
-            let splits = if let Some((b, j, bx, bz)) = n.as_cell() {
-                let tb = self.texel_blocks.as_ref()?;
-                if j >= tb.log2_side() {
-                    return Some(tb.cell_mean(b, j, bx, bz));
-                }
-                true
-            } else {
-                let p = n.0 as usize;
-                if self.gradient_leaf(p).is_some() || self.contour_leaf(p).is_some() {
-                    return None;
-                }
-                self.is_inner(p) || self.block_at(p).is_some()
-            };
-            if !splits {
-                return Some(self.encoding.decode_colour(self.colour(n.0 as usize)));
-            }
+        while self.splits_fully(n) {
             down = down.checked_sub(1)?;
             let c = (cx >> down & 1) | (cz >> down & 1) << 1;
             n = self.child_ref(n, c as usize);
         }
+        // A terminal square (a texel, a stored square, a gradient or
+        // contour leaf): uniform where it neither splits nor varies.
+        let (inner, colour, contrast) = self.node_detail(n);
+        (!inner && contrast == 0.0).then_some(colour)
     }
 
     /// Whether node `n` has four children and the full contrast bound (1)
