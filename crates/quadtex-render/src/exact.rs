@@ -1182,10 +1182,26 @@ fn sky_integral(
         }
     }
     let (mut acc, mut weight) = ([0.0; 4], 0.0);
+    // A whole box-filtered pixel is its bounding box: each cell is a
+    // rectangle whose weight is its area, no clipping needed.
+    let rectangle = whole && filter == PixelFilter::Box;
     for pair in rows.windows(2) {
         let (y0, y1) = (pair[0], pair[1]);
         let mut x0 = (lo[0] * SKY_CELLS).floor() * step;
         while x0 < hi[0] {
+            if rectangle {
+                let (a, b) = (x0.max(lo[0]), (x0 + step).min(hi[0]));
+                let w = (b - a) * (y1 - y0);
+                if w > 0.0 {
+                    let c = colour_at([0.5 * (a + b), 0.5 * (y0 + y1)]);
+                    for (a, v) in acc.iter_mut().zip(c) {
+                        *a += v * w;
+                    }
+                    weight += w;
+                }
+                x0 += step;
+                continue;
+            }
             let cell = piece.clip_rect(x0, y0, x0 + step, y1);
             if cell.area() > 0.0 {
                 let w = filter.integral(&cell, centre);
