@@ -458,18 +458,23 @@ pub(crate) fn integrate_region(
     if !(area > 0.0 && area.is_finite()) {
         return out;
     }
-    let texture_region =
-        region.map_counter_clockwise(|s| apply(&projection.texture_from_screen, s));
-    if texture_region
-        .vertices()
-        .iter()
-        .flatten()
-        .any(|v| !v.is_finite())
-    {
+    // The region's texture-space box first, with no polygon built: most
+    // regions (a magnified pixel) lie in one uniform square and need no
+    // more.
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    let mut finite = true;
+    for &s in region.vertices() {
+        let t = apply(&projection.texture_from_screen, s);
+        finite &= t[0].is_finite() && t[1].is_finite();
+        for a in 0..2 {
+            lo[a] = lo[a].min(t[a]);
+            hi[a] = hi[a].max(t[a]);
+        }
+    }
+    if !finite {
         return out;
     }
     // One terminal square under the whole region: its colour, exactly.
-    let (lo, hi) = texture_region.bounds();
     if let Some(c) = uniform_colour_in(tree, lo, hi, wrap) {
         let wgt = match filter {
             PixelFilter::Box => area,
@@ -479,6 +484,8 @@ pub(crate) fn integrate_region(
         out.weight += wgt;
         return out;
     }
+    let texture_region =
+        region.map_counter_clockwise(|s| apply(&projection.texture_from_screen, s));
     let epsilon = match options.level_of_detail() {
         LevelOfDetail::ErrorBound(e) => e,
         LevelOfDetail::Fixed(_) => 0.0,
