@@ -104,13 +104,17 @@ impl<'a> Caster<'a> {
     }
 
     /// Whether `ray` meets any surface (as [`Caster::nearest_index`] would
-    /// find one), without finding the nearest point: for shadow rays.
-    pub fn occluded(&self, ray: &Ray) -> bool {
+    /// find one), without finding the nearest point: for shadow rays, which
+    /// leave surface `from` on the side they point to. A plane or quad
+    /// cannot meet such a ray again, so it is not tested (a mesh is: its
+    /// other triangles may).
+    pub fn occluded_leaving(&self, ray: &Ray, from: usize) -> bool {
         (self.scene.surfaces.iter().enumerate()).any(|(i, s)| match &s.geometry {
             Geometry::Mesh(mesh) => match self.suns.get(i) {
                 Some(Some(grid)) if grid.serves(ray.direction) => grid.occludes(mesh, ray, 1e-9),
                 _ => mesh.occludes(ray, 1e-9),
             },
+            Geometry::Plane { .. } | Geometry::Quad { .. } if i == from => false,
             _ => self.intersect(i, ray, 1e-9).is_some(),
         })
     }

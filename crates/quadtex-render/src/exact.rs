@@ -1010,7 +1010,7 @@ fn shade_piece(
             // The camera's ray is normalised; depth_at is per unnormalised d.
             let d = scene.camera.direction(s[0], s[1]);
             let point = scene.camera.position + d * t;
-            let k = lambert(&frame.rays, view.normal, point, &ray);
+            let k = lambert(&frame.rays, view.surface, view.normal, point, &ray);
             for (v, f) in c.iter_mut().zip(k) {
                 *v *= f64::from(f);
             }

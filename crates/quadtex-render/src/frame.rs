@@ -49,8 +49,15 @@ pub(crate) fn sky(scene: &Scene, ray: &Ray) -> Rgba {
 
 /// The lighting factor per colour channel at `point` (normal `normal`)
 /// seen along `ray`: ambient plus the sun's `cos` unless shadowed; 1 when
-/// the scene is unlit.
-pub(crate) fn lambert(rays: &Caster<'_>, normal: Vec3, point: Vec3, ray: &Ray) -> [f32; 3] {
+/// the scene is unlit. `point` lies on surface `surface`, whose shadow
+/// ray leaves it towards the sun.
+pub(crate) fn lambert(
+    rays: &Caster<'_>,
+    surface: usize,
+    normal: Vec3,
+    point: Vec3,
+    ray: &Ray,
+) -> [f32; 3] {
     match rays.scene.lighting {
         Lighting::Unlit => [1.0; 3],
         Lighting::Lambert {
@@ -70,7 +77,7 @@ pub(crate) fn lambert(rays: &Caster<'_>, normal: Vec3, point: Vec3, ray: &Ray) -
                     origin: point + n * 1e-6 * (1.0 + distance),
                     direction,
                 };
-                !rays.occluded(&shadow)
+                !rays.occluded_leaving(&shadow, surface)
             };
             let k = if lit { cos as f32 } else { 0.0 };
             [0, 1, 2].map(|i| ambient[i] + k * colour[i])

@@ -50,7 +50,7 @@ pub(crate) fn shade_ray(
             tex * surface.colour
         }
     };
-    let k = lambert(&frame.rays, hit.normal, hit.point, ray);
+    let k = lambert(&frame.rays, index, hit.normal, hit.point, ray);
     Rgba::new(base.r * k[0], base.g * k[1], base.b * k[2], base.a)
 }
 
