@@ -151,7 +151,11 @@ impl ConvexPolygon {
             out(self.clone());
             return;
         }
-        let mut rest = self.clone();
+        // What is left inside every edge so far, ping-ponged between two
+        // buffers; each edge splits it in one pass.
+        let mut rest = [self.clone(), ConvexPolygon::EMPTY];
+        let mut current = 0;
+        let mut outside = ConvexPolygon::EMPTY;
         for [a, b, c] in other.edge_lines() {
             // A repeated vertex (a clip can leave one) has no line: both
             // sides of `0 ≥ 0` would keep everything, and `rest` would be
@@ -159,12 +163,18 @@ impl ConvexPolygon {
             if a == 0.0 && b == 0.0 {
                 continue;
             }
-            let outside = rest.clip(-a, -b, -c);
+            let [first, second] = &mut rest;
+            let (from, to) = if current == 0 {
+                (&*first, second)
+            } else {
+                (&*second, first)
+            };
+            from.split_into(a, b, c, to, &mut outside);
+            current ^= 1;
             if outside.area() > 0.0 {
-                out(outside);
+                out(outside.clone());
             }
-            rest = rest.clip(a, b, c);
-            if rest.is_empty() {
+            if rest[current].is_empty() {
                 return;
             }
         }
