@@ -79,10 +79,21 @@ pub fn render(
         if seen.is_empty() {
             return false;
         }
-        for dy in -reach..=reach {
+        let row_of = |dy: i64| {
             let centre = (i64::from(y) + pad + dy) * gw + i64::from(x) + pad;
-            let row = &seen[(centre - reach) as usize..=(centre + reach) as usize];
-            for &id in row {
+            &seen[(centre - reach) as usize..=(centre + reach) as usize]
+        };
+        // Most neighbourhoods see one thing only: one comparison a centre.
+        let first = row_of(0)[reach as usize];
+        if (-reach..=reach).all(|dy| row_of(dy).iter().all(|&id| id == first)) {
+            if first == 0 {
+                return true;
+            }
+            ids.push(first);
+            return false;
+        }
+        for dy in -reach..=reach {
+            for &id in row_of(dy) {
                 if id == 0 {
                     sky = true;
                 } else if ids.last() != Some(&id) && !ids.contains(&id) {
