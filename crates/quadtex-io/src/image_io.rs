@@ -39,6 +39,80 @@ pub fn linear_to_srgb(v: f32) -> f32 {
     }
 }
 
+/// The 8-bit sRGB code of linear `v` in `[0, 1]`: `⌊255·srgb(v) + ½⌋`, the
+/// transfer function evaluated exactly (in `f64`, where [`linear_to_srgb`]'s
+/// `f32` power may round a value at a code's edge the other way); 0 for
+/// NaN and below 0, 255 above 1. A table lookup: every pixel of every
+/// written PNG takes three.
+pub fn linear_to_srgb8(v: f32) -> u8 {
+    if v.is_nan() || v <= 0.0 {
+        return 0;
+    }
+    if v >= 1.0 {
+        return 255;
+    }
+    let table = srgb8_encode_table();
+    // `v · 2¹²` is exact (a power of two), so its floor is the bucket.
+    let mut code = usize::from(table.bucket_code[(v * SRGB8_BUCKETS as f32) as usize]);
+    let x = f64::from(v);
+    while code < 255 && x >= table.threshold[code + 1] {
+        code += 1;
+    }
+    code as u8
+}
+
+/// Buckets of `[0, 1)` in [`linear_to_srgb8`]'s table: fine enough that a
+/// bucket spans at most about one code (the curve's steepest slope is
+/// 255 · 12.92 codes per unit).
+const SRGB8_BUCKETS: usize = 4096;
+
+struct Srgb8Table {
+    /// `threshold[k]`: the least linear value whose code is at least `k`.
+    threshold: [f64; 256],
+    /// The code of each bucket's lower end.
+    bucket_code: Vec<u8>,
+}
+
+/// The sRGB encoding in `f64`.
+fn linear_to_srgb_f64(v: f64) -> f64 {
+    if v <= 0.003_130_8 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+fn srgb8_encode_table() -> &'static Srgb8Table {
+    static TABLE: OnceLock<Srgb8Table> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let code = |x: f64| (255.0 * linear_to_srgb_f64(x) + 0.5).floor();
+        let mut threshold = [0.0; 256];
+        for (k, t) in threshold.iter_mut().enumerate().skip(1) {
+            // Bisection on the (monotone) encoding to the last f64 bit.
+            let (mut lo, mut hi) = (0.0f64, 1.0f64);
+            while hi - lo > f64::EPSILON * hi {
+                let mid = 0.5 * (lo + hi);
+                if code(mid) >= k as f64 {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            *t = hi;
+        }
+        let bucket_code = (0..SRGB8_BUCKETS)
+            .map(|b| {
+                let x = b as f64 / SRGB8_BUCKETS as f64;
+                threshold.iter().skip(1).filter(|&&t| t <= x).count() as u8
+            })
+            .collect();
+        Srgb8Table {
+            threshold,
+            bucket_code,
+        }
+    })
+}
+
 /// sRGB-encoded 16-bit value → linear, for every value (8-bit input is
 /// widened by ×257 first, which maps it onto the same curve exactly).
 fn decode_table() -> &'static [f32] {
@@ -348,7 +422,7 @@ fn to_dynamic(
             let mut bytes = Vec::with_capacity(4 * n);
             for p in &image.pixels {
                 let inv = if p.a > 0.0 { 1.0 / p.a } else { 0.0 };
-                let enc = |c: f32| (linear_to_srgb(c * inv) * 255.0 + 0.5) as u8;
+                let enc = |c: f32| linear_to_srgb8(c * inv);
                 bytes.extend([
                     enc(p.r),
                     enc(p.g),
@@ -512,11 +586,48 @@ mod tests {
         std::fs::remove_file(&fifo).unwrap();
     }
 
+    /// The table's code is the transfer function's, exactly: bisection's
+    /// thresholds against the `f64` formula on a dense sweep of `f32`
+    /// values (every 997th below 1, both sides of each threshold); the
+    /// `f32` formula agrees but within a hair of a code's edge.
+    #[test]
+    fn srgb8_codes_are_the_exact_transfer_function() {
+        let exact = |v: f32| {
+            let x = f64::from(v.clamp(0.0, 1.0));
+            (255.0 * linear_to_srgb_f64(x) + 0.5).floor() as u8
+        };
+        let (mut checked, mut f32_differs) = (0, 0);
+        let mut check = |v: f32| {
+            let code = linear_to_srgb8(v);
+            assert_eq!(code, exact(v), "{v:e}");
+            let scaled = 255.0 * linear_to_srgb_f64(f64::from(v)) + 0.5;
+            if code != (linear_to_srgb(v) * 255.0 + 0.5) as u8 {
+                f32_differs += 1;
+                assert!((scaled - scaled.round()).abs() < 1e-4, "{v:e}: {scaled}");
+            }
+            checked += 1;
+        };
+        for bits in (0..1.0f32.to_bits()).step_by(997) {
+            check(f32::from_bits(bits));
+        }
+        for t in srgb8_encode_table().threshold.iter().skip(1) {
+            let v = *t as f32;
+            check(v);
+            check(f32::from_bits(v.to_bits() - 1));
+            check(f32::from_bits(v.to_bits() + 1));
+        }
+        for v in [f32::NAN, -1.0, -0.0, 0.0, 1.0, 2.0, f32::INFINITY] {
+            check(v);
+        }
+        assert!(checked > 1_000_000 && f32_differs < checked / 1000);
+    }
+
     #[test]
     fn srgb_round_trips_every_8_bit_code() {
         for v in 0..=255u8 {
             let lin = srgb_to_linear(f32::from(v) / 255.0);
             assert_eq!((linear_to_srgb(lin) * 255.0 + 0.5) as u8, v);
+            assert_eq!(linear_to_srgb8(lin), v);
         }
     }
 

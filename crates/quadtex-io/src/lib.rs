@@ -28,7 +28,7 @@ mod tiles;
 pub use atomic::write_atomically;
 pub use error::Error;
 pub use image_io::{
-    ImageFormat, LinearImage, linear_to_srgb, load_linear_image, load_texels,
+    ImageFormat, LinearImage, linear_to_srgb, linear_to_srgb8, load_linear_image, load_texels,
     load_texels_from_bytes, load_texels_with_limits, save_image, save_image_as, srgb_to_linear,
     write_image,
 };
