@@ -320,13 +320,7 @@ mod tests {
     #[test]
     fn the_counted_work_is_the_pairs_tested_plus_the_edges_each_slab_is_handed() {
         // A deterministic scatter of edges, some crossing, some stacked.
-        let mut seed = 12345u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::test_rng::uniform(12345);
         for n in [0, 1, 2, 7, 40, 200] {
             let mut edges: Vec<SweepEdge> = (0..n)
                 .filter_map(|i| SweepEdge::new([next(), next()], [next(), next()], i))

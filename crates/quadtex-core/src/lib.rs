@@ -46,6 +46,8 @@ pub mod reference;
 pub mod sat;
 mod shared;
 pub mod synth;
+#[cfg(test)]
+mod test_rng;
 pub mod texel_block;
 pub mod texture;
 mod tree;

@@ -481,13 +481,7 @@ mod tests {
                 .unwrap()
                 .0
         };
-        let mut seed = 11u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::test_rng::uniform(11);
         let (mut found, mut inside) = (0, 0);
         for tree in [checker_tree(), ramp_tree(), deep] {
             let n = f64::from(1u32 << tree.depth());
