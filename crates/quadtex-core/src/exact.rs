@@ -71,8 +71,8 @@ use crate::footprint::Footprint;
 use crate::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET};
 use crate::polygon::{ConvexPolygon, Cubic, separable_integral};
 use crate::tree::{NodeRef, QuadTree, unit_side};
-use crate::wrap::uniform_colour_in;
 use crate::wrap::{Wrap, WrapMode};
+use crate::wrap::{fold_cell, uniform_colour_in};
 
 type Mat3 = [[f64; 3]; 3];
 
@@ -861,20 +861,11 @@ impl Walk<'_> {
         if depth == 0 {
             return false;
         }
-        let n = 1i64 << depth;
-        // `n` is a power of two: the tile is an arithmetic shift (a floor),
-        // the cell within it a mask (both exact for negative indices).
-        let wrapped = |mode: WrapMode, m: i64| {
-            let (tile, c) = (m >> depth, m & (n - 1));
-            if mode == WrapMode::Mirror && tile & 1 == 1 {
-                (n - 1 - c) as usize
-            } else {
-                c as usize
-            }
-        };
+        let n = 1usize << depth;
         let (wrap_x, wrap_z) = (self.wrap.x, self.wrap.z);
-        let colour =
-            |x: i64, z: i64| Some(grid[wrapped(wrap_z, z) * n as usize + wrapped(wrap_x, x)]);
+        let colour = |x: i64, z: i64| {
+            Some(grid[fold_cell(wrap_z, z, depth)? * n + fold_cell(wrap_x, x, depth)?])
+        };
         let Some((colour_sum, weight_sum, cells)) = scan_grid(
             &self.region,
             &self.screen_from_texture,

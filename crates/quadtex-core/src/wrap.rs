@@ -363,13 +363,21 @@ pub(crate) fn uniform_colour_in(
 /// crosses a cell's side, lies beyond a clamped or bordered edge, or is
 /// empty or not finite.
 fn flat_cell(mode: WrapMode, lo: f64, hi: f64, depth: u8) -> Option<usize> {
-    let n = 1i64 << depth;
-    let (a, b) = ((lo * n as f64).floor(), (hi * n as f64).ceil() - 1.0);
+    let n = f64::from(1u32 << depth);
+    let (a, b) = ((lo * n).floor(), (hi * n).ceil() - 1.0);
     // Cells beyond ±2⁵² would not be integers apart; the walk takes those.
     if a != b || a.abs() >= 4_503_599_627_370_496.0 || a.is_nan() {
         return None;
     }
-    let m = a as i64;
+    fold_cell(mode, a as i64, depth)
+}
+
+/// Cell `m` of the plane's `2^depth`-cell grid (along one axis) folded into
+/// the texture's `[0, 2^depth)` by `mode`; `None` beyond a clamped or
+/// bordered edge (their outside is not a cell of the grid).
+#[inline]
+pub(crate) fn fold_cell(mode: WrapMode, m: i64, depth: u8) -> Option<usize> {
+    let n = 1i64 << depth;
     // The tile is an arithmetic shift (a floor), the cell within it a
     // mask: both exact for negative indices.
     let (tile, cell) = (m >> depth, m & (n - 1));

@@ -1189,24 +1189,17 @@ fn sky_integral(
         let (y0, y1) = (pair[0], pair[1]);
         let mut x0 = (lo[0] * SKY_CELLS).floor() * step;
         while x0 < hi[0] {
-            if rectangle {
+            // The cell's sample point and weight.
+            let sample = if rectangle {
                 let (a, b) = (x0.max(lo[0]), (x0 + step).min(hi[0]));
                 let w = (b - a) * (y1 - y0);
-                if w > 0.0 {
-                    let c = colour_at([0.5 * (a + b), 0.5 * (y0 + y1)]);
-                    for (a, v) in acc.iter_mut().zip(c) {
-                        *a += v * w;
-                    }
-                    weight += w;
-                }
-                x0 += step;
-                continue;
-            }
-            let cell = piece.clip_rect(x0, y0, x0 + step, y1);
-            if cell.area() > 0.0 {
-                let w = filter.integral(&cell, centre);
-                let c = colour_at(cell.centroid());
-                for (a, v) in acc.iter_mut().zip(c) {
+                (w > 0.0).then(|| ([0.5 * (a + b), 0.5 * (y0 + y1)], w))
+            } else {
+                let cell = piece.clip_rect(x0, y0, x0 + step, y1);
+                (cell.area() > 0.0).then(|| (cell.centroid(), filter.integral(&cell, centre)))
+            };
+            if let Some((s, w)) = sample {
+                for (a, v) in acc.iter_mut().zip(colour_at(s)) {
                     *a += v * w;
                 }
                 weight += w;
