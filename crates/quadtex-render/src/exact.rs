@@ -1193,7 +1193,7 @@ fn sky_integral(
             let sample = if rectangle {
                 let (a, b) = (x0.max(lo[0]), (x0 + step).min(hi[0]));
                 let w = (b - a) * (y1 - y0);
-                (w > 0.0).then(|| ([0.5 * (a + b), 0.5 * (y0 + y1)], w))
+                (w > 0.0).then_some(([0.5 * (a + b), 0.5 * (y0 + y1)], w))
             } else {
                 let cell = piece.clip_rect(x0, y0, x0 + step, y1);
                 (cell.area() > 0.0).then(|| (cell.centroid(), filter.integral(&cell, centre)))
