@@ -48,6 +48,7 @@ use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
 use crate::stats::PixelStats;
+use crate::visibility::MeshReach;
 
 /// Meshes up to this many triangles have every triangle tried at a
 /// silhouette pixel (larger ones: the triangles the centres see, and those
@@ -364,6 +365,9 @@ pub(crate) struct SurfaceViews {
     views: Vec<Option<View>>,
     /// The surfaces that are meshes.
     meshes: Vec<usize>,
+    /// Where the frame's mesh triangles may reach on the screen, once the
+    /// visibility pass has binned them (until then: anywhere).
+    reach: MeshReach,
 }
 
 impl SurfaceViews {
@@ -383,7 +387,17 @@ impl SurfaceViews {
             .filter(|(_, s)| matches!(s.geometry, Geometry::Mesh(_)))
             .map(|(i, _)| i)
             .collect();
-        SurfaceViews { views, meshes }
+        SurfaceViews {
+            views,
+            meshes,
+            reach: MeshReach::everywhere(),
+        }
+    }
+
+    /// Where the frame's mesh triangles may reach ([`MeshReach`], from the
+    /// visibility pass of the same camera and grid).
+    pub(crate) fn set_mesh_reach(&mut self, reach: MeshReach) {
+        self.reach = reach;
     }
 
     /// Calls `visit(id)` for every mesh triangle that may reach into screen
@@ -398,6 +412,10 @@ impl SurfaceViews {
         mut visit: impl FnMut(Seen) -> bool,
     ) -> bool {
         if self.meshes.is_empty() {
+            return false;
+        }
+        let (lo, hi) = polygon.bounds();
+        if !self.reach.may_reach(lo, hi) {
             return false;
         }
         frustum(scene, polygon, planes);

@@ -54,23 +54,26 @@ pub fn render(
     // The frame's own set-up (views, shadow grids) counts in its time.
     let start = Instant::now();
     let frame = Frame::new(&scene);
-    let views = SurfaceViews::new(&scene);
+    let mut views = SurfaceViews::new(&scene);
     // Which primitive each pixel centre sees (0: the sky), on a grid padded
     // by the widest filter's reach so pixels at the image's edge see what
     // lies beyond it.
     let pad = PAD as i64;
     let (gw, gh) = (i64::from(w) + 2 * pad, i64::from(h) + 2 * pad);
     let seen: Vec<Seen> = if !matches!(options.filter, Filter::Supersample(_)) {
-        crate::visibility::visibility_grid(
+        let (seen, reach) = crate::visibility::visibility_grid(
             &scene,
             &frame.rays,
             &views,
             (gw as usize, gh as usize),
             pad as f64,
-        )
+        );
+        views.set_mesh_reach(reach);
+        seen
     } else {
         Vec::new()
     };
+    let views = views;
     // Centres within reach of the support: a change there may cross it.
     let reach = (options.pixel_filter.radius() + 0.5).ceil() as i64;
     let neighbourhood = |x: u32, y: u32, ids: &mut Vec<Seen>| -> bool {

@@ -21,6 +21,7 @@
 //! not planar: the cells of its projected bounding cube's screen box are
 //! cast.
 
+use quadtex_core::ConvexPolygon;
 use rayon::prelude::*;
 
 use crate::caster::{Caster, Seen, seen_id};
@@ -45,14 +46,15 @@ const MIN_DEPTH: f64 = 1e-6;
 const BAND: usize = 8;
 
 /// Which primitive each centre of the padded grid sees, `gw × gh` cells,
-/// row by row.
+/// row by row, and where on the screen mesh triangles may reach (from the
+/// same binning).
 pub(crate) fn visibility_grid(
     scene: &Scene,
     rays: &Caster<'_>,
     views: &SurfaceViews,
     (gw, gh): (usize, usize),
     pad: f64,
-) -> Vec<Seen> {
+) -> (Vec<Seen>, MeshReach) {
     let cast = |gx: usize, gy: usize| {
         let ray = (scene.camera).ray(gx as f64 - pad + 0.5, gy as f64 - pad + 0.5);
         rays.nearest_index(&ray)
@@ -60,20 +62,145 @@ pub(crate) fn visibility_grid(
     };
     let mut grid = vec![0; gw * gh];
     if gw == 0 {
-        return grid;
+        return (grid, MeshReach::everywhere());
     }
     match Raster::new(scene, views, (gw, gh), pad) {
-        Some(raster) => grid
-            .par_chunks_mut(gw * BAND)
-            .enumerate()
-            .for_each(|(band, cells)| raster.band(band, cells, gw, &cast)),
-        None => grid.par_chunks_mut(gw).enumerate().for_each(|(gy, row)| {
-            for (gx, id) in row.iter_mut().enumerate() {
-                *id = cast(gx, gy);
-            }
-        }),
+        Some(raster) => {
+            grid.par_chunks_mut(gw * BAND)
+                .enumerate()
+                .for_each(|(band, cells)| raster.band(band, cells, gw, &cast));
+            (grid, raster.reach)
+        }
+        None => {
+            grid.par_chunks_mut(gw).enumerate().for_each(|(gy, row)| {
+                for (gx, id) in row.iter_mut().enumerate() {
+                    *id = cast(gx, gy);
+                }
+            });
+            (grid, MeshReach::everywhere())
+        }
     }
-    grid
+}
+
+/// Side of [`MeshReach`]'s tiles, in pixels.
+const REACH_TILE: f64 = 8.0;
+
+/// Slack (pixels) around a triangle's projected corners when its tiles are
+/// marked: the projection here and a view's lines round differently, by
+/// many orders of magnitude less.
+const REACH_SLACK: f64 = 1.0;
+
+/// Where on the screen a frame's mesh triangles may reach: tiles of
+/// [`REACH_TILE`] pixels over the padded grid, each marked when the screen
+/// box of some triangle's projected corners (plus [`REACH_SLACK`]) touches
+/// it; everywhere when a triangle reaches behind the camera's plane. A
+/// triangle with its corners in front projects inside their box, so a
+/// screen box that touches no marked tile meets no triangle: the search of
+/// the meshes' hierarchies for one ([`SurfaceViews::meshes_in`]) is
+/// skipped, exactly. Below the horizon of a terrain every tile is marked;
+/// the sky above it is not.
+#[derive(Debug, Clone)]
+pub(crate) struct MeshReach {
+    /// Screen coordinate of the tiles' top-left corner (`−pad`, both axes).
+    origin: f64,
+    /// Tiles across and down.
+    tiles: [usize; 2],
+    marked: Vec<bool>,
+    everywhere: bool,
+}
+
+impl MeshReach {
+    fn new((gw, gh): (usize, usize), pad: f64) -> MeshReach {
+        let tiles = [gw, gh].map(|n| (n as f64 / REACH_TILE).ceil() as usize);
+        MeshReach {
+            origin: -pad,
+            tiles,
+            marked: vec![false; tiles[0] * tiles[1]],
+            everywhere: false,
+        }
+    }
+
+    /// Reach everywhere: nothing is ruled out.
+    pub(crate) fn everywhere() -> MeshReach {
+        MeshReach {
+            origin: 0.0,
+            tiles: [0, 0],
+            marked: Vec::new(),
+            everywhere: true,
+        }
+    }
+
+    /// The tiles `[first, last]` along `axis` that screen interval
+    /// `[lo, hi]` touches, clamped to the grid, or `Err(())` when it
+    /// reaches past the grid's edge (or is not a number); `Ok(None)` when
+    /// it lies wholly beyond.
+    fn span(&self, axis: usize, lo: f64, hi: f64) -> Result<Option<(usize, usize)>, ()> {
+        let n = self.tiles[axis] as f64;
+        let (a, b) = (
+            ((lo - self.origin) / REACH_TILE).floor(),
+            ((hi - self.origin) / REACH_TILE).floor(),
+        );
+        if a.is_nan() || b.is_nan() {
+            return Err(());
+        }
+        if b < 0.0 || a >= n {
+            return Ok(None);
+        }
+        if a < 0.0 || b >= n {
+            return Err(());
+        }
+        Ok(Some((a as usize, b as usize)))
+    }
+
+    /// Marks the tiles the screen box `[lo, hi]` touches, with
+    /// [`REACH_SLACK`]; a box past the grid's edge marks what it touches
+    /// of the grid, a box not a number marks everything.
+    fn mark(&mut self, lo: [f64; 2], hi: [f64; 2]) {
+        let clamp = |axis: usize, v: f64| {
+            let end = self.origin + self.tiles[axis] as f64 * REACH_TILE;
+            v.clamp(self.origin - REACH_TILE, end + REACH_TILE)
+        };
+        let mut ranges = [(0, 0); 2];
+        for axis in 0..2 {
+            let (a, b) = (lo[axis] - REACH_SLACK, hi[axis] + REACH_SLACK);
+            if a.is_nan() || b.is_nan() {
+                self.everywhere = true;
+                return;
+            }
+            let (a, b) = (clamp(axis, a), clamp(axis, b));
+            let last = self.tiles[axis] as f64 - 1.0;
+            let (a, b) = (
+                ((a - self.origin) / REACH_TILE).floor().max(0.0),
+                ((b - self.origin) / REACH_TILE).floor().min(last),
+            );
+            if a > b {
+                return;
+            }
+            ranges[axis] = (a as usize, b as usize);
+        }
+        for ty in ranges[1].0..=ranges[1].1 {
+            let row = ty * self.tiles[0];
+            self.marked[row + ranges[0].0..=row + ranges[0].1].fill(true);
+        }
+    }
+
+    /// Whether a mesh triangle may reach into the screen box `[lo, hi]`:
+    /// false only when the box lies within the grid and touches no marked
+    /// tile.
+    pub(crate) fn may_reach(&self, lo: [f64; 2], hi: [f64; 2]) -> bool {
+        if self.everywhere {
+            return true;
+        }
+        let (Ok(x), Ok(y)) = (self.span(0, lo[0], hi[0]), self.span(1, lo[1], hi[1])) else {
+            return true;
+        };
+        let (Some((x0, x1)), Some((y0, y1))) = (x, y) else {
+            return false;
+        };
+        (y0..=y1).any(|ty| {
+            self.marked[ty * self.tiles[0] + x0..=ty * self.tiles[0] + x1].contains(&true)
+        })
+    }
 }
 
 /// Most lines of a view: `w` and a quad's four edges.
@@ -114,6 +241,8 @@ struct Raster<'s> {
     extent: [f64; 2],
     /// The longest unnormalised ray direction over the grid.
     d_max: f64,
+    /// Where the binned triangles may reach.
+    reach: MeshReach,
 }
 
 impl<'s> Raster<'s> {
@@ -145,6 +274,7 @@ impl<'s> Raster<'s> {
             pad,
             extent,
             d_max,
+            reach: MeshReach::new((gw, gh), pad),
         };
         for (i, s) in scene.surfaces.iter().enumerate() {
             match &s.geometry {
@@ -246,11 +376,44 @@ impl<'s> Raster<'s> {
         (first <= last).then_some((first, last))
     }
 
+    /// The screen box `[x0, y0, x1, y1]` of what triangle `t` of mesh
+    /// `surface`, reaching behind the camera's plane, shows of the grid:
+    /// the grid's rectangle clipped by the triangle's view lines (in front
+    /// of the camera, inside its edges); infinite when it has no view
+    /// (edge-on), inverted (marks nothing) when it shows nothing.
+    fn behind_box(&self, surface: usize, t: usize) -> [f64; 4] {
+        let whole = [
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::INFINITY,
+        ];
+        let Some(view) = (self.scene.surfaces[surface].geometry.planar(t as u32))
+            .and_then(|planar| View::new(self.scene, surface, &planar))
+        else {
+            return whole;
+        };
+        let [x1, y1] = self.extent;
+        let shown = ConvexPolygon::rect(-self.pad, -self.pad, x1, y1).clip_lines(view.lines());
+        if shown.is_empty() {
+            return [
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ];
+        }
+        let (lo, hi) = shown.bounds();
+        [lo[0], lo[1], hi[0], hi[1]]
+    }
+
     /// Bins mesh `surface`'s triangles by the grid rows their screen boxes
     /// reach (every row for one reaching behind the camera's plane).
     fn bin(&mut self, surface: usize, mesh: &Mesh, (gw, gh): (usize, usize)) {
         let cam = &self.scene.camera;
-        let rows: Vec<Option<(u32, u32)>> = (0..mesh.len())
+        // (first row, last row, screen box of the projected corners; an
+        // infinite box for a triangle reaching behind the camera's plane.)
+        let rows: Vec<Option<(u32, u32, [f64; 4])>> = (0..mesh.len())
             .into_par_iter()
             .map(|t| {
                 let corners = mesh.corners(t)?;
@@ -267,7 +430,7 @@ impl<'s> Raster<'s> {
                 }
                 for p in corners {
                     let Some(s) = cam.project(p) else {
-                        return Some((0, gh as u32 - 1));
+                        return Some((0, gh as u32 - 1, self.behind_box(surface, t)));
                     };
                     for k in 0..2 {
                         lo[k] = lo[k].min(s[k]);
@@ -276,13 +439,20 @@ impl<'s> Raster<'s> {
                 }
                 self.cells(lo[0], hi[0], gw)?;
                 let (first, last) = self.cells(lo[1], hi[1], gh)?;
-                Some((first as u32, last as u32))
+                Some((first as u32, last as u32, [lo[0], lo[1], hi[0], hi[1]]))
             })
             .collect();
+        for &(_, _, [x0, y0, x1, y1]) in rows.iter().flatten() {
+            if x0 == f64::NEG_INFINITY {
+                self.reach.everywhere = true;
+                break;
+            }
+            self.reach.mark([x0, y0], [x1, y1]);
+        }
         // Sized first: pushing a million entries into growing vectors
         // copies them over and over.
         let mut counts = vec![0usize; self.bands.len()];
-        for &(first, last) in rows.iter().flatten() {
+        for &(first, last, _) in rows.iter().flatten() {
             for count in &mut counts[first as usize / BAND..=last as usize / BAND] {
                 *count += 1;
             }
@@ -291,7 +461,7 @@ impl<'s> Raster<'s> {
             band.reserve(count);
         }
         for (t, r) in rows.into_iter().enumerate() {
-            let Some((first, last)) = r else { continue };
+            let Some((first, last, _)) = r else { continue };
             for band in first as usize / BAND..=last as usize / BAND {
                 self.bands[band].push((surface as u32, t as u32, first, last));
             }
@@ -472,7 +642,7 @@ mod tests {
         }
         let casts = casts.get();
         assert_eq!(
-            visibility_grid(scene, &rays, &views, (gw, gh), pad as f64)[..gw],
+            visibility_grid(scene, &rays, &views, (gw, gh), pad as f64).0[..gw],
             (0..gw).map(|gx| cast(gx, 0)).collect::<Vec<_>>()[..]
         );
         (casts, gw * gh)
@@ -642,6 +812,104 @@ mod tests {
 
     /// Spheres in front of quads and a plane, one reaching behind the
     /// camera: cells of their boxes are cast, the rest rasterised.
+    /// Where [`MeshReach`] rules a pixel's support out, no triangle's
+    /// screen region reaches into it (every triangle clipped, box and
+    /// Mitchell supports, three cameras over a rolling grid with sky
+    /// above, one of them over the grid, and a long triangle reaching
+    /// behind every camera's plane); it rules out most of the sky.
+    #[test]
+    fn mesh_reach_rules_out_only_what_no_triangle_reaches() {
+        use crate::scene::{Mesh, Triangle};
+        use quadtex_core::PixelFilter;
+        let n = 16;
+        let point = |i: usize, j: usize| {
+            let (x, z) = (i as f64, j as f64);
+            Vec3::new(x - 8.0, 1.2 * (0.7 * x).sin() * (0.5 * z).cos(), -z)
+        };
+        let uv = |i: usize, j: usize| [i as f64 / n as f64, j as f64 / n as f64];
+        let mut triangles = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let c = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)];
+                for [a, b, d] in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
+                    triangles.extend(Triangle::new(
+                        [point(a.0, a.1), point(b.0, b.1), point(d.0, d.1)],
+                        [uv(a.0, a.1), uv(b.0, b.1), uv(d.0, d.1)],
+                    ));
+                }
+            }
+        }
+        let behind = Triangle::new(
+            [
+                Vec3::new(-2.0, 2.5, 20.0),
+                Vec3::new(2.0, 2.5, 20.0),
+                Vec3::new(0.0, 2.0, -8.0),
+            ],
+            [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+        )
+        .unwrap();
+        let (mut ruled_out, mut sky) = (0, 0);
+        for (k, position) in [
+            Vec3::new(0.0, 4.0, 6.0),
+            Vec3::new(-11.0, 2.5, 2.0),
+            Vec3::new(3.0, 1.8, -3.0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let camera = Camera::new(
+                position,
+                Vec3::new(0.0, 0.5, -10.0),
+                Vec3::new(0.0, 1.0, 0.0),
+                50.0 + 10.0 * k as f64,
+                96,
+                60,
+            )
+            .unwrap();
+            let scene_of = |triangles: Vec<Triangle>| Scene {
+                camera: camera.clone(),
+                surfaces: vec![surface(Geometry::Mesh(Arc::new(
+                    Mesh::new(triangles).unwrap(),
+                )))],
+                sky: Sky::Solid(Rgba::opaque(0.5, 0.5, 0.5)),
+                lighting: Lighting::Unlit,
+            };
+            let scene = scene_of(triangles.iter().chain([&behind]).cloned().collect());
+            let (rays, views) = (Caster::new(&scene), SurfaceViews::new(&scene));
+            let pad = 3;
+            let (gw, gh) = (96 + 2 * pad, 60 + 2 * pad);
+            let (seen, reach) = visibility_grid(&scene, &rays, &views, (gw, gh), pad as f64);
+            let geometry = &scene.surfaces[0].geometry;
+            let regions: Vec<View> = (0..=triangles.len() as u32)
+                .filter_map(|t| View::new(&scene, 0, &geometry.planar(t)?))
+                .collect();
+            for y in 0..60 {
+                for x in 0..96 {
+                    sky += usize::from(seen[(y + pad) * gw + x + pad] == 0);
+                    let centre = [x as f64 + 0.5, y as f64 + 0.5];
+                    for filter in [PixelFilter::Box, PixelFilter::Mitchell] {
+                        let support = filter.support(centre);
+                        let (lo, hi) = support.bounds();
+                        if reach.may_reach(lo, hi) {
+                            continue;
+                        }
+                        ruled_out += usize::from(filter == PixelFilter::Box);
+                        for view in &regions {
+                            assert!(
+                                view.region(&support).is_empty(),
+                                "camera {k}, pixel ({x}, {y}), {filter:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            ruled_out * 2 > sky && sky > 0,
+            "{ruled_out} pixels ruled out of {sky} sky pixels"
+        );
+    }
+
     #[test]
     fn spheres_are_cast_in_their_boxes() {
         let demo = crate::demo_scene().unwrap();
