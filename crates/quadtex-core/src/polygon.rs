@@ -334,8 +334,9 @@ impl ConvexPolygon {
     /// inside (left of the edge, the polygon being counter-clockwise).
     pub fn edge_lines(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
         let v = self.vertices();
-        (0..v.len()).map(move |i| {
-            let (a, b) = (v[i], v[(i + 1) % v.len()]);
+        // The next vertex without a division (`% len`) per edge.
+        let next = v.iter().skip(1).chain(v.first());
+        v.iter().zip(next).map(|(&a, &b)| {
             let (nx, ny) = (-(b[1] - a[1]), b[0] - a[0]);
             [nx, ny, -(nx * a[0] + ny * a[1])]
         })

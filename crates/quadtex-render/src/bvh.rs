@@ -209,10 +209,17 @@ impl Bvh {
 
     /// Calls `visit(i)` for every primitive in a leaf whose box is not
     /// wholly outside one of `planes` (`n·p + d ≥ 0` inside, `[n.x, n.y,
-    /// n.z, d]`), until `visit` returns true; returns whether it did. The
-    /// box test is conservative: a box that reaches into every half-space
-    /// may still miss their intersection.
-    pub fn overlapping(&self, planes: &[[f64; 4]], visit: impl FnMut(u32) -> bool) -> bool {
+    /// n.z, d]`) and passes `may_meet(lo, hi)` (the box's corners; a test
+    /// the caller knows is conservative), until `visit` returns true;
+    /// returns whether it did. The plane test is conservative too: a box
+    /// that reaches into every half-space may still miss their
+    /// intersection.
+    pub fn overlapping(
+        &self,
+        planes: &[[f64; 4]],
+        may_meet: impl Fn(Vec3, Vec3) -> bool,
+        visit: impl FnMut(u32) -> bool,
+    ) -> bool {
         let outside = |b: &Aabb| {
             planes.iter().any(|&[x, y, z, d]| {
                 // The corner farthest along the normal.
@@ -220,7 +227,7 @@ impl Bvh {
                 far(x, b.lo.x, b.hi.x) + far(y, b.lo.y, b.hi.y) + far(z, b.lo.z, b.hi.z) + d < 0.0
             })
         };
-        self.first_in(|b| !outside(b), visit)
+        self.first_in(|b| !outside(b) && may_meet(b.lo, b.hi), visit)
     }
 
     /// Whether `test` holds for a primitive in a leaf reached through boxes
@@ -840,10 +847,14 @@ mod tests {
                     .filter(|&i| !outside(&tris[i as usize]))
                     .collect();
                 let mut visited = Vec::new();
-                assert!(!bvh.overlapping(&planes, |i| {
-                    visited.push(i);
-                    false
-                }));
+                assert!(!bvh.overlapping(
+                    &planes,
+                    |_, _| true,
+                    |i| {
+                        visited.push(i);
+                        false
+                    }
+                ));
                 visited.sort_unstable();
                 assert!(visited.windows(2).all(|w| w[0] < w[1]), "visited twice");
                 assert!(
@@ -852,10 +863,14 @@ mod tests {
                 );
                 if let Some(&first) = kept.first() {
                     let mut calls = 0;
-                    assert!(bvh.overlapping(&planes, |i| {
-                        calls += 1;
-                        i == first
-                    }));
+                    assert!(bvh.overlapping(
+                        &planes,
+                        |_, _| true,
+                        |i| {
+                            calls += 1;
+                            i == first
+                        }
+                    ));
                     assert!(calls <= visited.len());
                 }
             }

@@ -404,7 +404,7 @@ impl SurfaceViews {
     /// polygon `polygon` (not wholly outside the planes through the camera
     /// and its edges, nor behind the camera), until `visit` returns true;
     /// returns whether it did.
-    fn meshes_in(
+    pub(crate) fn meshes_in(
         &self,
         scene: &Scene,
         polygon: &ConvexPolygon,
@@ -419,10 +419,42 @@ impl SurfaceViews {
             return false;
         }
         frustum(scene, polygon, planes);
+        // A box wholly in front of the camera projects inside the screen
+        // box of its corners: one that misses the polygon's (with a slack
+        // far above the projection's rounding) holds nothing that reaches
+        // into it. Stronger than the planes for the thin, long frusta of
+        // pixels along a terrain's ridge, whose planes far boxes straddle.
+        let cam = &scene.camera;
+        let slack = 1e-3 + 1e-9 * (lo[0].abs() + lo[1].abs() + hi[0].abs() + hi[1].abs());
+        let (lo, hi) = (
+            [lo[0] - slack, lo[1] - slack],
+            [hi[0] + slack, hi[1] + slack],
+        );
+        let may_meet = |a: Vec3, b: Vec3| {
+            let (mut s_lo, mut s_hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for k in 0..8 {
+                let corner = Vec3::new(
+                    if k & 1 == 0 { a.x } else { b.x },
+                    if k & 2 == 0 { a.y } else { b.y },
+                    if k & 4 == 0 { a.z } else { b.z },
+                );
+                let Some(s) = cam.project(corner) else {
+                    return true;
+                };
+                for axis in 0..2 {
+                    s_lo[axis] = s_lo[axis].min(s[axis]);
+                    s_hi[axis] = s_hi[axis].max(s[axis]);
+                }
+            }
+            // Not a number (an overflow) compares false: kept.
+            !(s_hi[0] < lo[0] || s_lo[0] > hi[0] || s_hi[1] < lo[1] || s_lo[1] > hi[1])
+        };
         self.meshes
             .iter()
             .any(|&surface| match &scene.surfaces[surface].geometry {
-                Geometry::Mesh(mesh) => mesh.overlapping(planes, |t| visit(seen_id(surface, t))),
+                Geometry::Mesh(mesh) => {
+                    mesh.overlapping(planes, may_meet, |t| visit(seen_id(surface, t)))
+                }
                 _ => false,
             })
     }

@@ -321,13 +321,15 @@ impl Mesh {
 
     /// Calls `visit(i)` for every triangle not wholly outside one of
     /// `planes` (as [`Bvh::overlapping`], each triangle tested by its
-    /// vertices), until `visit` returns true; returns whether it did.
+    /// vertices) whose hierarchy's boxes pass `may_meet(lo, hi)`, until
+    /// `visit` returns true; returns whether it did.
     pub(crate) fn overlapping(
         &self,
         planes: &[[f64; 4]],
+        may_meet: impl Fn(Vec3, Vec3) -> bool,
         mut visit: impl FnMut(u32) -> bool,
     ) -> bool {
-        self.bvh.overlapping(planes, |i| {
+        self.bvh.overlapping(planes, may_meet, |i| {
             let t = &self.triangles[i as usize];
             let corners = [t.p0, t.p0 + t.e1, t.p0 + t.e2];
             let outside = planes.iter().any(|&[x, y, z, d]| {

@@ -812,13 +812,14 @@ mod tests {
 
     /// Spheres in front of quads and a plane, one reaching behind the
     /// camera: cells of their boxes are cast, the rest rasterised.
-    /// Where [`MeshReach`] rules a pixel's support out, no triangle's
-    /// screen region reaches into it (every triangle clipped, box and
+    /// The search of the meshes finds every triangle whose screen region
+    /// reaches into a polygon, and where [`MeshReach`] rules a pixel's
+    /// support out, no triangle's screen region reaches into it (every triangle clipped, box and
     /// Mitchell supports, three cameras over a rolling grid with sky
     /// above, one of them over the grid, and a long triangle reaching
     /// behind every camera's plane); it rules out most of the sky.
     #[test]
-    fn mesh_reach_rules_out_only_what_no_triangle_reaches() {
+    fn mesh_searches_miss_no_triangle_that_reaches() {
         use crate::scene::{Mesh, Triangle};
         use quadtex_core::PixelFilter;
         let n = 16;
@@ -848,7 +849,7 @@ mod tests {
             [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
         )
         .unwrap();
-        let (mut ruled_out, mut sky) = (0, 0);
+        let (mut ruled_out, mut sky, mut searched) = (0, 0, 0);
         for (k, position) in [
             Vec3::new(0.0, 4.0, 6.0),
             Vec3::new(-11.0, 2.5, 2.0),
@@ -883,6 +884,36 @@ mod tests {
             let regions: Vec<View> = (0..=triangles.len() as u32)
                 .filter_map(|t| View::new(&scene, 0, &geometry.planar(t)?))
                 .collect();
+            // The search of the hierarchy (frustum planes, boxes' screen
+            // boxes) finds every triangle whose region reaches into a
+            // support or a quarter of one.
+            let mut views = views;
+            views.set_mesh_reach(reach.clone());
+            let mut planes = Vec::new();
+            for y in (0..60).step_by(2) {
+                for x in (0..96).step_by(2) {
+                    let (x0, y0) = (x as f64, y as f64);
+                    for polygon in [
+                        ConvexPolygon::rect(x0, y0, x0 + 1.0, y0 + 1.0),
+                        ConvexPolygon::rect(x0 + 0.5, y0, x0 + 1.0, y0 + 0.5),
+                    ] {
+                        let mut found = Vec::new();
+                        views.meshes_in(&scene, &polygon, &mut planes, |id| {
+                            found.push(id);
+                            false
+                        });
+                        for (t, view) in regions.iter().enumerate() {
+                            if view.region(&polygon).area() > 0.0 {
+                                searched += 1;
+                                assert!(
+                                    found.contains(&seen_id(0, t as u32)),
+                                    "camera {k}, triangle {t} in {polygon:?}"
+                                );
+                            }
+                        }
+                    }
+                }
+            }
             for y in 0..60 {
                 for x in 0..96 {
                     sky += usize::from(seen[(y + pad) * gw + x + pad] == 0);
@@ -904,6 +935,7 @@ mod tests {
                 }
             }
         }
+        assert!(searched > 1000, "{searched} triangles found");
         assert!(
             ruled_out * 2 > sky && sky > 0,
             "{ruled_out} pixels ruled out of {sky} sky pixels"
