@@ -276,9 +276,9 @@ pub struct BuildReport {
 
 /// A finest cell as the packer reads it: its stored colour, and how the
 /// bottom-up pass sums squares of them.
-pub(crate) trait Cell: Copy {
+pub(crate) trait Cell: Copy + Send + Sync {
     /// Per-square statistics of the bottom-up pass.
-    type Stats: Copy;
+    type Stats: Copy + Send;
     /// How the tree stores the colours made of these cells.
     const ENCODING: ColourEncoding;
     /// The stored colour of a terminal cell.
@@ -469,6 +469,28 @@ pub(crate) struct Builder<'a, C: Cell = Unorm16Rgba> {
     /// Where the texture lies in the tree's square; `side` × `rows` cells.
     aspect: Aspect,
     rows: usize,
+    /// A texture of at least this many cells has its root's four quarters
+    /// packed on threads of their own ([`Builder::quarters_apart`]).
+    parallel_cells: usize,
+}
+
+/// What a quarter's builder pushed ([`Builder::quarters_apart`]).
+struct Quarter {
+    levels: Vec<Vec<(bool, Unorm16Rgba)>>,
+    blocks: Option<BlockWriter>,
+    nodes: u64,
+    max_error: f64,
+}
+
+impl Quarter {
+    fn of<C: Cell>(b: Builder<'_, C>) -> Quarter {
+        Quarter {
+            levels: b.levels,
+            blocks: b.blocks,
+            nodes: b.nodes,
+            max_error: b.max_error,
+        }
+    }
 }
 
 impl<C: Cell> Builder<'_, C> {
@@ -503,12 +525,22 @@ impl<C: Cell> Builder<'_, C> {
         let block_marks = self.blocks.as_ref().map(|b| (b.flags.len(), b.data.len()));
         let mut parts = [None; 4];
         let mut children = [None; 4];
-        for k in 0..4 {
-            if let Some((s, c, kind)) =
-                self.square(level + 1, 2 * ix + (k & 1), 2 * iz + (k >> 1))?
-            {
+        let mut take = |k: usize, child: Option<(C::Stats, Unorm16Rgba, Kind)>| {
+            if let Some((s, c, kind)) = child {
                 parts[k] = Some(s);
                 children[k] = Some((c, kind));
+            }
+        };
+        if level == 0 && self.may_build_quarters_apart() {
+            for (k, child) in self.quarters_apart(ix, iz)?.into_iter().enumerate() {
+                take(k, child);
+            }
+        } else {
+            for k in 0..4 {
+                take(
+                    k,
+                    self.square(level + 1, 2 * ix + (k & 1), 2 * iz + (k >> 1))?,
+                );
             }
         }
         let Some(stats) = C::merge(parts) else {
@@ -576,6 +608,122 @@ impl<C: Cell> Builder<'_, C> {
             }
         }
         Ok(Some((stats, mean, Kind::Inner)))
+    }
+
+    /// The four children of the root square `(0, ix, iz)` (child `k` at
+    /// `(2·ix + k mod 2, 2·iz + k div 2)`), built on four threads, each by
+    /// a builder of its own, then spliced in order: a child's subtree
+    /// pushes its nodes, block flags and block texels after those of the
+    /// children before it, so the levels are the sequential build's, node
+    /// for node. Only for a texture of at least `parallel_cells` cells and
+    /// when the limits cannot be reached whatever the texture
+    /// ([`Builder::may_build_quarters_apart`]): a quarter's own count
+    /// cannot tell it the whole tree's.
+    #[allow(clippy::type_complexity)]
+    fn quarters_apart(
+        &mut self,
+        ix: usize,
+        iz: usize,
+    ) -> Result<[Option<(C::Stats, Unorm16Rgba, Kind)>; 4], Error> {
+        let mut out = [None; 4];
+        // The parts a quarter's builder needs, without the tile loader
+        // (which no thread may share).
+        let (cells, srgb8, depth, rows, side) =
+            (self.cells, self.srgb8, self.depth, self.rows, self.side);
+        let (tolerance, max_nodes, fixed_bytes, max_bytes, aspect) = (
+            self.tolerance,
+            self.max_nodes,
+            self.fixed_bytes,
+            self.max_bytes,
+            self.aspect,
+        );
+        let (levels, allowed) = (self.levels.len(), self.texel_blocks_allowed);
+        let blocks = self.blocks.as_ref().map(|w| (w.level, w.format));
+        let built: Vec<Result<_, Error>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..4)
+                .map(|k| {
+                    scope.spawn(move || {
+                        let mut b = Builder {
+                            cells,
+                            srgb8,
+                            blocks: blocks.map(|(level, format)| BlockWriter {
+                                level,
+                                format,
+                                flags: Vec::new(),
+                                data: Vec::new(),
+                            }),
+                            texel_blocks_allowed: allowed,
+                            tiles: None,
+                            side,
+                            depth,
+                            tolerance,
+                            levels: vec![Vec::new(); levels],
+                            nodes: 0,
+                            max_nodes,
+                            max_error: 0.0,
+                            fixed_bytes,
+                            max_bytes,
+                            aspect,
+                            rows,
+                            parallel_cells: usize::MAX,
+                        };
+                        let child = b.square(1, 2 * ix + (k & 1), 2 * iz + (k >> 1))?;
+                        Ok((child, Quarter::of(b)))
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+                .collect()
+        });
+        for (k, result) in built.into_iter().enumerate() {
+            let (child, quarter) = result?;
+            out[k] = child;
+            self.splice(quarter)?;
+        }
+        Ok(out)
+    }
+
+    /// Whether the root's quarters may be built apart: a texture of
+    /// `parallel_cells` or more, no tiles, and no limit reachable.
+    fn may_build_quarters_apart(&self) -> bool {
+        let cells = self.side.saturating_mul(self.rows);
+        if self.tiles.is_some() || cells < self.parallel_cells {
+            return false;
+        }
+        // Every square of the tree's square split down to cells.
+        let all_nodes = ((1u128 << (2 * (u32::from(self.depth) + 1))) - 1) / 3;
+        let nodes = u128::from(self.nodes) + all_nodes;
+        nodes <= u128::from(self.max_nodes)
+            && self.max_bytes.is_none_or(|budget| {
+                u128::from(self.fixed_bytes) + nodes * u128::from(BUILD_BYTES_PER_NODE)
+                    <= u128::from(budget)
+            })
+    }
+
+    /// Appends what a quarter's builder pushed (levels, block flags and
+    /// texels) after what this one holds, and its counts.
+    fn splice(&mut self, b: Quarter) -> Result<(), Error> {
+        self.nodes += b.nodes;
+        self.max_error = self.max_error.max(b.max_error);
+        if let (Some(w), Some(sub)) = (self.blocks.as_mut(), b.blocks) {
+            w.flags.try_reserve(sub.flags.len()).map_err(|_| {
+                crate::memory::refused::<bool>("texel block flags", sub.flags.len())
+            })?;
+            w.flags.extend(sub.flags);
+            w.data
+                .try_reserve(sub.data.len())
+                .map_err(|_| crate::memory::refused::<u8>("texel blocks", sub.data.len()))?;
+            w.data.extend(sub.data);
+        }
+        for (level, sub) in self.levels.iter_mut().zip(b.levels) {
+            level.try_reserve(sub.len()).map_err(|_| {
+                crate::memory::refused::<(bool, Unorm16Rgba)>("tree level", sub.len())
+            })?;
+            level.extend(sub);
+        }
+        Ok(())
     }
 
     /// Appends the texels of the square `(level, ix, iz)` at the block
@@ -733,6 +881,7 @@ impl Builder<'_, Unorm16Rgba> {
             max_bytes: self.max_bytes,
             aspect: Aspect::SQUARE,
             rows: side as usize,
+            parallel_cells: usize::MAX,
         };
         let Some((stats, root, kind)) = b.square(0, 0, 0)? else {
             return Err(Error::MalformedTree("a tile lies wholly in the pad".into()));
@@ -838,6 +987,7 @@ impl QuadTree {
             max_bytes: options.max_bytes,
             aspect: Aspect::SQUARE,
             rows: 0,
+            parallel_cells: usize::MAX,
         };
         b.build(false)
     }
@@ -846,6 +996,22 @@ impl QuadTree {
     pub fn from_texels(
         grid: &TexelGrid,
         options: &BuildOptions,
+    ) -> Result<(QuadTree, BuildReport), Error> {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let split = if cores > 1 {
+            PARALLEL_BUILD_CELLS
+        } else {
+            usize::MAX
+        };
+        Self::from_texels_split(grid, options, split)
+    }
+
+    /// [`QuadTree::from_texels`], the root's quarters built on threads of
+    /// their own from `parallel_cells` cells (`usize::MAX`: never).
+    pub(crate) fn from_texels_split(
+        grid: &TexelGrid,
+        options: &BuildOptions,
+        parallel_cells: usize,
     ) -> Result<(QuadTree, BuildReport), Error> {
         if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
             return Err(Error::BadTolerance(options.tolerance));
@@ -878,7 +1044,7 @@ impl QuadTree {
                 half,
                 options,
                 (depth, aspect, columns, rows),
-                fixed_bytes,
+                (fixed_bytes, parallel_cells),
             );
         }
         let owned;
@@ -917,10 +1083,16 @@ impl QuadTree {
             max_bytes: options.max_bytes,
             aspect,
             rows,
+            parallel_cells,
         };
         b.build(resampled)
     }
 }
+
+/// Textures of at least this many cells (1024 × 1024) have the root's
+/// quarters packed on four threads ([`Builder::quarters_apart`]); below, a
+/// thread costs more than it saves.
+const PARALLEL_BUILD_CELLS: usize = 1 << 20;
 
 /// Packs the half-float texels of an HDR grid (no texel blocks).
 fn build_hdr(
@@ -928,7 +1100,7 @@ fn build_hdr(
     half: &[HalfRgba],
     options: &BuildOptions,
     (depth, aspect, columns, rows): (u8, Aspect, usize, usize),
-    fixed_bytes: u64,
+    (fixed_bytes, parallel_cells): (u64, usize),
 ) -> Result<(QuadTree, BuildReport), Error> {
     let resampled = grid.width as usize != columns || grid.height as usize != rows;
     let owned;
@@ -965,6 +1137,7 @@ fn build_hdr(
         max_bytes: options.max_bytes,
         aspect,
         rows,
+        parallel_cells,
     };
     b.build(resampled)
 }
@@ -1100,6 +1273,70 @@ mod tests {
         } else {
             Rgba::opaque(h as f32 / 7.0, 0.1, 0.9)
         }
+    }
+
+    /// The root's quarters built on threads give the sequential build's
+    /// tree and report: rasters square and not (pad quarters), with and
+    /// without texel blocks, a tolerance, HDR; a node limit the whole tree
+    /// could reach keeps the build sequential and its error.
+    #[test]
+    fn quarters_built_apart_make_the_sequential_tree() {
+        let hdr = |w: u32, h: u32| {
+            let mut g = TexelGrid::from_fn(w, h, mosaic_texel).unwrap();
+            let half = (0..w * h)
+                .map(|i| {
+                    let v = f64::from(i % 97) * 0.37;
+                    let c = ColourEncoding::Half.encode(v);
+                    HalfRgba([c, c, c, ColourEncoding::Half.encode(1.0)])
+                })
+                .collect();
+            g.half = Some(half);
+            g
+        };
+        let cases = [
+            (TexelGrid::from_fn(64, 64, mosaic_texel).unwrap(), true, 0.0),
+            (
+                TexelGrid::from_fn(64, 64, mosaic_texel).unwrap(),
+                false,
+                0.0,
+            ),
+            (
+                TexelGrid::from_fn(128, 32, mosaic_texel).unwrap(),
+                true,
+                0.0,
+            ),
+            (
+                TexelGrid::from_fn(24, 96, mosaic_texel).unwrap(),
+                true,
+                0.05,
+            ),
+            (hdr(32, 32), false, 0.0),
+        ];
+        for (grid, texel_blocks, tolerance) in &cases {
+            let options = BuildOptions {
+                tolerance: *tolerance,
+                texel_blocks: *texel_blocks,
+                ..BuildOptions::default()
+            };
+            let sequential = QuadTree::from_texels_split(grid, &options, usize::MAX).unwrap();
+            let apart = QuadTree::from_texels_split(grid, &options, 1).unwrap();
+            let what = format!("{}x{}, blocks {texel_blocks}", grid.width, grid.height);
+            assert_eq!(apart.0, sequential.0, "{what}");
+            assert_eq!(apart.1.max_error, sequential.1.max_error, "{what}");
+            assert!(apart.0.node_count() > 100, "{what}: too simple to tell");
+        }
+        // A limit the whole tree could reach: built in order, same error.
+        let grid = TexelGrid::from_fn(64, 64, mosaic_texel).unwrap();
+        let options = BuildOptions {
+            max_nodes: 200,
+            ..BuildOptions::default()
+        };
+        let sequential = QuadTree::from_texels_split(&grid, &options, usize::MAX);
+        let apart = QuadTree::from_texels_split(&grid, &options, 1);
+        assert_eq!(
+            format!("{:?}", apart.map(|_| ())),
+            format!("{:?}", sequential.map(|_| ()))
+        );
     }
 
     #[test]

@@ -90,9 +90,29 @@ impl Art {
 
     /// Rasterises onto a `width × height` grid with exact box coverage for
     /// rectangles and 8×8 supersampled coverage on disc edges.
+    ///
+    /// Bands of rows are painted on threads of their own (each texel gets
+    /// the shapes in order whichever thread paints it).
     pub fn rasterise(&self, width: u32, height: u32) -> Result<TexelGrid, Error> {
         let (w, h) = (width as usize, height as usize);
         let mut px = vec![self.background; w * h];
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(4));
+        let band = h.div_ceil(threads).max(1);
+        if w > 0 {
+            std::thread::scope(|scope| {
+                for (k, rows) in px.chunks_mut(band * w).enumerate() {
+                    scope.spawn(move || self.paint(rows, (w, h), k * band));
+                }
+            });
+        }
+        TexelGrid::from_fn(width, height, |c, r| px[r as usize * w + c as usize])
+    }
+
+    /// Paints the shapes over `rows`, the texels of the grid's rows from
+    /// `first_row` on (`w × h` texels in all).
+    fn paint(&self, rows: &mut [Rgba], (w, h): (usize, usize), first_row: usize) {
+        let px = rows;
+        let row_range = first_row..first_row + px.len() / w;
         let (fw, fh) = (w as f64, h as f64);
         for &(shape, colour) in &self.shapes {
             let (bx0, bz0, bx1, bz1) = match shape {
@@ -103,7 +123,7 @@ impl Art {
             let c1 = (bx1 * fw).ceil().clamp(0.0, fw) as usize;
             let r0 = ((1.0 - bz1) * fh).floor().clamp(0.0, fh) as usize;
             let r1 = ((1.0 - bz0) * fh).ceil().clamp(0.0, fh) as usize;
-            for row in r0..r1 {
+            for row in r0.max(row_range.start)..r1.min(row_range.end) {
                 let (tz0, tz1) = (1.0 - (row + 1) as f64 / fh, 1.0 - row as f64 / fh);
                 for col in c0..c1 {
                     let (tx0, tx1) = (col as f64 / fw, (col + 1) as f64 / fw);
@@ -114,7 +134,7 @@ impl Art {
                         Shape::Disc { cx, cz, r } => disc_coverage(cx, cz, r, tx0, tz0, tx1, tz1),
                     } as f32;
                     if cov > 0.0 {
-                        let d = &mut px[row * w + col];
+                        let d = &mut px[(row - first_row) * w + col];
                         *d = Rgba::new(
                             colour.r * cov + d.r * (1.0 - cov),
                             colour.g * cov + d.g * (1.0 - cov),
@@ -125,7 +145,6 @@ impl Art {
                 }
             }
         }
-        TexelGrid::from_fn(width, height, |c, r| px[r as usize * w + c as usize])
     }
 }
 
@@ -347,6 +366,27 @@ mod tests {
         assert!((g.texel(1, 2).to_rgba().a - 0.5).abs() < 1e-4);
         assert_eq!(g.texel(2, 2).to_rgba().a, 0.0);
         assert_eq!(g.texel(1, 1).to_rgba().a, 0.0);
+    }
+
+    /// Painted in bands on threads, the raster is the one painted in one
+    /// pass (odd heights: a short last band; fewer rows than threads).
+    #[test]
+    fn bands_paint_what_one_pass_paints() {
+        let art = runway_art();
+        for (w, h) in [(64, 67), (33, 3), (128, 128), (5, 1)] {
+            let mut one = vec![art.background; w * h];
+            art.paint(&mut one, (w, h), 0);
+            let banded = art.rasterise(w as u32, h as u32).unwrap();
+            for r in 0..h {
+                for c in 0..w {
+                    assert_eq!(
+                        banded.texel(c as u32, r as u32),
+                        one[r * w + c].to_unorm16(),
+                        "{w}x{h} at ({c}, {r})"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
