@@ -180,6 +180,49 @@ impl ConvexPolygon {
         }
     }
 
+    /// The part inside convex polygon `other` (what
+    /// [`ConvexPolygon::intersect`] returns, vertex for vertex), having
+    /// given the parts outside it to `out` (what
+    /// [`ConvexPolygon::subtract`] gives, in the same order): one pass over
+    /// `other`'s edges for both. `other` empty: all of this polygon is
+    /// outside, nothing inside.
+    pub fn split_by(
+        &self,
+        other: &ConvexPolygon,
+        mut out: impl FnMut(ConvexPolygon),
+    ) -> ConvexPolygon {
+        if other.is_empty() {
+            out(self.clone());
+            return ConvexPolygon::EMPTY;
+        }
+        let mut rest = [self.clone(), ConvexPolygon::EMPTY];
+        let mut current = 0;
+        let mut outside = ConvexPolygon::EMPTY;
+        for [a, b, c] in other.edge_lines() {
+            // No line (a repeated vertex): keeps everything, as a clip by
+            // `0 ≥ 0` would.
+            if a == 0.0 && b == 0.0 {
+                continue;
+            }
+            let [first, second] = &mut rest;
+            let (from, to) = if current == 0 {
+                (&*first, second)
+            } else {
+                (&*second, first)
+            };
+            from.split_into(a, b, c, to, &mut outside);
+            current ^= 1;
+            if outside.area() > 0.0 {
+                out(outside.clone());
+            }
+            if rest[current].is_empty() {
+                return ConvexPolygon::EMPTY;
+            }
+        }
+        let [first, second] = rest;
+        if current == 0 { first } else { second }
+    }
+
     /// Sum of the edge lengths.
     pub fn perimeter(&self) -> f64 {
         let v = self.vertices();
@@ -590,6 +633,46 @@ mod tests {
         a.subtract(&b, |p| area += p.area());
         assert!((area - 3.0).abs() < 1e-14);
         assert_eq!(a.centroid(), [1.0, 1.0]);
+    }
+
+    /// [`ConvexPolygon::split_by`] is [`ConvexPolygon::intersect`] and
+    /// [`ConvexPolygon::subtract`] at once, exactly: random convex
+    /// polygons, rectangles sharing edges, repeated vertices.
+    #[test]
+    fn a_split_is_the_intersection_and_the_difference() {
+        let mut next = crate::test_rng::uniform(29);
+        let mut random = |n: usize, scale: f64| {
+            let points: Vec<[f64; 2]> = (0..n).map(|_| [next() * scale, next() * scale]).collect();
+            ConvexPolygon::hull(&points)
+        };
+        let mut cases = vec![
+            (
+                ConvexPolygon::rect(0.0, 0.0, 2.0, 2.0),
+                ConvexPolygon::rect(1.0, 0.0, 3.0, 2.0),
+            ),
+            (
+                ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0),
+                ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0),
+            ),
+            (
+                ConvexPolygon::rect(1.5, 0.5, 2.5, 1.5),
+                ConvexPolygon::new(&[[0.0, 0.0], [2.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
+                    .unwrap(),
+            ),
+        ];
+        for _ in 0..500 {
+            cases.push((random(6, 2.0), random(5, 2.0)));
+        }
+        let mut straddling = 0;
+        for (a, b) in &cases {
+            let (mut apart, mut split) = (Vec::new(), Vec::new());
+            a.subtract(b, |p| apart.push(p));
+            let inside = a.split_by(b, |p| split.push(p));
+            assert_eq!(inside, a.intersect(b), "{a:?} by {b:?}");
+            assert_eq!(split, apart, "{a:?} by {b:?}");
+            straddling += usize::from(!inside.is_empty() && !split.is_empty());
+        }
+        assert!(straddling > 100, "{straddling}");
     }
 
     /// A repeated vertex (clipping leaves them where a vertex lies on the

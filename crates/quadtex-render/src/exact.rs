@@ -895,20 +895,24 @@ impl Cut {
                 }
                 Placement::Straddles => {}
             }
-            let piece = r.intersect(region);
+            // One pass for both sides; the piece's sliver, if it is one,
+            // goes before the outside's, as it was pushed first when the
+            // two were cut apart (the slivers' sum keeps its order).
+            let (slivers_before, sliver_area) = (self.slivers.len(), self.sliver_area);
+            let slivers = &mut self.slivers;
+            let piece = r.split_by(region, |p| {
+                if p.area() > sliver_area {
+                    next.push(p);
+                } else {
+                    slivers.push(p);
+                }
+            });
             let area = piece.area();
             if area > self.sliver_area {
                 self.pieces.push((v, piece));
             } else if area > 0.0 {
-                self.slivers.push(piece);
+                self.slivers.insert(slivers_before, piece);
             }
-            r.subtract(region, |p| {
-                if p.area() > self.sliver_area {
-                    next.push(p);
-                } else {
-                    self.slivers.push(p);
-                }
-            });
         }
         self.spare = std::mem::replace(&mut self.remaining, next);
     }
