@@ -795,7 +795,7 @@ enum Gap {
 struct Cut {
     pieces: Vec<(usize, ConvexPolygon)>,
     remaining: Vec<ConvexPolygon>,
-    /// What [`Cut::take`] builds the next `remaining` in.
+    /// Where [`Cut::take`] gathers what lies outside a region.
     spare: Vec<ConvexPolygon>,
     /// Pieces of at most `sliver_area` (rounding along shared edges): not
     /// cut further, nor integrated over a texture.
@@ -873,23 +873,36 @@ impl Cut {
             return;
         }
         let bounds = region.bounds();
-        let mut next = std::mem::take(&mut self.spare);
-        next.clear();
-        for r in self.remaining.drain(..) {
+        let Cut {
+            pieces,
+            remaining,
+            spare: outside,
+            slivers,
+            sliver_area,
+            ..
+        } = self;
+        let sliver_area = *sliver_area;
+        // In place: a part the region misses stays where it is (a polygon
+        // moved is its whole capacity copied), one it reaches is replaced
+        // by what lies outside it, in the same place in the list.
+        let mut i = 0;
+        while i < remaining.len() {
+            let r = &remaining[i];
             if boxes_apart(r.bounds(), bounds) {
-                next.push(r);
+                i += 1;
                 continue;
             }
-            match placement(&r, region.edge_lines()) {
+            match placement(r, region.edge_lines()) {
                 Placement::Outside => {
-                    next.push(r);
+                    i += 1;
                     continue;
                 }
                 Placement::Inside => {
-                    if r.area() > self.sliver_area {
-                        self.pieces.push((v, r));
+                    let r = remaining.remove(i);
+                    if r.area() > sliver_area {
+                        pieces.push((v, r));
                     } else {
-                        self.slivers.push(r);
+                        slivers.push(r);
                     }
                     continue;
                 }
@@ -898,23 +911,25 @@ impl Cut {
             // One pass for both sides; the piece's sliver, if it is one,
             // goes before the outside's, as it was pushed first when the
             // two were cut apart (the slivers' sum keeps its order).
-            let (slivers_before, sliver_area) = (self.slivers.len(), self.sliver_area);
-            let slivers = &mut self.slivers;
+            let slivers_before = slivers.len();
+            outside.clear();
             let piece = r.split_by(region, |p| {
                 if p.area() > sliver_area {
-                    next.push(p);
+                    outside.push(p);
                 } else {
                     slivers.push(p);
                 }
             });
             let area = piece.area();
-            if area > self.sliver_area {
-                self.pieces.push((v, piece));
+            if area > sliver_area {
+                pieces.push((v, piece));
             } else if area > 0.0 {
-                self.slivers.insert(slivers_before, piece);
+                slivers.insert(slivers_before, piece);
             }
+            let added = outside.len();
+            remaining.splice(i..=i, outside.drain(..));
+            i += added;
         }
-        self.spare = std::mem::replace(&mut self.remaining, next);
     }
 }
 
