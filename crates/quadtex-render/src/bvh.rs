@@ -457,13 +457,20 @@ fn partition(
     let mut right_of = [(Span::EMPTY, 0usize); BINS];
     let mut acc = (Span::EMPTY, 0usize);
     for b in (1..BINS).rev() {
-        acc.0.union(&bins[b]);
-        acc.1 += counts[b];
+        if counts[b] > 0 {
+            acc.0.union(&bins[b]);
+            acc.1 += counts[b];
+        }
         right_of[b] = acc;
     }
     let mut best = (f64::INFINITY, 0usize, Span::EMPTY);
     let mut left = (Span::EMPTY, 0usize);
     for split in 1..BINS {
+        // Past an empty bin both sides are those of the split before, and
+        // so is the cost, which cannot then be strictly lower.
+        if counts[split - 1] == 0 {
+            continue;
+        }
         left.0.union(&bins[split - 1]);
         left.1 += counts[split - 1];
         let (right, nr) = &right_of[split];
