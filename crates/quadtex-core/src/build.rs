@@ -209,7 +209,7 @@ pub fn raster_cells(width: u32, height: u32, depth: u8) -> (Aspect, usize, usize
     (aspect, 1usize << (depth - sx), 1usize << (depth - sz))
 }
 
-fn check_dimensions(width: u32, height: u32) -> Result<(), Error> {
+pub(crate) fn check_dimensions(width: u32, height: u32) -> Result<(), Error> {
     let (w, h) = (u64::from(width), u64::from(height));
     if width == 0 || height == 0 {
         return Err(Error::BadDimensions {

@@ -4,7 +4,8 @@
 
 use crate::Error;
 use crate::build::TexelGrid;
-use crate::colour::Rgba;
+use crate::colour::{Rgba, Unorm16Rgba};
+use crate::memory::try_vec;
 
 /// A flat-coloured shape in texture space.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,18 +95,30 @@ impl Art {
     /// Bands of rows are painted on threads of their own (each texel gets
     /// the shapes in order whichever thread paints it).
     pub fn rasterise(&self, width: u32, height: u32) -> Result<TexelGrid, Error> {
+        // Refused before anything is allocated for it.
+        crate::build::check_dimensions(width, height)?;
         let (w, h) = (width as usize, height as usize);
-        let mut px = vec![self.background; w * h];
+        let mut texels = try_vec(w * h, Unorm16Rgba::default(), "rasterised texels")?;
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(4));
         let band = h.div_ceil(threads).max(1);
-        if w > 0 {
-            std::thread::scope(|scope| {
-                for (k, rows) in px.chunks_mut(band * w).enumerate() {
-                    scope.spawn(move || self.paint(rows, (w, h), k * band));
-                }
-            });
-        }
-        TexelGrid::from_fn(width, height, |c, r| px[r as usize * w + c as usize])
+        std::thread::scope(|scope| {
+            let bands: Vec<_> = (texels.chunks_mut(band * w).enumerate())
+                .map(|(k, out)| {
+                    scope.spawn(move || {
+                        let mut rows = try_vec(out.len(), self.background, "a band of texels")?;
+                        self.paint(&mut rows, (w, h), k * band);
+                        for (t, p) in out.iter_mut().zip(rows) {
+                            *t = p.to_unorm16();
+                        }
+                        Ok::<(), Error>(())
+                    })
+                })
+                .collect();
+            bands
+                .into_iter()
+                .try_for_each(|b| b.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+        })?;
+        TexelGrid::new(width, height, texels)
     }
 
     /// Paints the shapes over `rows`, the texels of the grid's rows from
@@ -386,6 +399,16 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// Absurd sizes are errors before anything is painted: zero, past the
+    /// side limit, and a grid whose texels no machine holds (2⁴⁰).
+    #[test]
+    fn absurd_sizes_are_refused() {
+        let art = runway_art();
+        for (w, h) in [(0, 16), (16, 0), (u32::MAX, 2), (1 << 20, 1 << 20)] {
+            assert!(art.rasterise(w, h).is_err(), "{w}x{h}");
         }
     }
 
