@@ -733,28 +733,52 @@ mod tests {
     /// A wavy heightfield mesh (triangles sharing edges, hills hiding
     /// valleys) over a quad, and a few loose triangles, some crossing the
     /// camera's plane: the raster must agree with the ray cast everywhere.
-    #[test]
-    fn meshes_match_the_ray_cast() {
-        use crate::scene::{Mesh, Triangle};
-        let n = 24;
-        let height = |i: usize, j: usize| {
-            let (x, z) = (i as f64, j as f64);
-            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
-        };
-        let point = |i: usize, j: usize| Vec3::new(i as f64 - 12.0, height(i, j), -(j as f64));
+    /// A rolling `n × n` grid of triangles (two a square): point `(i, j)`
+    /// at `(i − n/2, height(i, j), −j)`, texture coordinates `(i/n, j/n)`.
+    fn rolling_grid(n: usize, height: impl Fn(usize, usize) -> f64) -> Vec<crate::scene::Triangle> {
+        let point =
+            |i: usize, j: usize| Vec3::new(i as f64 - (n / 2) as f64, height(i, j), -(j as f64));
         let uv = |i: usize, j: usize| [i as f64 / n as f64, j as f64 / n as f64];
         let mut triangles = Vec::new();
         for j in 0..n {
             for i in 0..n {
                 let c = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)];
                 for [a, b, d] in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
-                    triangles.extend(Triangle::new(
+                    triangles.extend(crate::scene::Triangle::new(
                         [point(a.0, a.1), point(b.0, b.1), point(d.0, d.1)],
                         [uv(a.0, a.1), uv(b.0, b.1), uv(d.0, d.1)],
                     ));
                 }
             }
         }
+        triangles
+    }
+
+    /// Cameras at `positions` looking at `target`, the `k`-th with a field
+    /// of view of `50 + 10·k` degrees, `size` pixels.
+    fn cameras(positions: [Vec3; 3], target: Vec3, (w, h): (u32, u32)) -> Vec<Camera> {
+        (positions.into_iter().enumerate())
+            .map(|(k, position)| {
+                Camera::new(
+                    position,
+                    target,
+                    Vec3::new(0.0, 1.0, 0.0),
+                    50.0 + 10.0 * k as f64,
+                    w,
+                    h,
+                )
+                .unwrap()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn meshes_match_the_ray_cast() {
+        use crate::scene::{Mesh, Triangle};
+        let mut triangles = rolling_grid(24, |i, j| {
+            let (x, z) = (i as f64, j as f64);
+            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
+        });
         // Loose triangles, one reaching behind the camera.
         let loose = [
             [
@@ -773,23 +797,15 @@ mod tests {
         }
         let mesh = Mesh::new(triangles).unwrap();
         let (mut casts, mut cells) = (0, 0);
-        for (k, position) in [
-            Vec3::new(0.0, 6.0, 8.0),
-            Vec3::new(-14.0, 2.5, 2.0),
-            Vec3::new(3.0, 1.2, -4.0),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let camera = Camera::new(
-                position,
-                Vec3::new(0.0, 0.0, -12.0),
-                Vec3::new(0.0, 1.0, 0.0),
-                50.0 + 10.0 * k as f64,
-                120,
-                70,
-            )
-            .unwrap();
+        for camera in cameras(
+            [
+                Vec3::new(0.0, 6.0, 8.0),
+                Vec3::new(-14.0, 2.5, 2.0),
+                Vec3::new(3.0, 1.2, -4.0),
+            ],
+            Vec3::new(0.0, 0.0, -12.0),
+            (120, 70),
+        ) {
             let scene = Scene {
                 camera,
                 surfaces: vec![
@@ -822,24 +838,10 @@ mod tests {
     fn mesh_searches_miss_no_triangle_that_reaches() {
         use crate::scene::{Mesh, Triangle};
         use quadtex_core::PixelFilter;
-        let n = 16;
-        let point = |i: usize, j: usize| {
+        let triangles = rolling_grid(16, |i, j| {
             let (x, z) = (i as f64, j as f64);
-            Vec3::new(x - 8.0, 1.2 * (0.7 * x).sin() * (0.5 * z).cos(), -z)
-        };
-        let uv = |i: usize, j: usize| [i as f64 / n as f64, j as f64 / n as f64];
-        let mut triangles = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let c = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)];
-                for [a, b, d] in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
-                    triangles.extend(Triangle::new(
-                        [point(a.0, a.1), point(b.0, b.1), point(d.0, d.1)],
-                        [uv(a.0, a.1), uv(b.0, b.1), uv(d.0, d.1)],
-                    ));
-                }
-            }
-        }
+            1.2 * (0.7 * x).sin() * (0.5 * z).cos()
+        });
         let behind = Triangle::new(
             [
                 Vec3::new(-2.0, 2.5, 20.0),
@@ -850,23 +852,18 @@ mod tests {
         )
         .unwrap();
         let (mut ruled_out, mut sky, mut searched) = (0, 0, 0);
-        for (k, position) in [
-            Vec3::new(0.0, 4.0, 6.0),
-            Vec3::new(-11.0, 2.5, 2.0),
-            Vec3::new(3.0, 1.8, -3.0),
-        ]
+        for (k, camera) in cameras(
+            [
+                Vec3::new(0.0, 4.0, 6.0),
+                Vec3::new(-11.0, 2.5, 2.0),
+                Vec3::new(3.0, 1.8, -3.0),
+            ],
+            Vec3::new(0.0, 0.5, -10.0),
+            (96, 60),
+        )
         .into_iter()
         .enumerate()
         {
-            let camera = Camera::new(
-                position,
-                Vec3::new(0.0, 0.5, -10.0),
-                Vec3::new(0.0, 1.0, 0.0),
-                50.0 + 10.0 * k as f64,
-                96,
-                60,
-            )
-            .unwrap();
             let scene_of = |triangles: Vec<Triangle>| Scene {
                 camera: camera.clone(),
                 surfaces: vec![surface(Geometry::Mesh(Arc::new(
