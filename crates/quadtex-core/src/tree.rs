@@ -1087,7 +1087,7 @@ impl QuadTree {
         })
     }
 
-    /// For a tree of depth `d ≤` [`FLAT_GRID_MAX_DEPTH`], the colour of every
+    /// For a tree of depth `d ≤` `FLAT_GRID_MAX_DEPTH` (4), the colour of every
     /// cell of the `2^d × 2^d` grid at its depth (linear, premultiplied,
     /// `[0, 1]`), row-major with `z` rows from the bottom: cell `(i, j)`
     /// covers `[i, i+1) × [j, j+1)` scaled by `2^-d`. Exact: each cell lies

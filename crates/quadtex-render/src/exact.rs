@@ -46,9 +46,9 @@ use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Projection, Rgba};
 use crate::caster::{Seen, seen_id, surface_and_triangle};
 use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
+use crate::reach::MeshReach;
 use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
 use crate::stats::PixelStats;
-use crate::visibility::MeshReach;
 
 /// Meshes up to this many triangles have every triangle tried at a
 /// silhouette pixel (larger ones: the triangles the centres see, and those

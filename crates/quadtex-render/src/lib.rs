@@ -5,7 +5,7 @@
 //! primitives that show in it, by [`quadtex_core::Texture::integrate_region`]
 //! (spheres: over the tangent plane's footprint). Scenes
 //! come from TOML files ([`load_scene`], format in `docs/scenes.md`) or from
-//! code ([`demo_scene`]); [`render`] turns one into a linear image.
+//! code ([`demo_scene`]); [`render`](fn@render) turns one into a linear image.
 //!
 //! Modules: [`scene`] (the validated scene model), `parse` (TOML → scene),
 //! `view` (screen ↔ texture geometry, footprints), `exact` (exact pixels:
@@ -28,6 +28,7 @@ mod options;
 mod parse;
 pub mod path;
 mod pixel;
+mod reach;
 mod render;
 pub mod scene;
 mod shade;
