@@ -51,25 +51,16 @@ impl MeshReach {
     }
 
     /// The tiles `[first, last]` along `axis` that screen interval
-    /// `[lo, hi]` touches, clamped to the grid, or `Err(())` when it
-    /// reaches past the grid's edge (or is not a number); `Ok(None)` when
-    /// it lies wholly beyond.
-    fn span(&self, axis: usize, lo: f64, hi: f64) -> Result<Option<(usize, usize)>, ()> {
+    /// `[lo, hi]` touches; `None` when any of it lies past the grid's edge
+    /// (where triangles are not marked) or it is not a number.
+    fn span(&self, axis: usize, lo: f64, hi: f64) -> Option<(usize, usize)> {
         let n = self.tiles[axis] as f64;
         let (a, b) = (
             ((lo - self.origin) / REACH_TILE).floor(),
             ((hi - self.origin) / REACH_TILE).floor(),
         );
-        if a.is_nan() || b.is_nan() {
-            return Err(());
-        }
-        if b < 0.0 || a >= n {
-            return Ok(None);
-        }
-        if a < 0.0 || b >= n {
-            return Err(());
-        }
-        Ok(Some((a as usize, b as usize)))
+        // Comparisons with NaN are false: not within.
+        (a >= 0.0 && b < n && a <= b).then_some((a as usize, b as usize))
     }
 
     /// Marks the tiles the screen box `[lo, hi]` touches, with
@@ -116,14 +107,44 @@ impl MeshReach {
         if self.everywhere {
             return true;
         }
-        let (Ok(x), Ok(y)) = (self.span(0, lo[0], hi[0]), self.span(1, lo[1], hi[1])) else {
+        let (Some((x0, x1)), Some((y0, y1))) =
+            (self.span(0, lo[0], hi[0]), self.span(1, lo[1], hi[1]))
+        else {
             return true;
-        };
-        let (Some((x0, x1)), Some((y0, y1))) = (x, y) else {
-            return false;
         };
         (y0..=y1).any(|ty| {
             self.marked[ty * self.tiles[0] + x0..=ty * self.tiles[0] + x1].contains(&true)
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A marked box rules out only boxes a tile and its slack away; a box
+    /// reaching past the grid, or not a number, is never ruled out.
+    #[test]
+    fn only_boxes_within_the_grid_and_away_from_marks_are_ruled_out() {
+        // A 64 × 48 grid padded by 3 pixels: screen [-3, 61) × [-3, 45).
+        let mut reach = MeshReach::new((64, 48), 3.0);
+        reach.mark([20.0, 20.0], [21.0, 21.0]);
+        // Touching the box, or within its slack and tile.
+        assert!(reach.may_reach([20.5, 20.5], [20.6, 20.6]));
+        assert!(reach.may_reach([21.9, 21.9], [22.5, 22.5]));
+        // Far from it, inside the grid.
+        assert!(!reach.may_reach([40.0, 5.0], [41.0, 6.0]));
+        assert!(!reach.may_reach([-3.0, -3.0], [-2.0, -2.0]));
+        // Past the grid's edge (where nothing is marked), or not a number.
+        assert!(reach.may_reach([-3.5, 5.0], [-2.0, 6.0]));
+        assert!(reach.may_reach([40.0, 44.0], [41.0, 46.0]));
+        assert!(reach.may_reach([100.0, 100.0], [101.0, 101.0]));
+        assert!(reach.may_reach([f64::NAN, 5.0], [41.0, 6.0]));
+        // A box partly past the edge marks what it touches of the grid.
+        reach.mark([-50.0, 30.0], [-1.0, 31.0]);
+        assert!(reach.may_reach([-3.0, 30.0], [-2.0, 31.0]));
+        // Not a number marks everything.
+        reach.mark([f64::NAN, 0.0], [1.0, 1.0]);
+        assert!(reach.may_reach([40.0, 5.0], [41.0, 6.0]));
     }
 }
