@@ -431,21 +431,9 @@ impl SurfaceViews {
             [hi[0] + slack, hi[1] + slack],
         );
         let may_meet = |a: Vec3, b: Vec3| {
-            let (mut s_lo, mut s_hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-            for k in 0..8 {
-                let corner = Vec3::new(
-                    if k & 1 == 0 { a.x } else { b.x },
-                    if k & 2 == 0 { a.y } else { b.y },
-                    if k & 4 == 0 { a.z } else { b.z },
-                );
-                let Some(s) = cam.project(corner) else {
-                    return true;
-                };
-                for axis in 0..2 {
-                    s_lo[axis] = s_lo[axis].min(s[axis]);
-                    s_hi[axis] = s_hi[axis].max(s[axis]);
-                }
-            }
+            let Some((s_lo, s_hi)) = cam.screen_box_of_box(a, b) else {
+                return true;
+            };
             // Not a number (an overflow) compares false: kept.
             !(s_hi[0] < lo[0] || s_lo[0] > hi[0] || s_hi[1] < lo[1] || s_lo[1] > hi[1])
         };

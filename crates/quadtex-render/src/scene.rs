@@ -113,6 +113,36 @@ impl Camera {
         Some([sx, sy])
     }
 
+    /// The screen box `(lo, hi)` of the projections of `points`; `None`
+    /// when one of them does not project ([`Camera::project`]: on or behind
+    /// the camera's plane). Points in front of the camera: their convex
+    /// hull projects inside the box.
+    pub(crate) fn screen_box(
+        &self,
+        points: impl IntoIterator<Item = Vec3>,
+    ) -> Option<([f64; 2], [f64; 2])> {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points {
+            let s = self.project(p)?;
+            for a in 0..2 {
+                lo[a] = lo[a].min(s[a]);
+                hi[a] = hi[a].max(s[a]);
+            }
+        }
+        Some((lo, hi))
+    }
+
+    /// [`Camera::screen_box`] of the eight corners of the box `[lo, hi]`.
+    pub(crate) fn screen_box_of_box(&self, lo: Vec3, hi: Vec3) -> Option<([f64; 2], [f64; 2])> {
+        self.screen_box((0..8).map(|k| {
+            Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            )
+        }))
+    }
+
     /// The ray through image point `(px, py)`, in pixel units from the top-left
     /// corner (pixel `(i, j)` covers `[i, i+1) × [j, j+1)`).
     pub fn ray(&self, px: f64, py: f64) -> Ray {

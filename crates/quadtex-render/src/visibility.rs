@@ -224,20 +224,10 @@ impl<'s> Raster<'s> {
         radius: f64,
         (gw, gh): (usize, usize),
     ) -> Option<[usize; 4]> {
-        let whole = Some([0, 0, gw - 1, gh - 1]);
-        let cam = &self.scene.camera;
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for k in 0..8 {
-            let sign = |bit: usize| if k >> bit & 1 == 1 { radius } else { -radius };
-            let corner = centre + Vec3::new(sign(0), sign(1), sign(2));
-            let Some(s) = cam.project(corner) else {
-                return whole;
-            };
-            for a in 0..2 {
-                lo[a] = lo[a].min(s[a]);
-                hi[a] = hi[a].max(s[a]);
-            }
-        }
+        let r = Vec3::new(radius, radius, radius);
+        let Some((lo, hi)) = self.scene.camera.screen_box_of_box(centre - r, centre + r) else {
+            return Some([0, 0, gw - 1, gh - 1]);
+        };
         let (x0, x1) = self.cells(lo[0], hi[0], gw)?;
         let (y0, y1) = self.cells(lo[1], hi[1], gh)?;
         Some([x0, y0, x1, y1])
@@ -297,8 +287,6 @@ impl<'s> Raster<'s> {
             .into_par_iter()
             .map(|t| {
                 let corners = mesh.corners(t)?;
-                let mut lo = [f64::INFINITY; 2];
-                let mut hi = [f64::NEG_INFINITY; 2];
                 // Every ray's direction has `d·forward = 1`: a point with
                 // `(p − c)·forward ≤ 0` is never hit.
                 let behind = corners
@@ -308,15 +296,9 @@ impl<'s> Raster<'s> {
                 if behind == 3 {
                     return None;
                 }
-                for p in corners {
-                    let Some(s) = cam.project(p) else {
-                        return Some((0, gh as u32 - 1, self.behind_box(surface, t)));
-                    };
-                    for k in 0..2 {
-                        lo[k] = lo[k].min(s[k]);
-                        hi[k] = hi[k].max(s[k]);
-                    }
-                }
+                let Some((lo, hi)) = cam.screen_box(corners) else {
+                    return Some((0, gh as u32 - 1, self.behind_box(surface, t)));
+                };
                 self.cells(lo[0], hi[0], gw)?;
                 let (first, last) = self.cells(lo[1], hi[1], gh)?;
                 Some((first as u32, last as u32, [lo[0], lo[1], hi[0], hi[1]]))
