@@ -484,8 +484,14 @@ pub(crate) fn integrate_region(
         out.weight += wgt;
         return out;
     }
-    let texture_region =
-        region.map_counter_clockwise(|s| apply(&projection.texture_from_screen, s));
+    // Vertices a few ulps apart (a clip through a vertex, mapped) would
+    // leave an edge whose line points anywhere: 1e-9 of the region's
+    // extent is far above that rounding and far below any area that
+    // matters (the region changes by 1e-9 of its box's perimeter times
+    // its extent at most).
+    let texture_region = region
+        .map_counter_clockwise(|s| apply(&projection.texture_from_screen, s))
+        .without_close_vertices(1e-9 * ((hi[0] - lo[0]) + (hi[1] - lo[1])));
     let epsilon = match options.level_of_detail() {
         LevelOfDetail::ErrorBound(e) => e,
         LevelOfDetail::Fixed(_) => 0.0,

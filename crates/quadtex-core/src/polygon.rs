@@ -362,6 +362,31 @@ impl ConvexPolygon {
         self.clip_lines(other.edge_lines())
     }
 
+    /// This polygon less each vertex within `tolerance` (in both
+    /// coordinates) of the one kept before it. An edge that short, left by
+    /// rounding where a clip passes through a vertex, points where the
+    /// rounding points it: as one of the polygon's half-planes its line
+    /// may cut through the polygon (and everything may lie outside it).
+    /// Removing the vertex changes the area by at most `tolerance` times
+    /// the polygon's perimeter.
+    pub(crate) fn without_close_vertices(mut self, tolerance: f64) -> ConvexPolygon {
+        let close = |a: [f64; 2], b: [f64; 2]| {
+            (a[0] - b[0]).abs() <= tolerance && (a[1] - b[1]).abs() <= tolerance
+        };
+        let mut kept = 0;
+        for i in 0..self.v.len() {
+            if kept == 0 || !close(self.v[kept - 1], self.v[i]) {
+                self.v[kept] = self.v[i];
+                kept += 1;
+            }
+        }
+        self.v.truncate(kept);
+        while self.v.len() > 1 && close(self.v[0], self.v[self.v.len() - 1]) {
+            self.v.pop();
+        }
+        self
+    }
+
     /// [`ConvexPolygon::map`], made counter-clockwise (a map that mirrors
     /// reverses the order), as [`ConvexPolygon::from_trusted`] would.
     pub(crate) fn map_counter_clockwise(&self, f: impl Fn([f64; 2]) -> [f64; 2]) -> ConvexPolygon {
@@ -683,6 +708,30 @@ mod tests {
         let mut outside = 0.0;
         straddling.subtract(&region, |p| outside += p.area());
         assert_eq!(outside + straddling.intersect(&region).area(), 1.0);
+    }
+
+    #[test]
+    fn close_vertices_go_and_the_rest_stay() {
+        let d = 4.0 * f64::EPSILON;
+        let p = ConvexPolygon::from_trusted(&[
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.0 + d, d],
+            [1.0, 1.0],
+            [0.5, 1.0],
+            [0.5 + d, 1.0],
+            [0.0, 1.0],
+            [d, 0.0],
+        ]);
+        let kept = p.clone().without_close_vertices(1e-9);
+        assert_eq!(
+            kept.vertices(),
+            &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.5, 1.0], [0.0, 1.0]]
+        );
+        assert!((kept.area() - p.area()).abs() < 1e-12);
+        // Nothing within the tolerance: unchanged; everything: one vertex.
+        assert_eq!(p.clone().without_close_vertices(0.0), p);
+        assert_eq!(p.without_close_vertices(2.0).vertices().len(), 1);
     }
 
     #[test]
