@@ -537,6 +537,7 @@ pub(crate) fn exact_pixel<'a>(
         if whole {
             let (c, w, b) = shade_piece(frame, &view, &region, filter, centre, options, &mut parts);
             add(c, w, b);
+            parts.weight_error = weight_error(w, filter, &support, centre);
             stats.merge_parts(&parts);
             stats.filter.record_bound(b / w.abs().max(1e-300));
             return Some(mean(acc, weight));
@@ -750,9 +751,25 @@ pub(crate) fn exact_pixel<'a>(
             }
         }
     }
+    parts.weight_error = weight_error(weight, filter, &support, centre);
     stats.merge_parts(&parts);
     stats.filter.record_bound(bound / weight.abs().max(1e-300));
     Some(mean(acc, weight))
+}
+
+/// How far `weight`, what a pixel's pieces were given, is from the pixel
+/// filter's whole weight over its `support`, relative to it.
+fn weight_error(
+    weight: f64,
+    filter: PixelFilter,
+    support: &ConvexPolygon,
+    centre: [f64; 2],
+) -> f64 {
+    let whole = match filter {
+        PixelFilter::Box => support.area(),
+        _ => filter.integral(support, centre),
+    };
+    ((weight - whole) / whole).abs()
 }
 
 /// Where regions `a` and `b` overlap, if they do with some area.

@@ -158,6 +158,7 @@ pub fn render(
         seconds: start.elapsed().as_secs_f64(),
         textured_pixels: total.textured,
         filter: total.filter,
+        max_weight_error: total.weight_error,
     };
     Ok((
         LinearImage {

@@ -18,6 +18,12 @@ pub struct RenderSummary {
     /// pixel's support), tree queries and nodes, the error bounds of the
     /// exact integral and (SAT baseline) the strips' area excess.
     pub filter: FilterStats,
+    /// The quadtree filter's self-check: over the pixels cut among
+    /// several surfaces (or integrated over one), the largest difference
+    /// between the weight their pieces were given and the pixel filter's
+    /// whole weight, relative to it. What the cut and the region integrals
+    /// lost or counted twice (slivers of rounding; 0 where nothing was).
+    pub max_weight_error: f64,
 }
 
 impl std::fmt::Display for RenderSummary {
@@ -49,9 +55,10 @@ impl std::fmt::Display for RenderSummary {
         if s.max_error_bound > 0.0 {
             write!(
                 f,
-                "; error bound per textured pixel mean {:.2e}, max {:.2e}",
+                "; error bound per textured pixel mean {:.2e}, max {:.2e}; pixel weight off by {:.1e} at most",
                 s.sum_error_bound / tp,
-                s.max_error_bound
+                s.max_error_bound,
+                self.max_weight_error
             )?;
         }
         Ok(())
@@ -65,6 +72,8 @@ pub(crate) struct PixelStats {
     pub textured: u64,
     /// The texture filter's own counters.
     pub filter: FilterStats,
+    /// [`RenderSummary::max_weight_error`] over these pixels.
+    pub weight_error: f64,
 }
 
 impl PixelStats {
@@ -75,11 +84,13 @@ impl PixelStats {
             self.textured += 1;
         }
         self.filter.merge(&parts.filter);
+        self.weight_error = self.weight_error.max(parts.weight_error);
     }
 
     /// Adds another row's statistics.
     pub fn merge(&mut self, other: &PixelStats) {
         self.textured += other.textured;
         self.filter.merge(&other.filter);
+        self.weight_error = self.weight_error.max(other.weight_error);
     }
 }
