@@ -735,7 +735,9 @@ pub(crate) fn exact_pixel<'a>(
                 // listed primitive's edge and the ray disagree): the
                 // primitive the ray through its centroid meets, as if it
                 // covered the gap, with the gap's whole weight (full
-                // contrast) as the bound.
+                // contrast) as the bound, and the weight of any part of
+                // the gap beyond that primitive's horizon (which it does
+                // not cover: its colour is not known).
                 let view = match view {
                     Some(i) => Some(Cow::Borrowed(&*views[i])),
                     None => candidate_view(scene, cache, memo, id)?,
@@ -743,7 +745,8 @@ pub(crate) fn exact_pixel<'a>(
                 if let Some(view) = view {
                     let (c, w, b) =
                         shade_piece(frame, &view, r, filter, centre, options, &mut parts);
-                    add(c, w, b + w.abs());
+                    let beyond = (filter.integral(r, centre) - w).abs();
+                    add(c, w, b + w.abs() + beyond);
                 } else {
                     let (c, w) = sky_over(r);
                     add(c, w, w.abs());
