@@ -887,20 +887,12 @@ impl Cut {
         if region.is_empty() {
             return;
         }
-        let Cut {
-            pieces,
-            remaining,
-            spare,
-            slivers,
-            sliver_area,
-            ..
-        } = self;
-        let sliver_area = *sliver_area;
+        let (sliver_area, pieces) = (self.sliver_area, &mut self.pieces);
         carve(
-            remaining,
+            &mut self.remaining,
             region,
-            spare,
-            slivers,
+            &mut self.spare,
+            &mut self.slivers,
             sliver_area,
             |piece, slivers, at| {
                 if piece.area() > sliver_area {
