@@ -537,7 +537,7 @@ pub(crate) fn exact_pixel<'a>(
         if whole {
             let (c, w, b) = shade_piece(frame, &view, &region, filter, centre, options, &mut parts);
             add(c, w, b);
-            parts.weight_error = weight_error(w, filter, &support, centre);
+            parts.weight_error = weight_error(w);
             stats.merge_parts(&parts);
             stats.filter.record_bound(b / w.abs().max(1e-300));
             return Some(mean(acc, weight));
@@ -754,25 +754,17 @@ pub(crate) fn exact_pixel<'a>(
             }
         }
     }
-    parts.weight_error = weight_error(weight, filter, &support, centre);
+    parts.weight_error = weight_error(weight);
     stats.merge_parts(&parts);
     stats.filter.record_bound(bound / weight.abs().max(1e-300));
     Some(mean(acc, weight))
 }
 
 /// How far `weight`, what a pixel's pieces were given, is from the pixel
-/// filter's whole weight over its `support`, relative to it.
-fn weight_error(
-    weight: f64,
-    filter: PixelFilter,
-    support: &ConvexPolygon,
-    centre: [f64; 2],
-) -> f64 {
-    let whole = match filter {
-        PixelFilter::Box => support.area(),
-        _ => filter.integral(support, centre),
-    };
-    ((weight - whole) / whole).abs()
+/// filter's whole weight: 1, as every [`PixelFilter`] integrates to 1 over
+/// its support (so nothing is integrated again per pixel).
+fn weight_error(weight: f64) -> f64 {
+    (weight - 1.0).abs()
 }
 
 /// Where regions `a` and `b` overlap, if they do with some area.
@@ -953,7 +945,9 @@ impl Cut {
         let mut i = 0;
         while i < pieces.len() {
             let v = pieces[i].0;
-            if !behind.get(v).copied().unwrap_or(false) {
+            if !behind.get(v).copied().unwrap_or(false)
+                || boxes_apart(pieces[i].1.bounds(), region.bounds())
+            {
                 i += 1;
                 continue;
             }
