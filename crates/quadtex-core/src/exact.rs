@@ -44,7 +44,7 @@
 //!
 //! **Shallow repeated textures.** A tree of depth ≤ 4 repeated or mirrored
 //! on both axes is integrated cell by cell over the grid at its depth, band
-//! by band, exactly, up to 512 cells a region (`Walk::scan_cells`); the
+//! by band, exactly, up to 512 cells a region (`scan_flat_grid`); the
 //! walk below does the rest.
 //!
 //! **Budget.** Refinement also stops after a budget of squares
@@ -85,7 +85,7 @@ pub const MAX_SCREEN_COORDINATE: f64 = (1u64 << 50) as f64;
 /// more than it is worth.
 const MAX_TILES_DESCENDED: f64 = 16.0;
 
-/// Most grid cells [`Walk::scan_cells`] clips for one region: about the
+/// Most grid cells [`scan_flat_grid`] clips for one region: about the
 /// time the walk spends on its default budget of squares.
 const SCAN_CELLS: f64 = 512.0;
 
@@ -506,6 +506,24 @@ pub(crate) fn integrate_region(
         LevelOfDetail::Fixed(k) => Some(k.min(tree.depth())),
         LevelOfDetail::ErrorBound(_) => None,
     };
+    if fixed.is_none()
+        && let Some((colour, weight, cells)) = scan_flat_grid(
+            tree,
+            wrap,
+            (lo, hi),
+            &texture_region,
+            &projection.screen_from_texture,
+            filter,
+            centre,
+        )
+    {
+        for (a, c) in out.colour.0.iter_mut().zip(colour) {
+            *a += c;
+        }
+        out.weight += weight;
+        stats.traversal.nodes_visited += cells as u64;
+        return finite_or_nothing(out);
+    }
     let buffers = WalkBuffers::lend();
     let mut walk = Walk {
         frames: buffers.frames,
@@ -793,10 +811,6 @@ impl Walk<'_> {
             Some(Segment::Tiles(a, b)) if s[1].is_none() => Some((b - a + 1) as f64),
             _ => None,
         };
-        if tiles(&xs).is_some() && tiles(&zs).is_some() && self.fixed.is_none() && self.scan_cells()
-        {
-            return;
-        }
         for zs in zs.into_iter().flatten() {
             for xs in xs.into_iter().flatten() {
                 match (xs, zs) {
@@ -854,47 +868,6 @@ impl Walk<'_> {
             }
             self.out = coarse;
         }
-    }
-
-    /// The region over a shallow tree (depth ≤
-    /// [`crate::tree::FLAT_GRID_MAX_DEPTH`], both axes repeated or
-    /// mirrored), exactly: band by band of the grid at the tree's depth,
-    /// each cell the region crosses clipped and weighted, at most
-    /// [`SCAN_CELLS`] cells. False (nothing added) when it does not apply.
-    ///
-    /// It matters for the thin needles below a horizon: the walk's blocks
-    /// do not fit inside them and refining tile by tile costs more squares
-    /// than the budget, while a cell here costs a clip and an area.
-    fn scan_cells(&mut self) -> bool {
-        let Some(grid) = self.tree.flat_grid() else {
-            return false;
-        };
-        let depth = self.tree.depth();
-        if depth == 0 {
-            return false;
-        }
-        let n = 1usize << depth;
-        let (wrap_x, wrap_z) = (self.wrap.x, self.wrap.z);
-        let colour = |x: i64, z: i64| {
-            Some(grid[fold_cell(wrap_z, z, depth)? * n + fold_cell(wrap_x, x, depth)?])
-        };
-        let Some((colour_sum, weight_sum, cells)) = scan_grid(
-            &self.region,
-            &self.screen_from_texture,
-            1.0 / n as f64,
-            self.filter,
-            self.centre,
-            SCAN_CELLS,
-            colour,
-        ) else {
-            return false;
-        };
-        for (a, c) in self.out.colour.0.iter_mut().zip(colour_sum) {
-            *a += c;
-        }
-        self.out.weight += weight_sum;
-        self.visited += cells as u64;
-        true
     }
 
     /// Tile `(i, j)`'s part of the region, exactly, texel by texel: when
@@ -1680,6 +1653,54 @@ fn density_range_det(m: &Mat3, det: f64, corners: &[[f64; 2]; 4]) -> (f64, f64) 
         hi = hi.max(rho);
     }
     (lo, hi)
+}
+
+/// The region over a shallow tree (depth ≤
+/// [`crate::tree::FLAT_GRID_MAX_DEPTH`], both axes repeated or mirrored)
+/// whose texture-space box `lo..hi` lies in one run of tiles a side,
+/// exactly: band by band of the grid at the tree's depth, each cell the
+/// region crosses clipped and weighted, at most [`SCAN_CELLS`] cells.
+/// `(Σ colour·k, Σ k, cells)`, or `None` (nothing computed) when it does
+/// not apply; the walk then takes the region.
+///
+/// It matters for the thin needles below a horizon: the walk's blocks
+/// do not fit inside them and refining tile by tile costs more squares
+/// than the budget, while a cell here costs a clip and an area. It runs
+/// before a walk is set up (its lines, buffers and queue), which a
+/// region it takes does not need.
+#[allow(clippy::too_many_arguments)]
+fn scan_flat_grid(
+    tree: &QuadTree,
+    wrap: Wrap,
+    (lo, hi): ([f64; 2], [f64; 2]),
+    region: &ConvexPolygon,
+    screen_from_texture: &Mat3,
+    filter: PixelFilter,
+    centre: [f64; 2],
+) -> Option<([f64; 4], f64, f64)> {
+    let grid = tree.flat_grid()?;
+    let depth = tree.depth();
+    let one_run = |s: [Option<Segment>; 3]| matches!(s, [Some(Segment::Tiles(..)), None, _]);
+    if depth == 0
+        || !one_run(segments(wrap.x, lo[0], hi[0]))
+        || !one_run(segments(wrap.z, lo[1], hi[1]))
+    {
+        return None;
+    }
+    let n = 1usize << depth;
+    let (wrap_x, wrap_z) = (wrap.x, wrap.z);
+    let colour = |x: i64, z: i64| {
+        Some(grid[fold_cell(wrap_z, z, depth)? * n + fold_cell(wrap_x, x, depth)?])
+    };
+    scan_grid(
+        region,
+        screen_from_texture,
+        1.0 / n as f64,
+        filter,
+        centre,
+        SCAN_CELLS,
+        colour,
+    )
 }
 
 /// The integral under `filter` centred at `centre` over `region` (grid
