@@ -511,6 +511,7 @@ pub(crate) fn exact_pixel<'a>(
         order,
         planes,
         memo,
+        sky_span,
     } = scratch;
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
@@ -548,7 +549,7 @@ pub(crate) fn exact_pixel<'a>(
     // general path below covers).
     if candidates.is_empty()
         && sees_sky
-        && cache.views.iter().flatten().all(|v| v.misses(&support))
+        && views_miss(cache, sky_span, filter, (x, y), &support)
         && !cache.meshes_in(scene, &support, planes, |_| true)
     {
         let (c, w) = sky_integral(
@@ -1035,6 +1036,56 @@ pub(crate) struct Scratch<'a> {
     order: Order,
     planes: Vec<[f64; 4]>,
     memo: ViewMemo,
+    sky_span: SkySpan,
+}
+
+/// Pixels of one row, from the one that set the span up to `until`
+/// (exclusive), whose filter supports every plane and quad of the scene
+/// misses when `clear` ([`views_miss`]).
+#[derive(Default)]
+struct SkySpan {
+    row: Option<u32>,
+    until: u32,
+    clear: bool,
+}
+
+/// Pixels a row's [`SkySpan`] covers.
+const SKY_SPAN: u32 = 32;
+
+/// Whether every plane and quad of the scene misses the support of pixel
+/// `(x, y)` (a pixel whose neighbourhood's centres all see the sky), as
+/// [`View::misses`] decides it, with the test made once for a span of
+/// [`SKY_SPAN`] pixels of the row: the rectangle their supports cover is
+/// wholly beyond one line of each view. That implies the same of each
+/// pixel's support, computed: its corners lie in the rectangle (the same
+/// float expressions, monotone in the pixel), and each line's side test,
+/// `a·x + b·y + c` in floats, is monotone in `x` and in `y`, so it is
+/// largest at one of the rectangle's corners. A span that fails (a view
+/// reaches into it somewhere) leaves its pixels to the test one by one.
+fn views_miss(
+    cache: &SurfaceViews,
+    span: &mut SkySpan,
+    filter: PixelFilter,
+    (x, y): (u32, u32),
+    support: &ConvexPolygon,
+) -> bool {
+    if span.row != Some(y) || x >= span.until {
+        let r = filter.radius();
+        let last = x.saturating_add(SKY_SPAN - 1);
+        let (cy, first_cx, last_cx) = (
+            f64::from(y) + 0.5,
+            f64::from(x) + 0.5,
+            f64::from(last) + 0.5,
+        );
+        let wide = ConvexPolygon::rect(first_cx - r, cy - r, last_cx + r, cy + r);
+        *span = SkySpan {
+            row: Some(y),
+            until: last.saturating_add(1),
+            clear: (cache.views.iter().flatten())
+                .all(|v| matches!(v.placement(&wide), Placement::Outside)),
+        };
+    }
+    span.clear || cache.views.iter().flatten().all(|v| v.misses(support))
 }
 
 /// The largest difference between the sky's colours in any channel: how
@@ -1652,5 +1703,59 @@ mod tests {
         let walked = row_rms(243.0);
         eprintln!("row 243: RMS {walked}");
         assert!(walked < 0.01, "row 243: RMS {walked}");
+    }
+
+    /// A span's one test answers every pixel of it as the pixel's own test
+    /// would: over the demo's sky with 300 small quads scattered in it
+    /// (their corners poking into spans anywhere, at the span's ends too),
+    /// box and Mitchell supports, row by row, pixel by pixel.
+    #[test]
+    fn a_sky_span_answers_each_pixel_as_its_own_test() {
+        let mut scene = demo_at(320, 180);
+        let mut seed = 17u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..300 {
+            let size = 0.5 + 6.0 * next();
+            scene.surfaces.push(crate::scene::Surface {
+                geometry: Geometry::Quad {
+                    origin: Vec3::new(
+                        -150.0 + 300.0 * next(),
+                        16.0 + 60.0 * next(),
+                        -350.0 + 400.0 * next(),
+                    ),
+                    edge_u: Vec3::new(size, 0.0, size * (next() - 0.5)),
+                    edge_v: Vec3::new(0.0, size, 0.0),
+                },
+                texture: None,
+                colour: Rgba::opaque(1.0, 1.0, 1.0),
+                uv_transform: crate::scene::UvTransform::default(),
+                wrap: quadtex_core::Wrap::CLAMP,
+            });
+        }
+        let cache = SurfaceViews::new(&scene);
+        for filter in [PixelFilter::Box, PixelFilter::Mitchell] {
+            let (mut clear, mut missed, mut hit) = (0, 0, 0);
+            for y in 0..180 {
+                let mut span = SkySpan::default();
+                for x in 0..320 {
+                    let support = filter.support([f64::from(x) + 0.5, f64::from(y) + 0.5]);
+                    let own = cache.views.iter().flatten().all(|v| v.misses(&support));
+                    let spanned = views_miss(&cache, &mut span, filter, (x, y), &support);
+                    assert_eq!(spanned, own, "{filter:?} pixel ({x}, {y})");
+                    clear += usize::from(span.clear);
+                    if own { missed += 1 } else { hit += 1 }
+                }
+            }
+            // Both outcomes, and spans that failed among pixels that miss.
+            assert!(
+                clear > 1000 && hit > 1000 && missed > clear,
+                "{clear} {missed} {hit}"
+            );
+        }
     }
 }
