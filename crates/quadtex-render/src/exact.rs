@@ -1288,7 +1288,8 @@ fn sky_at_centre(scene: &Scene, centre: [f64; 2]) -> Option<([f64; 4], f64)> {
             .zip(zenith.to_array())
             .map(|(h, z)| f64::from((z - h).abs()))
             .fold(0.0, f64::max);
-        let second = g * g * (1.5 / y_min.sqrt() + 0.25 / (y_min * y_min.sqrt()));
+        // 1.5/√y + 0.25/y^{3/2} over one division (one a sky pixel).
+        let second = g * g * (1.5 * y_min + 0.25) / (y_min * y_min.sqrt());
         second / 12.0 * contrast
     } else {
         return None;
