@@ -76,25 +76,26 @@ pub fn render(
     let views = views;
     // Centres within reach of the support: a change there may cross it.
     let reach = (options.pixel_filter.radius() + 0.5).ceil() as i64;
-    let neighbourhood = |x: u32, y: u32, ids: &mut Vec<Seen>| -> bool {
+    // `uniform`: what every centre in reach sees, when they all see one
+    // thing ([`uniform_in_reach`]).
+    let neighbourhood = |x: u32, y: u32, uniform: Option<Seen>, ids: &mut Vec<Seen>| -> bool {
         ids.clear();
         let mut sky = false;
         if seen.is_empty() {
+            return false;
+        }
+        // Most neighbourhoods see one thing only.
+        if let Some(id) = uniform {
+            if id == 0 {
+                return true;
+            }
+            ids.push(id);
             return false;
         }
         let row_of = |dy: i64| {
             let centre = (i64::from(y) + pad + dy) * gw + i64::from(x) + pad;
             &seen[(centre - reach) as usize..=(centre + reach) as usize]
         };
-        // Most neighbourhoods see one thing only: one comparison a centre.
-        let first = row_of(0)[reach as usize];
-        if (-reach..=reach).all(|dy| row_of(dy).iter().all(|&id| id == first)) {
-            if first == 0 {
-                return true;
-            }
-            ids.push(first);
-            return false;
-        }
         for dy in -reach..=reach {
             for &id in row_of(dy) {
                 if id == 0 {
@@ -118,9 +119,17 @@ pub fn render(
             let mut stats = PixelStats::default();
             let mut ids = Vec::new();
             let mut scratch = Scratch::default();
+            let uniform = uniform_in_reach(
+                &seen,
+                gw as usize,
+                (y + PAD) as usize,
+                PAD as usize,
+                reach as usize,
+                w as usize,
+            );
             for (x, out) in (0..w).zip(row.iter_mut()) {
                 let mut pixel = PixelStats::default();
-                let sky = neighbourhood(x, y, &mut ids);
+                let sky = neighbourhood(x, y, uniform.get(x as usize).copied().flatten(), &mut ids);
                 let centre = (!seen.is_empty())
                     .then(|| seen[((i64::from(y) + pad) * gw + i64::from(x) + pad) as usize]);
                 let near = Neighbourhood {
@@ -208,4 +217,96 @@ pub(crate) fn sized_scene(scene: &Scene, width: u32, height: u32) -> Result<Scen
         camera: scene.camera.with_size(width, height),
         ..scene.clone()
     })
+}
+
+/// For each pixel of a row, what every centre within `reach` of its own
+/// sees when they all see one thing (`None` where they differ, or where
+/// `seen` is empty): `seen` is the padded grid, `gw` wide, the row's
+/// centres on grid row `grid_row` from column `pad`. One pass over the
+/// columns (those whose `2·reach + 1` centres agree) and their runs, where
+/// comparing each pixel's square of centres costs `(2·reach + 1)²`.
+fn uniform_in_reach(
+    seen: &[Seen],
+    gw: usize,
+    grid_row: usize,
+    pad: usize,
+    reach: usize,
+    width: usize,
+) -> Vec<Option<Seen>> {
+    if seen.is_empty() || reach > pad || reach > grid_row {
+        return Vec::new();
+    }
+    let rows: Vec<&[Seen]> = (grid_row - reach..=grid_row + reach)
+        .filter_map(|r| seen.get(r * gw..(r + 1) * gw))
+        .collect();
+    if rows.len() != 2 * reach + 1 || pad + width + reach > gw {
+        return Vec::new();
+    }
+    let mut out = Vec::with_capacity(width);
+    let (mut run, mut last) = (0, None);
+    for c in pad - reach..pad + width + reach {
+        let id = rows[0][c];
+        let column = rows.iter().all(|r| r[c] == id).then_some(id);
+        run = match column {
+            Some(_) if column == last => run + 1,
+            Some(_) => 1,
+            None => 0,
+        };
+        last = column;
+        // Column `c` closes the window of pixel `c − pad − reach`.
+        if c >= pad + reach {
+            out.push(column.filter(|_| run > 2 * reach));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The one pass over columns and runs gives each pixel what comparing
+    /// its square of centres gives: random grids of few ids (so that
+    /// squares of one id are common, and change at every offset), reaches
+    /// 1 to 3, every row and pixel.
+    #[test]
+    fn a_rows_uniform_centres_are_its_squares() {
+        let mut seed = 5u64;
+        let mut next = |n: u64| {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 33) % n
+        };
+        let (mut uniform, mut mixed) = (0, 0);
+        for reach in 1..=3usize {
+            let (width, height, pad) = (40usize, 12usize, 3usize);
+            let (gw, gh) = (width + 2 * pad, height + 2 * pad);
+            // Blocks of a few ids, a sprinkle of others.
+            let block = 2 + next(6);
+            let seen: Vec<Seen> = (0..gw * gh)
+                .map(|i| {
+                    let (c, r) = ((i % gw) as u64, (i / gw) as u64);
+                    if next(40) == 0 {
+                        next(3)
+                    } else {
+                        (c / block + r / block) % 2
+                    }
+                })
+                .collect();
+            for y in 0..height {
+                let got = uniform_in_reach(&seen, gw, y + pad, pad, reach, width);
+                assert_eq!(got.len(), width);
+                for (x, &got) in got.iter().enumerate() {
+                    let (cx, cy) = (x + pad, y + pad);
+                    let first = seen[cy * gw + cx];
+                    let all = (cy - reach..=cy + reach)
+                        .all(|r| (cx - reach..=cx + reach).all(|c| seen[r * gw + c] == first));
+                    assert_eq!(got, all.then_some(first), "reach {reach}, pixel ({x}, {y})");
+                    if all { uniform += 1 } else { mixed += 1 }
+                }
+            }
+        }
+        assert!(uniform > 100 && mixed > 100, "{uniform} {mixed}");
+    }
 }
