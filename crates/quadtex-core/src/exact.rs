@@ -707,6 +707,15 @@ fn segments(mode: WrapMode, lo: f64, hi: f64) -> [Option<Segment>; 3] {
     }
 }
 
+/// How many tiles an axis's [`segments`] cross when they are one run of
+/// tiles (no part outside a clamped or bordered edge); `None` otherwise.
+fn one_run_of_tiles(s: &[Option<Segment>; 3]) -> Option<f64> {
+    match s {
+        [Some(Segment::Tiles(a, b)), None, _] => Some((b - a + 1) as f64),
+        _ => None,
+    }
+}
+
 /// How tile `i` of an axis maps to the tree: texture = `sign·local + offset`.
 #[inline]
 fn tile_map(mode: WrapMode, i: i64) -> (f64, f64) {
@@ -807,10 +816,6 @@ impl Walk<'_> {
     fn run(&mut self, lo: [f64; 2], hi: [f64; 2]) {
         let xs = segments(self.wrap.x, lo[0], hi[0]);
         let zs = segments(self.wrap.z, lo[1], hi[1]);
-        let tiles = |s: &[Option<Segment>; 3]| match s[0] {
-            Some(Segment::Tiles(a, b)) if s[1].is_none() => Some((b - a + 1) as f64),
-            _ => None,
-        };
         for zs in zs.into_iter().flatten() {
             for xs in xs.into_iter().flatten() {
                 match (xs, zs) {
@@ -845,7 +850,7 @@ impl Walk<'_> {
         // and the sign and close-up scenes, 960 and 1920 wide, box, tent
         // and Mitchell), the demo's frame at 960 wide 2.82 → 2.34 G
         // instructions.
-        let n_tiles = tiles(&xs).unwrap_or(1.0) * tiles(&zs).unwrap_or(1.0);
+        let n_tiles = one_run_of_tiles(&xs).unwrap_or(1.0) * one_run_of_tiles(&zs).unwrap_or(1.0);
         let (before, offered) = (self.out, self.pending.len());
         let unresolvable = self.fixed.is_none()
             && n_tiles > MAX_TILES_DESCENDED
@@ -1680,10 +1685,9 @@ fn scan_flat_grid(
 ) -> Option<([f64; 4], f64, f64)> {
     let grid = tree.flat_grid()?;
     let depth = tree.depth();
-    let one_run = |s: [Option<Segment>; 3]| matches!(s, [Some(Segment::Tiles(..)), None, _]);
     if depth == 0
-        || !one_run(segments(wrap.x, lo[0], hi[0]))
-        || !one_run(segments(wrap.z, lo[1], hi[1]))
+        || one_run_of_tiles(&segments(wrap.x, lo[0], hi[0])).is_none()
+        || one_run_of_tiles(&segments(wrap.z, lo[1], hi[1])).is_none()
     {
         return None;
     }
