@@ -374,6 +374,74 @@ impl RegionIntegral {
     }
 }
 
+/// The least `w` a vertex of `region` may have for [`integrate_region`]
+/// to take the region as it is: nearer the horizon it cuts off the sliver
+/// of `w` below this, whose width is an eighth of the error budget over the
+/// region's diameter (`1e-9` pixel under a fixed level). `region`'s
+/// coordinates are within [`MAX_SCREEN_COORDINATE`] (the squares cannot
+/// overflow).
+fn horizon_floor(projection: &Projection, region: &ConvexPolygon, options: &FilterOptions) -> f64 {
+    let sliver_width = match options.level_of_detail() {
+        LevelOfDetail::ErrorBound(e) => {
+            let (rlo, rhi) = region.bounds();
+            let (dx, dy) = (rhi[0] - rlo[0], rhi[1] - rlo[1]);
+            let diam = (dx * dx + dy * dy).sqrt().max(f64::MIN_POSITIVE);
+            (e * region.area() / (8.0 * diam)).max(1e-9)
+        }
+        LevelOfDetail::Fixed(_) => 1e-9,
+    };
+    sliver_width * projection.w_gradient
+}
+
+/// The colour of the one terminal square of `tree` (folded into a tile by
+/// `wrap`) that holds the image of the whole screen region `span` under
+/// `projection`, when one does and `span` lies far enough in front of the
+/// horizon that [`integrate_region`] takes every region of `pixel`'s size
+/// and shape inside it as it is (its vertices at `w` at least twice
+/// [`horizon_floor`] of `pixel`; `w` is affine, so its least over such a
+/// region is at least its least over `span`'s vertices). Every such
+/// region's integral is then this colour times its weight, exactly: its
+/// image lies in `span`'s, which lies in the square (a projective map in
+/// front of the camera sends a convex polygon to the convex hull of its
+/// vertices' images).
+pub(crate) fn uniform_colour_over(
+    tree: &QuadTree,
+    wrap: Wrap,
+    projection: &Projection,
+    span: &ConvexPolygon,
+    pixel: &ConvexPolygon,
+    options: &FilterOptions,
+) -> Option<Rgba> {
+    let within = |p: &ConvexPolygon| {
+        let (lo, hi) = p.bounds();
+        !p.is_empty()
+            && lo
+                .iter()
+                .chain(&hi)
+                .all(|v| v.abs() <= MAX_SCREEN_COORDINATE)
+    };
+    if !(within(span) && within(pixel)) {
+        return None;
+    }
+    let floor = (2.0 * horizon_floor(projection, pixel, options)).max(f64::MIN_POSITIVE);
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for &s in span.vertices() {
+        // Not `>=` alone: a NaN `w` fails it too.
+        if !(projection.w(s) >= floor) {
+            return None;
+        }
+        let t = apply(&projection.texture_from_screen, s);
+        if !(t[0].is_finite() && t[1].is_finite()) {
+            return None;
+        }
+        for a in 0..2 {
+            lo[a] = lo[a].min(t[a]);
+            hi[a] = hi[a].max(t[a]);
+        }
+    }
+    uniform_colour_in(tree, lo, hi, wrap)
+}
+
 /// The integral (module documentation) over screen region `region` under
 /// `projection`, with `filter` centred at `centre`. The region is first
 /// clipped to the filter's support.
@@ -418,17 +486,7 @@ pub(crate) fn integrate_region(
     // bound: its width is an eighth of the error budget over the region's
     // diameter (1e-9 pixel under a fixed level).
     let r = projection.texture_from_screen[2];
-    let grad = projection.w_gradient;
-    let sliver_width = match options.level_of_detail() {
-        LevelOfDetail::ErrorBound(e) => {
-            // Within MAX_SCREEN_COORDINATE: the squares cannot overflow.
-            let (dx, dy) = (rhi[0] - rlo[0], rhi[1] - rlo[1]);
-            let diam = (dx * dx + dy * dy).sqrt().max(f64::MIN_POSITIVE);
-            (e * region.area() / (8.0 * diam)).max(1e-9)
-        }
-        LevelOfDetail::Fixed(_) => 1e-9,
-    };
-    let w_min = sliver_width * grad;
+    let w_min = horizon_floor(projection, region, options);
     if region
         .vertices()
         .iter()

@@ -154,6 +154,26 @@ impl Texture {
         )
     }
 
+    /// The colour of the texture over the whole of screen region `span`
+    /// seen through `projection`, when one terminal square of the tree
+    /// (under the wrap) holds all of its image; `None` when none does, or
+    /// when `span` reaches so near the horizon (`w → 0`) that
+    /// [`Texture::integrate_region`] would cut a sliver off a region of
+    /// `pixel`'s size and shape inside it. When `Some(c)`, the integral
+    /// over any region inside `span` no larger than `pixel` (a pixel's
+    /// support, in a run of pixels whose supports `span` covers) is `c`
+    /// times its weight, exactly, with a zero bound: a renderer answers a
+    /// run of magnified pixels with one lookup.
+    pub fn uniform_colour_over(
+        &self,
+        projection: &Projection,
+        span: &ConvexPolygon,
+        pixel: &ConvexPolygon,
+        options: &FilterOptions,
+    ) -> Option<Rgba> {
+        exact::uniform_colour_over(&self.tree, self.wrap, projection, span, pixel, options)
+    }
+
     /// [`Texture::filter`] over a slice, on the calling thread; `out[i]` is
     /// the colour of `footprints[i]`.
     pub fn filter_batch(&self, footprints: &[Footprint], options: &FilterOptions) -> Vec<Rgba> {

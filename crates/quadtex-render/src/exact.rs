@@ -47,6 +47,7 @@ use crate::caster::{Seen, seen_id, surface_and_triangle};
 use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::reach::MeshReach;
+use crate::span::{SpanAnswer, UniformSpan};
 use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
 use crate::stats::PixelStats;
 
@@ -108,7 +109,7 @@ impl ViewMemo {
 
 /// Where a polygon lies against the half-planes `a·x + b·y + c ≥ 0` of a
 /// view's lines or a region's edges ([`placement`]).
-enum Placement {
+pub(crate) enum Placement {
     /// Wholly beyond one line: the clip is empty.
     Outside,
     /// Within every line: the clip is the polygon itself.
@@ -121,7 +122,10 @@ enum Placement {
 /// with the clip's own side test: wholly inside (the clip would copy every
 /// vertex unchanged) or wholly beyond one line (the clip would come out
 /// empty) needs no clip.
-fn placement(polygon: &ConvexPolygon, lines: impl Iterator<Item = [f64; 3]>) -> Placement {
+pub(crate) fn placement(
+    polygon: &ConvexPolygon,
+    lines: impl Iterator<Item = [f64; 3]>,
+) -> Placement {
     let mut all_inside = true;
     for [a, b, c] in lines {
         let (mut some_in, mut some_out) = (false, false);
@@ -346,9 +350,24 @@ impl View {
         (self.w, self.depth)
     }
 
+    /// The surface this primitive is part of.
+    pub(crate) fn surface(&self) -> usize {
+        self.surface
+    }
+
+    /// The map from the screen to the surface's texture.
+    pub(crate) fn projection(&self) -> &Projection {
+        &self.projection
+    }
+
+    /// The primitive's normal (world space, as its surface gives it).
+    pub(crate) fn normal(&self) -> Vec3 {
+        self.normal
+    }
+
     /// Ray parameter (for the camera's unnormalised ray through `s`) of
-    /// the plane at screen point `s`.
-    fn depth_at(&self, s: [f64; 2]) -> f64 {
+    /// the plane at screen point `s`; infinite where `w(s) ≤ 0`.
+    pub(crate) fn depth_at(&self, s: [f64; 2]) -> f64 {
         let w = self.w[0] * s[0] + self.w[1] * s[1] + self.w[2];
         if w > 0.0 {
             self.depth / w
@@ -498,6 +517,7 @@ pub(crate) fn exact_pixel<'a>(
     (x, y): (u32, u32),
     candidates: &[Seen],
     sees_sky: bool,
+    run: u32,
     cache: &'a SurfaceViews,
     scratch: &mut Scratch<'a>,
     stats: &mut PixelStats,
@@ -512,6 +532,7 @@ pub(crate) fn exact_pixel<'a>(
         planes,
         memo,
         sky_span,
+        uniform_span,
     } = scratch;
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
@@ -532,6 +553,18 @@ pub(crate) fn exact_pixel<'a>(
         && !sees_sky
         && let Some(view) = candidate_view(scene, cache, memo, *id)?
     {
+        // A run of such pixels: one answer for a span of them.
+        if let Some(answer) =
+            uniform_span.answer(frame, &view, filter, options, (x, y), *id, run)
+        {
+            let (c, w) =
+                shade_span_pixel(frame, &view, &support, filter, centre, &answer, &mut parts);
+            add(c, w, 0.0);
+            parts.weight_error = weight_error(w);
+            stats.merge_parts(&parts);
+            stats.filter.record_bound(0.0);
+            return Some(mean(acc, weight));
+        }
         let region = view.region(&support);
         let whole =
             matches!(region, Cow::Borrowed(_)) || region.area() >= support.area() * (1.0 - 1e-12);
@@ -1037,6 +1070,7 @@ pub(crate) struct Scratch<'a> {
     planes: Vec<[f64; 4]>,
     memo: ViewMemo,
     sky_span: SkySpan,
+    uniform_span: UniformSpan,
 }
 
 /// Pixels of one row, from the one that set the span up to `until`
@@ -1211,6 +1245,59 @@ fn shade_piece(
             (tint.map(|t| t * w), w, 0.0)
         }
     };
+    light_piece(frame, view, piece, &mut c);
+    (c, w, b)
+}
+
+/// What [`shade_piece`] gives a pixel of a [`UniformSpan`] whose whole
+/// support is `support`: the span's texture colour (or the surface's tint
+/// alone) times the filter's weight there, lit by the span's light or, when
+/// the span has none, by the support's own shadow ray. The arithmetic is
+/// [`shade_piece`]'s, step for step, so that a pixel comes out the same
+/// either way.
+fn shade_span_pixel(
+    frame: &Frame<'_>,
+    view: &View,
+    support: &ConvexPolygon,
+    filter: PixelFilter,
+    centre: [f64; 2],
+    answer: &SpanAnswer,
+    stats: &mut PixelStats,
+) -> ([f64; 4], f64) {
+    let tint = frame.scene.surfaces[view.surface]
+        .colour
+        .to_array()
+        .map(f64::from);
+    let w = filter.integral(support, centre);
+    let mut c = match answer.texture {
+        Some(colour) => {
+            stats.textured = 1;
+            // What the region integral's uniform shortcut counts.
+            stats.filter.footprints += 1;
+            stats.filter.fragments += 1;
+            let mut c = quadtex_core::WeightedColour::from_colour(colour, w).0;
+            for (v, t) in c.iter_mut().zip(tint) {
+                *v *= t;
+            }
+            c
+        }
+        None => tint.map(|t| t * w),
+    };
+    match answer.light {
+        Some(k) => {
+            for (v, f) in c.iter_mut().zip(k) {
+                *v *= f64::from(f);
+            }
+        }
+        None => light_piece(frame, view, support, &mut c),
+    }
+    (c, w)
+}
+
+/// Multiplies `c` by the lighting at `piece`'s centroid on `view`'s
+/// primitive (its shadow ray's answer there).
+fn light_piece(frame: &Frame<'_>, view: &View, piece: &ConvexPolygon, c: &mut [f64; 4]) {
+    let scene = frame.scene;
     if let Lighting::Lambert { .. } = scene.lighting {
         let s = piece.centroid();
         let ray = scene.camera.ray(s[0], s[1]);
@@ -1225,7 +1312,6 @@ fn shade_piece(
             }
         }
     }
-    (c, w, b)
 }
 
 /// The screen row where the camera's ray through column `px` is level

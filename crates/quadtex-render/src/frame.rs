@@ -60,11 +60,7 @@ pub(crate) fn lambert(
 ) -> [f32; 3] {
     match rays.scene.lighting {
         Lighting::Unlit => [1.0; 3],
-        Lighting::Lambert {
-            direction,
-            colour,
-            ambient,
-        } => {
+        Lighting::Lambert { direction, .. } => {
             let n = if normal.dot(ray.direction) > 0.0 {
                 -normal
             } else {
@@ -80,7 +76,19 @@ pub(crate) fn lambert(
                 !rays.occluded_leaving(&shadow, surface)
             };
             let k = if lit { cos as f32 } else { 0.0 };
-            [0, 1, 2].map(|i| ambient[i] + k * colour[i])
+            lit_factor(&rays.scene.lighting, k)
         }
+    }
+}
+
+/// The lighting factor per colour channel where the sun's `cos` is `k`
+/// (0 in shadow or facing away): ambient plus `k` times the sun's colour,
+/// as [`lambert`] gives it; 1 when the scene is unlit.
+pub(crate) fn lit_factor(lighting: &Lighting, k: f32) -> [f32; 3] {
+    match lighting {
+        Lighting::Unlit => [1.0; 3],
+        Lighting::Lambert {
+            colour, ambient, ..
+        } => [0, 1, 2].map(|i| ambient[i] + k * colour[i]),
     }
 }

@@ -32,6 +32,7 @@ mod reach;
 mod render;
 pub mod scene;
 mod shade;
+mod span;
 mod stats;
 mod sun_grid;
 pub mod terrain;

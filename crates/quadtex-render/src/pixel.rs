@@ -29,6 +29,10 @@ pub(crate) struct Neighbourhood<'a, 'v> {
     pub sky: bool,
     /// What the pixel's own centre sees (0: the sky), when known.
     pub centre: Option<Seen>,
+    /// How many pixels from this one on in its row (itself included) have
+    /// every centre in reach see the one primitive this one's see; 0 when
+    /// its centres differ or see the sky.
+    pub run: u32,
     /// The scene's planar views, built once per frame.
     pub views: &'v SurfaceViews,
 }
@@ -78,6 +82,7 @@ pub(crate) fn shade_pixel<'v>(
             (x, y),
             near.primitives,
             near.sky,
+            near.run,
             near.views,
             scratch,
             stats,

@@ -127,6 +127,7 @@ pub fn render(
                 reach as usize,
                 w as usize,
             );
+            let runs = runs_of_primitives(&uniform);
             for (x, out) in (0..w).zip(row.iter_mut()) {
                 let mut pixel = PixelStats::default();
                 let sky = neighbourhood(x, y, uniform.get(x as usize).copied().flatten(), &mut ids);
@@ -136,6 +137,7 @@ pub fn render(
                     primitives: &ids,
                     sky,
                     centre,
+                    run: runs.get(x as usize).copied().unwrap_or(0),
                     views: &views,
                 };
                 *out = shade_pixel(
@@ -261,9 +263,36 @@ fn uniform_in_reach(
     out
 }
 
+/// For each pixel of a row, given what every centre in its reach sees
+/// when they agree ([`uniform_in_reach`]), how many pixels from it on
+/// (itself included) agree on the same primitive: 0 where the centres
+/// differ or see the sky.
+fn runs_of_primitives(uniform: &[Option<Seen>]) -> Vec<u32> {
+    let mut runs = vec![0u32; uniform.len()];
+    for x in (0..uniform.len()).rev() {
+        runs[x] = match uniform[x] {
+            Some(id) if id != 0 => {
+                let next = (uniform.get(x + 1) == Some(&Some(id)))
+                    .then(|| runs[x + 1])
+                    .unwrap_or(0);
+                next.saturating_add(1)
+            }
+            _ => 0,
+        };
+    }
+    runs
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn runs_count_the_pixels_that_agree_from_each_on() {
+        let u = [Some(3), Some(3), None, Some(0), Some(0), Some(5), Some(3), Some(3), Some(3)];
+        assert_eq!(runs_of_primitives(&u), vec![2, 1, 0, 0, 0, 1, 3, 2, 1]);
+        assert!(runs_of_primitives(&[]).is_empty());
+    }
 
     /// The one pass over columns and runs gives each pixel what comparing
     /// its square of centres gives: random grids of few ids (so that
