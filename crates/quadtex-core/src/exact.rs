@@ -426,8 +426,8 @@ pub(crate) fn uniform_colour_over(
     let floor = (2.0 * horizon_floor(projection, pixel, options)).max(f64::MIN_POSITIVE);
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for &s in span.vertices() {
-        // Not `>=` alone: a NaN `w` fails it too.
-        if !(projection.w(s) >= floor) {
+        let w = projection.w(s);
+        if w.is_nan() || w < floor {
             return None;
         }
         let t = apply(&projection.texture_from_screen, s);

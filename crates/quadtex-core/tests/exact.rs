@@ -700,3 +700,67 @@ fn a_rounding_wiggle_in_a_region_loses_nothing() {
         }
     }
 }
+
+/// A span's colour ([`Texture::uniform_colour_over`]) is the exact
+/// integral of every pixel inside it: random blocky trees (HDR too) under
+/// every wrap, ground planes seen in perspective (spans below, across and
+/// above the horizon, on negative and dyadic coordinates), spans of 1 to 64
+/// pixels of one row, box and tent. Where it answers, each pixel integrated
+/// at the tree's depth (the slow reference) has that colour as its mean;
+/// both answers must occur (a test the shortcut never enters passes).
+#[test]
+fn a_spans_uniform_colour_is_each_pixels_integral() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static ANSWERED: AtomicUsize = AtomicUsize::new(0);
+    static REFUSED: AtomicUsize = AtomicUsize::new(0);
+    arbtest::arbtest(|u| {
+        let texture = Texture::new(blocky_tree(u)?, wrap(u)?);
+        // texture x = (kx·sx + ox) / w, z = kz / w, w = g·sy + h.
+        let (kx, kz, ox) = (unit(u, 0.01, 2.0)?, unit(u, 0.01, 2.0)?, unit(u, -3.0, 3.0)?);
+        let (g, h) = (unit(u, 0.01, 1.0)?, unit(u, -5.0, 5.0)?);
+        let projection = Projection::new([[kx, 0.0, ox], [0.0, 0.0, kz], [0.0, g, h]]).unwrap();
+        let filter = *u.choose(&[PixelFilter::Box, PixelFilter::Tent])?;
+        let r = filter.radius();
+        let x0 = f64::from(u.int_in_range(-64i32..=64)?);
+        let y = f64::from(u.int_in_range(-40i32..=400)?) + 0.5;
+        let len = u.int_in_range(1u32..=64)?;
+        let last = x0 + f64::from(len - 1) + 0.5;
+        let span = ConvexPolygon::rect(x0 + 0.5 - r, y - r, last + r, y + r);
+        let options = FilterOptions::default();
+        let first = filter.support([x0 + 0.5, y]);
+        let Some(colour) = texture.uniform_colour_over(&projection, &span, &first, &options) else {
+            REFUSED.fetch_add(1, Ordering::Relaxed);
+            return Ok(());
+        };
+        ANSWERED.fetch_add(1, Ordering::Relaxed);
+        let tol = 2e-6 * texture.tree().bound_scale();
+        for i in 0..len {
+            let centre = [x0 + f64::from(i) + 0.5, y];
+            let support = filter.support(centre);
+            let depth = texture.tree().depth();
+            let reference = texture.integrate_region(
+                &projection,
+                &support,
+                filter,
+                centre,
+                &FilterOptions::default().with_level(depth),
+                &mut FilterStats::default(),
+            );
+            let mean = reference.mean().unwrap();
+            assert!(
+                max_diff(mean, colour) < tol && reference.error_bound == 0.0,
+                "pixel {i} of {len} at ({x0}, {y}): {mean:?} against the span's {colour:?} ({reference:?})"
+            );
+        }
+        Ok(())
+    })
+    .budget_ms(3_000);
+    let (answered, refused) = (
+        ANSWERED.load(Ordering::Relaxed),
+        REFUSED.load(Ordering::Relaxed),
+    );
+    assert!(
+        answered > 50 && refused > 50,
+        "{answered} answered, {refused} refused"
+    );
+}

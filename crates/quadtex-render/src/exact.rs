@@ -47,8 +47,8 @@ use crate::caster::{Seen, seen_id, surface_and_triangle};
 use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::reach::MeshReach;
-use crate::span::{SpanAnswer, UniformSpan};
 use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
+use crate::span::{SpanAnswer, UniformSpan};
 use crate::stats::PixelStats;
 
 /// Meshes up to this many triangles have every triangle tried at a
@@ -554,16 +554,21 @@ pub(crate) fn exact_pixel<'a>(
         && let Some(view) = candidate_view(scene, cache, memo, *id)?
     {
         // A run of such pixels: one answer for a span of them.
-        if let Some(answer) =
-            uniform_span.answer(frame, &view, filter, options, (x, y), *id, run)
-        {
+        if let Some(answer) = uniform_span.answer(frame, &view, filter, options, (x, y), *id, run) {
             let (c, w) =
                 shade_span_pixel(frame, &view, &support, filter, centre, &answer, &mut parts);
             add(c, w, 0.0);
             parts.weight_error = weight_error(w);
+            parts.filter.record_bound(0.0);
             stats.merge_parts(&parts);
-            stats.filter.record_bound(0.0);
-            return Some(mean(acc, weight));
+            let colour = mean(acc, weight);
+            // The box's weight is the support's area, 1 at every pixel (its
+            // corners are half-integers, exact in floats): with the light
+            // known, every pixel of the span comes out as this one.
+            if filter == PixelFilter::Box && answer.light.is_some() && w == 1.0 {
+                uniform_span.set_fill(colour, parts);
+            }
+            return Some(colour);
         }
         let region = view.region(&support);
         let whole =
@@ -1071,6 +1076,15 @@ pub(crate) struct Scratch<'a> {
     memo: ViewMemo,
     sky_span: SkySpan,
     uniform_span: UniformSpan,
+}
+
+impl Scratch<'_> {
+    /// The colour and counters of pixel `(x, y)` when a span set up by a
+    /// pixel before it in its row answers it without any work
+    /// ([`UniformSpan::filled`]).
+    pub(crate) fn span_fill(&self, (x, y): (u32, u32)) -> Option<&(Rgba, PixelStats)> {
+        self.uniform_span.filled((x, y))
+    }
 }
 
 /// Pixels of one row, from the one that set the span up to `until`

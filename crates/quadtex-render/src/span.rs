@@ -42,6 +42,7 @@ use crate::exact::{Placement, View, placement};
 use crate::frame::{Frame, lit_factor};
 use crate::math::Vec3;
 use crate::scene::{Geometry, Lighting};
+use crate::stats::PixelStats;
 
 /// Most pixels a span holds (a run of magnified pixels is seldom longer
 /// than the cell it lies in; longer tries fail more often).
@@ -65,6 +66,16 @@ pub(crate) struct SpanAnswer {
     pub light: Option<[f32; 3]>,
 }
 
+/// The lighting factor over all of one run of pixels (row, primitive,
+/// pixels up to `until`), `None` when it is not one.
+#[derive(Debug, Default)]
+struct RunLight {
+    row: Option<u32>,
+    id: Seen,
+    until: u32,
+    light: Option<[f32; 3]>,
+}
+
 /// The span of the row being shaded that the last pixels fell in, and
 /// what the next try starts from.
 #[derive(Debug, Default)]
@@ -82,8 +93,11 @@ pub(crate) struct UniformSpan {
     guess: u32,
     /// Pixels the row waits after the next failure at [`MIN_SPAN`].
     backoff: u32,
-    /// Spans set up (tried and held), for the tests.
-    held: u64,
+    /// The light over the whole run the span lies in, tested once a run.
+    run_light: RunLight,
+    /// The colour and counters of the span's first pixel, when every
+    /// pixel of the span comes out the same ([`UniformSpan::set_fill`]).
+    fill: Option<(Rgba, PixelStats)>,
 }
 
 impl UniformSpan {
@@ -112,6 +126,22 @@ impl UniformSpan {
         self.row = Some(y);
         self.id = id;
         self.from = x;
+        self.fill = None;
+        // The sun over the whole run, once: where it lights all of it, it
+        // lights every span inside.
+        let run_end = x.saturating_add(run);
+        if !(self.run_light.row == Some(y) && self.run_light.id == id && x < self.run_light.until) {
+            let light = (run >= MIN_SPAN)
+                .then(|| span_light(frame, view, &span_rect(filter, (x, y), run)))
+                .flatten();
+            self.run_light = RunLight {
+                row: Some(y),
+                id,
+                until: run_end,
+                light,
+            };
+        }
+        let run_light = self.run_light.light;
         let mut len = run.min(self.guess).min(MAX_SPAN);
         loop {
             if len < MIN_SPAN {
@@ -120,12 +150,12 @@ impl UniformSpan {
                 self.answer = None;
                 return None;
             }
-            if let Some(answer) = span_answer(frame, view, filter, options, (x, y), len) {
+            if let Some(answer) = span_answer(frame, view, filter, options, (x, y), len, run_light)
+            {
                 self.until = x.saturating_add(len);
                 self.answer = Some(answer);
                 self.guess = len.saturating_mul(2).min(MAX_SPAN);
                 self.backoff = 1;
-                self.held += 1;
                 return Some(answer);
             }
             if len == MIN_SPAN {
@@ -141,16 +171,38 @@ impl UniformSpan {
         }
     }
 
-    /// Spans that held since this was made.
-    #[cfg(test)]
-    pub fn held(&self) -> u64 {
-        self.held
+    /// Records `colour` and `stats`, what the span's first pixel came
+    /// out as, as every pixel's of the span: the caller has made sure they
+    /// are (a box filter's weight is 1 at every pixel, and the span's
+    /// light is known).
+    pub fn set_fill(&mut self, colour: Rgba, stats: PixelStats) {
+        self.fill = Some((colour, stats));
     }
+
+    /// The colour and counters of pixel `(x, y)` when it lies in the span
+    /// after its first pixel and the span has a fill.
+    pub fn filled(&self, (x, y): (u32, u32)) -> Option<&(Rgba, PixelStats)> {
+        (self.row == Some(y) && x > self.from && x < self.until)
+            .then_some(self.fill.as_ref())
+            .flatten()
+    }
+}
+
+/// The rectangle the supports of the `len` pixels from `(x, y)` cover.
+fn span_rect(filter: PixelFilter, (x, y): (u32, u32), len: u32) -> ConvexPolygon {
+    let r = filter.radius();
+    let cy = f64::from(y) + 0.5;
+    let (first, last) = (
+        f64::from(x) + 0.5,
+        f64::from(x) + f64::from(len.max(1) - 1) + 0.5,
+    );
+    ConvexPolygon::rect(first - r, cy - r, last + r, cy + r)
 }
 
 /// What every pixel of the `len` pixels from `(x, y)` gets, when their
 /// supports' rectangle lies inside `view`'s primitive, over one uniform
-/// square of its texture (module documentation).
+/// square of its texture (module documentation); `run_light`, when known,
+/// is the light over the whole run they lie in.
 fn span_answer(
     frame: &Frame<'_>,
     view: &View,
@@ -158,16 +210,19 @@ fn span_answer(
     options: &FilterOptions,
     (x, y): (u32, u32),
     len: u32,
+    run_light: Option<[f32; 3]>,
 ) -> Option<SpanAnswer> {
-    let r = filter.radius();
-    let cy = f64::from(y) + 0.5;
-    let (first, last) = (f64::from(x) + 0.5, f64::from(x) + f64::from(len - 1) + 0.5);
-    let rect = ConvexPolygon::rect(first - r, cy - r, last + r, cy + r);
+    let rect = span_rect(filter, (x, y), len);
+    let (first, cy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
     if !matches!(placement(&rect, view.lines()), Placement::Inside) {
         return None;
     }
     // In front of the camera at every corner (depths finite).
-    if !rect.vertices().iter().all(|&s| view.depth_at(s).is_finite()) {
+    if !rect
+        .vertices()
+        .iter()
+        .all(|&s| view.depth_at(s).is_finite())
+    {
         return None;
     }
     let texture = match frame.sampler(view.surface()) {
@@ -179,7 +234,7 @@ fn span_answer(
     };
     Some(SpanAnswer {
         texture,
-        light: span_light(frame, view, &rect),
+        light: run_light.or_else(|| span_light(frame, view, &rect)),
     })
 }
 
@@ -195,13 +250,15 @@ fn span_light(frame: &Frame<'_>, view: &View, rect: &ConvexPolygon) -> Option<[f
     // The side the camera sees the surface from, as `lambert` decides it
     // per ray (`normal · ray > 0`): the same at every corner, by a margin
     // rounding cannot cross, or left to each pixel.
+    let &[a, b, c, d] = rect.vertices() else {
+        return None;
+    };
+    let rect = [a, b, c, d];
     let normal = view.normal();
-    let facing: Vec<f64> = (rect.vertices().iter())
-        .map(|&[px, py]| {
-            let d = cam.direction(px, py);
-            normal.dot(d) / (normal.length() * d.length())
-        })
-        .collect();
+    let facing = rect.map(|[px, py]| {
+        let d = cam.direction(px, py);
+        normal.dot(d) / (normal.length() * d.length())
+    });
     let n = if facing.iter().all(|&f| f > 1e-9) {
         -normal
     } else if facing.iter().all(|&f| f < -1e-9) {
@@ -209,14 +266,16 @@ fn span_light(frame: &Frame<'_>, view: &View, rect: &ConvexPolygon) -> Option<[f
     } else {
         return None;
     };
+    // `max` takes 0 for a NaN too.
     let cos = n.dot(direction).max(0.0);
-    if !(cos > 0.0) {
+    if cos <= 0.0 {
         // Facing away from the sun: no shadow ray is cast.
         return Some(lit_factor(&scene.lighting, 0.0));
     }
-    let corners: Vec<Vec3> = (rect.vertices().iter())
-        .map(|&s| cam.position + cam.direction(s[0], s[1]) * view.depth_at(s))
-        .collect();
+    let corners = rect.map(|s| cam.position + cam.direction(s[0], s[1]) * view.depth_at(s));
+    if !corners.iter().all(|p| p.is_finite()) {
+        return None;
+    }
     shadow_free(frame, view.surface(), &corners, direction)
         .then(|| lit_factor(&scene.lighting, cos as f32))
 }
@@ -226,16 +285,16 @@ fn span_light(frame: &Frame<'_>, view: &View, rect: &ConvexPolygon) -> Option<[f
 /// lifted off it by at most `10⁻⁶` of its distance from the camera plus
 /// one (in any direction), meets any surface [`crate::caster::Caster::occluded_leaving`]
 /// tests (module documentation); false where that is not shown.
-fn shadow_free(frame: &Frame<'_>, from: usize, corners: &[Vec3], direction: Vec3) -> bool {
+fn shadow_free(frame: &Frame<'_>, from: usize, corners: &[Vec3; 4], direction: Vec3) -> bool {
     let scene = frame.scene;
     let camera = scene.camera.position;
     let distance = corners
         .iter()
         .fold(0f64, |m, &p| m.max((p - camera).length()));
     let lift = 1.01e-6 * (1.0 + distance);
-    let scale = corners.iter().fold(1f64, |m, p| {
-        m.max(p.x.abs()).max(p.y.abs()).max(p.z.abs())
-    });
+    let scale = corners
+        .iter()
+        .fold(1f64, |m, p| m.max(p.x.abs()).max(p.y.abs()).max(p.z.abs()));
     // Room for the lift and for rounding in the points and the casters'
     // own intersection tests.
     let margin = lift + 1e-9 * scale;
@@ -250,8 +309,7 @@ fn shadow_free(frame: &Frame<'_>, from: usize, corners: &[Vec3], direction: Vec3
     };
     let a2 = direction.cross(a1);
     let along = |p: Vec3| [p.dot(a1), p.dot(a2)];
-    let outline: Vec<[f64; 2]> = corners.iter().map(|&p| along(p)).collect();
-    let outline = ConvexPolygon::hull(&outline);
+    let outline = ConvexPolygon::hull(&corners.map(along));
     (scene.surfaces.iter().enumerate()).all(|(i, s)| match &s.geometry {
         Geometry::Plane { .. } | Geometry::Quad { .. } if i == from => true,
         Geometry::Plane { point, normal, .. } => {
