@@ -1078,7 +1078,44 @@ pub(crate) struct Scratch<'a> {
     uniform_span: UniformSpan,
 }
 
-impl Scratch<'_> {
+impl<'a> Scratch<'a> {
+    /// The colour of box-filtered pixel `(x, y)` whose centres in reach all
+    /// see the sky, when the rectangle of its sky span ([`SkySpan`]) is
+    /// clear of every plane, quad and mesh triangle and the sky's value at
+    /// its centre is within the tolerance ([`sky_at_centre`]): what the
+    /// sky-only branch of [`exact_pixel`] gives it (the support's area is
+    /// 1, so the mean is that value), without building the support or
+    /// testing it. `None` leaves the pixel to [`exact_pixel`]. A triangle
+    /// that reaches into no part of the rectangle reaches into none of the
+    /// pixel's support, which lies inside it.
+    pub(crate) fn sky_pixel(
+        &mut self,
+        scene: &Scene,
+        cache: &'a SurfaceViews,
+        options: &FilterOptions,
+        filter: PixelFilter,
+        (x, y): (u32, u32),
+    ) -> Option<Rgba> {
+        if filter != PixelFilter::Box || !self.sky_span.views_clear(cache, filter, (x, y)) {
+            return None;
+        }
+        let span = &mut self.sky_span;
+        let meshes_clear = match span.meshes_clear {
+            Some(clear) => clear,
+            None => {
+                let wide = span.wide.as_ref()?;
+                let clear = !cache.meshes_in(scene, wide, &mut self.planes, |_| true);
+                span.meshes_clear = Some(clear);
+                clear
+            }
+        };
+        if !meshes_clear {
+            return None;
+        }
+        let (c, bound) = sky_at_centre(scene, [f64::from(x) + 0.5, f64::from(y) + 0.5])?;
+        (bound <= sky_tolerance(options)).then(|| mean(c, 1.0))
+    }
+
     /// The colour and counters of pixel `(x, y)` when a span set up by a
     /// pixel before it in its row answers it without any work
     /// ([`UniformSpan::filled`]).
@@ -1095,6 +1132,42 @@ struct SkySpan {
     row: Option<u32>,
     until: u32,
     clear: bool,
+    /// The rectangle the span's supports cover.
+    wide: Option<ConvexPolygon>,
+    /// Whether no mesh triangle may reach into `wide`, once asked.
+    meshes_clear: Option<bool>,
+}
+
+impl SkySpan {
+    /// Whether every plane and quad misses the rectangle the supports of
+    /// the span of pixel `(x, y)` cover, a span of [`SKY_SPAN`] pixels set
+    /// up from `x` when none of this row holds it ([`views_miss`]).
+    fn views_clear(
+        &mut self,
+        cache: &SurfaceViews,
+        filter: PixelFilter,
+        (x, y): (u32, u32),
+    ) -> bool {
+        if self.row != Some(y) || x >= self.until {
+            let r = filter.radius();
+            let last = x.saturating_add(SKY_SPAN - 1);
+            let (cy, first_cx, last_cx) = (
+                f64::from(y) + 0.5,
+                f64::from(x) + 0.5,
+                f64::from(last) + 0.5,
+            );
+            let wide = ConvexPolygon::rect(first_cx - r, cy - r, last_cx + r, cy + r);
+            *self = SkySpan {
+                row: Some(y),
+                until: last.saturating_add(1),
+                clear: (cache.views.iter().flatten())
+                    .all(|v| matches!(v.placement(&wide), Placement::Outside)),
+                wide: Some(wide),
+                meshes_clear: None,
+            };
+        }
+        self.clear
+    }
 }
 
 /// Pixels a row's [`SkySpan`] covers.
@@ -1117,23 +1190,8 @@ fn views_miss(
     (x, y): (u32, u32),
     support: &ConvexPolygon,
 ) -> bool {
-    if span.row != Some(y) || x >= span.until {
-        let r = filter.radius();
-        let last = x.saturating_add(SKY_SPAN - 1);
-        let (cy, first_cx, last_cx) = (
-            f64::from(y) + 0.5,
-            f64::from(x) + 0.5,
-            f64::from(last) + 0.5,
-        );
-        let wide = ConvexPolygon::rect(first_cx - r, cy - r, last_cx + r, cy + r);
-        *span = SkySpan {
-            row: Some(y),
-            until: last.saturating_add(1),
-            clear: (cache.views.iter().flatten())
-                .all(|v| matches!(v.placement(&wide), Placement::Outside)),
-        };
-    }
-    span.clear || cache.views.iter().flatten().all(|v| v.misses(support))
+    span.views_clear(cache, filter, (x, y))
+        || cache.views.iter().flatten().all(|v| v.misses(support))
 }
 
 /// The largest difference between the sky's colours in any channel: how

@@ -155,6 +155,19 @@ fn render_with(
                     stats.merge_parts(parts);
                     continue;
                 }
+                if let (Spans::Shared, Filter::Quadtree(filter_options), Some(Some(0))) =
+                    (spans, options.filter, uniform.get(x as usize))
+                    && let Some(colour) = scratch.sky_pixel(
+                        &scene,
+                        &views,
+                        &filter_options,
+                        options.pixel_filter,
+                        (x, y),
+                    )
+                {
+                    *out = colour;
+                    continue;
+                }
                 let mut pixel = PixelStats::default();
                 let sky = neighbourhood(x, y, uniform.get(x as usize).copied().flatten(), &mut ids);
                 let centre = (!seen.is_empty())
@@ -317,8 +330,9 @@ mod tests {
 
     /// Pixels answered by their span come out as they do one by one: the
     /// demo (the sign's shadow on the ground, the runway's uniform
-    /// asphalt, the checker up close) with a sphere and an untextured quad
-    /// casting shadows and a second plane the sun lies beyond, under every
+    /// asphalt, the checker up close, the sky) with a sphere and an
+    /// untextured quad casting shadows, a second plane the sun lies beyond
+    /// and a few mesh triangles in the sky, under every
     /// pixel filter, lit and unlit. Equal to the last bit with the box;
     /// within rounding of the filter's weight otherwise. The spans must
     /// also have answered most textured pixels (a test they never enter
@@ -354,6 +368,25 @@ mod tests {
             u_axis: Vec3::new(1.0, 0.0, 0.0),
             v_axis: Vec3::new(0.0, 0.0, -1.0),
         }));
+        // A small mesh in the sky: sky spans must see its triangles.
+        let corner = |x: f64, y: f64| Vec3::new(x, y, -60.0);
+        let triangles = (0..6)
+            .filter_map(|i| {
+                let x = -30.0 + 9.0 * f64::from(i);
+                crate::scene::Triangle::new(
+                    [
+                        corner(x, 20.0),
+                        corner(x + 3.0, 20.5),
+                        corner(x + 1.0, 23.0),
+                    ],
+                    [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+                )
+            })
+            .collect();
+        let mesh = crate::scene::Mesh::new(triangles).unwrap();
+        scene
+            .surfaces
+            .push(extra(Geometry::Mesh(std::sync::Arc::new(mesh))));
         let unlit = Scene {
             lighting: Lighting::Unlit,
             ..scene.clone()
