@@ -263,6 +263,11 @@ impl Bvh {
         false
     }
 
+    /// The box around every item, `None` for an empty hierarchy.
+    pub fn bounds(&self) -> Option<Aabb> {
+        self.nodes.first().map(|n| n.bounds)
+    }
+
     /// Nodes in the hierarchy.
     #[cfg(test)]
     pub fn node_count(&self) -> usize {

@@ -574,7 +574,15 @@ pub(crate) fn exact_pixel<'a>(
         let whole =
             matches!(region, Cow::Borrowed(_)) || region.area() >= support.area() * (1.0 - 1e-12);
         if whole {
-            let (c, w, b) = shade_piece(frame, &view, &region, filter, centre, options, &mut parts);
+            let (mut c, w, b) =
+                texture_piece(frame, &view, &region, filter, centre, options, &mut parts);
+            // The sun over the pixel's run, when one test settled it for
+            // all of the run (the span that failed was refused for its
+            // texture), else the pixel's own shadow ray.
+            match uniform_span.run_light((x, y), *id) {
+                Some(k) => apply_light(&mut c, k),
+                None => light_piece(frame, &view, &region, &mut c),
+            }
             add(c, w, b);
             parts.weight_error = weight_error(w);
             stats.merge_parts(&parts);
@@ -1292,10 +1300,26 @@ fn shade_piece(
     options: &FilterOptions,
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64, f64) {
+    let (mut c, w, b) = texture_piece(frame, view, piece, filter, centre, options, stats);
+    light_piece(frame, view, piece, &mut c);
+    (c, w, b)
+}
+
+/// [`shade_piece`] before the lighting: the surface's texture (or its tint
+/// alone) over `piece`.
+fn texture_piece(
+    frame: &Frame<'_>,
+    view: &View,
+    piece: &ConvexPolygon,
+    filter: PixelFilter,
+    centre: [f64; 2],
+    options: &FilterOptions,
+    stats: &mut PixelStats,
+) -> ([f64; 4], f64, f64) {
     let scene = frame.scene;
     let surface = &scene.surfaces[view.surface];
     let tint = surface.colour.to_array().map(f64::from);
-    let (mut c, w, b) = match frame.sampler(view.surface) {
+    let (c, w, b) = match frame.sampler(view.surface) {
         Some(sampler) => {
             stats.textured = 1;
             let r = sampler.integrate_region(
@@ -1317,8 +1341,14 @@ fn shade_piece(
             (tint.map(|t| t * w), w, 0.0)
         }
     };
-    light_piece(frame, view, piece, &mut c);
     (c, w, b)
+}
+
+/// Multiplies `c` by `light`, a lighting factor per channel.
+fn apply_light(c: &mut [f64; 4], light: [f32; 3]) {
+    for (v, f) in c.iter_mut().zip(light) {
+        *v *= f64::from(f);
+    }
 }
 
 /// What [`shade_piece`] gives a pixel of a [`UniformSpan`] whose whole
@@ -1356,11 +1386,7 @@ fn shade_span_pixel(
         None => tint.map(|t| t * w),
     };
     match answer.light {
-        Some(k) => {
-            for (v, f) in c.iter_mut().zip(k) {
-                *v *= f64::from(f);
-            }
-        }
+        Some(k) => apply_light(&mut c, k),
         None => light_piece(frame, view, support, &mut c),
     }
     (c, w)

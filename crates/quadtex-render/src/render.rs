@@ -355,6 +355,13 @@ mod tests {
             centre: Vec3::new(-20.0, 6.0, 40.0),
             radius: 4.0,
         }));
+        // A canopy whose shadow falls at the right end of the ground's
+        // runs (where a run's light taken from its left part would be wrong).
+        scene.surfaces.push(extra(Geometry::Quad {
+            origin: Vec3::new(95.0, 3.0, -60.0),
+            edge_u: Vec3::new(20.0, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, -40.0),
+        }));
         scene.surfaces.push(extra(Geometry::Quad {
             origin: Vec3::new(20.0, 2.0, 60.0),
             edge_u: Vec3::new(6.0, 0.0, 1.0),

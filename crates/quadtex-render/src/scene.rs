@@ -290,6 +290,11 @@ impl Mesh {
         self.triangles.len() * std::mem::size_of::<Triangle>() + self.bvh.memory_bytes()
     }
 
+    /// The box around every triangle (its hierarchy's root).
+    pub(crate) fn bounds(&self) -> Option<crate::bvh::Aabb> {
+        self.bvh.bounds()
+    }
+
     /// Number of triangles.
     pub fn len(&self) -> usize {
         self.triangles.len()

@@ -72,6 +72,7 @@ pub(crate) struct SpanAnswer {
 struct RunLight {
     row: Option<u32>,
     id: Seen,
+    from: u32,
     until: u32,
     light: Option<[f32; 3]>,
 }
@@ -130,13 +131,15 @@ impl UniformSpan {
         // The sun over the whole run, once: where it lights all of it, it
         // lights every span inside.
         let run_end = x.saturating_add(run);
-        if !(self.run_light.row == Some(y) && self.run_light.id == id && x < self.run_light.until) {
+        let known = &self.run_light;
+        if !(known.row == Some(y) && known.id == id && (known.from..known.until).contains(&x)) {
             let light = (run >= MIN_SPAN)
                 .then(|| span_light(frame, view, &span_rect(filter, (x, y), run)))
                 .flatten();
             self.run_light = RunLight {
                 row: Some(y),
                 id,
+                from: x,
                 until: run_end,
                 light,
             };
@@ -169,6 +172,16 @@ impl UniformSpan {
             }
             len = (len / 4).max(MIN_SPAN);
         }
+    }
+
+    /// The lighting factor of every piece inside the supports of the run
+    /// of pixel `(x, y)` on primitive `id`, when one test settled it for
+    /// the whole run ([`UniformSpan::answer`] tests it once a run).
+    pub fn run_light(&self, (x, y): (u32, u32), id: Seen) -> Option<[f32; 3]> {
+        let run = &self.run_light;
+        (run.row == Some(y) && run.id == id && (run.from..run.until).contains(&x))
+            .then_some(run.light)
+            .flatten()
     }
 
     /// Records `colour` and `stats`, what the span's first pixel came
@@ -345,7 +358,22 @@ fn shadow_free(frame: &Frame<'_>, from: usize, corners: &[Vec3; 4], direction: V
                 norm > 0.0 && -(l[0] * c[0] + l[1] * c[1] + l[2]) / norm > radius + margin
             })
         }
-        Geometry::Mesh(_) => false,
+        // Its box's outline holds every triangle's (none when the box
+        // is not known, or the mesh is the surface the rays leave: its
+        // other triangles may shade it).
+        Geometry::Mesh(mesh) => {
+            i != from
+                && mesh.bounds().is_some_and(|b| {
+                    let corners: [Vec3; 8] = std::array::from_fn(|k| {
+                        Vec3::new(
+                            if k & 1 == 0 { b.lo.x } else { b.hi.x },
+                            if k & 2 == 0 { b.lo.y } else { b.hi.y },
+                            if k & 4 == 0 { b.lo.z } else { b.hi.z },
+                        )
+                    });
+                    apart(&outline, &ConvexPolygon::hull(&corners.map(along)), margin)
+                })
+        }
     })
 }
 
