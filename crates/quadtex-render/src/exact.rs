@@ -31,6 +31,11 @@
 //! Spheres are not planar: pixels that involve one are left to the
 //! tangent-plane path ([`crate::pixel`]).
 //!
+//! **Spans.** Consecutive pixels of a row inside one primitive share one
+//! texture lookup and one shadow test where the rectangle their supports
+//! cover allows it ([`crate::span`]); sky pixels clear of every primitive
+//! are taken from the render loop ([`Scratch::sky_pixel`]).
+//!
 //! **Shading.** Lambert lighting is constant over a planar piece except for
 //! shadows, taken at the piece's centroid. The sky's gradient over a whole
 //! box-filtered pixel is its value at the centre where a bound on that
