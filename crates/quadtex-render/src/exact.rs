@@ -559,7 +559,10 @@ pub(crate) fn exact_pixel<'a>(
         && let Some(view) = candidate_view(scene, cache, memo, *id)?
     {
         // A run of such pixels: one answer for a span of them.
-        if let Some(answer) = uniform_span.answer(frame, &view, filter, options, (x, y), *id, run) {
+        let answer = uniform_span.answer(frame, &view, filter, options, (x, y), *id, run);
+        // Counted on this pixel alone, not on the span's copies of it.
+        stats.filter.traversal.queries += uniform_span.take_lookups();
+        if let Some(answer) = answer {
             let (c, w) =
                 shade_span_pixel(frame, &view, &support, filter, centre, &answer, &mut parts);
             add(c, w, 0.0);

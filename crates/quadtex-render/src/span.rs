@@ -99,6 +99,8 @@ pub(crate) struct UniformSpan {
     /// The colour and counters of the span's first pixel, when every
     /// pixel of the span comes out the same ([`UniformSpan::set_fill`]).
     fill: Option<(Rgba, PixelStats)>,
+    /// Texture lookups the tries made since [`UniformSpan::take_lookups`].
+    lookups: u64,
 }
 
 impl UniformSpan {
@@ -153,8 +155,16 @@ impl UniformSpan {
                 self.answer = None;
                 return None;
             }
-            if let Some(answer) = span_answer(frame, view, filter, options, (x, y), len, run_light)
-            {
+            if let Some(answer) = span_answer(
+                frame,
+                view,
+                filter,
+                options,
+                (x, y),
+                len,
+                run_light,
+                &mut self.lookups,
+            ) {
                 self.until = x.saturating_add(len);
                 self.answer = Some(answer);
                 self.guess = len.saturating_mul(2).min(MAX_SPAN);
@@ -182,6 +192,13 @@ impl UniformSpan {
         (run.row == Some(y) && run.id == id && (run.from..run.until).contains(&x))
             .then_some(run.light)
             .flatten()
+    }
+
+    /// The texture lookups the span tries made since the last call (one
+    /// a try that reached the texture): the render summary counts them
+    /// as the tree queries they are.
+    pub fn take_lookups(&mut self) -> u64 {
+        std::mem::take(&mut self.lookups)
     }
 
     /// Records `colour` and `stats`, what the span's first pixel came
@@ -215,7 +232,9 @@ fn span_rect(filter: PixelFilter, (x, y): (u32, u32), len: u32) -> ConvexPolygon
 /// What every pixel of the `len` pixels from `(x, y)` gets, when their
 /// supports' rectangle lies inside `view`'s primitive, over one uniform
 /// square of its texture (module documentation); `run_light`, when known,
-/// is the light over the whole run they lie in.
+/// is the light over the whole run they lie in. `lookups` counts the
+/// texture lookups made.
+#[allow(clippy::too_many_arguments)]
 fn span_answer(
     frame: &Frame<'_>,
     view: &View,
@@ -224,6 +243,7 @@ fn span_answer(
     (x, y): (u32, u32),
     len: u32,
     run_light: Option<[f32; 3]>,
+    lookups: &mut u64,
 ) -> Option<SpanAnswer> {
     let rect = span_rect(filter, (x, y), len);
     let (first, cy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
@@ -241,6 +261,7 @@ fn span_answer(
     let texture = match frame.sampler(view.surface()) {
         Some(sampler) => {
             let pixel = filter.support([first, cy]);
+            *lookups += 1;
             Some(sampler.uniform_colour_over(view.projection(), &rect, &pixel, options)?)
         }
         None => None,
