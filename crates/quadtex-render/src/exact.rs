@@ -570,10 +570,13 @@ pub(crate) fn exact_pixel<'a>(
             parts.filter.record_bound(0.0);
             stats.merge_parts(&parts);
             let colour = mean(acc, weight);
-            // The box's weight is the support's area, 1 at every pixel (its
-            // corners are half-integers, exact in floats): with the light
-            // known, every pixel of the span comes out as this one.
-            if filter == PixelFilter::Box && answer.light.is_some() && w == 1.0 {
+            // The weight is the same bits at every pixel: the box's is the
+            // support's area, 1 (its corners are multiples of ½, exact in
+            // floats, and so are their products at pixel coordinates below
+            // 2³²); the tent's and Mitchell's integrate the support moved
+            // to the centre, `centre ± r − centre`, exactly `±r`. With the
+            // light known, every pixel of the span comes out as this one.
+            if answer.light.is_some() && (filter != PixelFilter::Box || w == 1.0) {
                 uniform_span.set_fill(colour, parts);
             }
             return Some(colour);

@@ -203,7 +203,7 @@ impl UniformSpan {
 
     /// Records `colour` and `stats`, what the span's first pixel came
     /// out as, as every pixel's of the span: the caller has made sure they
-    /// are (a box filter's weight is 1 at every pixel, and the span's
+    /// are (the filter's weight is the same at every pixel, and the span's
     /// light is known).
     pub fn set_fill(&mut self, colour: Rgba, stats: PixelStats) {
         self.fill = Some((colour, stats));
