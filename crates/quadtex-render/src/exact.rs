@@ -53,7 +53,7 @@ use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::reach::MeshReach;
 use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
-use crate::span::{SpanAnswer, UniformSpan};
+use crate::span::{SpanAnswer, SpanQuery, UniformSpan};
 use crate::stats::PixelStats;
 
 /// Meshes up to this many triangles have every triangle tried at a
@@ -559,7 +559,13 @@ pub(crate) fn exact_pixel<'a>(
         && let Some(view) = candidate_view(scene, cache, memo, *id)?
     {
         // A run of such pixels: one answer for a span of them.
-        let answer = uniform_span.answer(frame, &view, filter, options, (x, y), *id, run);
+        let query = SpanQuery {
+            frame,
+            view: &view,
+            filter,
+            options,
+        };
+        let answer = uniform_span.answer(&query, (x, y), *id, run);
         // Counted on this pixel alone, not on the span's copies of it.
         stats.filter.traversal.queries += uniform_span.take_lookups();
         if let Some(answer) = answer {
@@ -585,15 +591,13 @@ pub(crate) fn exact_pixel<'a>(
         let whole =
             matches!(region, Cow::Borrowed(_)) || region.area() >= support.area() * (1.0 - 1e-12);
         if whole {
-            let (mut c, w, b) =
-                texture_piece(frame, &view, &region, filter, centre, options, &mut parts);
             // The sun over the pixel's run, when one test settled it for
             // all of the run (the span that failed was refused for its
             // texture), else the pixel's own shadow ray.
-            match uniform_span.run_light((x, y), *id) {
-                Some(k) => apply_light(&mut c, k),
-                None => light_piece(frame, &view, &region, &mut c),
-            }
+            let light = uniform_span.run_light((x, y), *id);
+            let (c, w, b) = shade_piece(
+                frame, &view, &region, filter, centre, options, light, &mut parts,
+            );
             add(c, w, b);
             parts.weight_error = weight_error(w);
             stats.merge_parts(&parts);
@@ -751,7 +755,7 @@ pub(crate) fn exact_pixel<'a>(
     add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
     for (i, piece) in &cut.pieces {
         let (c, w, b) = shade_piece(
-            frame, &views[*i], piece, filter, centre, options, &mut parts,
+            frame, &views[*i], piece, filter, centre, options, None, &mut parts,
         );
         add(c, w, b);
     }
@@ -802,7 +806,7 @@ pub(crate) fn exact_pixel<'a>(
                 };
                 if let Some(view) = view {
                     let (c, w, b) =
-                        shade_piece(frame, &view, r, filter, centre, options, &mut parts);
+                        shade_piece(frame, &view, r, filter, centre, options, None, &mut parts);
                     let beyond = (filter.integral(r, centre) - w).abs();
                     add(c, w, b + w.abs() + beyond);
                 } else {
@@ -1301,7 +1305,10 @@ impl Order {
     }
 }
 
-/// `(Σ colour·k, Σ k, bound)` of surface `view` over screen `piece`.
+/// `(Σ colour·k, Σ k, bound)` of surface `view` over screen `piece`, lit
+/// by `light` when the caller knows it for the whole piece (a run's,
+/// [`UniformSpan::run_light`]), else by the piece's own shadow ray.
+#[allow(clippy::too_many_arguments)]
 fn shade_piece(
     frame: &Frame<'_>,
     view: &View,
@@ -1309,28 +1316,13 @@ fn shade_piece(
     filter: PixelFilter,
     centre: [f64; 2],
     options: &FilterOptions,
-    stats: &mut PixelStats,
-) -> ([f64; 4], f64, f64) {
-    let (mut c, w, b) = texture_piece(frame, view, piece, filter, centre, options, stats);
-    light_piece(frame, view, piece, &mut c);
-    (c, w, b)
-}
-
-/// [`shade_piece`] before the lighting: the surface's texture (or its tint
-/// alone) over `piece`.
-fn texture_piece(
-    frame: &Frame<'_>,
-    view: &View,
-    piece: &ConvexPolygon,
-    filter: PixelFilter,
-    centre: [f64; 2],
-    options: &FilterOptions,
+    light: Option<[f32; 3]>,
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64, f64) {
     let scene = frame.scene;
     let surface = &scene.surfaces[view.surface];
     let tint = surface.colour.to_array().map(f64::from);
-    let (c, w, b) = match frame.sampler(view.surface) {
+    let (mut c, w, b) = match frame.sampler(view.surface) {
         Some(sampler) => {
             stats.textured = 1;
             let r = sampler.integrate_region(
@@ -1352,6 +1344,10 @@ fn texture_piece(
             (tint.map(|t| t * w), w, 0.0)
         }
     };
+    match light {
+        Some(k) => apply_light(&mut c, k),
+        None => light_piece(frame, view, piece, &mut c),
+    }
     (c, w, b)
 }
 

@@ -54,6 +54,16 @@ pub(crate) const MIN_SPAN: u32 = 2;
 /// Most pixels a row waits after failed tries before trying again.
 const MAX_BACKOFF: u32 = 64;
 
+/// What a span is tried against: the frame, the view of the primitive its
+/// pixels' centres see, the pixel filter and the texture filter's options.
+#[derive(Clone, Copy)]
+pub(crate) struct SpanQuery<'q, 'f> {
+    pub frame: &'q Frame<'f>,
+    pub view: &'q View,
+    pub filter: PixelFilter,
+    pub options: &'q FilterOptions,
+}
+
 /// What every pixel of a span gets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SpanAnswer {
@@ -106,19 +116,21 @@ pub(crate) struct UniformSpan {
 impl UniformSpan {
     /// What pixel `(x, y)` of a run of `run` pixels (itself and those after
     /// it in the row) whose centres in reach all see primitive `id`, seen
-    /// through `view`, shares with its span; `None` when it takes the
-    /// general path. Sets up a span at `x` when none covers it.
-    #[allow(clippy::too_many_arguments)]
+    /// through `query.view`, shares with its span; `None` when it takes
+    /// the general path. Sets up a span at `x` when none covers it.
     pub fn answer(
         &mut self,
-        frame: &Frame<'_>,
-        view: &View,
-        filter: PixelFilter,
-        options: &FilterOptions,
+        query: &SpanQuery<'_, '_>,
         (x, y): (u32, u32),
         id: Seen,
         run: u32,
     ) -> Option<SpanAnswer> {
+        let SpanQuery {
+            frame,
+            view,
+            filter,
+            ..
+        } = *query;
         if self.row == Some(y) && self.id == id && (self.from..self.until).contains(&x) {
             return self.answer;
         }
@@ -155,16 +167,7 @@ impl UniformSpan {
                 self.answer = None;
                 return None;
             }
-            if let Some(answer) = span_answer(
-                frame,
-                view,
-                filter,
-                options,
-                (x, y),
-                len,
-                run_light,
-                &mut self.lookups,
-            ) {
+            if let Some(answer) = span_answer(query, (x, y), len, run_light, &mut self.lookups) {
                 self.until = x.saturating_add(len);
                 self.answer = Some(answer);
                 self.guess = len.saturating_mul(2).min(MAX_SPAN);
@@ -234,17 +237,19 @@ fn span_rect(filter: PixelFilter, (x, y): (u32, u32), len: u32) -> ConvexPolygon
 /// square of its texture (module documentation); `run_light`, when known,
 /// is the light over the whole run they lie in. `lookups` counts the
 /// texture lookups made.
-#[allow(clippy::too_many_arguments)]
 fn span_answer(
-    frame: &Frame<'_>,
-    view: &View,
-    filter: PixelFilter,
-    options: &FilterOptions,
+    query: &SpanQuery<'_, '_>,
     (x, y): (u32, u32),
     len: u32,
     run_light: Option<[f32; 3]>,
     lookups: &mut u64,
 ) -> Option<SpanAnswer> {
+    let SpanQuery {
+        frame,
+        view,
+        filter,
+        options,
+    } = *query;
     let rect = span_rect(filter, (x, y), len);
     let (first, cy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
     if !matches!(placement(&rect, view.lines()), Placement::Inside) {
