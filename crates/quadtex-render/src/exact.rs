@@ -46,13 +46,14 @@
 
 use std::borrow::Cow;
 
-use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Projection, Rgba};
+use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
 
 use crate::caster::{Seen, seen_id, surface_and_triangle};
 use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
+use crate::planar_view::{Placement, View, placement};
 use crate::reach::MeshReach;
-use crate::scene::{Extent, Geometry, Lighting, Planar, Scene};
+use crate::scene::{Geometry, Lighting, Scene};
 use crate::span::{SpanAnswer, SpanQuery, UniformSpan};
 use crate::stats::PixelStats;
 
@@ -112,47 +113,6 @@ impl ViewMemo {
     }
 }
 
-/// Where a polygon lies against the half-planes `a·x + b·y + c ≥ 0` of a
-/// view's lines or a region's edges ([`placement`]).
-pub(crate) enum Placement {
-    /// Wholly beyond one line: the clip is empty.
-    Outside,
-    /// Within every line: the clip is the polygon itself.
-    Inside,
-    /// Neither: the clip cuts it.
-    Straddles,
-}
-
-/// Where `polygon` lies against `lines`, decided from its vertices alone
-/// with the clip's own side test: wholly inside (the clip would copy every
-/// vertex unchanged) or wholly beyond one line (the clip would come out
-/// empty) needs no clip.
-pub(crate) fn placement(
-    polygon: &ConvexPolygon,
-    lines: impl Iterator<Item = [f64; 3]>,
-) -> Placement {
-    let mut all_inside = true;
-    for [a, b, c] in lines {
-        let (mut some_in, mut some_out) = (false, false);
-        for &[x, y] in polygon.vertices() {
-            if a * x + b * y + c >= 0.0 {
-                some_in = true;
-            } else {
-                some_out = true;
-            }
-        }
-        if !some_in {
-            return Placement::Outside;
-        }
-        all_inside &= !some_out;
-    }
-    if all_inside {
-        Placement::Inside
-    } else {
-        Placement::Straddles
-    }
-}
-
 /// Whether an edge line of one of two convex polygons has the other wholly
 /// on its outer side (or on it): their overlap has no area. Exact sign
 /// tests: a vertex that rounding puts a hair inside fails it (the caller
@@ -174,212 +134,6 @@ fn separated(a: &ConvexPolygon, b: &ConvexPolygon) -> bool {
 /// within them overlap in no area.
 fn boxes_apart((alo, ahi): ([f64; 2], [f64; 2]), (blo, bhi): ([f64; 2], [f64; 2])) -> bool {
     alo[0] >= bhi[0] || blo[0] >= ahi[0] || alo[1] >= bhi[1] || blo[1] >= ahi[1]
-}
-
-/// A planar primitive seen from the camera: rows `(a, b, c)` of affine
-/// functions of the screen point `(px, py, 1)`.
-#[derive(Debug, Clone)]
-pub(crate) struct View {
-    surface: usize,
-    /// `w`, positive where the primitive's plane is in front of the camera
-    /// (proportional to `1/depth`).
-    w: [f64; 3],
-    /// The plane's depth numerator: ray parameter `t = depth / w(s)`.
-    depth: f64,
-    /// Half-planes `row · (px, py, 1) ≥ 0` bounding the primitive.
-    bounds: [[f64; 3]; 4],
-    bound_count: usize,
-    projection: Projection,
-    normal: Vec3,
-}
-
-/// A planar primitive's affine rows over the screen point `(px, py, 1)`:
-/// `w` (positive in front of the camera), the depth numerator, `u·w` and
-/// `v·w`, and the half-planes of its edges.
-struct Rows {
-    w: [f64; 3],
-    depth: f64,
-    u: [f64; 3],
-    v: [f64; 3],
-    bounds: [[f64; 3]; 4],
-    bound_count: usize,
-}
-
-impl Rows {
-    /// `None` when the camera lies in the primitive's plane.
-    fn new(scene: &Scene, planar: &Planar) -> Option<Rows> {
-        let cam = &scene.camera;
-        // The ray direction through (px, py), affine: d = d0 + dx·px + dy·py.
-        let d0 = cam.direction(0.0, 0.0);
-        let dx = cam.direction(1.0, 0.0) - d0;
-        let dy = cam.direction(0.0, 1.0) - d0;
-        let c = cam.position;
-        let n = planar.normal;
-        let np = n.dot(planar.point - c);
-        if np.abs() <= 1e-12 * (1.0 + planar.point.length() + c.length()) || np.is_nan() {
-            return None;
-        }
-        let sign = np.signum();
-        let row = |g: Vec3| [g.dot(dx), g.dot(dy), g.dot(d0)];
-        let nd = row(n);
-        let w = nd.map(|v| sign * v);
-        // f(q) = f_p + g·(q − p) along the ray: [f(C)·(n·d) + np·(g·d)] / (n·d).
-        let affine = |f_p: f64, g: Vec3| {
-            let f_c = f_p + g.dot(c - planar.point);
-            let gd = row(g);
-            [0, 1, 2].map(|k| sign * (f_c * nd[k] + np * gd[k]))
-        };
-        let u = affine(planar.uv[0], planar.du);
-        let v = affine(planar.uv[1], planar.dv);
-        let minus = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-        let (bounds, bound_count) = match planar.extent {
-            Extent::Plane => ([[0.0; 3]; 4], 0),
-            Extent::UnitUv => ([u, minus(w, u), v, minus(w, v)], 4),
-            Extent::Triangle { g1, g2 } => {
-                let b1 = affine(0.0, g1);
-                let b2 = affine(0.0, g2);
-                ([b1, b2, minus(minus(w, b1), b2), [0.0; 3]], 3)
-            }
-        };
-        Some(Rows {
-            w,
-            depth: np.abs(),
-            u,
-            v,
-            bounds,
-            bound_count,
-        })
-    }
-}
-
-impl View {
-    /// The view of `planar`, a part of surface `surface`; `None` when the
-    /// camera lies in its plane (it is then seen edge-on: nothing).
-    pub fn new(scene: &Scene, surface: usize, planar: &Planar) -> Option<View> {
-        let Rows {
-            w,
-            depth,
-            u,
-            v,
-            bounds,
-            bound_count,
-        } = Rows::new(scene, planar)?;
-        let transform = scene.surfaces[surface].uv_transform;
-        let o = transform.apply([0.0, 0.0]);
-        let ex = transform.apply([1.0, 0.0]);
-        let ez = transform.apply([0.0, 1.0]);
-        let (a00, a10) = (ex[0] - o[0], ex[1] - o[1]);
-        let (a01, a11) = (ez[0] - o[0], ez[1] - o[1]);
-        let tex_x = [0, 1, 2].map(|k| a00 * u[k] + a01 * v[k] + o[0] * w[k]);
-        let tex_z = [0, 1, 2].map(|k| a10 * u[k] + a11 * v[k] + o[1] * w[k]);
-        let projection = Projection::new([tex_x, tex_z, w]).ok()?;
-        Some(View {
-            surface,
-            w,
-            depth,
-            bounds,
-            bound_count,
-            projection,
-            normal: planar.normal,
-        })
-    }
-
-    /// What the visibility grid needs of `planar`, without the texture
-    /// map: its lines ([`View::lines`]: `w`, then the edges) and its depth
-    /// numerator ([`View::depth_parts`]); `None` when seen edge-on.
-    pub(crate) fn edges(scene: &Scene, planar: &Planar) -> Option<([[f64; 3]; 5], usize, f64)> {
-        let rows = Rows::new(scene, planar)?;
-        let mut lines = [[0.0; 3]; 5];
-        lines[0] = rows.w;
-        lines[1..=rows.bound_count].copy_from_slice(&rows.bounds[..rows.bound_count]);
-        Some((lines, rows.bound_count + 1, rows.depth))
-    }
-
-    /// The part of `support` where this primitive lies (in front of the
-    /// camera, inside its edges), ignoring occlusion.
-    pub fn region<'s>(&self, support: &'s ConvexPolygon) -> Cow<'s, ConvexPolygon> {
-        match self.placement(support) {
-            Placement::Outside => Cow::Owned(ConvexPolygon::EMPTY),
-            Placement::Inside => Cow::Borrowed(support),
-            Placement::Straddles => Cow::Owned(support.clip_lines(self.lines())),
-        }
-    }
-
-    /// The half-planes `a·x + b·y + c ≥ 0` this primitive is seen within:
-    /// in front of the camera, then inside each of its edges.
-    pub(crate) fn lines(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
-        std::iter::once(self.w).chain(self.bounds[..self.bound_count].iter().copied())
-    }
-
-    /// Whether this primitive's [`View::region`] of `support` is empty,
-    /// without building it where the support's corners decide (the sky's
-    /// check of every plane and quad no centre sees, most pixels).
-    pub fn misses(&self, support: &ConvexPolygon) -> bool {
-        match self.placement(support) {
-            Placement::Outside => true,
-            Placement::Inside => support.is_empty(),
-            Placement::Straddles => self.region(support).is_empty(),
-        }
-    }
-
-    /// Where `support` lies against this primitive's lines ([`placement`]):
-    /// most pixels lie wholly inside or wholly beyond one line.
-    fn placement(&self, support: &ConvexPolygon) -> Placement {
-        placement(support, self.lines())
-    }
-
-    /// The texture's integral over this primitive's part of `support`
-    /// (occlusion ignored), under `filter` centred at `centre`.
-    pub fn texture_integral(
-        &self,
-        sampler: &quadtex_core::Texture,
-        support: &ConvexPolygon,
-        filter: PixelFilter,
-        centre: [f64; 2],
-        options: &FilterOptions,
-    ) -> quadtex_core::RegionIntegral {
-        sampler.integrate_region(
-            &self.projection,
-            &self.region(support),
-            filter,
-            centre,
-            options,
-            &mut quadtex_core::FilterStats::default(),
-        )
-    }
-
-    /// `(w, depth)`: the ray parameter of the camera's unnormalised ray
-    /// through `s` is `depth / w(s)` where `w(s) = w · (s, 1) > 0`
-    /// ([`View::lines`] starts with `w`).
-    pub(crate) fn depth_parts(&self) -> ([f64; 3], f64) {
-        (self.w, self.depth)
-    }
-
-    /// The surface this primitive is part of.
-    pub(crate) fn surface(&self) -> usize {
-        self.surface
-    }
-
-    /// The map from the screen to the surface's texture.
-    pub(crate) fn projection(&self) -> &Projection {
-        &self.projection
-    }
-
-    /// The primitive's normal (world space, as its surface gives it).
-    pub(crate) fn normal(&self) -> Vec3 {
-        self.normal
-    }
-
-    /// Ray parameter (for the camera's unnormalised ray through `s`) of
-    /// the plane at screen point `s`; infinite where `w(s) ≤ 0`.
-    pub(crate) fn depth_at(&self, s: [f64; 2]) -> f64 {
-        let w = self.w[0] * s[0] + self.w[1] * s[1] + self.w[2];
-        if w > 0.0 {
-            self.depth / w
-        } else {
-            f64::INFINITY
-        }
-    }
 }
 
 /// The views of a scene's planes and quads, built once per frame (mesh
@@ -1320,13 +1074,13 @@ fn shade_piece(
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64, f64) {
     let scene = frame.scene;
-    let surface = &scene.surfaces[view.surface];
+    let surface = &scene.surfaces[view.surface()];
     let tint = surface.colour.to_array().map(f64::from);
-    let (mut c, w, b) = match frame.sampler(view.surface) {
+    let (mut c, w, b) = match frame.sampler(view.surface()) {
         Some(sampler) => {
             stats.textured = 1;
             let r = sampler.integrate_region(
-                &view.projection,
+                view.projection(),
                 piece,
                 filter,
                 centre,
@@ -1373,7 +1127,7 @@ fn shade_span_pixel(
     answer: &SpanAnswer,
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64) {
-    let tint = frame.scene.surfaces[view.surface]
+    let tint = frame.scene.surfaces[view.surface()]
         .colour
         .to_array()
         .map(f64::from);
@@ -1411,7 +1165,7 @@ fn light_piece(frame: &Frame<'_>, view: &View, piece: &ConvexPolygon, c: &mut [f
             // The camera's ray is normalised; depth_at is per unnormalised d.
             let d = scene.camera.direction(s[0], s[1]);
             let point = scene.camera.position + d * t;
-            let k = lambert(&frame.rays, view.surface, view.normal, point, &ray);
+            let k = lambert(&frame.rays, view.surface(), view.normal(), point, &ray);
             for (v, f) in c.iter_mut().zip(k) {
                 *v *= f64::from(f);
             }
@@ -1750,17 +1504,7 @@ mod tests {
             seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
             (seed >> 11) as f64 / (1u64 << 53) as f64
         };
-        let view_at = |depth: f64| {
-            Cow::Owned(View {
-                surface: 0,
-                w: [0.0, 0.0, 1.0],
-                depth,
-                bounds: [[0.0; 3]; 4],
-                bound_count: 0,
-                projection: Projection::identity(),
-                normal: Vec3::new(0.0, 0.0, -1.0),
-            })
-        };
+        let view_at = |depth: f64| Cow::Owned(View::facing_at(depth));
         let corners = [[10.0, 20.0], [11.0, 20.0], [11.0, 21.0], [10.0, 21.0]];
         let (mut carved, mut hidden) = (0, 0);
         for round in 0..300 {

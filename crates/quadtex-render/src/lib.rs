@@ -28,6 +28,7 @@ mod options;
 mod parse;
 pub mod path;
 mod pixel;
+mod planar_view;
 mod reach;
 mod render;
 pub mod scene;

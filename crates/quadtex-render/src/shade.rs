@@ -134,7 +134,7 @@ fn tangent_filtered(
         dv: hit.dv,
         extent: crate::scene::Extent::Plane,
     };
-    let view = crate::exact::View::new(frame.scene, index, &planar)?;
+    let view = crate::planar_view::View::new(frame.scene, index, &planar)?;
     let support = filter.support(area.centre);
     view.texture_integral(sampler, &support, filter, area.centre, options)
         .mean()

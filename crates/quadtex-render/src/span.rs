@@ -38,9 +38,9 @@
 use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
 
 use crate::caster::Seen;
-use crate::exact::{Placement, View, placement};
 use crate::frame::{Frame, lit_factor};
 use crate::math::Vec3;
+use crate::planar_view::{Placement, View, placement};
 use crate::scene::{Geometry, Lighting};
 use crate::stats::PixelStats;
 

@@ -6,7 +6,7 @@
 //! **Rasterised where that is the same answer.** Planes, quads and mesh
 //! triangles are planar: each one's screen region is a few half-planes and
 //! its ray parameter is `depth / w(s)` with `w` affine in the screen point
-//! ([`crate::exact::View`]), so the grid is a z-buffer. Planes and quads are
+//! ([`crate::planar_view::View`]), so the grid is a z-buffer. Planes and quads are
 //! drawn into every row; mesh triangles are binned first by the rows their
 //! projected corners reach (bands of [`BAND`] rows; a triangle reaching
 //! behind the camera's plane goes to every row, one wholly behind it to
@@ -25,8 +25,9 @@ use quadtex_core::ConvexPolygon;
 use rayon::prelude::*;
 
 use crate::caster::{Caster, Seen, seen_id};
-use crate::exact::{SurfaceViews, View};
+use crate::exact::SurfaceViews;
 use crate::math::Vec3;
+use crate::planar_view::View;
 use crate::reach::MeshReach;
 use crate::scene::{Geometry, Mesh, Scene};
 
