@@ -54,7 +54,7 @@ use crate::math::{Ray, Vec3};
 use crate::planar_view::{Placement, View, placement};
 use crate::reach::MeshReach;
 use crate::scene::{Geometry, Lighting, Scene};
-use crate::span::{SpanAnswer, SpanQuery, UniformSpan};
+use crate::span::{SpanAnswer, SpanQuery, UniformSpan, span_rect};
 use crate::stats::PixelStats;
 
 /// Meshes up to this many triangles have every triangle tried at a
@@ -926,17 +926,10 @@ impl SkySpan {
         (x, y): (u32, u32),
     ) -> bool {
         if self.row != Some(y) || x >= self.until {
-            let r = filter.radius();
-            let last = x.saturating_add(SKY_SPAN - 1);
-            let (cy, first_cx, last_cx) = (
-                f64::from(y) + 0.5,
-                f64::from(x) + 0.5,
-                f64::from(last) + 0.5,
-            );
-            let wide = ConvexPolygon::rect(first_cx - r, cy - r, last_cx + r, cy + r);
+            let wide = span_rect(filter, (x, y), SKY_SPAN);
             *self = SkySpan {
                 row: Some(y),
-                until: last.saturating_add(1),
+                until: x.saturating_add(SKY_SPAN),
                 clear: (cache.views.iter().flatten())
                     .all(|v| matches!(v.placement(&wide), Placement::Outside)),
                 wide: Some(wide),
@@ -1073,10 +1066,7 @@ fn shade_piece(
     light: Option<[f32; 3]>,
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64, f64) {
-    let scene = frame.scene;
-    let surface = &scene.surfaces[view.surface()];
-    let tint = surface.colour.to_array().map(f64::from);
-    let (mut c, w, b) = match frame.sampler(view.surface()) {
+    let (c, w, b) = match frame.sampler(view.surface()) {
         Some(sampler) => {
             stats.textured = 1;
             let r = sampler.integrate_region(
@@ -1087,22 +1077,43 @@ fn shade_piece(
                 options,
                 &mut stats.filter,
             );
-            let mut c = r.colour.0;
+            (Some(r.colour.0), r.weight, r.error_bound)
+        }
+        None => (None, filter.integral(piece, centre), 0.0),
+    };
+    (tint_and_light(frame, view, piece, c, w, light), w, b)
+}
+
+/// A piece's colour from its texture integral `texture` (`None`: the
+/// surface is untextured) and weight `w`: tinted by the surface's colour,
+/// then lit by `light` when the caller knows it for the whole piece, else
+/// by the piece's own shadow ray ([`light_piece`]).
+fn tint_and_light(
+    frame: &Frame<'_>,
+    view: &View,
+    piece: &ConvexPolygon,
+    texture: Option<[f64; 4]>,
+    w: f64,
+    light: Option<[f32; 3]>,
+) -> [f64; 4] {
+    let tint = frame.scene.surfaces[view.surface()]
+        .colour
+        .to_array()
+        .map(f64::from);
+    let mut c = match texture {
+        Some(mut c) => {
             for (v, t) in c.iter_mut().zip(tint) {
                 *v *= t;
             }
-            (c, r.weight, r.error_bound)
+            c
         }
-        None => {
-            let w = filter.integral(piece, centre);
-            (tint.map(|t| t * w), w, 0.0)
-        }
+        None => tint.map(|t| t * w),
     };
     match light {
         Some(k) => apply_light(&mut c, k),
         None => light_piece(frame, view, piece, &mut c),
     }
-    (c, w, b)
+    c
 }
 
 /// Multiplies `c` by `light`, a lighting factor per channel.
@@ -1127,30 +1138,18 @@ fn shade_span_pixel(
     answer: &SpanAnswer,
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64) {
-    let tint = frame.scene.surfaces[view.surface()]
-        .colour
-        .to_array()
-        .map(f64::from);
     let w = filter.integral(support, centre);
-    let mut c = match answer.texture {
-        Some(colour) => {
-            stats.textured = 1;
-            // What the region integral's uniform shortcut counts.
-            stats.filter.footprints += 1;
-            stats.filter.fragments += 1;
-            let mut c = quadtex_core::WeightedColour::from_colour(colour, w).0;
-            for (v, t) in c.iter_mut().zip(tint) {
-                *v *= t;
-            }
-            c
-        }
-        None => tint.map(|t| t * w),
-    };
-    match answer.light {
-        Some(k) => apply_light(&mut c, k),
-        None => light_piece(frame, view, support, &mut c),
-    }
-    (c, w)
+    let texture = answer.texture.map(|colour| {
+        stats.textured = 1;
+        // What the region integral's uniform shortcut counts.
+        stats.filter.footprints += 1;
+        stats.filter.fragments += 1;
+        quadtex_core::WeightedColour::from_colour(colour, w).0
+    });
+    (
+        tint_and_light(frame, view, support, texture, w, answer.light),
+        w,
+    )
 }
 
 /// Multiplies `c` by the lighting at `piece`'s centroid on `view`'s
@@ -1166,9 +1165,7 @@ fn light_piece(frame: &Frame<'_>, view: &View, piece: &ConvexPolygon, c: &mut [f
             let d = scene.camera.direction(s[0], s[1]);
             let point = scene.camera.position + d * t;
             let k = lambert(&frame.rays, view.surface(), view.normal(), point, &ray);
-            for (v, f) in c.iter_mut().zip(k) {
-                *v *= f64::from(f);
-            }
+            apply_light(c, k);
         }
     }
 }

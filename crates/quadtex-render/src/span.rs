@@ -222,7 +222,7 @@ impl UniformSpan {
 }
 
 /// The rectangle the supports of the `len` pixels from `(x, y)` cover.
-fn span_rect(filter: PixelFilter, (x, y): (u32, u32), len: u32) -> ConvexPolygon {
+pub(crate) fn span_rect(filter: PixelFilter, (x, y): (u32, u32), len: u32) -> ConvexPolygon {
     let r = filter.radius();
     let cy = f64::from(y) + 0.5;
     let (first, last) = (
