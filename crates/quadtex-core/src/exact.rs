@@ -1983,11 +1983,15 @@ impl<'a> LeftOf<'a> {
         let cross = |a: [f64; 2], b: [f64; 2]| a[0] * b[1] - a[1] * b[0];
         let mut crossing = [[0.0; 2]; 2];
         for (chain, point) in crossing.iter_mut().enumerate() {
+            // The neighbour by a compare, not `% n`: `n` is not known
+            // when compiled, so `%` is an integer division each step.
             let step = |i: usize| {
                 if chain == 0 {
-                    (i + 1) % n
+                    if i + 1 == n { 0 } else { i + 1 }
+                } else if i == 0 {
+                    n - 1
                 } else {
-                    (i + n - 1) % n
+                    i - 1
                 }
             };
             let (mut i, mut next) = (self.at[chain], step(self.at[chain]));
