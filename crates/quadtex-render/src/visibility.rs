@@ -68,17 +68,23 @@ pub(crate) fn visibility_grid(
     }
     match Raster::new(scene, views, (gw, gh), pad) {
         Some(raster) => {
+            // One task a band: bands cost what their triangles do (see the
+            // pixel rows in `render`).
             grid.par_chunks_mut(gw * BAND)
                 .enumerate()
+                .with_max_len(1)
                 .for_each(|(band, cells)| raster.band(band, cells, gw, &cast));
             (grid, raster.reach)
         }
         None => {
-            grid.par_chunks_mut(gw).enumerate().for_each(|(gy, row)| {
-                for (gx, id) in row.iter_mut().enumerate() {
-                    *id = cast(gx, gy);
-                }
-            });
+            grid.par_chunks_mut(gw)
+                .enumerate()
+                .with_max_len(1)
+                .for_each(|(gy, row)| {
+                    for (gx, id) in row.iter_mut().enumerate() {
+                        *id = cast(gx, gy);
+                    }
+                });
             (grid, MeshReach::everywhere())
         }
     }
