@@ -2191,4 +2191,162 @@ mod tests {
         }
         assert!(checked > 30_000);
     }
+
+    /// `(Σ colour·area, Σ area, cells)` over the cells of size `h` that
+    /// `region` crosses: each cell's piece clipped, mapped by `m` and
+    /// weighted by its screen area (relative to `centre`).
+    fn clip_every_cell(
+        region: &ConvexPolygon,
+        m: &Mat3,
+        h: f64,
+        centre: [f64; 2],
+        colour: impl Fn(i64, i64) -> Option<[f64; 4]>,
+    ) -> ([f64; 4], f64, f64) {
+        let (lo, hi) = region.bounds();
+        let (mut sum, mut weight, mut cells) = ([0.0; 4], 0.0, 0.0);
+        for z in (lo[1] / h).floor() as i64..(hi[1] / h).ceil() as i64 {
+            for x in (lo[0] / h).floor() as i64..(hi[0] / h).ceil() as i64 {
+                let (x0, z0) = (x as f64 * h, z as f64 * h);
+                let piece = region.clip_rect(x0, z0, x0 + h, z0 + h);
+                if piece.is_empty() {
+                    continue;
+                }
+                let w = PixelFilter::Box.integral(&piece.map(|t| apply(m, t)), centre);
+                for (s, c) in sum.iter_mut().zip(colour(x, z).unwrap()) {
+                    *s += c * w;
+                }
+                weight += w;
+                cells += 1.0;
+            }
+        }
+        (sum, weight, cells)
+    }
+
+    /// The box scan (a band at a time, a sweep a band) gives what clipping
+    /// every cell gives (the slow reference, `clip_every_cell`): random convex polygons in either
+    /// orientation under random perspective, on grids of random colours;
+    /// boxes with their sides on grid lines, bands of an ellipse between
+    /// two grid lines, triangles with their vertices on grid points;
+    /// negative coordinates; cells from 1/16 to 2; needles across and
+    /// along the grid (both of the scan's orientations).
+    #[test]
+    fn the_box_scan_gives_what_clipping_every_cell_gives() {
+        let mut next = crate::test_rng::uniform(31);
+        let (mut checked, mut transposed, mut cells) = (0, 0, 0.0);
+        for case in 0..4000 {
+            let n = 3 + case % 10;
+            let mut texture = ellipse_polygon(&mut next, n, case % 2 == 1);
+            let h = [0.0625, 0.25, 0.5, 1.0, 2.0][case % 5];
+            match case % 7 {
+                0 => {
+                    let (x0, z0) = (
+                        (next() * 8.0 - 4.0).floor() * h,
+                        (next() * 8.0).floor() * -h,
+                    );
+                    let (x1, z1) = (
+                        x0 + h * (1 + case % 7) as f64,
+                        z0 + h * (1 + case % 3) as f64,
+                    );
+                    texture = vec![[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
+                }
+                1 => {
+                    if let Ok(p) = ConvexPolygon::new(&texture) {
+                        let (lo, hi) = p.bounds();
+                        let z = ((lo[1] + (hi[1] - lo[1]) * next()) / h).floor() * h;
+                        let band = p.clip(0.0, 1.0, -z).clip(0.0, -1.0, z + h);
+                        if band.vertices().len() >= 3 {
+                            texture = band.vertices().to_vec();
+                        }
+                    }
+                }
+                2 => {
+                    let mut grid_point = || {
+                        [
+                            (next() * 12.0 - 6.0).floor() * h,
+                            (next() * 12.0 - 6.0).floor() * h,
+                        ]
+                    };
+                    texture = vec![grid_point(), grid_point(), grid_point()];
+                }
+                // A needle: long along one axis, thin across it.
+                3 => {
+                    let (x, z, long, thin) = (
+                        next() * 4.0 - 2.0,
+                        next() * 4.0 - 2.0,
+                        2.0 + 6.0 * next(),
+                        0.05 + 0.3 * next(),
+                    );
+                    texture = if next() < 0.5 {
+                        vec![
+                            [x, z],
+                            [x + thin, z + 0.1],
+                            [x + thin * 1.5, z + long],
+                            [x - 0.1 * thin, z + long * 0.9],
+                        ]
+                    } else {
+                        vec![
+                            [x, z],
+                            [x + long, z - 0.1],
+                            [x + long * 0.9, z + thin],
+                            [x + 0.05, z + thin * 1.2],
+                        ]
+                    };
+                }
+                _ => {}
+            }
+            let Ok(region) = ConvexPolygon::new(&texture) else {
+                continue;
+            };
+            if region.is_empty() {
+                continue;
+            }
+            let (lo, hi) = region.bounds();
+            // Perspective: w stays within [0.8, 1.2] over the polygon.
+            let g = 0.2 / (1.0 + lo[0].abs().max(hi[0].abs()) + lo[1].abs().max(hi[1].abs()));
+            let m: Mat3 = [
+                [1.0 + next(), next() - 0.5, next() * 10.0],
+                [next() - 0.5, 1.0 + next(), next() * 10.0],
+                [g * (next() - 0.5), g * (next() - 0.5), 1.0],
+            ];
+            let centre = [next() * 10.0, next() * 10.0];
+            let salt = (next() * 1e6) as i64;
+            let colour = |x: i64, z: i64| {
+                let k = (x * 7 + z * 13 + salt).rem_euclid(5) as f64;
+                Some([k / 4.0, x.rem_euclid(2) as f64, 0.5, 1.0 - k / 8.0])
+            };
+            let max_cells = 4096.0;
+            let clipped = clip_every_cell(&region, &m, h, centre, colour);
+            if clipped.2 > max_cells {
+                continue;
+            }
+            let swept = scan_grid(&region, &m, h, PixelFilter::Box, centre, max_cells, colour)
+                .unwrap_or_else(|| panic!("case {case}: no box scan of {texture:?}"));
+            let screen = region.map(|t| apply(&m, t));
+            let scale = diameter(&screen) * (diameter(&screen) + 1.0);
+            let tolerance = 1e-12 * scale * (1.0 + clipped.2);
+            assert!(
+                (swept.1 - clipped.1).abs() <= tolerance,
+                "case {case}: weight {} against {} over {texture:?}",
+                swept.1,
+                clipped.1
+            );
+            for c in 0..4 {
+                assert!(
+                    (swept.0[c] - clipped.0[c]).abs() <= tolerance,
+                    "case {case}: channel {c}: {} against {} over {texture:?}, h {h}",
+                    swept.0[c],
+                    clipped.0[c]
+                );
+            }
+            if (hi[0] - lo[0]) < (hi[1] - lo[1]) {
+                transposed += 1;
+            }
+            checked += 1;
+            cells += clipped.2;
+        }
+        assert!(
+            checked > 3000 && transposed > 500 && cells > 50_000.0,
+            "{checked} cases, {transposed} transposed, {cells} cells"
+        );
+    }
 }
