@@ -2223,8 +2223,9 @@ mod tests {
     }
 
     /// The box scan (a band at a time, a sweep a band) gives what clipping
-    /// every cell gives (the slow reference, `clip_every_cell`): random convex polygons in either
-    /// orientation under random perspective, on grids of random colours;
+    /// every cell gives (the slow reference, `clip_every_cell`): random
+    /// convex polygons in either orientation under random perspective, on
+    /// grids of random colours;
     /// boxes with their sides on grid lines, bands of an ellipse between
     /// two grid lines, triangles with their vertices on grid points;
     /// negative coordinates; cells from 1/16 to 2; needles across and
@@ -2244,8 +2245,9 @@ mod tests {
                         (next() * 8.0).floor() * -h,
                     );
                     let (x1, z1) = (
-                        x0 + h * (1 + case % 7) as f64,
-                        z0 + h * (1 + case % 3) as f64,
+                        // `case % 7` is 0 here: widths from the case's other digits.
+                        x0 + h * (1 + (case / 7) % 6) as f64,
+                        z0 + h * (1 + (case / 42) % 3) as f64,
                     );
                     texture = vec![[x0, z0], [x1, z0], [x1, z1], [x0, z1]];
                 }
