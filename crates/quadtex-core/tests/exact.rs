@@ -244,6 +244,106 @@ fn small_footprints_over_rasters_are_exact_at_the_default_level() {
     .budget_ms(3_000);
 }
 
+/// A footprint whose box spans at most 16 cells of the finest grid and lies
+/// in one tile is integrated cell by cell before any walk, exactly, wherever
+/// it lies: across the tree's middle lines (where no square below the root
+/// holds it), beside a tile's edge, under every wrap, over noisy and
+/// uniform blocks. The result is the cell-by-cell sum and the bound zero;
+/// a box that crosses a seam is walked and stays within its bound.
+#[test]
+fn small_footprints_anywhere_over_rasters_are_exact() {
+    arbtest::arbtest(|u| {
+        let side = 1u32 << u.int_in_range(3..=6u32)?;
+        let blocks = side / 4;
+        let mut uniform = Vec::with_capacity((blocks * blocks) as usize);
+        for _ in 0..blocks * blocks {
+            uniform.push(u.ratio(1, 3)?.then_some(*u.choose(&[0u8, 128, 255])?));
+        }
+        let mut bytes = Vec::with_capacity((side * side) as usize);
+        for k in 0..side * side {
+            let (c, r) = (k % side, k / side);
+            let v = match uniform[((r / 4) * blocks + c / 4) as usize] {
+                Some(v) => v,
+                None => *u.choose(&[0u8, 40, 128, 200, 255])?,
+            };
+            bytes.push([v, 255 - v, v / 2, 255]);
+        }
+        let grid = quadtex_core::TexelGrid::from_srgb8(side, side, bytes).unwrap();
+        let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
+            .unwrap()
+            .0;
+        let texture = Texture::new(tree, wrap(u)?);
+        let wrap = texture.wrap();
+        let texel = 1.0 / f64::from(side);
+        // The centre: on the tree's middle line, beside a tile's edge, or
+        // anywhere, in any of five tiles on a repeated or mirrored axis.
+        let mut centre = [0.0; 2];
+        for (axis, mode) in [wrap.x, wrap.z].into_iter().enumerate() {
+            let tile = if matches!(mode, WrapMode::Repeat | WrapMode::Mirror) {
+                f64::from(u.int_in_range(-2..=2i32)?)
+            } else {
+                0.0
+            };
+            let at = match u.int_in_range(0..=2u8)? {
+                0 => 0.5 + texel * unit(u, -1.5, 1.5)?,
+                1 => {
+                    let inside = 2.0 * texel * unit(u, 0.8, 1.2)?;
+                    *u.choose(&[inside, 1.0 - inside])?
+                }
+                _ => unit(u, 0.05, 0.95)?,
+            };
+            centre[axis] = tile + at;
+        }
+        // A perspective quad at most 3 texels across.
+        let near = texel * unit(u, 0.2, 2.0)?;
+        let far = near * unit(u, 0.3, 1.5)?;
+        let depth = texel * unit(u, 0.2, 2.0)?;
+        let angle = unit(u, 0.0, std::f64::consts::TAU)?;
+        let (s, c) = angle.sin_cos();
+        let rot = |p: [f64; 2]| {
+            [
+                centre[0] + c * p[0] - s * p[1],
+                centre[1] + s * p[0] + c * p[1],
+            ]
+        };
+        let fp = Footprint::from_corners([
+            rot([-near / 2.0, -depth / 2.0]),
+            rot([near / 2.0, -depth / 2.0]),
+            rot([far / 2.0, depth / 2.0]),
+            rot([-far / 2.0, depth / 2.0]),
+        ])
+        .unwrap();
+        if fp.homography().is_none() {
+            return Ok(());
+        }
+        let truth = brute_force_box(&texture, &fp);
+        let mut stats = FilterStats::default();
+        let fast = texture.filter_counted(&fp, &FilterOptions::default(), &mut stats);
+        let (lo, hi) = fp.bounds();
+        let one_tile = (0..2).all(|a| {
+            let mode = [wrap.x, wrap.z][a];
+            let tiled = matches!(mode, WrapMode::Repeat | WrapMode::Mirror);
+            let (t0, t1) = (lo[a].floor(), hi[a].floor());
+            (tiled || (lo[a] >= 0.0 && hi[a] <= 1.0)) && (t0 == t1 || hi[a] == t1)
+        });
+        if one_tile {
+            assert!(
+                max_diff(fast, truth) < 2e-6,
+                "{fast:?} vs {truth:?} for {fp:?} under {wrap:?}"
+            );
+            assert_eq!(stats.max_error_bound, 0.0, "{fp:?} under {wrap:?}");
+        } else {
+            assert!(
+                max_diff(fast, truth) <= stats.max_error_bound + 2e-6,
+                "{fast:?} vs {truth:?} beyond the bound {} for {fp:?} under {wrap:?}",
+                stats.max_error_bound
+            );
+        }
+        Ok(())
+    })
+    .budget_ms(3_000);
+}
+
 /// The tent and Mitchell integrals over a projected support match dense
 /// sampling of the support weighted by the filter; a fully visible support
 /// weighs exactly 1.
