@@ -253,7 +253,7 @@ impl Triangle {
 /// while it is built (up to about 100), rounded up. Loaders check a mesh
 /// against the memory budget at this rate before building it. At render
 /// time the parsed arrays are gone; a lit frame adds the shadow grid (at
-/// most 36 bytes a triangle, 16 more while it is built) and the visibility
+/// most 40 bytes a triangle, 16 more while it is built) and the visibility
 /// grid's bins (about 30 bytes a triangle in view, for the frame).
 pub const MESH_BYTES_PER_TRIANGLE: u64 = 320;
 
