@@ -1810,7 +1810,8 @@ fn scan_small_region(
     );
     let span = |(a, b): (f64, f64)| (b / h).ceil() - (a / h).floor();
     let cells = span(x) * span(z);
-    if !(cells <= SMALL_SCAN_CELLS) {
+    // NaN (a box at infinity) is not small either.
+    if cells.is_nan() || cells > SMALL_SCAN_CELLS {
         return SmallScan::NotSmall;
     }
     let mut local = region.map_counter_clockwise(|[x, z]| [(x - ox) * sx, (z - oz) * sz]);
