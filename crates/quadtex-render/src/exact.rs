@@ -1310,13 +1310,20 @@ fn sky_integral(
     // Row boundaries: quarter pixels, graded geometrically towards the line
     // where the view turns level (the gradient's square root has an
     // unbounded derivative there) when it lies at the piece's bottom.
-    let mut rows = Vec::with_capacity(24);
+    // Eight halvings: the last row, within 2^-8 of the line's distance,
+    // errs by about 0.04·√g·h^{3/2} times the contrast (the midpoint rule
+    // on √s over [0, h]; g as in [`sky_at_centre`]), under 1e-6 at the
+    // demo's sizes; twenty halvings changed the level line's rows by under
+    // 1e-6 and cost 2.3 times the instructions (the demo at 1920 wide:
+    // 0.19 → 0.08 G). The coarse rows dominate the error (test
+    // `the_sky_at_the_level_line_matches_a_dense_sum`).
+    let mut rows = Vec::with_capacity(12);
     match level {
         Some(yh) if yh >= lo[1] && yh <= hi[1] + step => {
             let top = lo[1];
             let d = yh - top;
             rows.push(top);
-            for k in 1..=20 {
+            for k in 1..=8 {
                 let y = yh - d * 0.5f64.powi(k);
                 if y > top && y < hi[1] {
                     rows.push(y);
@@ -1547,6 +1554,64 @@ mod tests {
         // Both ways happen: views listed first lose area to views inserted
         // in front of them, and inserted views to views in front of them.
         assert!(carved > 100 && hidden > 100, "{carved} {hidden}");
+    }
+
+    /// The sky over the part of a pixel above the level line (where the
+    /// gradient's square root has an unbounded derivative), by the graded
+    /// rows of [`sky_integral`], is within the sky's tolerance (a quarter of
+    /// the default error bound) of a dense midpoint sum (16 columns × 4096
+    /// rows, itself within about 1e-8 there), at two resolutions (the
+    /// coarser one has the steeper gradient per pixel). Measured: 8.7e-5
+    /// at 960×540 and 2.7e-4 at 96×54 (its coarsest graded rows; eight
+    /// halvings or twenty differ by under 1e-6).
+    #[test]
+    fn the_sky_at_the_level_line_matches_a_dense_sum() {
+        for (width, height) in [(960, 540), (96, 54)] {
+            let scene = demo_at(width, height);
+            let mut worst = 0.0f64;
+            for x in (0..width).step_by(width as usize / 7) {
+                let x = f64::from(x);
+                let yh = level_line(&scene, x + 0.5).unwrap();
+                let y0 = yh.floor();
+                if yh - y0 < 1e-3 {
+                    continue;
+                }
+                let piece = ConvexPolygon::rect(x, y0, x + 1.0, yh);
+                let (c, w) = sky_integral(
+                    &scene,
+                    &piece,
+                    Whole::Unknown,
+                    PixelFilter::Box,
+                    [x + 0.5, y0 + 0.5],
+                    sky_tolerance(&FilterOptions::default()),
+                );
+                let (nx, ny) = (16, 4096);
+                let (dx, dy) = (1.0 / f64::from(nx), (yh - y0) / f64::from(ny));
+                let mut dense = [0.0; 4];
+                for j in 0..ny {
+                    for i in 0..nx {
+                        let s = [
+                            x + (f64::from(i) + 0.5) * dx,
+                            y0 + (f64::from(j) + 0.5) * dy,
+                        ];
+                        let v = sky(&scene, &scene.camera.ray(s[0], s[1])).to_array();
+                        for (d, v) in dense.iter_mut().zip(v) {
+                            *d += f64::from(v) * dx * dy;
+                        }
+                    }
+                }
+                assert!((w - piece.area()).abs() < 1e-12, "{w} vs {}", piece.area());
+                let error = (0..4)
+                    .map(|k| (c[k] - dense[k]).abs() / w)
+                    .fold(0.0, f64::max);
+                worst = worst.max(error);
+                assert!(
+                    error <= sky_tolerance(&FilterOptions::default()),
+                    "{width}x{height}, pixel x {x}: off by {error}"
+                );
+            }
+            eprintln!("{width}x{height}: the level line's sky off by {worst} at most");
+        }
     }
 
     #[test]
