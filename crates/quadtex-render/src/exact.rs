@@ -292,6 +292,7 @@ pub(crate) fn exact_pixel<'a>(
         memo,
         sky_span,
         uniform_span,
+        sky_clear_above: _,
     } = scratch;
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
@@ -853,6 +854,9 @@ pub(crate) struct Scratch<'a> {
     memo: ViewMemo,
     sky_span: SkySpan,
     uniform_span: UniformSpan,
+    /// Where [`sky_at_centre`]'s bound is surely within the tolerance
+    /// (once per row: the scene and options are the frame's).
+    sky_clear_above: Option<f64>,
 }
 
 impl<'a> Scratch<'a> {
@@ -889,8 +893,18 @@ impl<'a> Scratch<'a> {
         if !meshes_clear {
             return None;
         }
-        let (c, bound) = sky_at_centre(scene, [f64::from(x) + 0.5, f64::from(y) + 0.5])?;
-        (bound <= sky_tolerance(options)).then(|| mean(c, 1.0))
+        let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+        let tolerance = sky_tolerance(options);
+        let clear_above = *self
+            .sky_clear_above
+            .get_or_insert_with(|| sky_clear_above(scene, tolerance));
+        let ray = scene.camera.ray(centre[0], centre[1]);
+        if ray.direction.y - std::f64::consts::FRAC_1_SQRT_2 * sky_step(scene) >= clear_above {
+            // What `sky_at_centre` gives, its bound not computed.
+            return Some(mean(sky(scene, &ray).to_array().map(f64::from), 1.0));
+        }
+        let (c, bound) = sky_at_centre(scene, centre)?;
+        (bound <= tolerance).then(|| mean(c, 1.0))
     }
 
     /// The colour and counters of pixel `(x, y)` when a span set up by a
@@ -1217,9 +1231,8 @@ fn sky_at_centre(scene: &Scene, centre: [f64; 2]) -> Option<([f64; 4], f64)> {
     let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
         return None;
     };
-    let cam = &scene.camera;
-    let ray = cam.ray(centre[0], centre[1]);
-    let g = 2.0 * cam.tan_half_fov / f64::from(cam.height);
+    let ray = scene.camera.ray(centre[0], centre[1]);
+    let g = sky_step(scene);
     let y_min = ray.direction.y - std::f64::consts::FRAC_1_SQRT_2 * g;
     let bound = if y_min + std::f64::consts::SQRT_2 * g < 0.0 {
         0.0
@@ -1230,13 +1243,60 @@ fn sky_at_centre(scene: &Scene, centre: [f64; 2]) -> Option<([f64; 4], f64)> {
             .zip(zenith.to_array())
             .map(|(h, z)| f64::from((z - h).abs()))
             .fold(0.0, f64::max);
-        // 1.5/√y + 0.25/y^{3/2} over one division (one a sky pixel).
-        let second = g * g * (1.5 * y_min + 0.25) / (y_min * y_min.sqrt());
-        second / 12.0 * contrast
+        sky_bound(g, contrast, y_min)
     } else {
         return None;
     };
     Some((sky(scene, &ray).to_array().map(f64::from), bound))
+}
+
+/// `g` of [`sky_at_centre`]: the change of the unnormalised ray direction
+/// per pixel.
+#[inline]
+fn sky_step(scene: &Scene) -> f64 {
+    2.0 * scene.camera.tan_half_fov / f64::from(scene.camera.height)
+}
+
+/// [`sky_at_centre`]'s bound where the least height over the pixel is
+/// `y_min > 0`: `T/12` times the contrast.
+#[inline]
+fn sky_bound(g: f64, contrast: f64, y_min: f64) -> f64 {
+    // 1.5/√y + 0.25/y^{3/2} over one division (one a sky pixel).
+    let second = g * g * (1.5 * y_min + 0.25) / (y_min * y_min.sqrt());
+    second / 12.0 * contrast
+}
+
+/// A height above which [`sky_at_centre`]'s bound is within `tolerance`
+/// (`∞` where none is, or the sky is solid): the bound falls as `y_min`
+/// grows, and this is where it is half the tolerance (bisected), so that
+/// the bound computed in floats above it is within the tolerance too. A
+/// sky pixel whose `y_min` is past it takes the centre's value without
+/// the bound's square root and divisions, the same answer.
+fn sky_clear_above(scene: &Scene, tolerance: f64) -> f64 {
+    let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
+        return f64::INFINITY;
+    };
+    let contrast = horizon
+        .to_array()
+        .iter()
+        .zip(zenith.to_array())
+        .map(|(h, z)| f64::from((z - h).abs()))
+        .fold(0.0, f64::max);
+    let g = sky_step(scene);
+    let within = |y: f64| sky_bound(g, contrast, y) <= 0.5 * tolerance;
+    if !within(1.0) {
+        return f64::INFINITY;
+    }
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..64 {
+        let mid = 0.5 * (lo + hi);
+        if within(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
 }
 
 /// Whether a piece is the filter's whole support, when the caller knows.
@@ -1611,6 +1671,56 @@ mod tests {
                 );
             }
             eprintln!("{width}x{height}: the level line's sky off by {worst} at most");
+        }
+    }
+
+    /// Above [`sky_clear_above`], [`sky_at_centre`] always accepts its
+    /// value (bound within the tolerance), so the sky pixel's shortcut
+    /// gives what it would: every pixel of two frames, the default and a
+    /// tight tolerance. Most sky pixels take the shortcut, and the height
+    /// is not far above where the bound reaches the tolerance.
+    #[test]
+    fn the_sky_shortcut_takes_only_pixels_the_bound_accepts() {
+        for (width, height) in [(192, 108), (1920, 1080)] {
+            let scene = demo_at(width, height);
+            for tolerance in [sky_tolerance(&FilterOptions::default()), 1e-7] {
+                let clear = sky_clear_above(&scene, tolerance);
+                let g = sky_step(&scene);
+                let (mut shortcut, mut sky_rows) = (0, 0);
+                for y in (0..height).step_by(height as usize / 54) {
+                    for x in (0..width).step_by(width as usize / 24) {
+                        let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+                        let ray = scene.camera.ray(centre[0], centre[1]);
+                        let y_min = ray.direction.y - std::f64::consts::FRAC_1_SQRT_2 * g;
+                        if y_min > 0.0 {
+                            sky_rows += 1;
+                        }
+                        if y_min >= clear {
+                            shortcut += 1;
+                            let (c, bound) = sky_at_centre(&scene, centre).unwrap();
+                            assert!(bound <= tolerance, "{bound} > {tolerance} at {centre:?}");
+                            assert_eq!(c, sky(&scene, &ray).to_array().map(f64::from));
+                        }
+                    }
+                }
+                assert!(
+                    tolerance < 1e-6 || (clear.is_finite() && 2 * shortcut > sky_rows),
+                    "{width}x{height}: {shortcut} of {sky_rows} sky samples"
+                );
+                // A percent below the height the bound is past half the
+                // tolerance: the bisection found the height, not a loose one.
+                let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
+                    panic!("the demo's sky is a gradient");
+                };
+                let contrast = (horizon.to_array().iter().zip(zenith.to_array()))
+                    .map(|(h, z)| f64::from((z - h).abs()))
+                    .fold(0.0, f64::max);
+                if clear.is_finite() {
+                    assert!(sky_bound(g, contrast, clear * 0.99) > 0.5 * tolerance);
+                } else {
+                    assert!(sky_bound(g, contrast, 1.0) > 0.5 * tolerance);
+                }
+            }
         }
     }
 
