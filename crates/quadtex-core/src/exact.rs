@@ -1010,17 +1010,7 @@ impl Walk<'_> {
         if local.is_empty() || span(lo[0], hi[0]) * span(lo[1], hi[1]) > TEXEL_SCAN_CELLS {
             return None;
         }
-        let tree = self.tree;
-        let colour = |x: i64, z: i64| {
-            tree.finest_colour(
-                node,
-                level,
-                ix,
-                iz,
-                u32::try_from(x).ok()?,
-                u32::try_from(z).ok()?,
-            )
-        };
+        let colour = finest_colour_below(self.tree, (node, level, ix, iz));
         let (colour, weight, cells) = scan_grid(
             &local,
             &self.frames[frame].to_screen,
@@ -1357,17 +1347,6 @@ impl Walk<'_> {
             (a.min(b), a.max(b))
         };
         let (x, z) = (local(0, self.wrap.x, i), local(1, self.wrap.z, j));
-        // Which half of `[c0, c0 + 2·side)` holds `(a, b)` with room to
-        // spare for the rounding of the tile frame's edges.
-        let half = |(a, b): (f64, f64), mid: f64| {
-            if b < mid - START_MARGIN {
-                Some(0)
-            } else if a > mid + START_MARGIN {
-                Some(1)
-            } else {
-                None
-            }
-        };
         loop {
             let (node, level, ix, iz) = at;
             if self.fixed.is_some_and(|k| level >= k) || !self.tree.splits_fully(node) {
@@ -1749,6 +1728,40 @@ fn density_range_det(m: &Mat3, det: f64, corners: &[[f64; 2]; 4]) -> (f64, f64) 
     (lo, hi)
 }
 
+/// Which half of a square split at `mid` holds `(a, b)` (0 low, 1 high),
+/// with room to spare for the rounding of a tile frame's edges; `None`
+/// when it reaches within [`START_MARGIN`] of the middle.
+#[inline]
+fn half(a_b: (f64, f64), mid: f64) -> Option<u32> {
+    let (a, b) = a_b;
+    if b < mid - START_MARGIN {
+        Some(0)
+    } else if a > mid + START_MARGIN {
+        Some(1)
+    } else {
+        None
+    }
+}
+
+/// The colour of finest cell `(x, z)` (tree space) under node `node` at
+/// `(level, ix, iz)` where a uniform square holds it
+/// ([`QuadTree::finest_colour`]), for [`scan_grid`].
+fn finest_colour_below(
+    tree: &QuadTree,
+    (node, level, ix, iz): (NodeRef, u8, u32, u32),
+) -> impl Fn(i64, i64) -> Option<[f64; 4]> + '_ {
+    move |x, z| {
+        tree.finest_colour(
+            node,
+            level,
+            ix,
+            iz,
+            u32::try_from(x).ok()?,
+            u32::try_from(z).ok()?,
+        )
+    }
+}
+
 /// What [`scan_small_region`] made of a region.
 enum SmallScan {
     /// `(Σ colour·k, Σ k, cells)`, exactly.
@@ -1833,15 +1846,6 @@ fn scan_small_region(
     // The deepest node holding the box strictly inside one child, so that
     // each cell's colour is a short descent from it.
     let (mut node, mut level, mut ix, mut iz) = (QuadTree::ROOT, 0u8, 0u32, 0u32);
-    let half = |(a, b): (f64, f64), mid: f64| {
-        if b < mid - START_MARGIN {
-            Some(0)
-        } else if a > mid + START_MARGIN {
-            Some(1)
-        } else {
-            None
-        }
-    };
     while tree.splits_fully(node) {
         let side = unit_side(level + 1);
         let (mx, mz) = (f64::from(2 * ix + 1) * side, f64::from(2 * iz + 1) * side);
@@ -1851,16 +1855,7 @@ fn scan_small_region(
         node = tree.child_ref(node, (hx + 2 * hz) as usize);
         (level, ix, iz) = (level + 1, 2 * ix + hx, 2 * iz + hz);
     }
-    let colour = |x: i64, z: i64| {
-        tree.finest_colour(
-            node,
-            level,
-            ix,
-            iz,
-            u32::try_from(x).ok()?,
-            u32::try_from(z).ok()?,
-        )
-    };
+    let colour = finest_colour_below(tree, (node, level, ix, iz));
     match scan_grid(
         &local,
         &to_screen,

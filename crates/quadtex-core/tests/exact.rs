@@ -167,6 +167,54 @@ fn box_pixels_match_the_cell_by_cell_sum_and_the_bound_holds() {
     .budget_ms(4_000);
 }
 
+/// A trapezoid `near` wide at one end and `far` at the other, `depth`
+/// deep, turned by `angle` about `centre`: a perspective pixel's footprint.
+fn perspective_quad(centre: [f64; 2], near: f64, far: f64, depth: f64, angle: f64) -> Footprint {
+    let (s, c) = angle.sin_cos();
+    let rot = |p: [f64; 2]| {
+        [
+            centre[0] + c * p[0] - s * p[1],
+            centre[1] + s * p[0] + c * p[1],
+        ]
+    };
+    Footprint::from_corners([
+        rot([-near / 2.0, -depth / 2.0]),
+        rot([near / 2.0, -depth / 2.0]),
+        rot([far / 2.0, depth / 2.0]),
+        rot([-far / 2.0, depth / 2.0]),
+    ])
+    .unwrap()
+}
+
+/// A photograph-like raster of `2^k` texels a side (`k` drawn from
+/// `log2_sides`): noisy 4×4 texel blocks, about a third of them uniform
+/// (kept as stored terminal squares), under a random wrap; and its side.
+fn noisy_raster(
+    u: &mut Unstructured<'_>,
+    log2_sides: std::ops::RangeInclusive<u32>,
+) -> ArbResult<(Texture, u32)> {
+    let side = 1u32 << u.int_in_range(log2_sides)?;
+    let blocks = side / 4;
+    let mut uniform = Vec::with_capacity((blocks * blocks) as usize);
+    for _ in 0..blocks * blocks {
+        uniform.push(u.ratio(1, 3)?.then_some(*u.choose(&[0u8, 128, 255])?));
+    }
+    let mut bytes = Vec::with_capacity((side * side) as usize);
+    for k in 0..side * side {
+        let (c, r) = (k % side, k / side);
+        let v = match uniform[((r / 4) * blocks + c / 4) as usize] {
+            Some(v) => v,
+            None => *u.choose(&[0u8, 40, 128, 200, 255])?,
+        };
+        bytes.push([v, 255 - v, v / 2, 255]);
+    }
+    let grid = quadtex_core::TexelGrid::from_srgb8(side, side, bytes).unwrap();
+    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0;
+    Ok((Texture::new(tree, wrap(u)?), side))
+}
+
 /// A footprint of a few texels over a photograph-like raster (noisy 4×4
 /// texel blocks, some uniform ones kept as stored terminal squares), inside
 /// one aligned square of 16×16 texels (four blocks a side), is integrated
@@ -177,26 +225,8 @@ fn box_pixels_match_the_cell_by_cell_sum_and_the_bound_holds() {
 #[test]
 fn small_footprints_over_rasters_are_exact_at_the_default_level() {
     arbtest::arbtest(|u| {
-        let side = 1u32 << u.int_in_range(4..=6u32)?;
+        let (texture, side) = noisy_raster(u, 4..=6)?;
         let blocks = side / 4;
-        let mut uniform = Vec::with_capacity((blocks * blocks) as usize);
-        for _ in 0..blocks * blocks {
-            uniform.push(u.ratio(1, 3)?.then_some(*u.choose(&[0u8, 128, 255])?));
-        }
-        let mut bytes = Vec::with_capacity((side * side) as usize);
-        for k in 0..side * side {
-            let (c, r) = (k % side, k / side);
-            let v = match uniform[((r / 4) * blocks + c / 4) as usize] {
-                Some(v) => v,
-                None => *u.choose(&[0u8, 40, 128, 200, 255])?,
-            };
-            bytes.push([v, 255 - v, v / 2, 255]);
-        }
-        let grid = quadtex_core::TexelGrid::from_srgb8(side, side, bytes).unwrap();
-        let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
-            .unwrap()
-            .0;
-        let texture = Texture::new(tree, wrap(u)?);
         let wrap = texture.wrap();
         // Which aligned 16×16 square, in which tile (any, on a repeated or
         // mirrored axis; the texture's own beyond a clamp or border edge).
@@ -219,15 +249,7 @@ fn small_footprints_over_rasters_are_exact_at_the_default_level() {
         let far = near * unit(u, 0.3, 2.0)?;
         let depth = texel * unit(u, 0.2, 3.0)?;
         let angle = unit(u, 0.0, std::f64::consts::TAU)?;
-        let (s, c) = angle.sin_cos();
-        let rot = |p: [f64; 2]| [cx + c * p[0] - s * p[1], cz + s * p[0] + c * p[1]];
-        let fp = Footprint::from_corners([
-            rot([-near / 2.0, -depth / 2.0]),
-            rot([near / 2.0, -depth / 2.0]),
-            rot([far / 2.0, depth / 2.0]),
-            rot([-far / 2.0, depth / 2.0]),
-        ])
-        .unwrap();
+        let fp = perspective_quad([cx, cz], near, far, depth, angle);
         if fp.homography().is_none() {
             return Ok(());
         }
@@ -253,26 +275,7 @@ fn small_footprints_over_rasters_are_exact_at_the_default_level() {
 #[test]
 fn small_footprints_anywhere_over_rasters_are_exact() {
     arbtest::arbtest(|u| {
-        let side = 1u32 << u.int_in_range(3..=6u32)?;
-        let blocks = side / 4;
-        let mut uniform = Vec::with_capacity((blocks * blocks) as usize);
-        for _ in 0..blocks * blocks {
-            uniform.push(u.ratio(1, 3)?.then_some(*u.choose(&[0u8, 128, 255])?));
-        }
-        let mut bytes = Vec::with_capacity((side * side) as usize);
-        for k in 0..side * side {
-            let (c, r) = (k % side, k / side);
-            let v = match uniform[((r / 4) * blocks + c / 4) as usize] {
-                Some(v) => v,
-                None => *u.choose(&[0u8, 40, 128, 200, 255])?,
-            };
-            bytes.push([v, 255 - v, v / 2, 255]);
-        }
-        let grid = quadtex_core::TexelGrid::from_srgb8(side, side, bytes).unwrap();
-        let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
-            .unwrap()
-            .0;
-        let texture = Texture::new(tree, wrap(u)?);
+        let (texture, side) = noisy_raster(u, 3..=6)?;
         let wrap = texture.wrap();
         let texel = 1.0 / f64::from(side);
         // The centre: on the tree's middle line, beside a tile's edge, or
@@ -299,20 +302,7 @@ fn small_footprints_anywhere_over_rasters_are_exact() {
         let far = near * unit(u, 0.3, 1.5)?;
         let depth = texel * unit(u, 0.2, 2.0)?;
         let angle = unit(u, 0.0, std::f64::consts::TAU)?;
-        let (s, c) = angle.sin_cos();
-        let rot = |p: [f64; 2]| {
-            [
-                centre[0] + c * p[0] - s * p[1],
-                centre[1] + s * p[0] + c * p[1],
-            ]
-        };
-        let fp = Footprint::from_corners([
-            rot([-near / 2.0, -depth / 2.0]),
-            rot([near / 2.0, -depth / 2.0]),
-            rot([far / 2.0, depth / 2.0]),
-            rot([-far / 2.0, depth / 2.0]),
-        ])
-        .unwrap();
+        let fp = perspective_quad(centre, near, far, depth, angle);
         if fp.homography().is_none() {
             return Ok(());
         }

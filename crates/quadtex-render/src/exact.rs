@@ -1237,17 +1237,20 @@ fn sky_at_centre(scene: &Scene, centre: [f64; 2]) -> Option<([f64; 4], f64)> {
     let bound = if y_min + std::f64::consts::SQRT_2 * g < 0.0 {
         0.0
     } else if y_min > 0.0 {
-        let contrast = horizon
-            .to_array()
-            .iter()
-            .zip(zenith.to_array())
-            .map(|(h, z)| f64::from((z - h).abs()))
-            .fold(0.0, f64::max);
+        let contrast = sky_contrast(horizon, zenith);
         sky_bound(g, contrast, y_min)
     } else {
         return None;
     };
     Some((sky(scene, &ray).to_array().map(f64::from), bound))
+}
+
+/// The gradient sky's largest change in a channel, horizon to zenith.
+#[inline]
+fn sky_contrast(horizon: Rgba, zenith: Rgba) -> f64 {
+    (horizon.to_array().iter().zip(zenith.to_array()))
+        .map(|(h, z)| f64::from((z - h).abs()))
+        .fold(0.0, f64::max)
 }
 
 /// `g` of [`sky_at_centre`]: the change of the unnormalised ray direction
@@ -1276,12 +1279,7 @@ fn sky_clear_above(scene: &Scene, tolerance: f64) -> f64 {
     let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
         return f64::INFINITY;
     };
-    let contrast = horizon
-        .to_array()
-        .iter()
-        .zip(zenith.to_array())
-        .map(|(h, z)| f64::from((z - h).abs()))
-        .fold(0.0, f64::max);
+    let contrast = sky_contrast(horizon, zenith);
     let g = sky_step(scene);
     let within = |y: f64| sky_bound(g, contrast, y) <= 0.5 * tolerance;
     if !within(1.0) {
@@ -1712,9 +1710,7 @@ mod tests {
                 let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
                     panic!("the demo's sky is a gradient");
                 };
-                let contrast = (horizon.to_array().iter().zip(zenith.to_array()))
-                    .map(|(h, z)| f64::from((z - h).abs()))
-                    .fold(0.0, f64::max);
+                let contrast = sky_contrast(horizon, zenith);
                 if clear.is_finite() {
                     assert!(sky_bound(g, contrast, clear * 0.99) > 0.5 * tolerance);
                 } else {
