@@ -1836,13 +1836,9 @@ fn scan_small_region(
         return SmallScan::NotSmall;
     }
     let m = screen_from_texture;
-    let to_screen = [0, 1, 2].map(|r| {
-        [
-            m[r][0] * sx,
-            m[r][1] * sz,
-            m[r][0] * ox + m[r][1] * oz + m[r][2],
-        ]
-    });
+    // Row by row, not by an array `map` (not inlined: this runs per region).
+    let row = |r: &[f64; 3]| [r[0] * sx, r[1] * sz, r[0] * ox + r[1] * oz + r[2]];
+    let to_screen = [row(&m[0]), row(&m[1]), row(&m[2])];
     // The deepest node holding the box strictly inside one child, so that
     // each cell's colour is a short descent from it.
     let (mut node, mut level, mut ix, mut iz) = (QuadTree::ROOT, 0u8, 0u32, 0u32);
