@@ -36,7 +36,8 @@ const MAX_CELLS_PER_TRIANGLE: u64 = 64;
 /// bytes each), or have more than [`MAX_LARGE`] in the list every query
 /// tests, keeps to the hierarchy: the grid stays within 40 bytes a
 /// triangle (cell starts, slots and each triangle's depth), besides 16
-/// bytes a triangle while it is built. The 1 M-triangle terrain fills 6.1 slots a triangle.
+/// bytes a triangle while it is built. The 1 M-triangle terrain fills 6.1
+/// slots a triangle.
 const MAX_ITEMS_PER_TRIANGLE: u64 = 8;
 
 /// Most triangles every query tests (see [`MAX_ITEMS_PER_TRIANGLE`]).
