@@ -70,7 +70,7 @@ use crate::colour::{Rgba, WeightedColour};
 use crate::footprint::Footprint;
 use crate::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET};
 use crate::polygon::{ConvexPolygon, Cubic, separable_integral};
-use crate::tree::{NodeRef, QuadTree, unit_side};
+use crate::tree::{FinestCell, NodeRef, QuadTree, StoredKind, StoredSquare, unit_side};
 use crate::wrap::{Wrap, WrapMode};
 use crate::wrap::{fold_cell, uniform_colour_in};
 
@@ -102,8 +102,10 @@ const TEXEL_SCAN_CELLS: f64 = 256.0;
 /// runway's uniform squares taken cell by cell instead of whole).
 const TEXEL_SCAN_LEVELS_ABOVE_BLOCKS: u8 = 2;
 
-/// Most cells of the grid at the tree's depth [`scan_small_region`] takes a
-/// region over, before any walk is set up. Measured (callgrind, whole
+/// Most cells of the grid at the tree's depth [`raster_box`] and
+/// [`SmallBox::scan`] take a region over, before any walk is set up
+/// (measured for the scan that came before them, reading cells by the
+/// traversals' node descent). Measured (callgrind, whole
 /// `quadtex render` runs at 960×540, against no such scan): the terrain
 /// 24.14 → 22.25, 22.06 and 22.05 G instructions with 4, 16 and 64 cells,
 /// the demo 3.258 → 3.244, 3.244 and 3.225 G.
@@ -539,8 +541,25 @@ pub(crate) fn integrate_region(
     if !finite {
         return out;
     }
-    // One terminal square under the whole region: its colour, exactly.
-    if let Some(c) = uniform_colour_in(tree, lo, hi, wrap) {
+    let fixed = match options.level_of_detail() {
+        LevelOfDetail::Fixed(k) => Some(k.min(tree.depth())),
+        LevelOfDetail::ErrorBound(_) => None,
+    };
+    // A plain raster's cells are read directly (a shallow one's flat grid
+    // comes first, below).
+    let plain_raster = fixed.is_none() && tree.is_plain_raster();
+    let raster = if plain_raster && tree.flat_grid().is_none() {
+        raster_box(tree, wrap, lo, hi)
+    } else {
+        RasterBox::Other
+    };
+    let uniform = match raster {
+        RasterBox::Uniform(c) => Some(c),
+        RasterBox::Small(_) => None,
+        RasterBox::Other => uniform_colour_in(tree, lo, hi, wrap),
+    };
+    // One colour under the whole region: that colour, exactly.
+    if let Some(c) = uniform {
         let wgt = match filter {
             PixelFilter::Box => area,
             _ => filter.integral(region, centre),
@@ -567,10 +586,6 @@ pub(crate) fn integrate_region(
         LevelOfDetail::ErrorBound(e) => e,
         LevelOfDetail::Fixed(_) => 0.0,
     };
-    let fixed = match options.level_of_detail() {
-        LevelOfDetail::Fixed(k) => Some(k.min(tree.depth())),
-        LevelOfDetail::ErrorBound(_) => None,
-    };
     if fixed.is_none()
         && let Some((colour, weight, cells)) = scan_flat_grid(
             tree,
@@ -589,22 +604,16 @@ pub(crate) fn integrate_region(
         stats.traversal.nodes_visited += cells as u64;
         return finite_or_nothing(out);
     }
-    let texel_scan = fixed.is_none()
-        && tree.texel_blocks().is_some()
-        && tree.aspect().is_square()
-        && tree.gradient_leaves().is_none()
-        && tree.contour_leaves().is_none();
-    let mut walk_scans = texel_scan;
-    if texel_scan {
-        match scan_small_region(
+    let mut walk_scans = plain_raster;
+    if let RasterBox::Small(small) = raster {
+        match small.scan(
             tree,
-            wrap,
             &texture_region,
             &projection.screen_from_texture,
             filter,
             centre,
         ) {
-            SmallScan::Done(colour, weight, cells) => {
+            Some((colour, weight, cells)) => {
                 for (a, c) in out.colour.0.iter_mut().zip(colour) {
                     *a += c;
                 }
@@ -613,8 +622,7 @@ pub(crate) fn integrate_region(
                 return finite_or_nothing(out);
             }
             // The walk's own scan of the one tile would fail the same way.
-            SmallScan::Refused => walk_scans = false,
-            SmallScan::NotSmall => {}
+            None => walk_scans = false,
         }
     }
     let buffers = WalkBuffers::lend();
@@ -1762,37 +1770,40 @@ fn finest_colour_below(
     }
 }
 
-/// What [`scan_small_region`] made of a region.
-enum SmallScan {
-    /// `(Σ colour·k, Σ k, cells)`, exactly.
-    Done([f64; 4], f64, f64),
-    /// Small and in one tile, but a cell lies under no uniform square (or
-    /// past the cell limit): the walk's own texel scan of that tile
-    /// ([`Walk::scan_texels`]) would fail the same way.
-    Refused,
-    /// Not in one tile, or more than [`SMALL_SCAN_CELLS`] cells.
-    NotSmall,
+/// A region's texture box over a plain raster
+/// ([`QuadTree::is_plain_raster`]), from [`raster_box`].
+enum RasterBox {
+    /// One colour covers the whole box: a terminal square holds it, or
+    /// every cell of the grid at the depth it reaches has that colour.
+    Uniform(Rgba),
+    /// In one tile, at most [`SMALL_SCAN_CELLS`] cells, not one colour:
+    /// for [`SmallBox::scan`].
+    Small(SmallBox),
+    /// Neither: across tiles, or more cells.
+    Other,
 }
 
-/// A region (texture space, counter-clockwise) of a square raster tree
-/// (texel blocks, no gradient or contour leaves) whose box lies in one tile
-/// and spans at most [`SMALL_SCAN_CELLS`] cells of the grid at the tree's
-/// depth, exactly: each cell under a uniform square (a texel) clipped and
-/// weighted ([`scan_grid`]), as the walk's texel scan does
-/// ([`Walk::scan_texels`]), but before a walk is set up.
+/// A box in one tile of a plain raster, over a few cells of the grid at
+/// the tree's depth.
+struct SmallBox {
+    /// The tile's frame per axis, `(sign, offset)`: texture = sign·local +
+    /// offset ([`tile_map`]), as the walk's tile frame takes it.
+    frame: [(f64, f64); 2],
+    /// The deepest stored square holding the box: each cell's colour is a
+    /// short descent from it.
+    start: StoredSquare,
+}
+
+/// What the texture box `lo..hi` of a region over a plain raster
+/// ([`QuadTree::is_plain_raster`]) is: one colour, a few cells of one
+/// tile, or neither. One descent of stored nodes, and a look at each
+/// cell the box reaches (at most [`SMALL_SCAN_CELLS`]).
 ///
-/// A mesh triangle's piece of a pixel over a photograph spans two to four
-/// texels; the walk built for it (its buffers, frame, start node and
-/// first square) cost several times the scan of those cells.
-fn scan_small_region(
-    tree: &QuadTree,
-    wrap: Wrap,
-    region: &ConvexPolygon,
-    screen_from_texture: &Mat3,
-    filter: PixelFilter,
-    centre: [f64; 2],
-) -> SmallScan {
-    let (lo, hi) = region.bounds();
+/// A mesh triangle's piece of a pixel over a photograph spans one to four
+/// texels: here it costs a descent and a texel read or four, where the
+/// uniform search ([`uniform_colour_in`]) and the walk's set-up (buffers,
+/// tile frame, start node, first square) each cost several times that.
+fn raster_box(tree: &QuadTree, wrap: Wrap, lo: [f64; 2], hi: [f64; 2]) -> RasterBox {
     let one_tile = |mode: WrapMode, lo: f64, hi: f64| match segments(mode, lo, hi) {
         [Some(Segment::Tiles(a, b)), None, None] | [None, Some(Segment::Tiles(a, b)), None]
             if a == b =>
@@ -1805,64 +1816,92 @@ fn scan_small_region(
         one_tile(wrap.x, lo[0], hi[0]),
         one_tile(wrap.z, lo[1], hi[1]),
     ) else {
-        return SmallScan::NotSmall;
+        return RasterBox::Other;
     };
-    // The tile's local (tree) coordinates, as the walk's tile frame takes
-    // them ([`Walk::tile_frame`], a square tree): texture = sign·local +
-    // offset, sign ±1.
-    let (sx, ox) = tile_map(wrap.x, i);
-    let (sz, oz) = tile_map(wrap.z, j);
-    let h = unit_side(tree.depth());
-    let local_box = |a: f64, b: f64, sign: f64, offset: f64| {
+    let frame = [tile_map(wrap.x, i), tile_map(wrap.z, j)];
+    let local = |a: f64, b: f64, (sign, offset): (f64, f64)| {
         let (p, q) = ((a - offset) * sign, (b - offset) * sign);
         (p.min(q), p.max(q))
     };
-    let (x, z) = (
-        local_box(lo[0], hi[0], sx, ox),
-        local_box(lo[1], hi[1], sz, oz),
-    );
-    let span = |(a, b): (f64, f64)| (b / h).ceil() - (a / h).floor();
-    let cells = span(x) * span(z);
-    // NaN (a box at infinity) is not small either.
-    if cells.is_nan() || cells > SMALL_SCAN_CELLS {
-        return SmallScan::NotSmall;
+    let (x, z) = (local(lo[0], hi[0], frame[0]), local(lo[1], hi[1], frame[1]));
+    let start = tree.stored_square_holding(x, z);
+    if tree.stored_kind(start) == StoredKind::Terminal {
+        return tree
+            .terminal_cell(start)
+            .map_or(RasterBox::Other, |cell| RasterBox::Uniform(cell.rgba()));
     }
-    let mut local = region.map_counter_clockwise(|[x, z]| [(x - ox) * sx, (z - oz) * sz]);
-    let (llo, lhi) = local.bounds();
-    if llo[0] < 0.0 || llo[1] < 0.0 || lhi[0] > 1.0 || lhi[1] > 1.0 {
-        local = local.clip_rect(0.0, 0.0, 1.0, 1.0);
+    // The cells the box reaches, half-open (a box ending on a cell's side
+    // does not reach the next), at least one a side.
+    let n = 1i64 << tree.depth();
+    let h = unit_side(tree.depth());
+    let cells = |(a, b): (f64, f64)| {
+        let first = ((a / h).floor() as i64).clamp(0, n - 1);
+        let end = ((b / h).ceil() as i64).clamp(first + 1, n);
+        (first, end)
+    };
+    let ((x0, x1), (z0, z1)) = (cells(x), cells(z));
+    if ((x1 - x0) * (z1 - z0)) as f64 > SMALL_SCAN_CELLS {
+        return RasterBox::Other;
     }
-    if local.is_empty() {
-        return SmallScan::NotSmall;
+    let Some(first) = tree.finest_cell(start, x0 as u32, z0 as u32) else {
+        return RasterBox::Other;
+    };
+    let colour = first.rgba();
+    for cz in z0..z1 {
+        // The first cell is read above.
+        let from = if cz == z0 { x0 + 1 } else { x0 };
+        for cx in from..x1 {
+            match tree.finest_cell(start, cx as u32, cz as u32) {
+                Some(c) if c.rgba() == colour => {}
+                Some(_) => return RasterBox::Small(SmallBox { frame, start }),
+                None => return RasterBox::Other,
+            }
+        }
     }
-    let m = screen_from_texture;
-    // Row by row, not by an array `map` (not inlined: this runs per region).
-    let row = |r: &[f64; 3]| [r[0] * sx, r[1] * sz, r[0] * ox + r[1] * oz + r[2]];
-    let to_screen = [row(&m[0]), row(&m[1]), row(&m[2])];
-    // The deepest node holding the box strictly inside one child, so that
-    // each cell's colour is a short descent from it.
-    let (mut node, mut level, mut ix, mut iz) = (QuadTree::ROOT, 0u8, 0u32, 0u32);
-    while tree.splits_fully(node) {
-        let side = unit_side(level + 1);
-        let (mx, mz) = (f64::from(2 * ix + 1) * side, f64::from(2 * iz + 1) * side);
-        let (Some(hx), Some(hz)) = (half(x, mx), half(z, mz)) else {
-            break;
-        };
-        node = tree.child_ref(node, (hx + 2 * hz) as usize);
-        (level, ix, iz) = (level + 1, 2 * ix + hx, 2 * iz + hz);
-    }
-    let colour = finest_colour_below(tree, (node, level, ix, iz));
-    match scan_grid(
-        &local,
-        &to_screen,
-        h,
-        filter,
-        centre,
-        SMALL_SCAN_CELLS,
-        colour,
-    ) {
-        Some((colour, weight, cells)) => SmallScan::Done(colour, weight, cells),
-        None => SmallScan::Refused,
+    RasterBox::Uniform(colour)
+}
+
+impl SmallBox {
+    /// The region (texture space, counter-clockwise), whose box this is,
+    /// exactly: each cell of the grid at the tree's depth it crosses
+    /// clipped and weighted ([`scan_grid`]), as the walk's texel scan does
+    /// ([`Walk::scan_texels`]), but with no walk set up. `(Σ colour·k, Σ
+    /// k, cells)`, or `None` (nothing computed) past [`SMALL_SCAN_CELLS`]
+    /// cells: the walk's own scan of the tile would fail the same way.
+    fn scan(
+        &self,
+        tree: &QuadTree,
+        region: &ConvexPolygon,
+        screen_from_texture: &Mat3,
+        filter: PixelFilter,
+        centre: [f64; 2],
+    ) -> Option<([f64; 4], f64, f64)> {
+        let [(sx, ox), (sz, oz)] = self.frame;
+        let mut local = region.map_counter_clockwise(|[x, z]| [(x - ox) * sx, (z - oz) * sz]);
+        let (llo, lhi) = local.bounds();
+        if llo[0] < 0.0 || llo[1] < 0.0 || lhi[0] > 1.0 || lhi[1] > 1.0 {
+            local = local.clip_rect(0.0, 0.0, 1.0, 1.0);
+        }
+        if local.is_empty() {
+            return None;
+        }
+        let m = screen_from_texture;
+        // Row by row, not by an array `map` (not inlined: this runs per region).
+        let row = |r: &[f64; 3]| [r[0] * sx, r[1] * sz, r[0] * ox + r[1] * oz + r[2]];
+        let to_screen = [row(&m[0]), row(&m[1]), row(&m[2])];
+        let start = self.start;
+        scan_grid(
+            &local,
+            &to_screen,
+            unit_side(tree.depth()),
+            filter,
+            centre,
+            SMALL_SCAN_CELLS,
+            |x, z| {
+                let (x, z) = (u32::try_from(x).ok()?, u32::try_from(z).ok()?);
+                tree.finest_cell(start, x, z).map(FinestCell::colour)
+            },
+        )
     }
 }
 

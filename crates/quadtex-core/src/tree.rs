@@ -240,6 +240,58 @@ impl PartialEq for QuadTree {
     }
 }
 
+/// A stored node of the tree and its square: `level`, column `ix` and row
+/// `iz` at that level (tree space, `z` up).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct StoredSquare {
+    p: usize,
+    pub level: u8,
+    pub ix: u32,
+    pub iz: u32,
+}
+
+/// What a stored square is ([`QuadTree::stored_kind`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum StoredKind {
+    /// Four stored children.
+    Inner,
+    /// A texel block (its index).
+    Block(usize),
+    /// A terminal square: one colour, or a gradient or contour leaf.
+    Terminal,
+}
+
+/// What covers one cell of the grid at a plain raster's depth
+/// ([`QuadTree::finest_cell`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum FinestCell {
+    /// A texel of a block.
+    Texel(Unorm16Rgba),
+    /// A stored terminal square's colour, decoded (in `[0, 1]`).
+    Square([f64; 4]),
+}
+
+impl FinestCell {
+    /// Its colour in `[0, 1]`, as [`QuadTree::node_detail`] gives the
+    /// texel's or square's (the same bits).
+    #[inline]
+    pub(crate) fn colour(self) -> [f64; 4] {
+        match self {
+            FinestCell::Texel(t) => t.0.map(|v| f64::from(v) * (1.0 / 65535.0)),
+            FinestCell::Square(c) => c,
+        }
+    }
+
+    /// Its colour as [`QuadTree::uniform_colour`] gives it.
+    #[inline]
+    pub(crate) fn rgba(self) -> Rgba {
+        match self {
+            FinestCell::Texel(t) => t.to_rgba(),
+            FinestCell::Square([r, g, b, a]) => Rgba::new(r as f32, g as f32, b as f32, a as f32),
+        }
+    }
+}
+
 /// A node as traversals see it: a stored node (its padded index), a cell
 /// of a texel block below the block level (block, levels below the block
 /// node `j`, position in the block at that level), or a cell of a gradient
@@ -1361,6 +1413,157 @@ impl QuadTree {
         (!inner && contrast == 0.0).then_some(colour)
     }
 
+    /// Whether the tree is a plain raster: square, its finest level made of
+    /// texel blocks ([`QuadTree::texel_blocks`], their texels at
+    /// [`QuadTree::depth`]), with no gradient or contour leaves. Every cell of the grid at the depth then lies under a
+    /// texel or a stored terminal square, found by a descent of stored
+    /// nodes alone ([`QuadTree::finest_cell`]).
+    pub(crate) fn is_plain_raster(&self) -> bool {
+        self.aspect.is_square()
+            && self.gradient_leaves.is_none()
+            && self.contour_leaves.is_none()
+            && self
+                .texel_blocks
+                .as_ref()
+                .is_some_and(|tb| tb.level() + tb.log2_side() == self.depth)
+    }
+
+    /// The root's square.
+    pub(crate) const ROOT_SQUARE: StoredSquare = StoredSquare {
+        p: PAD,
+        level: 0,
+        ix: 0,
+        iz: 0,
+    };
+
+    /// What stored square `s` is.
+    #[inline]
+    pub(crate) fn stored_kind(&self, s: StoredSquare) -> StoredKind {
+        if let Some(b) = self.block_at(s.p) {
+            StoredKind::Block(b)
+        } else if self.is_inner(s.p) {
+            StoredKind::Inner
+        } else {
+            StoredKind::Terminal
+        }
+    }
+
+    /// The deepest stored square holding the box `x × z` (tree space,
+    /// half-open: a box ending on a square's middle line lies in its low
+    /// half) under no block: a texel block, a terminal square, or the inner
+    /// square whose middle lines the box crosses. The top table
+    /// ([`QuadTree::top_level`]) takes it down its levels in one step.
+    pub(crate) fn stored_square_holding(&self, x: (f64, f64), z: (f64, f64)) -> StoredSquare {
+        let t = self.top_level;
+        let scale = f64::from(1u32 << t);
+        let last = (1u32 << t) - 1;
+        // `as` saturates: NaN and negatives give 0, the far side `last`.
+        let cell = |v: f64| ((v * scale) as u32).min(last);
+        let below = |v: f64| (((v * scale).ceil() as u32).max(1) - 1).min(last);
+        let (cx0, cz0) = (cell(x.0), cell(z.0));
+        let (cx1, cz1) = (below(x.1).max(cx0), below(z.1).max(cz0));
+        let diverge = (32 - (cx0 ^ cx1).leading_zeros()).max(32 - (cz0 ^ cz1).leading_zeros());
+        let level = t - diverge as u8;
+        let shift = t - level;
+        let (ix, iz) = (cx0 >> shift, cz0 >> shift);
+        let mut s = StoredSquare {
+            p: self.top[top_table_offset(level) + ((iz as usize) << level) + ix as usize] as usize,
+            level,
+            ix,
+            iz,
+        };
+        if level < t {
+            return s;
+        }
+        while self.stored_kind(s) == StoredKind::Inner {
+            let side = unit_side(s.level + 1);
+            let (mx, mz) = (
+                f64::from(2 * s.ix + 1) * side,
+                f64::from(2 * s.iz + 1) * side,
+            );
+            let hx = match (x.1 <= mx, x.0 >= mx) {
+                (true, _) => 0,
+                (_, true) => 1,
+                _ => break,
+            };
+            let hz = match (z.1 <= mz, z.0 >= mz) {
+                (true, _) => 0,
+                (_, true) => 1,
+                _ => break,
+            };
+            s = self.stored_child(s, hx, hz);
+        }
+        s
+    }
+
+    /// Child `(hx, hz)` (0 low, 1 high) of inner stored square `s`.
+    #[inline]
+    pub(crate) fn stored_child(&self, s: StoredSquare, hx: u32, hz: u32) -> StoredSquare {
+        StoredSquare {
+            p: self.first_child(s.p) + (hx + 2 * hz) as usize,
+            level: s.level + 1,
+            ix: 2 * s.ix + hx,
+            iz: 2 * s.iz + hz,
+        }
+    }
+
+    /// The colour of terminal stored square `s`; `None` when it is not
+    /// terminal, or is a gradient or contour leaf (its colour varies).
+    #[inline]
+    pub(crate) fn terminal_cell(&self, s: StoredSquare) -> Option<FinestCell> {
+        (self.stored_kind(s) == StoredKind::Terminal
+            && self.gradient_leaf(s.p).is_none()
+            && self.contour_leaf(s.p).is_none())
+        .then(|| FinestCell::Square(self.encoding.decode_colour(self.colour(s.p))))
+    }
+
+    /// What covers cell `(cx, cz)` of the grid at [`QuadTree::depth`] in a
+    /// plain raster ([`QuadTree::is_plain_raster`]): a texel, or a stored
+    /// terminal square; found from stored square `from` when the cell lies
+    /// under it, else from the root. `None` past the grid (or in a tree
+    /// that is not a plain raster).
+    #[inline]
+    pub(crate) fn finest_cell(&self, from: StoredSquare, cx: u32, cz: u32) -> Option<FinestCell> {
+        let tb = self.texel_blocks.as_ref()?;
+        let under = |s: StoredSquare| {
+            self.depth
+                .checked_sub(s.level)
+                .is_some_and(|down| down < 32 && cx >> down == s.ix && cz >> down == s.iz)
+        };
+        let mut s = if under(from) {
+            from
+        } else if under(QuadTree::ROOT_SQUARE) {
+            QuadTree::ROOT_SQUARE
+        } else {
+            return None;
+        };
+        loop {
+            match self.stored_kind(s) {
+                StoredKind::Block(b) => {
+                    let log2 = u32::from(tb.log2_side());
+                    let mask = (1u32 << log2) - 1;
+                    // Checked once per cell: the block is at the level its
+                    // texels fill down to the depth.
+                    if u32::from(s.level) + log2 != u32::from(self.depth)
+                        || cx >> log2 != s.ix
+                        || cz >> log2 != s.iz
+                    {
+                        return None;
+                    }
+                    return Some(FinestCell::Texel(tb.texel(b, cx & mask, cz & mask)));
+                }
+                StoredKind::Terminal => return self.terminal_cell(s),
+                StoredKind::Inner => {
+                    let below = u32::from(self.depth.checked_sub(s.level + 1)?);
+                    if below >= 32 {
+                        return None;
+                    }
+                    s = self.stored_child(s, cx >> below & 1, cz >> below & 1);
+                }
+            }
+        }
+    }
+
     /// Whether node `n` has four children and the full contrast bound (1)
     /// of [`QuadTree::node_detail`], without its colour: a stored inner
     /// node or texel block, or a block's cell above its texels. A cell
@@ -1995,5 +2198,107 @@ fn fill_ranks(blocks: &mut [RankBlock]) {
     for b in blocks {
         b.rank = rank;
         rank += u64::from(b.bits.count_ones());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::{BuildOptions, TexelGrid};
+    use arbtest::arbitrary::Unstructured;
+
+    /// A photograph-like raster `side × side` (8 to 128 texels): noisy
+    /// texels, with uniform 4 × 4 blocks and uniform 16 × 16 squares
+    /// among them (stored terminal squares above the block level).
+    fn photo(u: &mut Unstructured<'_>) -> arbtest::arbitrary::Result<QuadTree> {
+        let side = 1u32 << u.int_in_range(3..=7u32)?;
+        let mut bytes = Vec::with_capacity((side * side) as usize);
+        let (big, small) = (side.div_ceil(16), side / 4);
+        let mut flat = |n: u32| -> arbtest::arbitrary::Result<Vec<Option<u8>>> {
+            (0..n * n)
+                .map(|_| Ok(u.ratio(1, 3)?.then_some(*u.choose(&[0u8, 90, 255])?)))
+                .collect()
+        };
+        let (big_flat, small_flat) = (flat(big)?, flat(small)?);
+        for k in 0..side * side {
+            let (c, r) = (k % side, k / side);
+            let v = match (big_flat[((r / 16) * big + c / 16) as usize])
+                .or(small_flat[((r / 4) * small + c / 4) as usize])
+            {
+                Some(v) => v,
+                None => *u.choose(&[0u8, 40, 128, 200, 255])?,
+            };
+            bytes.push([v, 255 - v, v / 2, 255]);
+        }
+        let grid = TexelGrid::from_srgb8(side, side, bytes).unwrap();
+        Ok(QuadTree::from_texels(&grid, &BuildOptions::default())
+            .unwrap()
+            .0)
+    }
+
+    fn interval(u: &mut Unstructured<'_>) -> arbtest::arbitrary::Result<(f64, f64)> {
+        let a = f64::from(u.int_in_range(0..=1 << 20u32)?) / f64::from(1 << 20u32);
+        let b = a + f64::from(u.int_in_range(0..=1 << 16u32)?) / f64::from(1 << 20u32);
+        Ok((a, b.min(1.0)))
+    }
+
+    /// Every cell's colour read by the stored descent (from the root, and
+    /// from the square holding a box around it) is the one the traversals'
+    /// node descent gives ([`QuadTree::finest_colour`]), to the bit.
+    #[test]
+    fn finest_cells_are_what_the_node_descent_finds() {
+        arbtest::arbtest(|u| {
+            let tree = photo(u)?;
+            // An image of uniform squares alone has no texel blocks.
+            if tree.texel_blocks().is_none() {
+                return Ok(());
+            }
+            assert!(tree.is_plain_raster());
+            let n = 1u32 << tree.depth();
+            let h = unit_side(tree.depth());
+            for cz in 0..n {
+                for cx in 0..n {
+                    let want = tree.finest_colour(QuadTree::ROOT, 0, 0, 0, cx, cz).unwrap();
+                    let from_root = tree.finest_cell(QuadTree::ROOT_SQUARE, cx, cz).unwrap();
+                    assert_eq!(from_root.colour(), want, "cell ({cx}, {cz})");
+                    let (x, z) = (f64::from(cx) * h, f64::from(cz) * h);
+                    let start = tree.stored_square_holding((x, x + h), (z, z + h));
+                    let below = tree.finest_cell(start, cx, cz).unwrap();
+                    assert_eq!(below.colour(), want, "cell ({cx}, {cz}) from {start:?}");
+                }
+            }
+            assert!(tree.finest_cell(QuadTree::ROOT_SQUARE, n, 0).is_none());
+            Ok(())
+        })
+        .budget_ms(1_000);
+    }
+
+    /// The square [`QuadTree::stored_square_holding`] gives holds the box,
+    /// and no child of it does: it is a block or a terminal square, or the
+    /// box crosses one of its middle lines.
+    #[test]
+    fn the_square_holding_a_box_is_the_deepest() {
+        arbtest::arbtest(|u| {
+            let tree = photo(u)?;
+            let (x, z) = (interval(u)?, interval(u)?);
+            let s = tree.stored_square_holding(x, z);
+            let side = unit_side(s.level);
+            let (x0, z0) = (f64::from(s.ix) * side, f64::from(s.iz) * side);
+            assert!(
+                x0 <= x.0 && x.1 <= x0 + side && z0 <= z.0 && z.1 <= z0 + side,
+                "{s:?} does not hold {x:?} × {z:?}"
+            );
+            if tree.stored_kind(s) == StoredKind::Inner {
+                let (mx, mz) = (x0 + side / 2.0, z0 + side / 2.0);
+                let crosses = |(a, b): (f64, f64), m: f64| a < m && b > m;
+                assert!(
+                    crosses(x, mx) || crosses(z, mz),
+                    "a child of {s:?} holds {x:?} × {z:?}"
+                );
+            }
+            Ok(())
+        })
+        .budget_ms(1_000);
     }
 }
