@@ -30,6 +30,9 @@ pub(crate) fn placement(
     polygon: &ConvexPolygon,
     lines: impl Iterator<Item = [f64; 3]>,
 ) -> Placement {
+    if let Some(rect) = axis_aligned_rect(polygon) {
+        return rect_placement(rect, lines);
+    }
     let mut all_inside = true;
     for [a, b, c] in lines {
         let (mut some_in, mut some_out) = (false, false);
@@ -40,6 +43,63 @@ pub(crate) fn placement(
                 some_out = true;
             }
         }
+        if !some_in {
+            return Placement::Outside;
+        }
+        all_inside &= !some_out;
+    }
+    if all_inside {
+        Placement::Inside
+    } else {
+        Placement::Straddles
+    }
+}
+
+/// `(x0, y0, x1, y1)` when `polygon` has the four vertices of
+/// [`ConvexPolygon::rect`] (a pixel filter's support, most often).
+#[inline]
+fn axis_aligned_rect(polygon: &ConvexPolygon) -> Option<(f64, f64, f64, f64)> {
+    match polygon.vertices() {
+        &[[x0, y0], [x1, y1], [x2, y2], [x3, y3]]
+            if y0 == y1 && x1 == x2 && y2 == y3 && x3 == x0 && x0 < x1 && y0 < y2 =>
+        {
+            Some((x0, y0, x1, y2))
+        }
+        _ => None,
+    }
+}
+
+/// [`placement`] of the rectangle `[x0, x1] × [y0, y1]`: against each line
+/// only the corners where `a·x + b·y` is least and greatest are evaluated
+/// (chosen by the signs of `a` and `b`), with the same expression as at
+/// every corner. Rounding is monotone, so they are the least and greatest
+/// of the four values the vertex test evaluates, and every decision is the
+/// same. Overflow is kept out rather than reasoned about (`∞ − ∞` is NaN,
+/// which no order holds): lines with coefficients from `10²⁹⁰` up, or
+/// corners from `10¹⁵`, take the vertex test.
+#[inline]
+fn rect_placement(
+    (x0, y0, x1, y1): (f64, f64, f64, f64),
+    lines: impl Iterator<Item = [f64; 3]>,
+) -> Placement {
+    let small_corners = [x0, y0, x1, y1].iter().all(|v| v.abs() < 1e15);
+    let mut all_inside = true;
+    for [a, b, c] in lines {
+        let ordered = small_corners && a.abs() < 1e290 && b.abs() < 1e290 && c.abs() < 1e290;
+        let (some_in, some_out) = if ordered {
+            let (x_hi, x_lo) = if a >= 0.0 { (x1, x0) } else { (x0, x1) };
+            let (y_hi, y_lo) = if b >= 0.0 { (y1, y0) } else { (y0, y1) };
+            (
+                a * x_hi + b * y_hi + c >= 0.0,
+                a * x_lo + b * y_lo + c < 0.0,
+            )
+        } else {
+            let values = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]].map(|[x, y]| a * x + b * y + c);
+            (
+                values.iter().any(|&v| v >= 0.0),
+                values.iter().any(|&v| !(v >= 0.0)),
+            )
+        };
         if !some_in {
             return Placement::Outside;
         }
@@ -270,6 +330,98 @@ impl View {
             self.depth / w
         } else {
             f64::INFINITY
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The vertex test, as [`placement`] runs it for any polygon.
+    fn vertex_placement(polygon: &ConvexPolygon, lines: &[[f64; 3]]) -> Placement {
+        let mut all_inside = true;
+        for &[a, b, c] in lines {
+            let values: Vec<f64> = (polygon.vertices().iter())
+                .map(|&[x, y]| a * x + b * y + c)
+                .collect();
+            if !values.iter().any(|&v| v >= 0.0) {
+                return Placement::Outside;
+            }
+            all_inside &= values.iter().all(|&v| v >= 0.0);
+        }
+        if all_inside {
+            Placement::Inside
+        } else {
+            Placement::Straddles
+        }
+    }
+
+    /// The rectangle's two-corner test decides as the vertex test does,
+    /// to the last bit: lines through corners, along sides, with zero
+    /// coefficients, huge and tiny ones, and random ones.
+    #[test]
+    fn a_rectangles_placement_is_the_vertex_tests() {
+        let mut seed = 0x5eed_u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut decided = [0usize; 3];
+        for _ in 0..20_000 {
+            let (x0, y0) = ((next() * 2000.0).floor(), (next() * 1000.0).floor());
+            let r = *[0.5, 1.0, 2.0].get((next() * 3.0) as usize).unwrap_or(&0.5);
+            let rect = ConvexPolygon::rect(x0 - r, y0 - r, x0 + r, y0 + r);
+            let corners = rect.vertices().to_vec();
+            let mut coefficient = |next: &mut dyn FnMut() -> f64| match (next() * 6.0) as u8 {
+                0 => 0.0,
+                1 => 1e300 * (next() - 0.5),
+                2 => 1e-300 * (next() - 0.5),
+                _ => next() * 4.0 - 2.0,
+            };
+            let lines: Vec<[f64; 3]> = (0..1 + (next() * 4.0) as usize)
+                .map(|_| {
+                    let (a, b) = (coefficient(&mut next), coefficient(&mut next));
+                    // Through a corner (exactly or nearly), or anywhere.
+                    let [cx, cy] = corners[(next() * 4.0) as usize % 4];
+                    let c = match (next() * 3.0) as u8 {
+                        0 => -(a * cx + b * cy),
+                        1 => -(a * cx + b * cy) * (1.0 + 1e-16 * (next() - 0.5)),
+                        _ => coefficient(&mut next) * 2000.0,
+                    };
+                    [a, b, c]
+                })
+                .collect();
+            let want = vertex_placement(&rect, &lines);
+            let got = placement(&rect, lines.iter().copied());
+            assert!(
+                std::mem::discriminant(&want) == std::mem::discriminant(&got),
+                "{rect:?} against {lines:?}"
+            );
+            decided[match got {
+                Placement::Outside => 0,
+                Placement::Inside => 1,
+                Placement::Straddles => 2,
+            }] += 1;
+        }
+        // Every outcome was met often.
+        assert!(decided.iter().all(|&n| n > 1000), "{decided:?}");
+        // Sums that overflow at some corners (∞ − ∞ is NaN there): the
+        // vertex test decides these.
+        let rect = ConvexPolygon::rect(9.5, 0.5, 10.5, 1.5);
+        for lines in [
+            [[1e308, -1e308, 0.0]],
+            [[-1e308, 1.5e308, -1e308]],
+            [[1.7e308, 1.7e308, -1.7e308]],
+        ] {
+            let want = vertex_placement(&rect, &lines);
+            let got = placement(&rect, lines.iter().copied());
+            assert!(
+                std::mem::discriminant(&want) == std::mem::discriminant(&got),
+                "{rect:?} against {lines:?}"
+            );
         }
     }
 }
