@@ -1843,7 +1843,8 @@ fn raster_box(tree: &QuadTree, wrap: Wrap, lo: [f64; 2], hi: [f64; 2]) -> Raster
     if ((x1 - x0) * (z1 - z0)) as f64 > SMALL_SCAN_CELLS {
         return RasterBox::Other;
     }
-    let Some(first) = tree.finest_cell(start, x0 as u32, z0 as u32) else {
+    let cells = tree.cells_below(start);
+    let Some(first) = cells.cell(x0 as u32, z0 as u32) else {
         return RasterBox::Other;
     };
     let colour = first.rgba();
@@ -1851,7 +1852,7 @@ fn raster_box(tree: &QuadTree, wrap: Wrap, lo: [f64; 2], hi: [f64; 2]) -> Raster
         // The first cell is read above.
         let from = if cz == z0 { x0 + 1 } else { x0 };
         for cx in from..x1 {
-            match tree.finest_cell(start, cx as u32, cz as u32) {
+            match cells.cell(cx as u32, cz as u32) {
                 Some(c) if c.rgba() == colour => {}
                 Some(_) => return RasterBox::Small(SmallBox { frame, start }),
                 None => return RasterBox::Other,
@@ -1889,7 +1890,7 @@ impl SmallBox {
         // Row by row, not by an array `map` (not inlined: this runs per region).
         let row = |r: &[f64; 3]| [r[0] * sx, r[1] * sz, r[0] * ox + r[1] * oz + r[2]];
         let to_screen = [row(&m[0]), row(&m[1]), row(&m[2])];
-        let start = self.start;
+        let cells = tree.cells_below(self.start);
         scan_grid(
             &local,
             &to_screen,
@@ -1899,7 +1900,7 @@ impl SmallBox {
             SMALL_SCAN_CELLS,
             |x, z| {
                 let (x, z) = (u32::try_from(x).ok()?, u32::try_from(z).ok()?);
-                tree.finest_cell(start, x, z).map(FinestCell::colour)
+                cells.cell(x, z).map(FinestCell::colour)
             },
         )
     }

@@ -261,6 +261,30 @@ pub(crate) enum StoredKind {
     Terminal,
 }
 
+/// Cells under one stored square, from [`QuadTree::cells_below`].
+pub(crate) struct CellReader<'t> {
+    tree: &'t QuadTree,
+    from: StoredSquare,
+    /// `from`'s texel block, when it is one at the level its texels fill
+    /// down to the depth.
+    block: Option<(usize, &'t TexelBlocks)>,
+}
+
+impl CellReader<'_> {
+    /// [`QuadTree::finest_cell`] of cell `(cx, cz)` from the reader's square.
+    #[inline]
+    pub(crate) fn cell(&self, cx: u32, cz: u32) -> Option<FinestCell> {
+        if let Some((b, tb)) = self.block {
+            let log2 = tb.log2_side();
+            if cx >> log2 == self.from.ix && cz >> log2 == self.from.iz {
+                let mask = (1u32 << log2) - 1;
+                return Some(FinestCell::Texel(tb.texel(b, cx & mask, cz & mask)));
+            }
+        }
+        self.tree.finest_cell(self.from, cx, cz)
+    }
+}
+
 /// What covers one cell of the grid at a plain raster's depth
 /// ([`QuadTree::finest_cell`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -1517,6 +1541,26 @@ impl QuadTree {
         .then(|| FinestCell::Square(self.encoding.decode_colour(self.colour(s.p))))
     }
 
+    /// A reader of cells under stored square `from`
+    /// ([`QuadTree::finest_cell`]), which reads a block's texels directly
+    /// when `from` is one (a box of a few texels, most often).
+    #[inline]
+    pub(crate) fn cells_below(&self, from: StoredSquare) -> CellReader<'_> {
+        let block = match (self.stored_kind(from), &self.texel_blocks) {
+            (StoredKind::Block(b), Some(tb))
+                if u32::from(from.level) + u32::from(tb.log2_side()) == u32::from(self.depth) =>
+            {
+                Some((b, tb))
+            }
+            _ => None,
+        };
+        CellReader {
+            tree: self,
+            from,
+            block,
+        }
+    }
+
     /// What covers cell `(cx, cz)` of the grid at [`QuadTree::depth`] in a
     /// plain raster ([`QuadTree::is_plain_raster`]): a texel, or a stored
     /// terminal square; found from stored square `from` when the cell lies
@@ -2266,6 +2310,17 @@ mod tests {
                     let start = tree.stored_square_holding((x, x + h), (z, z + h));
                     let below = tree.finest_cell(start, cx, cz).unwrap();
                     assert_eq!(below.colour(), want, "cell ({cx}, {cz}) from {start:?}");
+                    // The reader, from that square and from the root square's
+                    // corner block (the cell is under it or not).
+                    let read = tree.cells_below(start).cell(cx, cz).unwrap();
+                    assert_eq!(read.colour(), want, "cell ({cx}, {cz}) read from {start:?}");
+                    let corner = tree.stored_square_holding((0.0, h), (0.0, h));
+                    let read = tree.cells_below(corner).cell(cx, cz).unwrap();
+                    assert_eq!(
+                        read.colour(),
+                        want,
+                        "cell ({cx}, {cz}) read from {corner:?}"
+                    );
                 }
             }
             assert!(tree.finest_cell(QuadTree::ROOT_SQUARE, n, 0).is_none());
