@@ -97,7 +97,10 @@ fn rect_placement(
             let values = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]].map(|[x, y]| a * x + b * y + c);
             (
                 values.iter().any(|&v| v >= 0.0),
-                values.iter().any(|&v| !(v >= 0.0)),
+                // NaN counts as outside, as in the vertex test.
+                values
+                    .iter()
+                    .any(|v| v.partial_cmp(&0.0).is_none_or(|o| o.is_lt())),
             )
         };
         if !some_in {
@@ -375,7 +378,7 @@ mod tests {
             let r = *[0.5, 1.0, 2.0].get((next() * 3.0) as usize).unwrap_or(&0.5);
             let rect = ConvexPolygon::rect(x0 - r, y0 - r, x0 + r, y0 + r);
             let corners = rect.vertices().to_vec();
-            let mut coefficient = |next: &mut dyn FnMut() -> f64| match (next() * 6.0) as u8 {
+            let coefficient = |next: &mut dyn FnMut() -> f64| match (next() * 6.0) as u8 {
                 0 => 0.0,
                 1 => 1e300 * (next() - 0.5),
                 2 => 1e-300 * (next() - 0.5),
