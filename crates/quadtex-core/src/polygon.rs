@@ -22,9 +22,20 @@ pub const MAX_VERTICES: usize = 16;
 /// Invariants (checked by [`ConvexPolygon::new`]): finite coordinates, at
 /// most [`MAX_VERTICES`] vertices, convex. Fewer than three vertices, or
 /// collinear ones, make an empty polygon of zero area.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct ConvexPolygon {
     v: ArrayVec<[f64; 2], MAX_VERTICES>,
+}
+
+impl Clone for ConvexPolygon {
+    fn clone(&self) -> Self {
+        ConvexPolygon { v: self.v.clone() }
+    }
+
+    /// Copies the vertices alone, not the whole capacity.
+    fn clone_from(&mut self, source: &Self) {
+        self.v.clone_from(&source.v);
+    }
 }
 
 impl Default for ConvexPolygon {
@@ -271,6 +282,34 @@ impl ConvexPolygon {
         }
         let [first, second] = buffers;
         if current == 0 { first } else { second }
+    }
+
+    /// [`ConvexPolygon::clip_lines`] written into `out` (its vertices
+    /// replaced), for a caller that keeps polygons in place: the clips
+    /// alternate between `out` and one buffer, so only vertices are copied,
+    /// never a polygon's whole capacity. The same polygon, to the bit.
+    pub fn clip_lines_into(&self, lines: &[[f64; 3]], out: &mut ConvexPolygon) {
+        let Some((&[a, b, c], rest)) = lines.split_first() else {
+            out.v.clone_from(&self.v);
+            return;
+        };
+        // Each clip goes to the other of the two, so that the last lands in
+        // `out`.
+        let mut buffer = ConvexPolygon::EMPTY;
+        let (mut from, mut to) = if rest.len() % 2 == 0 {
+            (&mut buffer, &mut *out)
+        } else {
+            (&mut *out, &mut buffer)
+        };
+        self.clip_into(a, b, c, to);
+        for &[a, b, c] in rest {
+            std::mem::swap(&mut from, &mut to);
+            if from.is_empty() {
+                out.v.clear();
+                return;
+            }
+            from.clip_into(a, b, c, to);
+        }
     }
 
     /// [`ConvexPolygon::clip`] into `out` (cleared first).
@@ -544,21 +583,29 @@ mod tests {
         for _ in 0..2000 {
             let points: Vec<[f64; 2]> = (0..8).map(|_| [random(), random()]).collect();
             let polygon = ConvexPolygon::hull(&points);
-            let lines: Vec<[f64; 3]> = (0..(random().abs() * 3.0) as usize + 1)
+            let lines: Vec<[f64; 3]> = (0..(random().abs() * 2.5) as usize + 1)
                 .map(|_| [random(), random(), random() * 0.5])
                 .collect();
             let by_one = lines
                 .iter()
                 .fold(polygon.clone(), |p, l| p.clip(l[0], l[1], l[2]));
             let at_once = polygon.clip_lines(lines.iter().copied());
+            // In place, over a polygon left from before.
+            let mut into = ConvexPolygon::rect(-9.0, -9.0, 9.0, 9.0);
+            polygon.clip_lines_into(&lines, &mut into);
             if by_one.is_empty() {
                 assert!(at_once.is_empty(), "{polygon:?} {lines:?}");
+                assert!(into.is_empty(), "{polygon:?} {lines:?}");
             } else {
                 assert_eq!(at_once, by_one, "{polygon:?} {lines:?}");
+                assert_eq!(into, by_one, "{polygon:?} {lines:?}");
             }
         }
         let square = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
         assert_eq!(square.clip_lines(std::iter::empty()), square);
+        let mut into = ConvexPolygon::EMPTY;
+        square.clip_lines_into(&[], &mut into);
+        assert_eq!(into, square);
     }
 
     /// `split_into` against two clips, bit for bit (PartialEq on `f64`

@@ -420,7 +420,12 @@ pub(crate) fn exact_pixel<'a>(
         }
     }
     regions.clear();
-    regions.extend(views.iter().map(|v| v.region(&support).into_owned()));
+    for v in views.iter() {
+        regions.push(ConvexPolygon::EMPTY);
+        if let Some(region) = regions.last_mut() {
+            v.region_into(&support, region);
+        }
+    }
     let mut found = 0;
     cut.among(views, regions, &support, order);
     loop {
@@ -474,7 +479,10 @@ pub(crate) fn exact_pixel<'a>(
                 found += 1;
                 let view = candidate_view(scene, cache, memo, id)?;
                 if let Some(v) = &view {
-                    regions.push(v.region(&support).into_owned());
+                    regions.push(ConvexPolygon::EMPTY);
+                    if let Some(region) = regions.last_mut() {
+                        v.region_into(&support, region);
+                    }
                     grew = true;
                 }
                 tried.push((id, view.is_some().then_some(views.len())));

@@ -244,6 +244,21 @@ impl View {
         }
     }
 
+    /// [`View::region`] written into `out`, in place (a polygon moved is
+    /// its whole capacity copied; here only its vertices are).
+    pub fn region_into(&self, support: &ConvexPolygon, out: &mut ConvexPolygon) {
+        match self.placement(support) {
+            Placement::Outside => *out = ConvexPolygon::EMPTY,
+            Placement::Inside => out.clone_from(support),
+            Placement::Straddles => {
+                let mut lines = [[0.0; 3]; 5];
+                lines[0] = self.w;
+                lines[1..=self.bound_count].copy_from_slice(&self.bounds[..self.bound_count]);
+                support.clip_lines_into(&lines[..=self.bound_count], out);
+            }
+        }
+    }
+
     /// The half-planes `a·x + b·y + c ≥ 0` this primitive is seen within:
     /// in front of the camera, then inside each of its edges.
     pub(crate) fn lines(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
