@@ -507,13 +507,7 @@ fn partition(
 mod tests {
     use super::*;
 
-    /// A deterministic stream in [0, 1).
-    fn rng(seed: &mut u64) -> f64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (*seed >> 11) as f64 / (1u64 << 53) as f64
-    }
+    use crate::math::unit_random as rng;
 
     /// Triangles as (a, b, c).
     fn soup(n: usize, seed: &mut u64) -> Vec<[Vec3; 3]> {

@@ -88,3 +88,13 @@ pub(crate) fn test_uniform(state: &mut u64, lo: f64, hi: f64) -> f64 {
     *state ^= *state << 17;
     lo + (hi - lo) * ((*state >> 11) as f64 / (1u64 << 53) as f64)
 }
+
+/// A deterministic stream of numbers in `[0, 1)` for tests (a 64-bit
+/// linear congruential generator, its top 53 bits).
+#[cfg(test)]
+pub(crate) fn unit_random(seed: &mut u64) -> f64 {
+    *seed = seed
+        .wrapping_mul(6_364_136_223_846_793_005)
+        .wrapping_add(1_442_695_040_888_963_407);
+    (*seed >> 11) as f64 / (1u64 << 53) as f64
+}

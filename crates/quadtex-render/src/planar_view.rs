@@ -25,24 +25,19 @@ pub(crate) enum Placement {
 /// Where `polygon` lies against `lines`, decided from its vertices alone
 /// with the clip's own side test: wholly inside (the clip would copy every
 /// vertex unchanged) or wholly beyond one line (the clip would come out
-/// empty) needs no clip.
+/// empty) needs no clip. A rectangle (a pixel's support) is decided from
+/// two corners a line ([`rect_sides`]), the same answer.
 pub(crate) fn placement(
     polygon: &ConvexPolygon,
     lines: impl Iterator<Item = [f64; 3]>,
 ) -> Placement {
-    if let Some(rect) = axis_aligned_rect(polygon) {
-        return rect_placement(rect, lines);
-    }
+    let rect = axis_aligned_rect(polygon);
     let mut all_inside = true;
-    for [a, b, c] in lines {
-        let (mut some_in, mut some_out) = (false, false);
-        for &[x, y] in polygon.vertices() {
-            if a * x + b * y + c >= 0.0 {
-                some_in = true;
-            } else {
-                some_out = true;
-            }
-        }
+    for line in lines {
+        let (some_in, some_out) = match rect {
+            Some(r) if ordered(r, line) => rect_sides(r, line),
+            _ => vertex_sides(polygon, line),
+        };
         if !some_in {
             return Placement::Outside;
         }
@@ -53,6 +48,21 @@ pub(crate) fn placement(
     } else {
         Placement::Straddles
     }
+}
+
+/// Whether some vertex of `polygon` lies inside `a·x + b·y + c ≥ 0`, and
+/// whether some lies outside (NaN counts as outside), by the clip's test.
+#[inline]
+fn vertex_sides(polygon: &ConvexPolygon, [a, b, c]: [f64; 3]) -> (bool, bool) {
+    let (mut some_in, mut some_out) = (false, false);
+    for &[x, y] in polygon.vertices() {
+        if a * x + b * y + c >= 0.0 {
+            some_in = true;
+        } else {
+            some_out = true;
+        }
+    }
+    (some_in, some_out)
 }
 
 /// `(x0, y0, x1, y1)` when `polygon` has the four vertices of
@@ -69,50 +79,31 @@ fn axis_aligned_rect(polygon: &ConvexPolygon) -> Option<(f64, f64, f64, f64)> {
     }
 }
 
-/// [`placement`] of the rectangle `[x0, x1] × [y0, y1]`: against each line
-/// only the corners where `a·x + b·y` is least and greatest are evaluated
-/// (chosen by the signs of `a` and `b`), with the same expression as at
-/// every corner. Rounding is monotone, so they are the least and greatest
-/// of the four values the vertex test evaluates, and every decision is the
-/// same. Overflow is kept out rather than reasoned about (`∞ − ∞` is NaN,
-/// which no order holds): lines with coefficients from `10²⁹⁰` up, or
-/// corners from `10¹⁵`, take the vertex test.
+/// Whether [`rect_sides`] decides for rectangle `r` and `line`: overflow
+/// is kept out rather than reasoned about (`∞ − ∞` is NaN, which no order
+/// holds), so coefficients from `10²⁹⁰` up, or corners from `10¹⁵`, take
+/// the vertex test.
 #[inline]
-fn rect_placement(
-    (x0, y0, x1, y1): (f64, f64, f64, f64),
-    lines: impl Iterator<Item = [f64; 3]>,
-) -> Placement {
-    let small_corners = [x0, y0, x1, y1].iter().all(|v| v.abs() < 1e15);
-    let mut all_inside = true;
-    for [a, b, c] in lines {
-        let ordered = small_corners && a.abs() < 1e290 && b.abs() < 1e290 && c.abs() < 1e290;
-        let (some_in, some_out) = if ordered {
-            let (x_hi, x_lo) = if a >= 0.0 { (x1, x0) } else { (x0, x1) };
-            let (y_hi, y_lo) = if b >= 0.0 { (y1, y0) } else { (y0, y1) };
-            (
-                a * x_hi + b * y_hi + c >= 0.0,
-                a * x_lo + b * y_lo + c < 0.0,
-            )
-        } else {
-            let values = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]].map(|[x, y]| a * x + b * y + c);
-            (
-                values.iter().any(|&v| v >= 0.0),
-                // NaN counts as outside, as in the vertex test.
-                values
-                    .iter()
-                    .any(|v| v.partial_cmp(&0.0).is_none_or(|o| o.is_lt())),
-            )
-        };
-        if !some_in {
-            return Placement::Outside;
-        }
-        all_inside &= !some_out;
-    }
-    if all_inside {
-        Placement::Inside
-    } else {
-        Placement::Straddles
-    }
+fn ordered((x0, y0, x1, y1): (f64, f64, f64, f64), [a, b, c]: [f64; 3]) -> bool {
+    [x0, y0, x1, y1].iter().all(|v| v.abs() < 1e15)
+        && a.abs() < 1e290
+        && b.abs() < 1e290
+        && c.abs() < 1e290
+}
+
+/// [`vertex_sides`] of the rectangle `[x0, x1] × [y0, y1]` from two
+/// corners: those where `a·x + b·y` is greatest and least (chosen by the
+/// signs of `a` and `b`), with the same expression as at every corner.
+/// Rounding is monotone, so they are the greatest and least of the four
+/// values the vertex test evaluates, and the answer is the same.
+#[inline]
+fn rect_sides((x0, y0, x1, y1): (f64, f64, f64, f64), [a, b, c]: [f64; 3]) -> (bool, bool) {
+    let (x_hi, x_lo) = if a >= 0.0 { (x1, x0) } else { (x0, x1) };
+    let (y_hi, y_lo) = if b >= 0.0 { (y1, y0) } else { (y0, y1) };
+    (
+        a * x_hi + b * y_hi + c >= 0.0,
+        a * x_lo + b * y_lo + c < 0.0,
+    )
 }
 
 /// A planar primitive seen from the camera: rows `(a, b, c)` of affine
@@ -381,12 +372,7 @@ mod tests {
     #[test]
     fn a_rectangles_placement_is_the_vertex_tests() {
         let mut seed = 0x5eed_u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = || crate::math::unit_random(&mut seed);
         let mut decided = [0usize; 3];
         for _ in 0..20_000 {
             let (x0, y0) = ((next() * 2000.0).floor(), (next() * 1000.0).floor());
