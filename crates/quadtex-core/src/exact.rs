@@ -530,8 +530,11 @@ pub(crate) fn integrate_region(
     // more.
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     let mut finite = true;
-    for &s in region.vertices() {
+    // Kept for the texture polygon below, so no vertex is mapped twice.
+    let mut mapped = [[0.0; 2]; crate::polygon::MAX_VERTICES];
+    for (&s, m) in region.vertices().iter().zip(mapped.iter_mut()) {
         let t = apply(&projection.texture_from_screen, s);
+        *m = t;
         finite &= t[0].is_finite() && t[1].is_finite();
         for a in 0..2 {
             lo[a] = lo[a].min(t[a]);
@@ -578,10 +581,16 @@ pub(crate) fn integrate_region(
     // region loses or gains under 1e-5 of the pixel (the terrain scene at
     // 960×540: no pixel's weight off by 1e-6).
     let (slo, shi) = region.bounds();
-    let texture_region = region
-        .clone()
-        .without_close_vertices(1e-6 * ((shi[0] - slo[0]) + (shi[1] - slo[1])))
-        .map_counter_clockwise(|s| apply(&projection.texture_from_screen, s));
+    let tolerance = 1e-6 * ((shi[0] - slo[0]) + (shi[1] - slo[1]));
+    let texture_region = if region.has_close_vertices(tolerance) {
+        region
+            .clone()
+            .without_close_vertices(tolerance)
+            .map_counter_clockwise(|s| apply(&projection.texture_from_screen, s))
+    } else {
+        // The same polygon (nothing merges): the vertices mapped above.
+        ConvexPolygon::from_trusted(&mapped[..region.vertices().len()])
+    };
     let epsilon = match options.level_of_detail() {
         LevelOfDetail::ErrorBound(e) => e,
         LevelOfDetail::Fixed(_) => 0.0,

@@ -38,6 +38,12 @@ impl Clone for ConvexPolygon {
     }
 }
 
+/// Whether `a` and `b` are within `tolerance` of each other on both axes.
+#[inline]
+fn within(a: [f64; 2], b: [f64; 2], tolerance: f64) -> bool {
+    (a[0] - b[0]).abs() <= tolerance && (a[1] - b[1]).abs() <= tolerance
+}
+
 impl Default for ConvexPolygon {
     fn default() -> Self {
         ConvexPolygon::EMPTY
@@ -401,6 +407,14 @@ impl ConvexPolygon {
         self.clip_lines(other.edge_lines())
     }
 
+    /// Whether [`ConvexPolygon::without_close_vertices`] would merge any
+    /// vertex: two neighbours (the last and the first included) within
+    /// `tolerance` on both axes.
+    pub(crate) fn has_close_vertices(&self, tolerance: f64) -> bool {
+        let v = self.vertices();
+        (0..v.len()).any(|i| within(v[i], v[(i + 1) % v.len()], tolerance))
+    }
+
     /// This polygon less each vertex within `tolerance` (in both
     /// coordinates) of the one kept before it. An edge that short, left by
     /// rounding where a clip passes through a vertex, points where the
@@ -409,9 +423,7 @@ impl ConvexPolygon {
     /// Removing the vertex changes the area by at most `tolerance` times
     /// the polygon's perimeter.
     pub(crate) fn without_close_vertices(mut self, tolerance: f64) -> ConvexPolygon {
-        let close = |a: [f64; 2], b: [f64; 2]| {
-            (a[0] - b[0]).abs() <= tolerance && (a[1] - b[1]).abs() <= tolerance
-        };
+        let close = |a: [f64; 2], b: [f64; 2]| within(a, b, tolerance);
         let mut kept = 0;
         for i in 0..self.v.len() {
             if kept == 0 || !close(self.v[kept - 1], self.v[i]) {
@@ -778,7 +790,19 @@ mod tests {
         assert!((kept.area() - p.area()).abs() < 1e-12);
         // Nothing within the tolerance: unchanged; everything: one vertex.
         assert_eq!(p.clone().without_close_vertices(0.0), p);
-        assert_eq!(p.without_close_vertices(2.0).vertices().len(), 1);
+        assert!(p.has_close_vertices(1e-9) && !p.has_close_vertices(0.0));
+        assert_eq!(p.clone().without_close_vertices(2.0).vertices().len(), 1);
+        // Only the last and the first close: the wrap is seen too.
+        let q = ConvexPolygon::from_trusted(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [d, d]]);
+        assert!(q.has_close_vertices(1e-9));
+        assert_eq!(q.clone().without_close_vertices(1e-9).vertices().len(), 3);
+        // `has_close_vertices` is exactly "something would merge".
+        for tolerance in [0.0, 1e-12, 1e-9, 0.3, 0.5, 0.6, 2.0] {
+            for poly in [&p, &q] {
+                let merged = poly.clone().without_close_vertices(tolerance);
+                assert_eq!(poly.has_close_vertices(tolerance), merged != *poly);
+            }
+        }
     }
 
     #[test]
