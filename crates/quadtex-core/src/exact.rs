@@ -70,7 +70,7 @@ use crate::colour::{Rgba, WeightedColour};
 use crate::footprint::Footprint;
 use crate::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET};
 use crate::polygon::{ConvexPolygon, Cubic, separable_integral};
-use crate::tree::{FinestCell, NodeRef, QuadTree, StoredKind, StoredSquare, unit_side};
+use crate::tree::{FinestCell, NodeRef, QuadTree, StoredSquare, unit_side};
 use crate::wrap::{Wrap, WrapMode};
 use crate::wrap::{fold_cell, uniform_colour_in};
 
@@ -1834,10 +1834,9 @@ fn raster_box(tree: &QuadTree, wrap: Wrap, lo: [f64; 2], hi: [f64; 2]) -> Raster
     };
     let (x, z) = (local(lo[0], hi[0], frame[0]), local(lo[1], hi[1], frame[1]));
     let start = tree.stored_square_holding(x, z);
-    if tree.stored_kind(start) == StoredKind::Terminal {
-        return tree
-            .terminal_cell(start)
-            .map_or(RasterBox::Other, |cell| RasterBox::Uniform(cell.rgba()));
+    // A plain raster's terminal squares are of one colour each.
+    if let Some(cell) = tree.terminal_cell(start) {
+        return RasterBox::Uniform(cell.rgba());
     }
     // The cells the box reaches, half-open (a box ending on a cell's side
     // does not reach the next), at least one a side.

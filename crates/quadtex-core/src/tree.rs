@@ -274,15 +274,30 @@ impl CellReader<'_> {
     /// [`QuadTree::finest_cell`] of cell `(cx, cz)` from the reader's square.
     #[inline]
     pub(crate) fn cell(&self, cx: u32, cz: u32) -> Option<FinestCell> {
-        if let Some((b, tb)) = self.block {
-            let log2 = tb.log2_side();
-            if cx >> log2 == self.from.ix && cz >> log2 == self.from.iz {
-                let mask = (1u32 << log2) - 1;
-                return Some(FinestCell::Texel(tb.texel(b, cx & mask, cz & mask)));
-            }
+        if let Some((b, tb)) = self.block
+            && let Some(texel) = block_texel(tb, b, self.from, cx, cz)
+        {
+            return Some(texel);
         }
         self.tree.finest_cell(self.from, cx, cz)
     }
+}
+
+/// Texel `(cx, cz)` (cells of the grid at the depth) of block `b`, whose
+/// square `s` its texels fill to the depth; `None` when the cell is not
+/// under it.
+#[inline]
+fn block_texel(
+    tb: &TexelBlocks,
+    b: usize,
+    s: StoredSquare,
+    cx: u32,
+    cz: u32,
+) -> Option<FinestCell> {
+    let log2 = tb.log2_side();
+    let mask = (1u32 << log2) - 1;
+    (cx >> log2 == s.ix && cz >> log2 == s.iz)
+        .then(|| FinestCell::Texel(tb.texel(b, cx & mask, cz & mask)))
 }
 
 /// What covers one cell of the grid at a plain raster's depth
@@ -1439,9 +1454,10 @@ impl QuadTree {
 
     /// Whether the tree is a plain raster: square, its finest level made of
     /// texel blocks ([`QuadTree::texel_blocks`], their texels at
-    /// [`QuadTree::depth`]), with no gradient or contour leaves. Every cell of the grid at the depth then lies under a
-    /// texel or a stored terminal square, found by a descent of stored
-    /// nodes alone ([`QuadTree::finest_cell`]).
+    /// [`QuadTree::depth`]), with no gradient or contour leaves. Every
+    /// cell of the grid at the depth then lies under a texel or a stored
+    /// terminal square, found by a descent of stored nodes alone
+    /// ([`QuadTree::finest_cell`]).
     pub(crate) fn is_plain_raster(&self) -> bool {
         self.aspect.is_square()
             && self.gradient_leaves.is_none()
@@ -1472,31 +1488,40 @@ impl QuadTree {
         }
     }
 
+    /// The smallest square of the top table ([`QuadTree::top_level`]) at
+    /// level `max_level` or above that holds the box `x × z` (tree space,
+    /// half-open), and its node: the square's own, or its terminal
+    /// ancestor's.
+    #[inline]
+    fn top_square(&self, x: (f64, f64), z: (f64, f64), max_level: u8) -> StoredSquare {
+        let t = self.top_level;
+        let scale = f64::from(1u32 << t);
+        let last = (1u32 << t) - 1;
+        // `as` saturates: NaN and negatives give 0, the far side `last`.
+        let cx0 = ((x.0 * scale) as u32).min(last);
+        let cz0 = ((z.0 * scale) as u32).min(last);
+        let cx1 = (((x.1 * scale).ceil() as u32).max(1) - 1).clamp(cx0, last);
+        let cz1 = (((z.1 * scale).ceil() as u32).max(1) - 1).clamp(cz0, last);
+        let diverge = (32 - (cx0 ^ cx1).leading_zeros()).max(32 - (cz0 ^ cz1).leading_zeros());
+        let level = (t - diverge as u8).min(max_level);
+        let shift = t - level;
+        let (ix, iz) = (cx0 >> shift, cz0 >> shift);
+        StoredSquare {
+            p: self.top[top_table_offset(level) + ((iz as usize) << level) + ix as usize] as usize,
+            level,
+            ix,
+            iz,
+        }
+    }
+
     /// The deepest stored square holding the box `x × z` (tree space,
     /// half-open: a box ending on a square's middle line lies in its low
     /// half) under no block: a texel block, a terminal square, or the inner
     /// square whose middle lines the box crosses. The top table
     /// ([`QuadTree::top_level`]) takes it down its levels in one step.
     pub(crate) fn stored_square_holding(&self, x: (f64, f64), z: (f64, f64)) -> StoredSquare {
-        let t = self.top_level;
-        let scale = f64::from(1u32 << t);
-        let last = (1u32 << t) - 1;
-        // `as` saturates: NaN and negatives give 0, the far side `last`.
-        let cell = |v: f64| ((v * scale) as u32).min(last);
-        let below = |v: f64| (((v * scale).ceil() as u32).max(1) - 1).min(last);
-        let (cx0, cz0) = (cell(x.0), cell(z.0));
-        let (cx1, cz1) = (below(x.1).max(cx0), below(z.1).max(cz0));
-        let diverge = (32 - (cx0 ^ cx1).leading_zeros()).max(32 - (cz0 ^ cz1).leading_zeros());
-        let level = t - diverge as u8;
-        let shift = t - level;
-        let (ix, iz) = (cx0 >> shift, cz0 >> shift);
-        let mut s = StoredSquare {
-            p: self.top[top_table_offset(level) + ((iz as usize) << level) + ix as usize] as usize,
-            level,
-            ix,
-            iz,
-        };
-        if level < t {
+        let mut s = self.top_square(x, z, self.top_level);
+        if s.level < self.top_level {
             return s;
         }
         while self.stored_kind(s) == StoredKind::Inner {
@@ -1535,10 +1560,16 @@ impl QuadTree {
     /// terminal, or is a gradient or contour leaf (its colour varies).
     #[inline]
     pub(crate) fn terminal_cell(&self, s: StoredSquare) -> Option<FinestCell> {
-        (self.stored_kind(s) == StoredKind::Terminal
-            && self.gradient_leaf(s.p).is_none()
-            && self.contour_leaf(s.p).is_none())
-        .then(|| FinestCell::Square(self.encoding.decode_colour(self.colour(s.p))))
+        (self.stored_kind(s) == StoredKind::Terminal)
+            .then(|| self.terminal_colour(s))
+            .flatten()
+    }
+
+    /// [`QuadTree::terminal_cell`] of a square known to be terminal.
+    #[inline]
+    fn terminal_colour(&self, s: StoredSquare) -> Option<FinestCell> {
+        (self.gradient_leaf(s.p).is_none() && self.contour_leaf(s.p).is_none())
+            .then(|| FinestCell::Square(self.encoding.decode_colour(self.colour(s.p))))
     }
 
     /// A reader of cells under stored square `from`
@@ -1583,20 +1614,15 @@ impl QuadTree {
         };
         loop {
             match self.stored_kind(s) {
-                StoredKind::Block(b) => {
-                    let log2 = u32::from(tb.log2_side());
-                    let mask = (1u32 << log2) - 1;
-                    // Checked once per cell: the block is at the level its
-                    // texels fill down to the depth.
-                    if u32::from(s.level) + log2 != u32::from(self.depth)
-                        || cx >> log2 != s.ix
-                        || cz >> log2 != s.iz
-                    {
-                        return None;
-                    }
-                    return Some(FinestCell::Texel(tb.texel(b, cx & mask, cz & mask)));
+                // Checked once per cell: the block is at the level its
+                // texels fill down to the depth.
+                StoredKind::Block(b)
+                    if u32::from(s.level) + u32::from(tb.log2_side()) == u32::from(self.depth) =>
+                {
+                    return block_texel(tb, b, s, cx, cz);
                 }
-                StoredKind::Terminal => return self.terminal_cell(s),
+                StoredKind::Block(_) => return None,
+                StoredKind::Terminal => return self.terminal_colour(s),
                 StoredKind::Inner => {
                     let below = u32::from(self.depth.checked_sub(s.level + 1)?);
                     if below >= 32 {
@@ -1942,19 +1968,12 @@ impl QuadTree {
         let (x0, z0, x1, z1) = (f.x0(), f.z0(), f.x1(), f.z1());
 
         // Start at the smallest square of level <= min(k, top_level) enclosing the fragment.
-        let t = self.top_level;
-        let scale = f64::from(1u32 << t);
-        let cells = (1u32 << t) - 1;
-        let cx0 = ((x0 * scale) as u32).min(cells);
-        let cz0 = ((z0 * scale) as u32).min(cells);
-        let cx1 = (((x1 * scale).ceil() as u32).max(1) - 1).clamp(cx0, cells);
-        let cz1 = (((z1 * scale).ceil() as u32).max(1) - 1).clamp(cz0, cells);
-        let diverge = (32 - (cx0 ^ cx1).leading_zeros()).max(32 - (cz0 ^ cz1).leading_zeros());
-        let level = (t - diverge as u8).min(k);
-        let shift = t - level;
-        let (sx, sz) = (cx0 >> shift, cz0 >> shift);
-        let start =
-            self.top[top_table_offset(level) + ((sz as usize) << level) + sx as usize] as usize;
+        let StoredSquare {
+            p: start,
+            level,
+            ix: sx,
+            iz: sz,
+        } = self.top_square((x0, x1), (z0, z1), k);
 
         {
             stats.nodes_visited += 1;

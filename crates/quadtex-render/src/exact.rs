@@ -444,10 +444,7 @@ pub(crate) fn exact_pixel<'a>(
     }
     regions.clear();
     for v in views.iter() {
-        regions.push(ConvexPolygon::EMPTY);
-        if let Some(region) = regions.last_mut() {
-            v.region_into(&support, region);
-        }
+        push_region(regions, v, &support);
     }
     let mut found = 0;
     cut.among(views, regions, &support, order);
@@ -502,10 +499,7 @@ pub(crate) fn exact_pixel<'a>(
                 found += 1;
                 let view = candidate_view(scene, cache, memo, id)?;
                 if let Some(v) = &view {
-                    regions.push(ConvexPolygon::EMPTY);
-                    if let Some(region) = regions.last_mut() {
-                        v.region_into(&support, region);
-                    }
+                    push_region(regions, v, &support);
                     grew = true;
                 }
                 tried.push((id, view.is_some().then_some(views.len())));
@@ -613,6 +607,15 @@ pub(crate) fn exact_pixel<'a>(
 /// its support (so nothing is integrated again per pixel).
 fn weight_error(weight: f64) -> f64 {
     (weight - 1.0).abs()
+}
+
+/// Appends `view`'s region of `support` to `regions`, written in its place
+/// ([`View::region_into`]).
+fn push_region(regions: &mut Vec<ConvexPolygon>, view: &View, support: &ConvexPolygon) {
+    regions.push(ConvexPolygon::EMPTY);
+    if let Some(region) = regions.last_mut() {
+        view.region_into(support, region);
+    }
 }
 
 /// Where regions `a` and `b` overlap, if they do with some area.
