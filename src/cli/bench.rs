@@ -61,7 +61,9 @@ pub struct Args {
     /// Time whole 1920×1080 frames instead: the demo, the runway scene and
     /// a generated terrain of 1 M triangles (binary glTF, see
     /// `quadtex_render::terrain`), each with `nearest`, the quadtree filter
-    /// and EWA, as medians and as ratios to `nearest` (same run).
+    /// and EWA, as medians and as ratios to `nearest` (same run). The runs
+    /// of a scene and filter render into one frame buffer, as a real-time
+    /// loop does; the first run allocates it.
     #[arg(long, conflicts_with_all = ["size", "queries", "texture"])]
     frames: bool,
     #[command(flatten)]
@@ -322,12 +324,17 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
                 filter: *filter,
                 ..RenderOptions::default()
             };
+            // One frame buffer for the runs, as a real-time loop keeps its
+            // own: the first run sizes (allocates and clears) it.
+            let mut image = quadtex_io::LinearImage {
+                width: 0,
+                height: 0,
+                pixels: Vec::new(),
+            };
             let mut times = Vec::with_capacity(runs);
             for _ in 0..runs {
                 times.push(
-                    quadtex_render::render(scene, &options, &|_, _| {})?
-                        .1
-                        .seconds,
+                    quadtex_render::render_into(scene, &options, &mut image, &|_, _| {})?.seconds,
                 );
             }
             times.sort_by(f64::total_cmp);

@@ -289,12 +289,17 @@ fn render_path(
     });
     let mut seconds = Vec::with_capacity(cameras.len());
     let mut names = Vec::with_capacity(cameras.len());
+    let mut image = quadtex_io::LinearImage {
+        width: 0,
+        height: 0,
+        pixels: Vec::new(),
+    };
     for (i, camera) in cameras.into_iter().enumerate() {
         let framed = Scene {
             camera,
             ..scene.clone()
         };
-        let (image, summary) = quadtex_render::render(&framed, options, &|_, _| {})?;
+        let summary = quadtex_render::render_into(&framed, options, &mut image, &|_, _| {})?;
         let file = dir.join(format!("frame_{i:0digits$}.{}", format.extension()));
         quadtex_io::save_image_as(&file, &image, format)?;
         seconds.push(summary.seconds);

@@ -54,7 +54,7 @@ pub use parse::{
     parse_scene, parse_scene_with_limits,
 };
 pub use path::CameraPath;
-pub use render::render;
+pub use render::{render, render_into};
 pub use scene::Scene;
 pub use stats::RenderSummary;
 
