@@ -326,11 +326,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
             };
             // One frame buffer for the runs, as a real-time loop keeps its
             // own: the first run sizes (allocates and clears) it.
-            let mut image = quadtex_io::LinearImage {
-                width: 0,
-                height: 0,
-                pixels: Vec::new(),
-            };
+            let mut image = quadtex_io::LinearImage::default();
             let mut times = Vec::with_capacity(runs);
             for _ in 0..runs {
                 times.push(

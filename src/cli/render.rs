@@ -289,11 +289,7 @@ fn render_path(
     });
     let mut seconds = Vec::with_capacity(cameras.len());
     let mut names = Vec::with_capacity(cameras.len());
-    let mut image = quadtex_io::LinearImage {
-        width: 0,
-        height: 0,
-        pixels: Vec::new(),
-    };
+    let mut image = quadtex_io::LinearImage::default();
     for (i, camera) in cameras.into_iter().enumerate() {
         let framed = Scene {
             camera,

@@ -17,7 +17,9 @@ use crate::error::{Error, io};
 use crate::limits::Limits;
 
 /// A rendered image: linear light, premultiplied alpha, row 0 at the top.
-#[derive(Debug, Clone, PartialEq)]
+/// The default is the empty 0 × 0 image (a buffer for
+/// `quadtex_render::render_into` to size).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct LinearImage {
     /// Width in pixels.
     pub width: u32,

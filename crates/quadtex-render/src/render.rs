@@ -31,11 +31,7 @@ pub fn render(
     options: &RenderOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(LinearImage, RenderSummary), crate::Error> {
-    let mut image = LinearImage {
-        width: 0,
-        height: 0,
-        pixels: Vec::new(),
-    };
+    let mut image = LinearImage::default();
     let summary = render_with(scene, options, progress, Spans::Shared, &mut image)?;
     Ok((image, summary))
 }
@@ -441,11 +437,7 @@ mod tests {
                 seed: 0,
             };
             let go = |spans| {
-                let mut image = LinearImage {
-                    width: 0,
-                    height: 0,
-                    pixels: Vec::new(),
-                };
+                let mut image = LinearImage::default();
                 let summary = render_with(scene, &options, &|_, _| (), spans, &mut image).unwrap();
                 (image, summary)
             };
