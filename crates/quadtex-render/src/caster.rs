@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use crate::math::Ray;
+use crate::math::{Ray, Vec3};
 use crate::scene::{Geometry, Hit, Lighting, QuadFrame, Scene, Surface};
 use crate::sun_grid::{self, SunGrid};
 
@@ -105,11 +105,18 @@ impl<'a> Caster<'a> {
 
     /// Whether `ray` meets any surface (as [`Caster::nearest_index`] would
     /// find one), without finding the nearest point: for shadow rays, which
-    /// leave surface `from` on the side they point to. A plane or quad
-    /// cannot meet such a ray again, so it is not tested (a mesh is: its
-    /// other triangles may).
-    pub fn occluded_leaving(&self, ray: &Ray, from: usize) -> bool {
+    /// leave `from` (a surface, and its triangle if it is a mesh) on the
+    /// side they point to. A plane or quad cannot meet such a ray again, so
+    /// it is not tested; a mesh is (its other triangles may), unless its sun
+    /// grid shows that none lies between the triangle and the sun
+    /// ([`SunGrid::unshadowed`]).
+    pub fn occluded_leaving(&self, ray: &Ray, (from, triangle): (usize, u32)) -> bool {
         (self.scene.surfaces.iter().enumerate()).any(|(i, s)| match &s.geometry {
+            Geometry::Mesh(_)
+                if i == from && self.clear_of_own_mesh((i, triangle), ray.direction) =>
+            {
+                false
+            }
             Geometry::Mesh(mesh) => match self.suns.get(i) {
                 Some(Some(grid)) if grid.serves(ray.direction) => grid.occludes(mesh, ray, 1e-9),
                 _ => mesh.occludes(ray, 1e-9),
@@ -117,6 +124,24 @@ impl<'a> Caster<'a> {
             Geometry::Plane { .. } | Geometry::Quad { .. } if i == from => false,
             _ => self.intersect(i, ray, 1e-9).is_some(),
         })
+    }
+
+    /// Whether the sun grid of mesh `surface` (toward `direction`) shows
+    /// that none of the mesh's other triangles lies between a point of
+    /// `triangle` and the sun ([`SunGrid::unshadowed`]); false when that is
+    /// not shown or `surface` is no mesh with a grid.
+    pub(crate) fn clear_of_own_mesh(
+        &self,
+        (surface, triangle): (usize, u32),
+        direction: Vec3,
+    ) -> bool {
+        match (self.scene.surfaces.get(surface), self.suns.get(surface)) {
+            (Some(s), Some(Some(grid))) => match &s.geometry {
+                Geometry::Mesh(mesh) => grid.serves(direction) && grid.unshadowed(mesh, triangle),
+                _ => false,
+            },
+            _ => false,
+        }
     }
 
     /// The first surface `ray` meets, and where.

@@ -1212,7 +1212,8 @@ fn light_piece(frame: &Frame<'_>, view: &View, piece: &ConvexPolygon, c: &mut [f
             // The camera's ray is normalised; depth_at is per unnormalised d.
             let d = scene.camera.direction(s[0], s[1]);
             let point = scene.camera.position + d * t;
-            let k = lambert(&frame.rays, view.surface(), view.normal(), point, &ray);
+            let from = (view.surface(), view.triangle().unwrap_or(0));
+            let k = lambert(&frame.rays, from, view.normal(), point, &ray);
             apply_light(c, k);
         }
     }

@@ -49,11 +49,12 @@ pub(crate) fn sky(scene: &Scene, ray: &Ray) -> Rgba {
 
 /// The lighting factor per colour channel at `point` (normal `normal`)
 /// seen along `ray`: ambient plus the sun's `cos` unless shadowed; 1 when
-/// the scene is unlit. `point` lies on surface `surface`, whose shadow
-/// ray leaves it towards the sun.
+/// the scene is unlit. `point` lies on `from`, a surface and its mesh
+/// triangle (any for other shapes), whose shadow ray leaves it towards the
+/// sun.
 pub(crate) fn lambert(
     rays: &Caster<'_>,
-    surface: usize,
+    from: (usize, u32),
     normal: Vec3,
     point: Vec3,
     ray: &Ray,
@@ -73,7 +74,7 @@ pub(crate) fn lambert(
                     origin: point + n * 1e-6 * (1.0 + distance),
                     direction,
                 };
-                !rays.occluded_leaving(&shadow, surface)
+                !rays.occluded_leaving(&shadow, from)
             };
             let k = if lit { cos as f32 } else { 0.0 };
             lit_factor(&rays.scene.lighting, k)

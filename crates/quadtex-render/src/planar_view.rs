@@ -121,6 +121,8 @@ pub(crate) struct View {
     bound_count: usize,
     projection: Projection,
     normal: Vec3,
+    /// The mesh triangle this is the view of, if it is one.
+    triangle: Option<u32>,
 }
 
 /// A planar primitive's affine rows over the screen point `(px, py, 1)`:
@@ -211,6 +213,7 @@ impl View {
             bound_count,
             projection,
             normal: planar.normal,
+            triangle: planar.triangle,
         })
     }
 
@@ -313,6 +316,7 @@ impl View {
             bound_count: 0,
             projection: Projection::identity(),
             normal: Vec3::new(0.0, 0.0, -1.0),
+            triangle: None,
         }
     }
 
@@ -329,6 +333,11 @@ impl View {
     /// The primitive's normal (world space, as its surface gives it).
     pub(crate) fn normal(&self) -> Vec3 {
         self.normal
+    }
+
+    /// The mesh triangle this is the view of (`None` for planes and quads).
+    pub(crate) fn triangle(&self) -> Option<u32> {
+        self.triangle
     }
 
     /// Ray parameter (for the camera's unnormalised ray through `s`) of

@@ -253,7 +253,7 @@ impl Triangle {
 /// while it is built (up to about 100), rounded up. Loaders check a mesh
 /// against the memory budget at this rate before building it. At render
 /// time the parsed arrays are gone; a lit frame adds the shadow grid (at
-/// most 40 bytes a triangle, 16 more while it is built) and the visibility
+/// most 41 bytes a triangle, 16 more while it is built) and the visibility
 /// grid's bins (about 30 bytes a triangle in view, for the frame).
 pub const MESH_BYTES_PER_TRIANGLE: u64 = 320;
 
@@ -437,6 +437,9 @@ pub(crate) struct Planar {
     pub dv: Vec3,
     /// Where on the plane the primitive lies.
     pub extent: Extent,
+    /// The mesh triangle this is (`None` for planes, quads and tangent
+    /// planes): what its shadow rays leave from.
+    pub triangle: Option<u32>,
 }
 
 /// The part of its plane a planar primitive covers.
@@ -468,6 +471,7 @@ impl Geometry {
                 du: u_axis,
                 dv: v_axis,
                 extent: Extent::Plane,
+                triangle: None,
             }),
             Geometry::Quad {
                 origin,
@@ -482,6 +486,7 @@ impl Geometry {
                     du,
                     dv,
                     extent: Extent::UnitUv,
+                    triangle: None,
                 })
             }
             Geometry::Mesh(ref mesh) => {
@@ -494,6 +499,7 @@ impl Geometry {
                     du: tri.du,
                     dv: tri.dv,
                     extent: Extent::Triangle { g1, g2 },
+                    triangle: Some(triangle),
                 })
             }
             Geometry::Sphere { .. } => None,

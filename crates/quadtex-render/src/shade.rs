@@ -50,7 +50,13 @@ pub(crate) fn shade_ray(
             tex * surface.colour
         }
     };
-    let k = lambert(&frame.rays, index, hit.normal, hit.point, ray);
+    let k = lambert(
+        &frame.rays,
+        (index, hit.triangle),
+        hit.normal,
+        hit.point,
+        ray,
+    );
     Rgba::new(base.r * k[0], base.g * k[1], base.b * k[2], base.a)
 }
 
@@ -133,6 +139,7 @@ fn tangent_filtered(
         du: hit.du,
         dv: hit.dv,
         extent: crate::scene::Extent::Plane,
+        triangle: None,
     };
     let view = crate::planar_view::View::new(frame.scene, index, &planar)?;
     let support = filter.support(area.centre);

@@ -315,8 +315,13 @@ fn span_light(frame: &Frame<'_>, view: &View, rect: &ConvexPolygon) -> Option<[f
     if !corners.iter().all(|p| p.is_finite()) {
         return None;
     }
-    shadow_free(frame, view.surface(), &corners, direction)
-        .then(|| lit_factor(&scene.lighting, cos as f32))
+    shadow_free(
+        frame,
+        (view.surface(), view.triangle()),
+        &corners,
+        direction,
+    )
+    .then(|| lit_factor(&scene.lighting, cos as f32))
 }
 
 /// Whether no shadow ray toward the sun (`direction`, a unit vector) from
@@ -324,7 +329,12 @@ fn span_light(frame: &Frame<'_>, view: &View, rect: &ConvexPolygon) -> Option<[f
 /// lifted off it by at most `10⁻⁶` of its distance from the camera plus
 /// one (in any direction), meets any surface [`crate::caster::Caster::occluded_leaving`]
 /// tests (module documentation); false where that is not shown.
-fn shadow_free(frame: &Frame<'_>, from: usize, corners: &[Vec3; 4], direction: Vec3) -> bool {
+fn shadow_free(
+    frame: &Frame<'_>,
+    (from, triangle): (usize, Option<u32>),
+    corners: &[Vec3; 4],
+    direction: Vec3,
+) -> bool {
     let scene = frame.scene;
     let camera = scene.camera.position;
     let distance = corners
@@ -384,22 +394,24 @@ fn shadow_free(frame: &Frame<'_>, from: usize, corners: &[Vec3; 4], direction: V
                 norm > 0.0 && -(l[0] * c[0] + l[1] * c[1] + l[2]) / norm > radius + margin
             })
         }
-        // Its box's outline holds every triangle's (none when the box
-        // is not known, or the mesh is the surface the rays leave: its
-        // other triangles may shade it).
-        Geometry::Mesh(mesh) => {
-            i != from
-                && mesh.bounds().is_some_and(|b| {
-                    let corners: [Vec3; 8] = std::array::from_fn(|k| {
-                        Vec3::new(
-                            if k & 1 == 0 { b.lo.x } else { b.hi.x },
-                            if k & 2 == 0 { b.lo.y } else { b.hi.y },
-                            if k & 4 == 0 { b.lo.z } else { b.hi.z },
-                        )
-                    });
-                    apart(&outline, &ConvexPolygon::hull(&corners.map(along)), margin)
-                })
+        // The mesh the rays leave: clear when its sun grid shows no other
+        // triangle between the one they leave and the sun (the answer each
+        // pixel's own ray would take).
+        Geometry::Mesh(_) if i == from => {
+            triangle.is_some_and(|t| frame.rays.clear_of_own_mesh((from, t), direction))
         }
+        // Its box's outline holds every triangle's (none when the box is
+        // not known).
+        Geometry::Mesh(mesh) => mesh.bounds().is_some_and(|b| {
+            let corners: [Vec3; 8] = std::array::from_fn(|k| {
+                Vec3::new(
+                    if k & 1 == 0 { b.lo.x } else { b.hi.x },
+                    if k & 2 == 0 { b.lo.y } else { b.hi.y },
+                    if k & 4 == 0 { b.lo.z } else { b.hi.z },
+                )
+            });
+            apart(&outline, &ConvexPolygon::hull(&corners.map(along)), margin)
+        }),
     })
 }
 

@@ -10,13 +10,26 @@
 //! ([`Mesh::crosses_beyond`]), so the answer is the hierarchy's. Triangles
 //! whose box spans more than [`MAX_CELLS_PER_TRIANGLE`] cells are tested by
 //! every query instead.
+//!
+//! **Triangles no other one can shade.** The first time a shadow ray
+//! leaves a triangle, the grid decides once whether any other triangle of
+//! the mesh can lie between a point of it and the sun
+//! ([`SunGrid::unshadowed`]); where none can, rays leaving it skip the
+//! mesh. On the generated 1 M-triangle terrain every triangle is clear at
+//! its sun, and its frame's images are unchanged to the byte.
 
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError, Weak};
 
 use rayon::prelude::*;
 
 use crate::math::{Ray, Vec3};
 use crate::scene::Mesh;
+
+/// States of a triangle's [`SunGrid::unshadowed`] answer.
+const UNKNOWN: u8 = 0;
+const CLEAR: u8 = 1;
+const SHADED: u8 = 2;
 
 /// Meshes with fewer triangles than this keep to the hierarchy.
 pub(crate) const MIN_TRIANGLES: usize = 4096;
@@ -34,8 +47,9 @@ const MAX_CELLS_PER_TRIANGLE: u64 = 64;
 
 /// A mesh whose triangles fill more cell slots than this per triangle (4
 /// bytes each), or have more than [`MAX_LARGE`] in the list every query
-/// tests, keeps to the hierarchy: the grid stays within 40 bytes a
-/// triangle (cell starts, slots and each triangle's depth), besides 16
+/// tests, keeps to the hierarchy: the grid stays within 41 bytes a
+/// triangle (cell starts, slots, each triangle's depth and whether it is
+/// unshadowed), besides 16
 /// bytes a triangle while it is built. The 1 M-triangle terrain fills 6.1
 /// slots a triangle.
 const MAX_ITEMS_PER_TRIANGLE: u64 = 8;
@@ -87,6 +101,10 @@ pub(crate) struct SunGrid {
     /// meet a triangle reaching beyond `d`, so a cell's test stops at the
     /// first triangle that does not.
     tops: Vec<f32>,
+    /// Per triangle, whether no other triangle of the mesh can lie between
+    /// a point of it and the sun ([`SunGrid::unshadowed`]): [`UNKNOWN`]
+    /// until a shadow ray asks.
+    unshadowed: Vec<AtomicU8>,
 }
 
 impl SunGrid {
@@ -103,23 +121,7 @@ impl SunGrid {
         };
         let a = direction.cross(helper).normalized()?;
         let b = direction.cross(a).normalized()?;
-        let project = |p: Vec3| [p.dot(a), p.dot(b)];
-        // Each triangle's projected box, widened against rounding.
-        let box_of = |t: usize| {
-            let corners = mesh.corners(t)?;
-            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-            for p in corners {
-                let q = project(p);
-                for k in 0..2 {
-                    lo[k] = lo[k].min(q[k]);
-                    hi[k] = hi[k].max(q[k]);
-                }
-            }
-            let slack = |l: f64, h: f64| 1e-9 * (l.abs().max(h.abs()) + (h - l));
-            let (sx, sy) = (slack(lo[0], hi[0]), slack(lo[1], hi[1]));
-            let b = [lo[0] - sx, lo[1] - sy, hi[0] + sx, hi[1] + sy];
-            b.iter().all(|v| v.is_finite()).then_some(b)
-        };
+        let box_of = |t: usize| projected_box(mesh, [a, b], t);
         let (lo, hi) = (0..mesh.len())
             .into_par_iter()
             .filter_map(box_of)
@@ -174,6 +176,7 @@ impl SunGrid {
             items: Vec::new(),
             large: Vec::new(),
             tops: Vec::new(),
+            unshadowed: Vec::new(),
         };
         // Each triangle's cells, `[x0, y0, x1, y1]`; `x0 = u32::MAX`: none.
         let ranges: Vec<[u32; 4]> = (0..mesh.len())
@@ -262,7 +265,113 @@ impl SunGrid {
                     .sort_unstable_by(|&a, &b| tops[b as usize].total_cmp(&tops[a as usize]));
             }
         });
+        grid.unshadowed = (0..mesh.len()).map(|_| AtomicU8::new(UNKNOWN)).collect();
         Some(grid)
+    }
+
+    /// Whether no other triangle of `mesh` can lie between a point of
+    /// triangle `t` and the sun: each one binned in the cells of `t`'s box
+    /// (`box_of`) that reaches deeper along the sun than `t`'s lowest
+    /// vertex, and each in the list every query tests, lies behind `t`'s
+    /// plane as the sun sees it, or its projection along the sun is apart
+    /// from `t`'s. Conservative: false whenever that is not shown. Within a
+    /// relative `10⁻⁹` (rounding of the corners, which neighbours do not
+    /// share bit for bit) a vertex counts as on the plane or the line; a
+    /// shadow ray's own lift off its surface is a thousand times that.
+    fn clear_of_mesh(&self, mesh: &Mesh, t: usize) -> bool {
+        let (Some(c), Some(b)) = (mesh.corners(t), projected_box(mesh, self.axes, t)) else {
+            return false;
+        };
+        let l = self.direction;
+        let normal = (c[1] - c[0]).cross(c[2] - c[0]);
+        let facing = normal.dot(l);
+        // Edge-on to the sun (or not finite): never lit, so never asked.
+        if facing == 0.0 || !facing.is_finite() {
+            return false;
+        }
+        let Some(toward) = (normal * facing.signum()).normalized() else {
+            return false;
+        };
+        let scale = c
+            .iter()
+            .fold(1f64, |m, p| m.max(p.x.abs()).max(p.y.abs()).max(p.z.abs()));
+        let tolerance = 1e-9 * scale;
+        let project = |p: Vec3| [p.dot(self.axes[0]), p.dot(self.axes[1])];
+        let own = c.map(project);
+        let bottom = c.iter().map(|p| p.dot(l)).fold(f64::INFINITY, f64::min);
+        let floor = bottom - 1e-9 * (bottom.abs() + 1.0);
+        let may_shade = |a: u32| {
+            if a as usize == t {
+                return false;
+            }
+            let Some(other) = mesh.corners(a as usize) else {
+                return true;
+            };
+            let behind = other.iter().all(|&p| (p - c[0]).dot(toward) <= tolerance);
+            if behind {
+                return false;
+            }
+            let seen = other.map(project);
+            if projections_apart(&own, &seen, tolerance) {
+                return false;
+            }
+            // Where the projections overlap, is the other ever nearer the
+            // sun? Both depths are affine there, so its corners decide.
+            let depths = |p: &[Vec3; 3]| p.map(|v| v.dot(l));
+            let (Some(mine), Some(theirs)) = (
+                Affine::new(&own, depths(&c)),
+                Affine::new(&seen, depths(&other)),
+            ) else {
+                return true;
+            };
+            overlap_corners(&own, &seen)
+                .iter()
+                .any(|&q| theirs.at(q) - mine.at(q) > tolerance)
+        };
+        if self.large.iter().any(|&a| may_shade(a)) {
+            return false;
+        }
+        let [x0, y0] = self.cell([b[0], b[1]]);
+        let [x1, y1] = self.cell([b[2], b[3]]);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let cell = y * self.dims[0] + x;
+                let (s, e) = (self.starts[cell] as usize, self.starts[cell + 1] as usize);
+                for &a in &self.items[s..e] {
+                    // Deepest first: the rest lie wholly below `t`.
+                    if f64::from(self.tops[a as usize]) < floor {
+                        break;
+                    }
+                    if may_shade(a) {
+                        return false;
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// Whether no other triangle of `mesh` (the grid's) can lie between a
+    /// point of triangle `t` and the sun, so that a shadow ray leaving it
+    /// need not test the mesh: shown the first time a ray asks for `t`
+    /// (`clear_of_mesh`) and kept, so a frame pays only for the triangles
+    /// it lights. The answer is the one for points on the triangle; a ray
+    /// lifted off it (by `10⁻⁶` of its distance, [`crate::frame::lambert`])
+    /// may differ only within that distance of an edge.
+    pub fn unshadowed(&self, mesh: &Mesh, t: u32) -> bool {
+        let Some(state) = self.unshadowed.get(t as usize) else {
+            return false;
+        };
+        // Relaxed: threads that race compute the same answer.
+        match state.load(Ordering::Relaxed) {
+            CLEAR => true,
+            SHADED => false,
+            _ => {
+                let clear = self.clear_of_mesh(mesh, t as usize);
+                state.store(if clear { CLEAR } else { SHADED }, Ordering::Relaxed);
+                clear
+            }
+        }
     }
 
     /// The cell holding projected point `q`, clamped into the grid
@@ -314,6 +423,113 @@ impl SunGrid {
     }
 }
 
+/// Triangle `t`'s box projected on `axes` (across the sun), widened by a
+/// relative `10⁻⁹` against rounding; `None` when not finite.
+fn projected_box(mesh: &Mesh, axes: [Vec3; 2], t: usize) -> Option<[f64; 4]> {
+    let corners = mesh.corners(t)?;
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in corners {
+        let q = [p.dot(axes[0]), p.dot(axes[1])];
+        for k in 0..2 {
+            lo[k] = lo[k].min(q[k]);
+            hi[k] = hi[k].max(q[k]);
+        }
+    }
+    let slack = |l: f64, h: f64| 1e-9 * (l.abs().max(h.abs()) + (h - l));
+    let (sx, sy) = (slack(lo[0], hi[0]), slack(lo[1], hi[1]));
+    let b = [lo[0] - sx, lo[1] - sy, hi[0] + sx, hi[1] + sy];
+    b.iter().all(|v| v.is_finite()).then_some(b)
+}
+
+/// A depth along the sun, affine over a projected triangle (from its
+/// corners' depths).
+struct Affine {
+    origin: [f64; 2],
+    base: f64,
+    gradient: [f64; 2],
+}
+
+impl Affine {
+    /// `None` when the projected triangle is too thin for its depths to be
+    /// interpolated (seen nearly edge-on from the sun).
+    fn new(q: &[[f64; 2]; 3], d: [f64; 3]) -> Option<Affine> {
+        let (e1, e2) = (
+            [q[1][0] - q[0][0], q[1][1] - q[0][1]],
+            [q[2][0] - q[0][0], q[2][1] - q[0][1]],
+        );
+        let det = e1[0] * e2[1] - e1[1] * e2[0];
+        let size = e1[0].hypot(e1[1]) * e2[0].hypot(e2[1]);
+        if det.abs() <= 1e-6 * size || !det.is_finite() {
+            return None;
+        }
+        let (d1, d2) = (d[1] - d[0], d[2] - d[0]);
+        // Barycentric b1 = (x·e2.y − y·e2.x)/det, b2 = (e1.x·y − e1.y·x)/det.
+        let gradient = [
+            (d1 * e2[1] - d2 * e1[1]) / det,
+            (d2 * e1[0] - d1 * e2[0]) / det,
+        ];
+        Some(Affine {
+            origin: q[0],
+            base: d[0],
+            gradient,
+        })
+    }
+
+    fn at(&self, q: [f64; 2]) -> f64 {
+        self.base
+            + self.gradient[0] * (q[0] - self.origin[0])
+            + self.gradient[1] * (q[1] - self.origin[1])
+    }
+}
+
+/// The corners of where projected triangles `a` and `b` overlap: `a`
+/// clipped by `b`'s three edges (each edge's inner side the one its third
+/// vertex lies on).
+fn overlap_corners(a: &[[f64; 2]; 3], b: &[[f64; 2]; 3]) -> Vec<[f64; 2]> {
+    let mut poly: Vec<[f64; 2]> = a.to_vec();
+    for k in 0..3 {
+        let (s, e, third) = (b[k], b[(k + 1) % 3], b[(k + 2) % 3]);
+        let (dx, dy) = (e[0] - s[0], e[1] - s[1]);
+        let inner = (dx * (third[1] - s[1]) - dy * (third[0] - s[0])).signum();
+        let side = |v: [f64; 2]| inner * (dx * (v[1] - s[1]) - dy * (v[0] - s[0]));
+        let mut next = Vec::with_capacity(poly.len() + 1);
+        for i in 0..poly.len() {
+            let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
+            let (sp, sq) = (side(p), side(q));
+            if sp >= 0.0 {
+                next.push(p);
+            }
+            if (sp >= 0.0) != (sq >= 0.0) {
+                let t = sp / (sp - sq);
+                next.push([p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]);
+            }
+        }
+        poly = next;
+        if poly.is_empty() {
+            break;
+        }
+    }
+    poly
+}
+
+/// Whether two triangles (projected along the sun) are apart: an edge
+/// line of one has every vertex of the other on its outer side, or within
+/// `tolerance` of it. Orientation-free: each edge's inner side is the one
+/// its triangle's third vertex lies on.
+fn projections_apart(a: &[[f64; 2]; 3], b: &[[f64; 2]; 3], tolerance: f64) -> bool {
+    let beyond = |p: &[[f64; 2]; 3], q: &[[f64; 2]; 3]| {
+        (0..3).any(|k| {
+            let (s, e, third) = (p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
+            let (dx, dy) = (e[0] - s[0], e[1] - s[1]);
+            let side = |v: [f64; 2]| dx * (v[1] - s[1]) - dy * (v[0] - s[0]);
+            let inner = side(third).signum();
+            let slack = tolerance * dx.hypot(dy);
+            inner != 0.0 && q.iter().all(|&v| side(v) * inner <= slack)
+        })
+    };
+    beyond(a, b) || beyond(b, a)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -322,6 +538,11 @@ mod tests {
     /// A bumpy heightfield of `n × n` cells (two triangles each) and a few
     /// large loose triangles floating over it.
     fn terrain(n: usize) -> Mesh {
+        Mesh::new(terrain_triangles(n)).unwrap()
+    }
+
+    /// [`terrain`]'s triangles.
+    fn terrain_triangles(n: usize) -> Vec<Triangle> {
         let h = |i: usize, j: usize| {
             let (x, z) = (i as f64, j as f64);
             2.0 * (0.3 * x).sin() * (0.23 * z).cos() + 0.3 * ((i * 7 + j * 3) % 5) as f64
@@ -346,7 +567,125 @@ mod tests {
                 [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
             ));
         }
-        Mesh::new(triangles).unwrap()
+        triangles
+    }
+
+    /// Every triangle the grid calls unshadowed has no shadow ray from a
+    /// point inside it (the hierarchy's answer, with no lift) meet the
+    /// mesh, for low, grazing and high suns; the flag is given to most of
+    /// the terrain, and rays from the triangles it is refused to are
+    /// shadowed often (the floating triangles' shadows, the hills').
+    #[test]
+    fn unshadowed_triangles_cast_no_shadow_ray_that_hits() {
+        let mesh = terrain(48);
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut rnd = |lo: f64, hi: f64| crate::math::test_uniform(&mut state, lo, hi);
+        for sun in [
+            Vec3::new(-0.8, 0.5, 0.55),
+            Vec3::new(0.2, 0.1, -1.0),
+            Vec3::new(0.3, 1.0, 0.1),
+            Vec3::new(1.0, 0.05, 0.3),
+        ] {
+            let sun = sun.normalized().unwrap();
+            let grid = SunGrid::build(&mesh, sun).unwrap();
+            let (mut flagged, mut shadowed_rays, mut refused_any) = (0, 0, 0);
+            for t in 0..mesh.len() {
+                let c = mesh.corners(t).unwrap();
+                let unshadowed = grid.unshadowed(&mesh, t as u32);
+                let mut any_shadow = false;
+                flagged += usize::from(unshadowed);
+                for _ in 0..6 {
+                    let (b1, b2) = (rnd(0.02, 0.96), rnd(0.02, 0.96));
+                    let (b1, b2) = if b1 + b2 > 0.98 {
+                        (0.98 - b1, 0.98 - b2)
+                    } else {
+                        (b1, b2)
+                    };
+                    let p = c[0] + (c[1] - c[0]) * b1 + (c[2] - c[0]) * b2;
+                    let shadowed = mesh.occludes(
+                        &Ray {
+                            origin: p,
+                            direction: sun,
+                        },
+                        1e-9,
+                    );
+                    assert!(
+                        !(unshadowed && shadowed),
+                        "sun {sun:?}, triangle {t}: shadowed at {p:?}"
+                    );
+                    shadowed_rays += usize::from(shadowed);
+                    any_shadow |= shadowed;
+                }
+                refused_any += usize::from(!unshadowed && any_shadow);
+            }
+            // Both answers occur, and the flag is refused where a shadow
+            // was found nearly always (the test is conservative, not blind).
+            let refused = mesh.len() - flagged;
+            assert!(
+                flagged >= 50,
+                "sun {sun:?}: {flagged} of {} flagged",
+                mesh.len()
+            );
+            assert!(
+                refused_any * 100 >= refused * 85,
+                "sun {sun:?}: {refused_any} of {refused} refused triangles shadowed"
+            );
+            assert!(
+                shadowed_rays > 100,
+                "sun {sun:?}: {shadowed_rays} shadowed rays"
+            );
+        }
+    }
+
+    /// A triangle passing under another (away from the sun) and rising
+    /// above its plane further off does not shade it, which the plane and
+    /// the projections alone cannot show (the depths over their overlap
+    /// do); moved toward the sun, the same triangle does shade it.
+    #[test]
+    fn a_triangle_below_another_along_the_sun_leaves_it_unshadowed() {
+        let sun = Vec3::new(-0.8, 0.5, 0.55).normalized().unwrap();
+        let uv = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        let lit = Triangle::new(
+            [
+                Vec3::new(200.0, 0.0, 200.0),
+                Vec3::new(200.0, 0.0, 202.0),
+                Vec3::new(202.0, 0.0, 200.0),
+            ],
+            uv,
+        )
+        .unwrap();
+        let under = Vec3::new(200.6, 0.0, 200.6) - sun * 3.0;
+        for (shift, shaded) in [(0.0, false), (6.0, true)] {
+            // Centred on the point `shift − 3` along the sun from the lit
+            // triangle's, rising above its plane 20 units off.
+            let o = under + sun * shift;
+            let other = [
+                o + Vec3::new(-1.0, -1.5, -20.0),
+                o + Vec3::new(1.0, -1.5, -20.0),
+                o + Vec3::new(0.0, 3.0, 40.0),
+            ];
+            let mut triangles: Vec<Triangle> = terrain_triangles(48);
+            triangles.push(lit.clone());
+            triangles.extend(Triangle::new(other, uv));
+            let mesh = Mesh::new(triangles).unwrap();
+            let grid = SunGrid::build(&mesh, sun).unwrap();
+            // The mesh keeps its triangles in its hierarchy's order.
+            let t = (0..mesh.len())
+                .find(|&t| mesh.corners(t).unwrap()[0] == Vec3::new(200.0, 0.0, 200.0))
+                .unwrap() as u32;
+            assert_eq!(grid.unshadowed(&mesh, t), !shaded, "shift {shift}");
+            let centre = Vec3::new(200.6, 0.0, 200.6);
+            assert_eq!(
+                mesh.occludes(
+                    &Ray {
+                        origin: centre,
+                        direction: sun
+                    },
+                    1e-9
+                ),
+                shaded
+            );
+        }
     }
 
     /// Shadow rays from random points on and above the terrain, from under
