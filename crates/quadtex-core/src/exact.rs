@@ -2243,7 +2243,7 @@ impl<'a> Bands<'a> {
             return;
         }
         // The lowest vertex is not above any cut and the highest is above
-        // this one, so neither walk passes the top.
+        // this one, so neither walk passes the top (bounded below anyway).
         let crossing = |a: usize, b: usize| {
             let (a, b) = (self.texture[a], self.texture[b]);
             let u = (top - a[1]) / (b[1] - a[1]);
@@ -2254,10 +2254,14 @@ impl<'a> Bands<'a> {
         // Each vertex the walk reaches is the band's, but the last one when
         // it lies on the cut: the crossing is that vertex then (`u = 0`
         // gives it exactly), pushed below.
+        // At most `n` steps a walk: a top at or above every vertex (which
+        // callers' cuts below the region's top never are) cannot cycle.
         let (mut i, mut next) = (self.at[0], forward(self.at[0]));
-        while self.texture[next][1] <= top {
+        let mut steps = 0;
+        while steps < n && self.texture[next][1] <= top {
             (i, next) = (next, forward(next));
             band.push(vertex(i));
+            steps += 1;
         }
         if i != self.at[0] && self.texture[i][1] == top {
             band.len -= 1;
@@ -2270,7 +2274,9 @@ impl<'a> Bands<'a> {
         // meets them (against the polygon's): pushed reversed below.
         let mut between = [0usize; crate::polygon::MAX_VERTICES];
         let mut count = 0;
-        while self.texture[next][1] <= top {
+        let mut steps = 0;
+        while steps < n && self.texture[next][1] <= top {
+            steps += 1;
             (i, next) = (next, backward(next));
             if count < between.len() {
                 between[count] = i;
@@ -2608,6 +2614,23 @@ mod tests {
     /// rounding above it (a mapped region's top edge, from the terrain
     /// scene): each stays the band's, and the bands keep the region's
     /// weight, in either orientation and with the axes swapped.
+    #[test]
+    fn a_cut_above_the_whole_region_ends_its_walk() {
+        // Callers cut strictly below the region's top; a cut at or above
+        // every vertex (a cell side whose multiples round up) must still
+        // end, with no more than the buffer's vertices.
+        let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let m: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        for top in [1.0, 2.0] {
+            let mut bands = Bands::new(&square, &square);
+            let mut band = BandBuffer::default();
+            bands.next_band(0.5, &m, [0.0, 0.0], &mut band);
+            assert_eq!(band.len, 4);
+            bands.next_band(top, &m, [0.0, 0.0], &mut band);
+            assert!(band.len <= BAND_VERTICES);
+        }
+    }
+
     #[test]
     fn a_run_of_vertices_on_a_cut_stays_in_its_band() {
         let cases: [(&[[f64; 2]], f64); 2] = [
