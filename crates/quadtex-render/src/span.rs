@@ -325,7 +325,8 @@ fn span_light(frame: &Frame<'_>, view: &View, rect: &ConvexPolygon) -> Option<[f
 }
 
 /// Whether no shadow ray toward the sun (`direction`, a unit vector) from
-/// a point of the convex planar polygon `corners` on surface `from`,
+/// a point of the convex planar polygon `corners` on surface `from` (on
+/// its mesh triangle `triangle`, if it is a mesh's),
 /// lifted off it by at most `10⁻⁶` of its distance from the camera plus
 /// one (in any direction), meets any surface [`crate::caster::Caster::occluded_leaving`]
 /// tests (module documentation); false where that is not shown.
