@@ -43,6 +43,7 @@ use crate::math::Vec3;
 use crate::planar_view::{Placement, View, placement};
 use crate::scene::{Geometry, Lighting};
 use crate::stats::PixelStats;
+use crate::sun_grid::apart;
 
 /// Most pixels a span holds (a run of magnified pixels is seldom longer
 /// than the cell it lies in; longer tries fail more often).
@@ -414,19 +415,4 @@ fn shadow_free(
             apart(&outline, &ConvexPolygon::hull(&corners.map(along)), margin)
         }),
     })
-}
-
-/// Whether an edge line of one of two convex polygons has the other
-/// wholly beyond it by more than `margin` (unit-normalised lines).
-fn apart(a: &ConvexPolygon, b: &ConvexPolygon, margin: f64) -> bool {
-    let beyond = |p: &ConvexPolygon, q: &ConvexPolygon| {
-        p.edge_lines().any(|[l0, l1, l2]| {
-            let norm = l0.hypot(l1);
-            norm > 0.0
-                && q.vertices()
-                    .iter()
-                    .all(|&[x, y]| (l0 * x + l1 * y + l2) / norm < -margin)
-        })
-    };
-    !a.is_empty() && !b.is_empty() && (beyond(a, b) || beyond(b, a))
 }

@@ -21,6 +21,7 @@
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError, Weak};
 
+use quadtex_core::ConvexPolygon;
 use rayon::prelude::*;
 
 use crate::math::{Ray, Vec3};
@@ -312,7 +313,9 @@ impl SunGrid {
                 return false;
             }
             let seen = other.map(project);
-            if projections_apart(&own, &seen, tolerance) {
+            let (mine_outline, their_outline) =
+                (ConvexPolygon::hull(&own), ConvexPolygon::hull(&seen));
+            if apart(&mine_outline, &their_outline, -tolerance) {
                 return false;
             }
             // Where the projections overlap, is the other ever nearer the
@@ -324,7 +327,7 @@ impl SunGrid {
             ) else {
                 return true;
             };
-            overlap_corners(&own, &seen)
+            (mine_outline.intersect(&their_outline).vertices())
                 .iter()
                 .any(|&q| theirs.at(q) - mine.at(q) > tolerance)
         };
@@ -482,52 +485,20 @@ impl Affine {
     }
 }
 
-/// The corners of where projected triangles `a` and `b` overlap: `a`
-/// clipped by `b`'s three edges (each edge's inner side the one its third
-/// vertex lies on).
-fn overlap_corners(a: &[[f64; 2]; 3], b: &[[f64; 2]; 3]) -> Vec<[f64; 2]> {
-    let mut poly: Vec<[f64; 2]> = a.to_vec();
-    for k in 0..3 {
-        let (s, e, third) = (b[k], b[(k + 1) % 3], b[(k + 2) % 3]);
-        let (dx, dy) = (e[0] - s[0], e[1] - s[1]);
-        let inner = (dx * (third[1] - s[1]) - dy * (third[0] - s[0])).signum();
-        let side = |v: [f64; 2]| inner * (dx * (v[1] - s[1]) - dy * (v[0] - s[0]));
-        let mut next = Vec::with_capacity(poly.len() + 1);
-        for i in 0..poly.len() {
-            let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
-            let (sp, sq) = (side(p), side(q));
-            if sp >= 0.0 {
-                next.push(p);
-            }
-            if (sp >= 0.0) != (sq >= 0.0) {
-                let t = sp / (sp - sq);
-                next.push([p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]);
-            }
-        }
-        poly = next;
-        if poly.is_empty() {
-            break;
-        }
-    }
-    poly
-}
-
-/// Whether two triangles (projected along the sun) are apart: an edge
-/// line of one has every vertex of the other on its outer side, or within
-/// `tolerance` of it. Orientation-free: each edge's inner side is the one
-/// its triangle's third vertex lies on.
-fn projections_apart(a: &[[f64; 2]; 3], b: &[[f64; 2]; 3], tolerance: f64) -> bool {
-    let beyond = |p: &[[f64; 2]; 3], q: &[[f64; 2]; 3]| {
-        (0..3).any(|k| {
-            let (s, e, third) = (p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
-            let (dx, dy) = (e[0] - s[0], e[1] - s[1]);
-            let side = |v: [f64; 2]| dx * (v[1] - s[1]) - dy * (v[0] - s[0]);
-            let inner = side(third).signum();
-            let slack = tolerance * dx.hypot(dy);
-            inner != 0.0 && q.iter().all(|&v| side(v) * inner <= slack)
+/// Whether an edge line of one of two convex polygons has the other
+/// wholly beyond it by more than `margin` (unit-normalised lines; a
+/// negative margin counts what lies within `−margin` inside as beyond).
+pub(crate) fn apart(a: &ConvexPolygon, b: &ConvexPolygon, margin: f64) -> bool {
+    let beyond = |p: &ConvexPolygon, q: &ConvexPolygon| {
+        p.edge_lines().any(|[l0, l1, l2]| {
+            let norm = l0.hypot(l1);
+            norm > 0.0
+                && q.vertices()
+                    .iter()
+                    .all(|&[x, y]| (l0 * x + l1 * y + l2) / norm < -margin)
         })
     };
-    beyond(a, b) || beyond(b, a)
+    !a.is_empty() && !b.is_empty() && (beyond(a, b) || beyond(b, a))
 }
 
 #[cfg(test)]
