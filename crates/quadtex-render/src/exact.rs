@@ -472,8 +472,9 @@ pub(crate) fn exact_pixel<'a>(
                     let Some(Some(view)) = candidate_view(scene, cache, memo, id) else {
                         return false;
                     };
-                    let region = view.region(&support).into_owned();
-                    if overlap(&region, &r).is_none() {
+                    let region = regions.next_slot();
+                    view.region_into(&support, region);
+                    if overlap(region, &r).is_none() {
                         return false;
                     }
                     if found == MAX_GAP_PRIMITIVES {
@@ -483,7 +484,7 @@ pub(crate) fn exact_pixel<'a>(
                     found += 1;
                     tried.push((id, Some(views.len())));
                     views.push(view);
-                    regions.push(region);
+                    regions.keep_slot();
                     grew = true;
                     false
                 });
@@ -533,9 +534,9 @@ pub(crate) fn exact_pixel<'a>(
     // Weight no piece has, or two have (|k| ≤ 1 for every pixel filter):
     // at most the larger of full contrast and the sky's range off.
     add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
-    for (i, piece) in &cut.pieces {
+    for (i, piece) in cut.visible(regions) {
         let (c, w, b) = shade_piece(
-            frame, &views[*i], piece, filter, centre, options, None, &mut parts,
+            frame, &views[i], piece, filter, centre, options, None, &mut parts,
         );
         add(c, w, b);
     }
@@ -611,10 +612,47 @@ fn weight_error(weight: f64) -> f64 {
 
 /// Appends `view`'s region of `support` to `regions`, written in its place
 /// ([`View::region_into`]).
-fn push_region(regions: &mut Vec<ConvexPolygon>, view: &View, support: &ConvexPolygon) {
-    regions.push(ConvexPolygon::EMPTY);
-    if let Some(region) = regions.last_mut() {
-        view.region_into(support, region);
+fn push_region(regions: &mut Regions, view: &View, support: &ConvexPolygon) {
+    view.region_into(support, regions.next_slot());
+    regions.keep_slot();
+}
+
+/// The regions of a pixel's views, in slots kept from pixel to pixel: a
+/// region is written into its slot in place, vertex by vertex, where
+/// pushing one would copy its whole capacity ([`ConvexPolygon`] holds
+/// [`MAX_VERTICES`](quadtex_core::polygon::MAX_VERTICES) inline), and
+/// clearing keeps the slots.
+#[derive(Default)]
+struct Regions {
+    slots: Vec<ConvexPolygon>,
+    len: usize,
+}
+
+impl Regions {
+    fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// The slot after the last region: what is written there is a region
+    /// once [`Regions::keep_slot`] keeps it.
+    fn next_slot(&mut self) -> &mut ConvexPolygon {
+        if self.len == self.slots.len() {
+            self.slots.push(ConvexPolygon::EMPTY);
+        }
+        &mut self.slots[self.len]
+    }
+
+    fn keep_slot(&mut self) {
+        debug_assert!(self.len < self.slots.len(), "no slot written");
+        self.len += 1;
+    }
+}
+
+impl Deref for Regions {
+    type Target = [ConvexPolygon];
+
+    fn deref(&self) -> &[ConvexPolygon] {
+        &self.slots[..self.len]
     }
 }
 
@@ -663,6 +701,10 @@ struct Cut {
     /// were taken whole ([`Cut::tiling`]): slivers of rounding along shared
     /// edges, not located.
     unaccounted: f64,
+    /// Whether the regions tile the support ([`Cut::tiling`]): each view's
+    /// piece is its whole region, read from the regions, not copied into
+    /// `pieces` (which stays empty).
+    tiled: bool,
 }
 
 impl Cut {
@@ -680,6 +722,7 @@ impl Cut {
         self.slivers.clear();
         self.sliver_area = GAP_AREA * support.area();
         self.unaccounted = 0.0;
+        self.tiled = false;
         if self.tiling(regions, support) {
             return;
         }
@@ -715,18 +758,25 @@ impl Cut {
                 }
             }
         }
-        self.pieces.extend(
-            (regions.iter().enumerate())
-                .filter(|(_, r)| !r.is_empty())
-                .map(|(i, r)| (i, r.clone())),
-        );
+        self.tiled = true;
         self.unaccounted = short + 2.0 * overlapping;
         true
+    }
+
+    /// Each visible piece and the index of the view that sees it, in
+    /// `regions` when they tile the support.
+    fn visible<'c>(
+        &'c self,
+        regions: &'c [ConvexPolygon],
+    ) -> impl Iterator<Item = (usize, &'c ConvexPolygon)> + 'c {
+        let whole = (regions.iter().enumerate()).filter(move |(_, r)| self.tiled && !r.is_empty());
+        whole.chain(self.pieces.iter().map(|(i, p)| (*i, p)))
     }
 
     /// Gives view `v` what its `region` covers of the parts not yet
     /// covered (it lies behind every view taken before).
     fn take(&mut self, v: usize, region: &ConvexPolygon) {
+        debug_assert!(!self.tiled, "a tiled support has nothing left to take");
         if region.is_empty() {
             return;
         }
@@ -757,6 +807,10 @@ impl Cut {
     /// cyclic), but only what `n`'s region reaches is cut, and `n`'s own
     /// region only where a view in front covers it.
     fn insert(&mut self, n: usize, views: &[ViewRef<'_>], regions: &[ConvexPolygon]) {
+        debug_assert!(
+            !self.tiled,
+            "a tiled support has nothing left to insert into"
+        );
         let region = &regions[n];
         if region.is_empty() {
             return;
@@ -880,7 +934,7 @@ pub(crate) struct Scratch<'a> {
     views: Vec<ViewRef<'a>>,
     /// Every primitive tried so far and its view's index (none: edge-on).
     tried: Vec<(Seen, Option<usize>)>,
-    regions: Vec<ConvexPolygon>,
+    regions: Regions,
     gaps: Vec<(ConvexPolygon, Gap)>,
     cut: Cut,
     order: Order,
@@ -1512,10 +1566,10 @@ mod tests {
     /// bound is not vacuous (some pixel comes close to it) and refuses the
     /// rows at the level line.
     /// Each view's area in a cut, by view index.
-    fn areas_by_view(cut: &Cut, views: usize) -> Vec<f64> {
+    fn areas_by_view(cut: &Cut, regions: &[ConvexPolygon], views: usize) -> Vec<f64> {
         let mut areas = vec![0.0; views];
-        for (v, piece) in &cut.pieces {
-            areas[*v] += piece.area();
+        for (v, piece) in cut.visible(regions) {
+            areas[v] += piece.area();
         }
         areas
     }
@@ -1548,7 +1602,8 @@ mod tests {
                 .map(|i| tri(&[corners[i], corners[(i + 1) % 4], p]))
                 .collect();
             let whole = tiling(&fan, &support).expect("a fan tiles the pixel");
-            assert_eq!(whole.pieces.len(), 4);
+            assert!(whole.tiled && whole.pieces.is_empty());
+            assert_eq!(whole.visible(&fan).count(), 4);
             assert!(whole.remaining.is_empty() && whole.slivers.is_empty());
             assert!(whole.unaccounted <= 3.0 * sliver, "{}", whole.unaccounted);
             let mut cut = Cut {
@@ -1559,7 +1614,10 @@ mod tests {
             for (v, region) in fan.iter().enumerate() {
                 cut.take(v, region);
             }
-            for (a, b) in areas_by_view(&whole, 4).iter().zip(areas_by_view(&cut, 4)) {
+            for (a, b) in areas_by_view(&whole, &fan, 4)
+                .iter()
+                .zip(areas_by_view(&cut, &fan, 4))
+            {
                 assert!((a - b).abs() < 1e-12, "{a} vs {b}");
             }
         }
@@ -1635,8 +1693,8 @@ mod tests {
             }
             let mut again = Cut::default();
             again.among(&views, &regions, &support, &mut order);
-            let a = areas_by_view(&cut, n);
-            for (v, (&a, b)) in a.iter().zip(areas_by_view(&again, n)).enumerate() {
+            let a = areas_by_view(&cut, &regions, n);
+            for (v, (&a, b)) in a.iter().zip(areas_by_view(&again, &regions, n)).enumerate() {
                 assert!((a - b).abs() < 1e-12, "round {round}, view {v}: {a} vs {b}");
                 carved += usize::from(v < listed && a < regions[v].area() - 1e-6);
                 hidden += usize::from(v >= listed && a < regions[v].area() - 1e-6);
