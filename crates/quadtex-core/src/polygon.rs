@@ -183,9 +183,10 @@ impl ConvexPolygon {
             return ConvexPolygon::EMPTY;
         }
         // What is left inside every edge so far, ping-ponged between two
-        // buffers; each edge splits it in one pass.
-        let mut rest = [self.clone(), ConvexPolygon::EMPTY];
-        let mut current = 0;
+        // buffers (none before the first line: this polygon, not copied);
+        // each edge splits it in one pass.
+        let mut rest = [ConvexPolygon::EMPTY, ConvexPolygon::EMPTY];
+        let mut current: Option<usize> = None;
         let mut outside = ConvexPolygon::EMPTY;
         for [a, b, c] in other.edge_lines() {
             // No line (a repeated vertex): keeps everything, as a clip by
@@ -194,22 +195,27 @@ impl ConvexPolygon {
                 continue;
             }
             let [first, second] = &mut rest;
-            let (from, to) = if current == 0 {
-                (&*first, second)
-            } else {
-                (&*second, first)
+            let (from, to) = match current {
+                None => (self, first),
+                Some(0) => (&*first, second),
+                Some(_) => (&*second, first),
             };
             from.split_into(a, b, c, to, &mut outside);
-            current ^= 1;
+            let now = current.map_or(0, |c| c ^ 1);
+            current = Some(now);
             if outside.area() > 0.0 {
                 out(outside.clone());
             }
-            if rest[current].is_empty() {
+            if rest[now].is_empty() {
                 return ConvexPolygon::EMPTY;
             }
         }
         let [first, second] = rest;
-        if current == 0 { first } else { second }
+        match current {
+            None => self.clone(),
+            Some(0) => first,
+            Some(_) => second,
+        }
     }
 
     /// Sum of the edge lengths.
