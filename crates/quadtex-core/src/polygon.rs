@@ -465,33 +465,44 @@ impl ConvexPolygon {
     /// The convex hull of `points` (finite), counter-clockwise (Andrew's
     /// monotone chain); at most [`MAX_VERTICES`] points are read.
     pub fn hull(points: &[[f64; 2]]) -> ConvexPolygon {
-        let mut pts: Vec<[f64; 2]> = points.iter().take(MAX_VERTICES).copied().collect();
-        pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-        pts.dedup();
-        if pts.len() < 3 {
+        // On the stack: shadow tests take millions of triangles' hulls a
+        // frame, and two heap buffers each cost more than the chain itself.
+        let mut pts: ArrayVec<[f64; 2], MAX_VERTICES> =
+            points.iter().take(MAX_VERTICES).copied().collect();
+        // `total_cmp` on both coordinates leaves no two unequal points tied,
+        // so an unstable sort gives the stable one's order.
+        pts.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+        let mut unique: ArrayVec<[f64; 2], MAX_VERTICES> = ArrayVec::new();
+        for p in pts {
+            if unique.last() != Some(&p) {
+                unique.push(p);
+            }
+        }
+        if unique.len() < 3 {
             return ConvexPolygon::EMPTY;
         }
         let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
             (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
         };
-        let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * pts.len());
-        for pass in 0..2 {
-            let start = hull.len();
-            let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-                Box::new(pts.iter())
-            } else {
-                Box::new(pts.iter().rev())
-            };
-            for &p in iter {
-                while hull.len() >= start + 2
-                    && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
-                {
-                    hull.pop();
-                }
-                hull.push(p);
+        // Each pass pushes at most every point and pops its last one.
+        let mut hull: ArrayVec<[f64; 2], { 2 * MAX_VERTICES }> = ArrayVec::new();
+        let chain = |hull: &mut ArrayVec<[f64; 2], { 2 * MAX_VERTICES }>, p: [f64; 2], start| {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            {
+                hull.pop();
             }
-            hull.pop();
+            hull.push(p);
+        };
+        for &p in &unique {
+            chain(&mut hull, p, 0);
         }
+        hull.pop();
+        let start = hull.len();
+        for &p in unique.iter().rev() {
+            chain(&mut hull, p, start);
+        }
+        hull.pop();
         ConvexPolygon::from_trusted(&hull)
     }
 
@@ -586,6 +597,75 @@ fn crossing(prev: [f64; 2], p: [f64; 2], s_prev: f64, s: f64) -> [f64; 2] {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    /// Andrew's monotone chain as first written (heap buffers, stable
+    /// sort, `Vec::dedup`): the reference `hull` must match to the bit.
+    fn hull_reference(points: &[[f64; 2]]) -> ConvexPolygon {
+        let mut pts: Vec<[f64; 2]> = points.iter().take(MAX_VERTICES).copied().collect();
+        pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+        pts.dedup();
+        if pts.len() < 3 {
+            return ConvexPolygon::EMPTY;
+        }
+        let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+            (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+        };
+        let mut hull: Vec<[f64; 2]> = Vec::new();
+        for pass in 0..2 {
+            let start = hull.len();
+            let order: Vec<[f64; 2]> = if pass == 0 {
+                pts.clone()
+            } else {
+                pts.iter().rev().copied().collect()
+            };
+            for p in order {
+                while hull.len() >= start + 2
+                    && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+                {
+                    hull.pop();
+                }
+                hull.push(p);
+            }
+            hull.pop();
+        }
+        ConvexPolygon::from_trusted(&hull)
+    }
+
+    /// `hull` against [`hull_reference`] on random point sets of 0 to 20
+    /// points (beyond `MAX_VERTICES`), snapped to a coarse lattice so that
+    /// duplicates, collinear runs and signed zeros are common.
+    #[test]
+    fn hull_matches_the_heap_reference_to_the_bit() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut random = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for case in 0..20_000 {
+            let n = (random() % 21) as usize;
+            let points: Vec<[f64; 2]> = (0..n)
+                .map(|_| {
+                    let mut coordinate = || {
+                        let r = random();
+                        let v = if case % 2 == 0 {
+                            (r % 5) as f64 - 2.0
+                        } else {
+                            (r >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
+                        };
+                        if v == 0.0 && r & 1 == 1 { -0.0 } else { v }
+                    };
+                    [coordinate(), coordinate()]
+                })
+                .collect();
+            let (fast, slow) = (ConvexPolygon::hull(&points), hull_reference(&points));
+            let bits = |p: &ConvexPolygon| -> Vec<[u64; 2]> {
+                p.vertices().iter().map(|v| v.map(f64::to_bits)).collect()
+            };
+            assert_eq!(bits(&fast), bits(&slow), "points {points:?}");
+        }
+    }
 
     /// `clip_lines` (two buffers, early exit) against clipping one line at
     /// a time, on random convex polygons and lines, empty results included.

@@ -299,6 +299,11 @@ impl SunGrid {
         let tolerance = 1e-9 * scale;
         let project = |p: Vec3| [p.dot(self.axes[0]), p.dot(self.axes[1])];
         let own = c.map(project);
+        // Each candidate is tested against the same outline and depths of
+        // `t`: built once, not per candidate.
+        let mine_outline = ConvexPolygon::hull(&own);
+        let depths = |p: &[Vec3; 3]| p.map(|v| v.dot(l));
+        let mine = Affine::new(&own, depths(&c));
         let bottom = c.iter().map(|p| p.dot(l)).fold(f64::INFINITY, f64::min);
         let floor = bottom - 1e-9 * (bottom.abs() + 1.0);
         let may_shade = |a: u32| {
@@ -313,18 +318,14 @@ impl SunGrid {
                 return false;
             }
             let seen = other.map(project);
-            let (mine_outline, their_outline) =
-                (ConvexPolygon::hull(&own), ConvexPolygon::hull(&seen));
+            let their_outline = ConvexPolygon::hull(&seen);
             if apart(&mine_outline, &their_outline, -tolerance) {
                 return false;
             }
             // Where the projections overlap, is the other ever nearer the
             // sun? Both depths are affine there, so its corners decide.
-            let depths = |p: &[Vec3; 3]| p.map(|v| v.dot(l));
-            let (Some(mine), Some(theirs)) = (
-                Affine::new(&own, depths(&c)),
-                Affine::new(&seen, depths(&other)),
-            ) else {
+            let (Some(mine), Some(theirs)) = (mine.as_ref(), Affine::new(&seen, depths(&other)))
+            else {
                 return true;
             };
             (mine_outline.intersect(&their_outline).vertices())
