@@ -58,6 +58,10 @@ const MAX_ITEMS_PER_TRIANGLE: u64 = 8;
 /// Most triangles every query tests (see [`MAX_ITEMS_PER_TRIANGLE`]).
 const MAX_LARGE: usize = 64;
 
+/// Triangles in front of a triangle's plane that `SunGrid::clear_of_mesh`
+/// remembers having tested (more are tested again each time they are met).
+const SEEN_IN_FRONT: usize = 32;
+
 /// The grid of `mesh` along `direction`, built once per process for each
 /// mesh and direction (a camera path renders the same scene many times,
 /// as its hierarchy is built once at load); `None` as [`SunGrid::build`].
@@ -306,7 +310,13 @@ impl SunGrid {
         let mine = Affine::new(&own, depths(&c));
         let bottom = c.iter().map(|p| p.dot(l)).fold(f64::INFINITY, f64::min);
         let floor = bottom - 1e-9 * (bottom.abs() + 1.0);
-        let may_shade = |a: u32| {
+        // A triangle binned in several cells of `t`'s box is met in each;
+        // the ones found in front of `t`'s plane are kept (up to
+        // `SEEN_IN_FRONT`), so the outline tests run once for each. The
+        // answer does not change: a repeat would give the same `false`.
+        let mut in_front = [0u32; SEEN_IN_FRONT];
+        let mut in_front_len = 0;
+        let mut may_shade = |a: u32| {
             if a as usize == t {
                 return false;
             }
@@ -314,8 +324,12 @@ impl SunGrid {
                 return true;
             };
             let behind = other.iter().all(|&p| (p - c[0]).dot(toward) <= tolerance);
-            if behind {
+            if behind || in_front[..in_front_len].contains(&a) {
                 return false;
+            }
+            if in_front_len < SEEN_IN_FRONT {
+                in_front[in_front_len] = a;
+                in_front_len += 1;
             }
             let seen = other.map(project);
             let their_outline = ConvexPolygon::hull(&seen);
