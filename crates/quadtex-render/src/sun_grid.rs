@@ -308,6 +308,7 @@ impl SunGrid {
         let mine_outline = ConvexPolygon::hull(&own);
         let depths = |p: &[Vec3; 3]| p.map(|v| v.dot(l));
         let mine = Affine::new(&own, depths(&c));
+        let own_box = bounds(&own);
         let bottom = c.iter().map(|p| p.dot(l)).fold(f64::INFINITY, f64::min);
         let floor = bottom - 1e-9 * (bottom.abs() + 1.0);
         // A triangle binned in several cells of `t`'s box is met in each;
@@ -332,6 +333,15 @@ impl SunGrid {
                 in_front_len += 1;
             }
             let seen = other.map(project);
+            // Boxes apart by more than the tolerance: the projections are
+            // too (the outline test below would find an edge that shows it).
+            let their_box = bounds(&seen);
+            if (0..2).any(|k| {
+                their_box[0][k] > own_box[1][k] + tolerance
+                    || their_box[1][k] < own_box[0][k] - tolerance
+            }) {
+                return false;
+            }
             let their_outline = ConvexPolygon::hull(&seen);
             if apart(&mine_outline, &their_outline, -tolerance) {
                 return false;
@@ -457,6 +467,18 @@ fn projected_box(mesh: &Mesh, axes: [Vec3; 2], t: usize) -> Option<[f64; 4]> {
     let (sx, sy) = (slack(lo[0], hi[0]), slack(lo[1], hi[1]));
     let b = [lo[0] - sx, lo[1] - sy, hi[0] + sx, hi[1] + sy];
     b.iter().all(|v| v.is_finite()).then_some(b)
+}
+
+/// The lower and upper corners of the box around projected points.
+fn bounds(points: &[[f64; 2]; 3]) -> [[f64; 2]; 2] {
+    let (mut lo, mut hi) = (points[0], points[0]);
+    for p in &points[1..] {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    [lo, hi]
 }
 
 /// A depth along the sun, affine over a projected triangle (from its
