@@ -611,6 +611,14 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
 
+    /// The next state of a xorshift64 generator (the tests' random input).
+    fn xorshift(state: &mut u64) -> u64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        *state
+    }
+
     /// Andrew's monotone chain as first written (heap buffers, stable
     /// sort, `Vec::dedup`): the reference `hull` must match to the bit.
     fn hull_reference(points: &[[f64; 2]]) -> ConvexPolygon {
@@ -651,12 +659,7 @@ mod tests {
     #[test]
     fn hull_matches_the_heap_reference_to_the_bit() {
         let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut random = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut random = || xorshift(&mut state);
         for case in 0..20_000 {
             // Half the sets are triangles (their own path in `hull`).
             let n = if case % 4 < 2 {
@@ -699,12 +702,7 @@ mod tests {
     #[test]
     fn clipping_by_many_lines_equals_clipping_one_at_a_time() {
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut random = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
-        };
+        let mut random = || (xorshift(&mut state) >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0;
         for _ in 0..2000 {
             let points: Vec<[f64; 2]> = (0..8).map(|_| [random(), random()]).collect();
             let polygon = ConvexPolygon::hull(&points);
