@@ -284,7 +284,13 @@ impl SunGrid {
     /// share bit for bit) a vertex counts as on the plane or the line; a
     /// shadow ray's own lift off its surface is a thousand times that.
     fn clear_of_mesh(&self, mesh: &Mesh, t: usize) -> bool {
-        let (Some(c), Some(b)) = (mesh.corners(t), projected_box(mesh, self.axes, t)) else {
+        let project = |p: Vec3| [p.dot(self.axes[0]), p.dot(self.axes[1])];
+        let Some(c) = mesh.corners(t) else {
+            return false;
+        };
+        let own = c.map(project);
+        let own_box = bounds(&own);
+        let Some(b) = padded(own_box) else {
             return false;
         };
         let l = self.direction;
@@ -301,14 +307,11 @@ impl SunGrid {
             .iter()
             .fold(1f64, |m, p| m.max(p.x.abs()).max(p.y.abs()).max(p.z.abs()));
         let tolerance = 1e-9 * scale;
-        let project = |p: Vec3| [p.dot(self.axes[0]), p.dot(self.axes[1])];
-        let own = c.map(project);
         // Each candidate is tested against the same outline and depths of
         // `t`: built once, not per candidate.
         let mine_outline = ConvexPolygon::hull(&own);
         let depths = |p: &[Vec3; 3]| p.map(|v| v.dot(l));
         let mine = Affine::new(&own, depths(&c));
-        let own_box = bounds(&own);
         let bottom = c.iter().map(|p| p.dot(l)).fold(f64::INFINITY, f64::min);
         let floor = bottom - 1e-9 * (bottom.abs() + 1.0);
         // A triangle binned in several cells of `t`'s box is met in each;
@@ -455,14 +458,12 @@ impl SunGrid {
 /// relative `10⁻⁹` against rounding; `None` when not finite.
 fn projected_box(mesh: &Mesh, axes: [Vec3; 2], t: usize) -> Option<[f64; 4]> {
     let corners = mesh.corners(t)?;
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in corners {
-        let q = [p.dot(axes[0]), p.dot(axes[1])];
-        for k in 0..2 {
-            lo[k] = lo[k].min(q[k]);
-            hi[k] = hi[k].max(q[k]);
-        }
-    }
+    padded(bounds(&corners.map(|p| [p.dot(axes[0]), p.dot(axes[1])])))
+}
+
+/// The box `[lo, hi]` widened by a relative `10⁻⁹` against rounding, as
+/// `[x0, y0, x1, y1]`; `None` when not finite.
+fn padded([lo, hi]: [[f64; 2]; 2]) -> Option<[f64; 4]> {
     let slack = |l: f64, h: f64| 1e-9 * (l.abs().max(h.abs()) + (h - l));
     let (sx, sy) = (slack(lo[0], hi[0]), slack(lo[1], hi[1]));
     let b = [lo[0] - sx, lo[1] - sy, hi[0] + sx, hi[1] + sy];
@@ -471,8 +472,8 @@ fn projected_box(mesh: &Mesh, axes: [Vec3; 2], t: usize) -> Option<[f64; 4]> {
 
 /// The lower and upper corners of the box around projected points.
 fn bounds(points: &[[f64; 2]; 3]) -> [[f64; 2]; 2] {
-    let (mut lo, mut hi) = (points[0], points[0]);
-    for p in &points[1..] {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in points {
         for k in 0..2 {
             lo[k] = lo[k].min(p[k]);
             hi[k] = hi[k].max(p[k]);
