@@ -16,7 +16,18 @@
 //! the centroid of each pair's screen overlap (planar primitives that do
 //! not cross each other inside the pixel have one depth order there), and
 //! the support is clipped against them in that order: each primitive gets
-//! what the ones in front left. What none of them covers is searched: the
+//! what the ones in front left. Where the listed regions leave part of the
+//! support uncovered, a large mesh's triangles spread first to their
+//! neighbours across the edges the support reaches past (shared corners,
+//! [`crate::scene::Mesh::neighbour`]), breadth first, up to
+//! [`MAX_GAP_PRIMITIVES`]: around the triangles the centres see, these
+//! tile the support where the surface does not fold, and the pixel is
+//! their regions, whole. Each triangle so listed is confirmed by the ray
+//! through its region's centroid (or by one through the same triangle a
+//! pixel or two back in the row, [`Confirmed`]); a ray that meets
+//! another primitive there (an occluder no centre sees, such as a far
+//! hill's crest) undoes the spread, and that primitive joins the list
+//! instead. What none of them covers is searched: the
 //! ray through each gap's centroid finds the primitive there (a large
 //! mesh's triangles smaller than a pixel lie between the centres), which
 //! joins the list, until the gaps are sky or slivers of rounding, or
@@ -133,6 +144,108 @@ impl ViewMemo {
     fn slot(id: Seen) -> usize {
         // Fibonacci hashing: neighbouring triangle numbers spread out.
         (id.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 58) as usize
+    }
+}
+
+/// A pixel's mesh triangles spread to their neighbours across the edges
+/// the support reaches over ([`Flood::spread`]).
+struct Flood<'s, 'a> {
+    scene: &'s Scene,
+    cache: &'a SurfaceViews,
+    support: &'s ConvexPolygon,
+}
+
+impl<'a> Flood<'_, 'a> {
+    /// Adds to `views` (and `regions`, `tried`) each mesh triangle across
+    /// an edge of a listed triangle whose region of the support is not
+    /// empty, where the support reaches past that edge, and the same from
+    /// those it adds, breadth first, up to [`MAX_GAP_PRIMITIVES`]: the
+    /// triangles of a mesh around those the centres see, which tile the
+    /// support with them where the surface does not fold. Their indices go
+    /// to `flooded`.
+    fn spread(
+        &self,
+        views: &mut Vec<ViewRef<'a>>,
+        regions: &mut Regions,
+        tried: &mut Vec<(Seen, Option<usize>)>,
+        memo: &mut ViewMemo,
+        flooded: &mut Vec<usize>,
+    ) {
+        flooded.clear();
+        let corners = self.support.vertices();
+        let mut i = 0;
+        while i < views.len() && flooded.len() < MAX_GAP_PRIMITIVES {
+            let view = &views[i];
+            let (surface, triangle) = (view.surface(), view.triangle());
+            let mesh = match self.scene.surfaces.get(surface).map(|s| &s.geometry) {
+                Some(Geometry::Mesh(mesh)) if !regions[i].is_empty() => mesh,
+                _ => {
+                    i += 1;
+                    continue;
+                }
+            };
+            let Some(triangle) = triangle else {
+                i += 1;
+                continue;
+            };
+            // `lines()`: in front, then the edges in `Mesh::neighbour`'s order.
+            let mut edges = [[0.0; 3]; 3];
+            for (e, l) in edges.iter_mut().zip(view.lines().skip(1)) {
+                *e = l;
+            }
+            for (edge, [a, b, c]) in edges.into_iter().enumerate() {
+                if corners.iter().all(|&[x, y]| a * x + b * y + c >= 0.0) {
+                    continue;
+                }
+                let Some(next) = mesh.neighbour(triangle, edge) else {
+                    continue;
+                };
+                let id = seen_id(surface, next);
+                if tried.iter().any(|(t, _)| *t == id) || flooded.len() == MAX_GAP_PRIMITIVES {
+                    continue;
+                }
+                let Some(Some(next)) = candidate_view(self.scene, self.cache, memo, id) else {
+                    continue;
+                };
+                let region = regions.next_slot();
+                next.region_into(self.support, region);
+                if !region.is_empty() {
+                    regions.keep_slot();
+                    flooded.push(views.len());
+                    tried.push((id, Some(views.len())));
+                    views.push(next);
+                }
+            }
+            i += 1;
+        }
+    }
+}
+
+/// The mesh triangles recent pixels of a row confirmed by a ray through
+/// their region ([`exact_pixel`]'s flood): a direct-mapped table of the
+/// pixel each was confirmed at.
+#[derive(Default)]
+struct Confirmed {
+    slots: Vec<(Seen, u32)>,
+}
+
+impl Confirmed {
+    const SLOTS: usize = 64;
+
+    /// How far back in the row a confirmation stands, in pixels: a point
+    /// within about as far of the support as the centres in reach are.
+    const REACH: u32 = 2;
+
+    fn recent(&self, id: Seen, x: u32) -> bool {
+        (self.slots.get(ViewMemo::slot(id)))
+            .is_some_and(|&(s, at)| s == id && x.wrapping_sub(at) <= Self::REACH)
+    }
+
+    fn insert(&mut self, id: Seen, x: u32) {
+        if self.slots.is_empty() {
+            self.slots.resize(Self::SLOTS, (0, 0));
+        }
+        self.slots[ViewMemo::slot(id)] = (id, x);
     }
 }
 
@@ -313,6 +426,8 @@ pub(crate) fn exact_pixel<'a>(
         order,
         planes,
         memo,
+        flooded,
+        confirmed,
         sky_span,
         uniform_span,
         sky_clear_above: _,
@@ -447,6 +562,56 @@ pub(crate) fn exact_pixel<'a>(
         push_region(regions, v, &support);
     }
     let mut found = 0;
+    let covered: f64 = regions.iter().map(ConvexPolygon::area).sum();
+    if covered < support.area() * (1.0 - GAP_AREA) {
+        let flood = Flood {
+            scene,
+            cache,
+            support: &support,
+        };
+        let (listed, tried_before) = (views.len(), tried.len());
+        flood.spread(views, regions, tried, memo, flooded);
+        // Each new triangle is confirmed, as a gap's would be, by the ray
+        // through its region's centroid (or one a pixel or two back in the
+        // row). A nearer primitive there is an occluder no centre sees (a
+        // far hill's crest), in front of triangles the flood listed that it
+        // may hide beyond the ray: the flood is undone, the occluder joins
+        // the list, and the gaps are searched as without a flood.
+        let mut occluder = None;
+        for &v in flooded.iter() {
+            let id = seen_id(views[v].surface(), views[v].triangle().unwrap_or(0));
+            if confirmed.recent(id, x) {
+                continue;
+            }
+            let c = regions[v].centroid();
+            let hit = frame.rays.nearest_index(&scene.camera.ray(c[0], c[1]));
+            match hit.map(|(surface, hit)| seen_id(surface, hit.triangle)) {
+                Some(seen) if seen == id => confirmed.insert(id, x),
+                // One the list holds: their order settles it.
+                Some(seen) if tried.iter().any(|(t, _)| *t == seen) => {}
+                seen => {
+                    occluder = Some(seen);
+                    break;
+                }
+            }
+        }
+        if let Some(seen) = occluder {
+            views.truncate(listed);
+            regions.truncate(listed);
+            tried.truncate(tried_before);
+            if let Some(seen) = seen
+                && !tried.iter().any(|(t, _)| *t == seen)
+            {
+                found += 1;
+                let view = candidate_view(scene, cache, memo, seen)?;
+                if let Some(view) = &view {
+                    push_region(regions, view, &support);
+                }
+                tried.push((seen, view.is_some().then_some(views.len())));
+                views.extend(view);
+            }
+        }
+    }
     cut.among(views, regions, &support, order);
     loop {
         // What no primitive in the list covers is sky, or primitives
@@ -640,6 +805,11 @@ impl Regions {
             self.slots.push(ConvexPolygon::EMPTY);
         }
         &mut self.slots[self.len]
+    }
+
+    /// Keeps the first `len` regions.
+    fn truncate(&mut self, len: usize) {
+        self.len = self.len.min(len);
     }
 
     fn keep_slot(&mut self) {
@@ -940,6 +1110,9 @@ pub(crate) struct Scratch<'a> {
     order: Order,
     planes: Vec<[f64; 4]>,
     memo: ViewMemo,
+    /// The views [`Flood::spread`] added, by index.
+    flooded: Vec<usize>,
+    confirmed: Confirmed,
     sky_span: SkySpan,
     uniform_span: UniformSpan,
     /// Where [`sky_at_centre`]'s bound is surely within the tolerance

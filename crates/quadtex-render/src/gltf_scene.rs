@@ -20,7 +20,7 @@ use quadtex_core::{Rgba, TexelGrid, WrapMode};
 use quadtex_io::Limits;
 
 use crate::math::Vec3;
-use crate::scene::{Mesh, Triangle};
+use crate::scene::{Mesh, Triangle, VertexIds};
 
 /// Deepest node hierarchy followed.
 const MAX_NODE_DEPTH: usize = 64;
@@ -46,6 +46,10 @@ pub(crate) struct Model {
 #[derive(Default)]
 struct Gathered {
     triangles: Vec<Triangle>,
+    /// Each triangle's corners as vertex ids (by position, across the
+    /// material's primitives): which triangles are neighbours.
+    vertices: Vec<[u32; 3]>,
+    ids: VertexIds,
     image: Option<usize>,
     colour: [f32; 4],
     wrap: (WrapMode, WrapMode),
@@ -116,7 +120,7 @@ pub(crate) fn load_gltf(
         .filter_map(|(_, g)| {
             let [r, gr, b, a] = g.colour;
             Some(Part {
-                mesh: Mesh::new(g.triangles)?,
+                mesh: Mesh::with_vertices(g.triangles, g.vertices)?,
                 image: g.image,
                 colour: Rgba::new(r * a, gr * a, b * a, a),
                 wrap: g.wrap,
@@ -285,6 +289,8 @@ impl Loader<'_> {
                 ..Gathered::default()
             });
         gathered.triangles.reserve(corners.len());
+        gathered.vertices.reserve(corners.len());
+        let point_ids: Vec<u32> = points.iter().map(|&p| gathered.ids.id(p)).collect();
         for [a, b, c] in corners {
             let p = [points[a as usize], points[b as usize], points[c as usize]];
             let uv = match &uvs {
@@ -302,6 +308,9 @@ impl Loader<'_> {
             // Degenerate triangles (zero area, collapsed UVs) are skipped.
             if let Some(t) = Triangle::new(p, uv) {
                 gathered.triangles.push(t);
+                gathered
+                    .vertices
+                    .push([a, b, c].map(|i| point_ids[i as usize]));
             }
         }
         Ok(())

@@ -865,6 +865,10 @@ fn parse_obj_with(
         ));
     }
     let mut triangles = Vec::with_capacity(count as usize);
+    // Corners by position: faces of different models, or on either side
+    // of a texture seam, that share a point are neighbours.
+    let mut vertices = Vec::with_capacity(count as usize);
+    let mut ids = crate::scene::VertexIds::default();
     // Models without faces (vertices only, or an empty file) add nothing.
     for model in models.iter().filter(|m| !m.mesh.indices.is_empty()) {
         let m = &model.mesh;
@@ -901,10 +905,12 @@ fn parse_obj_with(
             // Degenerate triangles (zero area or collapsed UVs) are skipped.
             if let Some(t) = crate::scene::Triangle::new(p, uv) {
                 triangles.push(t);
+                vertices.push(p.map(|p| ids.id(p)));
             }
         }
     }
-    crate::scene::Mesh::new(triangles).ok_or_else(|| "no usable triangles".into())
+    crate::scene::Mesh::with_vertices(triangles, vertices)
+        .ok_or_else(|| "no usable triangles".into())
 }
 
 #[cfg(test)]

@@ -437,4 +437,70 @@ mod tests {
             );
         }
     }
+
+    /// A mesh's neighbours ([`crate::scene::Mesh::neighbour`]) follow its
+    /// triangles' views' edge lines: across edge `k`, the neighbour's
+    /// centroid lies outside line `k + 1` of [`View::lines`] and the
+    /// triangle's own inside. On a bumpy grid, seen from above, every
+    /// inner edge has its neighbour, both ways; the border's edges none.
+    #[test]
+    fn a_neighbour_lies_beyond_the_edge_it_shares() {
+        use crate::math::Vec3;
+        use crate::scene::{Geometry, Mesh, Triangle, VertexIds};
+        let text = "[camera]\nposition = [0.3, 3, 2]\nlook_at = [0, 0, 0]\nfov = 60\n\
+                    width = 64\nheight = 48\n\n[[shape]]\ntype = \"sphere\"\n\
+                    centre = [0, -9, 0]\nradius = 0.1\n";
+        let mut scene = crate::parse_scene(text, std::path::Path::new("grid.toml")).unwrap();
+        let n = 6;
+        let corner = |i: i32, j: i32| {
+            let (x, z) = (f64::from(i) / 3.0 - 1.0, f64::from(j) / 3.0 - 1.0);
+            Vec3::new(x, 0.1 * (3.0 * x).sin() * (2.0 * z).cos(), z)
+        };
+        let (mut triangles, mut vertices, mut ids) = (Vec::new(), Vec::new(), VertexIds::default());
+        for j in 0..n {
+            for i in 0..n {
+                let uv = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+                let (a, b, c, d) = (
+                    corner(i, j),
+                    corner(i + 1, j),
+                    corner(i + 1, j + 1),
+                    corner(i, j + 1),
+                );
+                for p in [[a, d, c], [a, c, b]] {
+                    triangles.push(Triangle::new(p, uv).unwrap());
+                    vertices.push(p.map(|p| ids.id(p)));
+                }
+            }
+        }
+        let count = triangles.len();
+        let mesh = Mesh::with_vertices(triangles, vertices).unwrap();
+        let mut surface = scene.surfaces[0].clone();
+        surface.geometry = Geometry::Mesh(std::sync::Arc::new(mesh.clone()));
+        scene.surfaces.push(surface);
+        let centroid = |t: u32| {
+            let c = mesh.corners(t as usize).unwrap();
+            scene
+                .camera
+                .project((c[0] + c[1] + c[2]) * (1.0 / 3.0))
+                .unwrap()
+        };
+        let mut shared = 0;
+        for t in 0..count as u32 {
+            let planar = scene.surfaces[1].geometry.planar(t).unwrap();
+            let view = View::new(&scene, 1, &planar).unwrap();
+            let lines: Vec<[f64; 3]> = view.lines().collect();
+            let at = |l: [f64; 3], [x, y]: [f64; 2]| l[0] * x + l[1] * y + l[2];
+            for edge in 0..3 {
+                let Some(next) = mesh.neighbour(t, edge) else {
+                    continue;
+                };
+                shared += 1;
+                assert!(at(lines[edge + 1], centroid(t)) > 0.0);
+                assert!(at(lines[edge + 1], centroid(next)) < 0.0, "{t} edge {edge}");
+                assert!((0..3).any(|e| mesh.neighbour(next, e) == Some(t)));
+            }
+        }
+        // Inner edges: 2n(n − 1) between cells and n² diagonals, each counted from both sides.
+        assert_eq!(shared, 2 * (2 * n * (n - 1) + n * n));
+    }
 }

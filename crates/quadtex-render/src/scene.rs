@@ -262,13 +262,38 @@ pub const MESH_BYTES_PER_TRIANGLE: u64 = 320;
 pub struct Mesh {
     triangles: Vec<Triangle>,
     bvh: Bvh,
+    neighbours: Vec<[u32; 3]>,
 }
 
 impl Mesh {
     /// A mesh from triangles, with its hierarchy built; `None` when there
-    /// are none.
-    pub fn new(mut triangles: Vec<Triangle>) -> Option<Mesh> {
+    /// are none. Triangles are neighbours where they share two corners
+    /// exactly as [`Triangle`] gives them (its corners are rebuilt from
+    /// its first corner and edges, which may round); the scene loaders
+    /// name each corner's vertex instead, by its position as the model
+    /// gives it.
+    pub fn new(triangles: Vec<Triangle>) -> Option<Mesh> {
+        let mut ids = VertexIds::default();
+        let vertices = (triangles.iter())
+            .map(|t| [t.p0, t.p0 + t.e1, t.p0 + t.e2].map(|p| ids.id(p)))
+            .collect();
+        Mesh::with_vertices(triangles, vertices)
+    }
+
+    /// A mesh from triangles and, for each, the ids of its three corners'
+    /// vertices (the same id where triangles share a corner; see
+    /// [`VertexIds`]), with its hierarchy built; `None` when there are
+    /// none or the lengths differ. Two triangles sharing an edge (two
+    /// vertices, and no third triangle on it) are neighbours
+    /// ([`Mesh::neighbour`]).
+    pub(crate) fn with_vertices(
+        mut triangles: Vec<Triangle>,
+        mut vertices: Vec<[u32; 3]>,
+    ) -> Option<Mesh> {
         triangles.first()?;
+        if vertices.len() != triangles.len() {
+            return None;
+        }
         let mut bvh = Bvh::build(triangles.len(), |i| {
             let t = &triangles[i];
             let mut b = Aabb { lo: t.p0, hi: t.p0 };
@@ -281,18 +306,37 @@ impl Mesh {
         // Triangle indices are the mesh's own (hits, visibility ids): they
         // may follow the hierarchy's leaves, which keeps a leaf's triangles
         // in adjacent cache lines.
-        bvh.reorder_to_leaves(&mut triangles);
-        Some(Mesh { triangles, bvh })
+        let order = bvh.reorder_to_leaves(&mut triangles);
+        vertices = order.iter().map(|&i| vertices[i as usize]).collect();
+        let neighbours = edge_neighbours(&vertices);
+        Some(Mesh {
+            triangles,
+            bvh,
+            neighbours,
+        })
     }
 
     /// Bytes the triangles and their hierarchy hold.
     pub fn memory_bytes(&self) -> usize {
-        self.triangles.len() * std::mem::size_of::<Triangle>() + self.bvh.memory_bytes()
+        self.triangles.len() * std::mem::size_of::<Triangle>()
+            + self.neighbours.len() * std::mem::size_of::<[u32; 3]>()
+            + self.bvh.memory_bytes()
     }
 
     /// The box around every triangle (its hierarchy's root).
     pub(crate) fn bounds(&self) -> Option<crate::bvh::Aabb> {
         self.bvh.bounds()
+    }
+
+    /// The triangle across edge `edge` of triangle `index`, if one shares
+    /// it. Edges are numbered by the corner they face, as the view of a
+    /// triangle orders its edge lines ([`crate::planar_view::View::lines`]):
+    /// 0 is the edge from corner 0 to corner 2 (where the barycentric
+    /// weight of corner 1 is zero), 1 from corner 0 to corner 1, 2 from
+    /// corner 1 to corner 2.
+    pub(crate) fn neighbour(&self, index: u32, edge: usize) -> Option<u32> {
+        let n = *self.neighbours.get(index as usize)?.get(edge)?;
+        (n != NO_NEIGHBOUR).then_some(n)
     }
 
     /// Number of triangles.
@@ -406,6 +450,52 @@ impl Mesh {
             triangle: index,
         }
     }
+}
+
+/// [`Mesh::neighbour`]'s mark for an edge no other triangle shares.
+const NO_NEIGHBOUR: u32 = u32::MAX;
+
+/// Vertex ids by exact position: one id per distinct point (its
+/// coordinates' bits), so corners a model shares by index, or repeats at a
+/// seam with other texture coordinates, are one vertex.
+#[derive(Default)]
+pub(crate) struct VertexIds {
+    ids: std::collections::HashMap<[u64; 3], u32>,
+}
+
+impl VertexIds {
+    /// The id of point `p` (new points are numbered in order of arrival).
+    pub fn id(&mut self, p: Vec3) -> u32 {
+        let next = self.ids.len() as u32;
+        *self
+            .ids
+            .entry([p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+            .or_insert(next)
+    }
+}
+
+/// For each triangle (its corners' vertex ids), the triangle across each
+/// of its edges ([`Mesh::neighbour`]'s order), or [`NO_NEIGHBOUR`] where
+/// none or more than one other triangle has that edge.
+fn edge_neighbours(vertices: &[[u32; 3]]) -> Vec<[u32; 3]> {
+    // Each edge as (its two vertices, lower first; triangle · 3 + edge),
+    // sorted: a shared edge's two entries come out side by side.
+    let mut edges: Vec<(u64, u32)> = Vec::with_capacity(3 * vertices.len());
+    for (t, v) in (0u32..).zip(vertices) {
+        for (k, (a, b)) in (0u32..).zip([(v[0], v[2]), (v[0], v[1]), (v[1], v[2])]) {
+            let key = (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
+            edges.push((key, 3 * t + k));
+        }
+    }
+    edges.sort_unstable();
+    let mut out = vec![[NO_NEIGHBOUR; 3]; vertices.len()];
+    for run in edges.chunk_by(|a, b| a.0 == b.0) {
+        if let [(_, x), (_, y)] = *run {
+            out[(x / 3) as usize][(x % 3) as usize] = y / 3;
+            out[(y / 3) as usize][(y % 3) as usize] = x / 3;
+        }
+    }
+    out
 }
 
 /// Where a ray meets a surface, with what a footprint needs.
@@ -888,5 +978,25 @@ impl Scene {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two triangles on an edge are each other's neighbours across it; an
+    /// edge three triangles share (not a manifold's) gives none of them a
+    /// neighbour; a corner alone shared is no edge.
+    #[test]
+    fn neighbours_share_an_edge_and_only_two_do() {
+        // 0-1-2 and 2-1-3 share edge 1–2 (edge 2 of the first, 1 of the second).
+        let two = edge_neighbours(&[[0, 1, 2], [2, 1, 3]]);
+        assert_eq!(two[0], [NO_NEIGHBOUR, NO_NEIGHBOUR, 1]);
+        assert_eq!(two[1], [NO_NEIGHBOUR, 0, NO_NEIGHBOUR]);
+        let three = edge_neighbours(&[[0, 1, 2], [2, 1, 3], [1, 2, 4]]);
+        assert!(three.iter().all(|n| *n == [NO_NEIGHBOUR; 3]), "{three:?}");
+        let corner = edge_neighbours(&[[0, 1, 2], [2, 3, 4]]);
+        assert!(corner.iter().all(|n| *n == [NO_NEIGHBOUR; 3]));
     }
 }

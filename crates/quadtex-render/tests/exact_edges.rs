@@ -139,16 +139,15 @@ fn crease_pixels_on_a_folded_mesh_are_exact() {
     assert!(err < 1e-6, "crease and edge pixels off by {err}");
 }
 
-/// A mesh of 12 800 triangles, each about a sixth of a pixel, in two
-/// colours like a checkerboard, filling the view: a pixel holds more
-/// triangles than the nine centres in its reach can see, and is still each
-/// triangle's colour times its exact coverage, none of it the sky's (the
-/// triangles are found in the gaps the seen ones leave).
-#[test]
-fn triangles_between_pixel_centres_are_found() {
-    let dir = std::env::temp_dir().join(format!("quadtex-fine-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let n = 80;
+/// The camera over [`fine_grid`]: 28 × 20 pixels.
+const FINE_CAMERA: &str =
+    "position = [0.02, 1.2, 0.1]\nlook_at = [0, 0, 0]\nfov = 40\nwidth = 28\nheight = 20";
+
+/// An `n × n` grid of cells over `[-1, 1]²` on the plane y = 0, two
+/// triangles a cell, as OBJ text (its vertices first, shared between
+/// faces; UVs 1–3 inside one checker cell, 4–6 inside the other), and its
+/// faces with the checker cell each shows, like a checkerboard.
+fn fine_grid(n: u32) -> (String, Vec<(Vec<Vec3>, u32)>) {
     let side = 2.0 / f64::from(n);
     let corner =
         |i: u32, j: u32| Vec3::new(-1.0 + f64::from(i) * side, 0.0, -1.0 + f64::from(j) * side);
@@ -177,9 +176,21 @@ fn triangles_between_pixel_centres_are_found() {
             }
         }
     }
-    let camera =
-        "position = [0.02, 1.2, 0.1]\nlook_at = [0, 0, 0]\nfov = 40\nwidth = 28\nheight = 20";
-    let (scene, colours) = checker_mesh(&dir, "fine", &obj, camera);
+    (obj, faces)
+}
+
+/// A mesh of 12 800 triangles, each about a sixth of a pixel, in two
+/// colours like a checkerboard, filling the view: a pixel holds more
+/// triangles than the nine centres in its reach can see, and is still each
+/// triangle's colour times its exact coverage, none of it the sky's (the
+/// triangles are found from the seen ones' neighbours, or in the gaps
+/// they leave).
+#[test]
+fn triangles_between_pixel_centres_are_found() {
+    let dir = std::env::temp_dir().join(format!("quadtex-fine-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (obj, faces) = fine_grid(80);
+    let (scene, colours) = checker_mesh(&dir, "fine", &obj, FINE_CAMERA);
     // Some pixel overlaps more triangles than the 3 × 3 centres around it.
     let crowded = (0..scene.camera.width()).any(|x| {
         faces
@@ -199,6 +210,75 @@ fn triangles_between_pixel_centres_are_found() {
     assert!(err < 1e-6, "pixels off by {err}");
 }
 
+/// Two triangles of the same mesh, not joined to the fine grid below
+/// them, form a diamond floating over it around a pixel corner: no centre
+/// sees it, and the grid's triangles around the centres' would tile the
+/// four pixels it reaches into without it. Those pixels are still the
+/// diamond's colour times its coverage plus the grid's outside it: a ray
+/// confirming a listed neighbour meets the diamond instead, and it joins
+/// the list.
+#[test]
+fn an_occluder_no_centre_sees_hides_the_mesh_below_it() {
+    let dir = std::env::temp_dir().join(format!("quadtex-occluder-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (mut obj, faces) = fine_grid(80);
+    let probe = parse_scene(
+        &format!(
+            "[camera]\n{FINE_CAMERA}\n\n[[shape]]\ntype = \"sphere\"\ncentre = [0, 0, 0]\nradius = 0.1\n"
+        ),
+        &dir.join("probe.toml"),
+    )
+    .unwrap();
+    // The point of the plane y = 0.3 seen at screen point (x, y).
+    let above = |[x, y]: [f64; 2]| {
+        let ray = probe.camera.ray(x, y);
+        ray.origin + ray.direction * ((0.3 - ray.origin.y) / ray.direction.y)
+    };
+    let (cx, cy, r) = (15.0, 11.0, 0.45);
+    let screen = [[cx - r, cy], [cx, cy - r], [cx + r, cy], [cx, cy + r]];
+    let diamond: Vec<Vec3> = screen.iter().map(|&s| above(s)).collect();
+    let first = 81 * 81 + 1;
+    for p in &diamond {
+        obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    let [a, b, c, d] = [0, 1, 2, 3].map(|k| first + k);
+    obj += &format!("f {a}/4 {b}/5 {c}/6\nf {a}/4 {c}/5 {d}/6\n");
+    let (scene, colours) = checker_mesh(&dir, "occluder", &obj, FINE_CAMERA);
+    let (img, _) = render(&scene, &RenderOptions::default(), &|_, _| {}).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let project = |world: &[Vec3]| {
+        let p: Vec<[f64; 2]> = world
+            .iter()
+            .map(|&q| scene.camera.project(q).unwrap())
+            .collect();
+        ConvexPolygon::new(&p).unwrap()
+    };
+    let top = project(&diamond);
+    let below: Vec<(ConvexPolygon, Rgba)> = (faces.iter())
+        .map(|(f, cell)| (project(f), colours[*cell as usize]))
+        .collect();
+    let w = scene.camera.width();
+    let mut worst = 0f64;
+    for (x, y) in [(14, 10), (15, 10), (14, 11), (15, 11), (13, 10), (16, 11)] {
+        let (x0, y0) = (f64::from(x), f64::from(y));
+        let pixel = ConvexPolygon::rect(x0, y0, x0 + 1.0, y0 + 1.0);
+        let hidden = top.intersect(&pixel);
+        let mut expected = colours[1].to_array().map(|c| f64::from(c) * hidden.area());
+        for (face, colour) in &below {
+            let seen = face.intersect(&pixel);
+            let area = seen.area() - seen.intersect(&top).area();
+            for (e, c) in expected.iter_mut().zip(colour.to_array()) {
+                *e += area * f64::from(c);
+            }
+        }
+        let got = img.pixels[(y * w + x) as usize].to_array();
+        for (e, g) in expected.iter().zip(got) {
+            worst = worst.max((e - f64::from(g)).abs());
+        }
+    }
+    assert!(worst < 1e-6, "pixels off by {worst}");
+}
+
 /// Needles of a mesh, each a fifth of a pixel wide and lying between two
 /// columns of pixel centres, over a black sky: no centre sees them, and
 /// every pixel is still their colour times their exact coverage (the
@@ -207,8 +287,7 @@ fn triangles_between_pixel_centres_are_found() {
 fn needles_between_the_centres_are_found_against_the_sky() {
     let dir = std::env::temp_dir().join(format!("quadtex-needles-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let camera =
-        "position = [0.02, 1.2, 0.1]\nlook_at = [0, 0, 0]\nfov = 40\nwidth = 28\nheight = 20";
+    let camera = FINE_CAMERA;
     let probe = parse_scene(
         &format!(
             "[camera]\n{camera}\n\n[[shape]]\ntype = \"sphere\"\ncentre = [0, 0, 0]\nradius = 0.1\n"
