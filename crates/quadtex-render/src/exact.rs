@@ -139,11 +139,11 @@ struct ViewMemo {
 }
 
 impl ViewMemo {
-    const SLOTS: usize = 64;
+    const SLOTS: usize = 256;
 
     fn slot(id: Seen) -> usize {
         // Fibonacci hashing: neighbouring triangle numbers spread out.
-        (id.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 58) as usize
+        (id.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 56) as usize
     }
 }
 
@@ -230,7 +230,7 @@ struct Confirmed {
 }
 
 impl Confirmed {
-    const SLOTS: usize = 64;
+    const SLOTS: usize = 256;
 
     /// How far back in the row a confirmation stands, in pixels: a point
     /// within about as far of the support as the centres in reach are.
@@ -266,9 +266,12 @@ fn separated(a: &ConvexPolygon, b: &ConvexPolygon) -> bool {
     outside(a, b) || outside(b, a)
 }
 
+/// A polygon's box, `(lo, hi)` ([`ConvexPolygon::bounds`]).
+type Bounds = ([f64; 2], [f64; 2]);
+
 /// Whether boxes `(lo, hi)` are apart (or touch along a line): polygons
 /// within them overlap in no area.
-fn boxes_apart((alo, ahi): ([f64; 2], [f64; 2]), (blo, bhi): ([f64; 2], [f64; 2])) -> bool {
+fn boxes_apart((alo, ahi): Bounds, (blo, bhi): Bounds) -> bool {
     alo[0] >= bhi[0] || blo[0] >= ahi[0] || alo[1] >= bhi[1] || blo[1] >= ahi[1]
 }
 
@@ -871,6 +874,9 @@ struct Cut {
     /// were taken whole ([`Cut::tiling`]): slivers of rounding along shared
     /// edges, not located.
     unaccounted: f64,
+    /// The boxes of the non-empty regions [`Cut::tiling`] compares, and
+    /// their indices.
+    boxes: Vec<(usize, Bounds)>,
     /// Whether the regions tile the support ([`Cut::tiling`]): each view's
     /// piece is its whole region, read from the regions, not copied into
     /// `pieces` (which stays empty).
@@ -916,13 +922,24 @@ impl Cut {
             return false;
         }
         let mut overlapping = 0.0;
-        for (i, a) in regions.iter().enumerate() {
-            for b in &regions[i + 1..] {
+        // Each region's box once; empty regions (the centres' triangles
+        // that miss this support, most of a crowded list) overlap nothing.
+        let boxes = &mut self.boxes;
+        boxes.clear();
+        boxes.extend(
+            (regions.iter().enumerate())
+                .filter(|(_, r)| !r.is_empty())
+                .map(|(i, r)| (i, r.bounds())),
+        );
+        for (k, &(i, a_box)) in boxes.iter().enumerate() {
+            let a = &regions[i];
+            for &(j, b_box) in &boxes[k + 1..] {
+                let b = &regions[j];
                 // Neighbours sharing an edge are told apart without clipping.
-                if separated(a, b) {
+                if boxes_apart(a_box, b_box) || separated(a, b) {
                     continue;
                 }
-                overlapping += overlap(a, b).map_or(0.0, |o| o.area());
+                overlapping += a.intersect(b).area().max(0.0);
                 if overlapping > self.sliver_area {
                     return false;
                 }

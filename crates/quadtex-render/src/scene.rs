@@ -478,21 +478,45 @@ impl VertexIds {
 /// of its edges ([`Mesh::neighbour`]'s order), or [`NO_NEIGHBOUR`] where
 /// none or more than one other triangle has that edge.
 fn edge_neighbours(vertices: &[[u32; 3]]) -> Vec<[u32; 3]> {
-    // Each edge as (its two vertices, lower first; triangle · 3 + edge),
-    // sorted: a shared edge's two entries come out side by side.
-    let mut edges: Vec<(u64, u32)> = Vec::with_capacity(3 * vertices.len());
-    for (t, v) in (0u32..).zip(vertices) {
-        for (k, (a, b)) in (0u32..).zip([(v[0], v[2]), (v[0], v[1]), (v[1], v[2])]) {
-            let key = (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
-            edges.push((key, 3 * t + k));
+    let edges = |v: &[u32; 3]| [(v[0], v[2]), (v[0], v[1]), (v[1], v[2])];
+    // Each edge filed under its lower vertex (a counting sort: a vertex
+    // has a few edges, so a shared edge's two entries are found in a short
+    // scan of one bucket), as (its higher vertex, triangle · 3 + edge).
+    let count = vertices
+        .iter()
+        .flatten()
+        .max()
+        .map_or(0, |&m| m as usize + 1);
+    let mut start = vec![0u32; count + 1];
+    for v in vertices {
+        for (a, b) in edges(v) {
+            start[a.min(b) as usize + 1] += 1;
         }
     }
-    edges.sort_unstable();
+    for i in 1..start.len() {
+        start[i] += start[i - 1];
+    }
+    let mut filled = start.clone();
+    let mut filed = vec![(0u32, 0u32); 3 * vertices.len()];
+    for (t, v) in (0u32..).zip(vertices) {
+        for (k, (a, b)) in (0u32..).zip(edges(v)) {
+            let slot = &mut filled[a.min(b) as usize];
+            filed[*slot as usize] = (a.max(b), 3 * t + k);
+            *slot += 1;
+        }
+    }
     let mut out = vec![[NO_NEIGHBOUR; 3]; vertices.len()];
-    for run in edges.chunk_by(|a, b| a.0 == b.0) {
-        if let [(_, x), (_, y)] = *run {
-            out[(x / 3) as usize][(x % 3) as usize] = y / 3;
-            out[(y / 3) as usize][(y % 3) as usize] = x / 3;
+    for bucket in start.windows(2) {
+        let bucket = &filed[bucket[0] as usize..bucket[1] as usize];
+        for (i, &(high, x)) in bucket.iter().enumerate() {
+            let mut sharing = bucket
+                .iter()
+                .enumerate()
+                .filter(|&(j, e)| j != i && e.0 == high);
+            // Exactly one other triangle on the edge: neighbours.
+            if let (Some((_, &(_, y))), None) = (sharing.next(), sharing.next()) {
+                out[(x / 3) as usize][(x % 3) as usize] = y / 3;
+            }
         }
     }
     out
