@@ -25,8 +25,8 @@ pub struct Limits {
     /// Most shapes in a scene (default 10 000).
     pub max_scene_shapes: usize,
     /// Most triangles in one mesh of a scene (default 2²² = 4 194 304,
-    /// about 1.3 GiB at the renderer's 320 bytes a triangle with its
-    /// bounding-volume hierarchy; a mesh must also fit [`Limits::max_memory`]).
+    /// about 1.4 GiB at the renderer's 352 bytes a triangle with its
+    /// bounding-volume hierarchy and edge neighbours; a mesh must also fit [`Limits::max_memory`]).
     pub max_mesh_triangles: usize,
     /// Memory budget in bytes for one decode, build or read (default
     /// [`default_memory_budget`]: the smallest of the cgroup's memory limit,

@@ -119,6 +119,8 @@ pub(crate) fn load_gltf(
         .into_iter()
         .filter_map(|(_, g)| {
             let [r, gr, b, a] = g.colour;
+            // The position map goes before the mesh's own buffers are built.
+            drop(g.ids);
             Some(Part {
                 mesh: Mesh::with_vertices(g.triangles, g.vertices)?,
                 image: g.image,

@@ -909,6 +909,7 @@ fn parse_obj_with(
             }
         }
     }
+    drop(ids);
     crate::scene::Mesh::with_vertices(triangles, vertices)
         .ok_or_else(|| "no usable triangles".into())
 }

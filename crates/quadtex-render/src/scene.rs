@@ -249,13 +249,15 @@ impl Triangle {
 }
 
 /// Bytes a mesh holds per triangle once parsed: the triangle (160), its
-/// share of the hierarchy (about 33) and the parsed file's arrays alongside
-/// while it is built (up to about 100), rounded up. Loaders check a mesh
+/// share of the hierarchy (about 33), its edge neighbours (12), and while
+/// it is built the parsed file's arrays alongside (up to about 100) and
+/// the corners' vertex ids and edges filed to find the neighbours (38):
+/// 343, rounded up. Loaders check a mesh
 /// against the memory budget at this rate before building it. At render
 /// time the parsed arrays are gone; a lit frame adds the shadow grid (at
 /// most 41 bytes a triangle, 16 more while it is built) and the visibility
 /// grid's bins (about 30 bytes a triangle in view, for the frame).
-pub const MESH_BYTES_PER_TRIANGLE: u64 = 320;
+pub const MESH_BYTES_PER_TRIANGLE: u64 = 352;
 
 /// A triangle mesh with its bounding-volume hierarchy.
 #[derive(Debug, Clone, PartialEq)]
