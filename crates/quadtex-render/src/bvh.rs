@@ -134,15 +134,30 @@ impl Bvh {
     /// Calls `test(i, t_best)` for every primitive whose leaf box `ray`
     /// crosses before its best hit so far; `test` returns the distance of
     /// a hit nearer than `t_best`, if any. Returns the nearest hit.
+    #[cfg(test)]
     pub fn nearest(
         &self,
         ray: &Ray,
+        test: impl FnMut(u32, f64) -> Option<f64>,
+    ) -> Option<(u32, f64)> {
+        self.nearest_below(ray, f64::INFINITY, test)
+    }
+
+    /// [`Bvh::nearest`] among hits nearer than `t_bound`: the same answer
+    /// whenever the nearest hit is nearer than `t_bound` (a box entered
+    /// beyond it holds no nearer hit, and the boxes that are visited are
+    /// visited in the same order), with fewer boxes visited; `None` when
+    /// there is no such hit.
+    pub fn nearest_below(
+        &self,
+        ray: &Ray,
+        t_bound: f64,
         mut test: impl FnMut(u32, f64) -> Option<f64>,
     ) -> Option<(u32, f64)> {
         let d = ray.direction;
         let inv = Vec3::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
         let mut best: Option<(u32, f64)> = None;
-        let mut t_best = f64::INFINITY;
+        let mut t_best = t_bound;
         // Each node waits with the distance at which the ray enters its box:
         // once a hit is nearer, the box would fail `entry` again (its exit
         // has not moved, only `t_max`), without the test being redone.
@@ -808,6 +823,22 @@ mod tests {
                 let in_leaf_order =
                     leaf_bvh.nearest(&ray, |i, _| crossing(&leaf[i as usize], &ray));
                 assert_eq!(in_leaf_order.map(|f| f.1), brute, "n = {n}, leaf order");
+                // Bounded just above a known hit (here the nearest, or a
+                // random triangle's hit behind it): the same hit, the same
+                // triangle; bounded at the nearest hit itself, none.
+                let t = &tris[(rng(&mut seed) * n as f64) as usize];
+                let known = [found.map(|f| f.1), crossing(t, &ray)];
+                for t_known in known.into_iter().flatten() {
+                    let bounded = bvh.nearest_below(&ray, t_known * (1.0 + 1e-9), |i, _| {
+                        crossing(&tris[i as usize], &ray)
+                    });
+                    assert_eq!(bounded, found, "n = {n}, bounded at {t_known}");
+                }
+                if let Some((_, t_near)) = found {
+                    let below =
+                        bvh.nearest_below(&ray, t_near, |i, _| crossing(&tris[i as usize], &ray));
+                    assert_eq!(below, None, "n = {n}");
+                }
                 // Any hit (shadow rays) exactly when there is a nearest one.
                 let any = bvh.any(&ray, |i| crossing(&tris[i as usize], &ray).is_some());
                 assert_eq!(any, brute.is_some(), "n = {n}");

@@ -76,15 +76,44 @@ impl<'a> Caster<'a> {
 
     /// The index of the first surface `ray` meets, and where.
     pub fn nearest_index(&self, ray: &Ray) -> Option<(usize, Hit)> {
+        self.nearest_index_below(ray, f64::INFINITY)
+    }
+
+    /// [`Caster::nearest_index`] among hits nearer than `t_bound`: the
+    /// same answer when the nearest hit is nearer than that, with a mesh's
+    /// boxes beyond it not visited ([`crate::bvh::Bvh::nearest_below`]).
+    fn nearest_index_below(&self, ray: &Ray, t_bound: f64) -> Option<(usize, Hit)> {
         let mut best: Option<(usize, Hit)> = None;
         for i in 0..self.scene.surfaces.len() {
-            if let Some(hit) = self.intersect(i, ray, 1e-9)
+            let hit = match (&self.scene.surfaces[i].geometry, &self.quads[i]) {
+                (Geometry::Mesh(mesh), _) => mesh.intersect_below(ray, 1e-9, t_bound),
+                _ => self.intersect(i, ray, 1e-9).filter(|h| h.t < t_bound),
+            };
+            if let Some(hit) = hit
                 && best.as_ref().is_none_or(|(_, b)| hit.t < b.t)
             {
                 best = Some((i, hit));
             }
         }
         best
+    }
+
+    /// What [`Caster::nearest_index`] finds for `ray`, when `ray` is
+    /// expected to meet primitive `expected` (a mesh triangle a pixel's
+    /// region holds, whose visibility is in question): where the ray meets
+    /// it bounds the search, so that only what lies in front of it is
+    /// looked for. The answer is the same; the search is shorter.
+    pub fn nearest_index_expecting(&self, ray: &Ray, expected: Seen) -> Option<(usize, Hit)> {
+        let (surface, triangle) = surface_and_triangle(expected);
+        let own = match self.scene.surfaces.get(surface).map(|s| &s.geometry) {
+            Some(Geometry::Mesh(mesh)) => mesh.intersect_triangle(triangle, ray, 1e-9),
+            _ => None,
+        };
+        // A relative margin above the expected hit: a box the ray enters
+        // beyond it holds no nearer hit, rounding of the box and of the
+        // hit (a few ulps) included.
+        own.and_then(|h| self.nearest_index_below(ray, h.t * (1.0 + 1e-9)))
+            .or_else(|| self.nearest_index(ray))
     }
 
     /// What [`Caster::nearest_index`] finds for `ray` when it is known to

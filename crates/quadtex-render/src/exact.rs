@@ -587,7 +587,7 @@ pub(crate) fn exact_pixel<'a>(
                 continue;
             }
             let c = regions[v].centroid();
-            let hit = frame.rays.nearest_index(&scene.camera.ray(c[0], c[1]));
+            let hit = (frame.rays).nearest_index_expecting(&scene.camera.ray(c[0], c[1]), id);
             match hit.map(|(surface, hit)| seen_id(surface, hit.triangle)) {
                 Some(seen) if seen == id => confirmed.insert(id, x),
                 // One the list holds: their order settles it.

@@ -423,7 +423,13 @@ impl Mesh {
     }
 
     fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
-        let (index, t) = self.bvh.nearest(ray, |i, _| {
+        self.intersect_below(ray, t_min, f64::INFINITY)
+    }
+
+    /// [`Mesh::intersect`] among hits nearer than `t_bound`: the same hit
+    /// when the nearest is nearer than that ([`Bvh::nearest_below`]).
+    pub(crate) fn intersect_below(&self, ray: &Ray, t_min: f64, t_bound: f64) -> Option<Hit> {
+        let (index, t) = self.bvh.nearest_below(ray, t_bound, |i, _| {
             Self::crossing(&self.triangles[i as usize], ray).filter(|&t| t > t_min)
         })?;
         Some(self.hit(index, t, ray))
