@@ -44,6 +44,19 @@ const DEPTH_TIE: f64 = 1e-9;
 /// ray cast's own near limit is `10⁻⁹` on the normalised one.
 const MIN_DEPTH: f64 = 1e-6;
 
+/// Screen distance (pixels) by which a triangle's projected box is widened
+/// when binning it to the rows and columns of centres it may cover, plus
+/// [`BOX_SLACK_REL`] of each end's magnitude: far above the rounding of
+/// the projection of its corners (relative `10⁻¹⁵` or so).
+const BOX_SLACK: f64 = 1e-3;
+
+/// The relative part of [`BOX_SLACK`].
+const BOX_SLACK_REL: f64 = 1e-9;
+
+/// The first row of a triangle whose reach is marked but that covers no
+/// centre ([`Raster::bin`]).
+const NOT_BINNED: u32 = u32::MAX;
+
 /// Grid rows per band of the mesh triangles' bins.
 const BAND: usize = 8;
 
@@ -253,6 +266,31 @@ impl<'s> Raster<'s> {
         (first <= last).then_some((first, last))
     }
 
+    /// The grid cells `first..=last` (of `n`, on one axis) whose centres
+    /// lie in screen interval `[lo, hi]` widened by `slack + rel·|end|` at
+    /// each end; `None` when none do. Centre of cell `g`: `g − pad + ½`.
+    ///
+    /// A centre left out lies farther than the slack from the interval:
+    /// for a triangle's projected box, farther from the triangle than the
+    /// projection's rounding ([`BOX_SLACK`]), so its ray does not meet it
+    /// and the other primitives decide the cell, as they would with it;
+    /// for a span from the lines, beyond the loosened lines by more than
+    /// the division's rounding, where the cell's own test finds it
+    /// outside.
+    fn centres(&self, lo: f64, hi: f64, n: usize, slack: f64, rel: f64) -> Option<(usize, usize)> {
+        if lo.is_nan() || hi.is_nan() {
+            return (n > 0).then(|| (0, n - 1));
+        }
+        if lo == f64::INFINITY || hi == f64::NEG_INFINITY {
+            return None;
+        }
+        let lo = lo - (slack + rel * lo.abs()) + self.pad - 0.5;
+        let hi = hi + (slack + rel * hi.abs()) + self.pad - 0.5;
+        let first = lo.ceil().max(0.0);
+        let last = hi.floor().min(n as f64 - 1.0);
+        (first <= last).then(|| (first as usize, last as usize))
+    }
+
     /// The screen box `[x0, y0, x1, y1]` of what triangle `t` of mesh
     /// `surface`, reaching behind the camera's plane, shows of the grid:
     /// the grid's rectangle clipped by the triangle's view lines (in front
@@ -307,8 +345,18 @@ impl<'s> Raster<'s> {
                     return Some((0, gh as u32 - 1, self.behind_box(surface, t)));
                 };
                 self.cells(lo[0], hi[0], gw)?;
-                let (first, last) = self.cells(lo[1], hi[1], gh)?;
-                Some((first as u32, last as u32, [lo[0], lo[1], hi[0], hi[1]]))
+                self.cells(lo[1], hi[1], gh)?;
+                let screen_box = [lo[0], lo[1], hi[0], hi[1]];
+                // A triangle between the centres (most of a far
+                // hillside's) marks no cell: it is not binned, but its
+                // reach is marked (the gap searches look for it).
+                let centres = |axis: usize, n: usize| {
+                    self.centres(lo[axis], hi[axis], n, BOX_SLACK, BOX_SLACK_REL)
+                };
+                Some(match (centres(0, gw), centres(1, gh)) {
+                    (Some(_), Some((first, last))) => (first as u32, last as u32, screen_box),
+                    _ => (NOT_BINNED, 0, screen_box),
+                })
             })
             .collect();
         for &(_, _, [x0, y0, x1, y1]) in rows.iter().flatten() {
@@ -321,7 +369,8 @@ impl<'s> Raster<'s> {
         // Sized first: pushing a million entries into growing vectors
         // copies them over and over.
         let mut counts = vec![0usize; self.bands.len()];
-        for &(first, last, _) in rows.iter().flatten() {
+        let binned = |r: &&(u32, u32, [f64; 4])| r.0 != NOT_BINNED;
+        for &(first, last, _) in rows.iter().flatten().filter(binned) {
             for count in &mut counts[first as usize / BAND..=last as usize / BAND] {
                 *count += 1;
             }
@@ -330,7 +379,9 @@ impl<'s> Raster<'s> {
             band.reserve(count);
         }
         for (t, r) in rows.into_iter().enumerate() {
-            let Some((first, last, _)) = r else { continue };
+            let Some((first, last, _)) = r.filter(|r| binned(&r)) else {
+                continue;
+            };
             for band in first as usize / BAND..=last as usize / BAND {
                 self.bands[band].push((surface as u32, t as u32, first, last));
             }
@@ -422,7 +473,7 @@ impl<'s> Raster<'s> {
         if lo > hi {
             return;
         }
-        let Some((first, last)) = self.cells(lo, hi, n) else {
+        let Some((first, last)) = self.centres(lo, hi, n, 0.0, 1e-9) else {
             return;
         };
         for gx in first..=last {
