@@ -288,7 +288,7 @@ impl<'s> Raster<'s> {
         let hi = hi + (slack + rel * hi.abs()) + self.pad - 0.5;
         let first = lo.ceil().max(0.0);
         let last = hi.floor().min(n as f64 - 1.0);
-        (first <= last).then(|| (first as usize, last as usize))
+        (first <= last).then_some((first as usize, last as usize))
     }
 
     /// The screen box `[x0, y0, x1, y1]` of what triangle `t` of mesh
