@@ -74,6 +74,13 @@ impl<'a> Caster<'a> {
         }
     }
 
+    /// Where `ray` meets surface `index` (not a mesh: a mesh's triangles
+    /// are asked one by one, [`crate::scene::Mesh::crossing_beyond`]), as
+    /// [`Caster::nearest_index`] tests it.
+    pub(crate) fn surface_hit(&self, index: usize, ray: &Ray) -> Option<Hit> {
+        self.intersect(index, ray, 1e-9)
+    }
+
     /// The index of the first surface `ray` meets, and where.
     pub fn nearest_index(&self, ray: &Ray) -> Option<(usize, Hit)> {
         self.nearest_index_below(ray, f64::INFINITY)

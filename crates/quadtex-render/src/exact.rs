@@ -66,7 +66,8 @@ use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::planar_view::{Placement, View, placement};
 use crate::reach::MeshReach;
-use crate::scene::{Geometry, Lighting, Scene};
+use crate::scene::{Geometry, Hit, Lighting, Scene};
+use crate::screen_bins::ScreenBins;
 use crate::span::{SpanAnswer, SpanQuery, UniformSpan, span_rect};
 use crate::stats::PixelStats;
 
@@ -285,6 +286,9 @@ pub(crate) struct SurfaceViews {
     /// Where the frame's mesh triangles may reach on the screen, once the
     /// visibility pass has binned them (until then: anywhere).
     reach: MeshReach,
+    /// The frame's mesh triangles by screen tile, once the visibility pass
+    /// has binned them (until then, or where it casts: none).
+    bins: Option<ScreenBins>,
 }
 
 impl SurfaceViews {
@@ -308,6 +312,7 @@ impl SurfaceViews {
             views,
             meshes,
             reach: MeshReach::everywhere(),
+            bins: None,
         }
     }
 
@@ -315,6 +320,34 @@ impl SurfaceViews {
     /// visibility pass of the same camera and grid).
     pub(crate) fn set_mesh_reach(&mut self, reach: MeshReach) {
         self.reach = reach;
+    }
+
+    /// Sets the frame's mesh triangles by screen tile, from the same pass.
+    pub(crate) fn set_screen_bins(&mut self, bins: Option<ScreenBins>) {
+        self.bins = bins;
+    }
+
+    /// What the camera's ray through screen point `c` meets first
+    /// ([`crate::caster::Caster::nearest_index`]'s answer), from the screen bins where
+    /// they hold `c` ([`ScreenBins::nearest_through`]). `expected`: a
+    /// primitive the ray is thought to meet, which bounds the hierarchy's
+    /// search otherwise ([`crate::caster::Caster::nearest_index_expecting`]).
+    fn camera_hit(
+        &self,
+        frame: &Frame<'_>,
+        c: [f64; 2],
+        expected: Option<Seen>,
+    ) -> Option<(usize, Hit)> {
+        let ray = frame.scene.camera.ray(c[0], c[1]);
+        if let Some(hit) =
+            (self.bins.as_ref()).and_then(|b| b.nearest_through(&frame.rays, &ray, c))
+        {
+            return hit;
+        }
+        match expected {
+            Some(id) => frame.rays.nearest_index_expecting(&ray, id),
+            None => frame.rays.nearest_index(&ray),
+        }
     }
 
     /// Calls `visit(id)` for every mesh triangle that may reach into screen
@@ -587,7 +620,7 @@ pub(crate) fn exact_pixel<'a>(
                 continue;
             }
             let c = regions[v].centroid();
-            let hit = (frame.rays).nearest_index_expecting(&scene.camera.ray(c[0], c[1]), id);
+            let hit = cache.camera_hit(frame, c, Some(id));
             match hit.map(|(surface, hit)| seen_id(surface, hit.triangle)) {
                 Some(seen) if seen == id => confirmed.insert(id, x),
                 // One the list holds: their order settles it.
@@ -627,8 +660,7 @@ pub(crate) fn exact_pixel<'a>(
         let listed = views.len();
         for r in cut.remaining.drain(..) {
             let c = r.centroid();
-            let Some((surface, hit)) = frame.rays.nearest_index(&scene.camera.ray(c[0], c[1]))
-            else {
+            let Some((surface, hit)) = cache.camera_hit(frame, c, None) else {
                 // The ray meets nothing, but a mesh's triangles may still
                 // reach into the gap around it: each one whose region
                 // overlaps the gap joins the list.

@@ -32,6 +32,7 @@ mod planar_view;
 mod reach;
 mod render;
 pub mod scene;
+mod screen_bins;
 mod shade;
 mod span;
 mod stats;

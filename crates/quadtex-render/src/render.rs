@@ -97,7 +97,7 @@ fn render_with(
     let pad = PAD as i64;
     let (gw, gh) = (i64::from(w) + 2 * pad, i64::from(h) + 2 * pad);
     let seen: Vec<Seen> = if !matches!(options.filter, Filter::Supersample(_)) {
-        let (seen, reach) = crate::visibility::visibility_grid(
+        let (seen, reach, bins) = crate::visibility::visibility_grid(
             &scene,
             &frame.rays,
             &views,
@@ -105,6 +105,7 @@ fn render_with(
             pad as f64,
         );
         views.set_mesh_reach(reach);
+        views.set_screen_bins(bins);
         seen
     } else {
         Vec::new()

@@ -385,6 +385,14 @@ impl Mesh {
         Some(tri.e2.dot(q) * inv)
     }
 
+    /// Where `ray` crosses triangle `index` beyond `t_min`, if it does: the
+    /// distance [`Mesh::intersect`] compares.
+    pub(crate) fn crossing_beyond(&self, index: u32, ray: &Ray, t_min: f64) -> Option<f64> {
+        (self.triangles.get(index as usize))
+            .and_then(|tri| Self::crossing(tri, ray))
+            .filter(|&t| t > t_min)
+    }
+
     /// Whether `ray` crosses triangle `index` beyond `t_min` (the test of
     /// [`Mesh::occludes`]).
     pub(crate) fn crosses_beyond(&self, index: u32, ray: &Ray, t_min: f64) -> bool {

@@ -30,6 +30,7 @@ use crate::math::Vec3;
 use crate::planar_view::View;
 use crate::reach::MeshReach;
 use crate::scene::{Geometry, Mesh, Scene};
+use crate::screen_bins::{ScreenBins, ScreenBox};
 
 /// Screen distance (pixels) from an edge line within which a centre is
 /// cast as a ray rather than decided by the line's sign: many orders of
@@ -61,15 +62,16 @@ const NOT_BINNED: u32 = u32::MAX;
 const BAND: usize = 8;
 
 /// Which primitive each centre of the padded grid sees, `gw × gh` cells,
-/// row by row, and where on the screen mesh triangles may reach (from the
-/// same binning).
+/// row by row, where on the screen mesh triangles may reach, and the
+/// triangles by screen tile (from the same binning; `None` where the grid
+/// is cast).
 pub(crate) fn visibility_grid(
     scene: &Scene,
     rays: &Caster<'_>,
     views: &SurfaceViews,
     (gw, gh): (usize, usize),
     pad: f64,
-) -> (Vec<Seen>, MeshReach) {
+) -> (Vec<Seen>, MeshReach, Option<ScreenBins>) {
     let cast = |gx: usize, gy: usize| {
         let ray = (scene.camera).ray(gx as f64 - pad + 0.5, gy as f64 - pad + 0.5);
         rays.nearest_index(&ray)
@@ -77,7 +79,7 @@ pub(crate) fn visibility_grid(
     };
     let mut grid = vec![0; gw * gh];
     if gw == 0 {
-        return (grid, MeshReach::everywhere());
+        return (grid, MeshReach::everywhere(), None);
     }
     match Raster::new(scene, views, (gw, gh), pad) {
         Some(raster) => {
@@ -87,7 +89,7 @@ pub(crate) fn visibility_grid(
                 .enumerate()
                 .with_max_len(1)
                 .for_each(|(band, cells)| raster.band(band, cells, gw, &cast));
-            (grid, raster.reach)
+            (grid, raster.reach, raster.bins)
         }
         None => {
             grid.par_chunks_mut(gw)
@@ -98,7 +100,7 @@ pub(crate) fn visibility_grid(
                         *id = cast(gx, gy);
                     }
                 });
-            (grid, MeshReach::everywhere())
+            (grid, MeshReach::everywhere(), None)
         }
     }
 }
@@ -143,6 +145,11 @@ struct Raster<'s> {
     d_max: f64,
     /// Where the binned triangles may reach.
     reach: MeshReach,
+    /// The mesh triangles by screen tile, for the exact pixel's rays.
+    bins: Option<ScreenBins>,
+    /// Every mesh triangle that shows on the grid, and its screen box, for
+    /// [`ScreenBins`]; `None` once one shows with no known box.
+    screen_boxes: Option<Vec<ScreenBox>>,
 }
 
 impl<'s> Raster<'s> {
@@ -175,6 +182,8 @@ impl<'s> Raster<'s> {
             extent,
             d_max,
             reach: MeshReach::new((gw, gh), pad),
+            bins: None,
+            screen_boxes: Some(Vec::new()),
         };
         for (i, s) in scene.surfaces.iter().enumerate() {
             match &s.geometry {
@@ -193,6 +202,9 @@ impl<'s> Raster<'s> {
                     raster.cast_boxes.extend(cells);
                 }
             }
+        }
+        if let Some(boxes) = raster.screen_boxes.take() {
+            raster.bins = ScreenBins::build(&boxes, -pad, [gw, gh]);
         }
         Some(raster)
     }
@@ -365,6 +377,17 @@ impl<'s> Raster<'s> {
                 break;
             }
             self.reach.mark([x0, y0], [x1, y1]);
+        }
+        let unknown = |b: &[f64; 4]| b[0] == f64::NEG_INFINITY;
+        if rows.iter().flatten().any(|(_, _, b)| unknown(b)) {
+            self.screen_boxes = None;
+        }
+        if let Some(boxes) = &mut self.screen_boxes {
+            let shown = (rows.iter().enumerate())
+                .filter_map(|(t, r)| r.map(|(_, _, b)| (surface as u32, t as u32, b)))
+                // An inverted box shows nothing.
+                .filter(|(_, _, [x0, y0, x1, y1])| x0 <= x1 && y0 <= y1);
+            boxes.extend(shown);
         }
         // Sized first: pushing a million entries into growing vectors
         // copies them over and over.
@@ -746,6 +769,115 @@ mod tests {
         assert!(casts * 20 < cells, "{casts} of {cells} cells cast");
     }
 
+    /// The screen bins answer a camera ray through any point of the grid
+    /// as the ray cast does: the same surface, the same distance, the same
+    /// triangle but where two tie (a ray through a shared edge). Points at
+    /// random, and at the projected corners of the triangles and a hair
+    /// beside them, over a rolling grid with a triangle reaching behind the
+    /// camera and a quad below; one camera far off, where the triangles
+    /// are smaller than a pixel.
+    #[test]
+    fn screen_bins_answer_as_the_ray_cast() {
+        use crate::scene::{Mesh, Triangle};
+        let mut triangles = rolling_grid(24, |i, j| {
+            let (x, z) = (i as f64, j as f64);
+            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
+        });
+        triangles.extend(Triangle::new(
+            [
+                Vec3::new(-2.0, 2.5, 20.0),
+                Vec3::new(2.0, 2.5, 20.0),
+                Vec3::new(0.0, 2.0, -8.0),
+            ],
+            [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+        ));
+        let mesh = Arc::new(Mesh::new(triangles).unwrap());
+        let mut seed = 11u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut hits, mut points) = (0, 0);
+        let mut positions = cameras(
+            [
+                Vec3::new(0.0, 6.0, 8.0),
+                Vec3::new(-14.0, 2.5, 2.0),
+                Vec3::new(3.0, 1.2, -4.0),
+            ],
+            Vec3::new(0.0, 0.0, -12.0),
+            (120, 70),
+        );
+        positions.extend(Camera::new(
+            Vec3::new(0.0, 4.0, 160.0),
+            Vec3::new(0.0, 0.0, -12.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            30.0,
+            120,
+            70,
+        ));
+        for camera in positions {
+            let scene = Scene {
+                camera,
+                surfaces: vec![
+                    quad(
+                        Vec3::new(-12.0, -0.5, 0.0),
+                        Vec3::new(24.0, 0.0, 0.0),
+                        Vec3::new(0.0, 0.0, -24.0),
+                    ),
+                    surface(Geometry::Mesh(mesh.clone())),
+                ],
+                sky: Sky::Solid(Rgba::opaque(0.5, 0.5, 0.5)),
+                lighting: Lighting::Unlit,
+            };
+            let pad = 3;
+            let rays = Caster::new(&scene);
+            let views = SurfaceViews::new(&scene);
+            let (gw, gh) = (120 + 2 * pad, 70 + 2 * pad);
+            let raster = Raster::new(&scene, &views, (gw, gh), pad as f64).unwrap();
+            let bins = raster.bins.as_ref().expect("the bins are built");
+            let mut at = Vec::new();
+            for _ in 0..3000 {
+                at.push([next() * 120.0, next() * 70.0]);
+            }
+            for t in 0..mesh.len() {
+                for p in mesh.corners(t).unwrap() {
+                    if let Some(s) = scene.camera.project(p) {
+                        for d in [0.0, 1e-7, -1e-7, 1e-3] {
+                            at.push([s[0] + d, s[1] - d]);
+                        }
+                    }
+                }
+            }
+            for c in at {
+                let ray = scene.camera.ray(c[0], c[1]);
+                let Some(binned) = bins.nearest_through(&rays, &ray, c) else {
+                    assert!(c[0] < -2.0 || c[1] < -2.0 || c[0] > 121.0 || c[1] > 71.0);
+                    continue;
+                };
+                points += 1;
+                let cast = rays.nearest_index(&ray);
+                match (binned, cast) {
+                    (None, None) => {}
+                    (Some((i, a)), Some((j, b))) => {
+                        hits += 1;
+                        // Ties to rounding: the hierarchy's boxes may
+                        // pass over a hit an ulp nearer than its best.
+                        let tie = 1e-12 * a.t.max(b.t);
+                        assert_eq!(i, j, "at {c:?}");
+                        assert!((a.t - b.t).abs() <= tie, "at {c:?}: {} {}", a.t, b.t);
+                        if a.triangle != b.triangle {
+                            let both = [a.triangle, b.triangle]
+                                .map(|t| mesh.crossing_beyond(t, &ray, 1e-9).unwrap_or(0.0));
+                            assert!((both[0] - both[1]).abs() <= tie, "at {c:?}: not a tie");
+                        }
+                    }
+                    (a, b) => panic!("at {c:?}: bins {a:?}, cast {b:?}"),
+                }
+            }
+        }
+        assert!(hits * 2 > points, "{hits} hits of {points} points");
+    }
+
     /// Spheres in front of quads and a plane, one reaching behind the
     /// camera: cells of their boxes are cast, the rest rasterised.
     /// The search of the meshes finds every triangle whose screen region
@@ -796,7 +928,7 @@ mod tests {
             let (rays, views) = (Caster::new(&scene), SurfaceViews::new(&scene));
             let pad = 3;
             let (gw, gh) = (96 + 2 * pad, 60 + 2 * pad);
-            let (seen, reach) = visibility_grid(&scene, &rays, &views, (gw, gh), pad as f64);
+            let (seen, reach, _) = visibility_grid(&scene, &rays, &views, (gw, gh), pad as f64);
             let geometry = &scene.surfaces[0].geometry;
             let regions: Vec<View> = (0..=triangles.len() as u32)
                 .filter_map(|t| View::new(&scene, 0, &geometry.planar(t)?))

@@ -1,0 +1,288 @@
+//! A frame's mesh triangles binned by the screen tiles their projections
+//! reach ([`ScreenBins`]), for the camera rays the exact pixel casts
+//! through points between the centres (gaps, and the triangles a spread
+//! lists): such a ray meets only triangles whose projection holds its
+//! screen point, so it tests a tile's few triangles instead of walking the
+//! meshes' hierarchies.
+
+use crate::caster::Caster;
+use crate::math::Ray;
+use crate::scene::{Geometry, Hit, Scene};
+
+/// Screen distance (pixels) by which a triangle's projected box is widened
+/// when it is binned, plus [`BIN_SLACK_REL`] of each coordinate's
+/// magnitude: far above the rounding of the projection of its corners and
+/// of the ray's crossing test (relative `10⁻¹⁵` or so).
+const BIN_SLACK: f64 = 1e-3;
+
+/// The relative part of [`BIN_SLACK`].
+const BIN_SLACK_REL: f64 = 1e-9;
+
+/// The most fine tiles (8 MiB of starts): the tiles grow past
+/// [`FINE_TILE`] for images of more than about four million pixels.
+const MAX_TILES: usize = 1 << 21;
+
+/// A fine tile's side in pixels, across and down: wide and short, as the
+/// triangles of a far terrain are on the screen.
+const FINE_TILE: [f64; 2] = [2.0, 1.0];
+
+/// A coarse tile's side in pixels, for triangles that reach more than
+/// [`FINE_MAX`] fine tiles (those near the camera).
+const COARSE_TILE: [f64; 2] = [32.0, 32.0];
+
+/// The most fine tiles a triangle is binned to; a larger one goes to the
+/// coarse tiles.
+const FINE_MAX: usize = 64;
+
+/// Coarse entries allowed per coarse tile, on average; past it (many
+/// large triangles overlapping), no bins are built and rays walk the
+/// hierarchies.
+const COARSE_DEPTH: usize = 64;
+
+/// A triangle to bin: its surface, its index, and its screen box
+/// `[x0, y0, x1, y1]` (pixels, the projected corners' box, or a box known
+/// to hold what it shows of the screen).
+pub(crate) type ScreenBox = (u32, u32, [f64; 4]);
+
+/// Tiles over the screen from `origin` (both axes): tile `(tx, ty)` covers
+/// `[origin + tx·sx, origin + (tx+1)·sx) × [origin + ty·sy, …)` (`side =
+/// [sx, sy]`); tile `k = ty·tiles[0] + tx` lists `items[starts[k]..
+/// starts[k + 1]]`.
+#[derive(Debug, Default)]
+struct Tiles {
+    origin: f64,
+    side: [f64; 2],
+    tiles: [usize; 2],
+    starts: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Tiles {
+    fn new(origin: f64, side: [f64; 2], size: [usize; 2]) -> Tiles {
+        let tiles = [0, 1].map(|a| ((size[a] as f64 / side[a]).ceil() as usize).max(1));
+        Tiles {
+            origin,
+            side,
+            tiles,
+            starts: vec![0; tiles[0] * tiles[1] + 1],
+            items: Vec::new(),
+        }
+    }
+
+    /// The tiles box `b` touches, `((x0, x1), (y0, y1))` inclusive
+    /// (clamped to the grid); `None` when it touches none.
+    fn range(&self, b: &[f32; 4]) -> Option<((usize, usize), (usize, usize))> {
+        let axis = |lo: f32, hi: f32, a: usize| {
+            let last = self.tiles[a] as f64 - 1.0;
+            let first = ((f64::from(lo) - self.origin) / self.side[a])
+                .floor()
+                .max(0.0);
+            let end = ((f64::from(hi) - self.origin) / self.side[a])
+                .floor()
+                .min(last);
+            (first <= end).then_some((first as usize, end as usize))
+        };
+        Some((axis(b[0], b[2], 0)?, axis(b[1], b[3], 1)?))
+    }
+
+    /// The tile holding screen point `c`, if one does.
+    fn holding(&self, c: [f64; 2]) -> Option<usize> {
+        let tile = |v: f64, a: usize| {
+            let t = ((v - self.origin) / self.side[a]).floor();
+            (t >= 0.0 && t < self.tiles[a] as f64).then_some(t as usize)
+        };
+        Some(tile(c[1], 1)? * self.tiles[0] + tile(c[0], 0)?)
+    }
+
+    fn count(&mut self, ((x0, x1), (y0, y1)): ((usize, usize), (usize, usize))) {
+        for ty in y0..=y1 {
+            let row = ty * self.tiles[0];
+            for c in &mut self.starts[row + x0..=row + x1] {
+                *c += 1;
+            }
+        }
+    }
+
+    /// Turns the counts into starts, and sizes the items.
+    fn prefix(&mut self) -> Vec<u32> {
+        let mut sum = 0u32;
+        for c in &mut self.starts {
+            let n = *c;
+            *c = sum;
+            sum += n;
+        }
+        self.items = vec![0; sum as usize];
+        self.starts.clone()
+    }
+
+    fn fill(
+        &mut self,
+        fill: &mut [u32],
+        i: u32,
+        ((x0, x1), (y0, y1)): ((usize, usize), (usize, usize)),
+    ) {
+        for ty in y0..=y1 {
+            let row = ty * self.tiles[0];
+            for next in &mut fill[row + x0..=row + x1] {
+                self.items[*next as usize] = i;
+                *next += 1;
+            }
+        }
+    }
+
+    fn at(&self, k: usize) -> &[u32] {
+        &self.items[self.starts[k] as usize..self.starts[k + 1] as usize]
+    }
+}
+
+/// Mesh triangles by screen tile: each triangle is listed in every tile
+/// its box, widened by [`BIN_SLACK`], touches (fine tiles, or coarse ones
+/// for a triangle past [`FINE_MAX`] fine tiles). A camera ray through
+/// screen point `c` can meet a triangle only where `c` lies in its
+/// projection, inside its box: the nearest hit among the triangles of
+/// `c`'s two tiles whose boxes hold `c` is the nearest among all a mesh
+/// has ([`ScreenBins::nearest_through`]).
+#[derive(Debug, Default)]
+pub(crate) struct ScreenBins {
+    fine: Tiles,
+    coarse: Tiles,
+    /// Each binned triangle: surface, triangle, widened box (rounded
+    /// outward to `f32`).
+    triangles: Vec<(u32, u32, [f32; 4])>,
+}
+
+impl ScreenBins {
+    /// Bins `boxes` over the screen rectangle `[origin, origin + size)` on
+    /// both axes (`size` in pixels, per axis). `None` when a box is not
+    /// finite (a triangle reaching behind the camera with no known box),
+    /// or the coarse tiles would hold more than [`COARSE_DEPTH`] entries
+    /// each on average.
+    pub(crate) fn build(boxes: &[ScreenBox], origin: f64, size: [usize; 2]) -> Option<ScreenBins> {
+        let area = (size[0] as f64) * (size[1] as f64);
+        let scale = (area / (FINE_TILE[0] * FINE_TILE[1] * MAX_TILES as f64))
+            .sqrt()
+            .ceil()
+            .max(1.0);
+        let mut fine = Tiles::new(origin, FINE_TILE.map(|s| s * scale), size);
+        let mut coarse = Tiles::new(origin, COARSE_TILE.map(|s| s * scale), size);
+        let widen = |v: f64, sign: f64| v + sign * (BIN_SLACK + BIN_SLACK_REL * v.abs());
+        // Rounded outward: the f32 box holds the f64 one.
+        let down = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) > v { f.next_down() } else { f }
+        };
+        let up = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) < v { f.next_up() } else { f }
+        };
+        let mut triangles = Vec::with_capacity(boxes.len());
+        for &(surface, triangle, [x0, y0, x1, y1]) in boxes {
+            if ![x0, y0, x1, y1].iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            let b = [
+                down(widen(x0, -1.0)),
+                down(widen(y0, -1.0)),
+                up(widen(x1, 1.0)),
+                up(widen(y1, 1.0)),
+            ];
+            triangles.push((surface, triangle, b));
+        }
+        // Which tiles each triangle goes to: fine, coarse or none.
+        let place = |b: &[f32; 4]| {
+            let r = fine.range(b)?;
+            let n = (r.0.1 - r.0.0 + 1) * (r.1.1 - r.1.0 + 1);
+            Some(if n <= FINE_MAX {
+                (true, r)
+            } else {
+                (false, coarse.range(b)?)
+            })
+        };
+        let placed: Vec<_> = triangles.iter().map(|(_, _, b)| place(b)).collect();
+        let mut coarse_entries = 0usize;
+        for &(is_fine, r) in placed.iter().flatten() {
+            if is_fine {
+                fine.count(r);
+            } else {
+                coarse_entries += (r.0.1 - r.0.0 + 1) * (r.1.1 - r.1.0 + 1);
+                if coarse_entries > COARSE_DEPTH * (coarse.starts.len() - 1) {
+                    return None;
+                }
+                coarse.count(r);
+            }
+        }
+        if triangles.len() > u32::MAX as usize {
+            return None;
+        }
+        let (mut fine_fill, mut coarse_fill) = (fine.prefix(), coarse.prefix());
+        for (i, p) in placed.iter().enumerate() {
+            match *p {
+                Some((true, r)) => fine.fill(&mut fine_fill, i as u32, r),
+                Some((false, r)) => coarse.fill(&mut coarse_fill, i as u32, r),
+                None => {}
+            }
+        }
+        Some(ScreenBins {
+            fine,
+            coarse,
+            triangles,
+        })
+    }
+
+    /// What [`Caster::nearest_index`] finds for `ray`, the camera's ray
+    /// through screen point `c`: the nearest of the non-mesh surfaces
+    /// (each tested) and of the mesh triangles in `c`'s tile whose boxes
+    /// hold it. Equal distances go to the lower surface, then (within a
+    /// mesh) to the lower triangle. `None` when `c` lies outside the
+    /// tiles: the caller casts the ray.
+    pub(crate) fn nearest_through(
+        &self,
+        rays: &Caster<'_>,
+        ray: &Ray,
+        c: [f64; 2],
+    ) -> Option<Option<(usize, Hit)>> {
+        let scene: &Scene = rays.scene;
+        let (fine, coarse) = (self.fine.holding(c)?, self.coarse.holding(c)?);
+        let (cx, cy) = (c[0], c[1]);
+        // (t, surface, triangle): the least wins.
+        let mut best: Option<(f64, usize, u32)> = None;
+        for &i in self.fine.at(fine).iter().chain(self.coarse.at(coarse)) {
+            let (surface, triangle, [x0, y0, x1, y1]) = self.triangles[i as usize];
+            if cx < f64::from(x0) || cx > f64::from(x1) || cy < f64::from(y0) || cy > f64::from(y1)
+            {
+                continue;
+            }
+            let Some(Geometry::Mesh(mesh)) =
+                scene.surfaces.get(surface as usize).map(|s| &s.geometry)
+            else {
+                continue;
+            };
+            if let Some(t) = mesh.crossing_beyond(triangle, ray, 1e-9) {
+                let key = (t, surface as usize, triangle);
+                if best.is_none_or(|b| key < b) {
+                    best = Some(key);
+                }
+            }
+        }
+        let mut hit: Option<(usize, Hit)> = best.and_then(|(_, surface, triangle)| {
+            match &scene.surfaces[surface].geometry {
+                Geometry::Mesh(mesh) => mesh.intersect_triangle(triangle, ray, 1e-9),
+                _ => None,
+            }
+            .map(|h| (surface, h))
+        });
+        for (i, s) in scene.surfaces.iter().enumerate() {
+            if matches!(s.geometry, Geometry::Mesh(_)) {
+                continue;
+            }
+            if let Some(h) = rays.surface_hit(i, ray)
+                && hit
+                    .as_ref()
+                    .is_none_or(|(j, b)| h.t < b.t || (h.t == b.t && i < *j))
+            {
+                hit = Some((i, h));
+            }
+        }
+        Some(hit)
+    }
+}
