@@ -142,9 +142,7 @@ impl Rows {
     fn new(scene: &Scene, planar: &Planar) -> Option<Rows> {
         let cam = &scene.camera;
         // The ray direction through (px, py), affine: d = d0 + dx·px + dy·py.
-        let d0 = cam.direction(0.0, 0.0);
-        let dx = cam.direction(1.0, 0.0) - d0;
-        let dy = cam.direction(0.0, 1.0) - d0;
+        let [d0, dx, dy] = cam.basis();
         let c = cam.position;
         let n = planar.normal;
         let np = n.dot(planar.point - c);

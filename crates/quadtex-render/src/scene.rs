@@ -25,6 +25,10 @@ pub struct Camera {
     pub(crate) tan_half_fov: f64,
     pub(crate) width: u32,
     pub(crate) height: u32,
+    /// `[d(0, 0), d(1, 0) − d(0, 0), d(0, 1) − d(0, 0)]` for the direction
+    /// `d` through an image point ([`Camera::direction`], affine): kept, as
+    /// every primitive's view starts from it.
+    basis: [Vec3; 3],
 }
 
 impl Camera {
@@ -50,15 +54,37 @@ impl Camera {
         let right = forward.cross(up).normalized()?;
         let up = right.cross(forward);
         let tan_half_fov = (fov_y_degrees.to_radians() / 2.0).tan();
-        Some(Camera {
-            position,
-            forward,
-            right,
-            up,
-            tan_half_fov,
-            width,
-            height,
-        })
+        Some(
+            Camera {
+                position,
+                forward,
+                right,
+                up,
+                tan_half_fov,
+                width,
+                height,
+                basis: [Vec3::new(0.0, 0.0, 0.0); 3],
+            }
+            .with_basis(),
+        )
+    }
+
+    /// The camera with its [`Camera::basis`] computed.
+    fn with_basis(mut self) -> Camera {
+        let d0 = self.direction(0.0, 0.0);
+        self.basis = [
+            d0,
+            self.direction(1.0, 0.0) - d0,
+            self.direction(0.0, 1.0) - d0,
+        ];
+        self
+    }
+
+    /// `[d0, dx, dy]` with [`Camera::direction`]`(px, py) = d0 + dx·px +
+    /// dy·py` up to rounding: `d0 = d(0, 0)`, `dx = d(1, 0) − d0`, `dy =
+    /// d(0, 1) − d0`.
+    pub(crate) fn basis(&self) -> [Vec3; 3] {
+        self.basis
     }
 
     /// The camera with another resolution (same field of view).
@@ -68,6 +94,7 @@ impl Camera {
             height,
             ..self.clone()
         }
+        .with_basis()
     }
 
     /// The camera moved by `offset` (same orientation).
