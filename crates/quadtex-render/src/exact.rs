@@ -250,21 +250,53 @@ impl Confirmed {
     }
 }
 
-/// Whether an edge line of one of two convex polygons has the other wholly
-/// on its outer side (or on it): their overlap has no area. Exact sign
-/// tests: a vertex that rounding puts a hair inside fails it (the caller
-/// then measures the overlap). A repeated vertex's edge has no line
-/// (`0 ≤ 0` everywhere) and separates nothing.
-fn separated(a: &ConvexPolygon, b: &ConvexPolygon) -> bool {
-    let outside = |p: &ConvexPolygon, q: &ConvexPolygon| {
-        p.edge_lines().any(|[l0, l1, l2]| {
-            (l0 != 0.0 || l1 != 0.0)
-                && q.vertices()
-                    .iter()
-                    .all(|&[x, y]| l0 * x + l1 * y + l2 <= 0.0)
-        })
+/// Relative size, against the terms of an edge line's value at a vertex,
+/// below which a vertex beyond the line counts as on it in
+/// [`overlap_bound`]: a hundred times or so the rounding of clipped
+/// vertices and of the line's value.
+const ON_LINE: f64 = 1e-14;
+
+/// A bound on the area two convex polygons `a` and `b` (boxes `a_box`,
+/// `b_box`) overlap by, when an edge line of one has the other on its
+/// outer side: `0` when every vertex is on or beyond it, else (vertices a
+/// hair inside, where two regions share an edge and rounding puts one
+/// vertex across it) the width of that hair, at most [`ON_LINE`] of the
+/// line's terms, times the other's box's width plus height (the overlap
+/// lies in that strip). `None` when no line shows it: the caller measures
+/// the overlap. A repeated vertex's edge has no line (`0 ≤ 0`
+/// everywhere) and separates nothing.
+fn overlap_bound(
+    (a, a_box): (&ConvexPolygon, Bounds),
+    (b, b_box): (&ConvexPolygon, Bounds),
+) -> Option<f64> {
+    let extent = |(lo, hi): Bounds| (hi[0] - lo[0]) + (hi[1] - lo[1]);
+    let magnitude = |(lo, hi): Bounds| [lo[0].abs().max(hi[0].abs()), lo[1].abs().max(hi[1].abs())];
+    let outside = |p: &ConvexPolygon, q: &ConvexPolygon, q_box: Bounds| {
+        let [mx, my] = magnitude(q_box);
+        let mut bound = None::<f64>;
+        for [l0, l1, l2] in p.edge_lines() {
+            if l0 == 0.0 && l1 == 0.0 {
+                continue;
+            }
+            let tolerance = ON_LINE * (l0.abs() * mx + l1.abs() * my + l2.abs());
+            let inside = (q.vertices().iter())
+                .map(|&[x, y]| l0 * x + l1 * y + l2)
+                .fold(f64::NEG_INFINITY, f64::max);
+            if inside <= 0.0 {
+                return Some(0.0);
+            }
+            if inside <= tolerance {
+                let width = inside / (l0 * l0 + l1 * l1).sqrt();
+                let area = width * extent(q_box);
+                bound = Some(bound.map_or(area, |b| b.min(area)));
+            }
+        }
+        bound
     };
-    outside(a, b) || outside(b, a)
+    match (outside(a, b, b_box), outside(b, a, a_box)) {
+        (Some(x), Some(y)) => Some(x.min(y)),
+        (x, y) => x.or(y),
+    }
 }
 
 /// A polygon's box, `(lo, hi)` ([`ConvexPolygon::bounds`]).
@@ -967,11 +999,14 @@ impl Cut {
             let a = &regions[i];
             for &(j, b_box) in &boxes[k + 1..] {
                 let b = &regions[j];
-                // Neighbours sharing an edge are told apart without clipping.
-                if boxes_apart(a_box, b_box) || separated(a, b) {
+                if boxes_apart(a_box, b_box) {
                     continue;
                 }
-                overlapping += a.intersect(b).area().max(0.0);
+                // Neighbours sharing an edge are told apart without clipping.
+                overlapping += match overlap_bound((a, a_box), (b, b_box)) {
+                    Some(bound) => bound,
+                    None => a.intersect(b).area().max(0.0),
+                };
                 if overlapping > self.sliver_area {
                     return false;
                 }
@@ -1854,7 +1889,9 @@ mod tests {
             .flat_map(twice)
             .collect::<Vec<_>>();
         let right = ConvexPolygon::new(&right).unwrap();
-        assert!(!separated(&left, &right) && !separated(&right, &left));
+        let boxes = (left.bounds(), right.bounds());
+        assert_eq!(overlap_bound((&left, boxes.0), (&right, boxes.1)), None);
+        assert_eq!(overlap_bound((&right, boxes.1), (&left, boxes.0)), None);
         assert!(tiling(&[left, right], &support).is_none());
         // A gap: not a tiling.
         let lower = tri(&[[10.0, 20.0], [11.0, 20.0], [11.0, 21.0]]);
@@ -1864,6 +1901,57 @@ mod tests {
         let right = ConvexPolygon::rect(10.4, 20.0, 10.9, 21.0);
         assert!((left.area() + right.area() - support.area()).abs() < 1e-12);
         assert!(tiling(&[left, right], &support).is_none());
+    }
+
+    /// Triangles of a fan that share an edge, one of them with its inner
+    /// corner moved a hair across it (as rounding leaves clipped regions):
+    /// the bound holds the overlap and is of the hair's size; moved a
+    /// visible amount across, no bound (the overlap is measured); moved
+    /// away, none at all.
+    #[test]
+    fn a_hair_across_a_shared_edge_is_bounded_not_clipped() {
+        let tri = |v: &[[f64; 2]]| ConvexPolygon::new(v).unwrap();
+        let mut seed = 5u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..500 {
+            let (x, y) = (1000.0 * next(), 1000.0 * next());
+            let p = [x + 0.1 + 0.8 * next(), y + 0.1 + 0.8 * next()];
+            let (a, b, c) = ([x, y], [x + 1.0, y], [x + 1.0, y + 1.0]);
+            let left = tri(&[a, b, p]);
+            // The shared edge is b–p; `right` is beyond it.
+            // Some twenty ulps of the coordinates: rounding's size.
+            let hair = 2e-15 * (x + y + 1.0);
+            for (shift, expect) in [(hair, Some(())), (1e-3, None), (-1e-6, Some(()))] {
+                // Moved along the normal of b–p, into `left`.
+                let (dx, dy) = (p[0] - b[0], p[1] - b[1]);
+                let n = (dx * dx + dy * dy).sqrt();
+                let q = [p[0] - dy / n * shift, p[1] + dx / n * shift];
+                let right = tri(&[b, c, q]);
+                let bound = overlap_bound((&left, left.bounds()), (&right, right.bounds()));
+                match expect {
+                    Some(()) => {
+                        let bound = bound.expect("a hair's overlap is bounded");
+                        // The overlap's area, measured near the origin (the
+                        // same polygons, moved exactly: Sterbenz), where
+                        // its rounding is far below the hair's.
+                        let moved = |t: &ConvexPolygon| {
+                            let v: Vec<[f64; 2]> =
+                                t.vertices().iter().map(|&[u, v]| [u - x, v - y]).collect();
+                            ConvexPolygon::new(&v).unwrap()
+                        };
+                        let overlap = moved(&left).intersect(&moved(&right)).area();
+                        assert!(bound >= overlap && bound < 1e-9, "{bound} {overlap}");
+                        if shift < 0.0 {
+                            assert_eq!(bound, 0.0);
+                        }
+                    }
+                    None => assert_eq!(bound, None),
+                }
+            }
+        }
     }
 
     /// Views inserted one by one into a cut that left a gap
