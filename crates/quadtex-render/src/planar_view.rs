@@ -34,10 +34,7 @@ pub(crate) fn placement(
     let rect = axis_aligned_rect(polygon);
     let mut all_inside = true;
     for line in lines {
-        let (some_in, some_out) = match rect {
-            Some(r) if ordered(r, line) => rect_sides(r, line),
-            _ => vertex_sides(polygon, line),
-        };
+        let (some_in, some_out) = sides(polygon, rect, line);
         if !some_in {
             return Placement::Outside;
         }
@@ -47,6 +44,21 @@ pub(crate) fn placement(
         Placement::Inside
     } else {
         Placement::Straddles
+    }
+}
+
+/// Whether some vertex of `polygon` (the rectangle `rect`, when it is
+/// one, [`axis_aligned_rect`]) lies inside `line`, and whether some lies
+/// outside ([`vertex_sides`]).
+#[inline]
+fn sides(
+    polygon: &ConvexPolygon,
+    rect: Option<(f64, f64, f64, f64)>,
+    line: [f64; 3],
+) -> (bool, bool) {
+    match rect {
+        Some(r) if ordered(r, line) => rect_sides(r, line),
+        _ => vertex_sides(polygon, line),
     }
 }
 
@@ -243,10 +255,19 @@ impl View {
             Placement::Outside => *out = ConvexPolygon::EMPTY,
             Placement::Inside => out.clone_from(support),
             Placement::Straddles => {
+                // Only the lines some corner of the support lies beyond:
+                // the support is within the others, and so is every part
+                // of it (in front of the camera, most often).
+                let rect = axis_aligned_rect(support);
                 let mut lines = [[0.0; 3]; 5];
-                lines[0] = self.w;
-                lines[1..=self.bound_count].copy_from_slice(&self.bounds[..self.bound_count]);
-                support.clip_lines_into(&lines[..=self.bound_count], out);
+                let mut n = 0;
+                for line in self.lines() {
+                    if sides(support, rect, line).1 {
+                        lines[n] = line;
+                        n += 1;
+                    }
+                }
+                support.clip_lines_into(&lines[..n], out);
             }
         }
     }
