@@ -269,34 +269,37 @@ fn overlap_bound(
     (a, a_box): (&ConvexPolygon, Bounds),
     (b, b_box): (&ConvexPolygon, Bounds),
 ) -> Option<f64> {
+    // Exact sign tests first, stopping at the first vertex inside: most
+    // pairs that share an edge are told apart so.
+    let outside = |p: &ConvexPolygon, q: &ConvexPolygon| {
+        p.edge_lines().any(|[l0, l1, l2]| {
+            (l0 != 0.0 || l1 != 0.0)
+                && q.vertices()
+                    .iter()
+                    .all(|&[x, y]| l0 * x + l1 * y + l2 <= 0.0)
+        })
+    };
+    if outside(a, b) || outside(b, a) {
+        return Some(0.0);
+    }
     let extent = |(lo, hi): Bounds| (hi[0] - lo[0]) + (hi[1] - lo[1]);
     let magnitude = |(lo, hi): Bounds| [lo[0].abs().max(hi[0].abs()), lo[1].abs().max(hi[1].abs())];
-    let outside = |p: &ConvexPolygon, q: &ConvexPolygon, q_box: Bounds| {
+    let within = |p: &ConvexPolygon, q: &ConvexPolygon, q_box: Bounds| {
         let [mx, my] = magnitude(q_box);
-        let mut bound = None::<f64>;
-        for [l0, l1, l2] in p.edge_lines() {
-            if l0 == 0.0 && l1 == 0.0 {
-                continue;
-            }
+        p.edge_lines().find_map(|[l0, l1, l2]| {
             let tolerance = ON_LINE * (l0.abs() * mx + l1.abs() * my + l2.abs());
-            let inside = (q.vertices().iter())
-                .map(|&[x, y]| l0 * x + l1 * y + l2)
-                .fold(f64::NEG_INFINITY, f64::max);
-            if inside <= 0.0 {
-                return Some(0.0);
+            let mut inside = 0.0f64;
+            for &[x, y] in q.vertices() {
+                inside = inside.max(l0 * x + l1 * y + l2);
+                if inside > tolerance || tolerance.is_nan() {
+                    return None;
+                }
             }
-            if inside <= tolerance {
-                let width = inside / (l0 * l0 + l1 * l1).sqrt();
-                let area = width * extent(q_box);
-                bound = Some(bound.map_or(area, |b| b.min(area)));
-            }
-        }
-        bound
+            let width = inside / (l0 * l0 + l1 * l1).sqrt();
+            (width.is_finite()).then(|| width * extent(q_box))
+        })
     };
-    match (outside(a, b, b_box), outside(b, a, a_box)) {
-        (Some(x), Some(y)) => Some(x.min(y)),
-        (x, y) => x.or(y),
-    }
+    within(a, b, b_box).or_else(|| within(b, a, a_box))
 }
 
 /// A polygon's box, `(lo, hi)` ([`ConvexPolygon::bounds`]).

@@ -7,7 +7,7 @@
 
 use crate::caster::Caster;
 use crate::math::Ray;
-use crate::scene::{Geometry, Hit, Scene};
+use crate::scene::{Geometry, Hit, Mesh, Scene};
 
 /// Screen distance (pixels) by which a triangle's projected box is widened
 /// when it is binned, plus [`BIN_SLACK_REL`] of each coordinate's
@@ -246,15 +246,22 @@ impl ScreenBins {
         let (cx, cy) = (c[0], c[1]);
         // (t, surface, triangle): the least wins.
         let mut best: Option<(f64, usize, u32)> = None;
+        // The mesh of the last surface met (a scene has one mesh, most often).
+        let mut mesh_of: (u32, Option<&Mesh>) = (u32::MAX, None);
         for &i in self.fine.at(fine).iter().chain(self.coarse.at(coarse)) {
             let (surface, triangle, [x0, y0, x1, y1]) = self.triangles[i as usize];
             if cx < f64::from(x0) || cx > f64::from(x1) || cy < f64::from(y0) || cy > f64::from(y1)
             {
                 continue;
             }
-            let Some(Geometry::Mesh(mesh)) =
-                scene.surfaces.get(surface as usize).map(|s| &s.geometry)
-            else {
+            if mesh_of.0 != surface {
+                let mesh = match scene.surfaces.get(surface as usize).map(|s| &s.geometry) {
+                    Some(Geometry::Mesh(mesh)) => Some(&**mesh),
+                    _ => None,
+                };
+                mesh_of = (surface, mesh);
+            }
+            let Some(mesh) = mesh_of.1 else {
                 continue;
             };
             if let Some(t) = mesh.crossing_beyond(triangle, ray, 1e-9) {
