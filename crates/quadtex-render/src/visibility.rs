@@ -82,14 +82,21 @@ pub(crate) fn visibility_grid(
         return (grid, MeshReach::everywhere(), None);
     }
     match Raster::new(scene, views, (gw, gh), pad) {
-        Some(raster) => {
-            // One task a band: bands cost what their triangles do (see the
-            // pixel rows in `render`).
-            grid.par_chunks_mut(gw * BAND)
-                .enumerate()
-                .with_max_len(1)
-                .for_each(|(band, cells)| raster.band(band, cells, gw, &cast));
-            (grid, raster.reach, raster.bins)
+        Some(mut raster) => {
+            let boxes = raster.screen_boxes.take();
+            // The screen bins are built (on one thread) while the bands
+            // are drawn. One task a band: bands cost what their triangles
+            // do (see the pixel rows in `render`).
+            let (bins, ()) = rayon::join(
+                || boxes.and_then(|b| ScreenBins::build(&b, -pad, [gw, gh])),
+                || {
+                    grid.par_chunks_mut(gw * BAND)
+                        .enumerate()
+                        .with_max_len(1)
+                        .for_each(|(band, cells)| raster.band(band, cells, gw, &cast));
+                },
+            );
+            (grid, raster.reach, bins)
         }
         None => {
             grid.par_chunks_mut(gw)
@@ -145,8 +152,6 @@ struct Raster<'s> {
     d_max: f64,
     /// Where the binned triangles may reach.
     reach: MeshReach,
-    /// The mesh triangles by screen tile, for the exact pixel's rays.
-    bins: Option<ScreenBins>,
     /// Every mesh triangle that shows on the grid, and its screen box, for
     /// [`ScreenBins`]; `None` once one shows with no known box.
     screen_boxes: Option<Vec<ScreenBox>>,
@@ -182,7 +187,6 @@ impl<'s> Raster<'s> {
             extent,
             d_max,
             reach: MeshReach::new((gw, gh), pad),
-            bins: None,
             screen_boxes: Some(Vec::new()),
         };
         for (i, s) in scene.surfaces.iter().enumerate() {
@@ -202,9 +206,6 @@ impl<'s> Raster<'s> {
                     raster.cast_boxes.extend(cells);
                 }
             }
-        }
-        if let Some(boxes) = raster.screen_boxes.take() {
-            raster.bins = ScreenBins::build(&boxes, -pad, [gw, gh]);
         }
         Some(raster)
     }
@@ -834,7 +835,9 @@ mod tests {
             let views = SurfaceViews::new(&scene);
             let (gw, gh) = (120 + 2 * pad, 70 + 2 * pad);
             let raster = Raster::new(&scene, &views, (gw, gh), pad as f64).unwrap();
-            let bins = raster.bins.as_ref().expect("the bins are built");
+            let boxes = raster.screen_boxes.as_ref().expect("every box is known");
+            let bins = ScreenBins::build(boxes, -(pad as f64), [gw, gh]);
+            let bins = bins.as_ref().expect("the bins are built");
             let mut at = Vec::new();
             for _ in 0..3000 {
                 at.push([next() * 120.0, next() * 70.0]);
