@@ -131,9 +131,7 @@ impl Bvh {
         Bvh { nodes, order }
     }
 
-    /// Calls `test(i, t_best)` for every primitive whose leaf box `ray`
-    /// crosses before its best hit so far; `test` returns the distance of
-    /// a hit nearer than `t_best`, if any. Returns the nearest hit.
+    /// [`Bvh::nearest_below`] with no bound: the nearest hit.
     #[cfg(test)]
     pub fn nearest(
         &self,
@@ -143,11 +141,13 @@ impl Bvh {
         self.nearest_below(ray, f64::INFINITY, test)
     }
 
-    /// [`Bvh::nearest`] among hits nearer than `t_bound`: the same answer
-    /// whenever the nearest hit is nearer than `t_bound` (a box entered
-    /// beyond it holds no nearer hit, and the boxes that are visited are
-    /// visited in the same order), with fewer boxes visited; `None` when
-    /// there is no such hit.
+    /// Calls `test(i, t_best)` for every primitive whose leaf box `ray`
+    /// crosses before its best hit so far (at first `t_bound`); `test`
+    /// returns the distance of a hit nearer than `t_best`, if any. Returns
+    /// the nearest hit nearer than `t_bound`: whenever the nearest of all
+    /// is nearer than that, the same answer as with no bound (a box
+    /// entered beyond it holds no nearer hit, and the boxes that are
+    /// visited are visited in the same order), with fewer boxes visited.
     pub fn nearest_below(
         &self,
         ray: &Ray,

@@ -24,7 +24,9 @@
 //! tile the support where the surface does not fold, and the pixel is
 //! their regions, whole. Each triangle so listed is confirmed by the ray
 //! through its region's centroid (or by one through the same triangle a
-//! pixel or two back in the row, [`Confirmed`]); a ray that meets
+//! pixel or two back in the row, [`Confirmed`]; such camera rays test the
+//! triangles the frame's screen tiles file under their point,
+//! [`crate::screen_bins`], not the meshes' hierarchies); a ray that meets
 //! another primitive there (an occluder no centre sees, such as a far
 //! hill's crest) undoes the spread, and that primitive joins the list
 //! instead. What none of them covers is searched: the

@@ -7,10 +7,12 @@
 //! triangles are planar: each one's screen region is a few half-planes and
 //! its ray parameter is `depth / w(s)` with `w` affine in the screen point
 //! ([`crate::planar_view::View`]), so the grid is a z-buffer. Planes and quads are
-//! drawn into every row; mesh triangles are binned first by the rows their
-//! projected corners reach (bands of [`BAND`] rows; a triangle reaching
-//! behind the camera's plane goes to every row, one wholly behind it to
-//! none), then drawn band by band in parallel. Per row, each primitive's
+//! drawn into every row; mesh triangles are binned first by the rows of
+//! centres their projected corners' box holds, widened by [`BOX_SLACK`]
+//! (bands of [`BAND`] rows; a triangle reaching behind the camera's plane
+//! goes to every row, one wholly behind it or between the centres to
+//! none), then drawn band by band in parallel. The same pass files them
+//! by screen tile for the exact pixel's rays ([`ScreenBins`]). Per row, each primitive's
 //! span of centres comes from its lines, and each centre in it keeps the
 //! nearest primitive. That is what casting the ray finds, except where
 //! rounding could make the two disagree; those centres are cast as rays
