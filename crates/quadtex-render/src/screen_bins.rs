@@ -5,8 +5,6 @@
 //! screen point, so it tests a tile's few triangles instead of walking the
 //! meshes' hierarchies.
 
-use rayon::prelude::*;
-
 use crate::caster::Caster;
 use crate::math::Ray;
 use crate::scene::{Geometry, Hit, Mesh, Scene};
@@ -148,48 +146,9 @@ impl Tiles {
 pub(crate) struct ScreenBins {
     fine: Tiles,
     coarse: Tiles,
-    triangles: Vec<Binned>,
-}
-
-/// A binned triangle: its surface and index, its box widened by
-/// [`BIN_SLACK`] (rounded outward to `f32`), and its projected corners
-/// (`f32`; NaN where one does not project, behind the camera's plane)
-/// with the distance within which a point counts as inside their
-/// triangle: the bins' slack and the corners' rounding.
-#[derive(Debug, Clone, Copy)]
-struct Binned {
-    surface: u32,
-    triangle: u32,
-    bounds: [f32; 4],
-    corners: [[f32; 2]; 3],
-    slack: f32,
-}
-
-impl Binned {
-    /// Whether screen point `c` lies within `slack` of the projected
-    /// corners' triangle (true when they are not known, or are collinear:
-    /// the box alone decides).
-    #[inline]
-    fn may_hold(&self, [cx, cy]: [f64; 2]) -> bool {
-        let p = self.corners.map(|[x, y]| [f64::from(x), f64::from(y)]);
-        let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
-            (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-        };
-        let turn = cross(p[0], p[1], p[2]);
-        // Unknown corners (NaN) or collinear ones: the box decides.
-        if turn.is_nan() || turn == 0.0 {
-            return true;
-        }
-        let slack = f64::from(self.slack);
-        let side = turn.signum();
-        (0..3).all(|i| {
-            let (a, b) = (p[i], p[(i + 1) % 3]);
-            // The signed distance of `c` from edge a–b, times its length.
-            let e = side * cross(a, b, [cx, cy]);
-            let length2 = (b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2);
-            e >= 0.0 || e * e <= slack * slack * length2
-        })
-    }
+    /// Each binned triangle: surface, triangle, widened box (rounded
+    /// outward to `f32`).
+    triangles: Vec<(u32, u32, [f32; 4])>,
 }
 
 impl ScreenBins {
@@ -198,12 +157,7 @@ impl ScreenBins {
     /// finite (a triangle reaching behind the camera with no known box),
     /// or the coarse tiles would hold more than [`COARSE_DEPTH`] entries
     /// each on average.
-    pub(crate) fn build(
-        scene: &Scene,
-        boxes: &[ScreenBox],
-        origin: f64,
-        size: [usize; 2],
-    ) -> Option<ScreenBins> {
+    pub(crate) fn build(boxes: &[ScreenBox], origin: f64, size: [usize; 2]) -> Option<ScreenBins> {
         let area = (size[0] as f64) * (size[1] as f64);
         let scale = (area / (FINE_TILE[0] * FINE_TILE[1] * MAX_TILES as f64))
             .sqrt()
@@ -221,52 +175,19 @@ impl ScreenBins {
             let f = v as f32;
             if f64::from(f) < v { f.next_up() } else { f }
         };
-        let camera = &scene.camera;
-        let triangles: Option<Vec<Binned>> = boxes
-            .par_iter()
-            .map(|&(surface, triangle, [x0, y0, x1, y1])| {
-                if ![x0, y0, x1, y1].iter().all(|v| v.is_finite()) {
-                    return None;
-                }
-                let bounds = [
-                    down(widen(x0, -1.0)),
-                    down(widen(y0, -1.0)),
-                    up(widen(x1, 1.0)),
-                    up(widen(y1, 1.0)),
-                ];
-                // The projected corners, where all three project.
-                let corners = match scene.surfaces.get(surface as usize).map(|s| &s.geometry) {
-                    Some(Geometry::Mesh(mesh)) => mesh.corners(triangle as usize),
-                    _ => None,
-                };
-                let projected = corners.and_then(|c| {
-                    let p = [
-                        camera.project(c[0])?,
-                        camera.project(c[1])?,
-                        camera.project(c[2])?,
-                    ];
-                    p.iter().flatten().all(|v| v.is_finite()).then_some(p)
-                });
-                let (corners, slack) = match projected {
-                    Some(p) => {
-                        let m = p.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-                        // The bins' slack, and the corners' rounding to f32
-                        // (half an ulp, 2⁻²⁴ of the magnitude) twice over.
-                        let slack = BIN_SLACK + BIN_SLACK_REL * m + m / f64::from(1u32 << 23);
-                        (p.map(|[x, y]| [x as f32, y as f32]), slack as f32)
-                    }
-                    None => ([[f32::NAN; 2]; 3], 0.0),
-                };
-                Some(Binned {
-                    surface,
-                    triangle,
-                    bounds,
-                    corners,
-                    slack,
-                })
-            })
-            .collect();
-        let triangles = triangles?;
+        let mut triangles = Vec::with_capacity(boxes.len());
+        for &(surface, triangle, [x0, y0, x1, y1]) in boxes {
+            if ![x0, y0, x1, y1].iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            let b = [
+                down(widen(x0, -1.0)),
+                down(widen(y0, -1.0)),
+                up(widen(x1, 1.0)),
+                up(widen(y1, 1.0)),
+            ];
+            triangles.push((surface, triangle, b));
+        }
         // Which tiles each triangle goes to: fine, coarse or none.
         let place = |b: &[f32; 4]| {
             let r = fine.range(b)?;
@@ -277,7 +198,7 @@ impl ScreenBins {
                 (false, coarse.range(b)?)
             })
         };
-        let placed: Vec<_> = triangles.iter().map(|t| place(&t.bounds)).collect();
+        let placed: Vec<_> = triangles.iter().map(|(_, _, b)| place(b)).collect();
         let mut coarse_entries = 0usize;
         for &(is_fine, r) in placed.iter().flatten() {
             if is_fine {
@@ -328,16 +249,11 @@ impl ScreenBins {
         // The mesh of the last surface met (a scene has one mesh, most often).
         let mut mesh_of: (u32, Option<&Mesh>) = (u32::MAX, None);
         for &i in self.fine.at(fine).iter().chain(self.coarse.at(coarse)) {
-            let entry = &self.triangles[i as usize];
-            let [x0, y0, x1, y1] = entry.bounds;
+            let (surface, triangle, [x0, y0, x1, y1]) = self.triangles[i as usize];
             if cx < f64::from(x0) || cx > f64::from(x1) || cy < f64::from(y0) || cy > f64::from(y1)
             {
                 continue;
             }
-            if !entry.may_hold(c) {
-                continue;
-            }
-            let (surface, triangle) = (entry.surface, entry.triangle);
             if mesh_of.0 != surface {
                 let mesh = match scene.surfaces.get(surface as usize).map(|s| &s.geometry) {
                     Some(Geometry::Mesh(mesh)) => Some(&**mesh),

@@ -90,7 +90,7 @@ pub(crate) fn visibility_grid(
             // are drawn. One task a band: bands cost what their triangles
             // do (see the pixel rows in `render`).
             let (bins, ()) = rayon::join(
-                || boxes.and_then(|b| ScreenBins::build(scene, &b, -pad, [gw, gh])),
+                || boxes.and_then(|b| ScreenBins::build(&b, -pad, [gw, gh])),
                 || {
                     grid.par_chunks_mut(gw * BAND)
                         .enumerate()
@@ -838,7 +838,7 @@ mod tests {
             let (gw, gh) = (120 + 2 * pad, 70 + 2 * pad);
             let raster = Raster::new(&scene, &views, (gw, gh), pad as f64).unwrap();
             let boxes = raster.screen_boxes.as_ref().expect("every box is known");
-            let bins = ScreenBins::build(&scene, boxes, -(pad as f64), [gw, gh]);
+            let bins = ScreenBins::build(boxes, -(pad as f64), [gw, gh]);
             let bins = bins.as_ref().expect("the bins are built");
             let mut at = Vec::new();
             for _ in 0..3000 {
