@@ -12,9 +12,10 @@
 //! (bands of [`BAND`] rows; a triangle reaching behind the camera's plane
 //! goes to every row, one wholly behind it or between the centres to
 //! none), then drawn band by band in parallel. The same pass files them
-//! by screen tile for the exact pixel's rays ([`ScreenBins`]). Per row, each primitive's
-//! span of centres comes from its lines, and each centre in it keeps the
-//! nearest primitive. That is what casting the ray finds, except where
+//! by screen tile for the exact pixel's rays ([`ScreenBins`]). Per row,
+//! each primitive's span of centres comes from its lines, and each
+//! centre in it keeps the nearest primitive. That is what casting the ray
+//! finds, except where
 //! rounding could make the two disagree; those centres are cast as rays
 //! instead: a centre within [`EDGE_MARGIN`] pixel of an edge line (or
 //! within a relative `10⁻¹²` of the line's range over the screen), two
