@@ -423,9 +423,7 @@ impl Mesh {
     /// Whether `ray` crosses triangle `index` beyond `t_min` (the test of
     /// [`Mesh::occludes`]).
     pub(crate) fn crosses_beyond(&self, index: u32, ray: &Ray, t_min: f64) -> bool {
-        (self.triangles.get(index as usize))
-            .and_then(|tri| Self::crossing(tri, ray))
-            .is_some_and(|t| t > t_min)
+        self.crossing_beyond(index, ray, t_min).is_some()
     }
 
     /// Whether the ray meets a triangle beyond `t_min` (any one).
@@ -473,8 +471,7 @@ impl Mesh {
     /// Where `ray` meets triangle `index` beyond `t_min`, if it does: what
     /// [`Mesh::intersect`] finds when that triangle is the nearest.
     pub(crate) fn intersect_triangle(&self, index: u32, ray: &Ray, t_min: f64) -> Option<Hit> {
-        let tri = self.triangles.get(index as usize)?;
-        let t = Self::crossing(tri, ray).filter(|&t| t > t_min)?;
+        let t = self.crossing_beyond(index, ray, t_min)?;
         Some(self.hit(index, t, ray))
     }
 
