@@ -342,23 +342,22 @@ impl<'s> Raster<'s> {
     /// reach (every row for one reaching behind the camera's plane).
     fn bin(&mut self, surface: usize, mesh: &Mesh, (gw, gh): (usize, usize)) {
         let cam = &self.scene.camera;
-        // (first row, last row, screen box of the projected corners; an
-        // infinite box for a triangle reaching behind the camera's plane.)
-        let rows: Vec<Option<(u32, u32, [f64; 4])>> = (0..mesh.len())
+        // (first row, last row, screen box of the projected corners, an
+        // infinite box for a triangle reaching behind the camera's plane;
+        // the least depth `(p − c)·forward` of its corners, at least 0.)
+        let rows: Vec<Option<(u32, u32, [f64; 4], f64)>> = (0..mesh.len())
             .into_par_iter()
             .map(|t| {
                 let corners = mesh.corners(t)?;
                 // Every ray's direction has `d·forward = 1`: a point with
                 // `(p − c)·forward ≤ 0` is never hit.
-                let behind = corners
-                    .iter()
-                    .filter(|&&p| (p - cam.position).dot(cam.forward) <= 0.0)
-                    .count();
-                if behind == 3 {
+                let depths = corners.map(|p| (p - cam.position).dot(cam.forward));
+                if depths.iter().all(|&z| z <= 0.0) {
                     return None;
                 }
+                let near = depths.into_iter().fold(f64::INFINITY, f64::min).max(0.0);
                 let Some((lo, hi)) = cam.screen_box(corners) else {
-                    return Some((0, gh as u32 - 1, self.behind_box(surface, t)));
+                    return Some((0, gh as u32 - 1, self.behind_box(surface, t), near));
                 };
                 self.cells(lo[0], hi[0], gw)?;
                 self.cells(lo[1], hi[1], gh)?;
@@ -370,12 +369,12 @@ impl<'s> Raster<'s> {
                     self.centres(lo[axis], hi[axis], n, BOX_SLACK, BOX_SLACK_REL)
                 };
                 Some(match (centres(0, gw), centres(1, gh)) {
-                    (Some(_), Some((first, last))) => (first as u32, last as u32, screen_box),
-                    _ => (NOT_BINNED, 0, screen_box),
+                    (Some(_), Some((first, last))) => (first as u32, last as u32, screen_box, near),
+                    _ => (NOT_BINNED, 0, screen_box, near),
                 })
             })
             .collect();
-        for &(_, _, [x0, y0, x1, y1]) in rows.iter().flatten() {
+        for &(_, _, [x0, y0, x1, y1], _) in rows.iter().flatten() {
             if x0 == f64::NEG_INFINITY {
                 self.reach.mark_everywhere();
                 break;
@@ -383,21 +382,28 @@ impl<'s> Raster<'s> {
             self.reach.mark([x0, y0], [x1, y1]);
         }
         let unknown = |b: &[f64; 4]| b[0] == f64::NEG_INFINITY;
-        if rows.iter().flatten().any(|(_, _, b)| unknown(b)) {
+        if rows.iter().flatten().any(|(_, _, b, _)| unknown(b)) {
             self.screen_boxes = None;
         }
         if let Some(boxes) = &mut self.screen_boxes {
             let shown = (rows.iter().enumerate())
-                .filter_map(|(t, r)| r.map(|(_, _, b)| (surface as u32, t as u32, b)))
+                .filter_map(|(t, r)| {
+                    r.map(|(_, _, b, near)| ScreenBox {
+                        surface: surface as u32,
+                        triangle: t as u32,
+                        screen: b,
+                        near,
+                    })
+                })
                 // An inverted box shows nothing.
-                .filter(|(_, _, [x0, y0, x1, y1])| x0 <= x1 && y0 <= y1);
+                .filter(|b| b.screen[0] <= b.screen[2] && b.screen[1] <= b.screen[3]);
             boxes.extend(shown);
         }
         // Sized first: pushing a million entries into growing vectors
         // copies them over and over.
         let mut counts = vec![0usize; self.bands.len()];
-        let binned = |r: &&(u32, u32, [f64; 4])| r.0 != NOT_BINNED;
-        for &(first, last, _) in rows.iter().flatten().filter(binned) {
+        let binned = |r: &&(u32, u32, [f64; 4], f64)| r.0 != NOT_BINNED;
+        for &(first, last, _, _) in rows.iter().flatten().filter(binned) {
             for count in &mut counts[first as usize / BAND..=last as usize / BAND] {
                 *count += 1;
             }
@@ -406,7 +412,7 @@ impl<'s> Raster<'s> {
             band.reserve(count);
         }
         for (t, r) in rows.into_iter().enumerate() {
-            let Some((first, last, _)) = r.filter(|r| binned(&r)) else {
+            let Some((first, last, _, _)) = r.filter(|r| binned(&r)) else {
                 continue;
             };
             for band in first as usize / BAND..=last as usize / BAND {
