@@ -251,24 +251,28 @@ impl View {
     /// [`View::region`] written into `out`, in place (a polygon moved is
     /// its whole capacity copied; here only its vertices are).
     pub fn region_into(&self, support: &ConvexPolygon, out: &mut ConvexPolygon) {
-        match self.placement(support) {
-            Placement::Outside => *out = ConvexPolygon::EMPTY,
-            Placement::Inside => out.clone_from(support),
-            Placement::Straddles => {
-                // Only the lines some corner of the support lies beyond:
-                // the support is within the others, and so is every part
-                // of it (in front of the camera, most often).
-                let rect = axis_aligned_rect(support);
-                let mut lines = [[0.0; 3]; 5];
-                let mut n = 0;
-                for line in self.lines() {
-                    if sides(support, rect, line).1 {
-                        lines[n] = line;
-                        n += 1;
-                    }
-                }
-                support.clip_lines_into(&lines[..n], out);
+        // [`placement`]'s answer and the lines to clip by in one pass: only
+        // the lines some corner of the support lies beyond clip it; the
+        // support is within the others, and so is every part of it (in
+        // front of the camera, most often).
+        let rect = axis_aligned_rect(support);
+        let mut lines = [[0.0; 3]; 5];
+        let mut n = 0;
+        for line in self.lines() {
+            let (some_in, some_out) = sides(support, rect, line);
+            if !some_in {
+                *out = ConvexPolygon::EMPTY;
+                return;
             }
+            if some_out {
+                lines[n] = line;
+                n += 1;
+            }
+        }
+        if n == 0 {
+            out.clone_from(support);
+        } else {
+            support.clip_lines_into(&lines[..n], out);
         }
     }
 
