@@ -289,6 +289,24 @@ impl Bvh {
         self.nodes.len()
     }
 
+    /// Each primitive's place in the order [`Bvh::overlapping`] visits
+    /// primitives when every box passes (`rank[i]` for primitive `i`):
+    /// the order it visits any set it reaches, as pruning a depth-first
+    /// walk leaves the rest of it in order.
+    pub fn visit_ranks(&self) -> Vec<u32> {
+        let mut rank = vec![0u32; self.order.len()];
+        let mut next = 0u32;
+        self.first_in(
+            |_| true,
+            |i| {
+                rank[i as usize] = next;
+                next += 1;
+                false
+            },
+        );
+        rank
+    }
+
     /// Moves `items` (one per primitive) into the order the leaves visit
     /// them, and the leaves to refer to them there: a leaf's primitives
     /// become adjacent in memory, not scattered over the whole array.

@@ -434,6 +434,39 @@ impl SurfaceViews {
             })
     }
 
+    /// [`SurfaceViews::meshes_in`] for a gap of a pixel's support (`found`
+    /// is scratch): from the screen bins where they hold the gap
+    /// ([`ScreenBins::overlapping`]), else from the hierarchies. The bins
+    /// list a superset of what the hierarchies visit, every triangle whose
+    /// box meets the gap's, in the order each mesh's hierarchy visits its
+    /// triangles: `visit` must turn down those that do not reach into
+    /// `polygon` (the gaps' test is exact), so that either way the same
+    /// triangles are taken, in the same order (but for any a hierarchy's
+    /// planes turn down that reaches in by a rounding sliver).
+    pub(crate) fn meshes_in_gap(
+        &self,
+        scene: &Scene,
+        polygon: &ConvexPolygon,
+        planes: &mut Vec<[f64; 4]>,
+        found: &mut Vec<(u32, u32, u32)>,
+        mut visit: impl FnMut(Seen) -> bool,
+    ) -> bool {
+        let (lo, hi) = polygon.bounds();
+        if self.meshes.is_empty() || !self.reach.may_reach(lo, hi) {
+            return false;
+        }
+        let rank = |surface: u32, t: u32| match scene.surfaces.get(surface as usize).map(|s| &s.geometry) {
+            Some(Geometry::Mesh(mesh)) => mesh.visit_rank(t),
+            _ => 0,
+        };
+        if let Some(bins) = &self.bins
+            && bins.overlapping(lo, hi, rank, found)
+        {
+            return (found.iter()).any(|&(surface, _, t)| visit(seen_id(surface as usize, t)));
+        }
+        self.meshes_in(scene, polygon, planes, visit)
+    }
+
     /// The views of the planes and quads, by surface (`None`: another
     /// shape, or seen edge-on).
     pub(crate) fn planar_views(&self) -> &[Option<View>] {
@@ -452,9 +485,21 @@ impl SurfaceViews {
     }
 }
 
+/// Screen length (pixels, `|dx| + |dy|`) below which an edge of a
+/// polygon gives no plane of its frustum ([`frustum`]). The plane's normal,
+/// the cross product of the camera's directions through the edge's ends,
+/// is off by about `10⁻¹⁶` over the angle between them: the plane moves
+/// by about `10⁻¹⁶ / (L·θ²)` pixels for an edge `L` pixels long (`θ` a
+/// pixel's angle), under `10⁻⁶` pixel from `L = 10⁻³` up at 1080p and
+/// 40°. A shorter edge's plane can cut off what the polygon holds (two
+/// vertices a rounding apart, where a clip passed near a vertex, cut off
+/// a hundredth of a pixel of the terrain at 1080p).
+const SHORT_EDGE: f64 = 1e-3;
+
 /// The half-spaces `n·p + d ≥ 0` (`[n.x, n.y, n.z, d]`) whose intersection
 /// holds every world point that projects into screen polygon `polygon`:
-/// one plane through the camera and each edge, and the camera's plane.
+/// one plane through the camera and each edge (but edges shorter than
+/// [`SHORT_EDGE`]), and the camera's plane.
 fn frustum(scene: &Scene, polygon: &ConvexPolygon, planes: &mut Vec<[f64; 4]>) {
     let cam = &scene.camera;
     let c = cam.position;
@@ -466,6 +511,13 @@ fn frustum(scene: &Scene, polygon: &ConvexPolygon, planes: &mut Vec<[f64; 4]>) {
     let inward = cam.direction(centroid[0], centroid[1]);
     for (i, a) in v.iter().enumerate() {
         let b = v[(i + 1) % v.len()];
+        // An edge much shorter than a pixel (two vertices a rounding
+        // apart, where a clip passed near a vertex) gives a plane whose
+        // normal rounding sets: it may cut off what the polygon holds.
+        // Left out, the frustum only grows.
+        if (b[0] - a[0]).abs() + (b[1] - a[1]).abs() < SHORT_EDGE {
+            continue;
+        }
         let n = cam.direction(a[0], a[1]).cross(cam.direction(b[0], b[1]));
         if n.dot(n) > 0.0 && n.is_finite() {
             planes.push(plane(if n.dot(inward) < 0.0 { -n } else { n }));
@@ -498,6 +550,7 @@ pub(crate) fn exact_pixel<'a>(
         cut,
         order,
         planes,
+        binned,
         memo,
         flooded,
         confirmed,
@@ -702,7 +755,7 @@ pub(crate) fn exact_pixel<'a>(
                 // reach into the gap around it: each one whose region
                 // overlaps the gap joins the list.
                 let mut more = false;
-                cache.meshes_in(scene, &r, planes, |id| {
+                cache.meshes_in_gap(scene, &r, planes, binned, |id| {
                     if tried.iter().any(|(t, _)| *t == id) {
                         return false;
                     }
@@ -1198,6 +1251,8 @@ pub(crate) struct Scratch<'a> {
     cut: Cut,
     order: Order,
     planes: Vec<[f64; 4]>,
+    /// The triangles [`SurfaceViews::meshes_in_gap`] lists.
+    binned: Vec<(u32, u32, u32)>,
     memo: ViewMemo,
     /// The views [`Flood::spread`] added, by index.
     flooded: Vec<usize>,

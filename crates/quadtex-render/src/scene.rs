@@ -276,10 +276,10 @@ impl Triangle {
 }
 
 /// Bytes a mesh holds per triangle once parsed: the triangle (160), its
-/// share of the hierarchy (about 33), its edge neighbours (12), and while
-/// it is built the parsed file's arrays alongside (up to about 100) and
-/// the corners' vertex ids and edges filed to find the neighbours (38):
-/// 343, rounded up. Loaders check a mesh
+/// share of the hierarchy (about 33), its edge neighbours (12), its place
+/// in the hierarchy's search order (4), and while it is built the parsed
+/// file's arrays alongside (up to about 100) and the corners' vertex ids
+/// and edges filed to find the neighbours (38): 347, rounded up. Loaders check a mesh
 /// against the memory budget at this rate before building it. At render
 /// time the parsed arrays are gone; a lit frame adds the shadow grid (at
 /// most 41 bytes a triangle, 16 more while it is built) and the visibility
@@ -292,6 +292,9 @@ pub struct Mesh {
     triangles: Vec<Triangle>,
     bvh: Bvh,
     neighbours: Vec<[u32; 3]>,
+    /// Each triangle's place in the order [`Mesh::overlapping`] visits
+    /// triangles ([`Bvh::visit_ranks`]).
+    visit_rank: Vec<u32>,
 }
 
 impl Mesh {
@@ -338,10 +341,12 @@ impl Mesh {
         let order = bvh.reorder_to_leaves(&mut triangles);
         vertices = order.iter().map(|&i| vertices[i as usize]).collect();
         let neighbours = edge_neighbours(&vertices);
+        let visit_rank = bvh.visit_ranks();
         Some(Mesh {
             triangles,
             bvh,
             neighbours,
+            visit_rank,
         })
     }
 
@@ -349,6 +354,7 @@ impl Mesh {
     pub fn memory_bytes(&self) -> usize {
         self.triangles.len() * std::mem::size_of::<Triangle>()
             + self.neighbours.len() * std::mem::size_of::<[u32; 3]>()
+            + self.visit_rank.len() * std::mem::size_of::<u32>()
             + self.bvh.memory_bytes()
     }
 
@@ -453,6 +459,12 @@ impl Mesh {
             });
             !outside && visit(i)
         })
+    }
+
+    /// Triangle `t`'s place in the order [`Mesh::overlapping`] visits
+    /// triangles: the triangles it visits come in increasing rank.
+    pub(crate) fn visit_rank(&self, t: u32) -> u32 {
+        self.visit_rank[t as usize]
     }
 
     fn intersect(&self, ray: &Ray, t_min: f64) -> Option<Hit> {

@@ -282,6 +282,57 @@ impl ScreenBins {
         })
     }
 
+    /// Every binned triangle whose widened box meets the screen box
+    /// `lo..hi`, as `(surface, rank(surface, triangle), triangle)` into
+    /// `out`, sorted and each once: a superset of the mesh triangles whose
+    /// projections reach into a polygon within that box, in the order
+    /// `rank` gives. False (`out` cleared) when the box is not wholly
+    /// inside the tiles: the caller searches the hierarchies.
+    pub(crate) fn overlapping(
+        &self,
+        lo: [f64; 2],
+        hi: [f64; 2],
+        rank: impl Fn(u32, u32) -> u32,
+        out: &mut Vec<(u32, u32, u32)>,
+    ) -> bool {
+        out.clear();
+        let tiles = &self.fine;
+        let end = |a: usize| tiles.origin + tiles.tiles[a] as f64 * tiles.side[a];
+        if !(0..2).all(|a| lo[a] >= tiles.origin && hi[a] < end(a) && lo[a] <= hi[a]) {
+            return false;
+        }
+        let (x0, y0, x1, y1) = (lo[0], lo[1], hi[0], hi[1]);
+        // The box rounded outward to `f32`, as the tiles take boxes.
+        let query = [
+            (x0 as f32).next_down(),
+            (y0 as f32).next_down(),
+            (x1 as f32).next_up(),
+            (y1 as f32).next_up(),
+        ];
+        for tiles in [&self.fine, &self.coarse] {
+            let Some(((tx0, tx1), (ty0, ty1))) = tiles.range(&query) else {
+                continue;
+            };
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    for &i in tiles.at(ty * tiles.tiles[0] + tx) {
+                        let (surface, triangle, [a0, b0, a1, b1], _) = self.triangles[i as usize];
+                        let apart = f64::from(a1) < x0
+                            || f64::from(a0) > x1
+                            || f64::from(b1) < y0
+                            || f64::from(b0) > y1;
+                        if !apart {
+                            out.push((surface, rank(surface, triangle), triangle));
+                        }
+                    }
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        true
+    }
+
     /// What [`Caster::nearest_index`] finds for `ray`, the camera's ray
     /// through screen point `c`: the nearest of the non-mesh surfaces
     /// (each tested) and of the mesh triangles in `c`'s tile whose boxes

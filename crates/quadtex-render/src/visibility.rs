@@ -779,6 +779,109 @@ mod tests {
         assert!(casts * 20 < cells, "{casts} of {cells} cells cast");
     }
 
+    /// The gap search ([`SurfaceViews::meshes_in_gap`], from the screen
+    /// bins) and the hierarchies' ([`SurfaceViews::meshes_in`]) visit every
+    /// triangle whose region of a polygon has area, against a brute-force
+    /// scan of the mesh; the bins in the order the hierarchy visits them.
+    /// The polygons include clipped pixels with two vertices a rounding
+    /// apart (edges of 10⁻¹³ to 10⁻¹¹ pixel), whose plane through the camera,
+    /// before edges that short were left out of the frustum, cut off
+    /// triangles the polygon holds.
+    #[test]
+    fn gap_searches_find_every_triangle_that_reaches_in() {
+        use crate::scene::Mesh;
+        use quadtex_core::ConvexPolygon;
+        let triangles = rolling_grid(24, |i, j| {
+            let (x, z) = (i as f64, j as f64);
+            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
+        });
+        let mesh = Arc::new(Mesh::new(triangles).unwrap());
+        let mut seed = 5u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut reached, mut bin_searches) = (0, 0);
+        let positions = cameras(
+            [
+                Vec3::new(0.0, 6.0, 8.0),
+                Vec3::new(-14.0, 2.5, 2.0),
+                Vec3::new(0.0, 3.0, 40.0),
+            ],
+            Vec3::new(0.0, 0.0, -12.0),
+            (120, 70),
+        );
+        for camera in positions {
+            let scene = Scene {
+                camera,
+                surfaces: vec![surface(Geometry::Mesh(mesh.clone()))],
+                sky: Sky::Solid(Rgba::opaque(0.5, 0.5, 0.5)),
+                lighting: Lighting::Unlit,
+            };
+            let pad = 3;
+            let rays = Caster::new(&scene);
+            let mut views = SurfaceViews::new(&scene);
+            let (_, reach, bins) =
+                visibility_grid(&scene, &rays, &views, (120 + 2 * pad, 70 + 2 * pad), pad as f64);
+            views.set_mesh_reach(reach);
+            views.set_screen_bins(bins);
+            let all: Vec<View> = (0..mesh.len() as u32)
+                .filter_map(|t| View::new(&scene, 0, &scene.surfaces[0].geometry.planar(t)?))
+                .collect();
+            let (mut planes, mut found) = (Vec::new(), Vec::new());
+            for k in 0..400 {
+                let (x, y) = ((next() * 119.0).floor(), (next() * 69.0).floor());
+                let pixel = ConvexPolygon::rect(x, y, x + 1.0, y + 1.0);
+                // A line through the pixel, or one that cuts a hair off a
+                // corner (two vertices that close).
+                let polygon = if k % 2 == 0 {
+                    let angle = next() * std::f64::consts::TAU;
+                    let (a, b) = (angle.cos(), angle.sin());
+                    let (px, py) = (x + next(), y + next());
+                    pixel.clip(a, b, -(a * px + b * py))
+                } else {
+                    let (a, b) = (1.0, 0.3 + next());
+                    let hair = [1e-11, 1e-12, 1e-13][k / 2 % 3];
+                    pixel.clip(-a, b, a * (x + 1.0) - b * y - hair)
+                };
+                if polygon.is_empty() {
+                    continue;
+                }
+                let expected: Vec<u32> = (all.iter())
+                    .filter(|v| v.region(&polygon).area() > 1e-9)
+                    .map(|v| v.triangle().unwrap())
+                    .collect();
+                reached += expected.len();
+                let mut through_bins = Vec::new();
+                let binned = views.meshes_in_gap(&scene, &polygon, &mut planes, &mut found, |id| {
+                    through_bins.push(id);
+                    false
+                });
+                assert!(!binned);
+                bin_searches += usize::from(!found.is_empty());
+                let mut through_hierarchy = Vec::new();
+                views.meshes_in(&scene, &polygon, &mut planes, |id| {
+                    through_hierarchy.push(id);
+                    false
+                });
+                for t in &expected {
+                    let id = crate::caster::seen_id(0, *t);
+                    assert!(through_bins.contains(&id), "bins miss {t} in {polygon:?}");
+                    assert!(through_hierarchy.contains(&id), "hierarchy misses {t} in {polygon:?}");
+                }
+                // What both visit, they visit in the same order.
+                let common: Vec<_> = (through_bins.iter())
+                    .filter(|id| through_hierarchy.contains(id))
+                    .collect();
+                let in_order: Vec<_> = (through_hierarchy.iter())
+                    .filter(|id| through_bins.contains(id))
+                    .collect();
+                assert_eq!(common, in_order);
+            }
+        }
+        assert!(reached > 400 && bin_searches > 200, "{reached} {bin_searches}");
+    }
+
     /// The screen bins answer a camera ray through any point of the grid
     /// as the ray cast does: the same surface, the same distance, the same
     /// triangle but where two tie (a ray through a shared edge). Points at
