@@ -1886,10 +1886,20 @@ impl SmallBox {
         centre: [f64; 2],
     ) -> Option<([f64; 4], f64, f64)> {
         let [(sx, ox), (sz, oz)] = self.frame;
-        let mut local = region.map_counter_clockwise(|[x, z]| [(x - ox) * sx, (z - oz) * sz]);
+        // The first tile's frame maps each coordinate to itself (`(x − 0)·1
+        // = x`, signed zeros and all): a counter-clockwise region is then
+        // its own local polygon, not copied.
+        let (moved, clipped);
+        let mut local = if self.frame == [(1.0, 0.0), (1.0, 0.0)] && region.signed_area() >= 0.0 {
+            region
+        } else {
+            moved = region.map_counter_clockwise(|[x, z]| [(x - ox) * sx, (z - oz) * sz]);
+            &moved
+        };
         let (llo, lhi) = local.bounds();
         if llo[0] < 0.0 || llo[1] < 0.0 || lhi[0] > 1.0 || lhi[1] > 1.0 {
-            local = local.clip_rect(0.0, 0.0, 1.0, 1.0);
+            clipped = local.clip_rect(0.0, 0.0, 1.0, 1.0);
+            local = &clipped;
         }
         if local.is_empty() {
             return None;
@@ -1900,7 +1910,7 @@ impl SmallBox {
         let to_screen = [row(&m[0]), row(&m[1]), row(&m[2])];
         let cells = tree.cells_below(self.start);
         scan_grid(
-            &local,
+            local,
             &to_screen,
             unit_side(tree.depth()),
             filter,
