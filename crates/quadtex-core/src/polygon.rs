@@ -194,6 +194,16 @@ impl ConvexPolygon {
             if a == 0.0 && b == 0.0 {
                 continue;
             }
+            // Every vertex strictly inside: the split would copy them all to
+            // the inside and leave nothing outside (no vertex on the line,
+            // no crossing), so the line is passed over.
+            let kept = match current {
+                None => self,
+                Some(i) => &rest[i],
+            };
+            if (kept.vertices().iter()).all(|&[x, y]| a * x + b * y + c > 0.0) {
+                continue;
+            }
             let [first, second] = &mut rest;
             let (from, to) = match current {
                 None => (self, first),
@@ -280,6 +290,11 @@ impl ConvexPolygon {
             return ConvexPolygon::EMPTY;
         }
         for [a, b, c] in lines {
+            // Every vertex inside: the clip would copy them all, in order
+            // (no crossing), so the line is passed over.
+            if (buffers[current].vertices().iter()).all(|&[x, y]| a * x + b * y + c >= 0.0) {
+                continue;
+            }
             let [first, second] = &mut buffers;
             let (from, to) = if current == 0 {
                 (&*first, second)
