@@ -46,7 +46,7 @@ fn within(a: [f64; 2], b: [f64; 2], tolerance: f64) -> bool {
 
 impl Default for ConvexPolygon {
     fn default() -> Self {
-        ConvexPolygon::EMPTY
+        ConvexPolygon::empty()
     }
 }
 
@@ -55,6 +55,14 @@ impl ConvexPolygon {
     pub const EMPTY: ConvexPolygon = ConvexPolygon {
         v: ArrayVec::new_const(),
     };
+
+    /// No vertices, as [`ConvexPolygon::EMPTY`], built where it is needed:
+    /// the constant is its whole capacity written (a memset per use), this
+    /// only its length.
+    #[inline(always)]
+    pub fn empty() -> ConvexPolygon {
+        ConvexPolygon { v: ArrayVec::new() }
+    }
 
     /// A convex polygon from its vertices in either orientation.
     /// [`Error::NonFiniteCoordinate`] names a NaN or infinite coordinate
@@ -77,7 +85,7 @@ impl ConvexPolygon {
                 }
             }
         }
-        let mut p = ConvexPolygon::EMPTY;
+        let mut p = ConvexPolygon::empty();
         p.v.extend(vertices.iter().copied());
         if p.signed_area() < 0.0 {
             p.v.reverse();
@@ -92,9 +100,9 @@ impl ConvexPolygon {
     #[inline]
     pub fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> ConvexPolygon {
         if !(x0 < x1 && y0 < y1) {
-            return ConvexPolygon::EMPTY;
+            return ConvexPolygon::empty();
         }
-        let mut p = ConvexPolygon::EMPTY;
+        let mut p = ConvexPolygon::empty();
         p.v.extend([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]);
         p
     }
@@ -102,7 +110,7 @@ impl ConvexPolygon {
     /// Vertices from a trusted source (already convex, finite), made
     /// counter-clockwise.
     pub(crate) fn from_trusted(vertices: &[[f64; 2]]) -> ConvexPolygon {
-        let mut p = ConvexPolygon::EMPTY;
+        let mut p = ConvexPolygon::empty();
         p.v.extend(vertices.iter().take(MAX_VERTICES).copied());
         if p.signed_area() < 0.0 {
             p.v.reverse();
@@ -180,14 +188,14 @@ impl ConvexPolygon {
     ) -> ConvexPolygon {
         if other.is_empty() {
             out(self.clone());
-            return ConvexPolygon::EMPTY;
+            return ConvexPolygon::empty();
         }
         // What is left inside every edge so far, ping-ponged between two
         // buffers (none before the first line: this polygon, not copied);
         // each edge splits it in one pass.
-        let mut rest = [ConvexPolygon::EMPTY, ConvexPolygon::EMPTY];
+        let mut rest = [ConvexPolygon::empty(), ConvexPolygon::empty()];
         let mut current: Option<usize> = None;
-        let mut outside = ConvexPolygon::EMPTY;
+        let mut outside = ConvexPolygon::empty();
         for [a, b, c] in other.edge_lines() {
             // No line (a repeated vertex): keeps everything, as a clip by
             // `0 ≥ 0` would; cutting by it would give the inside out too.
@@ -217,7 +225,7 @@ impl ConvexPolygon {
                 out(outside.clone());
             }
             if rest[now].is_empty() {
-                return ConvexPolygon::EMPTY;
+                return ConvexPolygon::empty();
             }
         }
         let [first, second] = rest;
@@ -256,7 +264,7 @@ impl ConvexPolygon {
     /// The part where `a·x + b·y + c ≥ 0`.
     #[inline]
     pub fn clip(&self, a: f64, b: f64, c: f64) -> ConvexPolygon {
-        let mut out = ConvexPolygon::EMPTY;
+        let mut out = ConvexPolygon::empty();
         self.clip_into(a, b, c, &mut out);
         out
     }
@@ -283,11 +291,11 @@ impl ConvexPolygon {
         let Some([a, b, c]) = lines.next() else {
             return self.clone();
         };
-        let mut buffers = [ConvexPolygon::EMPTY, ConvexPolygon::EMPTY];
+        let mut buffers = [ConvexPolygon::empty(), ConvexPolygon::empty()];
         self.clip_into(a, b, c, &mut buffers[0]);
         let mut current = 0;
         if buffers[0].is_empty() {
-            return ConvexPolygon::EMPTY;
+            return ConvexPolygon::empty();
         }
         for [a, b, c] in lines {
             // Every vertex inside: the clip would copy them all, in order
@@ -304,7 +312,7 @@ impl ConvexPolygon {
             from.clip_into(a, b, c, to);
             current ^= 1;
             if buffers[current].is_empty() {
-                return ConvexPolygon::EMPTY;
+                return ConvexPolygon::empty();
             }
         }
         let [first, second] = buffers;
@@ -322,7 +330,7 @@ impl ConvexPolygon {
         };
         // Each clip goes to the other of the two, so that the last lands in
         // `out`.
-        let mut buffer = ConvexPolygon::EMPTY;
+        let mut buffer = ConvexPolygon::empty();
         let (mut from, mut to) = if rest.len() % 2 == 0 {
             (&mut buffer, &mut *out)
         } else {
@@ -494,7 +502,7 @@ impl ConvexPolygon {
             }
         }
         if unique.len() < 3 {
-            return ConvexPolygon::EMPTY;
+            return ConvexPolygon::empty();
         }
         let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
             (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
@@ -641,7 +649,7 @@ mod tests {
         pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
         pts.dedup();
         if pts.len() < 3 {
-            return ConvexPolygon::EMPTY;
+            return ConvexPolygon::empty();
         }
         let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
             (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
@@ -741,7 +749,7 @@ mod tests {
         }
         let square = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
         assert_eq!(square.clip_lines(std::iter::empty()), square);
-        let mut into = ConvexPolygon::EMPTY;
+        let mut into = ConvexPolygon::empty();
         square.clip_lines_into(&[], &mut into);
         assert_eq!(into, square);
     }
@@ -778,7 +786,7 @@ mod tests {
                     [0.0, -1.0, z]
                 }
             };
-            let (mut inside, mut outside) = (ConvexPolygon::EMPTY, ConvexPolygon::EMPTY);
+            let (mut inside, mut outside) = (ConvexPolygon::empty(), ConvexPolygon::empty());
             polygon.split_into(line[0], line[1], line[2], &mut inside, &mut outside);
             let want_in = polygon.clip(line[0], line[1], line[2]);
             let want_out = polygon.clip(-line[0], -line[1], -line[2]);

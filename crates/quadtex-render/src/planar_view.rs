@@ -261,7 +261,7 @@ impl View {
         for line in self.lines() {
             let (some_in, some_out) = sides(support, rect, line);
             if !some_in {
-                *out = ConvexPolygon::EMPTY;
+                *out = ConvexPolygon::empty();
                 return;
             }
             if some_out {
