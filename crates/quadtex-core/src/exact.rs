@@ -390,12 +390,22 @@ impl RegionIntegral {
 /// coordinates are within [`MAX_SCREEN_COORDINATE`] (the squares cannot
 /// overflow).
 fn horizon_floor(projection: &Projection, region: &ConvexPolygon, options: &FilterOptions) -> f64 {
+    horizon_floor_of(projection, region.bounds(), region.area(), options)
+}
+
+/// [`horizon_floor`] of a region whose bounds and area are known.
+#[inline]
+fn horizon_floor_of(
+    projection: &Projection,
+    (rlo, rhi): ([f64; 2], [f64; 2]),
+    area: f64,
+    options: &FilterOptions,
+) -> f64 {
     let sliver_width = match options.level_of_detail() {
         LevelOfDetail::ErrorBound(e) => {
-            let (rlo, rhi) = region.bounds();
             let (dx, dy) = (rhi[0] - rlo[0], rhi[1] - rlo[1]);
             let diam = (dx * dx + dy * dy).sqrt().max(f64::MIN_POSITIVE);
-            (e * region.area() / (8.0 * diam)).max(1e-9)
+            (e * area / (8.0 * diam)).max(1e-9)
         }
         LevelOfDetail::Fixed(_) => 1e-9,
     };
@@ -480,7 +490,7 @@ pub(crate) fn integrate_region(
             &clipped
         }
     };
-    let (rlo, rhi) = region.bounds();
+    let (mut rlo, mut rhi) = region.bounds();
     if region.is_empty()
         || rlo
             .iter()
@@ -489,13 +499,16 @@ pub(crate) fn integrate_region(
     {
         return out;
     }
+    // The region's bounds and area, computed once (and again only if the
+    // horizon clips it).
+    let mut area = region.area();
     // Keep to where the surface is in front, w ≥ w_min. The sliver between
     // the horizon (w = 0) and w_min, where the texture is minified without
     // bound, is taken at the texture's mean with its whole weight as the
     // bound: its width is an eighth of the error budget over the region's
     // diameter (1e-9 pixel under a fixed level).
     let r = projection.texture_from_screen[2];
-    let w_min = horizon_floor(projection, region, options);
+    let w_min = horizon_floor_of(projection, (rlo, rhi), area, options);
     if region
         .vertices()
         .iter()
@@ -509,6 +522,8 @@ pub(crate) fn integrate_region(
             .clip(-r[0], -r[1], floor - r[2]);
         kept = region.clip(r[0], r[1], r[2] - floor);
         region = &kept;
+        (rlo, rhi) = region.bounds();
+        area = region.area();
         if !sliver.is_empty() {
             let c = tree.average();
             let wgt = filter.integral(&sliver, centre);
@@ -521,7 +536,6 @@ pub(crate) fn integrate_region(
             return out;
         }
     }
-    let area = region.area();
     if !(area > 0.0 && area.is_finite()) {
         return out;
     }
@@ -580,8 +594,7 @@ pub(crate) fn integrate_region(
     // perimeter ([`ConvexPolygon::without_close_vertices`]): a pixel's
     // region loses or gains under 1e-5 of the pixel (the terrain scene at
     // 960×540: no pixel's weight off by 1e-6).
-    let (slo, shi) = region.bounds();
-    let tolerance = 1e-6 * ((shi[0] - slo[0]) + (shi[1] - slo[1]));
+    let tolerance = 1e-6 * ((rhi[0] - rlo[0]) + (rhi[1] - rlo[1]));
     let texture_region = if region.has_close_vertices(tolerance) {
         region
             .clone()
