@@ -65,6 +65,8 @@
 //! horizon `w = 0` is clipped at a sliver of width `10⁻⁹` pixel beyond which
 //! the texture's mean colour is taken (bounded, and reported).
 
+use arrayvec::ArrayVec;
+
 use crate::Error;
 use crate::colour::{Rgba, WeightedColour};
 use crate::footprint::Footprint;
@@ -2054,9 +2056,8 @@ fn scan_grid(
         region
     };
     let texture = region.vertices();
-    let mut screen = [[0.0; 2]; crate::polygon::MAX_VERTICES];
-    band_to_screen(texture, &m, centre, &mut screen[..texture.len()]);
-    let mut bands = Bands::new(texture, &screen[..texture.len()]);
+    let screen = band_to_screen(texture, &m, centre);
+    let mut bands = Bands::new(texture, &screen);
     let mut band = BandBuffer::default();
     for k in k0..k1 {
         let top = if k + 1 < k1 {
@@ -2116,21 +2117,22 @@ fn scan_grid(
     Some((colour_sum, weight_sum, cells))
 }
 
-/// Maps the texture-space `texture` vertices to screen coordinates relative
-/// to `centre` (so that shoelace sums stay at the polygon's own scale) into
-/// `screen`, and returns their doubled signed area.
+/// The texture-space `texture` vertices (at most
+/// [`MAX_VERTICES`](crate::polygon::MAX_VERTICES)) mapped by `m` to screen
+/// coordinates relative to `centre` (so that shoelace sums stay at the
+/// polygon's own scale), in a buffer that is not zeroed first.
 #[inline(always)]
 fn band_to_screen(
     texture: &[[f64; 2]],
     m: &Mat3,
     centre: [f64; 2],
-    screen: &mut [[f64; 2]],
-) -> f64 {
-    for (s, &t) in screen.iter_mut().zip(texture) {
-        let q = apply(m, t);
-        *s = [q[0] - centre[0], q[1] - centre[1]];
-    }
-    shoelace(&screen[..texture.len()])
+) -> ArrayVec<[f64; 2], { crate::polygon::MAX_VERTICES }> {
+    (texture.iter().take(crate::polygon::MAX_VERTICES))
+        .map(|&t| {
+            let q = apply(m, t);
+            [q[0] - centre[0], q[1] - centre[1]]
+        })
+        .collect()
 }
 
 /// The doubled signed area of the polygon with vertices `p`.
@@ -2153,9 +2155,10 @@ fn shoelace(p: &[[f64; 2]]) -> f64 {
 /// screen coordinates [`band_to_screen`] gives them (one band has at most
 /// the region's vertices and four crossings).
 struct BandBuffer {
-    texture: [[f64; 2]; BAND_VERTICES],
-    screen: [[f64; 2]; BAND_VERTICES],
-    len: usize,
+    // Not zeroed arrays: a band is written from its first vertex, and
+    // clearing 640 bytes per region cost more than most bands' cuts.
+    texture: ArrayVec<[f64; 2], BAND_VERTICES>,
+    screen: ArrayVec<[f64; 2], BAND_VERTICES>,
 }
 
 /// Most vertices of a band: the region's and four crossings.
@@ -2164,28 +2167,42 @@ const BAND_VERTICES: usize = crate::polygon::MAX_VERTICES + 4;
 impl Default for BandBuffer {
     fn default() -> Self {
         BandBuffer {
-            texture: [[0.0; 2]; BAND_VERTICES],
-            screen: [[0.0; 2]; BAND_VERTICES],
-            len: 0,
+            texture: ArrayVec::new(),
+            screen: ArrayVec::new(),
         }
     }
 }
 
 impl BandBuffer {
     fn texture(&self) -> &[[f64; 2]] {
-        &self.texture[..self.len]
+        &self.texture
     }
 
     fn screen(&self) -> &[[f64; 2]] {
-        &self.screen[..self.len]
+        &self.screen
+    }
+
+    #[cfg(test)]
+    fn len(&self) -> usize {
+        self.texture.len()
+    }
+
+    fn clear(&mut self) {
+        self.texture.clear();
+        self.screen.clear();
+    }
+
+    /// Drops the last vertex.
+    fn pop(&mut self) {
+        self.texture.pop();
+        self.screen.pop();
     }
 
     #[inline(always)]
     fn push(&mut self, (texture, screen): ([f64; 2], [f64; 2])) {
-        if self.len < BAND_VERTICES {
-            self.texture[self.len] = texture;
-            self.screen[self.len] = screen;
-            self.len += 1;
+        if self.texture.len() < BAND_VERTICES {
+            self.texture.push(texture);
+            self.screen.push(screen);
         }
     }
 }
@@ -2238,7 +2255,7 @@ impl<'a> Bands<'a> {
     /// infinite for the last band (the rest of the polygon).
     #[inline(always)]
     fn next_band(&mut self, top: f64, m: &Mat3, centre: [f64; 2], band: &mut BandBuffer) {
-        band.len = 0;
+        band.clear();
         let n = self.texture.len();
         if n < 3 {
             return;
@@ -2287,7 +2304,7 @@ impl<'a> Bands<'a> {
             steps += 1;
         }
         if i != self.at[0] && self.texture[i][1] == top {
-            band.len -= 1;
+            band.pop();
         }
         self.at[0] = i;
         let first = crossing(i, next);
@@ -2568,8 +2585,8 @@ mod tests {
                 [0.1 * (next() - 0.5), 0.1 * (next() - 0.5), 1.0],
             ];
             let centre = [next() * 10.0, next() * 10.0];
-            let mut screen = vec![[0.0; 2]; texture.len()];
-            let total = band_to_screen(&texture, &m, centre, &mut screen);
+            let screen = band_to_screen(&texture, &m, centre);
+            let total = shoelace(&screen);
             let mut sweep = LeftOf::new(&texture, &screen, total);
             let xs: Vec<f64> = texture.iter().map(|t| t[0]).collect();
             let (lo, hi) = (
@@ -2648,9 +2665,9 @@ mod tests {
             let mut bands = Bands::new(&square, &square);
             let mut band = BandBuffer::default();
             bands.next_band(0.5, &m, [0.0, 0.0], &mut band);
-            assert_eq!(band.len, 4);
+            assert_eq!(band.len(), 4);
             bands.next_band(top, &m, [0.0, 0.0], &mut band);
-            assert!(band.len <= BAND_VERTICES);
+            assert!(band.len() <= BAND_VERTICES);
         }
     }
 
