@@ -455,7 +455,11 @@ impl SurfaceViews {
         if self.meshes.is_empty() || !self.reach.may_reach(lo, hi) {
             return false;
         }
-        let rank = |surface: u32, t: u32| match scene.surfaces.get(surface as usize).map(|s| &s.geometry) {
+        let rank = |surface: u32, t: u32| match scene
+            .surfaces
+            .get(surface as usize)
+            .map(|s| &s.geometry)
+        {
             Some(Geometry::Mesh(mesh)) => mesh.visit_rank(t),
             _ => 0,
         };

@@ -61,6 +61,12 @@ const BOX_SLACK_REL: f64 = 1e-9;
 /// centre ([`Raster::bin`]).
 const NOT_BINNED: u32 = u32::MAX;
 
+/// A mesh triangle as [`Raster`] bins it: its first and last row of
+/// centres ([`NOT_BINNED`] first when it holds none), the screen box of its
+/// projected corners (an infinite box for one reaching behind the camera's
+/// plane), and the least depth `(p − c)·forward` of its corners, at least 0.
+type Projected = (u32, u32, [f64; 4], f64);
+
 /// Grid rows per band of the mesh triangles' bins.
 const BAND: usize = 8;
 
@@ -342,10 +348,7 @@ impl<'s> Raster<'s> {
     /// reach (every row for one reaching behind the camera's plane).
     fn bin(&mut self, surface: usize, mesh: &Mesh, (gw, gh): (usize, usize)) {
         let cam = &self.scene.camera;
-        // (first row, last row, screen box of the projected corners, an
-        // infinite box for a triangle reaching behind the camera's plane;
-        // the least depth `(p − c)·forward` of its corners, at least 0.)
-        let rows: Vec<Option<(u32, u32, [f64; 4], f64)>> = (0..mesh.len())
+        let rows: Vec<Option<Projected>> = (0..mesh.len())
             .into_par_iter()
             .map(|t| {
                 let corners = mesh.corners(t)?;
@@ -402,7 +405,7 @@ impl<'s> Raster<'s> {
         // Sized first: pushing a million entries into growing vectors
         // copies them over and over.
         let mut counts = vec![0usize; self.bands.len()];
-        let binned = |r: &&(u32, u32, [f64; 4], f64)| r.0 != NOT_BINNED;
+        let binned = |r: &&Projected| r.0 != NOT_BINNED;
         for &(first, last, _, _) in rows.iter().flatten().filter(binned) {
             for count in &mut counts[first as usize / BAND..=last as usize / BAND] {
                 *count += 1;
@@ -821,8 +824,13 @@ mod tests {
             let pad = 3;
             let rays = Caster::new(&scene);
             let mut views = SurfaceViews::new(&scene);
-            let (_, reach, bins) =
-                visibility_grid(&scene, &rays, &views, (120 + 2 * pad, 70 + 2 * pad), pad as f64);
+            let (_, reach, bins) = visibility_grid(
+                &scene,
+                &rays,
+                &views,
+                (120 + 2 * pad, 70 + 2 * pad),
+                pad as f64,
+            );
             views.set_mesh_reach(reach);
             views.set_screen_bins(bins);
             let all: Vec<View> = (0..mesh.len() as u32)
@@ -867,7 +875,10 @@ mod tests {
                 for t in &expected {
                     let id = crate::caster::seen_id(0, *t);
                     assert!(through_bins.contains(&id), "bins miss {t} in {polygon:?}");
-                    assert!(through_hierarchy.contains(&id), "hierarchy misses {t} in {polygon:?}");
+                    assert!(
+                        through_hierarchy.contains(&id),
+                        "hierarchy misses {t} in {polygon:?}"
+                    );
                 }
                 // What both visit, they visit in the same order.
                 let common: Vec<_> = (through_bins.iter())
@@ -879,7 +890,10 @@ mod tests {
                 assert_eq!(common, in_order);
             }
         }
-        assert!(reached > 400 && bin_searches > 200, "{reached} {bin_searches}");
+        assert!(
+            reached > 400 && bin_searches > 200,
+            "{reached} {bin_searches}"
+        );
     }
 
     /// The screen bins answer a camera ray through any point of the grid
