@@ -547,10 +547,10 @@ pub(crate) fn integrate_region(
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     let mut finite = true;
     // Kept for the texture polygon below, so no vertex is mapped twice.
-    let mut mapped = ConvexPolygon::empty();
-    for &s in region.vertices() {
+    let mut mapped = [[0.0; 2]; crate::polygon::MAX_VERTICES];
+    for (&s, m) in region.vertices().iter().zip(mapped.iter_mut()) {
         let t = apply(&projection.texture_from_screen, s);
-        mapped.push_trusted(t);
+        *m = t;
         finite &= t[0].is_finite() && t[1].is_finite();
         for a in 0..2 {
             lo[a] = lo[a].min(t[a]);
@@ -604,7 +604,7 @@ pub(crate) fn integrate_region(
             .map_counter_clockwise(|s| apply(&projection.texture_from_screen, s))
     } else {
         // The same polygon (nothing merges): the vertices mapped above.
-        mapped.counter_clockwise()
+        ConvexPolygon::from_trusted(&mapped[..region.vertices().len()])
     };
     let epsilon = match options.level_of_detail() {
         LevelOfDetail::ErrorBound(e) => e,

@@ -107,24 +107,6 @@ impl ConvexPolygon {
         p
     }
 
-    /// Appends vertex `p` (past [`MAX_VERTICES`], dropped), for a caller
-    /// building a polygon it knows is convex, which it then makes
-    /// counter-clockwise ([`ConvexPolygon::counter_clockwise`]).
-    #[inline]
-    pub(crate) fn push_trusted(&mut self, p: [f64; 2]) {
-        let _ = self.v.try_push(p);
-    }
-
-    /// This polygon, its vertices reversed if it is clockwise: what
-    /// [`ConvexPolygon::from_trusted`] makes of its vertices.
-    #[inline]
-    pub(crate) fn counter_clockwise(mut self) -> ConvexPolygon {
-        if self.signed_area() < 0.0 {
-            self.v.reverse();
-        }
-        self
-    }
-
     /// Vertices from a trusted source (already convex, finite), made
     /// counter-clockwise.
     pub(crate) fn from_trusted(vertices: &[[f64; 2]]) -> ConvexPolygon {
