@@ -150,7 +150,8 @@ impl Tiles {
 /// triangle the frame projects, 28 B and at most [`FINE_MAX`] fine
 /// entries of 4 B; 4 B a tile; at most [`COARSE_DEPTH`] coarse entries a
 /// coarse tile on average (25 MB in all for the 1 M-triangle terrain at
-/// 1080p). Built per frame, dropped with it. A camera ray through
+/// 1080p); while they are built, 6 B more a triangle and 256 KiB for the
+/// depth sort. Built per frame, dropped with it. A camera ray through
 /// screen point `c` can meet a triangle only where `c` lies in its
 /// projection, inside its box: the nearest hit among the triangles of
 /// `c`'s two tiles whose boxes hold `c` is the nearest among all a mesh
