@@ -396,15 +396,28 @@ impl SurfaceViews {
         scene: &Scene,
         polygon: &ConvexPolygon,
         planes: &mut Vec<[f64; 4]>,
+        visit: impl FnMut(Seen) -> bool,
+    ) -> bool {
+        let bounds = polygon.bounds();
+        self.may_reach(bounds) && self.search_hierarchies(scene, polygon, bounds, planes, visit)
+    }
+
+    /// Whether a mesh triangle may reach into the screen box `(lo, hi)`:
+    /// the scene has meshes, and the visibility pass's reach marks allow.
+    fn may_reach(&self, (lo, hi): ([f64; 2], [f64; 2])) -> bool {
+        !self.meshes.is_empty() && self.reach.may_reach(lo, hi)
+    }
+
+    /// [`SurfaceViews::meshes_in`] past its checks, through the meshes'
+    /// hierarchies: `(lo, hi)` is `polygon`'s box.
+    fn search_hierarchies(
+        &self,
+        scene: &Scene,
+        polygon: &ConvexPolygon,
+        (lo, hi): ([f64; 2], [f64; 2]),
+        planes: &mut Vec<[f64; 4]>,
         mut visit: impl FnMut(Seen) -> bool,
     ) -> bool {
-        if self.meshes.is_empty() {
-            return false;
-        }
-        let (lo, hi) = polygon.bounds();
-        if !self.reach.may_reach(lo, hi) {
-            return false;
-        }
         frustum(scene, polygon, planes);
         // A box wholly in front of the camera projects inside the screen
         // box of its corners: one that misses the polygon's (with a slack
@@ -452,7 +465,7 @@ impl SurfaceViews {
         mut visit: impl FnMut(Seen) -> bool,
     ) -> bool {
         let (lo, hi) = polygon.bounds();
-        if self.meshes.is_empty() || !self.reach.may_reach(lo, hi) {
+        if !self.may_reach((lo, hi)) {
             return false;
         }
         let rank = |surface: u32, t: u32| match scene
@@ -468,7 +481,7 @@ impl SurfaceViews {
         {
             return (found.iter()).any(|&(surface, _, t)| visit(seen_id(surface as usize, t)));
         }
-        self.meshes_in(scene, polygon, planes, visit)
+        self.search_hierarchies(scene, polygon, (lo, hi), planes, visit)
     }
 
     /// The views of the planes and quads, by surface (`None`: another

@@ -31,6 +31,18 @@ pub(crate) fn placement(
     polygon: &ConvexPolygon,
     lines: impl Iterator<Item = [f64; 3]>,
 ) -> Placement {
+    placement_with(polygon, lines, |_| {})
+}
+
+/// [`placement`], handing each line that some vertex lies beyond to
+/// `straddled` (until one shows the polygon outside): the lines a clip of
+/// the polygon needs, the others holding all of it.
+#[inline]
+fn placement_with(
+    polygon: &ConvexPolygon,
+    lines: impl Iterator<Item = [f64; 3]>,
+    mut straddled: impl FnMut([f64; 3]),
+) -> Placement {
     let rect = axis_aligned_rect(polygon);
     let mut all_inside = true;
     for line in lines {
@@ -38,7 +50,10 @@ pub(crate) fn placement(
         if !some_in {
             return Placement::Outside;
         }
-        all_inside &= !some_out;
+        if some_out {
+            all_inside = false;
+            straddled(line);
+        }
     }
     if all_inside {
         Placement::Inside
@@ -251,28 +266,20 @@ impl View {
     /// [`View::region`] written into `out`, in place (a polygon moved is
     /// its whole capacity copied; here only its vertices are).
     pub fn region_into(&self, support: &ConvexPolygon, out: &mut ConvexPolygon) {
-        // [`placement`]'s answer and the lines to clip by in one pass: only
-        // the lines some corner of the support lies beyond clip it; the
-        // support is within the others, and so is every part of it (in
-        // front of the camera, most often).
-        let rect = axis_aligned_rect(support);
+        // The placement and the lines to clip by in one pass: only the
+        // lines some corner of the support lies beyond clip it; the support
+        // is within the others, and so is every part of it (in front of the
+        // camera, most often).
         let mut lines = [[0.0; 3]; 5];
         let mut n = 0;
-        for line in self.lines() {
-            let (some_in, some_out) = sides(support, rect, line);
-            if !some_in {
-                *out = ConvexPolygon::empty();
-                return;
-            }
-            if some_out {
-                lines[n] = line;
-                n += 1;
-            }
-        }
-        if n == 0 {
-            out.clone_from(support);
-        } else {
-            support.clip_lines_into(&lines[..n], out);
+        let placed = placement_with(support, self.lines(), |line| {
+            lines[n] = line;
+            n += 1;
+        });
+        match placed {
+            Placement::Outside => *out = ConvexPolygon::empty(),
+            Placement::Inside => out.clone_from(support),
+            Placement::Straddles => support.clip_lines_into(&lines[..n], out),
         }
     }
 

@@ -712,6 +712,15 @@ mod tests {
 
     /// Cameras at `positions` looking at `target`, the `k`-th with a field
     /// of view of `50 + 10·k` degrees, `size` pixels.
+    /// The rolling grid the mesh tests share: 24 × 24 cells of hills a
+    /// few units high, with a little terracing.
+    fn rolling_hills() -> Vec<crate::scene::Triangle> {
+        rolling_grid(24, |i, j| {
+            let (x, z) = (i as f64, j as f64);
+            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
+        })
+    }
+
     fn cameras(positions: [Vec3; 3], target: Vec3, (w, h): (u32, u32)) -> Vec<Camera> {
         (positions.into_iter().enumerate())
             .map(|(k, position)| {
@@ -731,10 +740,7 @@ mod tests {
     #[test]
     fn meshes_match_the_ray_cast() {
         use crate::scene::{Mesh, Triangle};
-        let mut triangles = rolling_grid(24, |i, j| {
-            let (x, z) = (i as f64, j as f64);
-            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
-        });
+        let mut triangles = rolling_hills();
         // Loose triangles, one reaching behind the camera.
         let loose = [
             [
@@ -794,16 +800,10 @@ mod tests {
     fn gap_searches_find_every_triangle_that_reaches_in() {
         use crate::scene::Mesh;
         use quadtex_core::ConvexPolygon;
-        let triangles = rolling_grid(24, |i, j| {
-            let (x, z) = (i as f64, j as f64);
-            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
-        });
+        let triangles = rolling_hills();
         let mesh = Arc::new(Mesh::new(triangles).unwrap());
         let mut seed = 5u64;
-        let mut next = || {
-            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = || crate::math::unit_random(&mut seed);
         let (mut reached, mut bin_searches) = (0, 0);
         let positions = cameras(
             [
@@ -906,10 +906,7 @@ mod tests {
     #[test]
     fn screen_bins_answer_as_the_ray_cast() {
         use crate::scene::{Mesh, Triangle};
-        let mut triangles = rolling_grid(24, |i, j| {
-            let (x, z) = (i as f64, j as f64);
-            1.5 * (0.7 * x).sin() * (0.5 * z).cos() + 0.1 * ((i * 7 + j * 3) % 5) as f64
-        });
+        let mut triangles = rolling_hills();
         triangles.extend(Triangle::new(
             [
                 Vec3::new(-2.0, 2.5, 20.0),
