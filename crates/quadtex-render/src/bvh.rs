@@ -278,6 +278,41 @@ impl Bvh {
         false
     }
 
+    /// The positions in the leaves' order of every primitive in a leaf
+    /// reached through boxes that all pass `enters`, as increasing,
+    /// disjoint ranges (adjacent leaves' merged). Once the items are
+    /// reordered to the leaves ([`Bvh::reorder_to_leaves`]), a position is
+    /// the item's own index.
+    pub fn leaf_ranges(&self, enters: impl Fn(&Aabb) -> bool) -> Vec<std::ops::Range<usize>> {
+        let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
+        if !self.nodes.first().is_some_and(|root| enters(&root.bounds)) {
+            return ranges;
+        }
+        let mut stack = [0u32; MAX_DEPTH + 2];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.count > 0 {
+                let (start, end) = (node.start as usize, (node.start + node.count) as usize);
+                match ranges.last_mut() {
+                    Some(last) if last.end == start => last.end = end,
+                    _ => ranges.push(start..end),
+                }
+                continue;
+            }
+            // The right child first on the stack: the left one's leaves,
+            // the lower positions, come out first.
+            for child in [node.start as usize + 1, node.start as usize] {
+                if enters(&self.nodes[child].bounds) {
+                    stack[top] = child as u32;
+                    top += 1;
+                }
+            }
+        }
+        ranges
+    }
+
     /// The box around every item, `None` for an empty hierarchy.
     pub fn bounds(&self) -> Option<Aabb> {
         self.nodes.first().map(|n| n.bounds)
@@ -872,6 +907,53 @@ mod tests {
     /// Every box is a conservative test: the frustum query visits every
     /// primitive whose vertices are not all outside one plane (the
     /// brute-force set), and stops at the first `visit` that says so.
+    /// The ranges hold each primitive of a leaf the predicate reaches, as
+    /// the depth-first walk over the same boxes finds them, once, in
+    /// increasing runs; a predicate that keeps every box gives all.
+    #[test]
+    fn leaf_ranges_list_what_the_walk_reaches() {
+        let mut seed = 5u64;
+        for n in [1, 7, 90, 1500] {
+            let mut tris = soup(n, &mut seed);
+            let mut bvh = Bvh::build(n, |i| bounds(&tris[i]));
+            bvh.reorder_to_leaves(&mut tris);
+            assert_eq!(bvh.leaf_ranges(|_| true), vec![0..n]);
+            for _ in 0..30 {
+                let c = Vec3::new(rng(&mut seed), rng(&mut seed), rng(&mut seed)) * 10.0;
+                let r = 0.5 + 3.0 * rng(&mut seed);
+                let near = |b: &Aabb| {
+                    let d = |lo: f64, hi: f64, v: f64| (lo - v).max(v - hi).max(0.0);
+                    d(b.lo.x, b.hi.x, c.x)
+                        .hypot(d(b.lo.y, b.hi.y, c.y))
+                        .hypot(d(b.lo.z, b.hi.z, c.z))
+                        <= r
+                };
+                let ranges = bvh.leaf_ranges(near);
+                assert!(
+                    ranges.windows(2).all(|w| w[0].end < w[1].start),
+                    "runs not increasing, apart"
+                );
+                let listed: Vec<u32> = ranges
+                    .iter()
+                    .flat_map(|r| r.start as u32..r.end as u32)
+                    .collect();
+                let mut walked = Vec::new();
+                bvh.first_in(near, |i| {
+                    walked.push(i);
+                    false
+                });
+                walked.sort_unstable();
+                assert_eq!(listed, walked, "n = {n}");
+                // Every primitive whose own box passes is in a leaf that does.
+                for (i, t) in tris.iter().enumerate() {
+                    if near(&bounds(t)) {
+                        assert!(listed.binary_search(&(i as u32)).is_ok(), "{i} missed");
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn frustum_queries_miss_no_primitive_a_scan_keeps() {
         let mut seed = 11u64;

@@ -363,6 +363,16 @@ impl Mesh {
         self.bvh.bounds()
     }
 
+    /// The triangles in a leaf of the hierarchy reached through boxes that
+    /// all pass `enters(lo, hi)`, as increasing ranges of indices (the
+    /// triangles follow the leaves' order).
+    pub(crate) fn triangles_in(
+        &self,
+        enters: impl Fn(Vec3, Vec3) -> bool,
+    ) -> Vec<std::ops::Range<usize>> {
+        self.bvh.leaf_ranges(|b| enters(b.lo, b.hi))
+    }
+
     /// The triangle across edge `edge` of triangle `index`, if one shares
     /// it. Edges are numbered by the corner they face, as the view of a
     /// triangle orders its edge lines ([`crate::planar_view::View::lines`]):

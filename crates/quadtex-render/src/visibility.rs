@@ -67,6 +67,18 @@ const NOT_BINNED: u32 = u32::MAX;
 /// plane), and the least depth `(p − c)·forward` of its corners, at least 0.
 type Projected = (u32, u32, [f64; 4], f64);
 
+/// Pixels by which the planes that rule out a mesh's hierarchy boxes
+/// ([`Raster::may_show`]) lie outside the grid: beyond the tiles of the
+/// mesh's reach that a screen box past the grid's edge still marks (8
+/// pixels and 1 of slack), and far above the rounding of the projection.
+/// A triangle ruled out covers no centre and reaches no pixel's support
+/// (all within the grid): the grid, the reach and what the screen bins
+/// answer are as without the test.
+const CULL_MARGIN: f64 = 64.0;
+
+/// Triangles per task when the binning projects them.
+const PROJECT_RUN: usize = 4096;
+
 /// Grid rows per band of the mesh triangles' bins.
 const BAND: usize = 8;
 
@@ -344,40 +356,98 @@ impl<'s> Raster<'s> {
         [lo[0], lo[1], hi[0], hi[1]]
     }
 
+    /// Whether a box `[lo, hi]` of world space may hold points the grid
+    /// shows: false only when the whole box lies behind the camera's plane
+    /// or beyond one of the planes through the camera and the grid's edges
+    /// moved out by [`CULL_MARGIN`] pixels. A mesh triangle in such a box
+    /// projects (where it is in front of the camera) more than that
+    /// margin off the grid: it covers no centre, reaches no tile of the
+    /// mesh's reach or the screen bins, and is not binned.
+    fn may_show(&self) -> impl Fn(Vec3, Vec3) -> bool + '_ {
+        let cam = &self.scene.camera;
+        let (width, height) = (f64::from(cam.width), f64::from(cam.height));
+        let aspect = width / height;
+        let [x_hi, y_hi] = self.extent.map(|v| v + CULL_MARGIN);
+        let (x_lo, y_lo) = (-self.pad - CULL_MARGIN, -self.pad - CULL_MARGIN);
+        // A point `p` in front (`d·forward > 0`, `d = p − c`) projects to
+        // `x ≥ x_lo` iff `d·(right − k·forward) ≥ 0` with `k` the screen
+        // slope at `x_lo` ([`Camera::project`]), and so for each edge.
+        let kx = |x: f64| (2.0 * x / width - 1.0) * cam.tan_half_fov * aspect;
+        let ky = |y: f64| (1.0 - 2.0 * y / height) * cam.tan_half_fov;
+        let (f, r, u) = (cam.forward, cam.right, cam.up);
+        let normals = [
+            f,
+            r - f * kx(x_lo),
+            f * kx(x_hi) - r,
+            f * ky(y_lo) - u,
+            u - f * ky(y_hi),
+        ];
+        let c = cam.position;
+        move |lo: Vec3, hi: Vec3| {
+            normals.iter().all(|n| {
+                // The largest `n·(p − c)` over the box, at the corner
+                // farthest along `n`, against a tolerance for its rounding.
+                let far =
+                    |n: f64, lo: f64, hi: f64, c: f64| n * (if n > 0.0 { hi } else { lo } - c);
+                let terms = [
+                    far(n.x, lo.x, hi.x, c.x),
+                    far(n.y, lo.y, hi.y, c.y),
+                    far(n.z, lo.z, hi.z, c.z),
+                ];
+                let most: f64 = terms.iter().sum();
+                let size: f64 = terms.iter().map(|t| t.abs()).sum();
+                // NaN (a box not finite) keeps the box.
+                most >= -1e-9 * size || most.is_nan() || size.is_nan()
+            })
+        }
+    }
+
     /// Bins mesh `surface`'s triangles by the grid rows their screen boxes
-    /// reach (every row for one reaching behind the camera's plane).
+    /// reach (every row for one reaching behind the camera's plane). The
+    /// hierarchy's boxes rule out first the triangles no part of the grid
+    /// can show ([`Raster::may_show`]): about half of a terrain's.
     fn bin(&mut self, surface: usize, mesh: &Mesh, (gw, gh): (usize, usize)) {
         let cam = &self.scene.camera;
-        let rows: Vec<Option<Projected>> = (0..mesh.len())
-            .into_par_iter()
-            .map(|t| {
-                let corners = mesh.corners(t)?;
-                // Every ray's direction has `d·forward = 1`: a point with
-                // `(p − c)·forward ≤ 0` is never hit.
-                let depths = corners.map(|p| (p - cam.position).dot(cam.forward));
-                if depths.iter().all(|&z| z <= 0.0) {
-                    return None;
-                }
-                let near = depths.into_iter().fold(f64::INFINITY, f64::min).max(0.0);
-                let Some((lo, hi)) = cam.screen_box(corners) else {
-                    return Some((0, gh as u32 - 1, self.behind_box(surface, t), near));
-                };
-                self.cells(lo[0], hi[0], gw)?;
-                self.cells(lo[1], hi[1], gh)?;
-                let screen_box = [lo[0], lo[1], hi[0], hi[1]];
-                // A triangle between the centres (most of a far
-                // hillside's) marks no cell: it is not binned, but its
-                // reach is marked (the gap searches look for it).
-                let centres = |axis: usize, n: usize| {
-                    self.centres(lo[axis], hi[axis], n, BOX_SLACK, BOX_SLACK_REL)
-                };
-                Some(match (centres(0, gw), centres(1, gh)) {
-                    (Some(_), Some((first, last))) => (first as u32, last as u32, screen_box, near),
-                    _ => (NOT_BINNED, 0, screen_box, near),
-                })
+        // In runs of at most a few thousand, so the threads share them.
+        let runs: Vec<std::ops::Range<usize>> = (mesh.triangles_in(self.may_show()).into_iter())
+            .flat_map(|r| {
+                (r.start..r.end)
+                    .step_by(PROJECT_RUN)
+                    .map(move |s| s..(s + PROJECT_RUN).min(r.end))
             })
             .collect();
-        for &(_, _, [x0, y0, x1, y1], _) in rows.iter().flatten() {
+        let project = |t: usize| -> Option<Projected> {
+            let corners = mesh.corners(t)?;
+            // Every ray's direction has `d·forward = 1`: a point with
+            // `(p − c)·forward ≤ 0` is never hit.
+            let depths = corners.map(|p| (p - cam.position).dot(cam.forward));
+            if depths.iter().all(|&z| z <= 0.0) {
+                return None;
+            }
+            let near = depths.into_iter().fold(f64::INFINITY, f64::min).max(0.0);
+            let Some((lo, hi)) = cam.screen_box(corners) else {
+                return Some((0, gh as u32 - 1, self.behind_box(surface, t), near));
+            };
+            self.cells(lo[0], hi[0], gw)?;
+            self.cells(lo[1], hi[1], gh)?;
+            let screen_box = [lo[0], lo[1], hi[0], hi[1]];
+            // A triangle between the centres (most of a far
+            // hillside's) marks no cell: it is not binned, but its
+            // reach is marked (the gap searches look for it).
+            let centres = |axis: usize, n: usize| {
+                self.centres(lo[axis], hi[axis], n, BOX_SLACK, BOX_SLACK_REL)
+            };
+            Some(match (centres(0, gw), centres(1, gh)) {
+                (Some(_), Some((first, last))) => (first as u32, last as u32, screen_box, near),
+                _ => (NOT_BINNED, 0, screen_box, near),
+            })
+        };
+        // In the triangles' order.
+        let rows: Vec<(u32, Projected)> = runs
+            .into_par_iter()
+            .flat_map_iter(|run| run.filter_map(|t| project(t).map(|p| (t as u32, p))))
+            .collect();
+        for &(_, (_, _, [x0, y0, x1, y1], _)) in &rows {
             if x0 == f64::NEG_INFINITY {
                 self.reach.mark_everywhere();
                 break;
@@ -385,18 +455,16 @@ impl<'s> Raster<'s> {
             self.reach.mark([x0, y0], [x1, y1]);
         }
         let unknown = |b: &[f64; 4]| b[0] == f64::NEG_INFINITY;
-        if rows.iter().flatten().any(|(_, _, b, _)| unknown(b)) {
+        if rows.iter().any(|(_, (_, _, b, _))| unknown(b)) {
             self.screen_boxes = None;
         }
         if let Some(boxes) = &mut self.screen_boxes {
-            let shown = (rows.iter().enumerate())
-                .filter_map(|(t, r)| {
-                    r.map(|(_, _, b, near)| ScreenBox {
-                        surface: surface as u32,
-                        triangle: t as u32,
-                        screen: b,
-                        near,
-                    })
+            let shown = (rows.iter())
+                .map(|&(t, (_, _, b, near))| ScreenBox {
+                    surface: surface as u32,
+                    triangle: t,
+                    screen: b,
+                    near,
                 })
                 // An inverted box shows nothing.
                 .filter(|b| b.screen[0] <= b.screen[2] && b.screen[1] <= b.screen[3]);
@@ -405,8 +473,8 @@ impl<'s> Raster<'s> {
         // Sized first: pushing a million entries into growing vectors
         // copies them over and over.
         let mut counts = vec![0usize; self.bands.len()];
-        let binned = |r: &&Projected| r.0 != NOT_BINNED;
-        for &(first, last, _, _) in rows.iter().flatten().filter(binned) {
+        let binned = |r: &&(u32, Projected)| r.1.0 != NOT_BINNED;
+        for &(_, (first, last, _, _)) in rows.iter().filter(binned) {
             for count in &mut counts[first as usize / BAND..=last as usize / BAND] {
                 *count += 1;
             }
@@ -414,12 +482,9 @@ impl<'s> Raster<'s> {
         for (band, count) in self.bands.iter_mut().zip(counts) {
             band.reserve(count);
         }
-        for (t, r) in rows.into_iter().enumerate() {
-            let Some((first, last, _, _)) = r.filter(|r| binned(&r)) else {
-                continue;
-            };
+        for &(t, (first, last, _, _)) in rows.iter().filter(binned) {
             for band in first as usize / BAND..=last as usize / BAND {
-                self.bands[band].push((surface as u32, t as u32, first, last));
+                self.bands[band].push((surface as u32, t, first, last));
             }
         }
     }
@@ -786,6 +851,68 @@ mod tests {
             cells += n;
         }
         assert!(casts * 20 < cells, "{casts} of {cells} cells cast");
+    }
+
+    /// What [`Raster::may_show`] rules out shows nowhere on the grid: no
+    /// point of such a triangle (corners, and a lattice over it) in front
+    /// of the camera projects within a pixel of the padded grid, and the
+    /// grids come out as the ray cast's with it ([`check`]).
+    #[test]
+    fn culled_triangles_show_nowhere_on_the_grid() {
+        use crate::scene::Mesh;
+        let mesh = Mesh::new(rolling_hills()).unwrap();
+        let (mut culled, mut total) = (0, 0);
+        for camera in cameras(
+            [
+                Vec3::new(0.0, 6.0, 8.0),
+                Vec3::new(-14.0, 2.5, 2.0),
+                Vec3::new(3.0, 1.2, -14.0),
+            ],
+            Vec3::new(0.0, 0.0, -12.0),
+            (160, 96),
+        ) {
+            let scene = Scene {
+                camera,
+                surfaces: vec![surface(Geometry::Mesh(Arc::new(mesh.clone())))],
+                sky: Sky::Solid(Rgba::opaque(0.5, 0.5, 0.5)),
+                lighting: Lighting::Unlit,
+            };
+            check(&scene, 3);
+            let views = SurfaceViews::new(&scene);
+            let pad = 3.0;
+            let (gw, gh) = (166, 102);
+            let raster = Raster::new(&scene, &views, (gw, gh), pad).unwrap();
+            let kept: Vec<usize> = mesh
+                .triangles_in(raster.may_show())
+                .into_iter()
+                .flatten()
+                .collect();
+            let cam = &scene.camera;
+            for t in 0..mesh.len() {
+                total += 1;
+                if kept.binary_search(&t).is_ok() {
+                    continue;
+                }
+                culled += 1;
+                let [a, b, c] = mesh.corners(t).unwrap();
+                for i in 0..=8 {
+                    for j in 0..=8 - i {
+                        let (u, v) = (f64::from(i) / 8.0, f64::from(j) / 8.0);
+                        let p = a + (b - a) * u + (c - a) * v;
+                        if let Some([x, y]) = cam.project(p) {
+                            let inside = x > -pad - 1.0
+                                && x < gw as f64 - pad + 1.0
+                                && y > -pad - 1.0
+                                && y < gh as f64 - pad + 1.0;
+                            assert!(!inside, "triangle {t} ruled out shows at ({x}, {y})");
+                        }
+                    }
+                }
+            }
+        }
+        // The third camera stands among the hills: what lies behind it and
+        // to the sides goes (482 of 3456 triangles over the three).
+        assert!(culled * 10 > total, "only {culled} of {total} ruled out");
     }
 
     /// The gap search ([`SurfaceViews::meshes_in_gap`], from the screen
