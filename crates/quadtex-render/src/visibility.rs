@@ -447,46 +447,57 @@ impl<'s> Raster<'s> {
             .into_par_iter()
             .flat_map_iter(|run| run.filter_map(|t| project(t).map(|p| (t as u32, p))))
             .collect();
-        for &(_, (_, _, [x0, y0, x1, y1], _)) in &rows {
-            if x0 == f64::NEG_INFINITY {
-                self.reach.mark_everywhere();
-                break;
+        // The reach, the screen boxes and the bands from them at once, on
+        // as many threads: they share nothing but the list.
+        let (reach, screen_boxes, bands) =
+            (&mut self.reach, &mut self.screen_boxes, &mut self.bands);
+        let mark_reach = || {
+            for &(_, (_, _, [x0, y0, x1, y1], _)) in &rows {
+                if x0 == f64::NEG_INFINITY {
+                    reach.mark_everywhere();
+                    break;
+                }
+                reach.mark([x0, y0], [x1, y1]);
             }
-            self.reach.mark([x0, y0], [x1, y1]);
-        }
-        let unknown = |b: &[f64; 4]| b[0] == f64::NEG_INFINITY;
-        if rows.iter().any(|(_, (_, _, b, _))| unknown(b)) {
-            self.screen_boxes = None;
-        }
-        if let Some(boxes) = &mut self.screen_boxes {
-            let shown = (rows.iter())
-                .map(|&(t, (_, _, b, near))| ScreenBox {
-                    surface: surface as u32,
-                    triangle: t,
-                    screen: b,
-                    near,
-                })
-                // An inverted box shows nothing.
-                .filter(|b| b.screen[0] <= b.screen[2] && b.screen[1] <= b.screen[3]);
-            boxes.extend(shown);
-        }
-        // Sized first: pushing a million entries into growing vectors
-        // copies them over and over.
-        let mut counts = vec![0usize; self.bands.len()];
-        let binned = |r: &&(u32, Projected)| r.1.0 != NOT_BINNED;
-        for &(_, (first, last, _, _)) in rows.iter().filter(binned) {
-            for count in &mut counts[first as usize / BAND..=last as usize / BAND] {
-                *count += 1;
+        };
+        let list_boxes = || {
+            let unknown = |b: &[f64; 4]| b[0] == f64::NEG_INFINITY;
+            if rows.iter().any(|(_, (_, _, b, _))| unknown(b)) {
+                *screen_boxes = None;
             }
-        }
-        for (band, count) in self.bands.iter_mut().zip(counts) {
-            band.reserve(count);
-        }
-        for &(t, (first, last, _, _)) in rows.iter().filter(binned) {
-            for band in first as usize / BAND..=last as usize / BAND {
-                self.bands[band].push((surface as u32, t, first, last));
+            if let Some(boxes) = screen_boxes {
+                let shown = (rows.iter())
+                    .map(|&(t, (_, _, b, near))| ScreenBox {
+                        surface: surface as u32,
+                        triangle: t,
+                        screen: b,
+                        near,
+                    })
+                    // An inverted box shows nothing.
+                    .filter(|b| b.screen[0] <= b.screen[2] && b.screen[1] <= b.screen[3]);
+                boxes.extend(shown);
             }
-        }
+        };
+        let fill_bands = || {
+            // Sized first: pushing a million entries into growing vectors
+            // copies them over and over.
+            let mut counts = vec![0usize; bands.len()];
+            let binned = |r: &&(u32, Projected)| r.1.0 != NOT_BINNED;
+            for &(_, (first, last, _, _)) in rows.iter().filter(binned) {
+                for count in &mut counts[first as usize / BAND..=last as usize / BAND] {
+                    *count += 1;
+                }
+            }
+            for (band, count) in bands.iter_mut().zip(counts) {
+                band.reserve(count);
+            }
+            for &(t, (first, last, _, _)) in rows.iter().filter(binned) {
+                for band in first as usize / BAND..=last as usize / BAND {
+                    bands[band].push((surface as u32, t, first, last));
+                }
+            }
+        };
+        rayon::join(mark_reach, || rayon::join(list_boxes, fill_bands));
     }
 
     /// Fills band `band` (`cells`: its rows, `gw` wide); `cast(gx, gy)` is
