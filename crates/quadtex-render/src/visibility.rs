@@ -492,8 +492,8 @@ impl<'s> Raster<'s> {
                 band.reserve(count);
             }
             for &(t, (first, last, _, _)) in rows.iter().filter(binned) {
-                for band in first as usize / BAND..=last as usize / BAND {
-                    bands[band].push((surface as u32, t, first, last));
+                for band in &mut bands[first as usize / BAND..=last as usize / BAND] {
+                    band.push((surface as u32, t, first, last));
                 }
             }
         };
