@@ -1016,10 +1016,11 @@ struct Cut {
     /// The boxes of the non-empty regions [`Cut::tiling`] compares, and
     /// their indices.
     boxes: Vec<(usize, Bounds)>,
-    /// Whether the regions tile the support ([`Cut::tiling`]): each view's
-    /// piece is its whole region, read from the regions, not copied into
-    /// `pieces` (which stays empty).
-    tiled: bool,
+    /// How many of the first regions are taken whole: all of them when
+    /// they tile the support or lie apart ([`Cut::tiling`]), each view's
+    /// piece its whole region, read from the regions, not copied into
+    /// `pieces`; 0 when the support was cut front to back.
+    whole: usize,
 }
 
 impl Cut {
@@ -1037,8 +1038,8 @@ impl Cut {
         self.slivers.clear();
         self.sliver_area = GAP_AREA * support.area();
         self.unaccounted = 0.0;
-        self.tiled = false;
-        if self.tiling(regions, support) {
+        self.whole = 0;
+        if self.taken_whole(regions, support) {
             return;
         }
         self.remaining.push(support.clone());
@@ -1047,19 +1048,61 @@ impl Cut {
         }
     }
 
+    /// The cut when no two `regions` overlap by more than a sliver: each
+    /// view sees its whole region, whatever their order, and what they
+    /// leave of the support (nothing, but for slivers, when they tile it)
+    /// is left for the gaps. This is what cutting them front to back
+    /// gives, but for how the parts left are split, with fewer pieces (a
+    /// region cut into each part it reaches) and no order. Returns false,
+    /// the cut untouched, when two overlap.
+    fn taken_whole(&mut self, regions: &[ConvexPolygon], support: &ConvexPolygon) -> bool {
+        if self.tiling(regions, support) {
+            return true;
+        }
+        if self.whole == 0 {
+            return false;
+        }
+        self.remaining.push(support.clone());
+        let drop = |_: ConvexPolygon, _: &mut Vec<ConvexPolygon>, _: usize| {};
+        for region in regions.iter().filter(|r| !r.is_empty()) {
+            let (remaining, spare, slivers) =
+                (&mut self.remaining, &mut self.spare, &mut self.slivers);
+            carve(remaining, region, spare, slivers, self.sliver_area, drop);
+        }
+        true
+    }
+
+    /// Gives the views taken whole their regions as pieces, so that the
+    /// cut can be cut again ([`Cut::insert`]).
+    fn into_pieces(&mut self, regions: &[ConvexPolygon]) {
+        let whole = std::mem::take(&mut self.whole);
+        for (i, region) in regions[..whole].iter().enumerate() {
+            if !region.is_empty() {
+                self.pieces.push((i, region.clone()));
+            }
+        }
+    }
+
     /// The cut when the `regions` tile the support (the triangles of a
     /// mesh around a pixel, most often): where no two overlap by more than
     /// a sliver and together they cover it but for a sliver, each view
     /// sees its whole region, whatever their order, and nothing is left.
-    /// Returns false, the cut untouched, otherwise. The area counted twice
-    /// or not at all (at most three slivers) is kept in `unaccounted`, for
-    /// the error bound.
+    /// Returns false otherwise: the cut untouched when two overlap or they
+    /// cover more; when they lie apart but cover less (gaps), with every
+    /// region taken whole ([`Cut::taken_whole`] leaves the gaps). The area
+    /// counted twice (or, tiling, not at all: at most three slivers) is
+    /// kept in `unaccounted`, for the error bound.
     fn tiling(&mut self, regions: &[ConvexPolygon], support: &ConvexPolygon) -> bool {
         let total: f64 = regions.iter().map(ConvexPolygon::area).sum();
-        let short = (support.area() - total).abs();
-        if short > self.sliver_area {
+        let short = support.area() - total;
+        if short < -self.sliver_area {
             return false;
         }
+        // Less than the support: the regions may still lie apart, leaving
+        // gaps (a far hillside's triangles the list lacks); each is then
+        // taken whole, and the gaps are what is left.
+        let gaps = short > self.sliver_area;
+        let short = short.abs();
         let mut overlapping = 0.0;
         // Each region's box once; empty regions (the centres' triangles
         // that miss this support, most of a crowded list) overlap nothing.
@@ -1087,9 +1130,9 @@ impl Cut {
                 }
             }
         }
-        self.tiled = true;
-        self.unaccounted = short + 2.0 * overlapping;
-        true
+        self.whole = regions.len();
+        self.unaccounted = if gaps { 0.0 } else { short } + 2.0 * overlapping;
+        !gaps
     }
 
     /// Each visible piece and the index of the view that sees it, in
@@ -1098,14 +1141,13 @@ impl Cut {
         &'c self,
         regions: &'c [ConvexPolygon],
     ) -> impl Iterator<Item = (usize, &'c ConvexPolygon)> + 'c {
-        let whole = (regions.iter().enumerate()).filter(move |(_, r)| self.tiled && !r.is_empty());
+        let whole = (regions[..self.whole].iter().enumerate()).filter(|(_, r)| !r.is_empty());
         whole.chain(self.pieces.iter().map(|(i, p)| (*i, p)))
     }
 
     /// Gives view `v` what its `region` covers of the parts not yet
     /// covered (it lies behind every view taken before).
     fn take(&mut self, v: usize, region: &ConvexPolygon) {
-        debug_assert!(!self.tiled, "a tiled support has nothing left to take");
         if region.is_empty() {
             return;
         }
@@ -1136,10 +1178,7 @@ impl Cut {
     /// cyclic), but only what `n`'s region reaches is cut, and `n`'s own
     /// region only where a view in front covers it.
     fn insert(&mut self, n: usize, views: &[ViewRef<'_>], regions: &[ConvexPolygon]) {
-        debug_assert!(
-            !self.tiled,
-            "a tiled support has nothing left to insert into"
-        );
+        self.into_pieces(regions);
         let region = &regions[n];
         if region.is_empty() {
             return;
@@ -1936,7 +1975,7 @@ mod tests {
                 .map(|i| tri(&[corners[i], corners[(i + 1) % 4], p]))
                 .collect();
             let whole = tiling(&fan, &support).expect("a fan tiles the pixel");
-            assert!(whole.tiled && whole.pieces.is_empty());
+            assert!(whole.whole == fan.len() && whole.pieces.is_empty());
             assert_eq!(whole.visible(&fan).count(), 4);
             assert!(whole.remaining.is_empty() && whole.slivers.is_empty());
             assert!(whole.unaccounted <= 3.0 * sliver, "{}", whole.unaccounted);
@@ -1978,6 +2017,75 @@ mod tests {
         let right = ConvexPolygon::rect(10.4, 20.0, 10.9, 21.0);
         assert!((left.area() + right.area() - support.area()).abs() < 1e-12);
         assert!(tiling(&[left, right], &support).is_none());
+    }
+
+    /// Regions that lie apart but leave gaps (a fan with triangles left
+    /// out): each is taken whole, and what is left of the support, the
+    /// gaps, is what cutting them one by one leaves; regions that overlap
+    /// are not taken so.
+    #[test]
+    fn regions_apart_with_gaps_are_taken_whole() {
+        let support = ConvexPolygon::rect(10.0, 20.0, 11.0, 21.0);
+        let sliver = GAP_AREA * support.area();
+        let tri = |v: &[[f64; 2]]| ConvexPolygon::new(v).unwrap();
+        let mut seed = 11u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            0.05 + 0.9 * ((seed >> 11) as f64 / (1u64 << 53) as f64)
+        };
+        let corners = [[10.0, 20.0], [11.0, 20.0], [11.0, 21.0], [10.0, 21.0]];
+        let new_cut = || Cut {
+            sliver_area: sliver,
+            ..Cut::default()
+        };
+        for k in 0..200 {
+            let p = [10.0 + next(), 20.0 + next()];
+            // One to three of the fan's four triangles, and an empty region.
+            let fan: Vec<ConvexPolygon> = (0..4)
+                .filter(|i| (k >> i) % 2 == 1 || *i == k % 4)
+                .map(|i| tri(&[corners[i], corners[(i + 1) % 4], p]))
+                .take(3)
+                .chain([ConvexPolygon::empty()])
+                .collect();
+            let mut whole = new_cut();
+            assert!(whole.taken_whole(&fan, &support));
+            assert_eq!(whole.whole, fan.len());
+            assert!(whole.pieces.is_empty());
+            assert_eq!(whole.visible(&fan).count(), fan.len() - 1);
+            let mut cut = Cut {
+                remaining: vec![support.clone()],
+                ..new_cut()
+            };
+            for (v, region) in fan.iter().enumerate() {
+                cut.take(v, region);
+            }
+            for (a, b) in areas_by_view(&whole, &fan, fan.len())
+                .iter()
+                .zip(areas_by_view(&cut, &fan, fan.len()))
+            {
+                assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+            }
+            let left = |c: &Cut| c.remaining.iter().map(ConvexPolygon::area).sum::<f64>();
+            let covered: f64 = fan.iter().map(ConvexPolygon::area).sum();
+            assert!((left(&whole) - (support.area() - covered)).abs() < 1e-12);
+            assert!((left(&whole) - left(&cut)).abs() < 1e-12);
+            assert!(whole.unaccounted <= 2.0 * sliver, "{}", whole.unaccounted);
+            // Cut again with a region over the others: as cut front to
+            // back from the start.
+            let over = ConvexPolygon::rect(10.2, 20.2, 10.6, 20.7);
+            let mut regions = fan.clone();
+            regions.push(over);
+            whole.into_pieces(&regions);
+            assert_eq!(whole.whole, 0);
+            assert_eq!(whole.pieces.len(), fan.len() - 1);
+        }
+        // Overlapping regions that cover less than the support: cut.
+        let left = ConvexPolygon::rect(10.0, 20.0, 10.5, 21.0);
+        let right = ConvexPolygon::rect(10.4, 20.0, 10.8, 21.0);
+        let mut cut = new_cut();
+        assert!(!cut.taken_whole(&[left, right], &support));
+        assert_eq!(cut.whole, 0);
+        assert!(cut.remaining.is_empty());
     }
 
     /// Triangles of a fan that share an edge, one of them with its inner
