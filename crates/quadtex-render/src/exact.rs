@@ -1074,7 +1074,7 @@ impl Cut {
 
     /// Gives the views taken whole their regions as pieces, so that the
     /// cut can be cut again ([`Cut::insert`]).
-    fn into_pieces(&mut self, regions: &[ConvexPolygon]) {
+    fn pieces_from_whole(&mut self, regions: &[ConvexPolygon]) {
         let whole = std::mem::take(&mut self.whole);
         for (i, region) in regions[..whole].iter().enumerate() {
             if !region.is_empty() {
@@ -1178,7 +1178,7 @@ impl Cut {
     /// cyclic), but only what `n`'s region reaches is cut, and `n`'s own
     /// region only where a view in front covers it.
     fn insert(&mut self, n: usize, views: &[ViewRef<'_>], regions: &[ConvexPolygon]) {
-        self.into_pieces(regions);
+        self.pieces_from_whole(regions);
         let region = &regions[n];
         if region.is_empty() {
             return;
@@ -2075,7 +2075,7 @@ mod tests {
             let over = ConvexPolygon::rect(10.2, 20.2, 10.6, 20.7);
             let mut regions = fan.clone();
             regions.push(over);
-            whole.into_pieces(&regions);
+            whole.pieces_from_whole(&regions);
             assert_eq!(whole.whole, 0);
             assert_eq!(whole.pieces.len(), fan.len() - 1);
         }
