@@ -282,7 +282,9 @@ impl Bvh {
     /// reached through boxes that all pass `enters`, as increasing,
     /// disjoint ranges (adjacent leaves' merged). Once the items are
     /// reordered to the leaves ([`Bvh::reorder_to_leaves`]), a position is
-    /// the item's own index.
+    /// the item's own index. (The walk is [`Bvh::first_in`]'s, children
+    /// the other way round; one walker for both, with the order as a flag,
+    /// cost the terrain's frame 0.4 % more instructions.)
     pub fn leaf_ranges(&self, enters: impl Fn(&Aabb) -> bool) -> Vec<std::ops::Range<usize>> {
         let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
         if !self.nodes.first().is_some_and(|root| enters(&root.bounds)) {

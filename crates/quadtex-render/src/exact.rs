@@ -1176,7 +1176,8 @@ impl Cut {
     /// the views behind it. The pieces are those of cutting the support
     /// again with `n` in its place in the order (when occlusion is not
     /// cyclic), but only what `n`'s region reaches is cut, and `n`'s own
-    /// region only where a view in front covers it.
+    /// region only where a view in front covers it. Regions taken whole
+    /// become pieces first ([`Cut::pieces_from_whole`]).
     fn insert(&mut self, n: usize, views: &[ViewRef<'_>], regions: &[ConvexPolygon]) {
         self.pieces_from_whole(regions);
         let region = &regions[n];
