@@ -68,7 +68,7 @@ use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::planar_view::{Placement, View, placement};
 use crate::reach::MeshReach;
-use crate::scene::{Geometry, Hit, Lighting, Scene};
+use crate::scene::{Geometry, Hit, Lighting, QuadFrame, Scene};
 use crate::screen_bins::ScreenBins;
 use crate::span::{SpanAnswer, SpanQuery, UniformSpan, span_rect};
 use crate::stats::PixelStats;
@@ -1585,11 +1585,137 @@ fn tint_and_light(
         }
         None => tint.map(|t| t * w),
     };
-    match light {
+    match light.or_else(|| view.uniform_light(|| uniform_light(frame, view))) {
         Some(k) => apply_light(&mut c, k),
         None => light_piece(frame, view, piece, &mut c),
     }
     c
+}
+
+/// Whether no ray toward the sun (`direction`) from a point of triangle
+/// `corners`, lifted off it by up to 10⁻⁶ of its distance from `camera`
+/// (as [`lambert`] lifts its shadow rays), meets the plane through `point`
+/// with unit `normal`, or, for a quad (`quad`: its frame, corner `point`),
+/// the parallelogram: every corner lies beyond the plane on the sun's
+/// side, or every corner's ray meets the plane outside one and the same
+/// side of the parallelogram (the rays from the triangle meet the plane
+/// in the triangle of those points: the projection along `direction` is
+/// affine). Each by a margin of 10⁻⁵ of the corner's distance from the
+/// camera (on the plane, over the sine of the sun's angle to it),
+/// ten times the lift (and far above the rounding).
+fn sun_misses(
+    point: Vec3,
+    normal: Vec3,
+    quad: Option<&QuadFrame>,
+    corners: &[Vec3; 3],
+    camera: Vec3,
+    direction: Vec3,
+) -> bool {
+    let toward = normal.dot(direction);
+    // Not NaN, and not near parallel to the plane.
+    let steep = toward.abs() > 1e-3;
+    if !steep {
+        return false;
+    }
+    let margin = |p: Vec3| 1e-5 * (1.0 + (p - camera).length());
+    let beyond = corners.map(|p| normal.dot(p - point));
+    let sun_side = |b: f64| b * toward.signum();
+    if (corners.iter().zip(beyond)).all(|(&p, b)| sun_side(b) > margin(p)) {
+        return true;
+    }
+    let Some(q) = quad else {
+        return false;
+    };
+    if !(corners.iter().zip(beyond)).all(|(&p, b)| sun_side(b) < -margin(p)) {
+        return false;
+    }
+    // Where each corner's ray meets the plane, in the quad's coordinates
+    // (`s, t ∈ [0, 1]` on it): a point `m` outside the side `s = 0` lies
+    // `−s / |∇s|` from it.
+    let mut st = [[0.0; 2]; 3];
+    let mut slack = [0.0; 3];
+    for ((p, b), (st, slack)) in (corners.iter().zip(beyond)).zip(st.iter_mut().zip(&mut slack)) {
+        let rel = *p - direction * (b / toward) - point;
+        *st = [rel.dot(q.du), rel.dot(q.dv)];
+        *slack = margin(*p) / toward.abs();
+    }
+    [q.du, q.dv].iter().enumerate().any(|(axis, g)| {
+        let g = g.length();
+        (0..3).all(|k| st[k][axis] < -slack[k] * g)
+            || (0..3).all(|k| st[k][axis] > 1.0 + slack[k] * g)
+    })
+}
+
+/// The lighting factor [`lambert`] gives every point of mesh triangle
+/// `view`, when it is shown to be one: the triangle lies in front of the
+/// camera, its plane is not seen near edge-on (so the side facing the
+/// camera is the same at every point, `|n·(p − c)| > 10⁻⁶ |n| |p − c|`),
+/// and, where the sun is above that side, the sun grid shows no other
+/// triangle of the mesh between it and the sun
+/// ([`Caster::clear_of_own_mesh`](crate::caster::Caster::clear_of_own_mesh))
+/// and every other surface is a plane or quad the sun's rays from the
+/// triangle miss, by a margin (`10⁻⁵` of the distance from the
+/// camera, ten times the shadow ray's lift, [`sun_misses`]): no
+/// shadow ray leaving the triangle meets anything, and the cosine is the
+/// same. `None`
+/// otherwise (each piece then casts its own shadow ray, [`light_piece`]).
+fn uniform_light(frame: &Frame<'_>, view: &View) -> Option<[f32; 3]> {
+    let scene = frame.scene;
+    let Lighting::Lambert { direction, .. } = scene.lighting else {
+        return None;
+    };
+    let (surface, triangle) = (view.surface(), view.triangle()?);
+    let Geometry::Mesh(mesh) = &scene.surfaces.get(surface)?.geometry else {
+        return None;
+    };
+    let corners = mesh.corners(triangle as usize)?;
+    let camera = scene.camera.position;
+    let forward = scene.camera.forward();
+    let normal = view.normal();
+    let mut far = 0.0f64;
+    for p in corners {
+        let d = p - camera;
+        let distance = d.length();
+        let in_front = d.dot(forward) > 1e-6 * distance;
+        if !in_front {
+            return None;
+        }
+        far = far.max(distance);
+    }
+    let side = normal.dot(corners[0] - camera);
+    let facing = side.abs() > 1e-6 * far * normal.length();
+    if !facing {
+        return None;
+    }
+    // As `lambert` flips it: toward the camera.
+    let n = if side > 0.0 { -normal } else { normal };
+    let cos = n.dot(direction).max(0.0);
+    if cos > 0.0 {
+        if !frame.rays.clear_of_own_mesh((surface, triangle), direction) {
+            return None;
+        }
+        for (i, s) in scene.surfaces.iter().enumerate() {
+            let clear = match &s.geometry {
+                _ if i == surface => true,
+                Geometry::Plane { point, normal, .. } => {
+                    sun_misses(*point, *normal, None, &corners, camera, direction)
+                }
+                Geometry::Quad {
+                    origin,
+                    edge_u,
+                    edge_v,
+                } => QuadFrame::new(*edge_u, *edge_v).is_some_and(|q| {
+                    sun_misses(*origin, q.normal, Some(&q), &corners, camera, direction)
+                }),
+                _ => false,
+            };
+            if !clear {
+                return None;
+            }
+        }
+    }
+    let k = if cos > 0.0 { cos as f32 } else { 0.0 };
+    Some(crate::frame::lit_factor(&scene.lighting, k))
 }
 
 /// Multiplies `c` by `light`, a lighting factor per channel.
@@ -1901,6 +2027,94 @@ mod tests {
             camera: demo.camera.with_size(width, height),
             ..demo
         }
+    }
+
+    /// A triangle's uniform light, where it is shown, is what each of its
+    /// pieces' own shadow ray gives ([`light_piece`]), bit for bit: the
+    /// triangles of a generated terrain (hills above the runway decal,
+    /// the flat ground 0.3 m below it, which the decal shadows in part),
+    /// at points spread over each, under the scene's sun and a low one
+    /// (hills shadowing hills). Both answers occur, and lit triangles
+    /// among those shown.
+    #[test]
+    fn a_uniform_light_is_what_each_point_gets() {
+        let dir = std::env::temp_dir().join(format!("quadtex-light-{}", std::process::id()));
+        let file = crate::terrain::write_terrain(&dir, 400, 320, 180).unwrap();
+        let scene = crate::load_scene(&file).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        let Lighting::Lambert {
+            colour, ambient, ..
+        } = scene.lighting
+        else {
+            panic!("the terrain is lit");
+        };
+        let low = Scene {
+            lighting: Lighting::Lambert {
+                direction: Vec3::new(-0.8, 0.08, 0.55).normalized().unwrap(),
+                colour,
+                ambient,
+            },
+            ..scene.clone()
+        };
+        for scene in [scene, low] {
+            check_uniform_light(&scene);
+        }
+    }
+
+    fn check_uniform_light(scene: &Scene) {
+        let frame = Frame::new(scene);
+        let (surface, mesh) = (scene.surfaces.iter().enumerate())
+            .find_map(|(i, s)| match &s.geometry {
+                Geometry::Mesh(m) => Some((i, m.clone())),
+                _ => None,
+            })
+            .unwrap();
+        let (mut shown, mut lit, mut varies) = (0, 0, 0);
+        // Every triangle within 150 m of the runway (10 m cells: some
+        // wholly under it, some across its sides), every 7th elsewhere.
+        let near_runway = |t: u32| {
+            (mesh.corners(t as usize).unwrap())
+                .iter()
+                .any(|p| p.x.abs() < 150.0 && (-1950.0..150.0).contains(&p.z))
+        };
+        for t in (0..mesh.len() as u32).filter(|&t| t % 7 == 0 || near_runway(t)) {
+            let Some(view) = scene.surfaces[surface]
+                .geometry
+                .planar(t)
+                .and_then(|p| View::new(scene, surface, &p))
+            else {
+                continue;
+            };
+            let Some(k) = uniform_light(&frame, &view) else {
+                varies += 1;
+                continue;
+            };
+            shown += 1;
+            let [a, b, c] = mesh.corners(t as usize).unwrap();
+            for (u, v) in [(0.2, 0.2), (0.6, 0.2), (0.2, 0.6), (0.45, 0.1), (0.05, 0.9)] {
+                let p = a + (b - a) * u + (c - a) * v;
+                let Some(s) = scene.camera.project(p) else {
+                    continue;
+                };
+                // A piece whose centroid is `s`.
+                let piece = ConvexPolygon::new(&[
+                    [s[0] - 1e-4, s[1] - 1e-4],
+                    [s[0] + 2e-4, s[1] - 1e-4],
+                    [s[0] - 1e-4, s[1] + 2e-4],
+                ])
+                .unwrap();
+                let mut own = [1.0; 4];
+                light_piece(&frame, &view, &piece, &mut own);
+                let mut uniform = [1.0; 4];
+                apply_light(&mut uniform, k);
+                assert_eq!(own, uniform, "triangle {t} at {u}, {v}");
+            }
+            lit += usize::from(k != crate::frame::lit_factor(&scene.lighting, 0.0));
+        }
+        assert!(
+            shown > 500 && varies > 500 && lit > 200,
+            "{shown} {varies} {lit}"
+        );
     }
 
     /// RMS over every 7th pixel of row `y` of `scenes/checker.toml` at

@@ -5,6 +5,7 @@
 //! visibility pass ([`crate::visibility`]).
 
 use std::borrow::Cow;
+use std::sync::OnceLock;
 
 use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Projection};
 
@@ -150,6 +151,10 @@ pub(crate) struct View {
     normal: Vec3,
     /// The mesh triangle this is the view of, if it is one.
     triangle: Option<u32>,
+    /// The lighting factor every point of the primitive gets, once a
+    /// renderer has shown it for the frame the view is built for (`None`
+    /// inside: it varies, or is not shown), [`View::uniform_light`].
+    light: OnceLock<Option<[f32; 3]>>,
 }
 
 /// A planar primitive's affine rows over the screen point `(px, py, 1)`:
@@ -239,6 +244,7 @@ impl View {
             projection,
             normal: planar.normal,
             triangle: planar.triangle,
+            light: OnceLock::new(),
         })
     }
 
@@ -347,6 +353,7 @@ impl View {
             projection: Projection::identity(),
             normal: Vec3::new(0.0, 0.0, -1.0),
             triangle: None,
+            light: OnceLock::new(),
         }
     }
 
@@ -368,6 +375,16 @@ impl View {
     /// The mesh triangle this is the view of (`None` for planes and quads).
     pub(crate) fn triangle(&self) -> Option<u32> {
         self.triangle
+    }
+
+    /// The lighting factor every point of the primitive gets, as `show`
+    /// finds it (`None`: it varies from point to point) the first time it
+    /// is asked for, kept for the view's life (a frame's, or a row's).
+    pub(crate) fn uniform_light(
+        &self,
+        show: impl FnOnce() -> Option<[f32; 3]>,
+    ) -> Option<[f32; 3]> {
+        *self.light.get_or_init(show)
     }
 
     /// Ray parameter (for the camera's unnormalised ray through `s`) of

@@ -767,9 +767,12 @@ fn quad_gradients(a: Vec3, b: Vec3) -> (Vec3, Vec3) {
 /// [`Geometry::intersect`]).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct QuadFrame {
-    normal: Vec3,
-    du: Vec3,
-    dv: Vec3,
+    /// Unit normal, `edge_u × edge_v` normalised.
+    pub(crate) normal: Vec3,
+    /// Gradient of `u` (in the quad's plane: `u = (p − origin)·du`).
+    pub(crate) du: Vec3,
+    /// Gradient of `v`.
+    pub(crate) dv: Vec3,
 }
 
 impl QuadFrame {
