@@ -592,19 +592,14 @@ pub(crate) fn integrate_region(
             PixelFilter::Box => area,
             _ => filter.integral(region, centre),
         };
-        if let Some((colour, weight, cells)) = few.integrate(
+        if let Some(scanned) = few.integrate(
             region,
             &projection.texture_from_screen,
             filter,
             centre,
             total,
         ) {
-            for (a, c) in out.colour.0.iter_mut().zip(colour) {
-                *a += c;
-            }
-            out.weight += weight;
-            stats.traversal.nodes_visited += cells as u64;
-            return finite_or_nothing(out);
+            return with_scan(out, scanned, stats);
         }
     }
     // Vertices closer than a millionth of the region's extent on the
@@ -631,7 +626,7 @@ pub(crate) fn integrate_region(
         LevelOfDetail::Fixed(_) => 0.0,
     };
     if fixed.is_none()
-        && let Some((colour, weight, cells)) = scan_flat_grid(
+        && let Some(scanned) = scan_flat_grid(
             tree,
             wrap,
             (lo, hi),
@@ -641,12 +636,7 @@ pub(crate) fn integrate_region(
             centre,
         )
     {
-        for (a, c) in out.colour.0.iter_mut().zip(colour) {
-            *a += c;
-        }
-        out.weight += weight;
-        stats.traversal.nodes_visited += cells as u64;
-        return finite_or_nothing(out);
+        return with_scan(out, scanned, stats);
     }
     let mut walk_scans = plain_raster;
     if let RasterBox::Small(small) = raster {
@@ -657,14 +647,7 @@ pub(crate) fn integrate_region(
             filter,
             centre,
         ) {
-            Some((colour, weight, cells)) => {
-                for (a, c) in out.colour.0.iter_mut().zip(colour) {
-                    *a += c;
-                }
-                out.weight += weight;
-                stats.traversal.nodes_visited += cells as u64;
-                return finite_or_nothing(out);
-            }
+            Some(scanned) => return with_scan(out, scanned, stats),
             // The walk's own scan of the one tile would fail the same way.
             None => walk_scans = false,
         }
@@ -707,6 +690,22 @@ pub(crate) fn integrate_region(
         queue: walk.queue,
     }
     .give_back();
+    finite_or_nothing(out)
+}
+
+/// `out` (what the horizon's sliver gave) plus a scan's `(Σ colour·k, Σ
+/// k, cells)`, the cells counted as nodes visited; nothing if a figure is
+/// not finite ([`finite_or_nothing`]).
+fn with_scan(
+    mut out: RegionIntegral,
+    (colour, weight, cells): ([f64; 4], f64, f64),
+    stats: &mut FilterStats,
+) -> RegionIntegral {
+    for (a, c) in out.colour.0.iter_mut().zip(colour) {
+        *a += c;
+    }
+    out.weight += weight;
+    stats.traversal.nodes_visited += cells as u64;
     finite_or_nothing(out)
 }
 
