@@ -64,6 +64,12 @@ impl<'a> Caster<'a> {
         self
     }
 
+    /// The frame of quad `index`, solved once (`None`: not a quad, or a
+    /// degenerate one).
+    pub(crate) fn quad_frame(&self, index: usize) -> Option<&QuadFrame> {
+        self.quads.get(index)?.as_ref()
+    }
+
     /// Where `ray` meets surface `index` beyond `t_min`.
     #[inline]
     fn intersect(&self, index: usize, ray: &Ray, t_min: f64) -> Option<Hit> {

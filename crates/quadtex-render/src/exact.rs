@@ -1655,10 +1655,10 @@ fn sun_misses(
 /// ([`Caster::clear_of_own_mesh`](crate::caster::Caster::clear_of_own_mesh))
 /// and every other surface is a plane or quad the sun's rays from the
 /// triangle miss, by a margin (`10⁻⁵` of the distance from the
-/// camera, ten times the shadow ray's lift, [`sun_misses`]): no
-/// shadow ray leaving the triangle meets anything, and the cosine is the
-/// same. `None`
-/// otherwise (each piece then casts its own shadow ray, [`light_piece`]).
+/// camera, ten times the shadow ray's lift, [`sun_misses`]): no shadow
+/// ray leaving the triangle meets anything, and the cosine is the same.
+/// `None` otherwise (each piece then casts its own shadow ray,
+/// [`light_piece`]).
 fn uniform_light(frame: &Frame<'_>, view: &View) -> Option<[f32; 3]> {
     let scene = frame.scene;
     let Lighting::Lambert { direction, .. } = scene.lighting else {
@@ -1700,12 +1700,8 @@ fn uniform_light(frame: &Frame<'_>, view: &View) -> Option<[f32; 3]> {
                 Geometry::Plane { point, normal, .. } => {
                     sun_misses(*point, *normal, None, &corners, camera, direction)
                 }
-                Geometry::Quad {
-                    origin,
-                    edge_u,
-                    edge_v,
-                } => QuadFrame::new(*edge_u, *edge_v).is_some_and(|q| {
-                    sun_misses(*origin, q.normal, Some(&q), &corners, camera, direction)
+                Geometry::Quad { origin, .. } => frame.rays.quad_frame(i).is_some_and(|q| {
+                    sun_misses(*origin, q.normal, Some(q), &corners, camera, direction)
                 }),
                 _ => false,
             };
