@@ -1996,7 +1996,7 @@ fn raster_box(tree: &QuadTree, wrap: Wrap, lo: [f64; 2], hi: [f64; 2]) -> Raster
     }
     let cells = tree.cells_below(start);
     if x1 - x0 <= 2 && z1 - z0 <= 2 {
-        return few_cells(&cells, frame, h, (x0, x1), (z0, z1), start);
+        return few_cells(&cells, frame, h, (x0, x1), (z0, z1));
     }
     let Some(first) = cells.cell(x0 as u32, z0 as u32) else {
         return RasterBox::Other;
@@ -2018,15 +2018,14 @@ fn raster_box(tree: &QuadTree, wrap: Wrap, lo: [f64; 2], hi: [f64; 2]) -> Raster
 
 /// [`raster_box`]'s answer for a box over at most two cells a side,
 /// `x0..x1` by `z0..z1` of the grid (side `h`) in the tile of `frame`:
-/// one colour, or the cells for [`FewCells`] (a scan when a colour is
-/// missing: [`SmallBox::scan`] finds out).
+/// one colour, or the cells for [`FewCells`] (neither when a cell has no
+/// colour, as [`raster_box`] answers then).
 fn few_cells(
     cells: &crate::tree::CellReader<'_>,
     frame: [(f64, f64); 2],
     h: f64,
     (x0, x1): (i64, i64),
     (z0, z1): (i64, i64),
-    start: StoredSquare,
 ) -> RasterBox {
     let mut colours = [[[0.0; 4]; 2]; 2];
     let mut first = None;
@@ -2034,7 +2033,7 @@ fn few_cells(
     for (cz, z) in (z0..z1).enumerate() {
         for (cx, x) in (x0..x1).enumerate() {
             let Some(c) = cells.cell(x as u32, z as u32) else {
-                return RasterBox::Small(SmallBox { frame, start });
+                return RasterBox::Other;
             };
             let rgba = c.rgba();
             uniform &= *first.get_or_insert(rgba) == rgba;

@@ -2029,9 +2029,11 @@ mod tests {
     /// pieces' own shadow ray gives ([`light_piece`]), bit for bit: the
     /// triangles of a generated terrain (hills above the runway decal,
     /// the flat ground 0.3 m below it, which the decal shadows in part),
-    /// at points spread over each, under the scene's sun and a low one
-    /// (hills shadowing hills). Both answers occur, and lit triangles
-    /// among those shown.
+    /// at points spread over each (corners and edges included), under the
+    /// scene's sun, a low one (hills shadowing hills), and the scene's sun
+    /// with an infinite plane through the hills at 8 m (what lies below it
+    /// is in its shadow). Both answers occur, and lit triangles among those
+    /// shown.
     #[test]
     fn a_uniform_light_is_what_each_point_gets() {
         let dir = std::env::temp_dir().join(format!("quadtex-light-{}", std::process::id()));
@@ -2052,7 +2054,19 @@ mod tests {
             },
             ..scene.clone()
         };
-        for scene in [scene, low] {
+        let mut plane = (scene.surfaces.iter())
+            .find(|s| matches!(s.geometry, Geometry::Quad { .. }))
+            .unwrap()
+            .clone();
+        plane.geometry = Geometry::Plane {
+            point: Vec3::new(0.0, 8.0, 0.0),
+            normal: Vec3::new(0.0, 1.0, 0.0),
+            u_axis: Vec3::new(1.0, 0.0, 0.0),
+            v_axis: Vec3::new(0.0, 0.0, 1.0),
+        };
+        let mut sliced = scene.clone();
+        sliced.surfaces.push(plane);
+        for scene in [scene, low, sliced] {
             check_uniform_light(&scene);
         }
     }
@@ -2087,7 +2101,19 @@ mod tests {
             };
             shown += 1;
             let [a, b, c] = mesh.corners(t as usize).unwrap();
-            for (u, v) in [(0.2, 0.2), (0.6, 0.2), (0.2, 0.6), (0.45, 0.1), (0.05, 0.9)] {
+            let points = [
+                (0.2, 0.2),
+                (0.6, 0.2),
+                (0.2, 0.6),
+                (0.45, 0.1),
+                (0.05, 0.9),
+                (0.0, 0.0),
+                (1.0, 0.0),
+                (0.0, 1.0),
+                (0.5, 0.5),
+                (0.3, 0.0),
+            ];
+            for (u, v) in points {
                 let p = a + (b - a) * u + (c - a) * v;
                 let Some(s) = scene.camera.project(p) else {
                     continue;
