@@ -1889,7 +1889,7 @@ impl FewCells {
     /// The integral under `filter` centred at `centre` over screen region
     /// `region` (whose weight there is `total`): `(Σ colour·k, Σ k,
     /// cells)`, or `None` where a grid line's screen image is not finite
-    /// (the caller then scans). The parts' weights sum to `total`: each
+    /// (the caller then walks the region). The parts' weights sum to `total`: each
     /// second part's is what its axis leaves of the first's.
     fn integrate(
         &self,

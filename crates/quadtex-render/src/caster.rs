@@ -66,7 +66,7 @@ impl<'a> Caster<'a> {
 
     /// The frame of quad `index`, solved once (`None`: not a quad, or a
     /// degenerate one).
-    pub(crate) fn quad_frame(&self, index: usize) -> Option<&QuadFrame> {
+    fn quad_frame(&self, index: usize) -> Option<&QuadFrame> {
         self.quads.get(index)?.as_ref()
     }
 
@@ -168,6 +168,36 @@ impl<'a> Caster<'a> {
         })
     }
 
+    /// What [`Caster::occluded_leaving`] answers for every shadow ray
+    /// leaving a point of triangle `from` (of a mesh, its `corners`),
+    /// lifted as [`crate::frame::lambert`] lifts them, when one answer
+    /// holds for all: true when none meets anything. The mesh's sun grid
+    /// shows no other of its triangles in the way
+    /// ([`Caster::clear_of_own_mesh`]), and every other surface is a plane
+    /// or quad the rays miss ([`sun_misses`], margins relative to each
+    /// corner's distance from `camera`); false otherwise (an answer that
+    /// varies, or is not shown). Beside `occluded_leaving` so that what
+    /// can cast a shadow is said in one place.
+    pub(crate) fn sun_clear_of_triangle(
+        &self,
+        (surface, triangle): (usize, u32),
+        corners: &[Vec3; 3],
+        camera: Vec3,
+        direction: Vec3,
+    ) -> bool {
+        self.clear_of_own_mesh((surface, triangle), direction)
+            && (self.scene.surfaces.iter().enumerate()).all(|(i, s)| match &s.geometry {
+                _ if i == surface => true,
+                Geometry::Plane { point, normal, .. } => {
+                    sun_misses(*point, *normal, None, corners, camera, direction)
+                }
+                Geometry::Quad { origin, .. } => self.quad_frame(i).is_some_and(|q| {
+                    sun_misses(*origin, q.normal, Some(q), corners, camera, direction)
+                }),
+                _ => false,
+            })
+    }
+
     /// Whether the sun grid of mesh `surface` (toward `direction`) shows
     /// that none of the mesh's other triangles lies between a point of
     /// `triangle` and the sun ([`SunGrid::unshadowed`]); false when that is
@@ -192,4 +222,58 @@ impl<'a> Caster<'a> {
         self.nearest_index(ray)
             .map(|(i, hit)| (&scene.surfaces[i], hit))
     }
+}
+
+/// Whether no ray toward the sun (`direction`) from a point of triangle
+/// `corners`, lifted off it by up to 10⁻⁶ of its distance from `camera`
+/// (as [`crate::frame::lambert`] lifts its shadow rays), meets the plane
+/// through `point` with unit `normal`, or, for a quad (`quad`: its frame, corner `point`),
+/// the parallelogram: every corner lies beyond the plane on the sun's
+/// side, or every corner's ray meets the plane outside one and the same
+/// side of the parallelogram (the rays from the triangle meet the plane
+/// in the triangle of those points: the projection along `direction` is
+/// affine). Each by a margin of 10⁻⁵ of the corner's distance from the
+/// camera (on the plane, over the sine of the sun's angle to it),
+/// ten times the lift (and far above the rounding).
+fn sun_misses(
+    point: Vec3,
+    normal: Vec3,
+    quad: Option<&QuadFrame>,
+    corners: &[Vec3; 3],
+    camera: Vec3,
+    direction: Vec3,
+) -> bool {
+    let toward = normal.dot(direction);
+    // Not NaN, and not near parallel to the plane.
+    let steep = toward.abs() > 1e-3;
+    if !steep {
+        return false;
+    }
+    let margin = |p: Vec3| 1e-5 * (1.0 + (p - camera).length());
+    let beyond = corners.map(|p| normal.dot(p - point));
+    let sun_side = |b: f64| b * toward.signum();
+    if (corners.iter().zip(beyond)).all(|(&p, b)| sun_side(b) > margin(p)) {
+        return true;
+    }
+    let Some(q) = quad else {
+        return false;
+    };
+    if !(corners.iter().zip(beyond)).all(|(&p, b)| sun_side(b) < -margin(p)) {
+        return false;
+    }
+    // Where each corner's ray meets the plane, in the quad's coordinates
+    // (`s, t ∈ [0, 1]` on it): a point `m` outside the side `s = 0` lies
+    // `−s / |∇s|` from it.
+    let mut st = [[0.0; 2]; 3];
+    let mut slack = [0.0; 3];
+    for ((p, b), (st, slack)) in (corners.iter().zip(beyond)).zip(st.iter_mut().zip(&mut slack)) {
+        let rel = *p - direction * (b / toward) - point;
+        *st = [rel.dot(q.du), rel.dot(q.dv)];
+        *slack = margin(*p) / toward.abs();
+    }
+    [q.du, q.dv].iter().enumerate().any(|(axis, g)| {
+        let g = g.length();
+        (0..3).all(|k| st[k][axis] < -slack[k] * g)
+            || (0..3).all(|k| st[k][axis] > 1.0 + slack[k] * g)
+    })
 }

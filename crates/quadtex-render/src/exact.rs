@@ -68,7 +68,7 @@ use crate::frame::{Frame, lambert, sky};
 use crate::math::{Ray, Vec3};
 use crate::planar_view::{Placement, View, placement};
 use crate::reach::MeshReach;
-use crate::scene::{Geometry, Hit, Lighting, QuadFrame, Scene};
+use crate::scene::{Geometry, Hit, Lighting, Scene};
 use crate::screen_bins::ScreenBins;
 use crate::span::{SpanAnswer, SpanQuery, UniformSpan, span_rect};
 use crate::stats::PixelStats;
@@ -1592,71 +1592,18 @@ fn tint_and_light(
     c
 }
 
-/// Whether no ray toward the sun (`direction`) from a point of triangle
-/// `corners`, lifted off it by up to 10⁻⁶ of its distance from `camera`
-/// (as [`lambert`] lifts its shadow rays), meets the plane through `point`
-/// with unit `normal`, or, for a quad (`quad`: its frame, corner `point`),
-/// the parallelogram: every corner lies beyond the plane on the sun's
-/// side, or every corner's ray meets the plane outside one and the same
-/// side of the parallelogram (the rays from the triangle meet the plane
-/// in the triangle of those points: the projection along `direction` is
-/// affine). Each by a margin of 10⁻⁵ of the corner's distance from the
-/// camera (on the plane, over the sine of the sun's angle to it),
-/// ten times the lift (and far above the rounding).
-fn sun_misses(
-    point: Vec3,
-    normal: Vec3,
-    quad: Option<&QuadFrame>,
-    corners: &[Vec3; 3],
-    camera: Vec3,
-    direction: Vec3,
-) -> bool {
-    let toward = normal.dot(direction);
-    // Not NaN, and not near parallel to the plane.
-    let steep = toward.abs() > 1e-3;
-    if !steep {
-        return false;
-    }
-    let margin = |p: Vec3| 1e-5 * (1.0 + (p - camera).length());
-    let beyond = corners.map(|p| normal.dot(p - point));
-    let sun_side = |b: f64| b * toward.signum();
-    if (corners.iter().zip(beyond)).all(|(&p, b)| sun_side(b) > margin(p)) {
-        return true;
-    }
-    let Some(q) = quad else {
-        return false;
-    };
-    if !(corners.iter().zip(beyond)).all(|(&p, b)| sun_side(b) < -margin(p)) {
-        return false;
-    }
-    // Where each corner's ray meets the plane, in the quad's coordinates
-    // (`s, t ∈ [0, 1]` on it): a point `m` outside the side `s = 0` lies
-    // `−s / |∇s|` from it.
-    let mut st = [[0.0; 2]; 3];
-    let mut slack = [0.0; 3];
-    for ((p, b), (st, slack)) in (corners.iter().zip(beyond)).zip(st.iter_mut().zip(&mut slack)) {
-        let rel = *p - direction * (b / toward) - point;
-        *st = [rel.dot(q.du), rel.dot(q.dv)];
-        *slack = margin(*p) / toward.abs();
-    }
-    [q.du, q.dv].iter().enumerate().any(|(axis, g)| {
-        let g = g.length();
-        (0..3).all(|k| st[k][axis] < -slack[k] * g)
-            || (0..3).all(|k| st[k][axis] > 1.0 + slack[k] * g)
-    })
-}
-
 /// The lighting factor [`lambert`] gives every point of mesh triangle
 /// `view`, when it is shown to be one: the triangle lies in front of the
 /// camera, its plane is not seen near edge-on (so the side facing the
 /// camera is the same at every point, `|n·(p − c)| > 10⁻⁶ |n| |p − c|`),
 /// and, where the sun is above that side, the sun grid shows no other
 /// triangle of the mesh between it and the sun
-/// ([`Caster::clear_of_own_mesh`](crate::caster::Caster::clear_of_own_mesh))
 /// and every other surface is a plane or quad the sun's rays from the
-/// triangle miss, by a margin (`10⁻⁵` of the distance from the
-/// camera, ten times the shadow ray's lift, [`sun_misses`]): no shadow
-/// ray leaving the triangle meets anything, and the cosine is the same.
+/// triangle miss, by a margin (`10⁻⁵` of the distance from the camera, ten
+/// times the shadow ray's lift;
+/// [`Caster::sun_clear_of_triangle`](crate::caster::Caster::sun_clear_of_triangle)):
+/// no shadow ray leaving the triangle meets anything, and the cosine is
+/// the same.
 /// `None` otherwise (each piece then casts its own shadow ray,
 /// [`light_piece`]).
 fn uniform_light(frame: &Frame<'_>, view: &View) -> Option<[f32; 3]> {
@@ -1690,25 +1637,12 @@ fn uniform_light(frame: &Frame<'_>, view: &View) -> Option<[f32; 3]> {
     // As `lambert` flips it: toward the camera.
     let n = if side > 0.0 { -normal } else { normal };
     let cos = n.dot(direction).max(0.0);
-    if cos > 0.0 {
-        if !frame.rays.clear_of_own_mesh((surface, triangle), direction) {
-            return None;
-        }
-        for (i, s) in scene.surfaces.iter().enumerate() {
-            let clear = match &s.geometry {
-                _ if i == surface => true,
-                Geometry::Plane { point, normal, .. } => {
-                    sun_misses(*point, *normal, None, &corners, camera, direction)
-                }
-                Geometry::Quad { origin, .. } => frame.rays.quad_frame(i).is_some_and(|q| {
-                    sun_misses(*origin, q.normal, Some(q), &corners, camera, direction)
-                }),
-                _ => false,
-            };
-            if !clear {
-                return None;
-            }
-        }
+    if cos > 0.0
+        && !frame
+            .rays
+            .sun_clear_of_triangle((surface, triangle), &corners, camera, direction)
+    {
+        return None;
     }
     let k = if cos > 0.0 { cos as f32 } else { 0.0 };
     Some(crate::frame::lit_factor(&scene.lighting, k))
