@@ -158,7 +158,7 @@ fn render_with(
         // horizon costs a hundred sky rows or more), and rayon's adaptive
         // split, left to itself, hands each thread long runs of rows: the
         // demo at 1080p kept 1.6 of 2 cores busy; split to single rows,
-        // 1.9 (README, "One task a row").
+        // 1.9 (docs/performance.md, "One task a row").
         .with_max_len(1)
         .map(|(y, row)| {
             let y = y as u32;
