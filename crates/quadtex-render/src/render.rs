@@ -164,7 +164,7 @@ fn render_with(
             let y = y as u32;
             let mut stats = PixelStats::default();
             let mut ids = Vec::new();
-            let mut scratch = Scratch::default();
+            let mut scratch = Scratch::for_row(&views);
             let uniform = uniform_in_reach(
                 &seen,
                 gw as usize,
@@ -219,6 +219,7 @@ fn render_with(
                 );
                 stats.merge_parts(&pixel);
             }
+            scratch.end_row();
             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(n, u64::from(h));
             stats
@@ -567,5 +568,51 @@ mod tests {
             }
         }
         assert!(uniform > 100 && mixed > 100, "{uniform} {mixed}");
+    }
+
+    /// A thread keeps the views of mesh triangles from row to row of one
+    /// frame (`exact::ViewMemo`), never from one frame into the next: a
+    /// terrain rendered from one camera and then from another gives, the
+    /// second time, the image a pool of fresh threads gives that camera,
+    /// bit for bit, at each pixel filter. Both frames run on one pool of
+    /// two threads, so the second's rows find the first's views kept.
+    #[test]
+    fn kept_views_do_not_cross_frames() {
+        use crate::options::PixelFilter;
+        let dir = std::env::temp_dir().join(format!("quadtex-kept-{}", std::process::id()));
+        let file = crate::terrain::write_terrain(&dir, 60, 160, 90).unwrap();
+        let text = std::fs::read_to_string(&file).unwrap();
+        let first = crate::parse_scene(&text, &file).unwrap();
+        let moved = text.replace("position = [30, 60, 600]", "position = [-40, 35, 420]");
+        assert_ne!(moved, text);
+        let second = crate::parse_scene(&moved, &file).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        let pool = || {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(2)
+                .build()
+                .unwrap()
+        };
+        let bits = |image: &LinearImage| -> Vec<u32> {
+            (image.pixels.iter())
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        for pixel_filter in [PixelFilter::Box, PixelFilter::Tent] {
+            let options = RenderOptions {
+                pixel_filter,
+                ..RenderOptions::default()
+            };
+            let (after, textured) = pool().install(|| {
+                let (_, summary) = render(&first, &options, &|_, _| {}).unwrap();
+                (
+                    render(&second, &options, &|_, _| {}).unwrap().0,
+                    summary.textured_pixels,
+                )
+            });
+            let (fresh, _) = pool().install(|| render(&second, &options, &|_, _| {}).unwrap());
+            assert!(textured > 1000, "{textured}");
+            assert!(bits(&after) == bits(&fresh), "{pixel_filter:?}");
+        }
     }
 }
