@@ -63,7 +63,8 @@ pub struct Args {
     /// `quadtex_render::terrain`), each with `nearest`, the quadtree filter
     /// and EWA, as medians and as ratios to `nearest` (same run). The runs
     /// of a scene and filter render into one frame buffer, as a real-time
-    /// loop does; the first run allocates it.
+    /// loop does; the first run allocates it. Also prints the terrain's
+    /// load time and its first frame after load (one run).
     #[arg(long, conflicts_with_all = ["size", "queries", "texture"])]
     frames: bool,
     #[command(flatten)]
@@ -300,6 +301,21 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
             },
         ),
     ];
+    // The terrain's first frame after load, before any other: it decides,
+    // once per triangle it lights, whether the rest of the mesh can shade
+    // it (kept for later frames, which the table's medians are).
+    let first_frame = quadtex_render::render(
+        &scenes[2].1,
+        &RenderOptions {
+            width: Some(width),
+            height: Some(height),
+            filter: filters[1].1,
+            ..RenderOptions::default()
+        },
+        &|_, _| {},
+    )?
+    .1
+    .seconds;
     let mut out = Text::stdout();
     writeln!(
         out,
@@ -308,7 +324,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     )?;
     writeln!(
         out,
-        "Terrain written and loaded (glTF read, hierarchy build, texture packing) in {terrain_load:.2} s.\n"
+        "Terrain written and loaded (glTF read, hierarchy build, sun's shadow grid, texture packing) in {terrain_load:.2} s; its first frame after load (quadtree; one run, which also classifies each triangle it lights for the sun's shadows, once) took {first_frame:.2} s.\n"
     )?;
     writeln!(
         out,

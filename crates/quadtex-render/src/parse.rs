@@ -129,12 +129,14 @@ pub fn parse_scene_with_limits(text: &str, path: &Path, limits: &Limits) -> Resu
             ));
         }
     }
-    Ok(Scene {
+    let scene = Scene {
         camera,
         surfaces,
         sky,
         lighting,
-    })
+    };
+    crate::caster::prepare_sun_grids(&scene);
+    Ok(scene)
 }
 
 /// Reads and validates a camera path file (format in `docs/scenes.md`,
