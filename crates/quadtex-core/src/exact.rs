@@ -553,8 +553,7 @@ pub(crate) fn integrate_region(
         *m = t;
         finite &= t[0].is_finite() && t[1].is_finite();
         for a in 0..2 {
-            lo[a] = lo[a].min(t[a]);
-            hi[a] = hi[a].max(t[a]);
+            crate::polygon::widen(&mut lo[a], &mut hi[a], t[a]);
         }
     }
     if !finite {
