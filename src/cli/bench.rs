@@ -283,6 +283,19 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
         include_str!("../../scenes/runway.toml"),
         std::path::Path::new("scenes/runway.toml"),
     )?;
+    let quadtree = Filter::Quadtree(quadtex_core::FilterOptions::default());
+    let options_for = |filter: Filter| RenderOptions {
+        width: Some(width),
+        height: Some(height),
+        filter,
+        ..RenderOptions::default()
+    };
+    // The terrain's first frame after load, before any other of it: it
+    // decides, once per triangle it lights, whether the rest of the mesh
+    // can shade it (kept for later frames, which the table's medians are).
+    let first_frame = quadtex_render::render(&terrain, &options_for(quadtree), &|_, _| {})?
+        .1
+        .seconds;
     let scenes = [
         ("demo (built-in airfield)", quadtex_render::demo_scene()?),
         ("runway (`scenes/runway.toml`)", runway),
@@ -290,10 +303,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     ];
     let filters = [
         ("nearest", Filter::Nearest),
-        (
-            "quadtree",
-            Filter::Quadtree(quadtex_core::FilterOptions::default()),
-        ),
+        ("quadtree", quadtree),
         (
             "ewa",
             Filter::Ewa {
@@ -301,21 +311,6 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
             },
         ),
     ];
-    // The terrain's first frame after load, before any other: it decides,
-    // once per triangle it lights, whether the rest of the mesh can shade
-    // it (kept for later frames, which the table's medians are).
-    let first_frame = quadtex_render::render(
-        &scenes[2].1,
-        &RenderOptions {
-            width: Some(width),
-            height: Some(height),
-            filter: filters[1].1,
-            ..RenderOptions::default()
-        },
-        &|_, _| {},
-    )?
-    .1
-    .seconds;
     let mut out = Text::stdout();
     writeln!(
         out,
@@ -334,12 +329,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     for (name, scene) in &scenes {
         let mut medians = Vec::new();
         for (_, filter) in &filters {
-            let options = RenderOptions {
-                width: Some(width),
-                height: Some(height),
-                filter: *filter,
-                ..RenderOptions::default()
-            };
+            let options = options_for(*filter);
             // One frame buffer for the runs, as a real-time loop keeps its
             // own: the first run sizes (allocates and clears) it.
             let mut image = quadtex_io::LinearImage::default();

@@ -644,6 +644,7 @@ pub(crate) fn widen(lo: &mut f64, hi: &mut f64, v: f64) {
         *hi = v;
     }
 }
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
