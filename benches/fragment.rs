@@ -6,7 +6,7 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use quadtex_core::sat::SummedAreaTable;
+use quadtex_core::baseline::SummedAreaTable;
 use quadtex_core::synth::{runway_art, scanline_fragments};
 use quadtex_core::{BuildOptions, QuadTree};
 

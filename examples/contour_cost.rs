@@ -15,7 +15,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use quadtex_core::vector::{CONTOUR_CURVE_TOLERANCE, CONTOUR_MAX_LEVEL};
+use quadtex_core::{CONTOUR_CURVE_TOLERANCE, CONTOUR_MAX_LEVEL};
 use quadtex_core::{FillRule, Fragment, QuadTree, Rgba, VectorArt, VectorOptions};
 use quadtex_io::Limits;
 

@@ -14,8 +14,8 @@
 
 use std::time::Instant;
 
-use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
 use quadtex_core::{FillRule, Paint, QuadTree, Rgba, VectorArt, VectorOptions};
+use quadtex_core::{Gradient, Interpolation, Spread, Stop};
 
 fn main() {
     let level = 14;

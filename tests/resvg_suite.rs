@@ -300,10 +300,10 @@ fn resvg_suite_packs_without_panics_and_matches() {
     report.push_str(&format!(
         "Most sweep steps in one file: {most} (`{}`), against the default limit of {}\n\n",
         file.strip_prefix(&root).unwrap_or(&file).display(),
-        quadtex_core::vector::DEFAULT_MAX_SWEEP_WORK
+        quadtex_core::DEFAULT_MAX_SWEEP_WORK
     ));
     assert!(
-        most <= quadtex_core::vector::DEFAULT_MAX_SWEEP_WORK / 16,
+        most <= quadtex_core::DEFAULT_MAX_SWEEP_WORK / 16,
         "{}: {most} sweep steps, near the default limit",
         file.display()
     );

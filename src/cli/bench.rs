@@ -6,8 +6,8 @@ use std::hint::black_box;
 use std::io::Write;
 use std::time::Instant;
 
+use quadtex_core::baseline::SummedAreaTable;
 use quadtex_core::reference::texel_sum;
-use quadtex_core::sat::SummedAreaTable;
 use quadtex_core::synth::{runway_art, scanline_fragments};
 use quadtex_core::{BuildOptions, Fragment, QuadTree, WeightedColour};
 

@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use quadtex_core::vector::MAX_VECTOR_LEVEL;
+use quadtex_core::MAX_VECTOR_LEVEL;
 
 use super::output::Text;
 use super::{Result, human_bytes, is_svg, raster_bytes};
@@ -235,7 +235,7 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
             writeln!(
                 out,
                 "level {level}{summary} (tolerance {:.6}, a quarter of an 8-bit step)",
-                quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE
+                quadtex_core::DEFAULT_SMOOTH_TOLERANCE
             )?;
         }
     }

@@ -112,15 +112,15 @@ pub fn run(args: Args) -> Result<()> {
     if is_svg(&input) {
         let svg = quadtex_core::VectorOptions {
             max_level: options.max_level.unwrap_or(if contour_leaves.is_some() {
-                quadtex_core::vector::CONTOUR_MAX_LEVEL
+                quadtex_core::CONTOUR_MAX_LEVEL
             } else {
                 DEFAULT_SVG_LEVEL
             }),
-            tolerance: tolerance.unwrap_or(quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE),
+            tolerance: tolerance.unwrap_or(quadtex_core::DEFAULT_SMOOTH_TOLERANCE),
             gradient_leaves: !no_gradient_leaves,
             contour_leaves: contour_leaves.map(usize::from),
             curve_tolerance,
-            max_sweep_work: max_sweep_work.unwrap_or(quadtex_core::vector::DEFAULT_MAX_SWEEP_WORK),
+            max_sweep_work: max_sweep_work.unwrap_or(quadtex_core::DEFAULT_MAX_SWEEP_WORK),
             ..quadtex_core::VectorOptions::default()
         };
         return pack_svg(&input, &output, &svg, &limits);

@@ -14,7 +14,7 @@ use numpy::{
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use quadtex_core::build::MAX_DIMENSION;
+use quadtex_core::MAX_DIMENSION;
 use quadtex_core::{Rgba, TexelGrid, Unorm16Rgba};
 
 /// A shape as Python prints it: `(3, 4)`, `(5,)`.

@@ -391,7 +391,7 @@ fn pack_file(
             )));
         }
         let level = max_level.unwrap_or(if contour_leaves.is_some() {
-            quadtex_core::vector::CONTOUR_MAX_LEVEL
+            quadtex_core::CONTOUR_MAX_LEVEL
         } else {
             DEFAULT_SVG_LEVEL
         });

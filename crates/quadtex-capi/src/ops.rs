@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use quadtex_core::vector::MAX_VECTOR_LEVEL;
+use quadtex_core::MAX_VECTOR_LEVEL;
 use quadtex_core::{
     BuildOptions, FilterOptions, Footprint, MAX_DEPTH, QuadTree, Rgba, Texture, Weighting, Wrap,
     WrapMode,
@@ -131,7 +131,7 @@ pub(crate) fn default_svg_options() -> QtxSvgOptions {
     QtxSvgOptions {
         max_level: QtxLevel::Auto as i32,
         contour_leaves: 0,
-        max_sweep_work: quadtex_core::vector::DEFAULT_MAX_SWEEP_WORK,
+        max_sweep_work: quadtex_core::DEFAULT_MAX_SWEEP_WORK,
     }
 }
 
@@ -154,7 +154,7 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
     };
     let max_level = match options.max_level {
         l if l < 0 => match contour_leaves {
-            Some(_) => quadtex_core::vector::CONTOUR_MAX_LEVEL,
+            Some(_) => quadtex_core::CONTOUR_MAX_LEVEL,
             None => QTX_DEFAULT_SVG_LEVEL as u8,
         },
         l => svg_level(l).ok_or_else(|| {

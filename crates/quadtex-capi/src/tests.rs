@@ -90,7 +90,7 @@ fn constants_match_the_core() {
     assert_eq!(QTX_MAX_DEPTH, c_int::from(quadtex_core::MAX_DEPTH));
     assert_eq!(
         QTX_MAX_SVG_LEVEL,
-        c_int::from(quadtex_core::vector::MAX_VECTOR_LEVEL)
+        c_int::from(quadtex_core::MAX_VECTOR_LEVEL)
     );
     let d = qtx_filter_options_default();
     let (wrap, options) = ops::convert_options(&d).unwrap();

@@ -24,54 +24,64 @@
 //!   (`unorm16`, step `1/65535`, far finer than the 12 linear bits asked of us).
 #![forbid(unsafe_code)]
 
-pub mod blend;
+// One folder a job; every public type is re-exported once, here, and
+// reached by that one path (the folders are private).
 mod colour;
-pub mod contour_leaf;
 mod error;
-pub mod exact;
-pub mod footprint;
-mod fragment;
+mod filter;
 mod geometry;
-pub mod gradient;
-pub mod gradient_leaf;
-pub mod image_paint;
-mod leaf_nodes;
+mod raster;
+mod tree;
+mod vector;
 
-pub mod build;
+pub mod baseline;
 pub mod memory;
-pub mod mipmap;
-pub mod options;
-pub mod polygon;
 pub mod reference;
-pub mod sat;
-mod shared;
 pub mod synth;
 #[cfg(test)]
 mod test_rng;
-pub mod texel_block;
-pub mod texture;
-mod tree;
-pub mod variant;
-pub mod vector;
-pub mod wrap;
 
-pub use build::{BuildOptions, BuildReport, TexelGrid};
 pub use colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
-pub use contour_leaf::{ContourLeaves, ContourParts, LeafGroup, LeafPiece};
 pub use error::Error;
-pub use exact::{PixelFilter, Projection, RegionIntegral};
-pub use footprint::Footprint;
-pub use fragment::Fragment;
-pub use gradient_leaf::{GradientLeaves, LeafPaint};
-pub use polygon::ConvexPolygon;
-pub use shared::SharedBytes;
-pub use texel_block::{BlockFormat, TexelBlocks};
-pub use texture::{FilterOptions, FilterStats, LevelOfDetail, Texture, Weighting};
-pub use tree::{
-    Aspect, LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats, UNIFORM_SEARCH_NODES,
+pub use filter::exact::{
+    DEFAULT_SQUARE_BUDGET, FIXED_LEVEL_CAP, MAX_SCREEN_COORDINATE, PixelFilter, Projection,
+    RegionIntegral,
 };
-pub use vector::{ClipId, FillRule, Paint, VectorArt, VectorOptions, VectorReport};
-pub use wrap::{Wrap, WrapMode};
+pub use filter::footprint::{Footprint, Homography, MAX_DENSITY_PIECES, MAX_STRIPS, Strips};
+pub use filter::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET, Weighting};
+pub use filter::texture::{Texture, filter_footprint};
+pub use filter::wrap::{BoxIntegral, Wrap, WrapMode, integrate_wrapped};
+pub use geometry::FillRule;
+pub use geometry::fragment::Fragment;
+pub use geometry::polygon::{ConvexPolygon, MAX_VERTICES};
+pub use raster::{
+    BuildOptions, BuildReport, MAX_BUILD_DEPTH, MAX_DIMENSION, TexelGrid, raster_cells,
+    raster_grid_bytes,
+};
+pub use tree::shared::SharedBytes;
+pub use tree::texel_block::{
+    BLOCK_LOG2_SIDE, BlockFormat, TexelBlocks, srgb_to_linear, srgb8_texel,
+};
+pub use tree::variant;
+pub use tree::{
+    Aspect, FLAT_GRID_MAX_DEPTH, LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats,
+    UNIFORM_SEARCH_NODES,
+};
+pub use vector::blend::{BlendMode, blend, blend_range};
+pub use vector::contour_leaf::{
+    ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
+};
+pub use vector::gradient::{
+    Gradient, Interpolation, MAX_PERIODS, MAX_STOPS, Spread, Stop, srgb_decode, srgb_encode,
+};
+pub use vector::gradient_leaf::{GradientLeaves, LeafPaint, MAX_CELL_LEVELS, MAX_GRADIENT_LEAVES};
+pub use vector::image_paint::ImagePaint;
+pub use vector::{
+    CONTOUR_CURVE_TOLERANCE, CONTOUR_MAX_LEVEL, ClipId, DEFAULT_MAX_SWEEP_WORK,
+    DEFAULT_SMOOTH_TOLERANCE, GroupId, MAX_CLIP_DEPTH, MAX_MASK_DEPTH, MAX_VECTOR_COORDINATE,
+    MAX_VECTOR_LEVEL, MAX_VECTOR_POINTS, MaskId, MaskKind, Paint, VectorArt, VectorOptions,
+    VectorReport,
+};
 
 /// The README's Rust examples, run as doctests.
 #[cfg(doctest)]

@@ -1,11 +1,11 @@
 //! Slow, obvious references for the fragment integral, kept public so tests,
 //! fuzz targets and benchmarks can check the fast path against them.
 
-use crate::build::TexelGrid;
 use crate::colour::WeightedColour;
-use crate::fragment::Fragment;
+use crate::geometry::fragment::Fragment;
+use crate::raster::TexelGrid;
+use crate::tree::variant::{self, Variant, f_high, f_low};
 use crate::tree::{NodeRef, QuadTree, unit_side};
-use crate::variant::{self, Variant, f_high, f_low};
 
 /// Σ over texels of colour × area(texel ∩ fragment), texels as rectangles of
 /// the unit square (crate conventions). Visits only the texels the fragment

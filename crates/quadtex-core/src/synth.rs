@@ -3,9 +3,9 @@
 //! demo and tests. Shapes are described in texture space (crate conventions).
 
 use crate::Error;
-use crate::build::TexelGrid;
 use crate::colour::{Rgba, Unorm16Rgba};
 use crate::memory::try_vec;
+use crate::raster::TexelGrid;
 
 /// A flat-coloured shape in texture space.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,7 +96,7 @@ impl Art {
     /// the shapes in order whichever thread paints it).
     pub fn rasterise(&self, width: u32, height: u32) -> Result<TexelGrid, Error> {
         // Refused before anything is allocated for it.
-        crate::build::check_dimensions(width, height)?;
+        crate::raster::check_dimensions(width, height)?;
         let (w, h) = (width as usize, height as usize);
         let mut texels = try_vec(w * h, Unorm16Rgba::default(), "rasterised texels")?;
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(4));

@@ -179,7 +179,7 @@ fn contour_leaves_agree_with_the_classic_packer_at_its_level() {
             } else {
                 FillRule::NonZero
             };
-            let groups: &[quadtex_core::vector::GroupId] = match shape {
+            let groups: &[quadtex_core::GroupId] = match shape {
                 s if s + 1 == shapes && s >= grouped && nest => &[outer, inner],
                 s if s >= grouped => &[outer],
                 _ => &[],

@@ -591,7 +591,7 @@ fn a_fixed_level_at_the_horizon_stops_at_the_cap() {
         &FilterOptions::default().with_level(30),
         &mut stats,
     );
-    assert!(stats.traversal.nodes_visited <= quadtex_core::exact::FIXED_LEVEL_CAP + 8);
+    assert!(stats.traversal.nodes_visited <= quadtex_core::FIXED_LEVEL_CAP + 8);
     let mean = r.mean().unwrap();
     assert!(mean.a.is_finite() && r.error_bound.is_finite(), "{r:?}");
 }

@@ -6,8 +6,8 @@ mod common;
 
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
 use common::{PALETTE, blocky_grid, blocky_grid_any_aspect};
+use quadtex_core::baseline::SummedAreaTable;
 use quadtex_core::reference::{paper_traversal, texel_sum, truncated_tree_sum};
-use quadtex_core::sat::SummedAreaTable;
 use quadtex_core::variant::f_init;
 use quadtex_core::{Aspect, BuildOptions, Fragment, QuadTree, Rgba, TexelGrid, WeightedColour};
 

@@ -3,11 +3,11 @@
 //! sampler (winding numbers over the unclipped polygons, `VectorArt::colour_at`).
 
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
-use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop, srgb_encode};
 use quadtex_core::{
     ClipId, ConvexPolygon, FillRule, FilterOptions, Footprint, Fragment, Paint, QuadTree, Rgba,
     Texture, VectorArt, VectorOptions, Wrap,
 };
+use quadtex_core::{Gradient, Interpolation, Spread, Stop, srgb_encode};
 
 const UNIT: f64 = 1.0;
 
@@ -788,14 +788,14 @@ fn clip_regions_refuse_unknown_ids_and_deep_nesting() {
 
 /// sRGB-encoded grey `g` as linear opaque colour.
 fn grey(g: f64) -> Rgba {
-    let v = quadtex_core::gradient::srgb_decode(g) as f32;
+    let v = quadtex_core::srgb_decode(g) as f32;
     Rgba::opaque(v, v, v)
 }
 
 #[test]
 fn flat_masks_weight_areas_exactly() {
-    use quadtex_core::blend::BlendMode;
-    use quadtex_core::vector::MaskKind;
+    use quadtex_core::BlendMode;
+    use quadtex_core::MaskKind;
     let shape = rotated_rect(0.5, 0.5, 0.7, 0.4, 0.4);
     let b = regular_polygon(0.4, 0.45, 0.25, 7);
     let c = vec![[0.55, 0.3], [0.95, 0.5], [0.6, 0.9]];
@@ -853,8 +853,8 @@ fn flat_masks_weight_areas_exactly() {
 
 #[test]
 fn gradient_masks_stay_within_the_stated_bound() {
-    use quadtex_core::blend::BlendMode;
-    use quadtex_core::vector::MaskKind;
+    use quadtex_core::BlendMode;
+    use quadtex_core::MaskKind;
     // A black-to-white ramp across x masks a white square: the mean of the
     // luminance is the integral of the encoded ramp, ∫₀¹ t dt = 1/2, as
     // stops interpolate in sRGB.
@@ -921,8 +921,8 @@ fn gradient_masks_stay_within_the_stated_bound() {
 
 #[test]
 fn masks_refuse_misuse() {
-    use quadtex_core::blend::BlendMode;
-    use quadtex_core::vector::{MAX_MASK_DEPTH, MaskKind};
+    use quadtex_core::BlendMode;
+    use quadtex_core::{MAX_MASK_DEPTH, MaskKind};
     let mut art = VectorArt::new();
     let m = art.begin_mask(MaskKind::Alpha).unwrap();
     let e = art.masked_group(1.0, BlendMode::Normal, &[m]).unwrap_err();

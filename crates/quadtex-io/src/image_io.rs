@@ -29,7 +29,7 @@ pub struct LinearImage {
     pub pixels: Vec<Rgba>,
 }
 
-pub use quadtex_core::texel_block::srgb_to_linear;
+pub use quadtex_core::srgb_to_linear;
 
 /// The sRGB transfer function: linear `[0,1]` → encoded `[0,1]` (clamped).
 pub fn linear_to_srgb(v: f32) -> f32 {

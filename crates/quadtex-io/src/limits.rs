@@ -36,7 +36,7 @@ pub struct Limits {
     /// [`crate::Error::MemoryBudget`] (the command line's `--memory-limit`
     /// sets it). Estimates: decoding an image, the decoder's buffer plus 8
     /// bytes a texel; packing a raster, see
-    /// [`quadtex_core::build::raster_grid_bytes`]; packing SVG, see
+    /// [`quadtex_core::raster_grid_bytes`]; packing SVG, see
     /// [`quadtex_core::VectorArt::estimate_build_bytes`]; reading a `.qtx`,
     /// [`QTX_READ_BYTES_PER_NODE`] a node.
     pub max_memory: u64,

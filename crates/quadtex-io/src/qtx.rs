@@ -4,12 +4,12 @@ use std::fs::File;
 use std::io::{Read, Write};
 use std::path::Path;
 
-use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
-use quadtex_core::texel_block::BLOCK_LOG2_SIDE;
+use quadtex_core::BLOCK_LOG2_SIDE;
 use quadtex_core::{
     Aspect, BlockFormat, ColourEncoding, ContourLeaves, GradientLeaves, LeafGroup, LeafPaint,
     LeafPiece, QuadTree, SharedBytes, TexelBlocks,
 };
+use quadtex_core::{Gradient, Interpolation, Spread, Stop};
 
 use crate::atomic::{put, write_atomically};
 use crate::error::{Error, io};
@@ -489,7 +489,7 @@ fn decode_gradient_leaves(bytes: &[u8], nodes: u64, path: &Path) -> Result<Gradi
         }
         let stop_count = r.u32().ok_or_else(|| in_paint("its stop count"))? as usize;
         if stop_count == 0
-            || stop_count > quadtex_core::gradient::MAX_STOPS
+            || stop_count > quadtex_core::MAX_STOPS
             || stop_count * STOP_BYTES > r.remaining()
         {
             return Err(bad(format!("paint {i}: {stop_count} stops")));
@@ -1323,8 +1323,8 @@ mod tests {
     /// and a truncated section are refused by field.
     #[test]
     fn gradient_leaves_round_trip_and_lies_are_refused() {
-        use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
         use quadtex_core::{FillRule, Paint, VectorArt, VectorOptions};
+        use quadtex_core::{Gradient, Interpolation, Spread, Stop};
         let ramp = Gradient::linear(
             [1.0, 0.0, 0.0, 1.0, 0.0, 0.0],
             [0.0, 0.0],
@@ -1437,7 +1437,7 @@ mod tests {
             &[],
         )
         .unwrap();
-        art.set_curve_tolerance(quadtex_core::vector::CONTOUR_CURVE_TOLERANCE);
+        art.set_curve_tolerance(quadtex_core::CONTOUR_CURVE_TOLERANCE);
         let options = VectorOptions {
             max_level: 8,
             contour_leaves: Some(8),
@@ -1447,7 +1447,7 @@ mod tests {
         let leaves = t.contour_leaves().expect("contour leaves");
         assert_eq!(
             leaves.curve_tolerance(),
-            Some(quadtex_core::vector::CONTOUR_CURVE_TOLERANCE)
+            Some(quadtex_core::CONTOUR_CURVE_TOLERANCE)
         );
         assert_eq!(t.depth(), 30);
         let path = temp("contour.qtx");

@@ -49,13 +49,11 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::{Arc, Mutex, OnceLock};
 
-use quadtex_core::blend::BlendMode;
-use quadtex_core::gradient::{Gradient, Interpolation, Spread, Stop};
-use quadtex_core::image_paint::ImagePaint;
-use quadtex_core::vector::{
-    ClipId, GroupId, MAX_VECTOR_COORDINATE, MAX_VECTOR_POINTS, MaskId, MaskKind,
-};
+use quadtex_core::BlendMode;
+use quadtex_core::ImagePaint;
+use quadtex_core::{ClipId, GroupId, MAX_VECTOR_COORDINATE, MAX_VECTOR_POINTS, MaskId, MaskKind};
 use quadtex_core::{FillRule, Paint, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
+use quadtex_core::{Gradient, Interpolation, Spread, Stop};
 use usvg::tiny_skia_path::{self, PathSegment};
 
 use crate::Error;
@@ -87,7 +85,7 @@ fn fonts() -> Arc<usvg::fontdb::Database> {
 }
 
 /// Reads an SVG file and packs it at `max_level`, gradients to the default
-/// smooth-colour tolerance ([`quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE`]).
+/// smooth-colour tolerance ([`quadtex_core::DEFAULT_SMOOTH_TOLERANCE`]).
 pub fn pack_svg(
     path: &Path,
     max_level: u8,
@@ -96,7 +94,7 @@ pub fn pack_svg(
     pack_svg_with_tolerance(
         path,
         max_level,
-        quadtex_core::vector::DEFAULT_SMOOTH_TOLERANCE,
+        quadtex_core::DEFAULT_SMOOTH_TOLERANCE,
         limits,
     )
 }
@@ -179,12 +177,12 @@ fn level_curve_tolerance(max_level: u8) -> f64 {
 
 /// Refuses levels the vector packer cannot reach.
 fn check_level(max_level: u8, path: &Path) -> Result<(), Error> {
-    if max_level > quadtex_core::vector::MAX_VECTOR_LEVEL {
+    if max_level > quadtex_core::MAX_VECTOR_LEVEL {
         return Err(Error::Core {
             path: path.to_path_buf(),
             source: quadtex_core::Error::DepthTooLarge {
                 depth: max_level.into(),
-                max: quadtex_core::vector::MAX_VECTOR_LEVEL.into(),
+                max: quadtex_core::MAX_VECTOR_LEVEL.into(),
             },
         });
     }
@@ -1360,7 +1358,7 @@ mod tests {
         let f = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
         let got = tree.weighted_colour(&f, 0).0;
         let g = 128.0 / 255.0;
-        let want = [g, g * 64.0 / 255.0, 0.0].map(quadtex_core::gradient::srgb_decode);
+        let want = [g, g * 64.0 / 255.0, 0.0].map(quadtex_core::srgb_decode);
         for k in 0..3 {
             assert!(
                 (got[k] - want[k]).abs() < 2e-5,

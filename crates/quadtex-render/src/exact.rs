@@ -979,7 +979,7 @@ fn push_region(regions: &mut Regions, view: &View, support: &ConvexPolygon) {
 /// The regions of a pixel's views, in slots kept from pixel to pixel: a
 /// region is written into its slot in place, vertex by vertex, where
 /// pushing one would copy its whole capacity ([`ConvexPolygon`] holds
-/// [`MAX_VERTICES`](quadtex_core::polygon::MAX_VERTICES) inline), and
+/// [`MAX_VERTICES`](quadtex_core::MAX_VERTICES) inline), and
 /// clearing keeps the slots.
 #[derive(Default)]
 struct Regions {

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use quadtex_core::vector::MAX_VECTOR_LEVEL;
+use quadtex_core::MAX_VECTOR_LEVEL;
 use quadtex_core::{BuildOptions, QuadTree, Rgba, Wrap, WrapMode};
 use toml::{Table, Value};
 
@@ -591,7 +591,7 @@ impl Context<'_> {
             }
         };
         let svg_level = svg_level.unwrap_or(if contour_leaves.is_some() {
-            quadtex_core::vector::CONTOUR_MAX_LEVEL
+            quadtex_core::CONTOUR_MAX_LEVEL
         } else {
             DEFAULT_SVG_LEVEL
         });

@@ -875,15 +875,15 @@ pub struct Texture {
     baselines: Arc<std::sync::OnceLock<Result<Baselines, String>>>,
     /// The mip pyramid of the largest raster within the tree's memory
     /// ([`same_memory_level`]), built on first use.
-    same_memory: Arc<std::sync::OnceLock<Result<quadtex_core::mipmap::MipPyramid, String>>>,
+    same_memory: Arc<std::sync::OnceLock<Result<quadtex_core::baseline::MipPyramid, String>>>,
     /// Bytes the baselines may take ([`baseline_bytes`]), `None`: no budget.
     memory_budget: Option<u64>,
 }
 
 /// The raster forms a baseline filter needs, made from the tree's cells.
 pub(crate) struct Baselines {
-    pub pyramid: quadtex_core::mipmap::MipPyramid,
-    pub sat: quadtex_core::sat::SummedAreaTable,
+    pub pyramid: quadtex_core::baseline::MipPyramid,
+    pub sat: quadtex_core::baseline::SummedAreaTable,
 }
 
 /// The raster baselines see the tree rasterised at `2^clamp(depth, 10, 11)`
@@ -961,8 +961,8 @@ impl Texture {
                     .rasterise(baseline_level(self.tree.depth()))
                     .map_err(|e| format!("{}: {e}", self.name))?;
                 Ok(Baselines {
-                    pyramid: quadtex_core::mipmap::MipPyramid::new(&grid),
-                    sat: quadtex_core::sat::SummedAreaTable::new(&grid),
+                    pyramid: quadtex_core::baseline::MipPyramid::new(&grid),
+                    sat: quadtex_core::baseline::SummedAreaTable::new(&grid),
                 })
             })
             .as_ref()
@@ -973,7 +973,7 @@ impl Texture {
 impl Texture {
     /// The mip pyramid of the largest raster that fits the tree's memory
     /// ([`same_memory_level`]), built once.
-    pub(crate) fn same_memory_pyramid(&self) -> Result<&quadtex_core::mipmap::MipPyramid, &str> {
+    pub(crate) fn same_memory_pyramid(&self) -> Result<&quadtex_core::baseline::MipPyramid, &str> {
         self.same_memory
             .get_or_init(|| {
                 let level = same_memory_level(self.tree.memory_bytes(), self.tree.depth());
@@ -981,7 +981,7 @@ impl Texture {
                     .tree
                     .rasterise(level)
                     .map_err(|e| format!("{}: {e}", self.name))?;
-                Ok(quadtex_core::mipmap::MipPyramid::new(&grid))
+                Ok(quadtex_core::baseline::MipPyramid::new(&grid))
             })
             .as_ref()
             .map_err(String::as_str)

@@ -1,7 +1,7 @@
 //! Shading one ray: what it hits, the texture's filtered colour there (by
 //! the chosen [`Filter`]), lighting and shadows, or the sky.
 
-use quadtex_core::texture::filter_footprint;
+use quadtex_core::filter_footprint;
 use quadtex_core::{Rgba, Texture};
 
 use crate::caster::Seen;

@@ -20,7 +20,7 @@
 use std::sync::Arc;
 
 use crate::Error;
-use crate::build::TexelGrid;
+use crate::raster::TexelGrid;
 
 type Point = [f64; 2];
 

@@ -13,7 +13,7 @@
 //!    area that sees it, through the projective map the four corners fix
 //!    ([`Weighting::Screen`], a box over the *pixel*), or by its texture
 //!    area ([`Weighting::Texture`], a box over the footprint, as the seed
-//!    paper does). See [`crate::exact`]: the result is exact up to the
+//!    paper does). See [`crate::filter::exact`]: the result is exact up to the
 //!    squares the [`LevelOfDetail`] takes at their mean, whose error is
 //!    bounded and reported in [`FilterStats`].
 //! 3. A footprint of zero area filters to the texel at its centre.
@@ -26,14 +26,14 @@
 use std::sync::Arc;
 
 use crate::colour::{Rgba, WeightedColour};
-use crate::exact::{self, PixelFilter, Projection, RegionIntegral};
-use crate::footprint::Footprint;
-use crate::fragment::Fragment;
-pub use crate::options::{FilterOptions, FilterStats, LevelOfDetail, Weighting};
-use crate::polygon::ConvexPolygon;
+use crate::filter::exact::{self, PixelFilter, Projection, RegionIntegral};
+use crate::filter::footprint::Footprint;
+use crate::filter::options::{FilterOptions, FilterStats, Weighting};
+use crate::filter::wrap::uniform_colour_in;
+use crate::filter::wrap::{BoxIntegral, Wrap, integrate_wrapped};
+use crate::geometry::fragment::Fragment;
+use crate::geometry::polygon::ConvexPolygon;
 use crate::tree::{QuadTree, TraversalStats};
-use crate::wrap::uniform_colour_in;
-use crate::wrap::{BoxIntegral, Wrap, integrate_wrapped};
 
 /// A packed texture ready to filter: the tree (shared) and how texture space
 /// continues beyond the unit square.
@@ -137,7 +137,7 @@ impl Texture {
 
     /// The integral of the texture over screen region `region` seen through
     /// `projection` (screen → texture), weighted by `filter` centred at
-    /// `centre` (pixel units), with its error bound: see [`crate::exact`].
+    /// `centre` (pixel units), with its error bound: see [`crate::filter::exact`].
     /// A renderer sums these over the visible parts of a pixel's filter
     /// support (one per surface) and divides by the total weight.
     pub fn integrate_region(

@@ -16,7 +16,7 @@
 //! `Q`, map the clipped polygon back to the screen (a projective map sends
 //! segments to segments on its visible side), integrate `k` over it: the
 //! box's area by the shoelace formula, the tent's and Mitchell's cubic
-//! pieces by Green's theorem ([`crate::polygon`]). Squares inside `Q` need
+//! pieces by Green's theorem ([`crate::geometry::polygon`]). Squares inside `Q` need
 //! only their four mapped corners; squares outside cost nothing.
 //!
 //! **Where it stops early, and the bound.** Descending to every terminal
@@ -69,12 +69,12 @@ use arrayvec::ArrayVec;
 
 use crate::Error;
 use crate::colour::{Rgba, WeightedColour};
-use crate::footprint::Footprint;
-use crate::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET};
-use crate::polygon::{ConvexPolygon, Cubic, separable_integral};
+use crate::filter::footprint::Footprint;
+use crate::filter::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET};
+use crate::filter::wrap::{Wrap, WrapMode};
+use crate::filter::wrap::{fold_cell, uniform_colour_in};
+use crate::geometry::polygon::{ConvexPolygon, Cubic, separable_integral};
 use crate::tree::{FinestCell, NodeRef, QuadTree, StoredSquare, unit_side};
-use crate::wrap::{Wrap, WrapMode};
-use crate::wrap::{fold_cell, uniform_colour_in};
 
 type Mat3 = [[f64; 3]; 3];
 
@@ -547,13 +547,13 @@ pub(crate) fn integrate_region(
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     let mut finite = true;
     // Kept for the texture polygon below, so no vertex is mapped twice.
-    let mut mapped = [[0.0; 2]; crate::polygon::MAX_VERTICES];
+    let mut mapped = [[0.0; 2]; crate::geometry::polygon::MAX_VERTICES];
     for (&s, m) in region.vertices().iter().zip(mapped.iter_mut()) {
         let t = apply(&projection.texture_from_screen, s);
         *m = t;
         finite &= t[0].is_finite() && t[1].is_finite();
         for a in 0..2 {
-            crate::polygon::widen(&mut lo[a], &mut hi[a], t[a]);
+            crate::geometry::polygon::widen(&mut lo[a], &mut hi[a], t[a]);
         }
     }
     if !finite {
@@ -770,7 +770,7 @@ type Line = [f64; 3];
 
 /// The region's edges, plus one that keeps a non-square texture's tile off
 /// the tree's pad ([`crate::Aspect`]).
-const MAX_EDGES: usize = crate::polygon::MAX_VERTICES + 1;
+const MAX_EDGES: usize = crate::geometry::polygon::MAX_VERTICES + 1;
 
 fn edges_of(p: &ConvexPolygon) -> ([Line; MAX_EDGES], usize) {
     let mut lines = [[0.0; 3]; MAX_EDGES];
@@ -1458,7 +1458,7 @@ impl Walk<'_> {
                 };
                 // The box's weight is the quad's area: no polygon needed.
                 let c = if self.filter == PixelFilter::Box {
-                    let weight = crate::polygon::signed_area(&mapped).abs();
+                    let weight = crate::geometry::polygon::signed_area(&mapped).abs();
                     Contribution {
                         colour: colour.map(|v| v * weight),
                         weight,
@@ -2278,7 +2278,7 @@ fn scan_grid(
 }
 
 /// The texture-space `texture` vertices (at most
-/// [`MAX_VERTICES`](crate::polygon::MAX_VERTICES)) mapped by `m` to screen
+/// [`MAX_VERTICES`](crate::geometry::polygon::MAX_VERTICES)) mapped by `m` to screen
 /// coordinates relative to `centre` (so that shoelace sums stay at the
 /// polygon's own scale), in a buffer that is not zeroed first.
 #[inline(always)]
@@ -2286,8 +2286,8 @@ fn band_to_screen(
     texture: &[[f64; 2]],
     m: &Mat3,
     centre: [f64; 2],
-) -> ArrayVec<[f64; 2], { crate::polygon::MAX_VERTICES }> {
-    (texture.iter().take(crate::polygon::MAX_VERTICES))
+) -> ArrayVec<[f64; 2], { crate::geometry::polygon::MAX_VERTICES }> {
+    (texture.iter().take(crate::geometry::polygon::MAX_VERTICES))
         .map(|&t| {
             let q = apply(m, t);
             [q[0] - centre[0], q[1] - centre[1]]
@@ -2322,7 +2322,7 @@ struct BandBuffer {
 }
 
 /// Most vertices of a band: the region's and four crossings.
-const BAND_VERTICES: usize = crate::polygon::MAX_VERTICES + 4;
+const BAND_VERTICES: usize = crate::geometry::polygon::MAX_VERTICES + 4;
 
 impl Default for BandBuffer {
     fn default() -> Self {
@@ -2472,7 +2472,7 @@ impl<'a> Bands<'a> {
         let (mut i, mut next) = (self.at[1], backward(self.at[1]));
         // The second chain's vertices between the cuts, in the order it
         // meets them (against the polygon's): pushed reversed below.
-        let mut between = [0usize; crate::polygon::MAX_VERTICES];
+        let mut between = [0usize; crate::geometry::polygon::MAX_VERTICES];
         let mut count = 0;
         let mut steps = 0;
         while steps < n && self.texture[next][1] <= top {

@@ -24,11 +24,11 @@ pub enum Weighting {
 /// Where the traversal may take a non-terminal square at its mean.
 ///
 /// For [`crate::Texture::filter`] and [`crate::Texture::integrate_region`]
-/// ([`crate::exact`]): `ErrorBound(ε)` aims the bound on each pixel's error
+/// ([`crate::filter::exact`]): `ErrorBound(ε)` aims the bound on each pixel's error
 /// (relative to full contrast) at `ε`; `Fixed(k)` descends every square to
 /// level `k` or to a terminal square (the tree's depth: exact).
 ///
-/// For the strip pipeline ([`crate::texture::filter_footprint`]): a fragment of sides
+/// For the strip pipeline ([`crate::filter::texture::filter_footprint`]): a fragment of sides
 /// `w × h` may stop at level `k` only where the squares it treats as whole
 /// are partially covered; their area is at most `2(w+h)·2^-k`, so the mean
 /// colour is off by at most `2(w+h)·2^-k/(w·h)` of the texture's contrast.
@@ -146,7 +146,7 @@ impl FilterOptions {
     }
 
     /// With at most `budget` squares and tile blocks evaluated per region
-    /// under an error bound (`≥ 1`; see [`crate::exact`]): past it the
+    /// under an error bound (`≥ 1`; see [`crate::filter::exact`]): past it the
     /// largest remaining errors stay and the bound reached is reported.
     /// Shallow repeated textures (depth ≤ 4) are scanned cell by cell
     /// instead, exactly, up to 512 cells a region, whatever the budget.
@@ -197,7 +197,7 @@ pub struct FilterStats {
     /// Sum of the footprints' relative area excess (mean = sum / footprints).
     pub sum_mismatch: f64,
     /// Largest error bound of a filtered colour, relative to full contrast
-    /// (exact pipeline: [`crate::exact`]).
+    /// (exact pipeline: [`crate::filter::exact`]).
     pub max_error_bound: f64,
     /// Sum of the filtered colours' error bounds (mean = sum / footprints).
     pub sum_error_bound: f64,

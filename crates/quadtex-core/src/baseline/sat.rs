@@ -8,9 +8,9 @@
 //! interpolation of the table at a fragment's four corners gives the exact
 //! integral over any rectangle, texel-aligned or not: O(1) per fragment.
 
-use crate::build::TexelGrid;
 use crate::colour::WeightedColour;
-use crate::fragment::Fragment;
+use crate::geometry::fragment::Fragment;
+use crate::raster::TexelGrid;
 
 /// An exact box filter over a raster by summed-area table.
 #[derive(Debug, Clone)]

@@ -21,7 +21,7 @@
 use crate::Error;
 use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba};
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push, try_vec};
-use crate::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, BlockWriter};
+use crate::tree::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, BlockWriter};
 use crate::tree::{self, Aspect, MAX_DEPTH, MAX_NODES, QuadTree};
 
 /// The settings that shrink a raster build, for [`Error::MemoryBudget`].
@@ -93,8 +93,8 @@ impl TexelGrid {
 
     /// A grid from row-major 8-bit sRGB texels with straight alpha (row 0
     /// at the top), as PNG and JPEG store them: each decodes with
-    /// [`crate::texel_block::srgb8_texel`], and the packer keeps the bytes
-    /// in texel blocks ([`crate::texel_block`]).
+    /// [`crate::tree::texel_block::srgb8_texel`], and the packer keeps the bytes
+    /// in texel blocks ([`crate::tree::texel_block`]).
     pub fn from_srgb8(width: u32, height: u32, srgb8: Vec<[u8; 4]>) -> Result<TexelGrid, Error> {
         check_dimensions(width, height)?;
         let expected = u64::from(width) * u64::from(height);
@@ -105,7 +105,11 @@ impl TexelGrid {
             });
         }
         let mut texels = crate::memory::try_with_capacity(srgb8.len(), "texels")?;
-        texels.extend(srgb8.iter().map(|&p| crate::texel_block::srgb8_texel(p)));
+        texels.extend(
+            srgb8
+                .iter()
+                .map(|&p| crate::tree::texel_block::srgb8_texel(p)),
+        );
         Ok(TexelGrid {
             width,
             height,
@@ -244,7 +248,7 @@ pub struct BuildOptions {
     /// those plus [`crate::memory::BUILD_BYTES_PER_NODE`] per node so far do.
     pub max_bytes: Option<u64>,
     /// End squares in texel blocks where their texels cost no more than
-    /// their nodes ([`crate::texel_block`]); `true` by default. Off, every
+    /// their nodes ([`crate::tree::texel_block`]); `true` by default. Off, every
     /// square is a node (for comparisons).
     pub texel_blocks: bool,
 }
@@ -992,7 +996,7 @@ impl QuadTree {
         b.build(false)
     }
 
-    /// Packs a raster (see the [module documentation](crate::build)).
+    /// Packs a raster (see the [module documentation](crate::raster)).
     pub fn from_texels(
         grid: &TexelGrid,
         options: &BuildOptions,
@@ -1570,7 +1574,7 @@ mod tests {
 mod block_tests {
     use super::*;
     use crate::Fragment;
-    use crate::texel_block::srgb8_texel;
+    use crate::tree::texel_block::srgb8_texel;
 
     fn noise(c: u32, r: u32) -> [u8; 4] {
         let h = c.wrapping_mul(2_654_435_761) ^ r.wrapping_mul(40_503);

@@ -23,10 +23,10 @@
 //! Coordinates follow the crate conventions (`x` right, `z` up, row 0 at the
 //! top); texel centres sit at half-integers of `x·W` and `(1−z)·H`.
 
-use crate::build::{TexelGrid, resample};
 use crate::colour::Rgba;
-use crate::footprint::Footprint;
-use crate::wrap::Wrap;
+use crate::filter::footprint::Footprint;
+use crate::filter::wrap::Wrap;
+use crate::raster::{TexelGrid, resample};
 
 struct Level {
     side: usize,

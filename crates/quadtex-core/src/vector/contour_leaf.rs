@@ -14,10 +14,10 @@
 //!   for fragments of any size, down to the `f64` resolution of the
 //!   contours. A square wholly inside the fragment counts at its stored
 //!   mean (rounded once to 16 bits), as every node;
-//! * the exact-pixel walk ([`crate::exact`]) sees the leaf as *cells* made
+//! * the exact-pixel walk ([`crate::filter::exact`]) sees the leaf as *cells* made
 //!   on demand, each at the exact mean of the art over it (the same sweep),
 //!   subdivided while edges cross it, at most
-//!   [`crate::gradient_leaf::MAX_CELL_LEVELS`] below the leaf and down to
+//!   [`crate::vector::gradient_leaf::MAX_CELL_LEVELS`] below the leaf and down to
 //!   the tree's depth; a cell still crossed by an edge there is taken at its
 //!   mean with a full-contrast bound.
 //!
@@ -30,7 +30,7 @@ use crate::geometry::{
     FillRule, SlabScratch, SweepEdge, clip_to_rect, for_each_slab, on_rect_border, signed_area,
     unit_side,
 };
-use crate::leaf_nodes::LeafNodes;
+use crate::tree::leaf_nodes::LeafNodes;
 
 type Point = [f64; 2];
 
@@ -162,7 +162,7 @@ impl ContourLeaves {
         if depth > crate::MAX_DEPTH {
             return bad(format!("depth {depth} exceeds {}", crate::MAX_DEPTH));
         }
-        if nodes.is_empty() || nodes.len() > crate::gradient_leaf::MAX_GRADIENT_LEAVES {
+        if nodes.is_empty() || nodes.len() > crate::vector::gradient_leaf::MAX_GRADIENT_LEAVES {
             return bad(format!("{} leaves", nodes.len()));
         }
         if let Some(w) = nodes.windows(2).find(|w| w[1] <= w[0]) {
@@ -477,7 +477,8 @@ impl ContourLeaves {
         let rect = rect_of(level, cx, cz);
         let area = (rect[2] - rect[0]) * (rect[3] - rect[1]);
         let (sum, edges) = self.integral(leaf, rect);
-        let splits = edges && j < crate::gradient_leaf::MAX_CELL_LEVELS && level < self.depth;
+        let splits =
+            edges && j < crate::vector::gradient_leaf::MAX_CELL_LEVELS && level < self.depth;
         (splits, sum.map(|v| v / area), if edges { 1.0 } else { 0.0 })
     }
 

@@ -35,7 +35,7 @@
 //!
 //! **Gradients.** A square no edge enters but a gradient paints is terminal
 //! when every point of it lies within [`VectorOptions::tolerance`] of its
-//! one colour, the exact mean (see [`crate::gradient`]); otherwise it splits
+//! one colour, the exact mean (see [`crate::vector::gradient`]); otherwise it splits
 //! like an edge square, down to the maximum level. So smooth colour costs
 //! squares in proportion to its area times (slope / tolerance)², not `4^L`. At a
 //! leaf the trapezoid sweep takes each trapezoid's mean the same way.
@@ -78,21 +78,27 @@
 //! when the total would pass the budget; [`VectorReport::sweep_work`] is
 //! what a packing used.
 
+pub(crate) mod blend;
+pub(crate) mod contour_leaf;
+pub(crate) mod gradient;
+pub(crate) mod gradient_leaf;
+pub(crate) mod image_paint;
+
 use crate::Error;
-use crate::blend::{BlendMode, blend, blend_range};
 use crate::colour::{Rgba, Unorm16Rgba};
-use crate::contour_leaf::{
-    ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
-};
-pub use crate::geometry::FillRule;
+use crate::geometry::FillRule;
 use crate::geometry::{
     SlabScratch, SweepEdge, clip_to_rect, for_each_slab, on_rect_border, signed_area, winding,
 };
-use crate::gradient::Gradient;
-use crate::gradient_leaf::{GradientLeaves, LeafPaint};
-use crate::image_paint::ImagePaint;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
 use crate::tree::{self, MAX_DEPTH, MAX_NODES, QuadTree};
+use crate::vector::blend::{BlendMode, blend, blend_range};
+use crate::vector::contour_leaf::{
+    ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
+};
+use crate::vector::gradient::Gradient;
+use crate::vector::gradient_leaf::{GradientLeaves, LeafPaint};
+use crate::vector::image_paint::ImagePaint;
 
 /// The settings that shrink a vector build, for [`Error::MemoryBudget`].
 const VECTOR_KNOBS: &str = "lower --max-level, or raise --memory-limit";
@@ -286,7 +292,7 @@ impl VectorArt {
     }
 
     /// As [`VectorArt::group`], blended onto what lies below it (within the
-    /// enclosing group) by `blend` (see [`crate::blend`]).
+    /// enclosing group) by `blend` (see [`crate::vector::blend`]).
     pub fn blended_group(&mut self, opacity: f64, blend: BlendMode) -> Result<GroupId, Error> {
         self.masked_group(opacity, blend, &[])
     }
@@ -1031,7 +1037,7 @@ fn mask_coverage(kind: MaskKind, rgb: [f64; 3], alpha: f64) -> f64 {
         MaskKind::Alpha => a,
         MaskKind::Luminance if a <= 0.0 => 0.0,
         MaskKind::Luminance => {
-            let e = |c: f64| crate::gradient::srgb_encode((c / a).clamp(0.0, 1.0)) * a;
+            let e = |c: f64| crate::vector::gradient::srgb_encode((c / a).clamp(0.0, 1.0)) * a;
             (0.2125 * e(rgb[0]) + 0.7154 * e(rgb[1]) + 0.0721 * e(rgb[2])).clamp(0.0, 1.0)
         }
     }
@@ -1042,7 +1048,7 @@ fn mask_coverage(kind: MaskKind, rgb: [f64; 3], alpha: f64) -> f64 {
 fn encoded(range: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
     let mut out = range;
     for r in &mut out[..3] {
-        *r = r.map(crate::gradient::srgb_encode);
+        *r = r.map(crate::vector::gradient::srgb_encode);
     }
     out
 }
@@ -1103,14 +1109,14 @@ pub struct VectorOptions {
     pub tolerance: f64,
     /// Keep squares painted by one linear gradient (and flat colour) whole,
     /// with their paint, instead of splitting them to the tolerance
-    /// ([`crate::gradient_leaf`]). On by default.
+    /// ([`crate::vector::gradient_leaf`]). On by default.
     pub gradient_leaves: bool,
     /// Keep a square of flat art crossed by at most this many edges whole,
     /// with its contours, instead of splitting it further
-    /// ([`crate::contour_leaf`]): the art is then exact at any
+    /// ([`crate::vector::contour_leaf`]): the art is then exact at any
     /// magnification, and the tree answers down to level 30. Only squares
     /// whose shapes are solid fills outside clip paths and masks, in groups
-    /// of plain opacity (at most [`crate::contour_leaf::MAX_LEAF_GROUP_DEPTH`]
+    /// of plain opacity (at most [`crate::vector::contour_leaf::MAX_LEAF_GROUP_DEPTH`]
     /// deep) or none, qualify. Squares at `max_level` that qualify keep
     /// their contours up to 256 edges (or the budget, if larger), so flat
     /// art is exact at any magnification everywhere but where more edges
@@ -1205,11 +1211,11 @@ pub struct VectorReport {
     /// exact: flat colour, and linear gradients not overlapping other
     /// gradients).
     pub max_mean_error: f64,
-    /// Terminal squares kept as gradient leaves ([`crate::gradient_leaf`]).
+    /// Terminal squares kept as gradient leaves ([`crate::vector::gradient_leaf`]).
     pub gradient_leaves: u64,
     /// Distinct paints of those leaves.
     pub gradient_leaf_paints: u64,
-    /// Terminal squares kept as contour leaves ([`crate::contour_leaf`]).
+    /// Terminal squares kept as contour leaves ([`crate::vector::contour_leaf`]).
     pub contour_leaves: u64,
     /// Points their contours hold.
     pub contour_leaf_points: u64,

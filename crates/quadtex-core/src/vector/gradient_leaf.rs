@@ -15,11 +15,11 @@
 //! * The fragment integral ([`crate::QuadTree::weighted_colour`]) integrates
 //!   a gradient leaf **exactly** over the fragment's overlap: the mean of a
 //!   linear gradient over a rectangle is exact
-//!   ([`crate::gradient`], below 1e-13 against a compensated reference),
+//!   ([`crate::vector::gradient`], below 1e-13 against a compensated reference),
 //!   and `offset + matrix·mean` is the mean of the composite. A square
 //!   wholly inside the fragment counts at its stored mean (rounded once to
 //!   16 bits, as every node).
-//! * The exact-pixel walk ([`crate::exact`]) and everything built on
+//! * The exact-pixel walk ([`crate::filter::exact`]) and everything built on
 //!   [`crate::QuadTree::for_each_leaf`] see the leaf subdivided on demand
 //!   into *cells*, each carrying the exact mean of the paint over it; a
 //!   cell is terminal once the composite's sRGB-encoded range over it is
@@ -32,8 +32,8 @@
 //! parameter.
 
 use crate::Error;
-use crate::gradient::{Gradient, srgb_encode};
-use crate::leaf_nodes::LeafNodes;
+use crate::tree::leaf_nodes::LeafNodes;
+use crate::vector::gradient::{Gradient, srgb_encode};
 
 type Point = [f64; 2];
 
@@ -358,7 +358,7 @@ pub(crate) fn square_corners(level: u8, ix: u64, iz: u64) -> [Point; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gradient::{Interpolation, Spread, Stop};
+    use crate::vector::gradient::{Interpolation, Spread, Stop};
 
     fn ramp() -> Gradient {
         let stops = vec![

@@ -6,9 +6,9 @@
 //! Whole tiles are counted by multiplicity, not visited one by one, so the
 //! cost of a query does not depend on how many tiles it covers.
 
+use crate::baseline::SummedAreaTable;
 use crate::colour::{Rgba, WeightedColour};
-use crate::fragment::Fragment;
-use crate::sat::SummedAreaTable;
+use crate::geometry::fragment::Fragment;
 use crate::tree::{QuadTree, TraversalStats};
 
 /// How one axis of texture space continues beyond `[0,1)`.

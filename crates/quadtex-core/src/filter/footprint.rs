@@ -12,7 +12,7 @@
 //! footprint is one exact fragment, an anisotropic diagonal one gets more.
 
 use crate::Error;
-use crate::fragment::Fragment;
+use crate::geometry::fragment::Fragment;
 
 /// Most strips a footprint is cut into.
 pub const MAX_STRIPS: usize = 32;
@@ -312,7 +312,7 @@ pub struct Strips {
 
 /// Area of a polygon by the shoelace formula (absolute value).
 pub(crate) fn polygon_area(p: &[[f64; 2]]) -> f64 {
-    crate::polygon::signed_area(p).abs()
+    crate::geometry::polygon::signed_area(p).abs()
 }
 
 /// Extent along `axis` (0 = x, 1 = z) of the convex polygon within the slab

@@ -20,15 +20,20 @@
 //! 1/16 of the colour bytes) that lets a query start at the smallest square
 //! that encloses its fragment.
 
+pub(crate) mod leaf_nodes;
+pub(crate) mod shared;
+pub(crate) mod texel_block;
+pub mod variant;
+
 use crate::Error;
 use crate::SharedBytes;
 use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
-use crate::contour_leaf::ContourLeaves;
-use crate::fragment::{Fragment, overlap_1d};
-use crate::gradient_leaf::{GradientLeaves, square_corners};
-use crate::leaf_nodes::LeafNodes;
-use crate::texel_block::TexelBlocks;
-use crate::variant::{self, Variant};
+use crate::geometry::fragment::{Fragment, overlap_1d};
+use crate::tree::leaf_nodes::LeafNodes;
+use crate::tree::texel_block::TexelBlocks;
+use crate::tree::variant::Variant;
+use crate::vector::contour_leaf::ContourLeaves;
+use crate::vector::gradient_leaf::{GradientLeaves, square_corners};
 
 pub(crate) use crate::geometry::unit_side;
 
@@ -212,15 +217,15 @@ pub struct QuadTree {
     /// The colours of the grid at the tree's depth, for shallow trees
     /// ([`QuadTree::flat_grid`]), computed when first needed.
     grid: std::sync::OnceLock<Option<Vec<[f64; 4]>>>,
-    /// Texel blocks ending squares of one level ([`crate::texel_block`]),
+    /// Texel blocks ending squares of one level ([`crate::tree::texel_block`]),
     /// and the padded indices of that level's nodes.
     texel_blocks: Option<TexelBlocks>,
     block_nodes: std::ops::Range<usize>,
     /// Terminal squares that keep their gradient paint
-    /// ([`crate::gradient_leaf`]).
+    /// ([`crate::vector::gradient_leaf`]).
     gradient_leaves: Option<GradientLeaves>,
     /// Terminal squares that keep the edges crossing them
-    /// ([`crate::contour_leaf`]).
+    /// ([`crate::vector::contour_leaf`]).
     contour_leaves: Option<ContourLeaves>,
 }
 
@@ -778,7 +783,7 @@ impl QuadTree {
         self
     }
 
-    /// What the error bounds of [`crate::exact`], derived for colour
+    /// What the error bounds of [`crate::filter::exact`], derived for colour
     /// channels in `[0, 1]`, are multiplied by for this tree: 1 for unorm16
     /// colours, the widest channel range (at least 1) for HDR colours (one
     /// pass over the colours, the first time).
@@ -888,7 +893,7 @@ impl QuadTree {
         Ok(())
     }
 
-    /// The texel blocks, if any ([`crate::texel_block`]).
+    /// The texel blocks, if any ([`crate::tree::texel_block`]).
     pub fn texel_blocks(&self) -> Option<&TexelBlocks> {
         self.texel_blocks.as_ref()
     }
@@ -912,7 +917,7 @@ impl QuadTree {
         nodes.max(blocks)
     }
 
-    /// The gradient leaves, if any ([`crate::gradient_leaf`]).
+    /// The gradient leaves, if any ([`crate::vector::gradient_leaf`]).
     pub fn gradient_leaves(&self) -> Option<&GradientLeaves> {
         self.gradient_leaves.as_ref()
     }
@@ -934,7 +939,7 @@ impl QuadTree {
     }
 
     /// The tree with some terminal squares kept as contour leaves
-    /// ([`crate::contour_leaf`]); as [`QuadTree::with_gradient_leaves`],
+    /// ([`crate::vector::contour_leaf`]); as [`QuadTree::with_gradient_leaves`],
     /// and every point must lie in its leaf's square.
     pub fn with_contour_leaves(mut self, mut leaves: ContourLeaves) -> Result<QuadTree, Error> {
         let other = self.gradient_leaves.as_ref().map(GradientLeaves::at);
@@ -1033,7 +1038,7 @@ impl QuadTree {
         c.at().index_of((p - PAD) as u32).map(|i| (i, c))
     }
 
-    /// The contour leaves, if any ([`crate::contour_leaf`]).
+    /// The contour leaves, if any ([`crate::vector::contour_leaf`]).
     pub fn contour_leaves(&self) -> Option<&ContourLeaves> {
         self.contour_leaves.as_ref()
     }
@@ -1138,7 +1143,7 @@ impl QuadTree {
     /// `|∫ colour·(z − ½)|` over the unit square: how far the colour leans
     /// to one side (0 for a checkerboard). The error of weighing whole tiles
     /// by a smoothly varying density is proportional to it
-    /// ([`crate::exact`]). One pass over the leaves, the first time.
+    /// ([`crate::filter::exact`]). One pass over the leaves, the first time.
     pub fn first_moments(&self) -> [f64; 2] {
         *self.moments.get_or_init(|| {
             let (mut mx, mut mz) = ([0f64; 4], [0f64; 4]);
@@ -1215,7 +1220,7 @@ impl QuadTree {
     /// ([`Aspect`]); squares of the pad are skipped. Order: depth first.
     /// Colours are decoded ([`ColourEncoding`]); a block's cells give the
     /// exact mean of their texels. A gradient leaf above `max_level` gives
-    /// its cells ([`crate::gradient_leaf`]), each the exact mean of its
+    /// its cells ([`crate::vector::gradient_leaf`]), each the exact mean of its
     /// paint over it.
     pub fn for_each_leaf(&self, max_level: u8, f: impl FnMut(u8, u32, u32, [f64; 4])) {
         self.visit_leaves(max_level, true, f);

@@ -2,6 +2,9 @@
 //! sides, fill rules, winding numbers, polygon clipping and areas, in tree
 //! space (`x` right, `z` up; points are `[x, z]`).
 
+pub(crate) mod fragment;
+pub(crate) mod polygon;
+
 type Point = [f64; 2];
 
 /// Side of a square at `level`: `2^-level`, exact.
