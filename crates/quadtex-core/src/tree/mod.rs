@@ -40,6 +40,10 @@ use crate::vector::contour_leaf::ContourLeaves;
 use crate::vector::gradient_leaf::{GradientLeaves, square_corners};
 
 pub(crate) use crate::geometry::unit_side;
+pub use aspect::Aspect;
+pub(crate) use construct::{from_levels, from_levels_encoded};
+pub(crate) use navigate::{CellReader, FinestCell, NodeRef, StoredSquare};
+use ranks::{RankBlock, inner_before};
 
 /// Deepest level a tree may have. A level-30 square has side `2^-30`, still
 /// exactly representable with room to spare in the `f64` coordinates.
@@ -58,11 +62,6 @@ pub const UNIFORM_SEARCH_NODES: usize = 64;
 
 /// Deepest level of the direct-addressed top table.
 const MAX_TOP_LEVEL: u8 = 8;
-
-pub use aspect::Aspect;
-pub(crate) use construct::{from_levels, from_levels_encoded};
-pub(crate) use navigate::{CellReader, FinestCell, NodeRef, StoredSquare};
-use ranks::{RankBlock, inner_before};
 
 /// Node and terminal counts of one level, for reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
