@@ -1,0 +1,305 @@
+use super::resample::weights_1d;
+use super::*;
+
+/// A mosaic with uniform regions, edges and noise: `(col, row)` texel.
+fn mosaic_texel(col: u32, row: u32) -> Rgba {
+    let h = (col.wrapping_mul(2_654_435_761) ^ row.wrapping_mul(40_503)) % 7;
+    if col < 20 && row < 12 {
+        Rgba::opaque(0.2, 0.4, 0.6)
+    } else if (col / 3 + row / 5).is_multiple_of(2) {
+        Rgba::new(0.5, 0.25, 0.0, 0.5)
+    } else {
+        Rgba::opaque(h as f32 / 7.0, 0.1, 0.9)
+    }
+}
+
+/// The root's quarters built on threads give the sequential build's
+/// tree and report: rasters square and not (pad quarters), with and
+/// without texel blocks, a tolerance, HDR; a node limit the whole tree
+/// could reach keeps the build sequential and its error.
+#[test]
+fn quarters_built_apart_make_the_sequential_tree() {
+    let hdr = |w: u32, h: u32| {
+        let mut g = TexelGrid::from_fn(w, h, mosaic_texel).unwrap();
+        let half = (0..w * h)
+            .map(|i| {
+                let v = f64::from(i % 97) * 0.37;
+                let c = ColourEncoding::Half.encode(v);
+                HalfRgba([c, c, c, ColourEncoding::Half.encode(1.0)])
+            })
+            .collect();
+        g.half = Some(half);
+        g
+    };
+    let cases = [
+        (TexelGrid::from_fn(64, 64, mosaic_texel).unwrap(), true, 0.0),
+        (
+            TexelGrid::from_fn(64, 64, mosaic_texel).unwrap(),
+            false,
+            0.0,
+        ),
+        (
+            TexelGrid::from_fn(128, 32, mosaic_texel).unwrap(),
+            true,
+            0.0,
+        ),
+        (
+            TexelGrid::from_fn(24, 96, mosaic_texel).unwrap(),
+            true,
+            0.05,
+        ),
+        (hdr(32, 32), false, 0.0),
+    ];
+    for (grid, texel_blocks, tolerance) in &cases {
+        let options = BuildOptions {
+            tolerance: *tolerance,
+            texel_blocks: *texel_blocks,
+            ..BuildOptions::default()
+        };
+        let sequential = QuadTree::from_texels_split(grid, &options, usize::MAX).unwrap();
+        let apart = QuadTree::from_texels_split(grid, &options, 1).unwrap();
+        let what = format!("{}x{}, blocks {texel_blocks}", grid.width, grid.height);
+        assert_eq!(apart.0, sequential.0, "{what}");
+        assert_eq!(apart.1.max_error, sequential.1.max_error, "{what}");
+        assert!(apart.0.node_count() > 100, "{what}: too simple to tell");
+    }
+    // A limit the whole tree could reach: built in order, same error.
+    let grid = TexelGrid::from_fn(64, 64, mosaic_texel).unwrap();
+    let options = BuildOptions {
+        max_nodes: 200,
+        ..BuildOptions::default()
+    };
+    let sequential = QuadTree::from_texels_split(&grid, &options, usize::MAX);
+    let apart = QuadTree::from_texels_split(&grid, &options, 1);
+    assert_eq!(
+        format!("{:?}", apart.map(|_| ())),
+        format!("{:?}", sequential.map(|_| ()))
+    );
+}
+
+#[test]
+fn tiles_pack_to_the_tree_of_the_whole_mosaic() {
+    for (tiles, side, tolerance) in [
+        (4u32, 8u32, 0.0),
+        (2, 16, 0.0),
+        (4, 8, 0.05),
+        (1, 32, 0.0),
+        (8, 4, 0.0),
+    ] {
+        let total = tiles * side;
+        let whole = TexelGrid::from_fn(total, total, mosaic_texel).unwrap();
+        let options = BuildOptions {
+            tolerance,
+            ..BuildOptions::default()
+        };
+        let (expected, expected_report) = QuadTree::from_texels(&whole, &options).unwrap();
+        let mut loaded = Vec::new();
+        let (tree, report) = QuadTree::from_tiles(tiles, side, &options, &mut |row, col| {
+            loaded.push((row, col));
+            TexelGrid::from_fn(side, side, |c, r| {
+                mosaic_texel(col * side + c, row * side + r)
+            })
+        })
+        .unwrap();
+        assert_eq!(
+            tree, expected,
+            "{tiles}x{tiles} tiles of {side}, tolerance {tolerance}"
+        );
+        assert_eq!(report.max_error, expected_report.max_error);
+        // Every tile loaded once.
+        loaded.sort_unstable();
+        loaded.dedup();
+        assert_eq!(loaded.len(), (tiles * tiles) as usize);
+    }
+}
+
+#[test]
+fn tiles_of_the_wrong_size_or_failing_to_load_stop_the_build() {
+    let options = BuildOptions::default();
+    let e = QuadTree::from_tiles(2, 8, &options, &mut |row, col| {
+        let side = if (row, col) == (1, 1) { 4 } else { 8 };
+        TexelGrid::from_fn(side, side, |_, _| Rgba::opaque(1.0, 0.0, 0.0))
+    })
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("not the size of the first tile"),
+        "{e}"
+    );
+    let e = QuadTree::from_tiles(2, 8, &options, &mut |_, _| {
+        Err(Error::BadDimensions {
+            width: 0,
+            height: 0,
+            reason: "a test failure",
+        })
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("a test failure"), "{e}");
+    assert!(QuadTree::from_tiles(3, 8, &options, &mut |_, _| unreachable!()).is_err());
+    assert!(QuadTree::from_tiles(2, 6, &options, &mut |_, _| unreachable!()).is_err());
+    let levelled = BuildOptions {
+        max_level: Some(3),
+        ..BuildOptions::default()
+    };
+    assert!(QuadTree::from_tiles(2, 8, &levelled, &mut |_, _| unreachable!()).is_err());
+}
+
+#[test]
+fn weights_cover_each_cell_once() {
+    for (t, c) in [(3, 4), (5, 8), (8, 8), (16, 4), (7, 2), (1, 1)] {
+        for taps in weights_1d(t, c) {
+            let s: f32 = taps.iter().map(|&(_, w)| w).sum();
+            assert!((s - 1.0).abs() < 1e-6, "{t} texels -> {c} cells: {taps:?}");
+        }
+    }
+}
+
+#[test]
+fn uniform_image_is_a_single_terminal_root() {
+    let g = TexelGrid::from_fn(64, 64, |_, _| Rgba::opaque(0.25, 0.5, 0.75)).unwrap();
+    let (t, r) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+    assert_eq!(t.node_count(), 1);
+    assert_eq!(t.depth(), 0);
+    assert_eq!(r.max_error, 0.0);
+}
+
+#[test]
+fn one_odd_texel_splits_only_its_path() {
+    let g = TexelGrid::from_fn(16, 16, |c, r| {
+        if (c, r) == (3, 5) {
+            Rgba::opaque(1.0, 0.0, 0.0)
+        } else {
+            Rgba::opaque(0.0, 0.0, 1.0)
+        }
+    })
+    .unwrap();
+    let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+    assert_eq!(t.depth(), 4);
+    assert_eq!(t.node_count(), 1 + 4 * 4, "one inner node per level");
+    let stats = t.level_stats();
+    assert_eq!(
+        stats.iter().map(|s| s.nodes).collect::<Vec<_>>(),
+        vec![1, 4, 4, 4, 4]
+    );
+}
+
+#[test]
+fn tolerance_merges_small_noise_and_reports_error() {
+    let g = TexelGrid::from_fn(8, 8, |c, r| {
+        Rgba::opaque(0.5 + 0.001 * ((c + r) % 2) as f32, 0.5, 0.5)
+    })
+    .unwrap();
+    let (lossless, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+    assert!(lossless.node_count() > 1);
+    let opts = BuildOptions {
+        tolerance: 0.002,
+        ..BuildOptions::default()
+    };
+    let (lossy, report) = QuadTree::from_texels(&g, &opts).unwrap();
+    assert_eq!(lossy.node_count(), 1);
+    assert!(
+        report.max_error > 0.0 && report.max_error <= 0.002,
+        "{report:?}"
+    );
+}
+
+#[test]
+fn grid_estimate_counts_texels_cells_and_resampling_rows() {
+    assert_eq!(raster_grid_bytes(64, 64, 6), 8 * 64 * 64);
+    assert_eq!(
+        raster_grid_bytes(64, 16, 6),
+        8 * 64 * 16,
+        "a strip packs its own texels"
+    );
+    // The 1×20000 column on its own 1×32768 cells: texels + cells + rows.
+    assert_eq!(
+        raster_grid_bytes(1, 20000, 15),
+        8 * 20000 + 8 * 32768 + 16 * 20000
+    );
+    // A square of another size still resamples onto the square around it.
+    assert_eq!(
+        raster_grid_bytes(3000, 3000, 12),
+        8 * 9_000_000 + 8 * 4096 * 4096 + 16 * 3000 * 4096
+    );
+    let g = TexelGrid::from_fn(1, 20000, |_, r| {
+        Rgba::opaque((r % 7) as f32 / 7.0, 0.0, 0.0)
+    })
+    .unwrap();
+    let opts = BuildOptions {
+        max_bytes: Some(512 << 10),
+        ..BuildOptions::default()
+    };
+    let e = QuadTree::from_texels(&g, &opts).unwrap_err();
+    assert!(
+        e.to_string().starts_with(
+            "packing 1x20000 texels at level 15 (1x32768 cells) needs an estimated 724.8 KiB, above the memory budget of 512.0 KiB"
+        ),
+        "{e}"
+    );
+}
+
+/// A noisy 256² image: the up-front part is the texels; the build stops
+/// once the nodes so far exceed the rest of the budget, and a budget of
+/// the texels plus `BUILD_BYTES_PER_NODE` a node of the finished tree
+/// (within 4× of its `memory_bytes`) fits.
+#[test]
+fn budget_bounds_the_tree_while_building() {
+    let g = TexelGrid::from_fn(256, 256, |c, r| {
+        let h = (c.wrapping_mul(2_654_435_761) ^ r.wrapping_mul(40503)) % 1000;
+        Rgba::opaque(h as f32 / 1000.0, 0.5, 0.5)
+    })
+    .unwrap();
+    let (tree, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+    let fixed = raster_grid_bytes(256, 256, 8);
+    let needed = fixed + BUILD_BYTES_PER_NODE * tree.node_count();
+    assert!(needed - fixed <= 4 * tree.memory_bytes());
+    let fits = BuildOptions {
+        max_bytes: Some(needed),
+        ..BuildOptions::default()
+    };
+    assert!(QuadTree::from_texels(&g, &fits).is_ok());
+    let half = BuildOptions {
+        max_bytes: Some(fixed + (needed - fixed) / 2),
+        ..BuildOptions::default()
+    };
+    let e = QuadTree::from_texels(&g, &half).unwrap_err();
+    assert!(matches!(e, Error::MemoryBudget { .. }), "{e}");
+    assert!(e.to_string().contains("stopped after"), "{e}");
+}
+
+#[test]
+fn refuses_bad_input() {
+    assert!(matches!(
+        TexelGrid::new(0, 4, vec![]),
+        Err(Error::BadDimensions { .. })
+    ));
+    assert!(matches!(
+        TexelGrid::new(2, 2, vec![Unorm16Rgba::default(); 3]),
+        Err(Error::TexelCount { .. })
+    ));
+    let g = TexelGrid::from_fn(2, 2, |_, _| Rgba::TRANSPARENT).unwrap();
+    let bad = BuildOptions {
+        tolerance: f64::NAN,
+        ..BuildOptions::default()
+    };
+    assert!(matches!(
+        QuadTree::from_texels(&g, &bad),
+        Err(Error::BadTolerance(_))
+    ));
+    let deep = BuildOptions {
+        max_level: Some(40),
+        ..BuildOptions::default()
+    };
+    assert!(matches!(
+        QuadTree::from_texels(&g, &deep),
+        Err(Error::DepthTooLarge { .. })
+    ));
+    let few = BuildOptions {
+        max_nodes: 3,
+        ..BuildOptions::default()
+    };
+    let g = TexelGrid::from_fn(4, 4, |c, _| Rgba::opaque(c as f32 / 4.0, 0.0, 0.0)).unwrap();
+    assert!(matches!(
+        QuadTree::from_texels(&g, &few),
+        Err(Error::TooManyNodes { .. })
+    ));
+}
