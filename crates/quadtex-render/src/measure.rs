@@ -12,7 +12,7 @@ use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter};
 use crate::render::{prepare_baselines, sized_scene};
 use crate::scene::{Hit, Lighting, Scene, Sky};
-use crate::shade::texture_colour;
+use crate::shade::{TexturedHit, texture_colour};
 use crate::stats::PixelStats;
 use crate::view::{self, ScreenArea};
 
@@ -88,12 +88,15 @@ pub fn time_lookups(
         for (&(pixel, surface, hit), &footprint) in hits.iter().zip(&footprints) {
             let (x, y) = (pixel as u32 % width, pixel as u32 / width);
             let area = ScreenArea::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
-            if let Some(sampler) = frame.sampler(surface) {
+            if let Some(texture) = frame.texture(surface) {
+                let at = TexturedHit {
+                    surface,
+                    texture,
+                    hit: &hit,
+                };
                 pixels[pixel] = texture_colour(
                     &frame,
-                    surface,
-                    sampler,
-                    &hit,
+                    at,
                     filter,
                     PixelFilter::Box,
                     area,

@@ -15,7 +15,7 @@ use quadtex_core::Rgba;
 use crate::caster::{Seen, surface_and_triangle};
 use crate::exact::{Scratch, SurfaceViews, exact_pixel};
 use crate::frame::Frame;
-use crate::options::{Filter, PixelFilter};
+use crate::options::{Filter, PixelFilter, RenderOptions};
 use crate::shade::shade_ray;
 use crate::stats::PixelStats;
 use crate::view::ScreenArea;
@@ -60,33 +60,21 @@ const SILHOUETTE_SPLITS: u32 = 1;
 /// The colour of pixel `(x, y)`; `near_silhouette` when a neighbour's
 /// centre sees another surface (or the sky), so the pixel may straddle an
 /// edge and is checked at its corners. `scratch`: the calling thread's
-/// buffers for the exact pixel.
-#[allow(clippy::too_many_arguments)]
+/// buffers for the exact pixel. `options`: the texture filter, the pixel
+/// filter and the supersampling seed.
 pub(crate) fn shade_pixel<'v>(
     frame: &Frame<'_>,
-    filter: Filter,
-    pixel: PixelFilter,
+    options: &RenderOptions,
     (x, y): (u32, u32),
     near: &Neighbourhood<'_, 'v>,
-    seed: u64,
     scratch: &mut Scratch<'v>,
     stats: &mut PixelStats,
 ) -> Rgba {
+    let (filter, pixel, seed) = (options.filter, options.pixel_filter, options.seed);
     let scene = frame.scene;
     let (px, py) = (f64::from(x), f64::from(y));
     if let Filter::Quadtree(options) = filter
-        && let Some(c) = exact_pixel(
-            frame,
-            &options,
-            pixel,
-            (x, y),
-            near.primitives,
-            near.sky,
-            near.run,
-            near.views,
-            scratch,
-            stats,
-        )
+        && let Some(c) = exact_pixel(frame, &options, pixel, (x, y), near, scratch, stats)
     {
         return c;
     }

@@ -316,13 +316,13 @@ impl View {
     /// (occlusion ignored), under `filter` centred at `centre`.
     pub fn texture_integral(
         &self,
-        sampler: &quadtex_core::Texture,
+        texture: &quadtex_core::Texture,
         support: &ConvexPolygon,
         filter: PixelFilter,
         centre: [f64; 2],
         options: &FilterOptions,
     ) -> quadtex_core::RegionIntegral {
-        sampler.integrate_region(
+        texture.integrate_region(
             &self.projection,
             &self.region(support),
             filter,

@@ -207,16 +207,7 @@ fn render_with(
                     run: runs.get(x as usize).copied().unwrap_or(0),
                     views: &views,
                 };
-                *out = shade_pixel(
-                    &frame,
-                    options.filter,
-                    options.pixel_filter,
-                    (x, y),
-                    &near,
-                    options.seed,
-                    &mut scratch,
-                    &mut pixel,
-                );
+                *out = shade_pixel(&frame, options, (x, y), &near, &mut scratch, &mut pixel);
                 stats.merge_parts(&pixel);
             }
             scratch.end_row();

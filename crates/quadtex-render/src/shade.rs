@@ -32,15 +32,18 @@ pub(crate) fn shade_ray(
         return sky(scene, ray);
     };
     let surface = &scene.surfaces[index];
-    let base = match frame.sampler(index) {
+    let base = match frame.texture(index) {
         None => surface.colour,
-        Some(sampler) => {
+        Some(texture) => {
             stats.textured += 1;
+            let at = TexturedHit {
+                surface: index,
+                texture,
+                hit: &hit,
+            };
             let tex = texture_colour(
                 frame,
-                index,
-                sampler,
-                &hit,
+                at,
                 filter,
                 pixel_filter,
                 area,
@@ -60,31 +63,45 @@ pub(crate) fn shade_ray(
     Rgba::new(base.r * k[0], base.g * k[1], base.b * k[2], base.a)
 }
 
-/// The filtered texture colour of surface `index` at `hit` for the screen
-/// square `area`, whose footprint `footprint` gives when a filter needs it
-/// (computed there, or given: lookups are timed without it).
-#[allow(clippy::too_many_arguments)]
+/// A ray's hit on a textured surface: what [`texture_colour`] filters
+/// around.
+#[derive(Clone, Copy)]
+pub(crate) struct TexturedHit<'h> {
+    /// The surface's index in the scene.
+    pub surface: usize,
+    /// Its texture, bound to its wrap ([`Frame::texture`]).
+    pub texture: &'h Texture,
+    /// Where the ray meets it.
+    pub hit: &'h Hit,
+}
+
+/// The filtered texture colour at hit `at` for the screen square `area`,
+/// whose footprint `footprint` gives when a filter needs it (computed
+/// there, or given: lookups are timed without it).
 pub(crate) fn texture_colour(
     frame: &Frame<'_>,
-    index: usize,
-    sampler: &Texture,
-    hit: &Hit,
+    at: TexturedHit<'_>,
     filter: Filter,
     pixel_filter: PixelFilter,
     area: ScreenArea,
     footprint: impl FnOnce() -> Option<quadtex_core::Footprint>,
     stats: &mut PixelStats,
 ) -> Rgba {
+    let TexturedHit {
+        surface: index,
+        texture,
+        hit,
+    } = at;
     let scene = frame.scene;
     let surface = &scene.surfaces[index];
     let centre = view::centre_point(surface, hit);
     let traversal = &mut stats.filter.traversal;
     match filter {
-        Filter::Nearest | Filter::Supersample(_) => sampler.nearest_counted(centre, traversal),
-        Filter::Bilinear => sampler.bilinear_counted(centre, traversal),
+        Filter::Nearest | Filter::Supersample(_) => texture.nearest_counted(centre, traversal),
+        Filter::Bilinear => texture.bilinear_counted(centre, traversal),
         Filter::Trilinear | Filter::Ewa { .. } => {
             let (Ok(b), Some(fp)) = (surface_baselines(surface), footprint()) else {
-                return sampler.nearest_counted(centre, traversal);
+                return texture.nearest_counted(centre, traversal);
             };
             match filter {
                 Filter::Ewa { max_anisotropy } => b.pyramid.ewa(&fp, max_anisotropy, surface.wrap),
@@ -92,31 +109,29 @@ pub(crate) fn texture_colour(
             }
         }
         Filter::EwaSameMemory { max_anisotropy } => {
-            let texture = surface.texture.as_ref();
-            let (Some(Ok(pyramid)), Some(fp)) =
-                (texture.map(|t| t.same_memory_pyramid()), footprint())
-            else {
-                return sampler.nearest_counted(centre, traversal);
+            let same_memory = surface.texture.as_ref().map(|t| t.same_memory_pyramid());
+            let (Some(Ok(pyramid)), Some(fp)) = (same_memory, footprint()) else {
+                return texture.nearest_counted(centre, traversal);
             };
             pyramid.ewa(&fp, max_anisotropy, surface.wrap)
         }
         Filter::Sat(options) => {
             let (Ok(b), Some(fp)) = (surface_baselines(surface), footprint()) else {
-                return sampler.nearest_counted(centre, traversal);
+                return texture.nearest_counted(centre, traversal);
             };
             // The table is exact at any size: no level of detail.
             let options = options.with_level(u8::MAX);
             filter_footprint(&b.sat, None, surface.wrap, &fp, &options, &mut stats.filter)
-                .unwrap_or_else(|| sampler.nearest_counted(centre, &mut stats.filter.traversal))
+                .unwrap_or_else(|| texture.nearest_counted(centre, &mut stats.filter.traversal))
         }
         Filter::Quadtree(options) => {
             let mean = match pixel_filter {
                 PixelFilter::Box => {
-                    footprint().map(|fp| sampler.filter_counted(&fp, &options, &mut stats.filter))
+                    footprint().map(|fp| texture.filter_counted(&fp, &options, &mut stats.filter))
                 }
-                _ => tangent_filtered(frame, index, sampler, hit, &options, pixel_filter, area),
+                _ => tangent_filtered(frame, at, &options, pixel_filter, area),
             };
-            mean.unwrap_or_else(|| sampler.nearest_counted(centre, &mut stats.filter.traversal))
+            mean.unwrap_or_else(|| texture.nearest_counted(centre, &mut stats.filter.traversal))
         }
     }
 }
@@ -125,9 +140,11 @@ pub(crate) fn texture_colour(
 /// centre, seen on the tangent plane at `hit` (first order for a sphere).
 fn tangent_filtered(
     frame: &Frame<'_>,
-    index: usize,
-    sampler: &Texture,
-    hit: &Hit,
+    TexturedHit {
+        surface: index,
+        texture,
+        hit,
+    }: TexturedHit<'_>,
     options: &quadtex_core::FilterOptions,
     filter: PixelFilter,
     area: ScreenArea,
@@ -143,7 +160,7 @@ fn tangent_filtered(
     };
     let view = crate::planar_view::View::new(frame.scene, index, &planar)?;
     let support = filter.support(area.centre);
-    view.texture_integral(sampler, &support, filter, area.centre, options)
+    view.texture_integral(texture, &support, filter, area.centre, options)
         .mean()
 }
 

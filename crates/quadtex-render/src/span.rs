@@ -264,11 +264,11 @@ fn span_answer(
     {
         return None;
     }
-    let texture = match frame.sampler(view.surface()) {
-        Some(sampler) => {
+    let texture = match frame.texture(view.surface()) {
+        Some(texture) => {
             let pixel = filter.support([first, cy]);
             *lookups += 1;
-            Some(sampler.uniform_colour_over(view.projection(), &rect, &pixel, options)?)
+            Some(texture.uniform_colour_over(view.projection(), &rect, &pixel, options)?)
         }
         None => None,
     };

@@ -10,26 +10,40 @@ use crate::scene::{Geometry, Lighting};
 use crate::span::SpanAnswer;
 use crate::stats::PixelStats;
 
-/// `(Σ colour·k, Σ k, bound)` of surface `view` over screen `piece`, lit
-/// by `light` when the caller knows it for the whole piece (a run's,
-/// [`UniformSpan::run_light`]), else by the piece's own shadow ray.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn shade_piece(
-    frame: &Frame<'_>,
+/// What shading a region of one pixel's support takes besides the region:
+/// the frame, the pixel filter centred at `centre`, and the texture
+/// filter's options.
+#[derive(Clone, Copy)]
+pub(super) struct Shading<'p> {
+    pub(super) frame: &'p Frame<'p>,
+    pub(super) filter: PixelFilter,
+    pub(super) centre: [f64; 2],
+    pub(super) options: &'p FilterOptions,
+}
+
+/// `(Σ colour·k, Σ k, bound)` of surface `view` over screen `region`, lit
+/// by `light` when the caller knows it for the whole region (a run's,
+/// [`UniformSpan::run_light`](crate::span::UniformSpan::run_light)), else
+/// by the region's own shadow ray.
+pub(super) fn shade_region(
+    shading: &Shading<'_>,
     view: &View,
-    piece: &ConvexPolygon,
-    filter: PixelFilter,
-    centre: [f64; 2],
-    options: &FilterOptions,
+    region: &ConvexPolygon,
     light: Option<[f32; 3]>,
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64, f64) {
-    let (c, w, b) = match frame.sampler(view.surface()) {
-        Some(sampler) => {
+    let Shading {
+        frame,
+        filter,
+        centre,
+        options,
+    } = *shading;
+    let (c, w, b) = match frame.texture(view.surface()) {
+        Some(texture) => {
             stats.textured = 1;
-            let r = sampler.integrate_region(
+            let r = texture.integrate_region(
                 view.projection(),
-                piece,
+                region,
                 filter,
                 centre,
                 options,
@@ -37,19 +51,19 @@ pub(super) fn shade_piece(
             );
             (Some(r.colour.0), r.weight, r.error_bound)
         }
-        None => (None, filter.integral(piece, centre), 0.0),
+        None => (None, filter.integral(region, centre), 0.0),
     };
-    (tint_and_light(frame, view, piece, c, w, light), w, b)
+    (tint_and_light(frame, view, region, c, w, light), w, b)
 }
 
-/// A piece's colour from its texture integral `texture` (`None`: the
+/// A region's colour from its texture integral `texture` (`None`: the
 /// surface is untextured) and weight `w`: tinted by the surface's colour,
-/// then lit by `light` when the caller knows it for the whole piece, else
-/// by the piece's own shadow ray ([`light_piece`]).
+/// then lit by `light` when the caller knows it for the whole region, else
+/// by the region's own shadow ray ([`light_region`]).
 pub(super) fn tint_and_light(
     frame: &Frame<'_>,
     view: &View,
-    piece: &ConvexPolygon,
+    region: &ConvexPolygon,
     texture: Option<[f64; 4]>,
     w: f64,
     light: Option<[f32; 3]>,
@@ -69,7 +83,7 @@ pub(super) fn tint_and_light(
     };
     match light.or_else(|| view.uniform_light(|| uniform_light(frame, view))) {
         Some(k) => apply_light(&mut c, k),
-        None => light_piece(frame, view, piece, &mut c),
+        None => light_region(frame, view, region, &mut c),
     }
     c
 }
@@ -86,8 +100,8 @@ pub(super) fn tint_and_light(
 /// [`Caster::sun_clear_of_triangle`](crate::caster::Caster::sun_clear_of_triangle)):
 /// no shadow ray leaving the triangle meets anything, and the cosine is
 /// the same.
-/// `None` otherwise (each piece then casts its own shadow ray,
-/// [`light_piece`]).
+/// `None` otherwise (each region then casts its own shadow ray,
+/// [`light_region`]).
 pub(super) fn uniform_light(frame: &Frame<'_>, view: &View) -> Option<[f32; 3]> {
     let scene = frame.scene;
     let Lighting::Lambert { direction, .. } = scene.lighting else {
@@ -137,21 +151,25 @@ pub(super) fn apply_light(c: &mut [f64; 4], light: [f32; 3]) {
     }
 }
 
-/// What [`shade_piece`] gives a pixel of a [`UniformSpan`] whose whole
+/// What [`shade_region`] gives a pixel of a [`UniformSpan`] whose whole
 /// support is `support`: the span's texture colour (or the surface's tint
 /// alone) times the filter's weight there, lit by the span's light or, when
 /// the span has none, by the support's own shadow ray. The arithmetic is
-/// [`shade_piece`]'s, step for step, so that a pixel comes out the same
+/// [`shade_region`]'s, step for step, so that a pixel comes out the same
 /// either way.
 pub(super) fn shade_span_pixel(
-    frame: &Frame<'_>,
+    shading: &Shading<'_>,
     view: &View,
     support: &ConvexPolygon,
-    filter: PixelFilter,
-    centre: [f64; 2],
     answer: &SpanAnswer,
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64) {
+    let Shading {
+        frame,
+        filter,
+        centre,
+        ..
+    } = *shading;
     let w = filter.integral(support, centre);
     let texture = answer.texture.map(|colour| {
         stats.textured = 1;
@@ -166,12 +184,17 @@ pub(super) fn shade_span_pixel(
     )
 }
 
-/// Multiplies `c` by the lighting at `piece`'s centroid on `view`'s
+/// Multiplies `c` by the lighting at `region`'s centroid on `view`'s
 /// primitive (its shadow ray's answer there).
-pub(super) fn light_piece(frame: &Frame<'_>, view: &View, piece: &ConvexPolygon, c: &mut [f64; 4]) {
+pub(super) fn light_region(
+    frame: &Frame<'_>,
+    view: &View,
+    region: &ConvexPolygon,
+    c: &mut [f64; 4],
+) {
     let scene = frame.scene;
     if let Lighting::Lambert { .. } = scene.lighting {
-        let s = piece.centroid();
+        let s = region.centroid();
         let ray = scene.camera.ray(s[0], s[1]);
         let t = view.depth_at(s);
         if t.is_finite() {

@@ -8,13 +8,14 @@ use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
 
 use crate::caster::{Seen, seen_id, surface_and_triangle};
 use crate::frame::{Frame, sky};
+use crate::pixel::Neighbourhood;
 use crate::planar_view::View;
 use crate::scene::{Geometry, Scene};
 use crate::span::{SpanQuery, UniformSpan};
 use crate::stats::PixelStats;
 
 use super::cutting::{Cut, Order, Regions, overlap, push_region};
-use super::lighting::{shade_piece, shade_span_pixel};
+use super::lighting::{Shading, shade_region, shade_span_pixel};
 use super::sky::{
     SkySpan, Whole, sky_at_centre, sky_clear_above, sky_integral, sky_range, sky_step,
     sky_tolerance, views_miss,
@@ -23,75 +24,141 @@ use super::views::{Confirmed, Flood, SurfaceViews, ViewMemo, ViewRef, candidate_
 use super::{GAP_AREA, MAX_GAP_PRIMITIVES, MAX_MESH_SCAN};
 
 /// The filtered colour of pixel `(x, y)` whose neighbourhood's centres see
-/// `candidates` (and the sky if `sky`), or `None` when a candidate is not
-/// planar (a sphere): the caller then takes the tangent-plane path.
-/// `scratch`: the calling thread's buffers.
-#[allow(clippy::too_many_arguments)]
+/// `near.primitives` (and the sky if `near.sky`), or `None` when a
+/// candidate is not planar (a sphere): the caller then takes the
+/// tangent-plane path. `scratch`: the calling thread's buffers.
 pub(crate) fn exact_pixel<'a>(
     frame: &Frame<'_>,
     options: &FilterOptions,
     filter: PixelFilter,
     (x, y): (u32, u32),
-    candidates: &[Seen],
-    sees_sky: bool,
-    run: u32,
-    cache: &'a SurfaceViews,
+    near: &Neighbourhood<'_, 'a>,
     scratch: &mut Scratch<'a>,
     stats: &mut PixelStats,
 ) -> Option<Rgba> {
-    let Scratch {
-        views,
-        tried,
-        regions,
-        gaps,
-        cut,
-        order,
-        planes,
-        binned,
-        memo,
-        flooded,
-        confirmed,
-        sky_span,
-        uniform_span,
-        sky_clear_above: _,
-    } = scratch;
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
-    let support = filter.support(centre);
-    let mut acc = [0f64; 4];
-    let mut weight = 0.0;
-    let mut bound = 0.0;
-    let mut parts = PixelStats::default();
-    let mut add = |c: [f64; 4], w: f64, b: f64| {
-        for (a, v) in acc.iter_mut().zip(c) {
-            *a += v;
-        }
-        weight += w;
-        bound += b;
+    let pixel = ExactPixel {
+        shading: Shading {
+            frame,
+            filter,
+            centre,
+            options,
+        },
+        at: (x, y),
+        support: filter.support(centre),
+        cache: near.views,
     };
+    let (cache, support, candidates) = (near.views, &pixel.support, near.primitives);
     // One primitive over the whole support: one integral.
     if let [id] = candidates
-        && !sees_sky
-        && let Some(view) = candidate_view(scene, cache, memo, *id)?
+        && !near.sky
+        && let Some(view) = candidate_view(scene, cache, &mut scratch.memo, *id)?
+        && let Some(colour) =
+            pixel.one_primitive(*id, &view, near.run, &mut scratch.uniform_span, stats)
     {
+        return Some(colour);
+    }
+    // Only the sky in reach: the sky over the whole support unless a plane,
+    // quad or mesh triangle no centre sees reaches into it (the case the
+    // general path below covers).
+    if candidates.is_empty()
+        && near.sky
+        && views_miss(cache, &mut scratch.sky_span, filter, (x, y), support)
+        && !cache.meshes_in(scene, support, &mut scratch.planes, |_| true)
+    {
+        let (c, w) = sky_integral(
+            scene,
+            support,
+            Whole::Yes,
+            filter,
+            centre,
+            sky_tolerance(options),
+        );
+        return Some(mean(c, w));
+    }
+    pixel.list_candidates(candidates, scratch)?;
+    let found = pixel.spread_to_neighbours(scratch)?;
+    let Scratch {
+        views,
+        regions,
+        cut,
+        order,
+        ..
+    } = scratch;
+    cut.among(views, regions, support, order);
+    pixel.search_gaps(found, scratch)?;
+    pixel.shade_cut(scratch, stats)
+}
+
+/// One exact pixel's question, what its steps share: the shading of its
+/// regions (frame, filters, centre), where it is, its filter's support,
+/// and the frame's views.
+struct ExactPixel<'p, 'a> {
+    shading: Shading<'p>,
+    at: (u32, u32),
+    support: ConvexPolygon,
+    cache: &'a SurfaceViews,
+}
+
+/// The sums a pixel's colour is the mean of: `Σ colour·k`, `Σ k`, and the
+/// error bounds' sum, added region by region in a fixed order.
+#[derive(Default)]
+struct Sums {
+    colour: [f64; 4],
+    weight: f64,
+    bound: f64,
+}
+
+impl Sums {
+    fn add(&mut self, c: [f64; 4], w: f64, b: f64) {
+        for (a, v) in self.colour.iter_mut().zip(c) {
+            *a += v;
+        }
+        self.weight += w;
+        self.bound += b;
+    }
+}
+
+impl<'a> ExactPixel<'_, 'a> {
+    /// The pixel when the one primitive its centres see, `view` (`id`),
+    /// covers its whole support: its run's span's answer where one
+    /// stands, else one integral. `None` when its region is not the whole
+    /// support (the general path then takes the pixel).
+    fn one_primitive(
+        &self,
+        id: Seen,
+        view: &View,
+        run: u32,
+        uniform_span: &mut UniformSpan,
+        stats: &mut PixelStats,
+    ) -> Option<Rgba> {
+        let Shading {
+            frame,
+            filter,
+            options,
+            ..
+        } = self.shading;
+        let (support, (x, y)) = (&self.support, self.at);
+        let mut sums = Sums::default();
+        let mut parts = PixelStats::default();
         // A run of such pixels: one answer for a span of them.
         let query = SpanQuery {
             frame,
-            view: &view,
+            view,
             filter,
             options,
         };
-        let answer = uniform_span.answer(&query, (x, y), *id, run);
+        let answer = uniform_span.answer(&query, (x, y), id, run);
         // Counted on this pixel alone, not on the span's copies of it.
         stats.filter.traversal.queries += uniform_span.take_lookups();
         if let Some(answer) = answer {
-            let (c, w) =
-                shade_span_pixel(frame, &view, &support, filter, centre, &answer, &mut parts);
-            add(c, w, 0.0);
+            let (c, w) = shade_span_pixel(&self.shading, view, support, &answer, &mut parts);
+            sums.add(c, w, 0.0);
             parts.weight_error = weight_error(w);
             parts.filter.record_bound(0.0);
             stats.merge_parts(&parts);
-            let colour = mean(acc, weight);
+            let colour = mean(sums.colour, sums.weight);
             // The weight is the same bits at every pixel: the box's is the
             // support's area, 1 (its corners are multiples of ½, exact in
             // floats, and so are their products at pixel coordinates below
@@ -103,291 +170,354 @@ pub(crate) fn exact_pixel<'a>(
             }
             return Some(colour);
         }
-        let region = view.region(&support);
+        let region = view.region(support);
         let whole =
             matches!(region, Cow::Borrowed(_)) || region.area() >= support.area() * (1.0 - 1e-12);
-        if whole {
-            // The sun over the pixel's run, when one test settled it for
-            // all of the run (the span that failed was refused for its
-            // texture), else the pixel's own shadow ray.
-            let light = uniform_span.run_light((x, y), *id);
-            let (c, w, b) = shade_piece(
-                frame, &view, &region, filter, centre, options, light, &mut parts,
-            );
-            add(c, w, b);
-            parts.weight_error = weight_error(w);
-            stats.merge_parts(&parts);
-            stats.filter.record_bound(b / w.abs().max(1e-300));
-            return Some(mean(acc, weight));
+        if !whole {
+            return None;
         }
+        // The sun over the pixel's run, when one test settled it for
+        // all of the run (the span that failed was refused for its
+        // texture), else the pixel's own shadow ray.
+        let light = uniform_span.run_light((x, y), id);
+        let (c, w, b) = shade_region(&self.shading, view, &region, light, &mut parts);
+        sums.add(c, w, b);
+        parts.weight_error = weight_error(w);
+        stats.merge_parts(&parts);
+        stats.filter.record_bound(b / w.abs().max(1e-300));
+        Some(mean(sums.colour, sums.weight))
     }
-    // Only the sky in reach: the sky over the whole support unless a plane,
-    // quad or mesh triangle no centre sees reaches into it (the case the
-    // general path below covers).
-    if candidates.is_empty()
-        && sees_sky
-        && views_miss(cache, sky_span, filter, (x, y), &support)
-        && !cache.meshes_in(scene, &support, planes, |_| true)
-    {
-        let (c, w) = sky_integral(
-            scene,
-            &support,
-            Whole::Yes,
-            filter,
-            centre,
-            sky_tolerance(options),
-        );
-        return Some(mean(c, w));
-    }
-    views.clear();
-    // Every primitive tried so far and its view's index (none: edge-on).
-    tried.clear();
-    for &id in candidates {
-        let view = candidate_view(scene, cache, memo, id)?;
-        tried.push((id, view.is_some().then_some(views.len())));
-        views.extend(view);
-    }
-    // The centres in reach may all miss a primitive that still reaches into
-    // the support (a quad's corner, a triangle's tip near a vertex): every
-    // plane and quad of the scene is a candidate here, and every triangle
-    // of a (small) mesh one of the centres sees.
-    for (surface, s) in scene.surfaces.iter().enumerate() {
-        let seen_here = |t: u32| candidates.contains(&seen_id(surface, t));
-        match &s.geometry {
-            Geometry::Plane { .. } | Geometry::Quad { .. } if !seen_here(0) => {
-                let view = cache.get(scene, surface, 0);
-                tried.push((seen_id(surface, 0), view.is_some().then_some(views.len())));
-                views.extend(view);
-            }
-            Geometry::Mesh(mesh)
-                if mesh.len() <= MAX_MESH_SCAN
-                    && candidates
-                        .iter()
-                        .any(|&id| surface_and_triangle(id).0 == surface) =>
-            {
-                for t in 0..mesh.len() as u32 {
-                    if seen_here(t) {
-                        continue;
+
+    /// Lists the views of the primitives the centres see (`candidates`)
+    /// and of every other plane, quad and triangle of a small mesh a
+    /// centre sees, which may reach into the support unseen, with their
+    /// regions of the support. `None` when a candidate is not planar.
+    fn list_candidates(&self, candidates: &[Seen], scratch: &mut Scratch<'a>) -> Option<()> {
+        let (scene, cache) = (self.shading.frame.scene, self.cache);
+        let Scratch {
+            views,
+            tried,
+            regions,
+            memo,
+            ..
+        } = scratch;
+        views.clear();
+        // Every primitive tried so far and its view's index (none: edge-on).
+        tried.clear();
+        for &id in candidates {
+            let view = candidate_view(scene, cache, memo, id)?;
+            tried.push((id, view.is_some().then_some(views.len())));
+            views.extend(view);
+        }
+        // The centres in reach may all miss a primitive that still reaches into
+        // the support (a quad's corner, a triangle's tip near a vertex): every
+        // plane and quad of the scene is a candidate here, and every triangle
+        // of a (small) mesh one of the centres sees.
+        for (surface, s) in scene.surfaces.iter().enumerate() {
+            let seen_here = |t: u32| candidates.contains(&seen_id(surface, t));
+            match &s.geometry {
+                Geometry::Plane { .. } | Geometry::Quad { .. } if !seen_here(0) => {
+                    let view = cache.get(scene, surface, 0);
+                    tried.push((seen_id(surface, 0), view.is_some().then_some(views.len())));
+                    views.extend(view);
+                }
+                Geometry::Mesh(mesh)
+                    if mesh.len() <= MAX_MESH_SCAN
+                        && candidates
+                            .iter()
+                            .any(|&id| surface_and_triangle(id).0 == surface) =>
+                {
+                    for t in 0..mesh.len() as u32 {
+                        if seen_here(t) {
+                            continue;
+                        }
+                        let view = s
+                            .geometry
+                            .planar(t)
+                            .and_then(|p| View::new(scene, surface, &p));
+                        tried.push((seen_id(surface, t), view.is_some().then_some(views.len())));
+                        views.extend(view.map(|v| ViewRef::Built(Rc::new(v))));
                     }
-                    let view = s
-                        .geometry
-                        .planar(t)
-                        .and_then(|p| View::new(scene, surface, &p));
-                    tried.push((seen_id(surface, t), view.is_some().then_some(views.len())));
-                    views.extend(view.map(|v| ViewRef::Built(Rc::new(v))));
+                }
+                _ => {}
+            }
+        }
+        regions.clear();
+        for v in views.iter() {
+            push_region(regions, v, &self.support);
+        }
+        Some(())
+    }
+
+    /// Where the listed regions leave part of the support uncovered, lists
+    /// the mesh triangles across the edges of those listed
+    /// ([`Flood::spread`]), each confirmed by a camera ray; an occluder a
+    /// ray meets instead undoes the spread and joins the list. Returns how
+    /// many primitives joined from the gaps (the occluder, if any); `None`
+    /// when the occluder is not planar.
+    fn spread_to_neighbours(&self, scratch: &mut Scratch<'a>) -> Option<usize> {
+        let Shading { frame, .. } = self.shading;
+        let (scene, cache, support, x) = (frame.scene, self.cache, &self.support, self.at.0);
+        let Scratch {
+            views,
+            tried,
+            regions,
+            memo,
+            flooded,
+            confirmed,
+            ..
+        } = scratch;
+        let mut found = 0;
+        let covered: f64 = regions.iter().map(ConvexPolygon::area).sum();
+        if covered < support.area() * (1.0 - GAP_AREA) {
+            let flood = Flood {
+                scene,
+                cache,
+                support,
+            };
+            let (listed, tried_before) = (views.len(), tried.len());
+            flood.spread(views, regions, tried, memo, flooded);
+            // Each new triangle is confirmed, as a gap's would be, by the ray
+            // through its region's centroid (or one a pixel or two back in the
+            // row). A nearer primitive there is an occluder no centre sees (a
+            // far hill's crest), in front of triangles the flood listed that it
+            // may hide beyond the ray: the flood is undone, the occluder joins
+            // the list, and the gaps are searched as without a flood.
+            let mut occluder = None;
+            for &v in flooded.iter() {
+                let id = seen_id(views[v].surface(), views[v].triangle().unwrap_or(0));
+                if confirmed.recent(id, x) {
+                    continue;
+                }
+                let c = regions[v].centroid();
+                let hit = cache.camera_hit(frame, c, Some(id));
+                match hit.map(|(surface, hit)| seen_id(surface, hit.triangle)) {
+                    Some(seen) if seen == id => confirmed.insert(id, x),
+                    // One the list holds: their order settles it.
+                    Some(seen) if tried.iter().any(|(t, _)| *t == seen) => {}
+                    seen => {
+                        occluder = Some(seen);
+                        break;
+                    }
                 }
             }
-            _ => {}
-        }
-    }
-    regions.clear();
-    for v in views.iter() {
-        push_region(regions, v, &support);
-    }
-    let mut found = 0;
-    let covered: f64 = regions.iter().map(ConvexPolygon::area).sum();
-    if covered < support.area() * (1.0 - GAP_AREA) {
-        let flood = Flood {
-            scene,
-            cache,
-            support: &support,
-        };
-        let (listed, tried_before) = (views.len(), tried.len());
-        flood.spread(views, regions, tried, memo, flooded);
-        // Each new triangle is confirmed, as a gap's would be, by the ray
-        // through its region's centroid (or one a pixel or two back in the
-        // row). A nearer primitive there is an occluder no centre sees (a
-        // far hill's crest), in front of triangles the flood listed that it
-        // may hide beyond the ray: the flood is undone, the occluder joins
-        // the list, and the gaps are searched as without a flood.
-        let mut occluder = None;
-        for &v in flooded.iter() {
-            let id = seen_id(views[v].surface(), views[v].triangle().unwrap_or(0));
-            if confirmed.recent(id, x) {
-                continue;
-            }
-            let c = regions[v].centroid();
-            let hit = cache.camera_hit(frame, c, Some(id));
-            match hit.map(|(surface, hit)| seen_id(surface, hit.triangle)) {
-                Some(seen) if seen == id => confirmed.insert(id, x),
-                // One the list holds: their order settles it.
-                Some(seen) if tried.iter().any(|(t, _)| *t == seen) => {}
-                seen => {
-                    occluder = Some(seen);
-                    break;
-                }
-            }
-        }
-        if let Some(seen) = occluder {
-            views.truncate(listed);
-            regions.truncate(listed);
-            tried.truncate(tried_before);
-            if let Some(seen) = seen
-                && !tried.iter().any(|(t, _)| *t == seen)
-            {
-                found += 1;
-                let view = candidate_view(scene, cache, memo, seen)?;
-                if let Some(view) = &view {
-                    push_region(regions, view, &support);
-                }
-                tried.push((seen, view.is_some().then_some(views.len())));
-                views.extend(view);
-            }
-        }
-    }
-    cut.among(views, regions, &support, order);
-    loop {
-        // What no primitive in the list covers is sky, or primitives
-        // between the centres (a large mesh's triangles smaller than a
-        // pixel): the one the ray through a gap's centroid meets joins the
-        // list, and the support is cut again (it may hide parts of the
-        // others).
-        gaps.clear();
-        let mut grew = false;
-        let listed = views.len();
-        for r in cut.remaining.drain(..) {
-            let c = r.centroid();
-            let Some((surface, hit)) = cache.camera_hit(frame, c, None) else {
-                // The ray meets nothing, but a mesh's triangles may still
-                // reach into the gap around it: each one whose region
-                // overlaps the gap joins the list.
-                let mut more = false;
-                cache.meshes_in_gap(scene, &r, planes, binned, |id| {
-                    if tried.iter().any(|(t, _)| *t == id) {
-                        return false;
-                    }
-                    let Some(Some(view)) = candidate_view(scene, cache, memo, id) else {
-                        return false;
-                    };
-                    let region = regions.next_slot();
-                    view.region_into(&support, region);
-                    if overlap(region, &r).is_none() {
-                        return false;
-                    }
-                    if found == MAX_GAP_PRIMITIVES {
-                        more = true;
-                        return true;
-                    }
+            if let Some(seen) = occluder {
+                views.truncate(listed);
+                regions.truncate(listed);
+                tried.truncate(tried_before);
+                if let Some(seen) = seen
+                    && !tried.iter().any(|(t, _)| *t == seen)
+                {
                     found += 1;
-                    tried.push((id, Some(views.len())));
-                    views.push(view);
-                    regions.keep_slot();
-                    grew = true;
-                    false
-                });
-                gaps.push((r, if more { Gap::SkyAmong } else { Gap::Sky }));
-                continue;
-            };
-            let id = seen_id(surface, hit.triangle);
-            if let Some(&(_, view)) = tried.iter().find(|(t, _)| *t == id) {
-                gaps.push((r, Gap::Seen(id, view)));
-                continue;
-            }
-            let view = if found < MAX_GAP_PRIMITIVES {
-                found += 1;
-                let view = candidate_view(scene, cache, memo, id)?;
-                if let Some(v) = &view {
-                    push_region(regions, v, &support);
-                    grew = true;
+                    let view = candidate_view(scene, cache, memo, seen)?;
+                    if let Some(view) = &view {
+                        push_region(regions, view, support);
+                    }
+                    tried.push((seen, view.is_some().then_some(views.len())));
+                    views.extend(view);
                 }
-                tried.push((id, view.is_some().then_some(views.len())));
-                views.extend(view);
-                tried.last().and_then(|t| t.1)
+            }
+        }
+        Some(found)
+    }
+
+    /// Searches what no listed primitive covers, the cut's parts left:
+    /// the primitive the ray through each gap's centroid meets, or the
+    /// mesh triangles that reach into a gap whose ray meets nothing, join
+    /// the list (after `found` joined before, up to
+    /// [`MAX_GAP_PRIMITIVES`]) and the cut takes them, until no gap adds
+    /// one; the gaps left go to `scratch.gaps`. `None` when a primitive
+    /// found is not planar.
+    fn search_gaps(&self, mut found: usize, scratch: &mut Scratch<'a>) -> Option<()> {
+        let Shading { frame, .. } = self.shading;
+        let (scene, cache, support) = (frame.scene, self.cache, &self.support);
+        let Scratch {
+            views,
+            tried,
+            regions,
+            gaps,
+            cut,
+            planes,
+            binned,
+            memo,
+            ..
+        } = scratch;
+        loop {
+            // What no primitive in the list covers is sky, or primitives
+            // between the centres (a large mesh's triangles smaller than a
+            // pixel): the one the ray through a gap's centroid meets joins the
+            // list, and the support is cut again (it may hide parts of the
+            // others).
+            gaps.clear();
+            let mut grew = false;
+            let listed = views.len();
+            for r in cut.remaining.drain(..) {
+                let c = r.centroid();
+                let Some((surface, hit)) = cache.camera_hit(frame, c, None) else {
+                    // The ray meets nothing, but a mesh's triangles may still
+                    // reach into the gap around it: each one whose region
+                    // overlaps the gap joins the list.
+                    let mut more = false;
+                    cache.meshes_in_gap(scene, &r, planes, binned, |id| {
+                        if tried.iter().any(|(t, _)| *t == id) {
+                            return false;
+                        }
+                        let Some(Some(view)) = candidate_view(scene, cache, memo, id) else {
+                            return false;
+                        };
+                        let region = regions.next_slot();
+                        view.region_into(support, region);
+                        if overlap(region, &r).is_none() {
+                            return false;
+                        }
+                        if found == MAX_GAP_PRIMITIVES {
+                            more = true;
+                            return true;
+                        }
+                        found += 1;
+                        tried.push((id, Some(views.len())));
+                        views.push(view);
+                        regions.keep_slot();
+                        grew = true;
+                        false
+                    });
+                    gaps.push((r, if more { Gap::SkyAmong } else { Gap::Sky }));
+                    continue;
+                };
+                let id = seen_id(surface, hit.triangle);
+                if let Some(&(_, view)) = tried.iter().find(|(t, _)| *t == id) {
+                    gaps.push((r, Gap::Seen(id, view)));
+                    continue;
+                }
+                let view = if found < MAX_GAP_PRIMITIVES {
+                    found += 1;
+                    let view = candidate_view(scene, cache, memo, id)?;
+                    if let Some(v) = &view {
+                        push_region(regions, v, support);
+                        grew = true;
+                    }
+                    tried.push((id, view.is_some().then_some(views.len())));
+                    views.extend(view);
+                    tried.last().and_then(|t| t.1)
+                } else {
+                    None
+                };
+                gaps.push((r, Gap::Seen(id, view)));
+            }
+            if !grew {
+                return Some(());
+            }
+            // New primitives that overlap none listed (a mesh's triangles
+            // around those the centres see) only fill gaps: the rest of the
+            // cut stands. Otherwise the support is cut again.
+            let overlaps = (listed..views.len()).any(|v| {
+                (0..views.len()).any(|u| u != v && overlap(&regions[u], &regions[v]).is_some())
+            });
+            cut.remaining.extend(gaps.drain(..).map(|(r, _)| r));
+            if overlaps {
+                for v in listed..views.len() {
+                    cut.insert(v, views, regions);
+                }
             } else {
-                None
-            };
-            gaps.push((r, Gap::Seen(id, view)));
-        }
-        if !grew {
-            break;
-        }
-        // New primitives that overlap none listed (a mesh's triangles
-        // around those the centres see) only fill gaps: the rest of the
-        // cut stands. Otherwise the support is cut again.
-        let overlaps = (listed..views.len()).any(|v| {
-            (0..views.len()).any(|u| u != v && overlap(&regions[u], &regions[v]).is_some())
-        });
-        cut.remaining.extend(gaps.drain(..).map(|(r, _)| r));
-        if overlaps {
-            for v in listed..views.len() {
-                cut.insert(v, views, regions);
-            }
-        } else {
-            for (v, region) in regions.iter().enumerate().skip(listed) {
-                cut.take(v, region);
+                for (v, region) in regions.iter().enumerate().skip(listed) {
+                    cut.take(v, region);
+                }
             }
         }
     }
-    // Weight no piece has, or two have (|k| ≤ 1 for every pixel filter):
-    // at most the larger of full contrast and the sky's range off.
-    add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
-    for (i, piece) in cut.visible(regions) {
-        let (c, w, b) = shade_piece(
-            frame, &views[i], piece, filter, centre, options, None, &mut parts,
-        );
-        add(c, w, b);
-    }
-    for r in &cut.slivers {
-        // The sky at its centroid, whatever covers it: its whole weight
-        // times the larger of full contrast and the sky's range as the
-        // bound (at most 1e-9 of the support's).
-        let w = filter.integral(r, centre);
-        let c = r.centroid();
-        let colour = sky(scene, &scene.camera.ray(c[0], c[1])).to_array();
-        add(
-            colour.map(|v| f64::from(v) * w),
-            w,
-            w.abs() * sky_range(scene).max(1.0),
-        );
-    }
-    let sky_over = |r: &ConvexPolygon| {
-        sky_integral(
-            scene,
-            r,
-            Whole::Unknown,
+
+    /// The pixel's colour from its cut: each visible region shaded, the
+    /// slivers and the gaps as [`Gap`] says, and the weight the cut left
+    /// unaccounted in the bound. `None` when a gap's primitive is not
+    /// planar.
+    fn shade_cut(&self, scratch: &mut Scratch<'a>, stats: &mut PixelStats) -> Option<Rgba> {
+        let Shading {
+            frame,
             filter,
             centre,
-            sky_tolerance(options),
-        )
-    };
-    for (r, gap) in gaps.iter() {
-        match *gap {
-            Gap::Sky => {
-                let (c, w) = sky_over(r);
-                add(c, w, 0.0);
-            }
-            Gap::SkyAmong => {
-                let (c, w) = sky_over(r);
-                add(c, w, w.abs());
-            }
-            Gap::Seen(id, view) => {
-                // A gap the list leaves open (past the cap, or where a
-                // listed primitive's edge and the ray disagree): the
-                // primitive the ray through its centroid meets, as if it
-                // covered the gap, with the gap's whole weight (full
-                // contrast) as the bound, and the weight of any part of
-                // the gap beyond that primitive's horizon (which it does
-                // not cover: its colour is not known).
-                let view = match view {
-                    Some(i) => Some(views[i].clone()),
-                    None => candidate_view(scene, cache, memo, id)?,
-                };
-                if let Some(view) = view {
-                    let (c, w, b) =
-                        shade_piece(frame, &view, r, filter, centre, options, None, &mut parts);
-                    let beyond = (filter.integral(r, centre) - w).abs();
-                    add(c, w, b + w.abs() + beyond);
-                } else {
+            options,
+        } = self.shading;
+        let (scene, cache) = (frame.scene, self.cache);
+        let Scratch {
+            views,
+            regions,
+            gaps,
+            cut,
+            memo,
+            ..
+        } = scratch;
+        let mut sums = Sums::default();
+        let mut parts = PixelStats::default();
+        // Weight no region has, or two have (|k| ≤ 1 for every pixel filter):
+        // at most the larger of full contrast and the sky's range off.
+        sums.add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
+        for (i, region) in cut.visible(regions) {
+            let (c, w, b) = shade_region(&self.shading, &views[i], region, None, &mut parts);
+            sums.add(c, w, b);
+        }
+        for r in &cut.slivers {
+            // The sky at its centroid, whatever covers it: its whole weight
+            // times the larger of full contrast and the sky's range as the
+            // bound (at most 1e-9 of the support's).
+            let w = filter.integral(r, centre);
+            let c = r.centroid();
+            let colour = sky(scene, &scene.camera.ray(c[0], c[1])).to_array();
+            sums.add(
+                colour.map(|v| f64::from(v) * w),
+                w,
+                w.abs() * sky_range(scene).max(1.0),
+            );
+        }
+        let sky_over = |r: &ConvexPolygon| {
+            sky_integral(
+                scene,
+                r,
+                Whole::Unknown,
+                filter,
+                centre,
+                sky_tolerance(options),
+            )
+        };
+        for (r, gap) in gaps.iter() {
+            match *gap {
+                Gap::Sky => {
                     let (c, w) = sky_over(r);
-                    add(c, w, w.abs());
+                    sums.add(c, w, 0.0);
+                }
+                Gap::SkyAmong => {
+                    let (c, w) = sky_over(r);
+                    sums.add(c, w, w.abs());
+                }
+                Gap::Seen(id, view) => {
+                    // A gap the list leaves open (past the cap, or where a
+                    // listed primitive's edge and the ray disagree): the
+                    // primitive the ray through its centroid meets, as if it
+                    // covered the gap, with the gap's whole weight (full
+                    // contrast) as the bound, and the weight of any part of
+                    // the gap beyond that primitive's horizon (which it does
+                    // not cover: its colour is not known).
+                    let view = match view {
+                        Some(i) => Some(views[i].clone()),
+                        None => candidate_view(scene, cache, memo, id)?,
+                    };
+                    if let Some(view) = view {
+                        let (c, w, b) = shade_region(&self.shading, &view, r, None, &mut parts);
+                        let beyond = (filter.integral(r, centre) - w).abs();
+                        sums.add(c, w, b + w.abs() + beyond);
+                    } else {
+                        let (c, w) = sky_over(r);
+                        sums.add(c, w, w.abs());
+                    }
                 }
             }
         }
+        parts.weight_error = weight_error(sums.weight);
+        stats.merge_parts(&parts);
+        stats
+            .filter
+            .record_bound(sums.bound / sums.weight.abs().max(1e-300));
+        Some(mean(sums.colour, sums.weight))
     }
-    parts.weight_error = weight_error(weight);
-    stats.merge_parts(&parts);
-    stats.filter.record_bound(bound / weight.abs().max(1e-300));
-    Some(mean(acc, weight))
 }
 
 /// How far `weight`, what a pixel's pieces were given, is from the pixel

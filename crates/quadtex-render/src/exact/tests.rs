@@ -9,7 +9,7 @@ use crate::scene::{Geometry, Lighting, Scene};
 
 use super::GAP_AREA;
 use super::cutting::{Cut, Order, overlap_bound};
-use super::lighting::{apply_light, light_piece, uniform_light};
+use super::lighting::{apply_light, light_region, uniform_light};
 use super::sky::{
     SkySpan, Whole, level_line, sky_at_centre, sky_bound, sky_clear_above, sky_contrast,
     sky_integral, sky_step, sky_tolerance, views_miss,
@@ -50,7 +50,7 @@ fn a_memo_is_kept_for_its_frame_alone() {
 }
 
 /// A triangle's uniform light, where it is shown, is what each of its
-/// pieces' own shadow ray gives ([`light_piece`]), bit for bit: the
+/// pieces' own shadow ray gives ([`light_region`]), bit for bit: the
 /// triangles of a generated terrain (hills above the runway decal,
 /// the flat ground 0.3 m below it, which the decal shadows in part),
 /// at points spread over each (corners and edges included), under the
@@ -150,7 +150,7 @@ fn check_uniform_light(scene: &Scene) {
             ])
             .unwrap();
             let mut own = [1.0; 4];
-            light_piece(&frame, &view, &piece, &mut own);
+            light_region(&frame, &view, &piece, &mut own);
             let mut uniform = [1.0; 4];
             apply_light(&mut uniform, k);
             assert_eq!(own, uniform, "triangle {t} at {u}, {v}");
