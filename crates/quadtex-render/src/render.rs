@@ -67,17 +67,7 @@ fn render_with(
     spans: Spans,
     image: &mut LinearImage,
 ) -> Result<RenderSummary, crate::Error> {
-    let (w, h) = match (options.width, options.height) {
-        (None, None) => (scene.camera.width(), scene.camera.height()),
-        (Some(w), None) => (w, scene.camera.height_for_width(w)),
-        (None, Some(h)) => {
-            let w = (f64::from(h) * f64::from(scene.camera.width())
-                / f64::from(scene.camera.height()))
-            .round();
-            ((w as u32).max(1), h)
-        }
-        (Some(w), Some(h)) => (w, h),
-    };
+    let (w, h) = output_size(scene, options);
     let scene = sized_scene(scene, w, h)?;
     if let Filter::Supersample(n) = options.filter
         && (n == 0 || n > 64)
@@ -91,31 +81,132 @@ fn render_with(
     let start = Instant::now();
     let frame = Frame::new(&scene);
     let mut views = SurfaceViews::new(&scene);
-    // Which primitive each pixel centre sees (0: the sky), on a grid padded
-    // by the widest filter's reach so pixels at the image's edge see what
-    // lies beyond it.
-    let pad = PAD as i64;
-    let (gw, gh) = (i64::from(w) + 2 * pad, i64::from(h) + 2 * pad);
-    let seen: Vec<Seen> = if !matches!(options.filter, Filter::Supersample(_)) {
-        let (seen, reach, bins) = crate::visibility::visibility_grid(
-            &scene,
-            &frame.rays,
-            &views,
-            (gw as usize, gh as usize),
-            pad as f64,
-        );
-        views.set_mesh_reach(reach);
-        views.set_screen_bins(bins);
-        seen
-    } else {
-        Vec::new()
+    let centres = CentreGrid::cast(&scene, &frame, &mut views, options, (w, h));
+    let rows = Rows {
+        scene: &scene,
+        frame: &frame,
+        views: &views,
+        centres: &centres,
+        options,
+        spans,
+        width: w,
     };
-    let views = views;
-    // Centres within reach of the support: a change there may cross it.
-    let reach = (options.pixel_filter.radius() + 0.5).ceil() as i64;
-    // `uniform`: what every centre in reach sees, when they all see one
-    // thing ([`uniform_in_reach`]).
-    let neighbourhood = |x: u32, y: u32, uniform: Option<Seen>, ids: &mut Vec<Seen>| -> bool {
+    let done = std::sync::atomic::AtomicU64::new(0);
+    // Each row is shaded into its place in the image: no per-row buffers
+    // gathered afterwards on one thread (about 30 ms of a 1080p frame).
+    // Every pixel is written below, so a buffer of the right size is
+    // reused as it is.
+    let mut pixels = std::mem::take(&mut image.pixels);
+    pixels.resize(w as usize * h as usize, Rgba::TRANSPARENT);
+    let row_stats: Vec<PixelStats> = pixels
+        .par_chunks_mut(w as usize)
+        .enumerate()
+        // One task a row. Rows cost very different amounts (a row at a
+        // horizon costs a hundred sky rows or more), and rayon's adaptive
+        // split, left to itself, hands each thread long runs of rows: the
+        // demo at 1080p kept 1.6 of 2 cores busy; split to single rows,
+        // 1.9 (docs/performance.md, "One task a row").
+        .with_max_len(1)
+        .map(|(y, row)| {
+            let stats = rows.shade(y as u32, row);
+            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(n, u64::from(h));
+            stats
+        })
+        .collect();
+    // Merged in row order, so the summary's sums do not depend on the
+    // threads' schedule.
+    let mut total = PixelStats::default();
+    for stats in &row_stats {
+        total.merge(stats);
+    }
+    let summary = RenderSummary {
+        width: w,
+        height: h,
+        seconds: start.elapsed().as_secs_f64(),
+        textured_pixels: total.textured,
+        filter: total.filter,
+        max_weight_error: total.weight_error,
+    };
+    *image = LinearImage {
+        width: w,
+        height: h,
+        pixels,
+    };
+    Ok(summary)
+}
+
+/// The image's size: the options' width and height, the camera's where
+/// neither is given, the camera's aspect where one is.
+fn output_size(scene: &Scene, options: &RenderOptions) -> (u32, u32) {
+    match (options.width, options.height) {
+        (None, None) => (scene.camera.width(), scene.camera.height()),
+        (Some(w), None) => (w, scene.camera.height_for_width(w)),
+        (None, Some(h)) => {
+            let w = (f64::from(h) * f64::from(scene.camera.width())
+                / f64::from(scene.camera.height()))
+            .round();
+            ((w as u32).max(1), h)
+        }
+        (Some(w), Some(h)) => (w, h),
+    }
+}
+
+/// Which primitive each pixel centre sees (0: the sky), on a grid padded
+/// by the widest filter's reach so pixels at the image's edge see what
+/// lies beyond it; empty when supersampling, which asks no neighbourhood.
+struct CentreGrid {
+    seen: Vec<Seen>,
+    /// The grid's width: the image's plus twice the padding.
+    width: i64,
+    /// [`PAD`].
+    pad: i64,
+    /// Centres within reach of the pixel filter's support: a change there
+    /// may cross it.
+    reach: i64,
+}
+
+impl CentreGrid {
+    /// Casts the grid for an image of `(w, h)` pixels; the visibility pass
+    /// also gives `views` where the mesh triangles reach and their screen
+    /// bins.
+    fn cast(
+        scene: &Scene,
+        frame: &Frame<'_>,
+        views: &mut SurfaceViews,
+        options: &RenderOptions,
+        (w, h): (u32, u32),
+    ) -> CentreGrid {
+        let pad = PAD as i64;
+        let (gw, gh) = (i64::from(w) + 2 * pad, i64::from(h) + 2 * pad);
+        let seen: Vec<Seen> = if !matches!(options.filter, Filter::Supersample(_)) {
+            let (seen, reach, bins) = crate::visibility::visibility_grid(
+                scene,
+                &frame.rays,
+                views,
+                (gw as usize, gh as usize),
+                pad as f64,
+            );
+            views.set_mesh_reach(reach);
+            views.set_screen_bins(bins);
+            seen
+        } else {
+            Vec::new()
+        };
+        CentreGrid {
+            seen,
+            width: gw,
+            pad,
+            reach: (options.pixel_filter.radius() + 0.5).ceil() as i64,
+        }
+    }
+
+    /// Lists in `ids` the primitives the centres in reach of pixel `(x, y)`
+    /// see, each once, and returns whether one sees the sky. `uniform`:
+    /// what every centre in reach sees, when they all see one thing
+    /// ([`uniform_in_reach`]).
+    fn neighbourhood(&self, x: u32, y: u32, uniform: Option<Seen>, ids: &mut Vec<Seen>) -> bool {
+        let (seen, gw, pad, reach) = (&self.seen, self.width, self.pad, self.reach);
         ids.clear();
         let mut sky = false;
         if seen.is_empty() {
@@ -143,99 +234,82 @@ fn render_with(
             }
         }
         sky
-    };
-    let done = std::sync::atomic::AtomicU64::new(0);
-    // Each row is shaded into its place in the image: no per-row buffers
-    // gathered afterwards on one thread (about 30 ms of a 1080p frame).
-    // Every pixel is written below, so a buffer of the right size is
-    // reused as it is.
-    let mut pixels = std::mem::take(&mut image.pixels);
-    pixels.resize(w as usize * h as usize, Rgba::TRANSPARENT);
-    let row_stats: Vec<PixelStats> = pixels
-        .par_chunks_mut(w as usize)
-        .enumerate()
-        // One task a row. Rows cost very different amounts (a row at a
-        // horizon costs a hundred sky rows or more), and rayon's adaptive
-        // split, left to itself, hands each thread long runs of rows: the
-        // demo at 1080p kept 1.6 of 2 cores busy; split to single rows,
-        // 1.9 (docs/performance.md, "One task a row").
-        .with_max_len(1)
-        .map(|(y, row)| {
-            let y = y as u32;
-            let mut stats = PixelStats::default();
-            let mut ids = Vec::new();
-            let mut scratch = Scratch::for_row(&views);
-            let uniform = uniform_in_reach(
-                &seen,
-                gw as usize,
-                (y + PAD) as usize,
-                PAD as usize,
-                reach as usize,
-                w as usize,
-            );
-            let runs = match (spans, options.filter) {
-                (Spans::Shared, Filter::Quadtree(_)) => runs_of_primitives(&uniform),
-                _ => Vec::new(),
-            };
-            for (x, out) in (0..w).zip(row.iter_mut()) {
-                if let Some((colour, parts)) = scratch.span_fill((x, y)) {
-                    *out = *colour;
-                    stats.merge_parts(parts);
-                    continue;
-                }
-                if let (Spans::Shared, Filter::Quadtree(filter_options), Some(Some(0))) =
-                    (spans, options.filter, uniform.get(x as usize))
-                    && let Some(colour) = scratch.sky_pixel(
-                        &scene,
-                        &views,
-                        &filter_options,
-                        options.pixel_filter,
-                        (x, y),
-                    )
-                {
-                    *out = colour;
-                    continue;
-                }
-                let mut pixel = PixelStats::default();
-                let sky = neighbourhood(x, y, uniform.get(x as usize).copied().flatten(), &mut ids);
-                let centre = (!seen.is_empty())
-                    .then(|| seen[((i64::from(y) + pad) * gw + i64::from(x) + pad) as usize]);
-                let near = Neighbourhood {
-                    primitives: &ids,
-                    sky,
-                    centre,
-                    run: runs.get(x as usize).copied().unwrap_or(0),
-                    views: &views,
-                };
-                *out = shade_pixel(&frame, options, (x, y), &near, &mut scratch, &mut pixel);
-                stats.merge_parts(&pixel);
-            }
-            scratch.end_row();
-            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(n, u64::from(h));
-            stats
-        })
-        .collect();
-    // Merged in row order, so the summary's sums do not depend on the
-    // threads' schedule.
-    let mut total = PixelStats::default();
-    for stats in &row_stats {
-        total.merge(stats);
     }
-    let summary = RenderSummary {
-        width: w,
-        height: h,
-        seconds: start.elapsed().as_secs_f64(),
-        textured_pixels: total.textured,
-        filter: total.filter,
-        max_weight_error: total.weight_error,
-    };
-    *image = LinearImage {
-        width: w,
-        height: h,
-        pixels,
-    };
-    Ok(summary)
+
+    /// What pixel `(x, y)`'s own centre sees, when the grid was cast.
+    fn centre(&self, x: u32, y: u32) -> Option<Seen> {
+        let (gw, pad) = (self.width, self.pad);
+        (!self.seen.is_empty())
+            .then(|| self.seen[((i64::from(y) + pad) * gw + i64::from(x) + pad) as usize])
+    }
+}
+
+/// What shading a row of the frame takes.
+struct Rows<'r> {
+    scene: &'r Scene,
+    frame: &'r Frame<'r>,
+    views: &'r SurfaceViews,
+    centres: &'r CentreGrid,
+    options: &'r RenderOptions,
+    spans: Spans,
+    /// The image's width.
+    width: u32,
+}
+
+impl Rows<'_> {
+    /// Shades row `y` into `row`; returns what it cost.
+    fn shade(&self, y: u32, row: &mut [Rgba]) -> PixelStats {
+        let (options, spans, views, centres) = (self.options, self.spans, self.views, self.centres);
+        let mut stats = PixelStats::default();
+        let mut ids = Vec::new();
+        let mut scratch = Scratch::for_row(views);
+        let uniform = uniform_in_reach(
+            &centres.seen,
+            centres.width as usize,
+            (y + PAD) as usize,
+            PAD as usize,
+            centres.reach as usize,
+            self.width as usize,
+        );
+        let runs = match (spans, options.filter) {
+            (Spans::Shared, Filter::Quadtree(_)) => runs_of_primitives(&uniform),
+            _ => Vec::new(),
+        };
+        for (x, out) in (0..self.width).zip(row.iter_mut()) {
+            if let Some((colour, parts)) = scratch.span_fill((x, y)) {
+                *out = *colour;
+                stats.merge_parts(parts);
+                continue;
+            }
+            if let (Spans::Shared, Filter::Quadtree(filter_options), Some(Some(0))) =
+                (spans, options.filter, uniform.get(x as usize))
+                && let Some(colour) = scratch.sky_pixel(
+                    self.scene,
+                    views,
+                    &filter_options,
+                    options.pixel_filter,
+                    (x, y),
+                )
+            {
+                *out = colour;
+                continue;
+            }
+            let mut pixel = PixelStats::default();
+            let sky =
+                centres.neighbourhood(x, y, uniform.get(x as usize).copied().flatten(), &mut ids);
+            let near = Neighbourhood {
+                primitives: &ids,
+                sky,
+                centre: centres.centre(x, y),
+                run: runs.get(x as usize).copied().unwrap_or(0),
+                views,
+            };
+            *out = shade_pixel(self.frame, options, (x, y), &near, &mut scratch, &mut pixel);
+            stats.merge_parts(&pixel);
+        }
+        scratch.end_row();
+        stats
+    }
 }
 
 /// Pixels of padding around the image in the visibility pass: the reach of
