@@ -18,7 +18,7 @@ use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter, RenderOptions};
 use crate::shade::shade_ray;
 use crate::stats::PixelStats;
-use crate::view::ScreenArea;
+use crate::tangent_plane::ScreenSquare;
 
 /// What the pixel centres within reach of a pixel's filter support see.
 #[derive(Debug, Clone, Copy)]
@@ -103,7 +103,7 @@ pub(crate) fn shade_pixel<'v>(
                     Filter::Nearest,
                     PixelFilter::Box,
                     (&scene.camera.ray(sx, sy), None),
-                    ScreenArea::pixel(sx, sy),
+                    ScreenSquare::pixel(sx, sy),
                     stats,
                 );
                 acc += c * w;
@@ -117,7 +117,7 @@ pub(crate) fn shade_pixel<'v>(
         return shade_area(
             frame,
             filter,
-            ScreenArea::pixel(cx, cy),
+            ScreenSquare::pixel(cx, cy),
             near.centre,
             0,
             stats,
@@ -128,7 +128,7 @@ pub(crate) fn shade_pixel<'v>(
         filter,
         pixel,
         (&scene.camera.ray(cx, cy), near.centre),
-        ScreenArea::pixel(cx, cy),
+        ScreenSquare::pixel(cx, cy),
         stats,
     )
 }
@@ -142,7 +142,7 @@ pub(crate) fn shade_pixel<'v>(
 fn shade_area(
     frame: &Frame<'_>,
     filter: Filter,
-    area: ScreenArea,
+    area: ScreenSquare,
     centre_seen: Option<Seen>,
     splits: u32,
     stats: &mut PixelStats,
@@ -170,7 +170,7 @@ fn shade_area(
             let mut acc = Rgba::TRANSPARENT;
             let mut parts = PixelStats::default();
             for (dx, dy) in [(-q, -q), (q, -q), (-q, q), (q, q)] {
-                let part = ScreenArea {
+                let part = ScreenSquare {
                     centre: [cx + dx, cy + dy],
                     half: q,
                 };

@@ -10,7 +10,7 @@ use crate::math::Ray;
 use crate::options::{Filter, PixelFilter};
 use crate::scene::{Hit, Surface};
 use crate::stats::PixelStats;
-use crate::view::{self, ScreenArea};
+use crate::tangent_plane::{self, ScreenSquare};
 
 /// The colour seen along `ray`, whose pixel (or part) is `area`; `seen`,
 /// when known, is the primitive the visibility grid found along this very
@@ -20,7 +20,7 @@ pub(crate) fn shade_ray(
     filter: Filter,
     pixel_filter: PixelFilter,
     (ray, seen): (&Ray, Option<Seen>),
-    area: ScreenArea,
+    area: ScreenSquare,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
@@ -47,7 +47,7 @@ pub(crate) fn shade_ray(
                 filter,
                 pixel_filter,
                 area,
-                || view::footprint(scene, surface, &hit, area),
+                || tangent_plane::footprint(scene, surface, &hit, area),
                 stats,
             );
             tex * surface.colour
@@ -83,7 +83,7 @@ pub(crate) fn texture_colour(
     at: TexturedHit<'_>,
     filter: Filter,
     pixel_filter: PixelFilter,
-    area: ScreenArea,
+    area: ScreenSquare,
     footprint: impl FnOnce() -> Option<quadtex_core::Footprint>,
     stats: &mut PixelStats,
 ) -> Rgba {
@@ -94,7 +94,7 @@ pub(crate) fn texture_colour(
     } = at;
     let scene = frame.scene;
     let surface = &scene.surfaces[index];
-    let centre = view::centre_point(surface, hit);
+    let centre = tangent_plane::centre_point(surface, hit);
     let traversal = &mut stats.filter.traversal;
     match filter {
         Filter::Nearest | Filter::Supersample(_) => texture.nearest_counted(centre, traversal),
@@ -147,7 +147,7 @@ fn tangent_filtered(
     }: TexturedHit<'_>,
     options: &quadtex_core::FilterOptions,
     filter: PixelFilter,
-    area: ScreenArea,
+    area: ScreenSquare,
 ) -> Option<Rgba> {
     let planar = crate::scene::Planar {
         point: hit.point,
@@ -158,7 +158,7 @@ fn tangent_filtered(
         extent: crate::scene::Extent::Plane,
         triangle: None,
     };
-    let view = crate::planar_view::View::new(frame.scene, index, &planar)?;
+    let view = crate::view::View::new(frame.scene, index, &planar)?;
     let support = filter.support(area.centre);
     view.texture_integral(texture, &support, filter, area.centre, options)
         .mean()

@@ -40,10 +40,10 @@ use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
 use crate::caster::Seen;
 use crate::frame::{Frame, lit_factor};
 use crate::math::Vec3;
-use crate::planar_view::{Placement, View, placement};
 use crate::scene::{Geometry, Lighting};
 use crate::stats::PixelStats;
 use crate::sun_grid::apart;
+use crate::view::{Placement, View, placement};
 
 /// Most pixels a span holds (a run of magnified pixels is seldom longer
 /// than the cell it lies in; longer tries fail more often).

@@ -6,7 +6,7 @@
 //! **Rasterised where that is the same answer.** Planes, quads and mesh
 //! triangles are planar: each one's screen region is a few half-planes and
 //! its ray parameter is `depth / w(s)` with `w` affine in the screen point
-//! ([`crate::planar_view::View`]), so the grid is a z-buffer. Planes and quads are
+//! ([`crate::view::View`]), so the grid is a z-buffer. Planes and quads are
 //! drawn into every row; mesh triangles are binned first by the rows of
 //! centres their projected corners' box holds, widened by [`BOX_SLACK`]
 //! (bands of [`BAND`] rows; a triangle reaching behind the camera's plane
@@ -30,10 +30,10 @@ use rayon::prelude::*;
 use crate::caster::{Caster, Seen, seen_id};
 use crate::exact::SurfaceViews;
 use crate::math::Vec3;
-use crate::planar_view::View;
 use crate::reach::MeshReach;
 use crate::scene::{Geometry, Mesh, Scene};
 use crate::screen_bins::{ScreenBins, ScreenBox};
+use crate::view::View;
 
 /// Screen distance (pixels) from an edge line within which a centre is
 /// cast as a ray rather than decided by the line's sign: many orders of

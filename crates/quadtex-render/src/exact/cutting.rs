@@ -6,7 +6,7 @@ use std::ops::Deref;
 
 use quadtex_core::ConvexPolygon;
 
-use crate::planar_view::{Placement, View, placement};
+use crate::view::{Placement, View, placement};
 
 use super::GAP_AREA;
 use super::views::ViewRef;

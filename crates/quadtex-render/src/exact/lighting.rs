@@ -5,10 +5,10 @@
 use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter};
 
 use crate::frame::{Frame, lambert};
-use crate::planar_view::View;
 use crate::scene::{Geometry, Lighting};
 use crate::span::SpanAnswer;
 use crate::stats::PixelStats;
+use crate::view::View;
 
 /// What shading a region of one pixel's support takes besides the region:
 /// the frame, the pixel filter centred at `centre`, and the texture

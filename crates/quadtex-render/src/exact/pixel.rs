@@ -9,10 +9,10 @@ use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
 use crate::caster::{Seen, seen_id, surface_and_triangle};
 use crate::frame::{Frame, sky};
 use crate::pixel::Neighbourhood;
-use crate::planar_view::View;
 use crate::scene::{Geometry, Scene};
 use crate::span::{SpanQuery, UniformSpan};
 use crate::stats::PixelStats;
+use crate::view::View;
 
 use super::cutting::{Cut, Order, Regions, overlap, push_region};
 use super::lighting::{Shading, shade_region, shade_span_pixel};

@@ -6,9 +6,9 @@ use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
 
 use crate::frame::sky;
 use crate::math::Ray;
-use crate::planar_view::Placement;
 use crate::scene::Scene;
 use crate::span::span_rect;
+use crate::view::Placement;
 
 use super::views::SurfaceViews;
 

@@ -4,8 +4,8 @@ use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
 
 use crate::frame::{Frame, sky};
 use crate::math::Vec3;
-use crate::planar_view::View;
 use crate::scene::{Geometry, Lighting, Scene};
+use crate::view::View;
 
 use super::GAP_AREA;
 use super::cutting::{Cut, Order, overlap_bound};

@@ -12,10 +12,10 @@ use quadtex_core::ConvexPolygon;
 use crate::caster::{Seen, seen_id, surface_and_triangle};
 use crate::frame::Frame;
 use crate::math::Vec3;
-use crate::planar_view::View;
 use crate::reach::MeshReach;
 use crate::scene::{Geometry, Hit, Scene};
 use crate::screen_bins::ScreenBins;
+use crate::view::View;
 
 use super::MAX_GAP_PRIMITIVES;
 use super::cutting::Regions;
