@@ -132,18 +132,18 @@ pub(super) fn overlap(a: &ConvexPolygon, b: &ConvexPolygon) -> Option<ConvexPoly
     (o.area() > 0.0).then_some(o)
 }
 
-/// A support cut among primitives: the visible pieces of each (by index
+/// A support cut among primitives: the visible regions of each (by index
 /// into the views), the parts none covers yet, and slivers. Its buffers
 /// are reused from pixel to pixel ([`Scratch`]).
 #[derive(Default)]
 pub(super) struct Cut {
-    pub(super) pieces: Vec<(usize, ConvexPolygon)>,
+    pub(super) visible_regions: Vec<(usize, ConvexPolygon)>,
     pub(super) remaining: Vec<ConvexPolygon>,
     /// Where [`carve`] gathers what lies outside a region.
     pub(super) spare: Vec<ConvexPolygon>,
-    /// What [`Cut::insert`] gives the view it inserts, a piece it cuts,
+    /// What [`Cut::insert`] gives the view it inserts, a visible region it cuts,
     /// and which views are behind it.
-    pub(super) parts: Vec<ConvexPolygon>,
+    pub(super) inserted: Vec<ConvexPolygon>,
     pub(super) carved: Vec<ConvexPolygon>,
     pub(super) behind: Vec<bool>,
     /// Pieces of at most `sliver_area` (rounding along shared edges): not
@@ -159,8 +159,8 @@ pub(super) struct Cut {
     pub(super) boxes: Vec<(usize, Bounds)>,
     /// How many of the first regions are taken whole: all of them when
     /// they tile the support or lie apart ([`Cut::tiling`]), each view's
-    /// piece its whole region, read from the regions, not copied into
-    /// `pieces`; 0 when the support was cut front to back.
+    /// visible region its whole region, read from the regions, not copied
+    /// into `visible_regions`; 0 when the support was cut front to back.
     pub(super) whole: usize,
 }
 
@@ -174,7 +174,7 @@ impl Cut {
         support: &ConvexPolygon,
         order: &mut Order,
     ) {
-        self.pieces.clear();
+        self.visible_regions.clear();
         self.remaining.clear();
         self.slivers.clear();
         self.sliver_area = GAP_AREA * support.area();
@@ -193,7 +193,7 @@ impl Cut {
     /// view sees its whole region, whatever their order, and what they
     /// leave of the support (nothing, but for slivers, when they tile it)
     /// is left for the gaps. This is what cutting them front to back
-    /// gives, but for how the parts left are split, with fewer pieces (a
+    /// gives, but for how the parts left are split, with fewer visible_regions (a
     /// region cut into each part it reaches) and no order. Returns false,
     /// the cut untouched, when two overlap.
     pub(super) fn taken_whole(
@@ -217,13 +217,13 @@ impl Cut {
         true
     }
 
-    /// Gives the views taken whole their regions as pieces, so that the
+    /// Gives the views taken whole their regions as visible_regions, so that the
     /// cut can be cut again ([`Cut::insert`]).
-    pub(super) fn pieces_from_whole(&mut self, regions: &[ConvexPolygon]) {
+    pub(super) fn visible_from_whole(&mut self, regions: &[ConvexPolygon]) {
         let whole = std::mem::take(&mut self.whole);
         for (i, region) in regions[..whole].iter().enumerate() {
             if !region.is_empty() {
-                self.pieces.push((i, region.clone()));
+                self.visible_regions.push((i, region.clone()));
             }
         }
     }
@@ -280,14 +280,14 @@ impl Cut {
         !gaps
     }
 
-    /// Each visible piece and the index of the view that sees it, in
+    /// Each visible region and the index of the view that sees it, in
     /// `regions` when they tile the support.
     pub(super) fn visible<'c>(
         &'c self,
         regions: &'c [ConvexPolygon],
     ) -> impl Iterator<Item = (usize, &'c ConvexPolygon)> + 'c {
         let whole = (regions[..self.whole].iter().enumerate()).filter(|(_, r)| !r.is_empty());
-        whole.chain(self.pieces.iter().map(|(i, p)| (*i, p)))
+        whole.chain(self.visible_regions.iter().map(|(i, p)| (*i, p)))
     }
 
     /// Gives view `v` what its `region` covers of the parts not yet
@@ -296,18 +296,18 @@ impl Cut {
         if region.is_empty() {
             return;
         }
-        let (sliver_area, pieces) = (self.sliver_area, &mut self.pieces);
+        let (sliver_area, visible_regions) = (self.sliver_area, &mut self.visible_regions);
         carve(
             &mut self.remaining,
             region,
             &mut self.spare,
             &mut self.slivers,
             sliver_area,
-            |piece, slivers, at| {
-                if piece.area() > sliver_area {
-                    pieces.push((v, piece));
+            |visible, slivers, at| {
+                if visible.area() > sliver_area {
+                    visible_regions.push((v, visible));
                 } else {
-                    slivers.insert(at, piece);
+                    slivers.insert(at, visible);
                 }
             },
         );
@@ -317,23 +317,23 @@ impl Cut {
     /// (in `views` and their `regions`): `n` sees its region less those
     /// of the views in front of it where they overlap (decided at the
     /// overlap's centroid, as [`Order::front_to_back`] decides), and its
-    /// region is cut out of the parts not yet covered and of the pieces of
-    /// the views behind it. The pieces are those of cutting the support
+    /// region is cut out of the parts not yet covered and of the visible_regions of
+    /// the views behind it. The visible_regions are those of cutting the support
     /// again with `n` in its place in the order (when occlusion is not
     /// cyclic), but only what `n`'s region reaches is cut, and `n`'s own
     /// region only where a view in front covers it. Regions taken whole
-    /// become pieces first ([`Cut::pieces_from_whole`]).
+    /// become visible_regions first ([`Cut::visible_from_whole`]).
     pub(super) fn insert(&mut self, n: usize, views: &[ViewRef<'_>], regions: &[ConvexPolygon]) {
-        self.pieces_from_whole(regions);
+        self.visible_from_whole(regions);
         let region = &regions[n];
         if region.is_empty() {
             return;
         }
         let Cut {
-            pieces,
+            visible_regions,
             remaining,
             spare,
-            parts,
+            inserted,
             carved,
             behind,
             slivers,
@@ -345,8 +345,8 @@ impl Cut {
         // `behind[v]`: view `v`'s region overlaps `n`'s, behind it.
         behind.clear();
         behind.resize(n, false);
-        parts.clear();
-        parts.push(region.clone());
+        inserted.clear();
+        inserted.push(region.clone());
         for (v, other) in regions[..n].iter().enumerate() {
             let Some(o) = overlap(region, other) else {
                 continue;
@@ -355,33 +355,33 @@ impl Cut {
             if views[n].depth_at(c) < views[v].depth_at(c) {
                 behind[v] = true;
             } else {
-                carve(parts, other, spare, slivers, sliver_area, drop);
+                carve(inserted, other, spare, slivers, sliver_area, drop);
             }
         }
         carve(remaining, region, spare, slivers, sliver_area, drop);
-        // In place: a piece `n` misses stays where it is, one it reaches
+        // In place: a visible region `n` misses stays where it is, one it reaches
         // is replaced by what lies outside it.
         let mut i = 0;
-        while i < pieces.len() {
-            let v = pieces[i].0;
+        while i < visible_regions.len() {
+            let v = visible_regions[i].0;
             if !behind.get(v).copied().unwrap_or(false)
-                || boxes_apart(pieces[i].1.bounds(), region.bounds())
+                || boxes_apart(visible_regions[i].1.bounds(), region.bounds())
             {
                 i += 1;
                 continue;
             }
             carved.clear();
-            carved.push(pieces[i].1.clone());
+            carved.push(visible_regions[i].1.clone());
             carve(carved, region, spare, slivers, sliver_area, drop);
             let kept = carved.len();
-            pieces.splice(i..=i, carved.drain(..).map(|p| (v, p)));
+            visible_regions.splice(i..=i, carved.drain(..).map(|p| (v, p)));
             i += kept;
         }
-        for part in parts.drain(..) {
-            if part.area() > sliver_area {
-                pieces.push((n, part));
-            } else if part.area() > 0.0 {
-                slivers.push(part);
+        for visible in inserted.drain(..) {
+            if visible.area() > sliver_area {
+                visible_regions.push((n, visible));
+            } else if visible.area() > 0.0 {
+                slivers.push(visible);
             }
         }
     }
@@ -390,8 +390,8 @@ impl Cut {
 /// Cuts `region` out of `parts` in place: a part the region misses stays
 /// where it is (a polygon moved is its whole capacity copied), one it
 /// reaches is replaced by what lies outside it, in the same place in the
-/// list, and outside pieces of at most `sliver_area` go to `slivers`.
-/// What lies inside goes to `inside(piece, slivers, at)`, with `at` where
+/// list, and outside parts of at most `sliver_area` go to `slivers`.
+/// What lies inside goes to `inside(inner, slivers, at)`, with `at` where
 /// in `slivers` it goes if it is one: before the outside's slivers, as it
 /// was cut first (the slivers' sum keeps its order). `spare`: a buffer.
 pub(super) fn carve(
@@ -425,15 +425,15 @@ pub(super) fn carve(
         }
         let slivers_before = slivers.len();
         spare.clear();
-        let piece = r.split_by(region, |p| {
+        let inner = r.split_by(region, |p| {
             if p.area() > sliver_area {
                 spare.push(p);
             } else {
                 slivers.push(p);
             }
         });
-        if piece.area() > 0.0 {
-            inside(piece, slivers, slivers_before);
+        if inner.area() > 0.0 {
+            inside(inner, slivers, slivers_before);
         }
         let added = spare.len();
         parts.splice(i..=i, spare.drain(..));

@@ -1,5 +1,5 @@
 //! Exact pixels: the pixel filter's support resolved in screen space into
-//! the parts each planar primitive shows, each integrated over the texture
+//! the regions each planar primitive shows, each integrated over the texture
 //! exactly ([`quadtex_core::Texture::integrate_region`]).
 //!
 //! **Primitives.** Planes, quads and each mesh triangle are planar: the map
@@ -49,8 +49,8 @@
 //! cover allows it ([`crate::span`]); sky pixels clear of every primitive
 //! are taken from the render loop ([`Scratch::sky_pixel`]).
 //!
-//! **Shading.** Lambert lighting is constant over a planar piece except for
-//! shadows, taken at the piece's centroid. The sky's gradient over a whole
+//! **Shading.** Lambert lighting is constant over a region of a planar
+//! primitive except for shadows, taken at the region's centroid. The sky's gradient over a whole
 //! box-filtered pixel is its value at the centre where a bound on that
 //! rule's error is within a quarter of the filter's error bound (everywhere
 //! but near the level line, [`sky_at_centre`]), else 2 × 2 Gauss points;

@@ -520,7 +520,7 @@ impl<'a> ExactPixel<'_, 'a> {
     }
 }
 
-/// How far `weight`, what a pixel's pieces were given, is from the pixel
+/// How far `weight`, what a pixel's regions were given, is from the pixel
 /// filter's whole weight: 1, as every [`PixelFilter`] integrates to 1 over
 /// its support (so nothing is integrated again per pixel).
 pub(super) fn weight_error(weight: f64) -> f64 {

@@ -200,19 +200,19 @@ pub(super) fn sky_clear_above(scene: &Scene, tolerance: f64) -> f64 {
     hi
 }
 
-/// Whether a piece is the filter's whole support, when the caller knows.
+/// Whether a region is the filter's whole support, when the caller knows.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum Whole {
     Yes,
     Unknown,
 }
 
-/// `(Σ sky·k, Σ k)` over screen piece `piece`. A whole box-filtered pixel
+/// `(Σ sky·k, Σ k)` over screen region `region`, where the sky shows. A whole box-filtered pixel
 /// is taken at its centre where [`sky_at_centre`]'s bound is within
 /// `tolerance`.
 pub(super) fn sky_integral(
     scene: &Scene,
-    piece: &ConvexPolygon,
+    region: &ConvexPolygon,
     whole: Whole,
     filter: PixelFilter,
     centre: [f64; 2],
@@ -223,22 +223,22 @@ pub(super) fn sky_integral(
         sky(scene, &ray).to_array().map(f64::from)
     };
     if let crate::scene::Sky::Solid(c) = scene.sky {
-        let w = filter.integral(piece, centre);
+        let w = filter.integral(region, centre);
         return (c.to_array().map(|v| f64::from(v) * w), w);
     }
     let whole = match whole {
         Whole::Yes => true,
-        Whole::Unknown => piece.area() >= filter.support(centre).area() * (1.0 - 1e-12),
+        Whole::Unknown => region.area() >= filter.support(centre).area() * (1.0 - 1e-12),
     };
     if whole
         && filter == PixelFilter::Box
         && let Some((c, bound)) = sky_at_centre(scene, centre)
         && bound <= tolerance
     {
-        let w = piece.area();
+        let w = region.area();
         return (c.map(|v| v * w), w);
     }
-    let (lo, hi) = piece.bounds();
+    let (lo, hi) = region.bounds();
     let step = 1.0 / SKY_CELLS;
     let level = level_line(scene, 0.5 * (lo[0] + hi[0]));
     if whole && level.is_none_or(|yh| yh < lo[1] - 1.0 || yh > hi[1] + 1.0) {
@@ -265,12 +265,12 @@ pub(super) fn sky_integral(
             }
         }
         // The weights' exact total (the points integrate k only approximately).
-        let exact = filter.integral(piece, centre);
+        let exact = filter.integral(region, centre);
         return (acc.map(|v| v * exact / weight), exact);
     }
     // Row boundaries: quarter pixels, graded geometrically towards the line
     // where the view turns level (the gradient's square root has an
-    // unbounded derivative there) when it lies at the piece's bottom.
+    // unbounded derivative there) when it lies at the region's bottom.
     // Eight halvings: the last row, within 2^-8 of the line's distance,
     // errs by about 0.04·√g·h^{3/2} times the contrast (the midpoint rule
     // on √s over [0, h]; g as in [`sky_at_centre`]), under 1e-6 at the
@@ -315,7 +315,7 @@ pub(super) fn sky_integral(
                 let w = (b - a) * (y1 - y0);
                 (w > 0.0).then_some(([0.5 * (a + b), 0.5 * (y0 + y1)], w))
             } else {
-                let cell = piece.clip_rect(x0, y0, x0 + step, y1);
+                let cell = region.clip_rect(x0, y0, x0 + step, y1);
                 (cell.area() > 0.0).then(|| (cell.centroid(), filter.integral(&cell, centre)))
             };
             if let Some((s, w)) = sample {

@@ -50,7 +50,7 @@ fn a_memo_is_kept_for_its_frame_alone() {
 }
 
 /// A triangle's uniform light, where it is shown, is what each of its
-/// pieces' own shadow ray gives ([`light_region`]), bit for bit: the
+/// regions' own shadow ray gives ([`light_region`]), bit for bit: the
 /// triangles of a generated terrain (hills above the runway decal,
 /// the flat ground 0.3 m below it, which the decal shadows in part),
 /// at points spread over each (corners and edges included), under the
@@ -142,15 +142,15 @@ fn check_uniform_light(scene: &Scene) {
             let Some(s) = scene.camera.project(p) else {
                 continue;
             };
-            // A piece whose centroid is `s`.
-            let piece = ConvexPolygon::new(&[
+            // A region whose centroid is `s`.
+            let region = ConvexPolygon::new(&[
                 [s[0] - 1e-4, s[1] - 1e-4],
                 [s[0] + 2e-4, s[1] - 1e-4],
                 [s[0] - 1e-4, s[1] + 2e-4],
             ])
             .unwrap();
             let mut own = [1.0; 4];
-            light_region(&frame, &view, &piece, &mut own);
+            light_region(&frame, &view, &region, &mut own);
             let mut uniform = [1.0; 4];
             apply_light(&mut uniform, k);
             assert_eq!(own, uniform, "triangle {t} at {u}, {v}");
@@ -201,8 +201,8 @@ fn row_rms(y: f64) -> f64 {
 /// Each view's area in a cut, by view index.
 fn areas_by_view(cut: &Cut, regions: &[ConvexPolygon], views: usize) -> Vec<f64> {
     let mut areas = vec![0.0; views];
-    for (v, piece) in cut.visible(regions) {
-        areas[v] += piece.area();
+    for (v, region) in cut.visible(regions) {
+        areas[v] += region.area();
     }
     areas
 }
@@ -235,7 +235,7 @@ fn regions_that_tile_the_support_are_taken_whole() {
             .map(|i| tri(&[corners[i], corners[(i + 1) % 4], p]))
             .collect();
         let whole = tiling(&fan, &support).expect("a fan tiles the pixel");
-        assert!(whole.whole == fan.len() && whole.pieces.is_empty());
+        assert!(whole.whole == fan.len() && whole.visible_regions.is_empty());
         assert_eq!(whole.visible(&fan).count(), 4);
         assert!(whole.remaining.is_empty() && whole.slivers.is_empty());
         assert!(whole.unaccounted <= 3.0 * sliver, "{}", whole.unaccounted);
@@ -310,7 +310,7 @@ fn regions_apart_with_gaps_are_taken_whole() {
         let mut whole = new_cut();
         assert!(whole.taken_whole(&fan, &support));
         assert_eq!(whole.whole, fan.len());
-        assert!(whole.pieces.is_empty());
+        assert!(whole.visible_regions.is_empty());
         assert_eq!(whole.visible(&fan).count(), fan.len() - 1);
         let mut cut = Cut {
             remaining: vec![support.clone()],
@@ -335,9 +335,9 @@ fn regions_apart_with_gaps_are_taken_whole() {
         let over = ConvexPolygon::rect(10.2, 20.2, 10.6, 20.7);
         let mut regions = fan.clone();
         regions.push(over);
-        whole.pieces_from_whole(&regions);
+        whole.visible_from_whole(&regions);
         assert_eq!(whole.whole, 0);
-        assert_eq!(whole.pieces.len(), fan.len() - 1);
+        assert_eq!(whole.visible_regions.len(), fan.len() - 1);
     }
     // Overlapping regions that cover less than the support: cut.
     let left = ConvexPolygon::rect(10.0, 20.0, 10.5, 21.0);
@@ -482,10 +482,10 @@ fn the_sky_at_the_level_line_matches_a_dense_sum() {
             if yh - y0 < 1e-3 {
                 continue;
             }
-            let piece = ConvexPolygon::rect(x, y0, x + 1.0, yh);
+            let region = ConvexPolygon::rect(x, y0, x + 1.0, yh);
             let (c, w) = sky_integral(
                 &scene,
-                &piece,
+                &region,
                 Whole::Unknown,
                 PixelFilter::Box,
                 [x + 0.5, y0 + 0.5],
@@ -506,7 +506,11 @@ fn the_sky_at_the_level_line_matches_a_dense_sum() {
                     }
                 }
             }
-            assert!((w - piece.area()).abs() < 1e-12, "{w} vs {}", piece.area());
+            assert!(
+                (w - region.area()).abs() < 1e-12,
+                "{w} vs {}",
+                region.area()
+            );
             let error = (0..4)
                 .map(|k| (c[k] - dense[k]).abs() / w)
                 .fold(0.0, f64::max);
