@@ -134,7 +134,7 @@ pub(super) fn overlap(a: &ConvexPolygon, b: &ConvexPolygon) -> Option<ConvexPoly
 
 /// A support cut among primitives: the visible regions of each (by index
 /// into the views), the parts none covers yet, and slivers. Its buffers
-/// are reused from pixel to pixel ([`Scratch`]).
+/// are reused from pixel to pixel ([`Scratch`](super::Scratch)).
 #[derive(Default)]
 pub(super) struct Cut {
     pub(super) visible_regions: Vec<(usize, ConvexPolygon)>,

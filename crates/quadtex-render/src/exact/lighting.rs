@@ -151,7 +151,7 @@ pub(super) fn apply_light(c: &mut [f64; 4], light: [f32; 3]) {
     }
 }
 
-/// What [`shade_region`] gives a pixel of a [`UniformSpan`] whose whole
+/// What [`shade_region`] gives a pixel of a [`UniformSpan`](crate::span::UniformSpan) whose whole
 /// support is `support`: the span's texture colour (or the surface's tint
 /// alone) times the filter's weight there, lit by the span's light or, when
 /// the span has none, by the support's own shadow ray. The arithmetic is

@@ -4,7 +4,7 @@
 //!
 //! **Primitives.** Planes, quads and each mesh triangle are planar: the map
 //! from screen to texture over one of them is a single projective map
-//! ([`View`]), exact, not a tangent-plane approximation; where it covers the
+//! ([`View`](crate::view::View)), exact, not a tangent-plane approximation; where it covers the
 //! screen is the support clipped by a few half-planes (in front of the
 //! camera; inside the quad's or triangle's edges).
 //!
@@ -24,7 +24,7 @@
 //! tile the support where the surface does not fold, and the pixel is
 //! their regions, whole. Each triangle so listed is confirmed by the ray
 //! through its region's centroid (or by one through the same triangle a
-//! pixel or two back in the row, [`Confirmed`]; such camera rays test the
+//! pixel or two back in the row, [`Confirmed`](views::Confirmed); such camera rays test the
 //! triangles the frame's screen tiles file under their point,
 //! [`crate::screen_bins`], not the meshes' hierarchies); a ray that meets
 //! another primitive there (an occluder no centre sees, such as a far
@@ -53,7 +53,7 @@
 //! primitive except for shadows, taken at the region's centroid. The sky's gradient over a whole
 //! box-filtered pixel is its value at the centre where a bound on that
 //! rule's error is within a quarter of the filter's error bound (everywhere
-//! but near the level line, [`sky_at_centre`]), else 2 × 2 Gauss points;
+//! but near the level line, [`sky_at_centre`](sky::sky_at_centre)), else 2 × 2 Gauss points;
 //! over part of a pixel, the midpoint rule on quarter-pixel cells clipped to
 //! the sky's part.
 

@@ -204,8 +204,8 @@ impl<'a> Flood<'_, 'a> {
 }
 
 /// The mesh triangles recent pixels of a row confirmed by a ray through
-/// their region ([`exact_pixel`]'s flood): a direct-mapped table of the
-/// pixel each was confirmed at.
+/// their region ([`exact_pixel`](super::exact_pixel)'s flood): a
+/// direct-mapped table of the pixel each was confirmed at.
 #[derive(Default)]
 pub(super) struct Confirmed {
     slots: Vec<(Seen, u32)>,
