@@ -76,8 +76,8 @@ pub fn time_lookups(
         .iter()
         .map(|&(pixel, surface, hit)| {
             let (x, y) = (pixel as u32 % width, pixel as u32 / width);
-            let area = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
-            tangent_plane::footprint(&scene, &scene.surfaces[surface], &hit, area)
+            let square = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            tangent_plane::footprint(&scene, &scene.surfaces[surface], &hit, square)
         })
         .collect();
     let mut pixels = vec![Rgba::TRANSPARENT; (width * height) as usize];
@@ -87,7 +87,7 @@ pub fn time_lookups(
         let start = Instant::now();
         for (&(pixel, surface, hit), &footprint) in hits.iter().zip(&footprints) {
             let (x, y) = (pixel as u32 % width, pixel as u32 / width);
-            let area = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let square = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
             if let Some(texture) = frame.texture(surface) {
                 let at = TexturedHit {
                     surface,
@@ -99,7 +99,7 @@ pub fn time_lookups(
                     at,
                     filter,
                     PixelFilter::Box,
-                    area,
+                    square,
                     || footprint,
                     &mut stats,
                 );
@@ -162,13 +162,13 @@ pub fn pixel_footprints(
         .into_iter()
         .filter_map(|(pixel, surface, hit)| {
             let (x, y) = (pixel as u32 % width, pixel as u32 / width);
-            let area = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let square = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
             let s = &scene.surfaces[surface];
             Some(PixelFootprint {
                 pixel,
                 surface,
                 centre: tangent_plane::centre_point(s, &hit),
-                footprint: tangent_plane::footprint(&scene, s, &hit, area)?,
+                footprint: tangent_plane::footprint(&scene, s, &hit, square)?,
             })
         })
         .collect())

@@ -40,7 +40,7 @@ pub(crate) struct Neighbourhood<'a, 'v> {
 impl Neighbourhood<'_, '_> {
     /// True when the centres do not all see the same surface (the
     /// triangles of one mesh count as one, as the corner test of
-    /// `shade_area` compares surfaces: a mesh's inner edges are not
+    /// `shade_square` compares surfaces: a mesh's inner edges are not
     /// silhouettes, and testing them cast five rays a pixel over a
     /// million-triangle terrain).
     pub fn mixed(&self) -> bool {
@@ -114,7 +114,7 @@ pub(crate) fn shade_pixel<'v>(
     }
     let (cx, cy) = (px + 0.5, py + 0.5);
     if near_silhouette && pixel == PixelFilter::Box {
-        return shade_area(
+        return shade_square(
             frame,
             filter,
             ScreenSquare::pixel(cx, cy),
@@ -138,17 +138,17 @@ pub(crate) fn shade_pixel<'v>(
 /// the square straddles a silhouette, such as the horizon: it is split in
 /// four and each quarter shaded on its own, so each side of the silhouette
 /// is integrated over its own part of the pixel. `centre_seen`: what the
-/// visibility grid saw through the centre, when `area` is a whole pixel.
-fn shade_area(
+/// visibility grid saw through the centre, when `square` is a whole pixel.
+fn shade_square(
     frame: &Frame<'_>,
     filter: Filter,
-    area: ScreenSquare,
+    square: ScreenSquare,
     centre_seen: Option<Seen>,
     splits: u32,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
-    let [cx, cy] = area.centre;
+    let [cx, cy] = square.centre;
     let centre_ray = scene.camera.ray(cx, cy);
     if splits < SILHOUETTE_SPLITS {
         let seen = |x: f64, y: f64| {
@@ -156,7 +156,7 @@ fn shade_area(
                 .nearest_index(&scene.camera.ray(x, y))
                 .map(|(i, _)| i)
         };
-        let h = area.half;
+        let h = square.half;
         let middle = match centre_seen {
             Some(0) => None,
             Some(id) => Some(surface_and_triangle(id).0),
@@ -174,7 +174,7 @@ fn shade_area(
                     centre: [cx + dx, cy + dy],
                     half: q,
                 };
-                acc += shade_area(frame, filter, part, None, splits + 1, &mut parts) * 0.25;
+                acc += shade_square(frame, filter, part, None, splits + 1, &mut parts) * 0.25;
             }
             stats.merge_parts(&parts);
             return acc;
@@ -185,7 +185,7 @@ fn shade_area(
         filter,
         PixelFilter::Box,
         (&centre_ray, centre_seen),
-        area,
+        square,
         stats,
     )
 }

@@ -12,7 +12,7 @@ use crate::scene::{Hit, Surface};
 use crate::stats::PixelStats;
 use crate::tangent_plane::{self, ScreenSquare};
 
-/// The colour seen along `ray`, whose pixel (or part) is `area`; `seen`,
+/// The colour seen along `ray`, whose pixel (or part) is `square`; `seen`,
 /// when known, is the primitive the visibility grid found along this very
 /// ray (so only it is intersected).
 pub(crate) fn shade_ray(
@@ -20,7 +20,7 @@ pub(crate) fn shade_ray(
     filter: Filter,
     pixel_filter: PixelFilter,
     (ray, seen): (&Ray, Option<Seen>),
-    area: ScreenSquare,
+    square: ScreenSquare,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
@@ -46,8 +46,8 @@ pub(crate) fn shade_ray(
                 at,
                 filter,
                 pixel_filter,
-                area,
-                || tangent_plane::footprint(scene, surface, &hit, area),
+                square,
+                || tangent_plane::footprint(scene, surface, &hit, square),
                 stats,
             );
             tex * surface.colour
@@ -75,7 +75,7 @@ pub(crate) struct TexturedHit<'h> {
     pub hit: &'h Hit,
 }
 
-/// The filtered texture colour at hit `at` for the screen square `area`,
+/// The filtered texture colour at hit `at` for screen square `square`,
 /// whose footprint `footprint` gives when a filter needs it (computed
 /// there, or given: lookups are timed without it).
 pub(crate) fn texture_colour(
@@ -83,7 +83,7 @@ pub(crate) fn texture_colour(
     at: TexturedHit<'_>,
     filter: Filter,
     pixel_filter: PixelFilter,
-    area: ScreenSquare,
+    square: ScreenSquare,
     footprint: impl FnOnce() -> Option<quadtex_core::Footprint>,
     stats: &mut PixelStats,
 ) -> Rgba {
@@ -129,14 +129,14 @@ pub(crate) fn texture_colour(
                 PixelFilter::Box => {
                     footprint().map(|fp| texture.filter_counted(&fp, &options, &mut stats.filter))
                 }
-                _ => tangent_filtered(frame, at, &options, pixel_filter, area),
+                _ => tangent_filtered(frame, at, &options, pixel_filter, square),
             };
             mean.unwrap_or_else(|| texture.nearest_counted(centre, &mut stats.filter.traversal))
         }
     }
 }
 
-/// The texture under `filter` over its whole support around `area`'s
+/// The texture under `filter` over its whole support around `square`'s
 /// centre, seen on the tangent plane at `hit` (first order for a sphere).
 fn tangent_filtered(
     frame: &Frame<'_>,
@@ -147,7 +147,7 @@ fn tangent_filtered(
     }: TexturedHit<'_>,
     options: &quadtex_core::FilterOptions,
     filter: PixelFilter,
-    area: ScreenSquare,
+    square: ScreenSquare,
 ) -> Option<Rgba> {
     let planar = crate::scene::Planar {
         point: hit.point,
@@ -159,8 +159,8 @@ fn tangent_filtered(
         triangle: None,
     };
     let view = crate::view::View::new(frame.scene, index, &planar)?;
-    let support = filter.support(area.centre);
-    view.texture_integral(texture, &support, filter, area.centre, options)
+    let support = filter.support(square.centre);
+    view.texture_integral(texture, &support, filter, square.centre, options)
         .mean()
 }
 

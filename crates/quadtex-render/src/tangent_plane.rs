@@ -69,18 +69,18 @@ pub(crate) fn centre_point(surface: &Surface, hit: &Hit) -> [f64; 2] {
     surface.uv_transform.apply(hit.uv)
 }
 
-/// The corners of the footprint of `area` (module documentation), in pixel
+/// The corners of the footprint of `square` (module documentation), in pixel
 /// order. The texture map is affine on the tangent plane, so mirroring a
 /// missing corner through the centre can be done in texture space.
 pub(crate) fn footprint_corners(
     scene: &Scene,
     surface: &Surface,
     hit: &Hit,
-    area: ScreenSquare,
+    square: ScreenSquare,
 ) -> [[f64; 2]; 4] {
-    let h = area.half;
+    let h = square.half;
     let offsets = [[-h, -h], [h, -h], [h, h], [-h, h]];
-    let c = area.centre;
+    let c = square.centre;
     let corners = offsets.map(|o| screen_to_texture(scene, surface, hit, c[0] + o[0], c[1] + o[1]));
     let centre = centre_point(surface, hit);
     std::array::from_fn(|i| match (corners[i], corners[(i + 2) % 4]) {
@@ -90,13 +90,13 @@ pub(crate) fn footprint_corners(
     })
 }
 
-/// The footprint of `area`, or `None` if a corner is not finite (a
+/// The footprint of `square`, or `None` if a corner is not finite (a
 /// tangent plane seen exactly edge-on).
 pub(crate) fn footprint(
     scene: &Scene,
     surface: &Surface,
     hit: &Hit,
-    area: ScreenSquare,
+    square: ScreenSquare,
 ) -> Option<Footprint> {
-    Footprint::from_corners(footprint_corners(scene, surface, hit, area)).ok()
+    Footprint::from_corners(footprint_corners(scene, surface, hit, square)).ok()
 }
