@@ -57,8 +57,8 @@ pub(super) const SKY_SPAN: u32 = 32;
 /// Whether every plane and quad of the scene misses the support of pixel
 /// `(x, y)` (a pixel whose neighbourhood's centres all see the sky), as
 /// [`View::misses`](crate::view::View::misses) decides it, with the test
-/// made once for a span of [`SKY_SPAN`] pixels of the row: the rectangle their supports cover is
-/// wholly beyond one line of each view. That implies the same of each
+/// made once for a span of [`SKY_SPAN`] pixels of the row: the rectangle
+/// their supports cover is wholly beyond one line of each view. That implies the same of each
 /// pixel's support, computed: its corners lie in the rectangle (the same
 /// float expressions, monotone in the pixel), and each line's side test,
 /// `a·x + b·y + c` in floats, is monotone in `x` and in `y`, so it is
