@@ -13,12 +13,12 @@ pub(crate) struct Frame<'a> {
     pub scene: &'a Scene,
     /// The surfaces ready for rays.
     pub rays: Caster<'a>,
-    samplers: Vec<Option<Texture>>,
+    textures: Vec<Option<Texture>>,
 }
 
 impl<'a> Frame<'a> {
     pub fn new(scene: &'a Scene) -> Frame<'a> {
-        let samplers = scene
+        let textures = scene
             .surfaces
             .iter()
             .map(|s| s.texture.as_ref().map(|t| t.sampler(s.wrap)))
@@ -26,13 +26,13 @@ impl<'a> Frame<'a> {
         Frame {
             scene,
             rays: Caster::new(scene).with_sun_grids(),
-            samplers,
+            textures,
         }
     }
 
-    /// The filtering view of surface `index`'s texture.
-    pub fn sampler(&self, index: usize) -> Option<&Texture> {
-        self.samplers.get(index)?.as_ref()
+    /// Surface `index`'s texture, bound to the surface's wrap.
+    pub fn texture(&self, index: usize) -> Option<&Texture> {
+        self.textures.get(index)?.as_ref()
     }
 }
 

@@ -8,8 +8,9 @@
 //! code ([`demo_scene`]); [`render`](fn@render) turns one into a linear image.
 //!
 //! Modules: [`scene`] (the validated scene model), `parse` (TOML → scene),
-//! `view` (screen ↔ texture geometry, footprints), `exact` (exact pixels:
-//! planar primitives' projective maps, visibility by clipping), `shade` (one
+//! `view` (a planar primitive's projective map from screen to texture),
+//! `tangent_plane` (tangent-plane footprints for spheres and baselines),
+//! `exact` (exact pixels: visibility by clipping, regions integrated), `shade` (one
 //! ray's colour), `pixel` (pixel strategies: exact, supersampling, spheres),
 //! `render` (the parallel loop), [`path`] (camera paths for sequences),
 //! `stats` (what a render cost), `measure`
@@ -28,7 +29,6 @@ mod options;
 mod parse;
 pub mod path;
 mod pixel;
-mod planar_view;
 mod reach;
 mod render;
 pub mod scene;
@@ -37,6 +37,7 @@ mod shade;
 mod span;
 mod stats;
 mod sun_grid;
+mod tangent_plane;
 pub mod terrain;
 mod view;
 mod visibility;

@@ -12,9 +12,9 @@ use crate::frame::Frame;
 use crate::options::{Filter, PixelFilter};
 use crate::render::{prepare_baselines, sized_scene};
 use crate::scene::{Hit, Lighting, Scene, Sky};
-use crate::shade::texture_colour;
+use crate::shade::{TexturedHit, texture_colour};
 use crate::stats::PixelStats;
-use crate::view::{self, ScreenArea};
+use crate::tangent_plane::{self, ScreenSquare};
 
 /// Distance from the camera to the first surface along the view's central
 /// ray, if it hits one.
@@ -76,8 +76,8 @@ pub fn time_lookups(
         .iter()
         .map(|&(pixel, surface, hit)| {
             let (x, y) = (pixel as u32 % width, pixel as u32 / width);
-            let area = ScreenArea::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
-            view::footprint(&scene, &scene.surfaces[surface], &hit, area)
+            let square = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            tangent_plane::footprint(&scene, &scene.surfaces[surface], &hit, square)
         })
         .collect();
     let mut pixels = vec![Rgba::TRANSPARENT; (width * height) as usize];
@@ -87,16 +87,19 @@ pub fn time_lookups(
         let start = Instant::now();
         for (&(pixel, surface, hit), &footprint) in hits.iter().zip(&footprints) {
             let (x, y) = (pixel as u32 % width, pixel as u32 / width);
-            let area = ScreenArea::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
-            if let Some(sampler) = frame.sampler(surface) {
+            let square = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            if let Some(texture) = frame.texture(surface) {
+                let at = TexturedHit {
+                    surface,
+                    texture,
+                    hit: &hit,
+                };
                 pixels[pixel] = texture_colour(
                     &frame,
-                    surface,
-                    sampler,
-                    &hit,
+                    at,
                     filter,
                     PixelFilter::Box,
-                    area,
+                    square,
                     || footprint,
                     &mut stats,
                 );
@@ -159,13 +162,13 @@ pub fn pixel_footprints(
         .into_iter()
         .filter_map(|(pixel, surface, hit)| {
             let (x, y) = (pixel as u32 % width, pixel as u32 / width);
-            let area = ScreenArea::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let square = ScreenSquare::pixel(f64::from(x) + 0.5, f64::from(y) + 0.5);
             let s = &scene.surfaces[surface];
             Some(PixelFootprint {
                 pixel,
                 surface,
-                centre: view::centre_point(s, &hit),
-                footprint: view::footprint(&scene, s, &hit, area)?,
+                centre: tangent_plane::centre_point(s, &hit),
+                footprint: tangent_plane::footprint(&scene, s, &hit, square)?,
             })
         })
         .collect())

@@ -26,6 +26,20 @@ const DEFAULT_SVG_LEVEL: u8 = 12;
 /// intersections lose the precision footprints need).
 const MAX_COORDINATE: f64 = 1e9;
 
+/// The keys every shape table may hold, whatever its type.
+const SURFACE_KEYS: [&str; 10] = [
+    "type",
+    "colour",
+    "texture",
+    "texture_level",
+    "contour_leaves",
+    "wrap",
+    "border",
+    "uv_scale",
+    "uv_offset",
+    "uv_rotation",
+];
+
 /// Reads and validates a scene file under the default limits; textures load
 /// relative to its folder.
 pub fn load_scene(path: &Path) -> Result<Scene, Error> {
@@ -457,19 +471,10 @@ impl Context<'_> {
         })
     }
 
+    /// Shape table `t` (at `key`) as a surface: its geometry by `type`,
+    /// then colour, texture, wrap and texture coordinates, checked in that
+    /// order (the first error found is the one reported).
     fn surface(&mut self, t: &Table, key: &str) -> Result<Surface, Error> {
-        let common = [
-            "type",
-            "colour",
-            "texture",
-            "texture_level",
-            "contour_leaves",
-            "wrap",
-            "border",
-            "uv_scale",
-            "uv_offset",
-            "uv_rotation",
-        ];
         let kind = match t.get("type") {
             Some(Value::String(s)) => s.as_str(),
             _ => {
@@ -479,44 +484,31 @@ impl Context<'_> {
                 ));
             }
         };
+        let geometry = self.geometry(t, key, kind)?;
+        let colour = self
+            .colour(t, key, "colour")?
+            .unwrap_or(Rgba::opaque(1.0, 1.0, 1.0));
+        let texture = self.surface_texture(t, key)?;
+        let wrap = self.wrap(t, key)?;
+        let uv_transform = self.uv_transform(t, key)?;
+        Ok(Surface {
+            geometry,
+            texture,
+            colour,
+            uv_transform,
+            wrap,
+        })
+    }
+
+    /// A surface's shape, of type `kind`, from its table `t`.
+    fn geometry(&mut self, t: &Table, key: &str, kind: &str) -> Result<Geometry, Error> {
         let geometry = match kind {
-            "plane" => {
-                self.keys(
-                    t,
-                    key,
-                    &[&common[..], &["point", "normal", "u_axis"]].concat(),
-                )?;
-                let point = self.required_vec3(t, key, "point")?;
-                let normal = self
-                    .required_vec3(t, key, "normal")?
-                    .normalized()
-                    .ok_or_else(|| self.err(&format!("{key}.normal"), "must not be zero"))?;
-                let hint = self
-                    .vec3(t, key, "u_axis")?
-                    .unwrap_or(if normal.x.abs() < 0.9 {
-                        Vec3::new(1.0, 0.0, 0.0)
-                    } else {
-                        Vec3::new(0.0, 0.0, 1.0)
-                    });
-                let u_axis = (hint - normal * hint.dot(normal))
-                    .normalized()
-                    .ok_or_else(|| {
-                        self.err(&format!("{key}.u_axis"), "is parallel to the normal")
-                    })?;
-                // v = u × n: with n = +y and u = +x, v = +z (texture z runs away).
-                let v_axis = u_axis.cross(normal);
-                Geometry::Plane {
-                    point,
-                    normal,
-                    u_axis,
-                    v_axis,
-                }
-            }
+            "plane" => self.plane(t, key)?,
             "quad" => {
                 self.keys(
                     t,
                     key,
-                    &[&common[..], &["origin", "edge_u", "edge_v"]].concat(),
+                    &[&SURFACE_KEYS[..], &["origin", "edge_u", "edge_v"]].concat(),
                 )?;
                 let origin = self.required_vec3(t, key, "origin")?;
                 let edge_u = self.required_vec3(t, key, "edge_u")?;
@@ -534,7 +526,7 @@ impl Context<'_> {
                 }
             }
             "sphere" => {
-                self.keys(t, key, &[&common[..], &["centre", "radius"]].concat())?;
+                self.keys(t, key, &[&SURFACE_KEYS[..], &["centre", "radius"]].concat())?;
                 let centre = self.required_vec3(t, key, "centre")?;
                 let radius = self
                     .number(t, key, "radius")?
@@ -548,7 +540,7 @@ impl Context<'_> {
                 self.keys(
                     t,
                     key,
-                    &[&common[..], &["file", "scale", "translate"]].concat(),
+                    &[&SURFACE_KEYS[..], &["file", "scale", "translate"]].concat(),
                 )?;
                 let (file, scale, translate) = self.model_file(t, key, "an .obj file")?;
                 Geometry::Mesh(Arc::new(self.mesh(
@@ -565,9 +557,44 @@ impl Context<'_> {
                 ));
             }
         };
-        let colour = self
-            .colour(t, key, "colour")?
-            .unwrap_or(Rgba::opaque(1.0, 1.0, 1.0));
+        Ok(geometry)
+    }
+
+    /// A plane's point, normal and texture axes.
+    fn plane(&self, t: &Table, key: &str) -> Result<Geometry, Error> {
+        self.keys(
+            t,
+            key,
+            &[&SURFACE_KEYS[..], &["point", "normal", "u_axis"]].concat(),
+        )?;
+        let point = self.required_vec3(t, key, "point")?;
+        let normal = self
+            .required_vec3(t, key, "normal")?
+            .normalized()
+            .ok_or_else(|| self.err(&format!("{key}.normal"), "must not be zero"))?;
+        let hint = self
+            .vec3(t, key, "u_axis")?
+            .unwrap_or(if normal.x.abs() < 0.9 {
+                Vec3::new(1.0, 0.0, 0.0)
+            } else {
+                Vec3::new(0.0, 0.0, 1.0)
+            });
+        let u_axis = (hint - normal * hint.dot(normal))
+            .normalized()
+            .ok_or_else(|| self.err(&format!("{key}.u_axis"), "is parallel to the normal"))?;
+        // v = u × n: with n = +y and u = +x, v = +z (texture z runs away).
+        let v_axis = u_axis.cross(normal);
+        Ok(Geometry::Plane {
+            point,
+            normal,
+            u_axis,
+            v_axis,
+        })
+    }
+
+    /// A surface's texture, packed at its `texture_level` (or the default
+    /// for its kind) with its `contour_leaves`; `None` when it has none.
+    fn surface_texture(&mut self, t: &Table, key: &str) -> Result<Option<Texture>, Error> {
         let svg_level = match self.number(t, key, "texture_level")? {
             None => None,
             Some(l) if l.fract() == 0.0 && (0.0..=f64::from(MAX_VECTOR_LEVEL)).contains(&l) => {
@@ -602,6 +629,11 @@ impl Context<'_> {
             }
             Some(_) => return Err(self.err(&format!("{key}.texture"), "must be a string")),
         };
+        Ok(texture)
+    }
+
+    /// A surface's `wrap` (one mode, or one per axis) and `border` colour.
+    fn wrap(&self, t: &Table, key: &str) -> Result<Wrap, Error> {
         let mode = |v: &Value| match v {
             Value::String(s) => WrapMode::from_name(s),
             _ => None,
@@ -623,28 +655,25 @@ impl Context<'_> {
                 (m, m)
             }
         };
-        let wrap = Wrap {
+        Ok(Wrap {
             x,
             z,
             border: self.colour(t, key, "border")?.unwrap_or(Rgba::TRANSPARENT),
-        };
+        })
+    }
+
+    /// A surface's `uv_scale`, `uv_offset` and `uv_rotation`.
+    fn uv_transform(&self, t: &Table, key: &str) -> Result<UvTransform, Error> {
         let scale = self.numbers::<2>(t, key, "uv_scale")?.unwrap_or([1.0, 1.0]);
         if scale.contains(&0.0) {
             return Err(self.err(&format!("{key}.uv_scale"), "must not be zero"));
         }
-        let uv_transform = UvTransform {
+        Ok(UvTransform {
             scale,
             offset: self
                 .numbers::<2>(t, key, "uv_offset")?
                 .unwrap_or([0.0, 0.0]),
             rotation_degrees: self.number(t, key, "uv_rotation")?.unwrap_or(0.0),
-        };
-        Ok(Surface {
-            geometry,
-            texture,
-            colour,
-            uv_transform,
-            wrap,
         })
     }
 

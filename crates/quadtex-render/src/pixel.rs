@@ -15,10 +15,10 @@ use quadtex_core::Rgba;
 use crate::caster::{Seen, surface_and_triangle};
 use crate::exact::{Scratch, SurfaceViews, exact_pixel};
 use crate::frame::Frame;
-use crate::options::{Filter, PixelFilter};
+use crate::options::{Filter, PixelFilter, RenderOptions};
 use crate::shade::shade_ray;
 use crate::stats::PixelStats;
-use crate::view::ScreenArea;
+use crate::tangent_plane::ScreenSquare;
 
 /// What the pixel centres within reach of a pixel's filter support see.
 #[derive(Debug, Clone, Copy)]
@@ -40,7 +40,7 @@ pub(crate) struct Neighbourhood<'a, 'v> {
 impl Neighbourhood<'_, '_> {
     /// True when the centres do not all see the same surface (the
     /// triangles of one mesh count as one, as the corner test of
-    /// `shade_area` compares surfaces: a mesh's inner edges are not
+    /// `shade_square` compares surfaces: a mesh's inner edges are not
     /// silhouettes, and testing them cast five rays a pixel over a
     /// million-triangle terrain).
     pub fn mixed(&self) -> bool {
@@ -60,33 +60,21 @@ const SILHOUETTE_SPLITS: u32 = 1;
 /// The colour of pixel `(x, y)`; `near_silhouette` when a neighbour's
 /// centre sees another surface (or the sky), so the pixel may straddle an
 /// edge and is checked at its corners. `scratch`: the calling thread's
-/// buffers for the exact pixel.
-#[allow(clippy::too_many_arguments)]
+/// buffers for the exact pixel. `options`: the texture filter, the pixel
+/// filter and the supersampling seed.
 pub(crate) fn shade_pixel<'v>(
     frame: &Frame<'_>,
-    filter: Filter,
-    pixel: PixelFilter,
+    options: &RenderOptions,
     (x, y): (u32, u32),
     near: &Neighbourhood<'_, 'v>,
-    seed: u64,
     scratch: &mut Scratch<'v>,
     stats: &mut PixelStats,
 ) -> Rgba {
+    let (filter, pixel, seed) = (options.filter, options.pixel_filter, options.seed);
     let scene = frame.scene;
     let (px, py) = (f64::from(x), f64::from(y));
     if let Filter::Quadtree(options) = filter
-        && let Some(c) = exact_pixel(
-            frame,
-            &options,
-            pixel,
-            (x, y),
-            near.primitives,
-            near.sky,
-            near.run,
-            near.views,
-            scratch,
-            stats,
-        )
+        && let Some(c) = exact_pixel(frame, &options, pixel, (x, y), near, scratch, stats)
     {
         return c;
     }
@@ -115,7 +103,7 @@ pub(crate) fn shade_pixel<'v>(
                     Filter::Nearest,
                     PixelFilter::Box,
                     (&scene.camera.ray(sx, sy), None),
-                    ScreenArea::pixel(sx, sy),
+                    ScreenSquare::pixel(sx, sy),
                     stats,
                 );
                 acc += c * w;
@@ -126,10 +114,10 @@ pub(crate) fn shade_pixel<'v>(
     }
     let (cx, cy) = (px + 0.5, py + 0.5);
     if near_silhouette && pixel == PixelFilter::Box {
-        return shade_area(
+        return shade_square(
             frame,
             filter,
-            ScreenArea::pixel(cx, cy),
+            ScreenSquare::pixel(cx, cy),
             near.centre,
             0,
             stats,
@@ -140,7 +128,7 @@ pub(crate) fn shade_pixel<'v>(
         filter,
         pixel,
         (&scene.camera.ray(cx, cy), near.centre),
-        ScreenArea::pixel(cx, cy),
+        ScreenSquare::pixel(cx, cy),
         stats,
     )
 }
@@ -150,17 +138,17 @@ pub(crate) fn shade_pixel<'v>(
 /// the square straddles a silhouette, such as the horizon: it is split in
 /// four and each quarter shaded on its own, so each side of the silhouette
 /// is integrated over its own part of the pixel. `centre_seen`: what the
-/// visibility grid saw through the centre, when `area` is a whole pixel.
-fn shade_area(
+/// visibility grid saw through the centre, when `square` is a whole pixel.
+fn shade_square(
     frame: &Frame<'_>,
     filter: Filter,
-    area: ScreenArea,
+    square: ScreenSquare,
     centre_seen: Option<Seen>,
     splits: u32,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
-    let [cx, cy] = area.centre;
+    let [cx, cy] = square.centre;
     let centre_ray = scene.camera.ray(cx, cy);
     if splits < SILHOUETTE_SPLITS {
         let seen = |x: f64, y: f64| {
@@ -168,7 +156,7 @@ fn shade_area(
                 .nearest_index(&scene.camera.ray(x, y))
                 .map(|(i, _)| i)
         };
-        let h = area.half;
+        let h = square.half;
         let middle = match centre_seen {
             Some(0) => None,
             Some(id) => Some(surface_and_triangle(id).0),
@@ -182,11 +170,11 @@ fn shade_area(
             let mut acc = Rgba::TRANSPARENT;
             let mut parts = PixelStats::default();
             for (dx, dy) in [(-q, -q), (q, -q), (-q, q), (q, q)] {
-                let part = ScreenArea {
+                let part = ScreenSquare {
                     centre: [cx + dx, cy + dy],
                     half: q,
                 };
-                acc += shade_area(frame, filter, part, None, splits + 1, &mut parts) * 0.25;
+                acc += shade_square(frame, filter, part, None, splits + 1, &mut parts) * 0.25;
             }
             stats.merge_parts(&parts);
             return acc;
@@ -197,7 +185,7 @@ fn shade_area(
         filter,
         PixelFilter::Box,
         (&centre_ray, centre_seen),
-        area,
+        square,
         stats,
     )
 }

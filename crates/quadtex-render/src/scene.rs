@@ -376,7 +376,7 @@ impl Mesh {
 
     /// The triangle across edge `edge` of triangle `index`, if one shares
     /// it. Edges are numbered by the corner they face, as the view of a
-    /// triangle orders its edge lines ([`crate::planar_view::View::lines`]):
+    /// triangle orders its edge lines ([`crate::view::View::lines`]):
     /// 0 is the edge from corner 0 to corner 2 (where the barycentric
     /// weight of corner 1 is zero), 1 from corner 0 to corner 1, 2 from
     /// corner 1 to corner 2.

@@ -10,9 +10,9 @@ use crate::math::Ray;
 use crate::options::{Filter, PixelFilter};
 use crate::scene::{Hit, Surface};
 use crate::stats::PixelStats;
-use crate::view::{self, ScreenArea};
+use crate::tangent_plane::{self, ScreenSquare};
 
-/// The colour seen along `ray`, whose pixel (or part) is `area`; `seen`,
+/// The colour seen along `ray`, whose pixel (or part) is `square`; `seen`,
 /// when known, is the primitive the visibility grid found along this very
 /// ray (so only it is intersected).
 pub(crate) fn shade_ray(
@@ -20,7 +20,7 @@ pub(crate) fn shade_ray(
     filter: Filter,
     pixel_filter: PixelFilter,
     (ray, seen): (&Ray, Option<Seen>),
-    area: ScreenArea,
+    square: ScreenSquare,
     stats: &mut PixelStats,
 ) -> Rgba {
     let scene = frame.scene;
@@ -32,19 +32,22 @@ pub(crate) fn shade_ray(
         return sky(scene, ray);
     };
     let surface = &scene.surfaces[index];
-    let base = match frame.sampler(index) {
+    let base = match frame.texture(index) {
         None => surface.colour,
-        Some(sampler) => {
+        Some(texture) => {
             stats.textured += 1;
+            let at = TexturedHit {
+                surface: index,
+                texture,
+                hit: &hit,
+            };
             let tex = texture_colour(
                 frame,
-                index,
-                sampler,
-                &hit,
+                at,
                 filter,
                 pixel_filter,
-                area,
-                || view::footprint(scene, surface, &hit, area),
+                square,
+                || tangent_plane::footprint(scene, surface, &hit, square),
                 stats,
             );
             tex * surface.colour
@@ -60,31 +63,45 @@ pub(crate) fn shade_ray(
     Rgba::new(base.r * k[0], base.g * k[1], base.b * k[2], base.a)
 }
 
-/// The filtered texture colour of surface `index` at `hit` for the screen
-/// square `area`, whose footprint `footprint` gives when a filter needs it
-/// (computed there, or given: lookups are timed without it).
-#[allow(clippy::too_many_arguments)]
+/// A ray's hit on a textured surface: what [`texture_colour`] filters
+/// around.
+#[derive(Clone, Copy)]
+pub(crate) struct TexturedHit<'h> {
+    /// The surface's index in the scene.
+    pub surface: usize,
+    /// Its texture, bound to its wrap ([`Frame::texture`]).
+    pub texture: &'h Texture,
+    /// Where the ray meets it.
+    pub hit: &'h Hit,
+}
+
+/// The filtered texture colour at hit `at` for screen square `square`,
+/// whose footprint `footprint` gives when a filter needs it (computed
+/// there, or given: lookups are timed without it).
 pub(crate) fn texture_colour(
     frame: &Frame<'_>,
-    index: usize,
-    sampler: &Texture,
-    hit: &Hit,
+    at: TexturedHit<'_>,
     filter: Filter,
     pixel_filter: PixelFilter,
-    area: ScreenArea,
+    square: ScreenSquare,
     footprint: impl FnOnce() -> Option<quadtex_core::Footprint>,
     stats: &mut PixelStats,
 ) -> Rgba {
+    let TexturedHit {
+        surface: index,
+        texture,
+        hit,
+    } = at;
     let scene = frame.scene;
     let surface = &scene.surfaces[index];
-    let centre = view::centre_point(surface, hit);
+    let centre = tangent_plane::centre_point(surface, hit);
     let traversal = &mut stats.filter.traversal;
     match filter {
-        Filter::Nearest | Filter::Supersample(_) => sampler.nearest_counted(centre, traversal),
-        Filter::Bilinear => sampler.bilinear_counted(centre, traversal),
+        Filter::Nearest | Filter::Supersample(_) => texture.nearest_counted(centre, traversal),
+        Filter::Bilinear => texture.bilinear_counted(centre, traversal),
         Filter::Trilinear | Filter::Ewa { .. } => {
             let (Ok(b), Some(fp)) = (surface_baselines(surface), footprint()) else {
-                return sampler.nearest_counted(centre, traversal);
+                return texture.nearest_counted(centre, traversal);
             };
             match filter {
                 Filter::Ewa { max_anisotropy } => b.pyramid.ewa(&fp, max_anisotropy, surface.wrap),
@@ -92,45 +109,45 @@ pub(crate) fn texture_colour(
             }
         }
         Filter::EwaSameMemory { max_anisotropy } => {
-            let texture = surface.texture.as_ref();
-            let (Some(Ok(pyramid)), Some(fp)) =
-                (texture.map(|t| t.same_memory_pyramid()), footprint())
-            else {
-                return sampler.nearest_counted(centre, traversal);
+            let same_memory = surface.texture.as_ref().map(|t| t.same_memory_pyramid());
+            let (Some(Ok(pyramid)), Some(fp)) = (same_memory, footprint()) else {
+                return texture.nearest_counted(centre, traversal);
             };
             pyramid.ewa(&fp, max_anisotropy, surface.wrap)
         }
         Filter::Sat(options) => {
             let (Ok(b), Some(fp)) = (surface_baselines(surface), footprint()) else {
-                return sampler.nearest_counted(centre, traversal);
+                return texture.nearest_counted(centre, traversal);
             };
             // The table is exact at any size: no level of detail.
             let options = options.with_level(u8::MAX);
             filter_footprint(&b.sat, None, surface.wrap, &fp, &options, &mut stats.filter)
-                .unwrap_or_else(|| sampler.nearest_counted(centre, &mut stats.filter.traversal))
+                .unwrap_or_else(|| texture.nearest_counted(centre, &mut stats.filter.traversal))
         }
         Filter::Quadtree(options) => {
             let mean = match pixel_filter {
                 PixelFilter::Box => {
-                    footprint().map(|fp| sampler.filter_counted(&fp, &options, &mut stats.filter))
+                    footprint().map(|fp| texture.filter_counted(&fp, &options, &mut stats.filter))
                 }
-                _ => tangent_filtered(frame, index, sampler, hit, &options, pixel_filter, area),
+                _ => tangent_filtered(frame, at, &options, pixel_filter, square),
             };
-            mean.unwrap_or_else(|| sampler.nearest_counted(centre, &mut stats.filter.traversal))
+            mean.unwrap_or_else(|| texture.nearest_counted(centre, &mut stats.filter.traversal))
         }
     }
 }
 
-/// The texture under `filter` over its whole support around `area`'s
+/// The texture under `filter` over its whole support around `square`'s
 /// centre, seen on the tangent plane at `hit` (first order for a sphere).
 fn tangent_filtered(
     frame: &Frame<'_>,
-    index: usize,
-    sampler: &Texture,
-    hit: &Hit,
+    TexturedHit {
+        surface: index,
+        texture,
+        hit,
+    }: TexturedHit<'_>,
     options: &quadtex_core::FilterOptions,
     filter: PixelFilter,
-    area: ScreenArea,
+    square: ScreenSquare,
 ) -> Option<Rgba> {
     let planar = crate::scene::Planar {
         point: hit.point,
@@ -141,9 +158,9 @@ fn tangent_filtered(
         extent: crate::scene::Extent::Plane,
         triangle: None,
     };
-    let view = crate::planar_view::View::new(frame.scene, index, &planar)?;
-    let support = filter.support(area.centre);
-    view.texture_integral(sampler, &support, filter, area.centre, options)
+    let view = crate::view::View::new(frame.scene, index, &planar)?;
+    let support = filter.support(square.centre);
+    view.texture_integral(texture, &support, filter, square.centre, options)
         .mean()
 }
 

@@ -21,7 +21,7 @@
 //!   rectangle's image lies in one terminal square, far enough in front of
 //!   the horizon that the region integral takes each support as it is.
 //! * **One light.** The points the pixels' shadow rays leave from (each
-//!   piece's centroid on the surface, lifted off it by `10⁻⁶` of its
+//!   region's centroid on the surface, lifted off it by `10⁻⁶` of its
 //!   distance) lie within the surface's part under the rectangle, lifted
 //!   as much; seen along the sun's direction every shadow ray is one
 //!   point, so a caster whose outline along the sun misses that part's
@@ -40,10 +40,10 @@ use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
 use crate::caster::Seen;
 use crate::frame::{Frame, lit_factor};
 use crate::math::Vec3;
-use crate::planar_view::{Placement, View, placement};
 use crate::scene::{Geometry, Lighting};
 use crate::stats::PixelStats;
 use crate::sun_grid::apart;
+use crate::view::{Placement, View, placement};
 
 /// Most pixels a span holds (a run of magnified pixels is seldom longer
 /// than the cell it lies in; longer tries fail more often).
@@ -71,7 +71,7 @@ pub(crate) struct SpanAnswer {
     /// The texture's colour over the span (linear, premultiplied; before
     /// the surface's tint), `None` when the surface is untextured.
     pub texture: Option<Rgba>,
-    /// The lighting factor of every pixel's piece
+    /// The lighting factor of every pixel's region
     /// ([`crate::frame::lambert`]'s value), `None` where each pixel takes
     /// its own shadow ray.
     pub light: Option<[f32; 3]>,
@@ -188,7 +188,7 @@ impl UniformSpan {
         }
     }
 
-    /// The lighting factor of every piece inside the supports of the run
+    /// The lighting factor of every region inside the supports of the run
     /// of pixel `(x, y)` on primitive `id`, when one test settled it for
     /// the whole run ([`UniformSpan::answer`] tests it once a run).
     pub fn run_light(&self, (x, y): (u32, u32), id: Seen) -> Option<[f32; 3]> {
@@ -264,11 +264,11 @@ fn span_answer(
     {
         return None;
     }
-    let texture = match frame.sampler(view.surface()) {
-        Some(sampler) => {
+    let texture = match frame.texture(view.surface()) {
+        Some(texture) => {
             let pixel = filter.support([first, cy]);
             *lookups += 1;
-            Some(sampler.uniform_colour_over(view.projection(), &rect, &pixel, options)?)
+            Some(texture.uniform_colour_over(view.projection(), &rect, &pixel, options)?)
         }
         None => None,
     };
@@ -278,7 +278,7 @@ fn span_answer(
     })
 }
 
-/// The lighting factor every piece inside screen rectangle `rect` on
+/// The lighting factor every region inside screen rectangle `rect` on
 /// `view`'s primitive gets from [`crate::frame::lambert`] at its centroid,
 /// when it is one (module documentation).
 fn span_light(frame: &Frame<'_>, view: &View, rect: &ConvexPolygon) -> Option<[f32; 3]> {

@@ -1,0 +1,648 @@
+//! The exact pixel itself ([`exact_pixel`]) and the buffers a thread
+//! reuses from pixel to pixel ([`Scratch`]).
+
+use std::borrow::Cow;
+use std::rc::Rc;
+
+use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
+
+use crate::caster::{Seen, seen_id, surface_and_triangle};
+use crate::frame::{Frame, sky};
+use crate::pixel::Neighbourhood;
+use crate::scene::{Geometry, Scene};
+use crate::span::{SpanQuery, UniformSpan};
+use crate::stats::PixelStats;
+use crate::view::View;
+
+use super::cutting::{Cut, Order, Regions, overlap, push_region};
+use super::lighting::{Shading, shade_region, shade_span_pixel};
+use super::sky::{
+    SkySpan, Whole, sky_at_centre, sky_clear_above, sky_integral, sky_range, sky_step,
+    sky_tolerance, views_miss,
+};
+use super::views::{Confirmed, Flood, SurfaceViews, ViewMemo, ViewRef, candidate_view};
+use super::{GAP_AREA, MAX_GAP_PRIMITIVES, MAX_MESH_SCAN};
+
+/// The filtered colour of pixel `(x, y)` whose neighbourhood's centres see
+/// `near.primitives` (and the sky if `near.sky`), or `None` when a
+/// candidate is not planar (a sphere): the caller then takes the
+/// tangent-plane path. `scratch`: the calling thread's buffers.
+pub(crate) fn exact_pixel<'a>(
+    frame: &Frame<'_>,
+    options: &FilterOptions,
+    filter: PixelFilter,
+    (x, y): (u32, u32),
+    near: &Neighbourhood<'_, 'a>,
+    scratch: &mut Scratch<'a>,
+    stats: &mut PixelStats,
+) -> Option<Rgba> {
+    let scene = frame.scene;
+    let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+    let pixel = ExactPixel {
+        shading: Shading {
+            frame,
+            filter,
+            centre,
+            options,
+        },
+        at: (x, y),
+        support: filter.support(centre),
+        cache: near.views,
+    };
+    let (cache, support, candidates) = (near.views, &pixel.support, near.primitives);
+    // One primitive over the whole support: one integral.
+    if let [id] = candidates
+        && !near.sky
+        && let Some(view) = candidate_view(scene, cache, &mut scratch.memo, *id)?
+        && let Some(colour) =
+            pixel.one_primitive(*id, &view, near.run, &mut scratch.uniform_span, stats)
+    {
+        return Some(colour);
+    }
+    // Only the sky in reach: the sky over the whole support unless a plane,
+    // quad or mesh triangle no centre sees reaches into it (the case the
+    // general path below covers).
+    if candidates.is_empty()
+        && near.sky
+        && views_miss(cache, &mut scratch.sky_span, filter, (x, y), support)
+        && !cache.meshes_in(scene, support, &mut scratch.planes, |_| true)
+    {
+        let (c, w) = sky_integral(
+            scene,
+            support,
+            Whole::Yes,
+            filter,
+            centre,
+            sky_tolerance(options),
+        );
+        return Some(mean(c, w));
+    }
+    pixel.list_candidates(candidates, scratch)?;
+    let found = pixel.spread_to_neighbours(scratch)?;
+    let Scratch {
+        views,
+        regions,
+        cut,
+        order,
+        ..
+    } = scratch;
+    cut.among(views, regions, support, order);
+    pixel.search_gaps(found, scratch)?;
+    pixel.shade_cut(scratch, stats)
+}
+
+/// One exact pixel's question, what its steps share: the shading of its
+/// regions (frame, filters, centre), where it is, its filter's support,
+/// and the frame's views.
+struct ExactPixel<'p, 'a> {
+    shading: Shading<'p>,
+    at: (u32, u32),
+    support: ConvexPolygon,
+    cache: &'a SurfaceViews,
+}
+
+/// The sums a pixel's colour is the mean of: `Σ colour·k`, `Σ k`, and the
+/// error bounds' sum, added region by region in a fixed order.
+#[derive(Default)]
+struct Sums {
+    colour: [f64; 4],
+    weight: f64,
+    bound: f64,
+}
+
+impl Sums {
+    fn add(&mut self, c: [f64; 4], w: f64, b: f64) {
+        for (a, v) in self.colour.iter_mut().zip(c) {
+            *a += v;
+        }
+        self.weight += w;
+        self.bound += b;
+    }
+}
+
+impl<'a> ExactPixel<'_, 'a> {
+    /// The pixel when the one primitive its centres see, `view` (`id`),
+    /// covers its whole support: its run's span's answer where one
+    /// stands, else one integral. `None` when its region is not the whole
+    /// support (the general path then takes the pixel).
+    fn one_primitive(
+        &self,
+        id: Seen,
+        view: &View,
+        run: u32,
+        uniform_span: &mut UniformSpan,
+        stats: &mut PixelStats,
+    ) -> Option<Rgba> {
+        let Shading {
+            frame,
+            filter,
+            options,
+            ..
+        } = self.shading;
+        let (support, (x, y)) = (&self.support, self.at);
+        let mut sums = Sums::default();
+        let mut parts = PixelStats::default();
+        // A run of such pixels: one answer for a span of them.
+        let query = SpanQuery {
+            frame,
+            view,
+            filter,
+            options,
+        };
+        let answer = uniform_span.answer(&query, (x, y), id, run);
+        // Counted on this pixel alone, not on the span's copies of it.
+        stats.filter.traversal.queries += uniform_span.take_lookups();
+        if let Some(answer) = answer {
+            let (c, w) = shade_span_pixel(&self.shading, view, support, &answer, &mut parts);
+            sums.add(c, w, 0.0);
+            parts.weight_error = weight_error(w);
+            parts.filter.record_bound(0.0);
+            stats.merge_parts(&parts);
+            let colour = mean(sums.colour, sums.weight);
+            // The weight is the same bits at every pixel: the box's is the
+            // support's area, 1 (its corners are multiples of ½, exact in
+            // floats, and so are their products at pixel coordinates below
+            // 2³²); the tent's and Mitchell's integrate the support moved
+            // to the centre, `centre ± r − centre`, exactly `±r`. With the
+            // light known, every pixel of the span comes out as this one.
+            if answer.light.is_some() && (filter != PixelFilter::Box || w == 1.0) {
+                uniform_span.set_fill(colour, parts);
+            }
+            return Some(colour);
+        }
+        let region = view.region(support);
+        let whole =
+            matches!(region, Cow::Borrowed(_)) || region.area() >= support.area() * (1.0 - 1e-12);
+        if !whole {
+            return None;
+        }
+        // The sun over the pixel's run, when one test settled it for
+        // all of the run (the span that failed was refused for its
+        // texture), else the pixel's own shadow ray.
+        let light = uniform_span.run_light((x, y), id);
+        let (c, w, b) = shade_region(&self.shading, view, &region, light, &mut parts);
+        sums.add(c, w, b);
+        parts.weight_error = weight_error(w);
+        stats.merge_parts(&parts);
+        stats.filter.record_bound(b / w.abs().max(1e-300));
+        Some(mean(sums.colour, sums.weight))
+    }
+
+    /// Lists the views of the primitives the centres see (`candidates`)
+    /// and of every other plane, quad and triangle of a small mesh a
+    /// centre sees, which may reach into the support unseen, with their
+    /// regions of the support. `None` when a candidate is not planar.
+    fn list_candidates(&self, candidates: &[Seen], scratch: &mut Scratch<'a>) -> Option<()> {
+        let (scene, cache) = (self.shading.frame.scene, self.cache);
+        let Scratch {
+            views,
+            tried,
+            regions,
+            memo,
+            ..
+        } = scratch;
+        views.clear();
+        // Every primitive tried so far and its view's index (none: edge-on).
+        tried.clear();
+        for &id in candidates {
+            let view = candidate_view(scene, cache, memo, id)?;
+            tried.push((id, view.is_some().then_some(views.len())));
+            views.extend(view);
+        }
+        // The centres in reach may all miss a primitive that still reaches into
+        // the support (a quad's corner, a triangle's tip near a vertex): every
+        // plane and quad of the scene is a candidate here, and every triangle
+        // of a (small) mesh one of the centres sees.
+        for (surface, s) in scene.surfaces.iter().enumerate() {
+            let seen_here = |t: u32| candidates.contains(&seen_id(surface, t));
+            match &s.geometry {
+                Geometry::Plane { .. } | Geometry::Quad { .. } if !seen_here(0) => {
+                    let view = cache.get(scene, surface, 0);
+                    tried.push((seen_id(surface, 0), view.is_some().then_some(views.len())));
+                    views.extend(view);
+                }
+                Geometry::Mesh(mesh)
+                    if mesh.len() <= MAX_MESH_SCAN
+                        && candidates
+                            .iter()
+                            .any(|&id| surface_and_triangle(id).0 == surface) =>
+                {
+                    for t in 0..mesh.len() as u32 {
+                        if seen_here(t) {
+                            continue;
+                        }
+                        let view = s
+                            .geometry
+                            .planar(t)
+                            .and_then(|p| View::new(scene, surface, &p));
+                        tried.push((seen_id(surface, t), view.is_some().then_some(views.len())));
+                        views.extend(view.map(|v| ViewRef::Built(Rc::new(v))));
+                    }
+                }
+                _ => {}
+            }
+        }
+        regions.clear();
+        for v in views.iter() {
+            push_region(regions, v, &self.support);
+        }
+        Some(())
+    }
+
+    /// Where the listed regions leave part of the support uncovered, lists
+    /// the mesh triangles across the edges of those listed
+    /// ([`Flood::spread`]), each confirmed by a camera ray; an occluder a
+    /// ray meets instead undoes the spread and joins the list. Returns how
+    /// many primitives joined from the gaps (the occluder, if any); `None`
+    /// when the occluder is not planar.
+    fn spread_to_neighbours(&self, scratch: &mut Scratch<'a>) -> Option<usize> {
+        let Shading { frame, .. } = self.shading;
+        let (scene, cache, support, x) = (frame.scene, self.cache, &self.support, self.at.0);
+        let Scratch {
+            views,
+            tried,
+            regions,
+            memo,
+            flooded,
+            confirmed,
+            ..
+        } = scratch;
+        let mut found = 0;
+        let covered: f64 = regions.iter().map(ConvexPolygon::area).sum();
+        if covered < support.area() * (1.0 - GAP_AREA) {
+            let flood = Flood {
+                scene,
+                cache,
+                support,
+            };
+            let (listed, tried_before) = (views.len(), tried.len());
+            flood.spread(views, regions, tried, memo, flooded);
+            // Each new triangle is confirmed, as a gap's would be, by the ray
+            // through its region's centroid (or one a pixel or two back in the
+            // row). A nearer primitive there is an occluder no centre sees (a
+            // far hill's crest), in front of triangles the flood listed that it
+            // may hide beyond the ray: the flood is undone, the occluder joins
+            // the list, and the gaps are searched as without a flood.
+            let mut occluder = None;
+            for &v in flooded.iter() {
+                let id = seen_id(views[v].surface(), views[v].triangle().unwrap_or(0));
+                if confirmed.recent(id, x) {
+                    continue;
+                }
+                let c = regions[v].centroid();
+                let hit = cache.camera_hit(frame, c, Some(id));
+                match hit.map(|(surface, hit)| seen_id(surface, hit.triangle)) {
+                    Some(seen) if seen == id => confirmed.insert(id, x),
+                    // One the list holds: their order settles it.
+                    Some(seen) if tried.iter().any(|(t, _)| *t == seen) => {}
+                    seen => {
+                        occluder = Some(seen);
+                        break;
+                    }
+                }
+            }
+            if let Some(seen) = occluder {
+                views.truncate(listed);
+                regions.truncate(listed);
+                tried.truncate(tried_before);
+                if let Some(seen) = seen
+                    && !tried.iter().any(|(t, _)| *t == seen)
+                {
+                    found += 1;
+                    let view = candidate_view(scene, cache, memo, seen)?;
+                    if let Some(view) = &view {
+                        push_region(regions, view, support);
+                    }
+                    tried.push((seen, view.is_some().then_some(views.len())));
+                    views.extend(view);
+                }
+            }
+        }
+        Some(found)
+    }
+
+    /// Searches what no listed primitive covers, the cut's parts left:
+    /// the primitive the ray through each gap's centroid meets, or the
+    /// mesh triangles that reach into a gap whose ray meets nothing, join
+    /// the list (after `found` joined before, up to
+    /// [`MAX_GAP_PRIMITIVES`]) and the cut takes them, until no gap adds
+    /// one; the gaps left go to `scratch.gaps`. `None` when a primitive
+    /// found is not planar.
+    fn search_gaps(&self, mut found: usize, scratch: &mut Scratch<'a>) -> Option<()> {
+        let Shading { frame, .. } = self.shading;
+        let (scene, cache, support) = (frame.scene, self.cache, &self.support);
+        let Scratch {
+            views,
+            tried,
+            regions,
+            gaps,
+            cut,
+            planes,
+            binned,
+            memo,
+            ..
+        } = scratch;
+        loop {
+            // What no primitive in the list covers is sky, or primitives
+            // between the centres (a large mesh's triangles smaller than a
+            // pixel): the one the ray through a gap's centroid meets joins the
+            // list, and the support is cut again (it may hide parts of the
+            // others).
+            gaps.clear();
+            let mut grew = false;
+            let listed = views.len();
+            for r in cut.remaining.drain(..) {
+                let c = r.centroid();
+                let Some((surface, hit)) = cache.camera_hit(frame, c, None) else {
+                    // The ray meets nothing, but a mesh's triangles may still
+                    // reach into the gap around it: each one whose region
+                    // overlaps the gap joins the list.
+                    let mut more = false;
+                    cache.meshes_in_gap(scene, &r, planes, binned, |id| {
+                        if tried.iter().any(|(t, _)| *t == id) {
+                            return false;
+                        }
+                        let Some(Some(view)) = candidate_view(scene, cache, memo, id) else {
+                            return false;
+                        };
+                        let region = regions.next_slot();
+                        view.region_into(support, region);
+                        if overlap(region, &r).is_none() {
+                            return false;
+                        }
+                        if found == MAX_GAP_PRIMITIVES {
+                            more = true;
+                            return true;
+                        }
+                        found += 1;
+                        tried.push((id, Some(views.len())));
+                        views.push(view);
+                        regions.keep_slot();
+                        grew = true;
+                        false
+                    });
+                    gaps.push((r, if more { Gap::SkyAmong } else { Gap::Sky }));
+                    continue;
+                };
+                let id = seen_id(surface, hit.triangle);
+                if let Some(&(_, view)) = tried.iter().find(|(t, _)| *t == id) {
+                    gaps.push((r, Gap::Seen(id, view)));
+                    continue;
+                }
+                let view = if found < MAX_GAP_PRIMITIVES {
+                    found += 1;
+                    let view = candidate_view(scene, cache, memo, id)?;
+                    if let Some(v) = &view {
+                        push_region(regions, v, support);
+                        grew = true;
+                    }
+                    tried.push((id, view.is_some().then_some(views.len())));
+                    views.extend(view);
+                    tried.last().and_then(|t| t.1)
+                } else {
+                    None
+                };
+                gaps.push((r, Gap::Seen(id, view)));
+            }
+            if !grew {
+                return Some(());
+            }
+            // New primitives that overlap none listed (a mesh's triangles
+            // around those the centres see) only fill gaps: the rest of the
+            // cut stands. Otherwise the support is cut again.
+            let overlaps = (listed..views.len()).any(|v| {
+                (0..views.len()).any(|u| u != v && overlap(&regions[u], &regions[v]).is_some())
+            });
+            cut.remaining.extend(gaps.drain(..).map(|(r, _)| r));
+            if overlaps {
+                for v in listed..views.len() {
+                    cut.insert(v, views, regions);
+                }
+            } else {
+                for (v, region) in regions.iter().enumerate().skip(listed) {
+                    cut.take(v, region);
+                }
+            }
+        }
+    }
+
+    /// The pixel's colour from its cut: each visible region shaded, the
+    /// slivers and the gaps as [`Gap`] says, and the weight the cut left
+    /// unaccounted in the bound. `None` when a gap's primitive is not
+    /// planar.
+    fn shade_cut(&self, scratch: &mut Scratch<'a>, stats: &mut PixelStats) -> Option<Rgba> {
+        let Shading {
+            frame,
+            filter,
+            centre,
+            options,
+        } = self.shading;
+        let (scene, cache) = (frame.scene, self.cache);
+        let Scratch {
+            views,
+            regions,
+            gaps,
+            cut,
+            memo,
+            ..
+        } = scratch;
+        let mut sums = Sums::default();
+        let mut parts = PixelStats::default();
+        // Weight no region has, or two have (|k| ≤ 1 for every pixel filter):
+        // at most the larger of full contrast and the sky's range off.
+        sums.add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
+        for (i, region) in cut.visible(regions) {
+            let (c, w, b) = shade_region(&self.shading, &views[i], region, None, &mut parts);
+            sums.add(c, w, b);
+        }
+        for r in &cut.slivers {
+            // The sky at its centroid, whatever covers it: its whole weight
+            // times the larger of full contrast and the sky's range as the
+            // bound (at most 1e-9 of the support's).
+            let w = filter.integral(r, centre);
+            let c = r.centroid();
+            let colour = sky(scene, &scene.camera.ray(c[0], c[1])).to_array();
+            sums.add(
+                colour.map(|v| f64::from(v) * w),
+                w,
+                w.abs() * sky_range(scene).max(1.0),
+            );
+        }
+        let sky_over = |r: &ConvexPolygon| {
+            sky_integral(
+                scene,
+                r,
+                Whole::Unknown,
+                filter,
+                centre,
+                sky_tolerance(options),
+            )
+        };
+        for (r, gap) in gaps.iter() {
+            match *gap {
+                Gap::Sky => {
+                    let (c, w) = sky_over(r);
+                    sums.add(c, w, 0.0);
+                }
+                Gap::SkyAmong => {
+                    let (c, w) = sky_over(r);
+                    sums.add(c, w, w.abs());
+                }
+                Gap::Seen(id, view) => {
+                    // A gap the list leaves open (past the cap, or where a
+                    // listed primitive's edge and the ray disagree): the
+                    // primitive the ray through its centroid meets, as if it
+                    // covered the gap, with the gap's whole weight (full
+                    // contrast) as the bound, and the weight of any part of
+                    // the gap beyond that primitive's horizon (which it does
+                    // not cover: its colour is not known).
+                    let view = match view {
+                        Some(i) => Some(views[i].clone()),
+                        None => candidate_view(scene, cache, memo, id)?,
+                    };
+                    if let Some(view) = view {
+                        let (c, w, b) = shade_region(&self.shading, &view, r, None, &mut parts);
+                        let beyond = (filter.integral(r, centre) - w).abs();
+                        sums.add(c, w, b + w.abs() + beyond);
+                    } else {
+                        let (c, w) = sky_over(r);
+                        sums.add(c, w, w.abs());
+                    }
+                }
+            }
+        }
+        parts.weight_error = weight_error(sums.weight);
+        stats.merge_parts(&parts);
+        stats
+            .filter
+            .record_bound(sums.bound / sums.weight.abs().max(1e-300));
+        Some(mean(sums.colour, sums.weight))
+    }
+}
+
+/// How far `weight`, what a pixel's regions were given, is from the pixel
+/// filter's whole weight: 1, as every [`PixelFilter`] integrates to 1 over
+/// its support (so nothing is integrated again per pixel).
+pub(super) fn weight_error(weight: f64) -> f64 {
+    (weight - 1.0).abs()
+}
+
+/// What a part of a support no listed primitive covers shows.
+pub(super) enum Gap {
+    /// The ray through its centroid meets nothing, nor does a mesh reach
+    /// into it.
+    Sky,
+    /// The ray through its centroid meets nothing, but mesh triangles
+    /// reach into it past [`MAX_GAP_PRIMITIVES`]: the sky, its whole
+    /// weight as the bound.
+    SkyAmong,
+    /// The ray through its centroid meets this primitive (and its view's
+    /// index, if it has one in the list).
+    Seen(Seen, Option<usize>),
+}
+
+/// Buffers one thread reuses from pixel to pixel, so that the exact pixel
+/// allocates nothing once they have grown to the largest neighbourhood.
+#[derive(Default)]
+pub(crate) struct Scratch<'a> {
+    views: Vec<ViewRef<'a>>,
+    /// Every primitive tried so far and its view's index (none: edge-on).
+    tried: Vec<(Seen, Option<usize>)>,
+    regions: Regions,
+    gaps: Vec<(ConvexPolygon, Gap)>,
+    cut: Cut,
+    order: Order,
+    planes: Vec<[f64; 4]>,
+    /// The triangles [`SurfaceViews::meshes_in_gap`] lists.
+    binned: Vec<(u32, u32, u32)>,
+    memo: ViewMemo,
+    /// The views [`Flood::spread`] added, by index.
+    flooded: Vec<usize>,
+    confirmed: Confirmed,
+    sky_span: SkySpan,
+    uniform_span: UniformSpan,
+    /// Where [`sky_at_centre`]'s bound is surely within the tolerance
+    /// (once per row: the scene and options are the frame's).
+    sky_clear_above: Option<f64>,
+}
+
+impl<'a> Scratch<'a> {
+    /// Empty buffers for a row of the frame of `cache`, with the views of
+    /// mesh triangles this thread kept from its last row of that frame
+    /// ([`ViewMemo`]); [`Scratch::end_row`] keeps them for its next.
+    pub(crate) fn for_row(cache: &SurfaceViews) -> Scratch<'a> {
+        Scratch {
+            memo: ViewMemo::take_for(cache.frame),
+            ..Scratch::default()
+        }
+    }
+
+    /// Ends a row: the thread keeps its views for its next row.
+    pub(crate) fn end_row(self) {
+        self.memo.keep();
+    }
+
+    /// The colour of box-filtered pixel `(x, y)` whose centres in reach all
+    /// see the sky, when the rectangle of its sky span ([`SkySpan`]) is
+    /// clear of every plane, quad and mesh triangle and the sky's value at
+    /// its centre is within the tolerance ([`sky_at_centre`]): what the
+    /// sky-only branch of [`exact_pixel`] gives it (the support's area is
+    /// 1, so the mean is that value), without building the support or
+    /// testing it. `None` leaves the pixel to [`exact_pixel`]. A triangle
+    /// that reaches into no part of the rectangle reaches into none of the
+    /// pixel's support, which lies inside it.
+    pub(crate) fn sky_pixel(
+        &mut self,
+        scene: &Scene,
+        cache: &'a SurfaceViews,
+        options: &FilterOptions,
+        filter: PixelFilter,
+        (x, y): (u32, u32),
+    ) -> Option<Rgba> {
+        if filter != PixelFilter::Box || !self.sky_span.views_clear(cache, filter, (x, y)) {
+            return None;
+        }
+        let span = &mut self.sky_span;
+        let meshes_clear = match span.meshes_clear {
+            Some(clear) => clear,
+            None => {
+                let wide = span.wide.as_ref()?;
+                let clear = !cache.meshes_in(scene, wide, &mut self.planes, |_| true);
+                span.meshes_clear = Some(clear);
+                clear
+            }
+        };
+        if !meshes_clear {
+            return None;
+        }
+        let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+        let tolerance = sky_tolerance(options);
+        let clear_above = *self
+            .sky_clear_above
+            .get_or_insert_with(|| sky_clear_above(scene, tolerance));
+        let ray = scene.camera.ray(centre[0], centre[1]);
+        if ray.direction.y - std::f64::consts::FRAC_1_SQRT_2 * sky_step(scene) >= clear_above {
+            // What `sky_at_centre` gives, its bound not computed.
+            return Some(mean(sky(scene, &ray).to_array().map(f64::from), 1.0));
+        }
+        let (c, bound) = sky_at_centre(scene, centre)?;
+        (bound <= tolerance).then(|| mean(c, 1.0))
+    }
+
+    /// The colour and counters of pixel `(x, y)` when a span set up by a
+    /// pixel before it in its row answers it without any work
+    /// ([`UniformSpan::filled`]).
+    pub(crate) fn span_fill(&self, (x, y): (u32, u32)) -> Option<&(Rgba, PixelStats)> {
+        self.uniform_span.filled((x, y))
+    }
+}
+
+pub(super) fn mean(acc: [f64; 4], weight: f64) -> Rgba {
+    quadtex_core::RegionIntegral {
+        colour: quadtex_core::WeightedColour(acc),
+        weight,
+        error_bound: 0.0,
+    }
+    .mean()
+    .unwrap_or(Rgba::TRANSPARENT)
+}
