@@ -24,7 +24,7 @@ pub enum Weighting {
 /// Where the traversal may take a non-terminal square at its mean.
 ///
 /// For [`crate::Texture::filter`] and [`crate::Texture::integrate_region`]
-/// ([`crate::filter::exact`]): `ErrorBound(ε)` aims the bound on each pixel's error
+/// ([`crate::filter::region`]): `ErrorBound(ε)` aims the bound on each pixel's error
 /// (relative to full contrast) at `ε`; `Fixed(k)` descends every square to
 /// level `k` or to a terminal square (the tree's depth: exact).
 ///
@@ -146,7 +146,7 @@ impl FilterOptions {
     }
 
     /// With at most `budget` squares and tile blocks evaluated per region
-    /// under an error bound (`≥ 1`; see [`crate::filter::exact`]): past it the
+    /// under an error bound (`≥ 1`; see [`crate::filter::region`]): past it the
     /// largest remaining errors stay and the bound reached is reported.
     /// Shallow repeated textures (depth ≤ 4) are scanned cell by cell
     /// instead, exactly, up to 512 cells a region, whatever the budget.
@@ -197,7 +197,7 @@ pub struct FilterStats {
     /// Sum of the footprints' relative area excess (mean = sum / footprints).
     pub sum_mismatch: f64,
     /// Largest error bound of a filtered colour, relative to full contrast
-    /// (exact pipeline: [`crate::filter::exact`]).
+    /// (exact pipeline: [`crate::filter::region`]).
     pub max_error_bound: f64,
     /// Sum of the filtered colours' error bounds (mean = sum / footprints).
     pub sum_error_bound: f64,

@@ -13,7 +13,7 @@
 //!    area that sees it, through the projective map the four corners fix
 //!    ([`Weighting::Screen`], a box over the *pixel*), or by its texture
 //!    area ([`Weighting::Texture`], a box over the footprint, as the seed
-//!    paper does). See [`crate::filter::exact`]: the result is exact up to the
+//!    paper does). See [`crate::filter::region`]: the result is exact up to the
 //!    squares the [`LevelOfDetail`] takes at their mean, whose error is
 //!    bounded and reported in [`FilterStats`].
 //! 3. A footprint of zero area filters to the texel at its centre.
@@ -26,9 +26,11 @@
 use std::sync::Arc;
 
 use crate::colour::{Rgba, WeightedColour};
-use crate::filter::exact::{self, PixelFilter, Projection, RegionIntegral};
 use crate::filter::footprint::Footprint;
 use crate::filter::options::{FilterOptions, FilterStats, Weighting};
+use crate::filter::pixel_filter::PixelFilter;
+use crate::filter::projection::Projection;
+use crate::filter::region::{self, RegionIntegral};
 use crate::filter::wrap::uniform_colour_in;
 use crate::filter::wrap::{BoxIntegral, Wrap, integrate_wrapped};
 use crate::geometry::fragment::Fragment;
@@ -137,7 +139,7 @@ impl Texture {
 
     /// The integral of the texture over screen region `region` seen through
     /// `projection` (screen → texture), weighted by `filter` centred at
-    /// `centre` (pixel units), with its error bound: see [`crate::filter::exact`].
+    /// `centre` (pixel units), with its error bound: see [`crate::filter::region`].
     /// A renderer sums these over the visible parts of a pixel's filter
     /// support (one per surface) and divides by the total weight.
     pub fn integrate_region(
@@ -149,9 +151,15 @@ impl Texture {
         options: &FilterOptions,
         stats: &mut FilterStats,
     ) -> RegionIntegral {
-        exact::integrate_region(
-            &self.tree, self.wrap, projection, region, filter, centre, options, stats,
-        )
+        let query = region::RegionQuery {
+            tree: &self.tree,
+            wrap: self.wrap,
+            projection,
+            filter,
+            centre,
+            options,
+        };
+        region::integrate_region(&query, region, stats)
     }
 
     /// The colour of the texture over the whole of screen region `span`
@@ -171,7 +179,7 @@ impl Texture {
         pixel: &ConvexPolygon,
         options: &FilterOptions,
     ) -> Option<Rgba> {
-        exact::uniform_colour_over(&self.tree, self.wrap, projection, span, pixel, options)
+        region::uniform_colour_over(&self.tree, self.wrap, projection, span, pixel, options)
     }
 
     /// [`Texture::filter`] over a slice, on the calling thread; `out[i]` is
