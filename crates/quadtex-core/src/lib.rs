@@ -72,7 +72,7 @@ pub use vector::contour_leaf::{
     ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
 };
 pub use vector::gradient::{
-    Gradient, Interpolation, MAX_PERIODS, MAX_STOPS, Spread, Stop, srgb_decode, srgb_encode,
+    Circle, Gradient, Interpolation, MAX_PERIODS, MAX_STOPS, Spread, Stop, srgb_decode, srgb_encode,
 };
 pub use vector::gradient_leaf::{GradientLeaves, LeafPaint, MAX_CELL_LEVELS, MAX_GRADIENT_LEAVES};
 pub use vector::image_paint::ImagePaint;
