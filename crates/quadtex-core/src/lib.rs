@@ -43,12 +43,12 @@ mod test_rng;
 
 pub use colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
 pub use error::Error;
-pub use filter::footprint::{Footprint, Homography, MAX_DENSITY_PIECES, MAX_STRIPS, Strips};
+pub use filter::footprint::Footprint;
 pub use filter::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET, Weighting};
 pub use filter::pixel_filter::PixelFilter;
 pub use filter::projection::Projection;
 pub use filter::region::{MAX_SCREEN_COORDINATE, RegionIntegral};
-pub use filter::texture::{Texture, filter_footprint};
+pub use filter::texture::Texture;
 pub use filter::walk::{DEFAULT_SQUARE_BUDGET, FIXED_LEVEL_CAP};
 pub use filter::wrap::{BoxIntegral, Wrap, WrapMode, integrate_wrapped};
 pub use geometry::FillRule;

@@ -65,9 +65,9 @@ impl Projection {
     /// The map sending the screen square `[x, x+1] × [y, y+1]` (pixel
     /// `(x, y)` when `origin = [x, y]`) onto `footprint`, corner to corner in
     /// pixel order; `None` unless the footprint is a convex quad the square
-    /// maps onto one-to-one ([`Footprint::homography`]).
+    /// maps onto one-to-one.
     pub fn for_pixel(footprint: &Footprint, origin: [f64; 2]) -> Option<Projection> {
-        let m = footprint.homography()?.matrix();
+        let m = footprint.square_to_quad()?.matrix();
         // M·T with T translating (x, y) to (u, v) = (x − origin.x, y − origin.y).
         let t = [
             [1.0, 0.0, -origin[0]],
