@@ -159,7 +159,7 @@ impl FewCells {
 ///
 /// A mesh triangle's piece of a pixel over a photograph spans one to four
 /// texels: here it costs a descent and a texel read or four, where the
-/// uniform search ([`uniform_colour_in`]) and the walk's set-up (buffers,
+/// uniform search ([`crate::filter::wrap::uniform_colour_in`]) and the walk's set-up (buffers,
 /// tile frame, start node, first square) each cost several times that.
 pub(super) fn raster_box(tree: &QuadTree, wrap: Wrap, lo: [f64; 2], hi: [f64; 2]) -> RasterBox {
     let one_tile = |mode: WrapMode, lo: f64, hi: f64| match segments(mode, lo, hi) {
@@ -256,7 +256,7 @@ impl SmallBox {
     /// The region (texture space, counter-clockwise), whose box this is,
     /// exactly: each cell of the grid at the tree's depth it crosses
     /// clipped and weighted ([`scan_grid`]), as the walk's texel scan does
-    /// ([`Walk::scan_texels`]), but with no walk set up. `(Σ colour·k, Σ
+    /// ([`crate::filter::walk::Walk::scan_texels`]), but with no walk set up. `(Σ colour·k, Σ
     /// k, cells)`, or `None` (nothing computed) past [`SMALL_SCAN_CELLS`]
     /// cells: the walk's own scan of the tile would fail the same way.
     pub(super) fn scan(

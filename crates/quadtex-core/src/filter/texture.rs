@@ -14,7 +14,7 @@
 //!    ([`Weighting::Screen`], a box over the *pixel*), or by its texture
 //!    area ([`Weighting::Texture`], a box over the footprint, as the seed
 //!    paper does). See [`crate::filter::region`]: the result is exact up to the
-//!    squares the [`LevelOfDetail`] takes at their mean, whose error is
+//!    squares the [`crate::LevelOfDetail`] takes at their mean, whose error is
 //!    bounded and reported in [`FilterStats`].
 //! 3. A footprint of zero area filters to the texel at its centre.
 //!

@@ -180,7 +180,7 @@ pub(super) fn walk_region(
 }
 
 /// Most squares a region evaluates under a fixed level
-/// ([`LevelOfDetail::Fixed`]) before it stops refining and reports its
+/// ([`crate::LevelOfDetail::Fixed`]) before it stops refining and reports its
 /// bound: about 80 MiB of pending parts at most.
 pub const FIXED_LEVEL_CAP: u64 = 1 << 20;
 
