@@ -169,12 +169,6 @@ typedef struct QtxFilterOptions {
      */
     int weighting;
     /**
-     * Finite and >= 1, checked; kept for layout compatibility: the exact
-     * polygon integral has no strips and does not use it (its budget of
-     * squares per footprint is the library's default, 64).
-     */
-    double quality;
-    /**
      * When `level` is `QTX_LEVEL_AUTO`: the error bound each footprint aims
      * at, relative to the texture's contrast, finite and > 0 (default
      * 1/512, half an 8-bit step): squares are refined, largest error
@@ -270,7 +264,7 @@ const char *qtx_last_error(void);
 
 /**
  * The default filter options: repeat on both axes, transparent border,
- * screen weighting, quality 1, error bound 1/512, `QTX_LEVEL_AUTO`.
+ * screen weighting, error bound 1/512, `QTX_LEVEL_AUTO`.
  */
 struct QtxFilterOptions qtx_filter_options_default(void);
 
@@ -411,7 +405,7 @@ enum QtxStatus qtx_pack_tiles(const char *dir, double tolerance, struct QtxTextu
  * `QTX_STATUS_INVALID_ARGUMENT`: NULL `texture`, NULL `quads` or
  * `out_rgba` with `n > 0` (both may be NULL when `n` is 0), misaligned or
  * overlapping buffers, an option out of range (the message names the field,
- * `options.quality`), a NaN or infinite coordinate (the message names the
+ * `options.error_bound`), a NaN or infinite coordinate (the message names the
  * quad and the field, `quad 3: coordinate corner[2].z is not finite (NaN)`).
  *
  * # Safety

@@ -64,9 +64,9 @@ class Texture:
         wrap: Union[_WrapName, Sequence[_WrapName]] = "repeat",
         weighting: str = "screen",
         border: Sequence[float] = (0.0, 0.0, 0.0, 0.0),
-        quality: float = 1.0,
         error_bound: float = 0.001953125,  # 1/512
         level: Optional[int] = None,
+        budget: int = 64,
     ) -> npt.NDArray[np.float32]:
         """Mean colour over each footprint.
 
@@ -81,14 +81,15 @@ class Texture:
             texture space). They agree for parallelograms.
         border: linear premultiplied RGBA shown outside the unit square on
             an axis whose wrap is ``"border"``.
-        quality: ``>= 1``; the strips covering a footprint over-cover it by
-            at most ``1/(4·quality)`` of its area.
-        error_bound: ``> 0``; each strip is integrated down to the coarsest
-            level whose truncation error is at most this, relative to the
-            texture's contrast.
-        level: if given (0..30), every strip is integrated down to this
+        error_bound: ``> 0``; the bound each footprint's error aims at,
+            relative to the texture's contrast: squares are refined,
+            largest error first, until it is met or ``budget`` squares are
+            spent.
+        level: if given (0..30), every square is refined down to this
             level (clamped to the tree's depth) instead; ``error_bound`` is
-            then unused.
+            then unused (still checked).
+        budget: ``>= 1``; most squares refined per footprint under
+            ``error_bound``.
 
         Returns ``(N, 4)`` float32 linear premultiplied RGBA.
         """

@@ -159,10 +159,10 @@ int main(int argc, char **argv) {
     check(untouched[0][0] == -1.0f && untouched[1][3] == -1.0f, "nothing was written");
 
     QtxFilterOptions sloppy = qtx_filter_options_default();
-    sloppy.quality = 0.5;
+    sloppy.error_bound = 0.0;
     status = qtx_filter(texture, quads[0], 1, &sloppy, rgba[0]);
-    printf("quality 0.5: status %d, \"%s\"\n", (int)status, error_message());
-    check(status == QTX_STATUS_INVALID_ARGUMENT && strstr(error_message(), "quality") != NULL,
+    printf("error bound 0: status %d, \"%s\"\n", (int)status, error_message());
+    check(status == QTX_STATUS_INVALID_ARGUMENT && strstr(error_message(), "error bound") != NULL,
           "an option out of range is refused by name");
 
     QtxTexture *missing = NULL;

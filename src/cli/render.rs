@@ -6,6 +6,7 @@ use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 
 use quadtex_core::FilterOptions;
+use quadtex_core::baseline::StripOptions;
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
 use super::output::{FormatArg, Output};
@@ -204,7 +205,7 @@ fn positive(flag: &'static str) -> impl Fn(&str) -> std::result::Result<f64, Str
 impl RenderArgs {
     /// The render options these arguments ask for.
     fn options(&self) -> Result<RenderOptions> {
-        let quality = FilterOptions::default().with_quality(self.quality)?;
+        let quality = StripOptions::default().with_quality(self.quality)?;
         let mut quadtree = FilterOptions::default();
         if let Some(e) = self.error_bound {
             quadtree = quadtree.with_error_bound(e)?;

@@ -56,15 +56,13 @@ impl Texture {
     /// wrap: "repeat", "clamp", "mirror" or "border", or a pair (x, z).
     /// weighting: "screen" (box over the pixel) or "texture" (box over the
     /// footprint). border: RGBA outside the unit square on a "border" axis.
-    /// quality (>= 1): checked and kept for compatibility; the exact
-    /// polygon integral has no strips and does not use it.
     /// error_bound (> 0): the bound each footprint's error aims at (squares
     /// are refined, largest error first, until it is met or `budget`
     /// squares are spent); level (0..30) refines every square to that level
     /// instead. The GIL is released while filtering.
     #[pyo3(
-        signature = (quads, wrap = None, weighting = "screen", border = None, quality = 1.0, error_bound = 1.0 / 512.0, level = None, budget = 64),
-        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), quality=1.0, error_bound=0.001953125, level=None, budget=64)"
+        signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = 64),
+        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=64)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn filter<'py>(
@@ -74,7 +72,6 @@ impl Texture {
         wrap: Option<&Bound<'py, PyAny>>,
         weighting: &str,
         border: Option<&Bound<'py, PyAny>>,
-        quality: f64,
         error_bound: f64,
         level: Option<i64>,
         budget: u64,
@@ -88,7 +85,7 @@ impl Texture {
             None => [0.0; 4],
         };
         let wrap = parse_wrap(wrap, border)?;
-        let options = filter_options(weighting, quality, error_bound, level)?
+        let options = filter_options(weighting, error_bound, level)?
             .with_budget(budget)
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         let texture = quadtex_core::Texture::new(Arc::clone(&self.tree), wrap);
@@ -491,7 +488,6 @@ fn parse_wrap(wrap: Option<&Bound<'_, PyAny>>, border: [f64; 4]) -> PyResult<Wra
 
 fn filter_options(
     weighting: &str,
-    quality: f64,
     error_bound: f64,
     level: Option<i64>,
 ) -> PyResult<FilterOptions> {
@@ -507,8 +503,6 @@ fn filter_options(
     let bad = |e: quadtex_core::Error| PyValueError::new_err(e.to_string());
     let mut options = FilterOptions::default()
         .with_weighting(weighting)
-        .with_quality(quality)
-        .map_err(bad)?
         .with_error_bound(error_bound)
         .map_err(bad)?;
     if let Some(level) = level {

@@ -138,8 +138,8 @@ def test_projective_screen_weighting_favours_the_near_side():
     tex = quadtex.pack(np.repeat(ramp[:, None], 64, axis=1))
     # A trapezoid narrow at the bottom (near the viewer, dense on screen) and wide at the top.
     quad = np.array([[[0.45, 0.1], [0.55, 0.1], [0.9, 0.9], [0.1, 0.9]]])
-    screen = tex.filter(quad, weighting="screen", quality=4)[0, 0]
-    texture = tex.filter(quad, weighting="texture", quality=4)[0, 0]
+    screen = tex.filter(quad, weighting="screen")[0, 0]
+    texture = tex.filter(quad, weighting="texture")[0, 0]
     # Texture weighting leans to the wide side (high z, bright: about the
     # area centroid, z ≈ 0.6); the pixel sees mostly the narrow side (the
     # pixel centre maps to z ≈ 0.19).

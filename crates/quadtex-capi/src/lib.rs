@@ -96,10 +96,6 @@ pub struct QtxFilterOptions {
     pub border: [f32; 4],
     /// A `QtxWeighting` (default `QTX_WEIGHTING_SCREEN`).
     pub weighting: c_int,
-    /// Finite and >= 1, checked; kept for layout compatibility: the exact
-    /// polygon integral has no strips and does not use it (its budget of
-    /// squares per footprint is the library's default, 64).
-    pub quality: f64,
     /// When `level` is `QTX_LEVEL_AUTO`: the error bound each footprint aims
     /// at, relative to the texture's contrast, finite and > 0 (default
     /// 1/512, half an 8-bit step): squares are refined, largest error
@@ -169,7 +165,7 @@ pub extern "C" fn qtx_last_error() -> *const c_char {
 }
 
 /// The default filter options: repeat on both axes, transparent border,
-/// screen weighting, quality 1, error bound 1/512, `QTX_LEVEL_AUTO`.
+/// screen weighting, error bound 1/512, `QTX_LEVEL_AUTO`.
 #[unsafe(no_mangle)]
 #[allow(unsafe_code)]
 pub extern "C" fn qtx_filter_options_default() -> QtxFilterOptions {
@@ -396,7 +392,7 @@ pub unsafe extern "C" fn qtx_pack_tiles(
 /// `QTX_STATUS_INVALID_ARGUMENT`: NULL `texture`, NULL `quads` or
 /// `out_rgba` with `n > 0` (both may be NULL when `n` is 0), misaligned or
 /// overlapping buffers, an option out of range (the message names the field,
-/// `options.quality`), a NaN or infinite coordinate (the message names the
+/// `options.error_bound`), a NaN or infinite coordinate (the message names the
 /// quad and the field, `quad 3: coordinate corner[2].z is not finite (NaN)`).
 ///
 /// # Safety

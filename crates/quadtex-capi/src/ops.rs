@@ -180,7 +180,7 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
 }
 
 /// The defaults: repeat on both axes, transparent border, screen weighting,
-/// quality 1, error bound 1/512, automatic level.
+/// error bound 1/512, automatic level.
 pub(crate) fn default_options() -> QtxFilterOptions {
     let defaults = FilterOptions::default();
     QtxFilterOptions {
@@ -188,7 +188,6 @@ pub(crate) fn default_options() -> QtxFilterOptions {
         wrap_z: QtxWrapMode::Repeat as i32,
         border: [0.0; 4],
         weighting: QtxWeighting::Screen as i32,
-        quality: defaults.quality(),
         error_bound: match defaults.level_of_detail() {
             quadtex_core::LevelOfDetail::ErrorBound(e) => e,
             quadtex_core::LevelOfDetail::Fixed(_) => 1.0 / 512.0,
@@ -210,7 +209,7 @@ fn wrap_mode(value: i32, field: &str) -> Result<WrapMode, Failure> {
 }
 
 /// The C options checked and converted; every message names the field
-/// (`options.quality`).
+/// (`options.weighting`).
 pub(crate) fn convert_options(o: &QtxFilterOptions) -> Result<(Wrap, FilterOptions), Failure> {
     let x = wrap_mode(o.wrap_x, "wrap_x")?;
     let z = wrap_mode(o.wrap_z, "wrap_z")?;
@@ -239,8 +238,6 @@ pub(crate) fn convert_options(o: &QtxFilterOptions) -> Result<(Wrap, FilterOptio
     let option = |e: quadtex_core::Error| Failure::from(e).context("options");
     let mut options = FilterOptions::default()
         .with_weighting(weighting)
-        .with_quality(o.quality)
-        .map_err(option)?
         .with_error_bound(o.error_bound)
         .map_err(option)?;
     if o.level != QtxLevel::Auto as i32 {

@@ -189,7 +189,7 @@ fn bad_options_name_the_field() {
     let texture = checker();
     let quad = rect(0.0, 0.0, 1.0, 1.0);
     let d = qtx_filter_options_default();
-    let cases: [(QtxFilterOptions, &str); 9] = [
+    let cases: [(QtxFilterOptions, &str); 8] = [
         (QtxFilterOptions { wrap_x: 4, ..d }, "options.wrap_x"),
         (QtxFilterOptions { wrap_z: -1, ..d }, "options.wrap_z"),
         (
@@ -200,13 +200,12 @@ fn bad_options_name_the_field() {
             "options.border[2]",
         ),
         (QtxFilterOptions { weighting: 2, ..d }, "options.weighting"),
-        (QtxFilterOptions { quality: 0.5, ..d }, "quality"),
         (
             QtxFilterOptions {
-                quality: f64::NAN,
+                error_bound: f64::NAN,
                 ..d
             },
-            "quality",
+            "error bound",
         ),
         (
             QtxFilterOptions {
@@ -234,7 +233,6 @@ fn bad_options_name_the_field() {
         QtxFilterOptions {
             wrap_x: QtxWrapMode::Mirror as c_int,
             wrap_z: QtxWrapMode::Clamp as c_int,
-            quality: 8.0,
             level: QTX_MAX_DEPTH,
             ..d
         },

@@ -43,13 +43,13 @@ mod test_rng;
 
 pub use colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
 pub use error::Error;
-pub use filter::exact::{
-    DEFAULT_SQUARE_BUDGET, FIXED_LEVEL_CAP, MAX_SCREEN_COORDINATE, PixelFilter, Projection,
-    RegionIntegral,
-};
-pub use filter::footprint::{Footprint, Homography, MAX_DENSITY_PIECES, MAX_STRIPS, Strips};
+pub use filter::footprint::Footprint;
 pub use filter::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET, Weighting};
-pub use filter::texture::{Texture, filter_footprint};
+pub use filter::pixel_filter::PixelFilter;
+pub use filter::projection::Projection;
+pub use filter::region::{MAX_SCREEN_COORDINATE, RegionIntegral};
+pub use filter::texture::Texture;
+pub use filter::walk::{DEFAULT_SQUARE_BUDGET, FIXED_LEVEL_CAP};
 pub use filter::wrap::{BoxIntegral, Wrap, WrapMode, integrate_wrapped};
 pub use geometry::FillRule;
 pub use geometry::fragment::Fragment;
@@ -72,7 +72,7 @@ pub use vector::contour_leaf::{
     ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
 };
 pub use vector::gradient::{
-    Gradient, Interpolation, MAX_PERIODS, MAX_STOPS, Spread, Stop, srgb_decode, srgb_encode,
+    Circle, Gradient, Interpolation, MAX_PERIODS, MAX_STOPS, Spread, Stop, srgb_decode, srgb_encode,
 };
 pub use vector::gradient_leaf::{GradientLeaves, LeafPaint, MAX_CELL_LEVELS, MAX_GRADIENT_LEAVES};
 pub use vector::image_paint::ImagePaint;

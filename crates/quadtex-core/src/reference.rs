@@ -93,61 +93,57 @@ fn paper_in_tree_space(
     if k == 0 || !inner {
         return weigh_f(colour, fragment.overlap_area(0.0, 0.0, 1.0));
     }
-    let mut acc = WeightedColour::ZERO;
-    step(
+    let mut traversal = PaperTraversal {
         tree,
         fragment,
-        k,
-        QuadTree::ROOT,
-        0,
-        0.0,
-        0.0,
-        vx,
-        vz,
-        &mut acc,
-    );
-    acc
+        max_level: k,
+        acc: WeightedColour::ZERO,
+    };
+    traversal.step(QuadTree::ROOT, 0, 0.0, 0.0, vx, vz);
+    traversal.acc
 }
 
-#[allow(clippy::too_many_arguments)]
-fn step(
-    tree: &QuadTree,
-    f: &Fragment,
-    k: u8,
-    node: NodeRef,
-    level: u8,
-    lo_x: f64,
-    lo_z: f64,
-    vx: Variant,
-    vz: Variant,
-    acc: &mut WeightedColour,
-) {
-    let child_level = level + 1;
-    let half = unit_side(child_level);
-    let (mx, mz) = (lo_x + half, lo_z + half);
-    for c in 0..4 {
-        let (hx, hz) = (c & 1 == 1, c & 2 == 2);
-        let cvx = if hx {
-            f_high(f.x0(), f.x1(), mx, vx)
-        } else {
-            f_low(f.x0(), f.x1(), mx, vx)
-        };
-        let cvz = if hz {
-            f_high(f.z0(), f.z1(), mz, vz)
-        } else {
-            f_low(f.z0(), f.z1(), mz, vz)
-        };
-        let (clo_x, clo_z) = (if hx { mx } else { lo_x }, if hz { mz } else { lo_z });
-        let child = tree.child_ref(node, c);
-        let (inner, colour) = tree.node_info(child);
-        if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
-            *acc += weigh_f(colour, half * half);
-        } else if variant::is_disjoint(cvx) || variant::is_disjoint(cvz) {
-            continue;
-        } else if !inner || child_level == k {
-            *acc += weigh_f(colour, f.overlap_area(clo_x, clo_z, half));
-        } else {
-            step(tree, f, k, child, child_level, clo_x, clo_z, cvx, cvz, acc);
+/// What stays the same down the seed paper's traversal: the tree, the
+/// fragment (tree space), the level it stops at; and the sum so far.
+struct PaperTraversal<'a> {
+    tree: &'a QuadTree,
+    fragment: &'a Fragment,
+    max_level: u8,
+    acc: WeightedColour,
+}
+
+impl PaperTraversal<'_> {
+    /// The children of `node` (at `level`, lower-left corner `lo_x, lo_z`,
+    /// the fragment's variants `vx, vz` against it), added to the sum.
+    fn step(&mut self, node: NodeRef, level: u8, lo_x: f64, lo_z: f64, vx: Variant, vz: Variant) {
+        let (tree, f, k) = (self.tree, self.fragment, self.max_level);
+        let child_level = level + 1;
+        let half = unit_side(child_level);
+        let (mx, mz) = (lo_x + half, lo_z + half);
+        for c in 0..4 {
+            let (hx, hz) = (c & 1 == 1, c & 2 == 2);
+            let cvx = if hx {
+                f_high(f.x0(), f.x1(), mx, vx)
+            } else {
+                f_low(f.x0(), f.x1(), mx, vx)
+            };
+            let cvz = if hz {
+                f_high(f.z0(), f.z1(), mz, vz)
+            } else {
+                f_low(f.z0(), f.z1(), mz, vz)
+            };
+            let (clo_x, clo_z) = (if hx { mx } else { lo_x }, if hz { mz } else { lo_z });
+            let child = tree.child_ref(node, c);
+            let (inner, colour) = tree.node_info(child);
+            if cvx == variant::SQUARE_INSIDE && cvz == variant::SQUARE_INSIDE {
+                self.acc += weigh_f(colour, half * half);
+            } else if variant::is_disjoint(cvx) || variant::is_disjoint(cvz) {
+                continue;
+            } else if !inner || child_level == k {
+                self.acc += weigh_f(colour, f.overlap_area(clo_x, clo_z, half));
+            } else {
+                self.step(child, child_level, clo_x, clo_z, cvx, cvz);
+            }
         }
     }
 }

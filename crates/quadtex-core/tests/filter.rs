@@ -2,15 +2,15 @@
 //! The filtering API against slow references: rectangles against the
 //! fragment integral, parallelograms under both weightings, projective
 //! footprints against dense sampling of the pixel square mapped through
-//! the homography.
+//! the projective map ([`quadtex_core::Projection`]).
 
 mod common;
 
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
 use common::{PALETTE, blocky_grid};
 use quadtex_core::{
-    BuildOptions, FilterOptions, Footprint, QuadTree, Rgba, TexelGrid, Texture, Weighting, Wrap,
-    WrapMode,
+    BuildOptions, FilterOptions, Footprint, Projection, QuadTree, Rgba, TexelGrid, Texture,
+    Weighting, Wrap, WrapMode,
 };
 
 /// A random blocky texture of up to 16×16 cells (an incomplete tree).
@@ -142,7 +142,7 @@ fn a_segment_footprint_filters_to_its_centre_under_both_weightings() {
     let texture = Texture::new(tree, Wrap::REPEAT);
     let fp =
         Footprint::from_differentials([0.434764, 0.0], [-0.25, -0.25], [-0.25, -0.25]).unwrap();
-    assert!(fp.homography().is_none());
+    assert!(Projection::for_pixel(&fp, [0.0, 0.0]).is_none());
     let exact = FilterOptions::default().with_level(30);
     let centre = texture.nearest(fp.centre());
     for weighting in [Weighting::Screen, Weighting::Texture] {
@@ -154,10 +154,10 @@ fn a_segment_footprint_filters_to_its_centre_under_both_weightings() {
 }
 
 /// The colour of the pixel square mapped through the footprint's
-/// homography, by midpoint sampling on an `n × n` grid (the finest cell
+/// projective map, by midpoint sampling on an `n × n` grid (the finest cell
 /// under each sample, wrap included).
 fn sampled(texture: &Texture, fp: &Footprint, n: u32) -> Rgba {
-    let h = fp.homography().expect("a projective footprint");
+    let p = Projection::for_pixel(fp, [0.0, 0.0]).expect("a projective footprint");
     let mut acc = Rgba::TRANSPARENT;
     for j in 0..n {
         for i in 0..n {
@@ -165,7 +165,7 @@ fn sampled(texture: &Texture, fp: &Footprint, n: u32) -> Rgba {
                 (f64::from(i) + 0.5) / f64::from(n),
                 (f64::from(j) + 0.5) / f64::from(n),
             );
-            acc += texture.nearest(h.apply(u, v));
+            acc += texture.nearest(p.texture_point([u, v]).expect("in front of the camera"));
         }
     }
     acc * (1.0 / (n * n) as f32)
@@ -186,11 +186,10 @@ fn grazing_quad(centre: [f64; 2], near: f64, ratio: f64, depth: f64, skew: f64) 
 }
 
 /// Projective footprints under `Weighting::Screen` match dense sampling of
-/// the pixel square within the sampling error plus the strips' stated
-/// approximation (their reported area excess, which the exact polygon
-/// integral of the exact-pixel work removes; density held within 1/256 of
-/// constant per piece at quality 64). `Weighting::Texture` is measurably farther on a texture split
-/// across the direction of foreshortening.
+/// the pixel square within the sampling error (the exact polygon integral
+/// has no strips, so no area excess: `max_mismatch` stays 0). `Weighting::Texture`
+/// is measurably farther on a texture split across the direction of
+/// foreshortening.
 #[test]
 fn projective_footprints_match_dense_sampling_of_the_pixel() {
     arbtest::arbtest(|u| {
@@ -202,20 +201,17 @@ fn projective_footprints_match_dense_sampling_of_the_pixel() {
             0.1 + f64::from(u.int_in_range(0..=100u32)?) / 50.0,
             coord(u)? / 4.0,
         );
-        if fp.homography().is_none() {
+        if Projection::for_pixel(&fp, [0.0, 0.0]).is_none() {
             return Ok(());
         }
-        let options = FilterOptions::default()
-            .with_quality(64.0)
-            .unwrap()
-            .with_level(30);
+        let options = FilterOptions::default().with_level(30);
         let mut stats = quadtex_core::FilterStats::default();
         let screen = texture.filter_counted(&fp, &options, &mut stats);
         let (coarse, fine) = (sampled(&texture, &fp, 128), sampled(&texture, &fp, 256));
         // The 256² estimate's own error is well below the gap to the 128² one.
         let sampling = max_diff(coarse, fine) as f64;
-        // The strips' excess area (reported) may carry up to twice its share
-        // of screen weight; the density tolerance at quality 64 is 1/256.
+        // A strip pipeline's excess area (reported) could carry up to twice
+        // its share of screen weight; the exact filter reports none.
         let bound = 2.0 * sampling + 2.0 * stats.max_mismatch + 0.01;
         let err = max_diff(screen, fine) as f64;
         assert!(
@@ -243,7 +239,7 @@ fn projective_footprints_match_dense_sampling_of_the_pixel() {
     let texture = Texture::new(tree, Wrap::CLAMP);
     // Near end entirely on the white half, far end spanning both halves.
     let fp = Footprint::from_corners([[0.3, 0.1], [0.45, 0.1], [0.95, 0.9], [0.05, 0.9]]).unwrap();
-    let options = FilterOptions::default().with_quality(64.0).unwrap();
+    let options = FilterOptions::default();
     let screen = texture.filter(&fp, &options).r;
     let flat = texture
         .filter(&fp, &options.with_weighting(Weighting::Texture))

@@ -3,11 +3,11 @@
 //! sampler (winding numbers over the unclipped polygons, `VectorArt::colour_at`).
 
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
+use quadtex_core::{Circle, Gradient, Interpolation, Spread, Stop, srgb_encode};
 use quadtex_core::{
     ClipId, ConvexPolygon, FillRule, FilterOptions, Footprint, Fragment, Paint, QuadTree, Rgba,
     Texture, VectorArt, VectorOptions, Wrap,
 };
-use quadtex_core::{Gradient, Interpolation, Spread, Stop, srgb_encode};
 
 const UNIT: f64 = 1.0;
 
@@ -436,10 +436,14 @@ fn random_gradient(u: &mut Unstructured<'_>, radial: bool) -> ArbResult<Gradient
         let (cx, cz) = (p(u)?, p(u)?);
         Gradient::radial(
             map,
-            [cx + 0.05, cz],
-            0.0,
-            [cx, cz],
-            0.2 + p(u)?,
+            Circle {
+                centre: [cx + 0.05, cz],
+                radius: 0.0,
+            },
+            Circle {
+                centre: [cx, cz],
+                radius: 0.2 + p(u)?,
+            },
             stops,
             spread,
             Interpolation::Srgb,
@@ -471,10 +475,14 @@ fn radial_gradient_integrals_are_within_the_stated_bound() {
     };
     let g = Gradient::radial(
         [1.0, 0.2, -0.3, 1.2, 0.05, -0.1],
-        [0.45, 0.5],
-        0.02,
-        [0.5, 0.5],
-        0.3,
+        Circle {
+            centre: [0.45, 0.5],
+            radius: 0.02,
+        },
+        Circle {
+            centre: [0.5, 0.5],
+            radius: 0.3,
+        },
         vec![
             stop(0.0, [1.0, 0.5, 0.0]),
             stop(0.6, [0.0, 0.2, 1.0]),

@@ -1,6 +1,7 @@
 //! The filter configurations a comparison runs, in report order.
 
 use quadtex_core::FilterOptions;
+use quadtex_core::baseline::StripOptions;
 use quadtex_render::{Filter, PixelFilter};
 
 /// A filter configuration taking part in a comparison.
@@ -59,7 +60,7 @@ pub fn default_contenders() -> Vec<Contender> {
             },
             Box,
         ),
-        Contender::new("SAT", Filter::Sat(FilterOptions::default()), Box),
+        Contender::new("SAT", Filter::Sat(StripOptions::default()), Box),
         Contender::new("supersample 4", Filter::Supersample(2), Box),
         Contender::new("supersample 16", Filter::Supersample(4), Box),
         Contender::new("supersample 64", Filter::Supersample(8), Box),

@@ -51,9 +51,9 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 use quadtex_core::BlendMode;
 use quadtex_core::ImagePaint;
+use quadtex_core::{Circle, Gradient, Interpolation, Spread, Stop};
 use quadtex_core::{ClipId, GroupId, MAX_VECTOR_COORDINATE, MAX_VECTOR_POINTS, MaskId, MaskKind};
 use quadtex_core::{FillRule, Paint, QuadTree, Rgba, VectorArt, VectorOptions, VectorReport};
-use quadtex_core::{Gradient, Interpolation, Spread, Stop};
 use usvg::tiny_skia_path::{self, PathSegment};
 
 use crate::Error;
@@ -717,10 +717,14 @@ impl Walker<'_> {
             }
             GradientGeometry::Radial(g) => Gradient::radial(
                 map,
-                [f64::from(g.fx()), f64::from(g.fy())],
-                f64::from(g.fr().get()),
-                [f64::from(g.cx()), f64::from(g.cy())],
-                f64::from(g.r().get()),
+                Circle {
+                    centre: [f64::from(g.fx()), f64::from(g.fy())],
+                    radius: f64::from(g.fr().get()),
+                },
+                Circle {
+                    centre: [f64::from(g.cx()), f64::from(g.cy())],
+                    radius: f64::from(g.r().get()),
+                },
                 stops,
                 spread,
                 interpolation,

@@ -2,6 +2,7 @@
 //! output size.
 
 use quadtex_core::FilterOptions;
+use quadtex_core::baseline::StripOptions;
 
 /// How pixels sample textures.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,10 +35,10 @@ pub enum Filter {
         /// Largest major/minor axis ratio.
         max_anisotropy: f64,
     },
-    /// Baseline: the same strips as `Quadtree` (with these options' quality
-    /// and weighting), integrated exactly by a summed-area table (f64) of the
-    /// rasterised tree, no uniform shortcut.
-    Sat(FilterOptions),
+    /// Baseline: the strip pipeline ([`quadtex_core::baseline::filter_by_strips`],
+    /// with these options' quality and weighting), integrated exactly by a
+    /// summed-area table (f64) of the rasterised tree, no uniform shortcut.
+    Sat(StripOptions),
 }
 
 impl Default for Filter {

@@ -1,7 +1,7 @@
 //! Shading one ray: what it hits, the texture's filtered colour there (by
 //! the chosen [`Filter`]), lighting and shadows, or the sky.
 
-use quadtex_core::filter_footprint;
+use quadtex_core::baseline::filter_by_strips;
 use quadtex_core::{Rgba, Texture};
 
 use crate::caster::Seen;
@@ -121,7 +121,7 @@ pub(crate) fn texture_colour(
             };
             // The table is exact at any size: no level of detail.
             let options = options.with_level(u8::MAX);
-            filter_footprint(&b.sat, None, surface.wrap, &fp, &options, &mut stats.filter)
+            filter_by_strips(&b.sat, None, surface.wrap, &fp, &options, &mut stats.filter)
                 .unwrap_or_else(|| texture.nearest_counted(centre, &mut stats.filter.traversal))
         }
         Filter::Quadtree(options) => {

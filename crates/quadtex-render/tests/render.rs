@@ -193,7 +193,7 @@ fn quadtree_beats_trilinear_and_ewa_at_a_grazing_angle() {
     let ewa = error(Filter::Ewa {
         max_anisotropy: 8.0,
     });
-    let sat = error(Filter::Sat(quadtex_core::FilterOptions::default()));
+    let sat = error(Filter::Sat(quadtex_core::baseline::StripOptions::default()));
     assert!(
         quadtree < trilinear && quadtree < ewa,
         "quadtree {quadtree}, trilinear {trilinear}, EWA {ewa}"
@@ -241,7 +241,7 @@ uv_scale = [0.5, 0.5]
     );
 
     let sat = RenderOptions {
-        filter: Filter::Sat(quadtex_core::FilterOptions::default()),
+        filter: Filter::Sat(quadtex_core::baseline::StripOptions::default()),
         ..RenderOptions::default()
     };
     let (_, s) = render(&scene, &sat, &|_, _| {}).unwrap();

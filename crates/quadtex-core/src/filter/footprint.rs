@@ -1,25 +1,10 @@
-//! A pixel's footprint in texture space, the projective map it defines, and
-//! its cover by axis-aligned strips (fragments).
-//!
-//! **Strips.** The quadrilateral is cut into `n` strips of equal height
-//! across its longer bounding-box axis; each strip becomes the rectangle
-//! spanning the quadrilateral's extent inside that strip. The rectangles
-//! cover the quadrilateral, so the *area mismatch* (union of rectangles minus
-//! the quad, over the quad) is never negative; it is computed exactly for
-//! every footprint and reported. `n` starts from the estimate
-//! `(bbox − quad)/(quad·target)` and doubles until the measured mismatch
-//! meets the target `1/(4·quality)`, at most [`MAX_STRIPS`]: an axis-aligned
-//! footprint is one exact fragment, an anisotropic diagonal one gets more.
+//! A pixel's footprint in texture space and the map from the pixel square
+//! onto it. (Its cover by axis-aligned strips is a baseline:
+//! [`crate::baseline::StripCover`].)
 
 use crate::Error;
+use crate::baseline::MAX_DENSITY_PIECES;
 use crate::geometry::fragment::Fragment;
-
-/// Most strips a footprint is cut into.
-pub const MAX_STRIPS: usize = 32;
-
-/// Most pieces a strip is cut into so the screen density is nearly
-/// constant on each ([`Homography::density_pieces`]).
-pub const MAX_DENSITY_PIECES: usize = 16;
 
 /// The texture-space image of one pixel square (or of any screen square):
 /// its four corners, in pixel order: the images of pixel corners
@@ -31,7 +16,7 @@ pub const MAX_DENSITY_PIECES: usize = 16;
 /// On a planar surface seen through a pinhole camera, the map from the pixel
 /// square to texture space is a projective map (a homography), and four
 /// point pairs fix it: the corners alone determine how screen area is
-/// distributed over the footprint ([`Footprint::homography`]).
+/// distributed over the footprint ([`crate::Projection::for_pixel`]).
 ///
 /// Invariant: every coordinate is finite. Degenerate footprints (zero area:
 /// a point, a segment) are allowed and filter to the texture at their centre.
@@ -147,23 +132,21 @@ impl Footprint {
     /// The projective map from the pixel square `[0,1]²` onto this
     /// footprint, if the corners define one that is one-to-one on the square
     /// (a convex quad, corners in order; parallelograms give an affine map).
-    pub fn homography(&self) -> Option<Homography> {
-        Homography::square_to_quad(&self.corners)
-    }
-
-    /// The strips covering the footprint (module documentation);
-    /// `quality ≥ 1` tightens the area-mismatch target `1/(4·quality)`.
-    pub fn strips(&self, quality: f64) -> Strips {
-        let (lo, hi) = self.bounds();
-        strips_of_quad(&self.corners, lo, hi, quality)
+    /// Public as [`crate::Projection::for_pixel`].
+    pub(crate) fn square_to_quad(&self) -> Option<SquareToQuad> {
+        SquareToQuad::new(&self.corners)
     }
 }
 
 /// The projective map from the pixel square to a footprint:
 /// `t(u, v) = (a·u + b·v + c, d·u + e·v + f) / (g·u + h·v + 1)` for
 /// `(u, v) ∈ [0,1]²` (Heckbert's square-to-quad construction).
+///
+/// Crate-private: the one public projective map is [`crate::Projection`]
+/// (built from this one by [`crate::Projection::for_pixel`]); the strip
+/// baseline also weighs its strips by this map's screen density.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Homography {
+pub(crate) struct SquareToQuad {
     /// Row-major `[[a, b, c], [d, e, f], [g, h, 1]]`.
     m: [[f64; 3]; 3],
     /// The third row of the inverse's adjugate: `q(t) = r·(x, z, 1)` is
@@ -174,11 +157,11 @@ pub struct Homography {
     q_centre: f64,
 }
 
-impl Homography {
+impl SquareToQuad {
     /// The map sending `(0,0), (1,0), (1,1), (0,1)` to `p[0..4]`, if the
     /// denominator `w` keeps one sign over the square (the map is then
     /// continuous and one-to-one there).
-    pub fn square_to_quad(p: &[[f64; 2]; 4]) -> Option<Homography> {
+    pub(crate) fn new(p: &[[f64; 2]; 4]) -> Option<SquareToQuad> {
         let [p0, p1, p2, p3] = *p;
         // A quad's area is half the cross product of its diagonals: below
         // 1e-12 of the longer one's square it is a segment or a point to
@@ -222,7 +205,7 @@ impl Homography {
         let det = a * (e - f * h) - b * (d - f * g) + c * (d * h - e * g);
         let finite = m.iter().flatten().chain(&inverse_w).all(|v| v.is_finite());
         let q_centre = det / (1.0 + 0.5 * g + 0.5 * h);
-        (finite && det != 0.0 && det.is_finite() && q_centre.is_finite()).then_some(Homography {
+        (finite && det != 0.0 && det.is_finite() && q_centre.is_finite()).then_some(SquareToQuad {
             m,
             inverse_w,
             q_centre,
@@ -230,7 +213,8 @@ impl Homography {
     }
 
     /// The texture point of pixel-square point `(u, v)`.
-    pub fn apply(&self, u: f64, v: f64) -> [f64; 2] {
+    #[cfg(test)]
+    pub(crate) fn apply(&self, u: f64, v: f64) -> [f64; 2] {
         let m = &self.m;
         let w = m[2][0] * u + m[2][1] * v + 1.0;
         [
@@ -244,7 +228,7 @@ impl Homography {
     /// map, which for a projective map is `∝ 1/q(t)³` with `q` affine in `t`.
     /// A box filter over the pixel weighs texture area by it. Constant for
     /// an affine map.
-    pub fn screen_density(&self, t: [f64; 2]) -> f64 {
+    pub(crate) fn screen_density(&self, t: [f64; 2]) -> f64 {
         let r = &self.inverse_w;
         let q = (r[0] * t[0] + r[1] * t[1] + r[2]) / self.q_centre;
         (q * q * q).abs().recip()
@@ -254,7 +238,7 @@ impl Homography {
     /// screen density varies by at most a factor `1 + tolerance` (to first
     /// order) within each piece; at most [`MAX_DENSITY_PIECES`] in all.
     #[inline]
-    pub fn density_pieces(&self, rect: &Fragment, tolerance: f64) -> (usize, usize) {
+    pub(crate) fn density_pieces(&self, rect: &Fragment, tolerance: f64) -> (usize, usize) {
         let r = &self.inverse_w;
         // q is affine: over the rectangle it ranges ±(|r₀|·w + |r₁|·h)/2
         // around its value at the centre (which keeps one sign over Q).
@@ -296,119 +280,14 @@ impl Homography {
 
     /// True when the map is affine (the footprint is a parallelogram): the
     /// screen density is then the same everywhere.
-    pub fn is_affine(&self) -> bool {
+    pub(crate) fn is_affine(&self) -> bool {
         self.m[2][0] == 0.0 && self.m[2][1] == 0.0
     }
-}
-
-/// A footprint's cover by axis-aligned rectangles.
-#[derive(Debug, Clone, Default)]
-pub struct Strips {
-    /// The rectangles (texture space, may span tiles).
-    pub rects: Vec<Fragment>,
-    /// Σ rectangle areas / quad area − 1 (≥ 0; 0 for a degenerate footprint).
-    pub mismatch: f64,
 }
 
 /// Area of a polygon by the shoelace formula (absolute value).
 pub(crate) fn polygon_area(p: &[[f64; 2]]) -> f64 {
     crate::geometry::polygon::signed_area(p).abs()
-}
-
-/// Extent along `axis` (0 = x, 1 = z) of the convex polygon within the slab
-/// `lo ≤ other-axis ≤ hi`.
-fn extent_in_slab(p: &[[f64; 2]], axis: usize, lo: f64, hi: f64) -> Option<(f64, f64)> {
-    let other = 1 - axis;
-    let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut take = |v: f64| {
-        min = min.min(v);
-        max = max.max(v);
-    };
-    for i in 0..p.len() {
-        let a = p[i];
-        let b = p[(i + 1) % p.len()];
-        if a[other] >= lo && a[other] <= hi {
-            take(a[axis]);
-        }
-        for cut in [lo, hi] {
-            if (a[other] - cut) * (b[other] - cut) < 0.0 {
-                let t = (cut - a[other]) / (b[other] - a[other]);
-                take(a[axis] + t * (b[axis] - a[axis]));
-            }
-        }
-    }
-    (min <= max).then_some((min, max))
-}
-
-fn strips_of_quad(quad: &[[f64; 2]; 4], lo: [f64; 2], hi: [f64; 2], quality: f64) -> Strips {
-    let size = [hi[0] - lo[0], hi[1] - lo[1]];
-    let bbox = size[0] * size[1];
-    let area = polygon_area(quad);
-    // NaN-safe: anything but a finite positive area is degenerate.
-    if bbox.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
-        || area.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
-        || !bbox.is_finite()
-    {
-        // Degenerate (a line or a point): its bounding box is the best we have.
-        return Strips {
-            rects: Fragment::new(lo[0], lo[1], hi[0], hi[1])
-                .into_iter()
-                .collect(),
-            mismatch: 0.0,
-        };
-    }
-    let excess = (bbox - area) / area;
-    let target = 0.25 / quality.max(1.0);
-    // Strips are stacked along the longer axis, each spanning the other.
-    let along = if size[1] >= size[0] { 1 } else { 0 };
-    // The excess falls roughly as 1/n; start from that estimate and double
-    // until the measured mismatch meets the target.
-    let mut n = if excess <= target {
-        1
-    } else {
-        ((excess / target).ceil() as usize).clamp(1, MAX_STRIPS)
-    };
-    loop {
-        let (rects, total) = cut_strips(quad, lo, hi, size, along, n);
-        let mismatch = (total / area - 1.0).max(0.0);
-        if mismatch <= target || n >= MAX_STRIPS {
-            return Strips { rects, mismatch };
-        }
-        n = (2 * n).min(MAX_STRIPS);
-    }
-}
-
-fn cut_strips(
-    quad: &[[f64; 2]; 4],
-    lo: [f64; 2],
-    hi: [f64; 2],
-    size: [f64; 2],
-    along: usize,
-    n: usize,
-) -> (Vec<Fragment>, f64) {
-    let across = 1 - along;
-    let mut rects = Vec::with_capacity(n);
-    let mut total = 0.0;
-    for i in 0..n {
-        let a = lo[along] + size[along] * i as f64 / n as f64;
-        let b = if i + 1 == n {
-            hi[along]
-        } else {
-            lo[along] + size[along] * (i + 1) as f64 / n as f64
-        };
-        if let Some((c0, c1)) = extent_in_slab(quad, across, a, b) {
-            let r = if along == 1 {
-                Fragment::new(c0, a, c1, b)
-            } else {
-                Fragment::new(a, c0, b, c1)
-            };
-            if let Ok(r) = r {
-                total += r.area();
-                rects.push(r);
-            }
-        }
-    }
-    (rects, total)
 }
 
 #[cfg(test)]
@@ -418,29 +297,6 @@ mod tests {
 
     fn quad(c: [[f64; 2]; 4]) -> Footprint {
         Footprint::from_corners(c).unwrap()
-    }
-
-    #[test]
-    fn axis_aligned_quad_is_one_exact_fragment() {
-        let f = quad([[0.1, 0.2], [0.4, 0.2], [0.4, 0.3], [0.1, 0.3]]).strips(1.0);
-        assert_eq!(f.rects.len(), 1);
-        assert!(f.mismatch < 1e-12);
-        assert_eq!(f.rects[0], Fragment::new(0.1, 0.2, 0.4, 0.3).unwrap());
-    }
-
-    #[test]
-    fn diagonal_quad_mismatch_is_reported_and_bounded() {
-        let q = [[0.0, 0.0], [0.02, 0.0], [1.0, 0.98], [0.98, 0.98]];
-        let f = quad(q).strips(1.0);
-        assert!(f.rects.len() > 4, "{}", f.rects.len());
-        let total: f64 = f.rects.iter().map(Fragment::area).sum();
-        let area = polygon_area(&q);
-        assert!((f.mismatch - (total / area - 1.0)).abs() < 1e-12);
-        let square = quad([[0.5, 0.0], [1.0, 0.5], [0.5, 1.0], [0.0, 0.5]]);
-        let s = square.strips(1.0);
-        assert!(s.mismatch <= 0.25 + 1e-9, "{}", s.mismatch);
-        let s4 = square.strips(4.0);
-        assert!(s4.mismatch < s.mismatch && s4.rects.len() > s.rects.len());
     }
 
     #[test]
@@ -454,10 +310,10 @@ mod tests {
     }
 
     #[test]
-    fn homography_maps_corners_and_centre() {
+    fn square_to_quad_maps_corners_and_centre() {
         let c = [[0.1, 0.1], [0.9, 0.2], [0.6, 0.7], [0.2, 0.5]];
         let fp = quad(c);
-        let h = fp.homography().unwrap();
+        let h = fp.square_to_quad().unwrap();
         for (p, (u, v)) in c
             .iter()
             .zip([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])
@@ -473,7 +329,7 @@ mod tests {
     #[test]
     fn screen_density_is_the_inverse_jacobian() {
         let fp = quad([[0.1, 0.1], [0.9, 0.2], [0.6, 0.7], [0.2, 0.5]]);
-        let h = fp.homography().unwrap();
+        let h = fp.square_to_quad().unwrap();
         // Numerical Jacobian of the forward map at a few points: the density
         // ratio between two points must be the inverse ratio of |J|.
         let jac = |u: f64, v: f64| {
@@ -495,13 +351,13 @@ mod tests {
     }
 
     #[test]
-    fn parallelograms_are_affine_and_folded_quads_have_no_homography() {
+    fn parallelograms_are_affine_and_folded_quads_have_no_square_to_quad() {
         let p = Footprint::from_differentials([0.5, 0.5], [0.25, 0.0], [0.0, 0.125]).unwrap();
-        let h = p.homography().unwrap();
+        let h = p.square_to_quad().unwrap();
         assert!(h.is_affine());
         assert_eq!(p.centre(), [0.5, 0.5]);
         // Corners out of order (a bow tie) do not bound a projective image.
         let bow = quad([[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]);
-        assert!(bow.homography().is_none());
+        assert!(bow.square_to_quad().is_none());
     }
 }

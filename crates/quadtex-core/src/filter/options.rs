@@ -24,11 +24,11 @@ pub enum Weighting {
 /// Where the traversal may take a non-terminal square at its mean.
 ///
 /// For [`crate::Texture::filter`] and [`crate::Texture::integrate_region`]
-/// ([`crate::filter::exact`]): `ErrorBound(ε)` aims the bound on each pixel's error
+/// ([`crate::filter::region`]): `ErrorBound(ε)` aims the bound on each pixel's error
 /// (relative to full contrast) at `ε`; `Fixed(k)` descends every square to
 /// level `k` or to a terminal square (the tree's depth: exact).
 ///
-/// For the strip pipeline ([`crate::filter::texture::filter_footprint`]): a fragment of sides
+/// For the strip baseline ([`crate::baseline::filter_by_strips`]): a fragment of sides
 /// `w × h` may stop at level `k` only where the squares it treats as whole
 /// are partially covered; their area is at most `2(w+h)·2^-k`, so the mean
 /// colour is off by at most `2(w+h)·2^-k/(w·h)` of the texture's contrast.
@@ -68,14 +68,13 @@ impl LevelOfDetail {
     }
 }
 
-/// Options of [`crate::Texture::filter`]: weighting, strip quality, level of detail.
+/// Options of [`crate::Texture::filter`]: weighting, level of detail, budget.
 ///
-/// Invariants (checked by the `with_*` constructors): quality is finite and
-/// `≥ 1`; an error bound is finite and `> 0`.
+/// Invariants (checked by the `with_*` constructors): an error bound is
+/// finite and `> 0`, a budget at least 1.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FilterOptions {
     weighting: Weighting,
-    quality: f64,
     lod: LevelOfDetail,
     budget: u64,
 }
@@ -88,11 +87,10 @@ impl Default for FilterOptions {
 }
 
 impl FilterOptions {
-    /// Screen weighting, quality 1 (strips over-cover by at most 25 %),
-    /// error bound 1/512.
+    /// Screen weighting, error bound 1/512, a budget of
+    /// [`SQUARE_BUDGET`] squares.
     pub const DEFAULT: FilterOptions = FilterOptions {
         weighting: Weighting::Screen,
-        quality: 1.0,
         lod: LevelOfDetail::ErrorBound(1.0 / 512.0),
         budget: SQUARE_BUDGET,
     };
@@ -105,19 +103,6 @@ impl FilterOptions {
     /// With this weighting.
     pub fn with_weighting(self, weighting: Weighting) -> FilterOptions {
         FilterOptions { weighting, ..self }
-    }
-
-    /// With strip quality `quality` (≥ 1; the strips' area-excess target is
-    /// `1/(4·quality)`).
-    pub fn with_quality(self, quality: f64) -> Result<FilterOptions, Error> {
-        if !(quality.is_finite() && quality >= 1.0) {
-            return Err(Error::BadOption {
-                name: "quality",
-                value: quality,
-                expected: "a finite number >= 1",
-            });
-        }
-        Ok(FilterOptions { quality, ..self })
     }
 
     /// With the level of detail chosen by the error bound `epsilon`
@@ -146,7 +131,7 @@ impl FilterOptions {
     }
 
     /// With at most `budget` squares and tile blocks evaluated per region
-    /// under an error bound (`≥ 1`; see [`crate::filter::exact`]): past it the
+    /// under an error bound (`≥ 1`; see [`crate::filter::region`]): past it the
     /// largest remaining errors stay and the bound reached is reported.
     /// Shallow repeated textures (depth ≤ 4) are scanned cell by cell
     /// instead, exactly, up to 512 cells a region, whatever the budget.
@@ -171,11 +156,6 @@ impl FilterOptions {
         self.weighting
     }
 
-    /// The strip quality.
-    pub fn quality(&self) -> f64 {
-        self.quality
-    }
-
     /// The level-of-detail rule.
     pub fn level_of_detail(&self) -> LevelOfDetail {
         self.lod
@@ -191,13 +171,13 @@ pub struct FilterStats {
     pub fragments: u64,
     /// Tree queries (after wrap splitting) and nodes they visited.
     pub traversal: TraversalStats,
-    /// Largest relative area excess of a footprint's strips (strip
-    /// pipeline only).
+    /// Largest relative area excess of a footprint's strips (the strip
+    /// baseline only, [`crate::baseline::filter_by_strips`]; 0 otherwise).
     pub max_mismatch: f64,
     /// Sum of the footprints' relative area excess (mean = sum / footprints).
     pub sum_mismatch: f64,
     /// Largest error bound of a filtered colour, relative to full contrast
-    /// (exact pipeline: [`crate::filter::exact`]).
+    /// (exact pipeline: [`crate::filter::region`]).
     pub max_error_bound: f64,
     /// Sum of the filtered colours' error bounds (mean = sum / footprints).
     pub sum_error_bound: f64,
@@ -240,12 +220,10 @@ mod tests {
     #[test]
     fn options_refuse_bad_values() {
         let o = FilterOptions::new();
-        assert!(o.with_quality(0.5).is_err());
-        assert!(o.with_quality(f64::NAN).is_err());
         assert!(o.with_error_bound(0.0).is_err());
         assert!(o.with_error_bound(f64::INFINITY).is_err());
-        let e = o.with_quality(-1.0).unwrap_err().to_string();
-        assert!(e.contains("quality"), "{e}");
-        assert_eq!(o.with_quality(4.0).unwrap().quality(), 4.0);
+        let e = o.with_error_bound(-1.0).unwrap_err().to_string();
+        assert!(e.contains("error bound"), "{e}");
+        assert!(o.with_budget(0).is_err());
     }
 }

@@ -13,24 +13,23 @@
 //!    area that sees it, through the projective map the four corners fix
 //!    ([`Weighting::Screen`], a box over the *pixel*), or by its texture
 //!    area ([`Weighting::Texture`], a box over the footprint, as the seed
-//!    paper does). See [`crate::filter::exact`]: the result is exact up to the
-//!    squares the [`LevelOfDetail`] takes at their mean, whose error is
+//!    paper does). See [`crate::filter::region`]: the result is exact up to the
+//!    squares the [`crate::LevelOfDetail`] takes at their mean, whose error is
 //!    bounded and reported in [`FilterStats`].
 //! 3. A footprint of zero area filters to the texel at its centre.
 //!
-//! [`filter_footprint`] is the older rectangle pipeline (axis-aligned strips
-//! over-covering the footprint, each weighted by the screen density at its
-//! centre), kept for baselines that can only integrate rectangles (the
-//! summed-area table).
+//! The older rectangle pipeline (axis-aligned strips over-covering the
+//! footprint) is a baseline now: [`crate::baseline::filter_by_strips`].
 
 use std::sync::Arc;
 
 use crate::colour::{Rgba, WeightedColour};
-use crate::filter::exact::{self, PixelFilter, Projection, RegionIntegral};
 use crate::filter::footprint::Footprint;
 use crate::filter::options::{FilterOptions, FilterStats, Weighting};
-use crate::filter::wrap::uniform_colour_in;
-use crate::filter::wrap::{BoxIntegral, Wrap, integrate_wrapped};
+use crate::filter::pixel_filter::PixelFilter;
+use crate::filter::projection::Projection;
+use crate::filter::region::{self, RegionIntegral};
+use crate::filter::wrap::{Wrap, integrate_wrapped};
 use crate::geometry::fragment::Fragment;
 use crate::geometry::polygon::ConvexPolygon;
 use crate::tree::{QuadTree, TraversalStats};
@@ -137,7 +136,7 @@ impl Texture {
 
     /// The integral of the texture over screen region `region` seen through
     /// `projection` (screen → texture), weighted by `filter` centred at
-    /// `centre` (pixel units), with its error bound: see [`crate::filter::exact`].
+    /// `centre` (pixel units), with its error bound: see [`crate::filter::region`].
     /// A renderer sums these over the visible parts of a pixel's filter
     /// support (one per surface) and divides by the total weight.
     pub fn integrate_region(
@@ -149,9 +148,15 @@ impl Texture {
         options: &FilterOptions,
         stats: &mut FilterStats,
     ) -> RegionIntegral {
-        exact::integrate_region(
-            &self.tree, self.wrap, projection, region, filter, centre, options, stats,
-        )
+        let query = region::RegionQuery {
+            tree: &self.tree,
+            wrap: self.wrap,
+            projection,
+            filter,
+            centre,
+            options,
+        };
+        region::integrate_region(&query, region, stats)
     }
 
     /// The colour of the texture over the whole of screen region `span`
@@ -171,7 +176,7 @@ impl Texture {
         pixel: &ConvexPolygon,
         options: &FilterOptions,
     ) -> Option<Rgba> {
-        exact::uniform_colour_over(&self.tree, self.wrap, projection, span, pixel, options)
+        region::uniform_colour_over(&self.tree, self.wrap, projection, span, pixel, options)
     }
 
     /// [`Texture::filter`] over a slice, on the calling thread; `out[i]` is
@@ -231,87 +236,4 @@ impl Texture {
         let (c, d) = (at(u0, v0 + 1.0), at(u0 + 1.0, v0 + 1.0));
         a.lerp(b, fu).lerp(c.lerp(d, fu), fv)
     }
-}
-
-/// The footprint pipeline (module documentation) over any exact box
-/// integral `source` (the tree, or a baseline such as a summed-area table),
-/// continued by `wrap`. `uniform` is the tree the one-lookup shortcut may
-/// consult (`None` to always cut strips). `None` when the footprint has no
-/// area to average over (the caller picks a point lookup).
-pub fn filter_footprint<T: BoxIntegral + ?Sized>(
-    source: &T,
-    uniform: Option<&QuadTree>,
-    wrap: Wrap,
-    footprint: &Footprint,
-    options: &FilterOptions,
-    stats: &mut FilterStats,
-) -> Option<Rgba> {
-    stats.footprints += 1;
-    if let Some(c) = uniform.and_then(|tree| uniform_over(tree, footprint, wrap)) {
-        stats.fragments += 1;
-        stats.traversal.queries += 1;
-        return Some(c);
-    }
-    let strips = footprint.strips(options.quality());
-    stats.fragments += strips.rects.len() as u64;
-    stats.max_mismatch = stats.max_mismatch.max(strips.mismatch);
-    stats.sum_mismatch += strips.mismatch;
-    let density = match options.weighting() {
-        Weighting::Screen => footprint.homography().filter(|h| !h.is_affine()),
-        Weighting::Texture => None,
-    };
-    let depth = source.finest_level();
-    // Level units: a level-k cell is 2^-k of them (a non-square texture's
-    // cells are not square in texture units).
-    let [cx, cz] = source.finest_cell();
-    let unit = f64::from_bits((1023 - u64::from(depth.min(60))) << 52);
-    let (ux, uz) = (unit / cx, unit / cz);
-    let (mut acc, mut area) = (WeightedColour::ZERO, 0.0);
-    let mut add = |f: &Fragment, w: f64, traversal: &mut TraversalStats| {
-        let k = options
-            .level_of_detail()
-            .level(f.width() * ux, f.height() * uz, depth);
-        acc += integrate_wrapped(source, f, k, wrap, traversal) * w;
-        area += f.area() * w;
-    };
-    // The density may vary a lot along a strip (a footprint wider than deep
-    // at a grazing angle): cut it until it is nearly constant on each piece.
-    let tolerance = 0.25 / options.quality();
-    for f in &strips.rects {
-        let Some(h) = density else {
-            add(f, 1.0, &mut stats.traversal);
-            continue;
-        };
-        let (nx, nz) = h.density_pieces(f, tolerance);
-        if nx * nz > 1 {
-            stats.fragments += (nx * nz - 1) as u64;
-        }
-        // Cut k of n along [lo, hi): exact at both ends.
-        let cut = |lo: f64, hi: f64, k: usize, n: usize| {
-            if k == n {
-                hi
-            } else {
-                lo + (hi - lo) * k as f64 / n as f64
-            }
-        };
-        for j in 0..nz {
-            let (z0, z1) = (cut(f.z0(), f.z1(), j, nz), cut(f.z0(), f.z1(), j + 1, nz));
-            for i in 0..nx {
-                let (x0, x1) = (cut(f.x0(), f.x1(), i, nx), cut(f.x0(), f.x1(), i + 1, nx));
-                let Ok(piece) = Fragment::new(x0, z0, x1, z1) else {
-                    continue;
-                };
-                let w = h.screen_density([0.5 * (x0 + x1), 0.5 * (z0 + z1)]);
-                add(&piece, w, &mut stats.traversal);
-            }
-        }
-    }
-    (area > 0.0 && area.is_finite()).then(|| acc.mean_over(area))
-}
-
-/// The colour over the whole footprint when one terminal square of the tree
-/// holds the footprint's bounding box (folded into one tile by the wrap).
-fn uniform_over(tree: &QuadTree, footprint: &Footprint, wrap: Wrap) -> Option<Rgba> {
-    let (lo, hi) = footprint.bounds();
-    uniform_colour_in(tree, lo, hi, wrap)
 }

@@ -160,7 +160,7 @@ impl QuadTree {
         self
     }
 
-    /// What the error bounds of [`crate::filter::exact`], derived for colour
+    /// What the error bounds of [`crate::filter::region`], derived for colour
     /// channels in `[0, 1]`, are multiplied by for this tree: 1 for unorm16
     /// colours, the widest channel range (at least 1) for HDR colours (one
     /// pass over the colours, the first time).
@@ -447,7 +447,7 @@ impl QuadTree {
     /// `|∫ colour·(z − ½)|` over the unit square: how far the colour leans
     /// to one side (0 for a checkerboard). The error of weighing whole tiles
     /// by a smoothly varying density is proportional to it
-    /// ([`crate::filter::exact`]). One pass over the leaves, the first time.
+    /// ([`crate::filter::region`]). One pass over the leaves, the first time.
     pub fn first_moments(&self) -> [f64; 2] {
         *self.moments.get_or_init(|| {
             let (mut mx, mut mz) = ([0f64; 4], [0f64; 4]);

@@ -14,7 +14,7 @@
 //!   for fragments of any size, down to the `f64` resolution of the
 //!   contours. A square wholly inside the fragment counts at its stored
 //!   mean (rounded once to 16 bits), as every node;
-//! * the exact-pixel walk ([`crate::filter::exact`]) sees the leaf as *cells* made
+//! * the exact-pixel walk ([`crate::filter::region`]) sees the leaf as *cells* made
 //!   on demand, each at the exact mean of the art over it (the same sweep),
 //!   subdivided while edges cross it, at most
 //!   [`crate::vector::gradient_leaf::MAX_CELL_LEVELS`] below the leaf and down to

@@ -73,6 +73,16 @@ pub enum Interpolation {
     Linear,
 }
 
+/// A circle in gradient space, one end of a radial gradient
+/// ([`Gradient::radial`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Circle {
+    /// The centre.
+    pub centre: [f64; 2],
+    /// The radius (`>= 0`).
+    pub radius: f64,
+}
+
 /// One gradient stop.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Stop {
@@ -209,19 +219,21 @@ impl Gradient {
     /// the focal circle, `t = 1` on the end circle, and in between the
     /// circles interpolated in centre and radius; a point takes the largest
     /// `t` whose circle passes through it. The focal circle must lie inside
-    /// the end circle (SVG 1.1's focal point inside the circle is the case
-    /// `focal_radius = 0`).
-    #[allow(clippy::too_many_arguments)]
+    /// the end circle (SVG 1.1's focal point inside the circle is a focal
+    /// circle of radius 0).
     pub fn radial(
         gradient_from_texture: [f64; 6],
-        focal: Point,
-        focal_radius: f64,
-        centre: Point,
-        radius: f64,
+        focal: Circle,
+        end: Circle,
         stops: Vec<Stop>,
         spread: Spread,
         interpolation: Interpolation,
     ) -> Result<Gradient, Error> {
+        let Circle {
+            centre: focal,
+            radius: focal_radius,
+        } = focal;
+        let Circle { centre, radius } = end;
         check_map(&gradient_from_texture)?;
         check_stops(&stops)?;
         let dc = (centre[0] - focal[0]).hypot(centre[1] - focal[1]);
@@ -953,10 +965,14 @@ mod tests {
     fn radial_mean_is_within_its_bound_and_close_to_sampling() {
         let g = Gradient::radial(
             [1.0, 0.0, 0.0, 1.0, 0.0, 0.0],
-            [0.45, 0.5],
-            0.05,
-            [0.5, 0.5],
-            0.4,
+            Circle {
+                centre: [0.45, 0.5],
+                radius: 0.05,
+            },
+            Circle {
+                centre: [0.5, 0.5],
+                radius: 0.4,
+            },
             stops(),
             Spread::Repeat,
             Interpolation::Srgb,
@@ -976,10 +992,14 @@ mod tests {
         // The simple radial gradient: t is the distance from the centre / r.
         let simple = Gradient::radial(
             IDENTITY,
-            [0.5, 0.5],
-            0.0,
-            [0.5, 0.5],
-            0.25,
+            Circle {
+                centre: [0.5, 0.5],
+                radius: 0.0,
+            },
+            Circle {
+                centre: [0.5, 0.5],
+                radius: 0.25,
+            },
             stops(),
             Spread::Pad,
             Interpolation::Linear,
@@ -1003,10 +1023,14 @@ mod tests {
             .unwrap();
             let rad = Gradient::radial(
                 [2.0, 0.0, 0.5, 1.0, -0.5, 0.0],
-                [0.4, 0.5],
-                0.0,
-                [0.5, 0.5],
-                0.3,
+                Circle {
+                    centre: [0.4, 0.5],
+                    radius: 0.0,
+                },
+                Circle {
+                    centre: [0.5, 0.5],
+                    radius: 0.3,
+                },
                 stops(),
                 spread,
                 Interpolation::Srgb,
@@ -1094,10 +1118,14 @@ mod tests {
         assert!(
             Gradient::radial(
                 IDENTITY,
-                [0.9, 0.5],
-                0.0,
-                [0.5, 0.5],
-                0.3,
+                Circle {
+                    centre: [0.9, 0.5],
+                    radius: 0.0
+                },
+                Circle {
+                    centre: [0.5, 0.5],
+                    radius: 0.3
+                },
                 ok,
                 Spread::Pad,
                 Interpolation::Srgb

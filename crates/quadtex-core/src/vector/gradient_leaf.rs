@@ -19,7 +19,7 @@
 //!   and `offset + matrix·mean` is the mean of the composite. A square
 //!   wholly inside the fragment counts at its stored mean (rounded once to
 //!   16 bits, as every node).
-//! * The exact-pixel walk ([`crate::filter::exact`]) and everything built on
+//! * The exact-pixel walk ([`crate::filter::region`]) and everything built on
 //!   [`crate::QuadTree::for_each_leaf`] see the leaf subdivided on demand
 //!   into *cells*, each carrying the exact mean of the paint over it; a
 //!   cell is terminal once the composite's sRGB-encoded range over it is

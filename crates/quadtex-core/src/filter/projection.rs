@@ -1,0 +1,132 @@
+//! The projective map from the screen to texture space ([`Projection`])
+//! and the 3×3 matrix helpers it is built from.
+
+use crate::Error;
+use crate::filter::footprint::Footprint;
+
+pub(super) type Mat3 = [[f64; 3]; 3];
+
+/// A projective map from the screen to texture space,
+/// `texture_from_screen`: `t = (M·(s, 1))` divided by its third
+/// coordinate `w`. The surface is in front of the camera where `w > 0`.
+///
+/// Invariant: finite, invertible (both directions are kept).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Projection {
+    pub(super) texture_from_screen: Mat3,
+    pub(super) screen_from_texture: Mat3,
+    /// `|∇w|` over the screen, for the horizon sliver's width (kept: a
+    /// view's projection serves every pixel it covers).
+    pub(super) w_gradient: f64,
+}
+
+impl Projection {
+    /// The map with matrix `texture_from_screen` (row-major, acting on
+    /// `(x, y, 1)`); scaled by a positive factor for range, which changes
+    /// nothing. [`Error::BadPolygon`] when it is not finite or singular.
+    pub fn new(texture_from_screen: [[f64; 3]; 3]) -> Result<Projection, Error> {
+        let scale = texture_from_screen
+            .iter()
+            .flatten()
+            .fold(0f64, |m, v| m.max(v.abs()));
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(Error::BadPolygon(
+                "projection matrix is not finite or is zero".into(),
+            ));
+        }
+        let m = texture_from_screen.map(|row| row.map(|v| v / scale));
+        let (adj, det) = adjugate(&m);
+        if !(det.is_finite() && det.abs() > 1e-300) {
+            return Err(Error::BadPolygon("projection matrix is singular".into()));
+        }
+        let inv_scale = adj.iter().flatten().fold(0f64, |a, v| a.max(v.abs()));
+        // adj(M) = det·M⁻¹: any positive multiple represents the inverse map;
+        // the sign is chosen so that w > 0 on the visible side both ways.
+        let sign = det.signum();
+        let inv = adj.map(|row| row.map(|v| sign * v / inv_scale));
+        Ok(Projection {
+            texture_from_screen: m,
+            screen_from_texture: inv,
+            w_gradient: m[2][0].hypot(m[2][1]),
+        })
+    }
+
+    /// The identity (screen and texture coordinates coincide): filtering a
+    /// texture-space region uniformly in texture space.
+    pub fn identity() -> Projection {
+        let id = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        Projection {
+            texture_from_screen: id,
+            screen_from_texture: id,
+            w_gradient: 0.0,
+        }
+    }
+
+    /// The map sending the screen square `[x, x+1] × [y, y+1]` (pixel
+    /// `(x, y)` when `origin = [x, y]`) onto `footprint`, corner to corner in
+    /// pixel order; `None` unless the footprint is a convex quad the square
+    /// maps onto one-to-one.
+    pub fn for_pixel(footprint: &Footprint, origin: [f64; 2]) -> Option<Projection> {
+        let m = footprint.square_to_quad()?.matrix();
+        // M·T with T translating (x, y) to (u, v) = (x − origin.x, y − origin.y).
+        let t = [
+            [1.0, 0.0, -origin[0]],
+            [0.0, 1.0, -origin[1]],
+            [0.0, 0.0, 1.0],
+        ];
+        Projection::new(mul(&m, &t)).ok()
+    }
+
+    /// The matrix taking screen points to texture points.
+    pub fn texture_from_screen(&self) -> [[f64; 3]; 3] {
+        self.texture_from_screen
+    }
+
+    /// The denominator `w` at screen point `s` (positive where the surface
+    /// is in front of the camera).
+    pub fn w(&self, s: [f64; 2]) -> f64 {
+        let r = &self.texture_from_screen[2];
+        r[0] * s[0] + r[1] * s[1] + r[2]
+    }
+
+    /// The texture point seen at screen point `s`, if `w > 0` there.
+    pub fn texture_point(&self, s: [f64; 2]) -> Option<[f64; 2]> {
+        (self.w(s) > 0.0).then(|| apply(&self.texture_from_screen, s))
+    }
+
+    /// The screen point where texture point `t` is seen.
+    pub fn screen_point(&self, t: [f64; 2]) -> [f64; 2] {
+        apply(&self.screen_from_texture, t)
+    }
+}
+
+#[inline]
+pub(super) fn apply(m: &Mat3, p: [f64; 2]) -> [f64; 2] {
+    let w = m[2][0] * p[0] + m[2][1] * p[1] + m[2][2];
+    [
+        (m[0][0] * p[0] + m[0][1] * p[1] + m[0][2]) / w,
+        (m[1][0] * p[0] + m[1][1] * p[1] + m[1][2]) / w,
+    ]
+}
+
+pub(super) fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
+    let mut c = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            c[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    c
+}
+
+/// The adjugate (transposed cofactors) and the determinant.
+pub(super) fn adjugate(m: &Mat3) -> (Mat3, f64) {
+    let [[a, b, c], [d, e, f], [g, h, i]] = *m;
+    let adj = [
+        [e * i - f * h, c * h - b * i, b * f - c * e],
+        [f * g - d * i, a * i - c * g, c * d - a * f],
+        [d * h - e * g, b * g - a * h, a * e - b * d],
+    ];
+    let det = a * adj[0][0] + b * adj[1][0] + c * adj[2][0];
+    (adj, det)
+}
