@@ -1,8 +1,31 @@
 //! # quadtex-core
 //!
-//! Textures packed as *incomplete quadtrees* and the exact area integral of a
-//! texture over an axis-aligned rectangle (a *fragment*), after
-//! the method restated in `ALGORITHM.md`. This crate does no I/O.
+//! Textures packed as *incomplete quadtrees* (uniform regions stop
+//! splitting early; every node carries its mean colour), and their exact
+//! filtering: the integral of a texture over a pixel's footprint, or over a
+//! screen region under a projective map weighted by a pixel filter, with a
+//! stated error bound. The method is restated in `docs/algorithm.md`; the
+//! crate map and glossary are in `docs/architecture.md`. This crate does no
+//! I/O.
+//!
+//! ## The front door
+//!
+//! * Pack: [`QuadTree::from_texels`] (a raster, [`TexelGrid`]) or
+//!   [`QuadTree::from_vector`] (vector art, [`VectorArt`]).
+//! * Filter: a [`Texture`] (a tree and its [`Wrap`]) answers
+//!   [`Texture::filter`] for a [`Footprint`] under [`FilterOptions`], and
+//!   [`Texture::integrate_region`] for a renderer's screen regions under a
+//!   [`Projection`] and a [`PixelFilter`]; [`QuadTree::weighted_colour`] gives the
+//!   weighted colour over one [`Fragment`].
+//! * Compare: the filters users run today live in [`baseline`].
+//!
+//! ## Vocabulary
+//!
+//! *Square*: a node's extent; *terminal square*: one that is not split;
+//! *fragment*: an axis-aligned rectangle of texture space; *footprint*: the
+//! texture-space image of a pixel's corners; *region*: a convex screen
+//! polygon seen through one projective map; *weighted colour*: an integral
+//! of colour over an area, not yet divided by it.
 //!
 //! ## Conventions (written once, here)
 //!
