@@ -112,7 +112,7 @@ pub fn run(args: Args) -> Result<()> {
     let budget = memory.bytes();
     let (grid, title) = match &texture {
         Some(path) => {
-            let grid = quadtex_io::load_texels_with_limits(path, &memory.limits())?;
+            let grid = quadtex_io::load_texels(path, &memory.limits())?;
             let title = format!(
                 "{}, {}x{} texels (lossless)",
                 path.display(),

@@ -123,12 +123,16 @@ pub fn run(args: Args) -> Result<()> {
             max_sweep_work: max_sweep_work.unwrap_or(quadtex_core::DEFAULT_MAX_SWEEP_WORK),
             ..quadtex_core::VectorOptions::default()
         };
-        return pack_svg(&input, &output, &svg, &limits);
+        let options = quadtex_io::SvgOptions {
+            vector: svg,
+            limits,
+        };
+        return pack_svg(&input, &output, &options);
     }
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("decoding {}", input.display()));
-    let grid = quadtex_io::load_texels_with_limits(&input, &limits)?;
+    let grid = quadtex_io::load_texels(&input, &limits)?;
     progress.stage(&format!(
         "packing {}x{} texels",
         grid.width(),
@@ -173,17 +177,12 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-fn pack_svg(
-    input: &Path,
-    output: &Output,
-    options: &quadtex_core::VectorOptions,
-    limits: &quadtex_io::Limits,
-) -> Result<()> {
-    let level = options.max_level;
+fn pack_svg(input: &Path, output: &Output, options: &quadtex_io::SvgOptions) -> Result<()> {
+    let level = options.vector.max_level;
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("packing {} at level {level}", input.display()));
-    let (tree, report) = quadtex_io::pack_svg_with_options(input, options, limits)?;
+    let (tree, report) = quadtex_io::pack_svg(input, options)?;
     progress.stage(&format!("writing {output}"));
     let side = 1u32 << level.min(31);
     output.write_qtx(&tree, Some((side, side)))?;

@@ -34,7 +34,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     let limits = args.memory.limits();
     let (tree, _) = if args.verify {
-        quadtex_io::read_qtx_with_limits(&args.path, &limits)?
+        quadtex_io::read_qtx(&args.path, &limits)?
     } else {
         quadtex_io::map_qtx(&args.path, &limits)?
     };
