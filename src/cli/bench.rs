@@ -11,8 +11,9 @@ use quadtex_core::reference::texel_sum;
 use quadtex_core::synth::{runway_art, scanline_fragments};
 use quadtex_core::{BuildOptions, Fragment, QuadTree, WeightedColour};
 
+use super::Result;
+use super::common::{MemoryArgs, blocks_summary, human_bytes, raster_bytes};
 use super::output::Text;
-use super::{Result, human_bytes, raster_bytes};
 
 /// Median seconds per call of `f` over `runs` runs, each answering every fragment.
 fn time_per_query(
@@ -68,7 +69,7 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["size", "queries", "texture"])]
     frames: bool,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
 }
 
 /// A value parser: a count of at least 1; `flag` names the option in the error.
@@ -172,7 +173,7 @@ pub fn run(args: Args) -> Result<()> {
         "Pack time (median of 3): {:.3} s; {} nodes{}, depth {depth}\n",
         pack_times[1],
         tree.node_count(),
-        super::blocks_summary(&tree)
+        blocks_summary(&tree)
     )?;
     writeln!(out, "| storage | bytes | tree is smaller by |")?;
     writeln!(out, "|---|---:|---:|")?;

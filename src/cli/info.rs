@@ -7,8 +7,9 @@ use std::time::Instant;
 
 use quadtex_core::MAX_VECTOR_LEVEL;
 
+use super::Result;
+use super::common::{MemoryArgs, human_bytes, is_svg, raster_bytes, smooth_summary};
 use super::output::Text;
-use super::{Result, human_bytes, is_svg, raster_bytes};
 
 /// Describe a .qtx file, or SVG art's tree against rasters per level.
 ///
@@ -30,7 +31,7 @@ pub struct Args {
     #[arg(long)]
     verify: bool,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
 }
 
 /// A value parser: one of `--levels`, at most the vector packer's limit.
@@ -238,7 +239,7 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
     }
     // Gradients are the one approximation: say how far, per level.
     for (level, report) in smooth {
-        let summary = super::pack::smooth_summary(&report);
+        let summary = smooth_summary(&report);
         if !summary.is_empty() {
             writeln!(
                 out,

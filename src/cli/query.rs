@@ -3,8 +3,9 @@
 use std::io::{BufRead, BufWriter, Write};
 use std::path::PathBuf;
 
+use super::Result;
+use super::common::{MemoryArgs, level};
 use super::output::Text;
-use super::{Result, level};
 
 /// Answer fragments from stdin with their integrated colour.
 ///
@@ -27,7 +28,7 @@ pub struct Args {
     #[arg(long)]
     verify: bool,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
 }
 
 /// Runs `quadtex query`.
