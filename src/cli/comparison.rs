@@ -227,234 +227,28 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
     let needs_tent = contenders
         .iter()
         .any(|c| c.pixel_filter == PixelFilter::Tent);
-    let n = s.reference_grid;
-    let _ = writeln!(
-        std::io::stderr(),
-        "{name}: {w}x{h}; reference {} samples per pixel (box{})",
-        n * n,
-        if needs_tent { " and tent" } else { "" }
-    );
-    let reference_box = render_reference(scene, w, h, n, PixelFilter::Box)?;
-    let reference_tent = if needs_tent {
-        Some(render_reference(scene, w, h, n, PixelFilter::Tent)?)
-    } else {
-        None
-    };
-    // The closed form, where the scene is a single unlit textured plane.
-    let exact = closed_form_plane(scene, w, h);
-    let exact_note = exact.as_ref().and_then(|e| {
-        let (r, defined) = rmse_where_defined(&reference_box, e)?;
-        Some(format!(
-            "; the closed-form integral (texture and sky integrated exactly over each pixel square, error ≤ 1e-6 per pixel) covers {:.1}% of the pixels, where the reference is within RMSE {r:.5} of it",
-            100.0 * defined
-        ))
-    });
-    if let Some(note) = &exact_note {
-        let _ = writeln!(std::io::stderr(), "{name}: closed form{note}");
-    }
-    let reference_for = |c: &Contender| match (c.pixel_filter, &reference_tent) {
-        (PixelFilter::Tent, Some(t)) => t,
-        _ => &reference_box,
-    };
-    // The camera move for shimmer: `frames` steps along the view direction,
-    // each 0.4% of the distance to what the centre of the view sees.
-    let shimmer_size = ((w / 2).max(16), (h / 2).max(9));
-    let step = quadtex_render::centre_distance(scene).unwrap_or(1.0) * 0.004;
-    let moved: Vec<Scene> = match &s.path {
-        Some(path) => (0..s.frames)
-            .map(|t| {
-                let camera = path
-                    .camera(t, s.frames, scene.camera.width(), scene.camera.height())
-                    .map_err(|e| format!("camera path: {e}"))?;
-                Ok(Scene {
-                    camera,
-                    ..scene.clone()
-                })
-            })
-            .collect::<Result<_>>()?,
-        None => (0..s.frames)
-            .map(|t| Scene {
-                camera: scene
-                    .camera
-                    .translated(scene.camera.forward() * (step * f64::from(t))),
-                ..scene.clone()
-            })
-            .collect(),
-    };
-    let shimmer_refs = |pf: PixelFilter| -> Result<Vec<LinearImage>> {
-        moved
-            .iter()
-            .map(|sc| {
-                render_reference(
-                    sc,
-                    shimmer_size.0,
-                    shimmer_size.1,
-                    s.shimmer_reference_grid,
-                    pf,
-                )
-            })
-            .collect()
-    };
-    let (shimmer_box, shimmer_tent) = if s.frames >= 2 {
-        let _ = writeln!(
-            std::io::stderr(),
-            "{name}: {} shimmer frames at {}x{}, references {} samples per pixel",
-            s.frames,
-            shimmer_size.0,
-            shimmer_size.1,
-            s.shimmer_reference_grid * s.shimmer_reference_grid
-        );
-        (
-            shimmer_refs(PixelFilter::Box)?,
-            if needs_tent {
-                shimmer_refs(PixelFilter::Tent)?
-            } else {
-                Vec::new()
-            },
-        )
-    } else {
-        (Vec::new(), Vec::new())
-    };
+    let stills = StillReferences::render(scene, name, (w, h), s.reference_grid, needs_tent)?;
+    let motion = CameraMove::new(scene, s, w, h)?;
+    let shimmer_refs = ShimmerReferences::render(&motion, s, name, needs_tent)?;
     let mut rows = Vec::new();
     let mut frames = Vec::new();
     for c in &contenders {
-        let (img, summary) = render_one(scene, w, h, c.filter, c.pixel_filter)?;
-        // Median of three timings for frames under half a second.
-        let mut times = vec![summary.seconds];
-        if summary.seconds < 0.5 {
-            for _ in 0..2 {
-                times.push(render_one(scene, w, h, c.filter, c.pixel_filter)?.1.seconds);
-            }
-        }
-        times.sort_by(f64::total_cmp);
-        let seconds = times[times.len() / 2];
-        let reference = reference_for(c);
-        let rmse = rmse(&img, reference).ok_or("frame size mismatch")?;
-        let shimmer = if s.frames >= 2 {
-            let refs = match c.pixel_filter {
-                PixelFilter::Tent if needs_tent => &shimmer_tent,
-                _ => &shimmer_box,
-            };
-            let seq: Vec<LinearImage> = moved
-                .iter()
-                .map(|sc| {
-                    Ok(render_one(sc, shimmer_size.0, shimmer_size.1, c.filter, c.pixel_filter)?.0)
-                })
-                .collect::<Result<_>>()?;
-            shimmer(&seq, refs)
-        } else {
-            None
-        };
-        let figures = Figures {
-            label: c.label.clone(),
-            rmse,
-            psnr: psnr(rmse),
-            rmse_exact: match (&exact, c.pixel_filter) {
-                (Some(e), PixelFilter::Box) => rmse_where_defined(&img, e).map(|r| r.0),
-                _ => None,
-            },
-            flip: s.flip.then(|| flip(reference, &img)),
-            shimmer,
-            seconds,
-            lookups_per_pixel: lookups_per_pixel(c.filter, &summary),
-            texture_bytes: texture_bytes(scene, c.filter),
-        };
-        let _ = writeln!(
-            std::io::stderr(),
-            "  {:<16} RMSE {:.4}  {:>7.0} ms/frame",
-            c.label,
-            rmse,
-            1000.0 * seconds
-        );
+        let (figures, img) = measure(scene, c, s, &stills, &motion, &shimmer_refs, (w, h))?;
         rows.push(figures);
         frames.push(img);
     }
-    // Grid: reference first, then one row per contender.
-    let window = ((w / 8).max(8), (h / 8).max(8));
-    let nearest = contenders
-        .iter()
-        .position(|c| c.filter == Filter::Nearest)
-        .map(|i| &frames[i]);
-    let pixel = |img: &LinearImage, x: u32, y: u32| img.pixels[(y * img.width + x) as usize];
-    let luma = |img: &LinearImage, x: u32, y: u32| {
-        let p = pixel(img, x.min(img.width - 1), y.min(img.height - 1));
-        f64::from(0.2126 * p.r + 0.7152 * p.g + 0.0722 * p.b)
-    };
-    let aliasing_at = busiest_window(w, h, window.0, window.1, |x, y| {
-        let r = luma(&reference_box, x, y);
-        nearest.map_or(0.0, |n| (luma(n, x, y) - r).abs())
-    });
-    let contrast_at = busiest_window(w, h, window.0, window.1, |x, y| {
-        let r = luma(&reference_box, x, y);
-        (luma(&reference_box, x + 1, y) - r).abs() + (luma(&reference_box, x, y + 1) - r).abs()
-    });
-    let shrink_by = w.div_ceil(320).max(1);
-    let row_of = |img: &LinearImage, reference: &LinearImage| {
-        vec![
-            shrink(img, shrink_by),
-            magnify(
-                &crop(img, aliasing_at.0, aliasing_at.1, window.0, window.1),
-                3,
-            ),
-            magnify(
-                &crop(img, contrast_at.0, contrast_at.1, window.0, window.1),
-                3,
-            ),
-            shrink(&error_map(img, reference, 0.1), shrink_by),
-        ]
-    };
-    let mut grid_rows = vec![row_of(&reference_box, &reference_box)];
-    let mut labels = vec![format!("reference ({} spp)", n * n)];
-    for (c, img) in contenders.iter().zip(&frames) {
-        grid_rows.push(row_of(img, reference_for(c)));
-        labels.push(c.label.clone());
-    }
-    // Each row starts with its name.
-    for (row, label) in grid_rows.iter_mut().zip(&labels) {
-        if let Some(l) = montage::label(label) {
-            row.insert(0, l);
-        }
-    }
-    let grid = grid(&grid_rows, 4);
-    quadtex_io::save_image(&dir.join("grid.png"), &grid)?;
-    quadtex_io::save_image(&dir.join("frames").join("reference.png"), &reference_box)?;
-    for (c, img) in contenders.iter().zip(&frames) {
-        let file = dir
-            .join("frames")
-            .join(format!("{}.png", file_stem(&c.label)));
-        quadtex_io::save_image(&file, img)?;
-    }
-    let threads = available_threads();
+    let labels = write_images(dir, &contenders, &frames, &stills, (w, h), s.reference_grid)?;
     let info = ReportInfo {
         scene: name.to_string(),
         width: w,
         height: h,
         reference: format!(
             "{} stratified samples per pixel, nearest lookups of the full-depth tree, same pixel filter as the method (box; tent for the tent row){}",
-            n * n,
-            exact_note.clone().unwrap_or_default()
+            s.reference_grid * s.reference_grid,
+            stills.exact_note.clone().unwrap_or_default()
         ),
-        motion: if s.frames >= 2 && s.path.is_some() {
-            format!(
-                "{} frames at {}x{} along the camera path, against {}-sample references",
-                s.frames,
-                shimmer_size.0,
-                shimmer_size.1,
-                s.shimmer_reference_grid * s.shimmer_reference_grid
-            )
-        } else if s.frames >= 2 {
-            format!(
-                "{} frames at {}x{} moving {:.3} scene units per frame along the view, against {}-sample references",
-                s.frames,
-                shimmer_size.0,
-                shimmer_size.1,
-                step,
-                s.shimmer_reference_grid * s.shimmer_reference_grid
-            )
-        } else {
-            "not measured".into()
-        },
-        provenance: provenance(threads),
+        motion: motion.describe(s),
+        provenance: provenance(available_threads()),
     };
     let table = markdown_table(&rows);
     write_text(&dir.join("results.md"), &table)?;
@@ -476,6 +270,332 @@ pub fn compare_scene(scene: &Scene, name: &str, dir: &Path, s: &Settings) -> Res
         start.elapsed().as_secs_f64()
     )?;
     Ok(())
+}
+
+/// The full-size references: box-filtered, tent-filtered when a contender
+/// uses the tent, and the closed form where the scene has one.
+struct StillReferences {
+    /// Box pixel filter.
+    box_filtered: LinearImage,
+    /// Tent pixel filter, rendered only when a contender uses it.
+    tent_filtered: Option<LinearImage>,
+    /// The closed-form integral, where the scene is a single unlit textured
+    /// plane (per pixel; `None` where it is not defined).
+    exact: Option<Vec<Option<quadtex_core::Rgba>>>,
+    /// What the closed form covers and how close the reference is to it,
+    /// for the report.
+    exact_note: Option<String>,
+}
+
+impl StillReferences {
+    /// Renders them at `w`×`h` with `grid`² samples per pixel, saying so
+    /// on standard error.
+    fn render(
+        scene: &Scene,
+        name: &str,
+        (w, h): (u32, u32),
+        grid: u32,
+        needs_tent: bool,
+    ) -> Result<StillReferences> {
+        let n = grid;
+        let _ = writeln!(
+            std::io::stderr(),
+            "{name}: {w}x{h}; reference {} samples per pixel (box{})",
+            n * n,
+            if needs_tent { " and tent" } else { "" }
+        );
+        let box_filtered = render_reference(scene, w, h, n, PixelFilter::Box)?;
+        let tent_filtered = if needs_tent {
+            Some(render_reference(scene, w, h, n, PixelFilter::Tent)?)
+        } else {
+            None
+        };
+        let exact = closed_form_plane(scene, w, h);
+        let exact_note = exact.as_ref().and_then(|e| {
+            let (r, defined) = rmse_where_defined(&box_filtered, e)?;
+            Some(format!(
+                "; the closed-form integral (texture and sky integrated exactly over each pixel square, error ≤ 1e-6 per pixel) covers {:.1}% of the pixels, where the reference is within RMSE {r:.5} of it",
+                100.0 * defined
+            ))
+        });
+        if let Some(note) = &exact_note {
+            let _ = writeln!(std::io::stderr(), "{name}: closed form{note}");
+        }
+        Ok(StillReferences {
+            box_filtered,
+            tent_filtered,
+            exact,
+            exact_note,
+        })
+    }
+
+    /// The reference with contender `c`'s pixel filter.
+    fn for_contender(&self, c: &Contender) -> &LinearImage {
+        match (c.pixel_filter, &self.tent_filtered) {
+            (PixelFilter::Tent, Some(t)) => t,
+            _ => &self.box_filtered,
+        }
+    }
+}
+
+/// The camera move that measures shimmer: the scene once per frame, at a
+/// quarter of the frame's size.
+struct CameraMove {
+    /// The scene with each frame's camera.
+    scenes: Vec<Scene>,
+    /// Width and height of the shimmer frames.
+    size: (u32, u32),
+    /// Scene units per frame along the view (when there is no camera path).
+    step: f64,
+}
+
+impl CameraMove {
+    /// `s.frames` frames along `s.path`, or else steps along the view
+    /// direction, each 0.4% of the distance to what the centre of the view
+    /// sees.
+    fn new(scene: &Scene, s: &Settings, w: u32, h: u32) -> Result<CameraMove> {
+        let size = ((w / 2).max(16), (h / 2).max(9));
+        let step = quadtex_render::centre_distance(scene).unwrap_or(1.0) * 0.004;
+        let scenes: Vec<Scene> = match &s.path {
+            Some(path) => (0..s.frames)
+                .map(|t| {
+                    let camera = path
+                        .camera(t, s.frames, scene.camera.width(), scene.camera.height())
+                        .map_err(|e| format!("camera path: {e}"))?;
+                    Ok(Scene {
+                        camera,
+                        ..scene.clone()
+                    })
+                })
+                .collect::<Result<_>>()?,
+            None => (0..s.frames)
+                .map(|t| Scene {
+                    camera: scene
+                        .camera
+                        .translated(scene.camera.forward() * (step * f64::from(t))),
+                    ..scene.clone()
+                })
+                .collect(),
+        };
+        Ok(CameraMove { scenes, size, step })
+    }
+
+    /// The report's line on how shimmer was measured.
+    fn describe(&self, s: &Settings) -> String {
+        if s.frames >= 2 && s.path.is_some() {
+            format!(
+                "{} frames at {}x{} along the camera path, against {}-sample references",
+                s.frames,
+                self.size.0,
+                self.size.1,
+                s.shimmer_reference_grid * s.shimmer_reference_grid
+            )
+        } else if s.frames >= 2 {
+            format!(
+                "{} frames at {}x{} moving {:.3} scene units per frame along the view, against {}-sample references",
+                s.frames,
+                self.size.0,
+                self.size.1,
+                self.step,
+                s.shimmer_reference_grid * s.shimmer_reference_grid
+            )
+        } else {
+            "not measured".into()
+        }
+    }
+}
+
+/// The references of the camera move's frames, per pixel filter (empty
+/// when shimmer is not measured).
+struct ShimmerReferences {
+    box_filtered: Vec<LinearImage>,
+    /// Rendered only when a contender uses the tent.
+    tent_filtered: Vec<LinearImage>,
+}
+
+impl ShimmerReferences {
+    /// Renders them when `s.frames` is at least 2, saying so on standard
+    /// error.
+    fn render(
+        motion: &CameraMove,
+        s: &Settings,
+        name: &str,
+        needs_tent: bool,
+    ) -> Result<ShimmerReferences> {
+        let shimmer_size = motion.size;
+        let shimmer_refs = |pf: PixelFilter| -> Result<Vec<LinearImage>> {
+            motion
+                .scenes
+                .iter()
+                .map(|sc| {
+                    render_reference(
+                        sc,
+                        shimmer_size.0,
+                        shimmer_size.1,
+                        s.shimmer_reference_grid,
+                        pf,
+                    )
+                })
+                .collect()
+        };
+        if s.frames < 2 {
+            return Ok(ShimmerReferences {
+                box_filtered: Vec::new(),
+                tent_filtered: Vec::new(),
+            });
+        }
+        let _ = writeln!(
+            std::io::stderr(),
+            "{name}: {} shimmer frames at {}x{}, references {} samples per pixel",
+            s.frames,
+            shimmer_size.0,
+            shimmer_size.1,
+            s.shimmer_reference_grid * s.shimmer_reference_grid
+        );
+        Ok(ShimmerReferences {
+            box_filtered: shimmer_refs(PixelFilter::Box)?,
+            tent_filtered: if needs_tent {
+                shimmer_refs(PixelFilter::Tent)?
+            } else {
+                Vec::new()
+            },
+        })
+    }
+}
+
+/// Renders contender `c` and measures it: error against its reference and
+/// the closed form, FLIP, shimmer along the camera move, time (median of
+/// three for fast frames), lookups and texture memory. Returns the figures
+/// and the full-size frame.
+fn measure(
+    scene: &Scene,
+    c: &Contender,
+    s: &Settings,
+    stills: &StillReferences,
+    motion: &CameraMove,
+    shimmer_refs: &ShimmerReferences,
+    (w, h): (u32, u32),
+) -> Result<(Figures, LinearImage)> {
+    let needs_tent = stills.tent_filtered.is_some();
+    let (img, summary) = render_one(scene, w, h, c.filter, c.pixel_filter)?;
+    // Median of three timings for frames under half a second.
+    let mut times = vec![summary.seconds];
+    if summary.seconds < 0.5 {
+        for _ in 0..2 {
+            times.push(render_one(scene, w, h, c.filter, c.pixel_filter)?.1.seconds);
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    let seconds = times[times.len() / 2];
+    let reference = stills.for_contender(c);
+    let rmse = rmse(&img, reference).ok_or("frame size mismatch")?;
+    let shimmer = if s.frames >= 2 {
+        let refs = match c.pixel_filter {
+            PixelFilter::Tent if needs_tent => &shimmer_refs.tent_filtered,
+            _ => &shimmer_refs.box_filtered,
+        };
+        let (sw, sh) = motion.size;
+        let seq: Vec<LinearImage> = motion
+            .scenes
+            .iter()
+            .map(|sc| Ok(render_one(sc, sw, sh, c.filter, c.pixel_filter)?.0))
+            .collect::<Result<_>>()?;
+        shimmer(&seq, refs)
+    } else {
+        None
+    };
+    let figures = Figures {
+        label: c.label.clone(),
+        rmse,
+        psnr: psnr(rmse),
+        rmse_exact: match (&stills.exact, c.pixel_filter) {
+            (Some(e), PixelFilter::Box) => rmse_where_defined(&img, e).map(|r| r.0),
+            _ => None,
+        },
+        flip: s.flip.then(|| flip(reference, &img)),
+        shimmer,
+        seconds,
+        lookups_per_pixel: lookups_per_pixel(c.filter, &summary),
+        texture_bytes: texture_bytes(scene, c.filter),
+    };
+    let _ = writeln!(
+        std::io::stderr(),
+        "  {:<16} RMSE {:.4}  {:>7.0} ms/frame",
+        c.label,
+        rmse,
+        1000.0 * seconds
+    );
+    Ok((figures, img))
+}
+
+/// Writes grid.png (reference first, then one row per contender: the
+/// frame, two magnified windows where aliasing and contrast are largest,
+/// and the error map) and every frame into `dir/frames`. Returns the
+/// grid's row labels.
+fn write_images(
+    dir: &Path,
+    contenders: &[Contender],
+    frames: &[LinearImage],
+    stills: &StillReferences,
+    (w, h): (u32, u32),
+    n: u32,
+) -> Result<Vec<String>> {
+    let reference_box = &stills.box_filtered;
+    let window = ((w / 8).max(8), (h / 8).max(8));
+    let nearest = contenders
+        .iter()
+        .position(|c| c.filter == Filter::Nearest)
+        .map(|i| &frames[i]);
+    let pixel = |img: &LinearImage, x: u32, y: u32| img.pixels[(y * img.width + x) as usize];
+    let luma = |img: &LinearImage, x: u32, y: u32| {
+        let p = pixel(img, x.min(img.width - 1), y.min(img.height - 1));
+        f64::from(0.2126 * p.r + 0.7152 * p.g + 0.0722 * p.b)
+    };
+    let aliasing_at = busiest_window(w, h, window.0, window.1, |x, y| {
+        let r = luma(reference_box, x, y);
+        nearest.map_or(0.0, |n| (luma(n, x, y) - r).abs())
+    });
+    let contrast_at = busiest_window(w, h, window.0, window.1, |x, y| {
+        let r = luma(reference_box, x, y);
+        (luma(reference_box, x + 1, y) - r).abs() + (luma(reference_box, x, y + 1) - r).abs()
+    });
+    let shrink_by = w.div_ceil(320).max(1);
+    let row_of = |img: &LinearImage, reference: &LinearImage| {
+        vec![
+            shrink(img, shrink_by),
+            magnify(
+                &crop(img, aliasing_at.0, aliasing_at.1, window.0, window.1),
+                3,
+            ),
+            magnify(
+                &crop(img, contrast_at.0, contrast_at.1, window.0, window.1),
+                3,
+            ),
+            shrink(&error_map(img, reference, 0.1), shrink_by),
+        ]
+    };
+    let mut grid_rows = vec![row_of(reference_box, reference_box)];
+    let mut labels = vec![format!("reference ({} spp)", n * n)];
+    for (c, img) in contenders.iter().zip(frames) {
+        grid_rows.push(row_of(img, stills.for_contender(c)));
+        labels.push(c.label.clone());
+    }
+    // Each row starts with its name.
+    for (row, label) in grid_rows.iter_mut().zip(&labels) {
+        if let Some(l) = montage::label(label) {
+            row.insert(0, l);
+        }
+    }
+    let grid = grid(&grid_rows, 4);
+    quadtex_io::save_image(&dir.join("grid.png"), &grid)?;
+    quadtex_io::save_image(&dir.join("frames").join("reference.png"), reference_box)?;
+    for (c, img) in contenders.iter().zip(frames) {
+        let file = dir
+            .join("frames")
+            .join(format!("{}.png", file_stem(&c.label)));
+        quadtex_io::save_image(&file, img)?;
+    }
+    Ok(labels)
 }
 
 /// Threads the renderer's pool uses by default (rayon: one per available core).
