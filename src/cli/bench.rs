@@ -296,7 +296,7 @@ fn write_query_times(
         let brute_n = ((20_000_000.0 / (width * width)) as usize)
             .max(100)
             .min(frags.len());
-        let brute = time_per_query(1, &frags[..brute_n], |f| texel_sum(&grid, f));
+        let brute = time_per_query(1, &frags[..brute_n], |f| texel_sum(grid, f));
         let max_err = frags
             .iter()
             .map(|f| {
