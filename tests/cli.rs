@@ -12,7 +12,7 @@ use common::{run, temp_dir};
 use quadtex_core::reference::texel_sum;
 use quadtex_core::synth::{Art, Shape};
 use quadtex_core::{Fragment, Rgba};
-use quadtex_io::{LinearImage, load_texels, save_image};
+use quadtex_io::{Limits, LinearImage, load_texels, save_image};
 
 /// A packed sample in a fresh directory: `(dir, png, qtx)`.
 fn packed_shapes(case: &str, extra: &[&str]) -> (common::TempDir, PathBuf, PathBuf) {
@@ -80,7 +80,7 @@ fn packed_png_queries_match_the_brute_force_box_integral() {
     );
 
     // Reference: the same PNG decoded to linear texels, summed texel by texel.
-    let grid = load_texels(&png).unwrap();
+    let grid = load_texels(&png, &Limits::default()).unwrap();
     let mut state = 12345u64;
     let mut rand = move |lo: f64, hi: f64| {
         state = state
@@ -169,7 +169,7 @@ fn photographs_pack_below_a_mip_pyramid_and_stay_exact() {
         let info = String::from_utf8_lossy(&info.stdout).into_owned();
         assert!(info.contains(&format!("stored as {blocks}")), "{info}");
 
-        let grid = load_texels(&png).unwrap();
+        let grid = load_texels(&png, &Limits::default()).unwrap();
         let fragments: Vec<Fragment> = (0..2000u32)
             .map(|i| {
                 let h = |k: u32| {

@@ -85,7 +85,8 @@ fn killed_render_leaves_no_partial_image() {
         ],
         &out,
         &|p| {
-            let image = quadtex_io::load_texels(p).expect("a written image decodes whole");
+            let image = quadtex_io::load_texels(p, &quadtex_io::Limits::default())
+                .expect("a written image decodes whole");
             assert_eq!(image.width(), 320);
         },
     );
@@ -113,7 +114,8 @@ fn killed_pack_leaves_no_partial_tree() {
         &["pack", png.to_str().unwrap(), "-o", out.to_str().unwrap()],
         &out,
         &|p| {
-            quadtex_io::read_qtx(p).expect("a written tree reads whole, checksums and all");
+            quadtex_io::read_qtx(p, &quadtex_io::Limits::default())
+                .expect("a written tree reads whole, checksums and all");
         },
     );
     std::fs::remove_dir_all(&dir).unwrap();

@@ -4,15 +4,17 @@
 
 use std::hint::black_box;
 use std::io::Write;
+use std::path::Path;
 use std::time::Instant;
 
 use quadtex_core::baseline::SummedAreaTable;
 use quadtex_core::reference::texel_sum;
 use quadtex_core::synth::{runway_art, scanline_fragments};
-use quadtex_core::{BuildOptions, Fragment, QuadTree, WeightedColour};
+use quadtex_core::{BuildOptions, Fragment, QuadTree, TexelGrid, WeightedColour};
 
+use super::Result;
+use super::common::{MemoryArgs, blocks_summary, human_bytes, raster_bytes};
 use super::output::Text;
-use super::{Result, human_bytes, raster_bytes};
 
 /// Median seconds per call of `f` over `runs` runs, each answering every fragment.
 fn time_per_query(
@@ -68,7 +70,7 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["size", "queries", "texture"])]
     frames: bool,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
 }
 
 /// A value parser: a count of at least 1; `flag` names the option in the error.
@@ -111,68 +113,112 @@ pub fn run(args: Args) -> Result<()> {
     let runs = runs.unwrap_or(5);
     let budget = memory.bytes();
     let (grid, title) = match &texture {
-        Some(path) => {
-            let grid = quadtex_io::load_texels_with_limits(path, &memory.limits())?;
-            let title = format!(
-                "{}, {}x{} texels (lossless)",
-                path.display(),
-                grid.width(),
-                grid.height()
-            );
-            (grid, title)
-        }
-        None => {
-            let side = u64::from(size);
-            // The raster (8 bytes a texel) and a lossless tree of it (at most 4/3 nodes a texel).
-            quadtex_core::memory::check_budget(
-                || format!("benchmarking a {size}x{size} texture"),
-                8 * side * side + quadtex_core::memory::BUILD_BYTES_PER_NODE * side * side * 4 / 3,
-                Some(budget),
-                "lower --size, or raise --memory-limit",
-            )?;
-            let title = format!(
-                "runway markings and lettering, {size}x{size} texels (vector-like, lossless)"
-            );
-            (runway_art().rasterise(size, size)?, title)
-        }
+        Some(path) => texture_from_file(path, &memory.limits())?,
+        None => runway_texture(size, budget)?,
     };
-    let size = grid.width().max(grid.height());
-    let mut pack_times = Vec::new();
-    let mut tree = None;
-    for _ in 0..3 {
-        let start = Instant::now();
-        let options = BuildOptions {
-            max_bytes: Some(budget),
-            ..BuildOptions::default()
-        };
-        let (t, _) = QuadTree::from_texels(&grid, &options)?;
-        pack_times.push(start.elapsed().as_secs_f64());
-        tree = Some(t);
-    }
-    let tree = tree.ok_or("no tree")?;
-    // The same texture with every square a node, for the blocks' cost.
-    let (nodes_only, _) = QuadTree::from_texels(
-        &grid,
-        &BuildOptions {
-            max_bytes: Some(budget),
-            texel_blocks: false,
-            ..BuildOptions::default()
-        },
-    )?;
-    pack_times.sort_by(f64::total_cmp);
+    let packed = Packed::new(&grid, budget)?;
     let sat = SummedAreaTable::new(&grid);
+    let mut out = Text::stdout();
+    write_storage(&mut out, &title, &grid, &packed, &sat)?;
+    write_query_times(&mut out, &grid, &packed, &sat, runs, queries)?;
+    out.flush()?;
+    Ok(())
+}
+
+/// The texels of image `path`, with the table's title.
+fn texture_from_file(path: &Path, limits: &quadtex_io::Limits) -> Result<(TexelGrid, String)> {
+    let grid = quadtex_io::load_texels(path, limits)?;
+    let title = format!(
+        "{}, {}x{} texels (lossless)",
+        path.display(),
+        grid.width(),
+        grid.height()
+    );
+    Ok((grid, title))
+}
+
+/// The runway art rasterised at `size`², with the table's title, refused
+/// first if it and its tree would exceed `budget` bytes.
+fn runway_texture(size: u32, budget: u64) -> Result<(TexelGrid, String)> {
+    let side = u64::from(size);
+    // The raster (8 bytes a texel) and a lossless tree of it (at most 4/3 nodes a texel).
+    quadtex_core::memory::check_budget(
+        || format!("benchmarking a {size}x{size} texture"),
+        8 * side * side + quadtex_core::memory::BUILD_BYTES_PER_NODE * side * side * 4 / 3,
+        Some(budget),
+        "lower --size, or raise --memory-limit",
+    )?;
+    let title =
+        format!("runway markings and lettering, {size}x{size} texels (vector-like, lossless)");
+    Ok((runway_art().rasterise(size, size)?, title))
+}
+
+/// The benchmarked texture packed: with texel blocks (the default) and
+/// with every square a node, and the default packing's median time.
+struct Packed {
+    tree: QuadTree,
+    /// The same texture with every square a node, for the blocks' cost.
+    nodes_only: QuadTree,
+    /// Median of three packing times, in seconds.
+    median_seconds: f64,
+}
+
+impl Packed {
+    /// Packs `grid` three times (timed) and once without texel blocks.
+    fn new(grid: &TexelGrid, budget: u64) -> Result<Packed> {
+        let mut pack_times = Vec::new();
+        let mut tree = None;
+        for _ in 0..3 {
+            let start = Instant::now();
+            let options = BuildOptions {
+                max_bytes: Some(budget),
+                ..BuildOptions::default()
+            };
+            let (t, _) = QuadTree::from_texels(grid, &options)?;
+            pack_times.push(start.elapsed().as_secs_f64());
+            tree = Some(t);
+        }
+        let tree = tree.ok_or("no tree")?;
+        let (nodes_only, _) = QuadTree::from_texels(
+            grid,
+            &BuildOptions {
+                max_bytes: Some(budget),
+                texel_blocks: false,
+                ..BuildOptions::default()
+            },
+        )?;
+        pack_times.sort_by(f64::total_cmp);
+        Ok(Packed {
+            tree,
+            nodes_only,
+            median_seconds: pack_times[1],
+        })
+    }
+}
+
+/// The title, the packing time and the storage table: the tree against
+/// itself without texel blocks, a raster, a raster with mips and a
+/// summed-area table.
+fn write_storage(
+    out: &mut Text,
+    title: &str,
+    grid: &TexelGrid,
+    packed: &Packed,
+    sat: &SummedAreaTable,
+) -> Result<()> {
+    let Packed {
+        tree, nodes_only, ..
+    } = packed;
     let (raster, mips) = raster_bytes(grid.width(), grid.height());
     let tree_bytes = tree.memory_bytes();
     let depth = tree.depth();
-
-    let mut out = Text::stdout();
     writeln!(out, "## quadtex bench: {title}\n")?;
     writeln!(
         out,
         "Pack time (median of 3): {:.3} s; {} nodes{}, depth {depth}\n",
-        pack_times[1],
+        packed.median_seconds,
         tree.node_count(),
-        super::blocks_summary(&tree)
+        blocks_summary(tree)
     )?;
     writeln!(out, "| storage | bytes | tree is smaller by |")?;
     writeln!(out, "|---|---:|---:|")?;
@@ -210,6 +256,25 @@ pub fn run(args: Args) -> Result<()> {
         sat.memory_bytes() as f64 / tree_bytes as f64
     )?;
     writeln!(out)?;
+    Ok(())
+}
+
+/// The query-time table: median nanoseconds per fragment of each method,
+/// per fragment width, and the largest difference between the exact tree
+/// and the SAT.
+fn write_query_times(
+    out: &mut Text,
+    grid: &TexelGrid,
+    packed: &Packed,
+    sat: &SummedAreaTable,
+    runs: usize,
+    queries: usize,
+) -> Result<()> {
+    let Packed {
+        tree, nodes_only, ..
+    } = packed;
+    let size = grid.width().max(grid.height());
+    let depth = tree.depth();
     writeln!(
         out,
         "Median ns per fragment over {runs} runs, {queries} fragments per width in scanline order (same run, same fragments):\n"
@@ -231,7 +296,7 @@ pub fn run(args: Args) -> Result<()> {
         let brute_n = ((20_000_000.0 / (width * width)) as usize)
             .max(100)
             .min(frags.len());
-        let brute = time_per_query(1, &frags[..brute_n], |f| texel_sum(&grid, f));
+        let brute = time_per_query(1, &frags[..brute_n], |f| texel_sum(grid, f));
         let max_err = frags
             .iter()
             .map(|f| {
@@ -259,7 +324,6 @@ pub fn run(args: Args) -> Result<()> {
         out,
         "\n(max abs error: largest per-channel difference of the mean colour over a fragment, exact quadtree vs SAT; both are exact, so it shows rounding only.)"
     )?;
-    out.flush()?;
     Ok(())
 }
 

@@ -4,6 +4,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use super::Result;
+use super::comparison::flip;
 use super::output::Text;
 
 /// RMSE and FLIP of one image against another.
@@ -36,7 +37,7 @@ pub fn run(args: Args) -> Result<()> {
             b.height
         )
     })?;
-    let flip = super::compare::flip(&a, &b);
+    let flip = flip(&a, &b);
     let mut out = Text::stdout();
     writeln!(out, "rmse {rmse:.6} flip {flip:.6}")?;
     out.flush()?;

@@ -10,8 +10,10 @@ use quadtex_io::LinearImage;
 use quadtex_io::footprints::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
 use quadtex_render::{Filter, PixelFilter, RenderOptions};
 
+use super::Result;
+use super::common::{MemoryArgs, in_range};
+use super::comparison::texture_bytes;
 use super::output::Text;
-use super::{Result, in_range};
 
 /// Dump every pixel's lookup for a peer filter and time quadtex's own.
 ///
@@ -46,7 +48,7 @@ pub struct Args {
     #[arg(long)]
     timing_only: bool,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
 }
 
 /// The quadtex lookups timed against the peer: label, file stem, filter.
@@ -164,7 +166,7 @@ pub fn run(args: Args) -> Result<()> {
         let t = quadtex_render::time_lookups(&scene, width, height, filter, passes)?;
         let file = format!("{stem}.exr");
         quadtex_io::save_image(&dir.join(&file), &t.image)?;
-        let bytes = super::compare::texture_bytes(&scene, filter);
+        let bytes = texture_bytes(&scene, filter);
         table.push_str(&format!(
             "{label}\t{:.1}\t{bytes}\t{file}\n",
             t.ns_per_lookup

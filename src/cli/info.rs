@@ -7,8 +7,9 @@ use std::time::Instant;
 
 use quadtex_core::MAX_VECTOR_LEVEL;
 
+use super::Result;
+use super::common::{MemoryArgs, human_bytes, is_svg, raster_bytes, smooth_summary};
 use super::output::Text;
-use super::{Result, human_bytes, is_svg, raster_bytes};
 
 /// Describe a .qtx file, or SVG art's tree against rasters per level.
 ///
@@ -30,7 +31,7 @@ pub struct Args {
     #[arg(long)]
     verify: bool,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
 }
 
 /// A value parser: one of `--levels`, at most the vector packer's limit.
@@ -68,7 +69,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let start = Instant::now();
     let (tree, meta) = if verify {
-        quadtex_io::read_qtx_with_limits(&path, &limits)?
+        quadtex_io::read_qtx(&path, &limits)?
     } else {
         quadtex_io::map_qtx(&path, &limits)?
     };
@@ -195,6 +196,14 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// `info ART.svg`: the art packed at several levels against rasters of the
+/// The default SVG packing at `level` under `limits`.
+fn svg_options(level: u8, limits: &quadtex_io::Limits) -> quadtex_io::SvgOptions {
+    quadtex_io::SvgOptions {
+        limits: *limits,
+        ..quadtex_io::SvgOptions::at_level(level)
+    }
+}
+
 /// same effective resolution, and the deepest level that fits in 1 MiB.
 fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<()> {
     let mut out = Text::stdout();
@@ -209,7 +218,7 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
     rows.dedup();
     for level in rows {
         let start = Instant::now();
-        let (tree, report) = quadtex_io::pack_svg(path, level, limits)?;
+        let (tree, report) = quadtex_io::pack_svg(path, &svg_options(level, limits))?;
         let seconds = start.elapsed().as_secs_f64();
         smooth.push((level, report));
         let bytes = tree.memory_bytes();
@@ -230,7 +239,7 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
     }
     // Gradients are the one approximation: say how far, per level.
     for (level, report) in smooth {
-        let summary = super::pack::smooth_summary(&report);
+        let summary = smooth_summary(&report);
         if !summary.is_empty() {
             writeln!(
                 out,
@@ -242,7 +251,7 @@ fn info_svg(path: &Path, levels: &[u8], limits: &quadtex_io::Limits) -> Result<(
     // Trees only grow with the level, so walk up until one exceeds 1 MiB.
     let mut fits = None;
     for level in 0..=MAX_VECTOR_LEVEL {
-        let (tree, _) = quadtex_io::pack_svg(path, level, limits)?;
+        let (tree, _) = quadtex_io::pack_svg(path, &svg_options(level, limits))?;
         if tree.memory_bytes() > 1 << 20 {
             break;
         }

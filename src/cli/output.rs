@@ -173,6 +173,16 @@ impl Write for Text {
     }
 }
 
+/// `--format` of `render`, `demo` and `sample`.
+#[derive(Debug, clap::Args)]
+pub struct FormatFlag {
+    /// Image format: needed only when `-o` is `-` (default png) or a name
+    /// without .png/.exr (a FIFO, a device); must agree with a .png/.exr
+    /// extension.
+    #[arg(long, value_name = "png|exr", value_enum)]
+    pub format: Option<FormatArg>,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

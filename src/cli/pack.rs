@@ -6,8 +6,11 @@ use std::time::Instant;
 
 use quadtex_core::{BuildOptions, QuadTree};
 
+use super::Result;
+use super::common::{
+    MemoryArgs, blocks_summary, human_bytes, is_svg, level, raster_bytes, smooth_summary, tolerance,
+};
 use super::output::Output;
-use super::{MemoryArgs, Result, human_bytes, is_svg, level, raster_bytes};
 
 /// Max level of SVG art packed without `--max-level` (4096² effective).
 const DEFAULT_SVG_LEVEL: u8 = 12;
@@ -68,15 +71,6 @@ pub struct Args {
     memory: MemoryArgs,
 }
 
-/// A value parser: a tolerance in [0, 1].
-pub(crate) fn tolerance(text: &str) -> std::result::Result<f64, String> {
-    let t = text.parse::<f64>().map_err(|e| e.to_string())?;
-    if !(t.is_finite() && (0.0..=1.0).contains(&t)) {
-        return Err(format!("--tolerance must be in [0, 1], got {t}"));
-    }
-    Ok(t)
-}
-
 /// A value parser: a curve tolerance in `[2^-40, 1]`.
 fn curve_tolerance(text: &str) -> std::result::Result<f64, String> {
     let t = text.parse::<f64>().map_err(|e| e.to_string())?;
@@ -123,12 +117,16 @@ pub fn run(args: Args) -> Result<()> {
             max_sweep_work: max_sweep_work.unwrap_or(quadtex_core::DEFAULT_MAX_SWEEP_WORK),
             ..quadtex_core::VectorOptions::default()
         };
-        return pack_svg(&input, &output, &svg, &limits);
+        let options = quadtex_io::SvgOptions {
+            vector: svg,
+            limits,
+        };
+        return pack_svg(&input, &output, &options);
     }
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("decoding {}", input.display()));
-    let grid = quadtex_io::load_texels_with_limits(&input, &limits)?;
+    let grid = quadtex_io::load_texels(&input, &limits)?;
     progress.stage(&format!(
         "packing {}x{} texels",
         grid.width(),
@@ -155,7 +153,7 @@ pub fn run(args: Args) -> Result<()> {
         output,
         tree.node_count(),
         terminals,
-        super::blocks_summary(&tree),
+        blocks_summary(&tree),
         tree.depth(),
         human_bytes(bytes),
         bytes as f64 / (f64::from(grid.width()) * f64::from(grid.height())),
@@ -173,17 +171,12 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-fn pack_svg(
-    input: &Path,
-    output: &Output,
-    options: &quadtex_core::VectorOptions,
-    limits: &quadtex_io::Limits,
-) -> Result<()> {
-    let level = options.max_level;
+fn pack_svg(input: &Path, output: &Output, options: &quadtex_io::SvgOptions) -> Result<()> {
+    let level = options.vector.max_level;
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("packing {} at level {level}", input.display()));
-    let (tree, report) = quadtex_io::pack_svg_with_options(input, options, limits)?;
+    let (tree, report) = quadtex_io::pack_svg(input, options)?;
     progress.stage(&format!("writing {output}"));
     let side = 1u32 << level.min(31);
     output.write_qtx(&tree, Some((side, side)))?;
@@ -212,33 +205,6 @@ fn pack_svg(
     Ok(())
 }
 
-/// What gradients cost in accuracy, when the art has any: the largest
-/// deviation of a point from its square's colour, and the bound on stored
-/// means (both linear, full scale 1).
-pub(crate) fn smooth_summary(report: &quadtex_core::VectorReport) -> String {
-    let mut leaves = if report.gradient_leaves > 0 {
-        format!(
-            "; {} gradient leaves ({} paints) keep their linear gradient: exact fragment integrals at any level",
-            report.gradient_leaves, report.gradient_leaf_paints
-        )
-    } else {
-        String::new()
-    };
-    if report.contour_leaves > 0 {
-        leaves += &format!(
-            "; {} contour leaves keep {} contour points: exact at any magnification",
-            report.contour_leaves, report.contour_leaf_points
-        );
-    }
-    if report.max_smooth_deviation == 0.0 && report.max_mean_error == 0.0 {
-        return leaves;
-    }
-    format!(
-        "; gradients, images and masks: every point within {:.6} of its square's colour (at most --tolerance above --max-level), means within {:.2e} (linear){leaves}",
-        report.max_smooth_deviation, report.max_mean_error
-    )
-}
-
 /// Stage messages on a spinner when stderr is a terminal, nothing otherwise.
 struct Progress(Option<indicatif::ProgressBar>);
 
@@ -259,21 +225,5 @@ impl Progress {
         if let Some(bar) = &self.0 {
             bar.finish_and_clear();
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn tolerance_must_be_a_fraction() {
-        assert_eq!(tolerance("0.25"), Ok(0.25));
-        assert_eq!(
-            tolerance("-1"),
-            Err("--tolerance must be in [0, 1], got -1".to_string())
-        );
-        assert!(tolerance("NaN").is_err_and(|e| e.contains("got NaN")));
-        assert!(tolerance("two").is_err());
     }
 }

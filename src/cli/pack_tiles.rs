@@ -4,8 +4,9 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use super::Result;
+use super::common::{MemoryArgs, human_bytes, raster_bytes, tolerance};
 use super::output::Output;
-use super::{MemoryArgs, Result, human_bytes, raster_bytes};
 
 /// Pack a folder of raster tiles into one quadtree texture.
 ///
@@ -27,7 +28,7 @@ pub struct Args {
     /// Largest per-channel deviation (linear, premultiplied, full scale 1)
     /// of a texel from its terminal square's colour, in [0, 1]; 0 (the
     /// default) is lossless.
-    #[arg(long, value_name = "T", default_value_t = 0.0, value_parser = super::pack::tolerance)]
+    #[arg(long, value_name = "T", default_value_t = 0.0, value_parser = tolerance)]
     tolerance: f64,
     #[command(flatten)]
     memory: MemoryArgs,

@@ -3,8 +3,9 @@
 use std::io::{BufRead, BufWriter, Write};
 use std::path::PathBuf;
 
+use super::Result;
+use super::common::{MemoryArgs, level};
 use super::output::Text;
-use super::{Result, level};
 
 /// Answer fragments from stdin with their integrated colour.
 ///
@@ -27,14 +28,14 @@ pub struct Args {
     #[arg(long)]
     verify: bool,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
 }
 
 /// Runs `quadtex query`.
 pub fn run(args: Args) -> Result<()> {
     let limits = args.memory.limits();
     let (tree, _) = if args.verify {
-        quadtex_io::read_qtx_with_limits(&args.path, &limits)?
+        quadtex_io::read_qtx(&args.path, &limits)?
     } else {
         quadtex_io::map_qtx(&args.path, &limits)?
     };

@@ -9,8 +9,10 @@ use quadtex_core::FilterOptions;
 use quadtex_core::baseline::StripOptions;
 use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
 
-use super::output::{FormatArg, Output};
-use super::{Result, compare, level};
+use super::Result;
+use super::common::{MemoryArgs, budget_scene, level};
+use super::comparison::{CompareArgs, Settings, compare_scene};
+use super::output::{FormatFlag, Output, Text};
 
 /// Render a scene file to PNG or EXR.
 ///
@@ -42,19 +44,9 @@ pub struct Args {
     #[command(flatten)]
     render: RenderArgs,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
     #[command(flatten)]
     format: FormatFlag,
-}
-
-/// `--format` of `render`, `demo` and `sample`.
-#[derive(Debug, clap::Args)]
-pub struct FormatFlag {
-    /// Image format: needed only when `-o` is `-` (default png) or a name
-    /// without .png/.exr (a FIFO, a device); must agree with a .png/.exr
-    /// extension.
-    #[arg(long, value_name = "png|exr", value_enum)]
-    pub format: Option<FormatArg>,
 }
 
 /// Render the built-in airfield scene, or compare every filter on it.
@@ -85,9 +77,9 @@ pub struct DemoArgs {
     #[arg(long)]
     compare: bool,
     #[command(flatten)]
-    compare_options: compare::CompareArgs,
+    compare_options: CompareArgs,
     #[command(flatten)]
-    memory: super::MemoryArgs,
+    memory: MemoryArgs,
 }
 
 /// The render options shared by `render` and `demo`.
@@ -310,7 +302,7 @@ fn render_path(
     }
     let mut sorted = seconds.clone();
     sorted.sort_by(f64::total_cmp);
-    let mut text = super::output::Text::stdout();
+    let mut text = Text::stdout();
     writeln!(
         text,
         "wrote {} frames to {} ({} … {})",
@@ -339,12 +331,9 @@ fn render_path(
 /// Runs `quadtex demo`.
 pub fn run_demo(args: DemoArgs) -> Result<()> {
     let mut scene = quadtex_render::demo_scene()?;
-    super::budget_scene(&mut scene, args.memory.bytes());
+    budget_scene(&mut scene, args.memory.bytes());
     if args.compare {
-        let width = args
-            .render
-            .width
-            .unwrap_or(compare::Settings::default().width);
+        let width = args.render.width.unwrap_or(Settings::default().width);
         if !(16..=3840).contains(&width) {
             return Err(format!("--width must be in 16..=3840, got {width}").into());
         }
@@ -361,7 +350,7 @@ pub fn run_demo(args: DemoArgs) -> Result<()> {
         if args.format.format.is_some() {
             return Err("demo --compare: --format applies to the rendered image only".into());
         }
-        return compare::compare_scene(&scene, "demo", &dir, &settings);
+        return compare_scene(&scene, "demo", &dir, &settings);
     }
     let options = args.render.options()?;
     let output = args.output.unwrap_or_else(|| {

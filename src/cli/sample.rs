@@ -2,9 +2,9 @@
 
 use std::io::Write;
 
-use super::output::Output;
-use super::render::FormatFlag;
-use super::{Result, in_range};
+use super::Result;
+use super::common::in_range;
+use super::output::{FormatFlag, Output};
 
 /// Write built-in art as a PNG (or EXR).
 ///

@@ -233,7 +233,7 @@ fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
             if mapped {
                 quadtex_io::map_qtx(&path, &limits)
             } else {
-                quadtex_io::read_qtx_with_limits(&path, &limits)
+                quadtex_io::read_qtx(&path, &limits)
             }
         })
         .map_err(io_error)?;
@@ -393,16 +393,17 @@ fn pack_file(
             DEFAULT_SVG_LEVEL
         });
         let defaults = quadtex_core::VectorOptions::default();
-        let options = quadtex_core::VectorOptions {
-            max_level: level,
-            contour_leaves,
-            max_sweep_work: max_sweep_work.unwrap_or(defaults.max_sweep_work),
-            ..defaults
+        let options = quadtex_io::SvgOptions {
+            vector: quadtex_core::VectorOptions {
+                max_level: level,
+                contour_leaves,
+                max_sweep_work: max_sweep_work.unwrap_or(defaults.max_sweep_work),
+                ..defaults
+            },
+            limits: quadtex_io::Limits::default(),
         };
         let (tree, _) = py
-            .detach(|| {
-                quadtex_io::pack_svg_with_options(&path, &options, &quadtex_io::Limits::default())
-            })
+            .detach(|| quadtex_io::pack_svg(&path, &options))
             .map_err(io_error)?;
         let side = 1u32 << level.min(31);
         return Ok(Texture {
@@ -425,7 +426,7 @@ fn pack_file(
         ..BuildOptions::default()
     };
     let grid = py
-        .detach(|| quadtex_io::load_texels(&path))
+        .detach(|| quadtex_io::load_texels(&path, &quadtex_io::Limits::default()))
         .map_err(io_error)?;
     let (tree, _) = py
         .detach(|| QuadTree::from_texels(&grid, &options))

@@ -39,7 +39,7 @@ pub(crate) fn bytes_to_path(bytes: &[u8], name: &str) -> Result<PathBuf, Failure
 
 /// Reads a `.qtx` file; repeat wrap (the filter options choose the wrap).
 pub(crate) fn open(path: &Path) -> Result<QtxTexture, Failure> {
-    let tree = quadtex_io::read_qtx(path)?;
+    let tree = quadtex_io::read_qtx(path, &quadtex_io::Limits::default())?.0;
     Ok(QtxTexture::new(tree))
 }
 
@@ -87,7 +87,7 @@ pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTex
                 ))
             })?,
         };
-        let (tree, _) = quadtex_io::pack_svg(path, level, &quadtex_io::Limits::default())?;
+        let (tree, _) = quadtex_io::pack_svg(path, &quadtex_io::SvgOptions::at_level(level))?;
         return Ok(QtxTexture::new(tree));
     }
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
@@ -108,7 +108,7 @@ pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTex
                 })?,
         ),
     };
-    let grid = quadtex_io::load_texels(path)?;
+    let grid = quadtex_io::load_texels(path, &quadtex_io::Limits::default())?;
     let options = BuildOptions {
         tolerance,
         max_level,
@@ -168,14 +168,16 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
             "options.max_sweep_work must be at least 1 (steps of the exact sweep), got 0",
         ));
     }
-    let vector = quadtex_core::VectorOptions {
-        max_level,
-        contour_leaves,
-        max_sweep_work: options.max_sweep_work,
-        ..quadtex_core::VectorOptions::default()
+    let options = quadtex_io::SvgOptions {
+        vector: quadtex_core::VectorOptions {
+            max_level,
+            contour_leaves,
+            max_sweep_work: options.max_sweep_work,
+            ..quadtex_core::VectorOptions::default()
+        },
+        limits: quadtex_io::Limits::default(),
     };
-    let (tree, _) =
-        quadtex_io::pack_svg_with_options(path, &vector, &quadtex_io::Limits::default())?;
+    let (tree, _) = quadtex_io::pack_svg(path, &options)?;
     Ok(QtxTexture::new(tree))
 }
 

@@ -53,7 +53,9 @@ fn run() -> Result<(), String> {
     let [texture_path, quads_path] = <[PathBuf; 2]>::try_from(positional)
         .map_err(|_| "expected TEXTURE.qtx QUADS.bin (see --help)")?;
 
-    let tree = quadtex_io::read_qtx(&texture_path).map_err(|e| e.to_string())?;
+    let tree = quadtex_io::read_qtx(&texture_path, &quadtex_io::Limits::default())
+        .map_err(|e| e.to_string())?
+        .0;
     let texture = Texture::new(tree, Wrap::REPEAT);
     let bytes = std::fs::read(&quads_path).map_err(|e| format!("{}: {e}", quads_path.display()))?;
     if bytes.len() % 64 != 0 {

@@ -127,13 +127,9 @@ fn decode_table() -> &'static [f32] {
 }
 
 /// Decodes a PNG or JPEG (8- or 16-bit; grey, grey+alpha, RGB, RGBA) into
-/// linear, premultiplied texels, under the default [`Limits`].
-pub fn load_texels(path: &Path) -> Result<TexelGrid, Error> {
-    load_texels_with_limits(path, &Limits::default())
-}
-
-/// As [`load_texels`] with explicit limits, checked before decoding.
-pub fn load_texels_with_limits(path: &Path, limits: &Limits) -> Result<TexelGrid, Error> {
+/// linear, premultiplied texels; `limits` (often `&Limits::default()`) are
+/// checked before decoding.
+pub fn load_texels(path: &Path, limits: &Limits) -> Result<TexelGrid, Error> {
     limits.check_file_size(path, std::fs::metadata(path).map_err(io(path))?.len())?;
     let open = || {
         ImageReader::open(path)
@@ -144,7 +140,7 @@ pub fn load_texels_with_limits(path: &Path, limits: &Limits) -> Result<TexelGrid
     decode_texels(open, path, limits)
 }
 
-/// As [`load_texels_with_limits`] for a file already in memory; `path`
+/// As [`load_texels`] for a file already in memory; `path`
 /// only names it in errors.
 pub fn load_texels_from_bytes(
     bytes: &[u8],
@@ -459,7 +455,7 @@ mod tests {
         let buf: image::ImageBuffer<image::Luma<u16>, Vec<u16>> =
             image::ImageBuffer::from_fn(4, 2, |x, _| image::Luma([if x < 2 { 0 } else { 65535 }]));
         buf.save(&p).unwrap();
-        let g = load_texels(&p).unwrap();
+        let g = load_texels(&p, &Limits::default()).unwrap();
         assert_eq!((g.width(), g.height()), (4, 2));
         assert_eq!(g.texel(0, 0).0, [0, 0, 0, 65535]);
         assert_eq!(g.texel(3, 1).0, [65535; 4]);
@@ -469,13 +465,16 @@ mod tests {
         image::RgbImage::from_pixel(16, 16, image::Rgb([128, 128, 128]))
             .save(&p)
             .unwrap();
-        let t = load_texels(&p).unwrap().texel(5, 5).to_rgba();
+        let t = load_texels(&p, &Limits::default())
+            .unwrap()
+            .texel(5, 5)
+            .to_rgba();
         assert!((t.g - 0.2158).abs() < 0.01 && t.a == 1.0, "{t:?}");
         std::fs::remove_file(&p).unwrap();
         // Not an image at all: an error naming the file, no panic.
         let p = temp("junk.png");
         std::fs::write(&p, b"not a png").unwrap();
-        let e = load_texels(&p).unwrap_err().to_string();
+        let e = load_texels(&p, &Limits::default()).unwrap_err().to_string();
         assert!(e.contains("junk.png"), "{e}");
         std::fs::remove_file(&p).unwrap();
     }

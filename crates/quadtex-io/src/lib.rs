@@ -29,18 +29,17 @@ pub use atomic::write_atomically;
 pub use error::Error;
 pub use image_io::{
     ImageFormat, LinearImage, linear_to_srgb, linear_to_srgb8, load_linear_image, load_texels,
-    load_texels_from_bytes, load_texels_with_limits, save_image, save_image_as, srgb_to_linear,
-    write_image,
+    load_texels_from_bytes, save_image, save_image_as, srgb_to_linear, write_image,
 };
 pub use limits::{FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE, default_memory_budget};
 pub use qtx::{
-    FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, parse_qtx, parse_qtx_structure, read_qtx,
-    read_qtx_with_limits, write_qtx, write_qtx_to,
+    FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, parse_qtx, parse_qtx_structure, read_qtx, write_qtx,
+    write_qtx_to,
 };
 pub use query::parse_query_line;
 pub use svg::{
-    MIN_CURVE_TOLERANCE, load_svg, load_svg_flattened, pack_svg, pack_svg_with_options,
-    pack_svg_with_tolerance, parse_svg, parse_svg_flattened,
+    MIN_CURVE_TOLERANCE, SvgOptions, load_svg, load_svg_flattened, pack_svg, parse_svg,
+    parse_svg_flattened,
 };
 pub use tiles::{TileFolder, pack_tiles};
 

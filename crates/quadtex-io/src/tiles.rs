@@ -156,7 +156,7 @@ pub fn pack_tiles(
                 reason: "a tile failed to load",
             }
         };
-        let grid = match crate::image_io::load_texels_with_limits(file, limits) {
+        let grid = match crate::image_io::load_texels(file, limits) {
             Ok(g) => g,
             Err(e) => return Err(fail(e, &mut failure)),
         };

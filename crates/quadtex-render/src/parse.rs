@@ -784,13 +784,13 @@ impl Context<'_> {
             .map(str::to_ascii_lowercase);
         let tree = match ext.as_deref() {
             Some("qtx") => {
-                quadtex_io::read_qtx_with_limits(&file, &self.limits)
+                quadtex_io::read_qtx(&file, &self.limits)
                     .map_err(|e| self.err(key, &e.to_string()))?
                     .0
             }
             // EXR and Radiance .hdr pack as HDR trees (half floats).
             Some("png" | "jpg" | "jpeg" | "exr" | "hdr") => {
-                let grid = quadtex_io::load_texels_with_limits(&file, &self.limits)
+                let grid = quadtex_io::load_texels(&file, &self.limits)
                     .map_err(|e| self.err(key, &e.to_string()))?;
                 let options = BuildOptions {
                     max_nodes: self.limits.max_nodes,
@@ -802,12 +802,15 @@ impl Context<'_> {
                     .0
             }
             Some("svg") => {
-                let options = quadtex_core::VectorOptions {
-                    max_level: svg_level,
-                    contour_leaves,
-                    ..quadtex_core::VectorOptions::default()
+                let options = quadtex_io::SvgOptions {
+                    vector: quadtex_core::VectorOptions {
+                        max_level: svg_level,
+                        contour_leaves,
+                        ..quadtex_core::VectorOptions::default()
+                    },
+                    limits: self.limits,
                 };
-                quadtex_io::pack_svg_with_options(&file, &options, &self.limits)
+                quadtex_io::pack_svg(&file, &options)
                     .map_err(|e| self.err(key, &e.to_string()))?
                     .0
             }

@@ -57,7 +57,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use quadtex_core::{Rgba, WrapMode};
 use quadtex_render::Scene;
 use quadtex_render::math::Vec3;
-use quadtex_render::scene::{Geometry, Lighting, Sky};
+use quadtex_render::scene::{Geometry, Lighting, Sky, Surface};
 
 /// Bound on the far-tail error of one pixel edge's periodic part (plane
 /// scenes, horizon row only), per channel.
@@ -212,6 +212,63 @@ fn c4(c: Rgba) -> C4 {
     c.to_array().map(f64::from)
 }
 
+/// The camera as the reference uses it: eye, orthonormal basis, the
+/// tangent of half the vertical field of view and the image size.
+struct CameraFrame {
+    eye: Vec3,
+    fwd: Vec3,
+    up: Vec3,
+    right: Vec3,
+    tan_half: f64,
+    /// Pixels per unit of the image plane at depth 1.
+    kf: f64,
+    wf: f64,
+    hf: f64,
+}
+
+impl CameraFrame {
+    /// The camera basis, recovered from its rays.
+    fn new(scene: &Scene, width: u32, height: u32) -> CameraFrame {
+        let camera = scene.camera.with_size(width, height);
+        let (wf, hf) = (f64::from(width), f64::from(height));
+        let eye = camera.ray(0.0, 0.0).origin;
+        let fwd = camera.forward();
+        let basis = |px: f64, py: f64| {
+            let d = camera.ray(px, py).direction;
+            d * (1.0 / d.dot(fwd)) - fwd
+        };
+        let up_t = basis(wf / 2.0, 0.0);
+        let tan_half = up_t.length();
+        let up = up_t * (1.0 / tan_half);
+        let right_t = basis(wf, hf / 2.0);
+        let right = right_t * (1.0 / right_t.length());
+        let kf = hf / (2.0 * tan_half);
+        CameraFrame {
+            eye,
+            fwd,
+            up,
+            right,
+            tan_half,
+            kf,
+            wf,
+            hf,
+        }
+    }
+}
+
+/// The texture→screen homography of a surface and what shapes it.
+struct Projection {
+    /// Texture (X, Z, 1) → screen (sx·w, sy·w, w), w = depth.
+    m: [[f64; 3]; 3],
+    /// Its inverse.
+    n: [[f64; 3]; 3],
+    /// Whether the texture's axes were swapped to put X along the camera's
+    /// right vector.
+    swapped: bool,
+    /// A quad (bounded) rather than a plane.
+    is_quad: bool,
+}
+
 impl Setup {
     fn new(scene: &Scene, width: u32, height: u32) -> Option<Setup> {
         let [surface] = scene.surfaces.as_slice() else {
@@ -233,220 +290,33 @@ impl Setup {
         }
         let cells = 1usize << tree.depth();
         let h = 1.0 / cells as f64;
-        let tint = c4(surface.colour);
-        // colour_xz[j][i]: cell i along texture x, j along texture z.
-        let mut colour: Vec<Vec<C4>> = Vec::with_capacity(cells);
-        for j in 0..cells {
-            let mut row = Vec::with_capacity(cells);
-            for i in 0..cells {
-                let f = quadtex_core::Fragment::new(
-                    i as f64 * h,
-                    j as f64 * h,
-                    (i + 1) as f64 * h,
-                    (j + 1) as f64 * h,
-                )
-                .ok()?;
-                let c = c4(tree.weighted_colour(&f, u8::MAX).mean_over(f.area()));
-                row.push([
-                    c[0] * tint[0],
-                    c[1] * tint[1],
-                    c[2] * tint[2],
-                    c[3] * tint[3],
-                ]);
-            }
-            colour.push(row);
-        }
-        // Camera basis, recovered from its rays.
-        let camera = scene.camera.with_size(width, height);
-        let (wf, hf) = (f64::from(width), f64::from(height));
-        let eye = camera.ray(0.0, 0.0).origin;
-        let fwd = camera.forward();
-        let basis = |px: f64, py: f64| {
-            let d = camera.ray(px, py).direction;
-            d * (1.0 / d.dot(fwd)) - fwd
-        };
-        let up_t = basis(wf / 2.0, 0.0);
-        let tan_half = up_t.length();
-        let up = up_t * (1.0 / tan_half);
-        let right_t = basis(wf, hf / 2.0);
-        let right = right_t * (1.0 / right_t.length());
-        let kf = hf / (2.0 * tan_half);
-        // Texture → world, affine.
-        let uv0 = surface.uv_transform.invert([0.0, 0.0]);
-        let uvx = surface.uv_transform.invert([1.0, 0.0]);
-        let uvz = surface.uv_transform.invert([0.0, 1.0]);
-        let (base, ea, eb, is_quad) = match surface.geometry {
-            Geometry::Plane {
-                point,
-                u_axis,
-                v_axis,
-                ..
-            } => (point, u_axis, v_axis, false),
-            Geometry::Quad {
-                origin,
-                edge_u,
-                edge_v,
-            } => (origin, edge_u, edge_v, true),
-            _ => return None,
-        };
-        let lin = |uv: [f64; 2]| ea * uv[0] + eb * uv[1];
-        let q0 = base + lin(uv0) - eye;
-        let mut qx = lin([uvx[0] - uv0[0], uvx[1] - uv0[1]]);
-        let mut qz = lin([uvz[0] - uv0[0], uvz[1] - uv0[1]]);
-        let aligned = |q: Vec3| {
-            let l = q.length();
-            q.dot(fwd).abs() <= 1e-12 * l && q.dot(up).abs() <= 1e-12 * l
-        };
-        let swapped = if aligned(qx) {
-            false
-        } else if aligned(qz) {
-            std::mem::swap(&mut qx, &mut qz);
-            true
-        } else {
-            return None;
-        };
+        let mut colour = cell_colours(tree, c4(surface.colour), cells, h)?;
+        let frame = CameraFrame::new(scene, width, height);
+        let Projection {
+            m,
+            n,
+            swapped,
+            is_quad,
+        } = projection(surface, &frame)?;
         if swapped {
             colour = (0..cells)
                 .map(|i| (0..cells).map(|j| colour[j][i]).collect())
                 .collect();
         }
-        let row_of = |q: Vec3, zero_w: bool| -> [f64; 3] {
-            let w = if zero_w { 0.0 } else { q.dot(fwd) };
-            [
-                wf / 2.0 * w + kf * q.dot(right),
-                hf / 2.0 * w - kf * q.dot(up),
-                w,
-            ]
-        };
-        let (cx, cz, c0) = (row_of(qx, true), row_of(qz, false), row_of(q0, false));
-        let mut m = [
-            [cx[0], cz[0], c0[0]],
-            [0.0, cz[1], c0[1]],
-            [0.0, cz[2], c0[2]],
-        ];
-        let _ = cx;
-        let n = invert3(&m)?;
-        m[1][0] = 0.0;
-        // Texture rectangle of a quad, all in front of the camera.
-        let swap2 = |t: [f64; 2]| if swapped { [t[1], t[0]] } else { t };
         let rect = if is_quad {
-            let corners = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
-                .map(|uv| swap2(surface.uv_transform.apply(uv)));
-            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-            for c in &corners {
-                for a in 0..2 {
-                    lo[a] = lo[a].min(c[a]);
-                    hi[a] = hi[a].max(c[a]);
-                }
-            }
-            let tol = 1e-9 * (1.0 + hi[0] - lo[0] + hi[1] - lo[1]);
-            let on_box = |c: &[f64; 2]| {
-                ((c[0] - lo[0]).abs() < tol || (c[0] - hi[0]).abs() < tol)
-                    && ((c[1] - lo[1]).abs() < tol || (c[1] - hi[1]).abs() < tol)
-            };
-            if !corners.iter().all(on_box) {
-                return None;
-            }
-            for c in &corners {
-                if m[2][0] * c[0] + m[2][1] * c[1] + m[2][2] <= 1e-9 {
-                    return None;
-                }
-            }
-            Some([lo[0], lo[1], hi[0], hi[1]])
+            Some(quad_rect(surface, &m, swapped)?)
         } else {
             None
         };
-        // Row means, periodic parts, cumulative sums.
-        let mut mean = Vec::with_capacity(cells);
-        let mut p_left = Vec::with_capacity(cells);
-        let mut cum = Vec::with_capacity(cells);
-        let mut p_max = 0f64;
-        for row in &colour {
-            let mut c = vec![[0.0; 4]; cells + 1];
-            for i in 0..cells {
-                c[i + 1] = add(c[i], row[i], h);
-            }
-            let mu = c[cells];
-            let raw: Vec<C4> = (0..=cells)
-                .map(|i| add(c[i], mu, -(i as f64) * h))
-                .collect();
-            let mut kappa = [0.0; 4];
-            for (ch, k) in kappa.iter_mut().enumerate() {
-                let lo = raw.iter().map(|r| r[ch]).fold(f64::INFINITY, f64::min);
-                let hi = raw.iter().map(|r| r[ch]).fold(f64::NEG_INFINITY, f64::max);
-                *k = (lo + hi) / 2.0;
-                p_max = p_max.max((hi - lo) / 2.0);
-            }
-            p_left.push(raw.iter().map(|r| add(*r, kappa, -1.0)).collect());
-            mean.push(mu);
-            cum.push(c);
-        }
-        let mut mean_bar = [0.0; 4];
-        for mu in &mean {
-            mean_bar = add(mean_bar, *mu, 1.0 / cells as f64);
-        }
-        // Abel summation: partial sums of μ_j − μ̄ over any run are at most
-        // twice the largest prefix sum; the first (partial) band adds one term.
-        let mut mean_b = 0f64;
-        for ch in 0..4 {
-            let (mut s, mut prefix, mut term) = (0f64, 0f64, 0f64);
-            for mu in &mean {
-                s += mu[ch] - mean_bar[ch];
-                prefix = prefix.max(s.abs());
-                term = term.max((mu[ch] - mean_bar[ch]).abs());
-            }
-            mean_b = mean_b.max(2.0 * prefix + term);
-        }
-        // The outline, as half-planes.
-        let outline = match rect {
-            None => vec![[0.0, n[2][1], n[2][2]]],
-            Some([x0, z0, x1, z1]) => {
-                let p = |x: f64, z: f64| {
-                    let w = m[2][0] * x + m[2][1] * z + m[2][2];
-                    [
-                        (m[0][0] * x + m[0][1] * z + m[0][2]) / w,
-                        (m[1][1] * z + m[1][2]) / w,
-                    ]
-                };
-                let poly = [p(x0, z0), p(x1, z0), p(x1, z1), p(x0, z1)];
-                let s = signed_area(&poly).signum();
-                (0..4)
-                    .map(|k| {
-                        let (a, b) = (poly[k], poly[(k + 1) % 4]);
-                        // s·cross(b − a, q − a) ≥ 0 inside.
-                        [
-                            -s * (b[1] - a[1]),
-                            s * (b[0] - a[0]),
-                            s * ((b[1] - a[1]) * a[0] - (b[0] - a[0]) * a[1]),
-                        ]
-                    })
-                    .collect()
-            }
-        };
-        // The sky.
-        let (horizon, zenith) = match scene.sky {
-            Sky::Solid(c) => (c4(c), c4(c)),
-            Sky::Gradient { horizon, zenith } => (c4(horizon), c4(zenith)),
-        };
-        let delta = add(zenith, horizon, -1.0);
-        let k = 2.0 * tan_half / hf;
-        // d(x, y) = fwd + right·(x − W/2)·k + up·(H/2 − y)·k.
-        let g = [
-            right.y * k,
-            -up.y * k,
-            fwd.y - right.y * k * wf / 2.0 + up.y * k * hf / 2.0,
-        ];
-        let nu = move |x: f64, y: f64| {
-            let (a, b) = ((x - wf / 2.0) * k, (hf / 2.0 - y) * k);
-            (1.0 + a * a + b * b).powf(-0.25)
-        };
-        let corner_len = (1.0 + (wf / 2.0 * k).powi(2) + (hf / 2.0 * k).powi(2)).sqrt();
-        // Per polygon ≤ |Δ|·sqrt(L_max)·(k²/2)/2·∫|x − c|², ∫|x − c|² = 1/(6n⁴)
-        // per sub-square, n² sub-squares, two polygons each: 2|Δ|·sqrt(L_max)·k²/(24 n²).
-        let dmax = delta.iter().fold(0f64, |m, d| m.max(d.abs()));
-        let one = 2.0 * dmax * corner_len.sqrt() * k * k / 24.0;
-        let sky_subdivision = ((one / SKY_BUDGET).sqrt().ceil() as usize).clamp(1, 64);
-        let sky_bound = one / (sky_subdivision * sky_subdivision) as f64;
+        let RowSums {
+            mean,
+            p_left,
+            cum,
+            p_max,
+        } = row_sums(&colour, cells, h);
+        let (mean_bar, mean_b) = mean_tail(&mean, cells);
+        let outline = outline(rect, &m, &n);
+        let (sky, sky_subdivision, sky_bound) = sky_model(scene, &frame);
         let setup = Setup {
             width,
             m,
@@ -464,12 +334,7 @@ impl Setup {
             outline,
             sky_subdivision,
             sky_bound,
-            sky: SkyModel {
-                horizon,
-                delta,
-                g,
-                nu: Box::new(nu),
-            },
+            sky,
         };
         Some(setup)
     }
@@ -742,6 +607,279 @@ impl Setup {
     }
 }
 
+/// `colour[j][i]`: the mean colour of cell `i` along texture x, `j` along
+/// texture z, times `tint`.
+fn cell_colours(
+    tree: &quadtex_core::QuadTree,
+    tint: C4,
+    cells: usize,
+    h: f64,
+) -> Option<Vec<Vec<C4>>> {
+    let mut colour: Vec<Vec<C4>> = Vec::with_capacity(cells);
+    for j in 0..cells {
+        let mut row = Vec::with_capacity(cells);
+        for i in 0..cells {
+            let f = quadtex_core::Fragment::new(
+                i as f64 * h,
+                j as f64 * h,
+                (i + 1) as f64 * h,
+                (j + 1) as f64 * h,
+            )
+            .ok()?;
+            let c = c4(tree.weighted_colour(&f, u8::MAX).mean_over(f.area()));
+            row.push([
+                c[0] * tint[0],
+                c[1] * tint[1],
+                c[2] * tint[2],
+                c[3] * tint[3],
+            ]);
+        }
+        colour.push(row);
+    }
+    Some(colour)
+}
+
+/// The surface's texture→screen homography; `None` unless it is a plane
+/// or quad with a texture axis parallel to the camera's right vector.
+fn projection(surface: &Surface, frame: &CameraFrame) -> Option<Projection> {
+    let CameraFrame {
+        eye,
+        fwd,
+        up,
+        right,
+        kf,
+        wf,
+        hf,
+        ..
+    } = *frame;
+    // Texture → world, affine.
+    let uv0 = surface.uv_transform.invert([0.0, 0.0]);
+    let uvx = surface.uv_transform.invert([1.0, 0.0]);
+    let uvz = surface.uv_transform.invert([0.0, 1.0]);
+    let (base, ea, eb, is_quad) = match surface.geometry {
+        Geometry::Plane {
+            point,
+            u_axis,
+            v_axis,
+            ..
+        } => (point, u_axis, v_axis, false),
+        Geometry::Quad {
+            origin,
+            edge_u,
+            edge_v,
+        } => (origin, edge_u, edge_v, true),
+        _ => return None,
+    };
+    let lin = |uv: [f64; 2]| ea * uv[0] + eb * uv[1];
+    let q0 = base + lin(uv0) - eye;
+    let mut qx = lin([uvx[0] - uv0[0], uvx[1] - uv0[1]]);
+    let mut qz = lin([uvz[0] - uv0[0], uvz[1] - uv0[1]]);
+    let aligned = |q: Vec3| {
+        let l = q.length();
+        q.dot(fwd).abs() <= 1e-12 * l && q.dot(up).abs() <= 1e-12 * l
+    };
+    let swapped = if aligned(qx) {
+        false
+    } else if aligned(qz) {
+        std::mem::swap(&mut qx, &mut qz);
+        true
+    } else {
+        return None;
+    };
+    let row_of = |q: Vec3, zero_w: bool| -> [f64; 3] {
+        let w = if zero_w { 0.0 } else { q.dot(fwd) };
+        [
+            wf / 2.0 * w + kf * q.dot(right),
+            hf / 2.0 * w - kf * q.dot(up),
+            w,
+        ]
+    };
+    let (cx, cz, c0) = (row_of(qx, true), row_of(qz, false), row_of(q0, false));
+    let mut m = [
+        [cx[0], cz[0], c0[0]],
+        [0.0, cz[1], c0[1]],
+        [0.0, cz[2], c0[2]],
+    ];
+    let _ = cx;
+    let n = invert3(&m)?;
+    m[1][0] = 0.0;
+    Some(Projection {
+        m,
+        n,
+        swapped,
+        is_quad,
+    })
+}
+
+/// The texture rectangle `[x0, z0, x1, z1]` of a quad; `None` unless its
+/// corners form a texture-axis rectangle all in front of the camera.
+fn quad_rect(surface: &Surface, m: &[[f64; 3]; 3], swapped: bool) -> Option<[f64; 4]> {
+    let swap2 = |t: [f64; 2]| if swapped { [t[1], t[0]] } else { t };
+    let corners = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+        .map(|uv| swap2(surface.uv_transform.apply(uv)));
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for c in &corners {
+        for a in 0..2 {
+            lo[a] = lo[a].min(c[a]);
+            hi[a] = hi[a].max(c[a]);
+        }
+    }
+    let tol = 1e-9 * (1.0 + hi[0] - lo[0] + hi[1] - lo[1]);
+    let on_box = |c: &[f64; 2]| {
+        ((c[0] - lo[0]).abs() < tol || (c[0] - hi[0]).abs() < tol)
+            && ((c[1] - lo[1]).abs() < tol || (c[1] - hi[1]).abs() < tol)
+    };
+    if !corners.iter().all(on_box) {
+        return None;
+    }
+    for c in &corners {
+        if m[2][0] * c[0] + m[2][1] * c[1] + m[2][2] <= 1e-9 {
+            return None;
+        }
+    }
+    Some([lo[0], lo[1], hi[0], hi[1]])
+}
+
+/// Per texture row: its mean, the periodic part at each cell's left edge,
+/// the cumulative integral from X = 0, and the largest periodic part.
+struct RowSums {
+    mean: Vec<C4>,
+    p_left: Vec<Vec<C4>>,
+    cum: Vec<Vec<C4>>,
+    p_max: f64,
+}
+
+/// Row means, periodic parts, cumulative sums of `colour`.
+fn row_sums(colour: &[Vec<C4>], cells: usize, h: f64) -> RowSums {
+    let mut mean = Vec::with_capacity(cells);
+    let mut p_left = Vec::with_capacity(cells);
+    let mut cum = Vec::with_capacity(cells);
+    let mut p_max = 0f64;
+    for row in colour {
+        let mut c = vec![[0.0; 4]; cells + 1];
+        for i in 0..cells {
+            c[i + 1] = add(c[i], row[i], h);
+        }
+        let mu = c[cells];
+        let raw: Vec<C4> = (0..=cells)
+            .map(|i| add(c[i], mu, -(i as f64) * h))
+            .collect();
+        let mut kappa = [0.0; 4];
+        for (ch, k) in kappa.iter_mut().enumerate() {
+            let lo = raw.iter().map(|r| r[ch]).fold(f64::INFINITY, f64::min);
+            let hi = raw.iter().map(|r| r[ch]).fold(f64::NEG_INFINITY, f64::max);
+            *k = (lo + hi) / 2.0;
+            p_max = p_max.max((hi - lo) / 2.0);
+        }
+        p_left.push(raw.iter().map(|r| add(*r, kappa, -1.0)).collect());
+        mean.push(mu);
+        cum.push(c);
+    }
+    RowSums {
+        mean,
+        p_left,
+        cum,
+        p_max,
+    }
+}
+
+/// The plane tail's constants: the mean of the row means, and the bound
+/// on partial sums of their deviations from it.
+fn mean_tail(mean: &[C4], cells: usize) -> (C4, f64) {
+    let mut mean_bar = [0.0; 4];
+    for mu in mean {
+        mean_bar = add(mean_bar, *mu, 1.0 / cells as f64);
+    }
+    // Abel summation: partial sums of μ_j − μ̄ over any run are at most
+    // twice the largest prefix sum; the first (partial) band adds one term.
+    let mut mean_b = 0f64;
+    for ch in 0..4 {
+        let (mut s, mut prefix, mut term) = (0f64, 0f64, 0f64);
+        for mu in mean {
+            s += mu[ch] - mean_bar[ch];
+            prefix = prefix.max(s.abs());
+            term = term.max((mu[ch] - mean_bar[ch]).abs());
+        }
+        mean_b = mean_b.max(2.0 * prefix + term);
+    }
+    (mean_bar, mean_b)
+}
+
+/// Where the surface is seen, as half-planes `a·x + b·y + c ≥ 0`: in
+/// front of the horizon for a plane, inside the projected rectangle for a
+/// quad.
+fn outline(rect: Option<[f64; 4]>, m: &[[f64; 3]; 3], n: &[[f64; 3]; 3]) -> Vec<[f64; 3]> {
+    match rect {
+        None => vec![[0.0, n[2][1], n[2][2]]],
+        Some([x0, z0, x1, z1]) => {
+            let p = |x: f64, z: f64| {
+                let w = m[2][0] * x + m[2][1] * z + m[2][2];
+                [
+                    (m[0][0] * x + m[0][1] * z + m[0][2]) / w,
+                    (m[1][1] * z + m[1][2]) / w,
+                ]
+            };
+            let poly = [p(x0, z0), p(x1, z0), p(x1, z1), p(x0, z1)];
+            let s = signed_area(&poly).signum();
+            (0..4)
+                .map(|k| {
+                    let (a, b) = (poly[k], poly[(k + 1) % 4]);
+                    // s·cross(b − a, q − a) ≥ 0 inside.
+                    [
+                        -s * (b[1] - a[1]),
+                        s * (b[0] - a[0]),
+                        s * ((b[1] - a[1]) * a[0] - (b[0] - a[0]) * a[1]),
+                    ]
+                })
+                .collect()
+        }
+    }
+}
+
+/// The sky seen through `frame`, with the sub-squares per pixel side its
+/// integral needs to stay within [`SKY_BUDGET`] and the resulting bound.
+fn sky_model(scene: &Scene, frame: &CameraFrame) -> (SkyModel, usize, f64) {
+    let CameraFrame {
+        fwd,
+        up,
+        right,
+        tan_half,
+        wf,
+        hf,
+        ..
+    } = *frame;
+    let (horizon, zenith) = match scene.sky {
+        Sky::Solid(c) => (c4(c), c4(c)),
+        Sky::Gradient { horizon, zenith } => (c4(horizon), c4(zenith)),
+    };
+    let delta = add(zenith, horizon, -1.0);
+    let k = 2.0 * tan_half / hf;
+    // d(x, y) = fwd + right·(x − W/2)·k + up·(H/2 − y)·k.
+    let g = [
+        right.y * k,
+        -up.y * k,
+        fwd.y - right.y * k * wf / 2.0 + up.y * k * hf / 2.0,
+    ];
+    let nu = move |x: f64, y: f64| {
+        let (a, b) = ((x - wf / 2.0) * k, (hf / 2.0 - y) * k);
+        (1.0 + a * a + b * b).powf(-0.25)
+    };
+    let corner_len = (1.0 + (wf / 2.0 * k).powi(2) + (hf / 2.0 * k).powi(2)).sqrt();
+    // Per polygon ≤ |Δ|·sqrt(L_max)·(k²/2)/2·∫|x − c|², ∫|x − c|² = 1/(6n⁴)
+    // per sub-square, n² sub-squares, two polygons each: 2|Δ|·sqrt(L_max)·k²/(24 n²).
+    let dmax = delta.iter().fold(0f64, |m, d| m.max(d.abs()));
+    let one = 2.0 * dmax * corner_len.sqrt() * k * k / 24.0;
+    let sky_subdivision = ((one / SKY_BUDGET).sqrt().ceil() as usize).clamp(1, 64);
+    let sky_bound = one / (sky_subdivision * sky_subdivision) as f64;
+    let sky = SkyModel {
+        horizon,
+        delta,
+        g,
+        nu: Box::new(nu),
+    };
+    (sky, sky_subdivision, sky_bound)
+}
+
 /// `∫ sqrt(L)` and `∫ sqrt(L)·(x, y)` over a convex polygon where
 /// `L = g0 x + g1 y + g2 ≥ 0`, by the divergence theorem: with `G = ∇L`,
 /// `div(⅔ L^{3/2} G/|G|²) = sqrt(L)`, `div(⅖ L^{5/2} G/|G|²) = L^{3/2}`,
@@ -879,293 +1017,4 @@ fn invert3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
 }
 
 #[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used, clippy::expect_used)]
-    use super::*;
-    use std::path::Path;
-
-    fn scene(name: &str) -> Scene {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../scenes")
-            .join(name);
-        quadtex_render::load_scene(&path).unwrap()
-    }
-
-    /// Dense midpoint sampling of pixel `(px, py)` on an `n × n` grid: each
-    /// sample intersects the surface directly (its own plane/quad maths),
-    /// looks up the checker cell colour by `floor`, or takes the sky.
-    fn brute(scene: &Scene, w: u32, h: u32, px: u32, py: u32, n: u32) -> C4 {
-        let camera = scene.camera.with_size(w, h);
-        let s = &scene.surfaces[0];
-        let tree = &s.texture.as_ref().unwrap().tree;
-        let cells = 1u32 << tree.depth();
-        let cell = 1.0 / f64::from(cells);
-        let colour = |t: [f64; 2]| -> C4 {
-            let (i, j) = ((t[0] / cell).floor(), (t[1] / cell).floor());
-            let (i, j) = (
-                i.rem_euclid(f64::from(cells)) as u32,
-                j.rem_euclid(f64::from(cells)) as u32,
-            );
-            let f = quadtex_core::Fragment::new(
-                f64::from(i) * cell,
-                f64::from(j) * cell,
-                f64::from(i + 1) * cell,
-                f64::from(j + 1) * cell,
-            )
-            .unwrap();
-            let c = c4(tree.weighted_colour(&f, u8::MAX).mean_over(f.area()));
-            let k = c4(s.colour);
-            [c[0] * k[0], c[1] * k[1], c[2] * k[2], c[3] * k[3]]
-        };
-        let mut lut = std::collections::HashMap::new();
-        let mut acc = [0.0; 4];
-        for sj in 0..n {
-            for si in 0..n {
-                let x = f64::from(px) + (f64::from(si) + 0.5) / f64::from(n);
-                let y = f64::from(py) + (f64::from(sj) + 0.5) / f64::from(n);
-                let ray = camera.ray(x, y);
-                let uv = match s.geometry {
-                    Geometry::Plane {
-                        point,
-                        normal,
-                        u_axis,
-                        v_axis,
-                    } => {
-                        let t = (point - ray.origin).dot(normal) / ray.direction.dot(normal);
-                        (t > 0.0).then(|| {
-                            let rel = ray.origin + ray.direction * t - point;
-                            [rel.dot(u_axis), rel.dot(v_axis)]
-                        })
-                    }
-                    Geometry::Quad {
-                        origin,
-                        edge_u,
-                        edge_v,
-                    } => {
-                        let normal = edge_u.cross(edge_v);
-                        let t = (origin - ray.origin).dot(normal) / ray.direction.dot(normal);
-                        let rel = ray.origin + ray.direction * t - origin;
-                        // Axis-aligned quads in the test scenes: solve per axis.
-                        let uv = [
-                            rel.dot(edge_u) / edge_u.dot(edge_u),
-                            rel.dot(edge_v) / edge_v.dot(edge_v),
-                        ];
-                        (t > 0.0 && (0.0..=1.0).contains(&uv[0]) && (0.0..=1.0).contains(&uv[1]))
-                            .then_some(uv)
-                    }
-                    _ => unreachable!(),
-                };
-                let c = match uv {
-                    Some(uv) => {
-                        let t = s.uv_transform.apply(uv);
-                        let key = (
-                            ((t[0] / cell).floor() as i64).rem_euclid(i64::from(cells)),
-                            ((t[1] / cell).floor() as i64).rem_euclid(i64::from(cells)),
-                        );
-                        *lut.entry(key).or_insert_with(|| colour(t))
-                    }
-                    None => match scene.sky {
-                        Sky::Solid(c) => c4(c),
-                        Sky::Gradient { horizon, zenith } => {
-                            let t = ray.direction.y.clamp(0.0, 1.0).sqrt();
-                            let (a, b) = (c4(horizon), c4(zenith));
-                            add(a, add(b, a, -1.0), t)
-                        }
-                    },
-                };
-                acc = add(acc, c, 1.0);
-            }
-        }
-        acc.map(|v| v / f64::from(n * n))
-    }
-
-    /// The old method for a pixel that sees only the surface: every finest
-    /// cell under its footprint projected to the screen (via the camera's
-    /// own `project`) and clipped against the pixel square.
-    fn cells_clipped(scene: &Scene, w: u32, h: u32, px: u32, py: u32) -> (C4, f64) {
-        let camera = scene.camera.with_size(w, h);
-        let s = &scene.surfaces[0];
-        let tree = &s.texture.as_ref().unwrap().tree;
-        let cells = 1u32 << tree.depth();
-        let cell = 1.0 / f64::from(cells);
-        let world = |t: [f64; 2]| {
-            let uv = s.uv_transform.invert(t);
-            match s.geometry {
-                Geometry::Plane {
-                    point,
-                    u_axis,
-                    v_axis,
-                    ..
-                } => point + u_axis * uv[0] + v_axis * uv[1],
-                Geometry::Quad {
-                    origin,
-                    edge_u,
-                    edge_v,
-                } => origin + edge_u * uv[0] + edge_v * uv[1],
-                _ => unreachable!(),
-            }
-        };
-        // Footprint bounds from dense edge samples of the pixel.
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        let setup = Setup::new(scene, w, h).unwrap();
-        for k in 0..=64 {
-            let f = f64::from(k) / 64.0;
-            for (x, y) in [(f, 0.0), (f, 1.0), (0.0, f), (1.0, f)] {
-                let (x, y) = (f64::from(px) + x, f64::from(py) + y);
-                let t = [setup.x_at(x, y), setup.z_at(y)];
-                for a in 0..2 {
-                    lo[a] = lo[a].min(t[a]);
-                    hi[a] = hi[a].max(t[a]);
-                }
-            }
-        }
-        let pixel = [
-            [f64::from(px), f64::from(py)],
-            [f64::from(px) + 1.0, f64::from(py)],
-            [f64::from(px) + 1.0, f64::from(py) + 1.0],
-            [f64::from(px), f64::from(py) + 1.0],
-        ];
-        let (mut acc, mut area) = ([0.0; 4], 0.0);
-        for j in (lo[1] / cell).floor() as i64 - 1..=(hi[1] / cell).ceil() as i64 {
-            for i in (lo[0] / cell).floor() as i64 - 1..=(hi[0] / cell).ceil() as i64 {
-                let (x0, z0) = (i as f64 * cell, j as f64 * cell);
-                let quad: Vec<[f64; 2]> = [
-                    [x0, z0],
-                    [x0 + cell, z0],
-                    [x0 + cell, z0 + cell],
-                    [x0, z0 + cell],
-                ]
-                .iter()
-                .map(|&t| camera.project(world(t)).unwrap())
-                .collect();
-                let mut poly = pixel.to_vec();
-                let sgn = signed_area(&quad).signum();
-                for k in 0..4 {
-                    let (a, b) = (quad[k], quad[(k + 1) % 4]);
-                    poly = clip_halfplane(
-                        &poly,
-                        [
-                            -sgn * (b[1] - a[1]),
-                            sgn * (b[0] - a[0]),
-                            sgn * ((b[1] - a[1]) * a[0] - (b[0] - a[0]) * a[1]),
-                        ],
-                    );
-                }
-                if poly.len() >= 3 {
-                    let a = signed_area(&poly).abs();
-                    let (ci, cj) = (
-                        i.rem_euclid(i64::from(cells)) as usize,
-                        j.rem_euclid(i64::from(cells)) as usize,
-                    );
-                    acc = add(acc, setup.colour[cj][ci], a);
-                    area += a;
-                }
-            }
-        }
-        (acc, area)
-    }
-
-    /// A pixel wholly on the surface agrees with the old cell-clipping
-    /// method to rounding.
-    #[test]
-    fn inner_pixels_match_cell_clipping() {
-        for (name, px, py) in [
-            ("checker.toml", 5, 50),
-            ("checker.toml", 40, 35),
-            ("checker_quad.toml", 27, 40),
-            ("checker_quad.toml", 50, 30),
-        ] {
-            let sc = scene(name);
-            let c = closed_form(&sc, 96, 54).unwrap();
-            let exact = c.pixels[(py * 96 + px) as usize].unwrap();
-            let (old, area) = cells_clipped(&sc, 96, 54, px, py);
-            let d = max_diff(old, exact);
-            eprintln!("{name} ({px},{py}): covered {area:.12}, diff {d:.2e}");
-            assert!(
-                (area - 1.0).abs() < 1e-9 && d < 1e-6,
-                "{name} ({px},{py}): {d}"
-            );
-        }
-    }
-
-    fn max_diff(a: C4, b: Rgba) -> f64 {
-        let b = c4(b);
-        (0..4).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
-    }
-
-    /// Full-size run time (release: `cargo test --release -p quadtex-eval
-    /// --lib full_size -- --ignored --nocapture`).
-    #[test]
-    #[ignore]
-    fn full_size_timing() {
-        for name in ["checker.toml", "checker_quad.toml"] {
-            let sc = scene(name);
-            let t = std::time::Instant::now();
-            let c = closed_form(&sc, 960, 540).unwrap();
-            eprintln!(
-                "{name} 960x540: {:.2} s, coverage {}, max bound {:.2e}",
-                t.elapsed().as_secs_f64(),
-                c.coverage(),
-                c.max_bound()
-            );
-        }
-    }
-
-    /// Every pixel of both scenes is covered at 96×54, within a bound ≤ 1e-6.
-    #[test]
-    fn covers_every_pixel_of_both_scenes() {
-        for name in ["checker.toml", "checker_quad.toml"] {
-            let sc = scene(name);
-            let c = closed_form(&sc, 96, 54).expect(name);
-            assert_eq!(c.coverage(), 1.0, "{name}");
-            assert!(c.max_bound() <= 1e-6, "{name}: bound {}", c.max_bound());
-            for p in c.pixels.iter().flatten() {
-                assert!(
-                    p.to_array()
-                        .iter()
-                        .all(|v| v.is_finite() && *v >= -1e-6 && *v <= 1.0 + 1e-6)
-                );
-            }
-            eprintln!("{name}: coverage 100%, max bound {:.2e}", c.max_bound());
-        }
-    }
-
-    /// Horizon, far-edge and side-edge pixels against dense supersampling:
-    /// the difference is within the sampling error (estimated from the
-    /// sampling's own change from n/2 to n), and the closed form is far
-    /// closer to the n-sample value than n/2 samples are.
-    #[test]
-    fn agrees_with_dense_supersampling() {
-        let (w, h) = (96u32, 54u32);
-        for (name, pixels) in [
-            (
-                "checker.toml",
-                vec![(48, 24), (10, 24), (70, 25), (30, 23), (5, 50)],
-            ),
-            (
-                "checker_quad.toml",
-                vec![(48, 24), (30, 25), (60, 25), (27, 40), (68, 40)],
-            ),
-        ] {
-            let sc = scene(name);
-            let c = closed_form(&sc, w, h).unwrap();
-            for (px, py) in pixels {
-                let exact = c.pixels[(py * w + px) as usize].unwrap();
-                let fine = brute(&sc, w, h, px, py, 2048);
-                let coarse = brute(&sc, w, h, px, py, 1024);
-                let d = max_diff(fine, exact);
-                let sampling = (0..4)
-                    .map(|i| (fine[i] - coarse[i]).abs())
-                    .fold(0.0, f64::max);
-                eprintln!(
-                    "{name} ({px},{py}): exact {:?} 2048² {fine:?} diff {d:.2e}, 1024²→2048² {sampling:.2e}",
-                    exact.to_array()
-                );
-                assert!(
-                    d <= 3.0 * sampling + 2e-4,
-                    "{name} ({px},{py}): {d} vs {sampling}"
-                );
-            }
-        }
-    }
-}
+mod tests;

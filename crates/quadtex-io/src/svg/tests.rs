@@ -1,0 +1,301 @@
+#![allow(clippy::unwrap_used)]
+use super::*;
+use quadtex_core::Fragment;
+
+/// The packed alpha integral over the unit square (the root colour,
+/// within one 16-bit step) of an SVG 100 units wide.
+fn coverage(svg: &str) -> f64 {
+    let art = parse_svg(svg.as_bytes(), Path::new("t.svg"), 8, &Limits::default()).unwrap();
+    let options = VectorOptions {
+        max_level: 8,
+        ..VectorOptions::default()
+    };
+    let (tree, _) = QuadTree::from_vector(&art, &options).unwrap();
+    let f = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
+    tree.weighted_colour(&f, 8).0[3]
+}
+
+/// A circle flattened to a stated tolerance, packed with contour
+/// leaves: where its edge crosses a small fragment, the covered area
+/// is within `tolerance × arc length` of the true circle's (and, for a
+/// coarse tolerance, visibly not the true one).
+#[test]
+fn curves_are_flattened_to_the_stated_tolerance() {
+    let svg = r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 100 100"><circle cx="50" cy="50" r="40"/></svg>"#;
+    let (r, w) = (0.4, 0.004);
+    let f = Fragment::new(0.5 - w, 0.1 - w, 0.5 + w, 0.1 + w).unwrap();
+    // The true circle's area in the fragment (its edge nearly level
+    // there): ∫ (z1 − max(z0, 0.5 − √(r² − (x − 0.5)²))) dx, Simpson.
+    let n = 20_000;
+    let inside = |x: f64| f.z1() - f.z0().max(0.5 - (r * r - (x - 0.5) * (x - 0.5)).sqrt());
+    let h = (f.x1() - f.x0()) / f64::from(n);
+    let mut truth = inside(f.x0()) + inside(f.x1());
+    for i in 1..n {
+        truth += inside(f.x0() + f64::from(i) * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    truth *= h / 3.0;
+    for tolerance in [1e-6, 1e-3] {
+        let art = parse_svg_flattened(
+            svg.as_bytes(),
+            Path::new("c.svg"),
+            tolerance,
+            &Limits::default(),
+        )
+        .unwrap();
+        assert_eq!(art.curve_tolerance(), Some(tolerance));
+        let options = VectorOptions {
+            max_level: 20,
+            contour_leaves: Some(16),
+            ..VectorOptions::default()
+        };
+        let (tree, _) = QuadTree::from_vector(&art, &options).unwrap();
+        assert_eq!(
+            tree.contour_leaves().unwrap().curve_tolerance(),
+            Some(tolerance)
+        );
+        let got = tree.weighted_colour(&f, u8::MAX).0[3];
+        let bound = tolerance * 2.0 * w * 1.01;
+        assert!(
+            (got - truth).abs() <= bound,
+            "{tolerance}: {got} vs {truth}, bound {bound}"
+        );
+        if tolerance >= 1e-3 {
+            assert!((got - truth).abs() > 0.01 * bound, "{got} vs {truth}");
+        }
+    }
+    let refused = parse_svg_flattened(
+        svg.as_bytes(),
+        Path::new("c.svg"),
+        1e-13,
+        &Limits::default(),
+    );
+    assert!(refused.unwrap_err().to_string().contains("curve tolerance"));
+}
+
+#[test]
+fn clip_paths_cut_exact_areas() {
+    let head = r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 100 100">"#;
+    // A 60×60 square clipped by a 20×50 rectangle moved by the clip
+    // path's own transform: 20×40 remain.
+    let moved = format!(
+        r#"{head}<clipPath id="c"><rect x="0" y="0" width="20" height="50"
+        transform="translate(30 40)"/></clipPath>
+        <rect x="20" y="20" width="60" height="60" clip-path="url(#c)"/></svg>"#
+    );
+    assert!(
+        (coverage(&moved) - 0.08).abs() < 2e-5,
+        "{}",
+        coverage(&moved)
+    );
+    // objectBoundingBox units: the left half of the square's box.
+    let bbox = format!(
+        r#"{head}<clipPath id="c" clipPathUnits="objectBoundingBox">
+        <rect x="0" y="0" width="0.5" height="1"/></clipPath>
+        <rect x="20" y="20" width="60" height="60" clip-path="url(#c)"/></svg>"#
+    );
+    assert!((coverage(&bbox) - 0.18).abs() < 2e-5, "{}", coverage(&bbox));
+    // A clip path clipped by another: two overlapping bands leave 20×20.
+    let nested = format!(
+        r#"{head}<clipPath id="a"><rect x="0" y="40" width="100" height="20"/></clipPath>
+        <clipPath id="b" clip-path="url(#a)"><rect x="40" y="0" width="20" height="100"/></clipPath>
+        <rect x="0" y="0" width="100" height="100" clip-path="url(#b)"/></svg>"#
+    );
+    assert!(
+        (coverage(&nested) - 0.04).abs() < 2e-5,
+        "{}",
+        coverage(&nested)
+    );
+    // clip-rule evenodd on a doubled square cuts the whole square away.
+    let evenodd = format!(
+        r#"{head}<clipPath id="c"><path clip-rule="evenodd"
+        d="M10 10h50v50h-50z M10 10h50v50h-50z"/></clipPath>
+        <rect x="0" y="0" width="100" height="100" clip-path="url(#c)"/></svg>"#
+    );
+    assert!(coverage(&evenodd).abs() < 2e-5, "{}", coverage(&evenodd));
+}
+
+#[test]
+fn patterns_tile_exactly() {
+    // Black 10×10 squares every 20 units, filling 5..95 on both axes:
+    // 45 units a side are black, 0.2025 of the square.
+    let svg = r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 100 100">
+        <pattern id="p" width="20" height="20" patternUnits="userSpaceOnUse">
+        <rect width="10" height="10"/></pattern>
+        <rect x="5" y="5" width="90" height="90" fill="url(#p)"/></svg>"#;
+    assert!((coverage(svg) - 0.2025).abs() < 2e-5, "{}", coverage(svg));
+    // Half opacity fades the whole pattern.
+    let faded = svg.replace(r#"fill="url(#p)""#, r#"fill="url(#p)" fill-opacity="0.5""#);
+    assert!(
+        (coverage(&faded) - 0.10125).abs() < 2e-5,
+        "{}",
+        coverage(&faded)
+    );
+}
+
+#[test]
+fn multiply_blends_encoded_colours_exactly() {
+    // Opaque #808080 multiplied onto opaque #ff4000 over the whole square:
+    // encoded (0.502·1, 0.502·0.251, 0), decoded.
+    let svg = r##"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
+        <rect width="10" height="10" fill="#ff4000"/>
+        <rect width="10" height="10" fill="#808080" style="mix-blend-mode:multiply"/></svg>"##;
+    let art = parse_svg(svg.as_bytes(), Path::new("t.svg"), 2, &Limits::default()).unwrap();
+    let (tree, _) = QuadTree::from_vector(&art, &VectorOptions::default()).unwrap();
+    let f = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
+    let got = tree.weighted_colour(&f, 0).0;
+    let g = 128.0 / 255.0;
+    let want = [g, g * 64.0 / 255.0, 0.0].map(quadtex_core::srgb_decode);
+    for k in 0..3 {
+        assert!(
+            (got[k] - want[k]).abs() < 2e-5,
+            "channel {k}: {} vs {}",
+            got[k],
+            want[k]
+        );
+    }
+}
+
+/// A 2×2 PNG: red, green / blue, white.
+const PNG_2X2: &str = "iVBORw0KGgoAAAANSUhEUgAAAAIAAAACCAIAAAD91JpzAAAAEklEQVR4nGP4z8DAAMIM/4EAAB/uBfsL2WiLAAAAAElFTkSuQmCC";
+
+#[test]
+fn an_embedded_image_packs_to_its_exact_texel_means() {
+    let svg = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
+        <image width="10" height="10" href="data:image/png;base64,{PNG_2X2}"/></svg>"#
+    );
+    let art = parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &Limits::default()).unwrap();
+    let (tree, report) = QuadTree::from_vector(
+        &art,
+        &VectorOptions {
+            max_level: 4,
+            ..VectorOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(report.max_mean_error, 0.0);
+    // Texture z is up: the top-left quadrant is texel (0, 0), red.
+    let mean = |x0: f64, z0: f64| {
+        let f = Fragment::new(x0, z0, x0 + 0.5, z0 + 0.5).unwrap();
+        tree.weighted_colour(&f, 4).0.map(|v| v / 0.25)
+    };
+    let quadrant = mean;
+    let close = |a: [f64; 4], b: [f64; 4]| (0..4).all(|k| (a[k] - b[k]).abs() < 1e-4);
+    assert!(
+        close(quadrant(0.0, 0.5), [1.0, 0.0, 0.0, 1.0]),
+        "{:?}",
+        quadrant(0.0, 0.5)
+    );
+    assert!(close(quadrant(0.5, 0.5), [0.0, 1.0, 0.0, 1.0]));
+    assert!(close(quadrant(0.0, 0.0), [0.0, 0.0, 1.0, 1.0]));
+    assert!(close(quadrant(0.5, 0.0), [1.0, 1.0, 1.0, 1.0]));
+    // A square across the centre: a quarter of each texel.
+    assert!(
+        close(mean(0.25, 0.25), [0.5, 0.5, 0.5, 1.0]),
+        "{:?}",
+        mean(0.25, 0.25)
+    );
+}
+
+#[test]
+fn image_copies_beyond_the_texel_limit_are_refused() {
+    // The pattern is laid out over 5 × 5 tiles (the shape's edges touch
+    // a fifth row and column), each drawing the 2×2 image: 100 texels.
+    let svg = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 8 8">
+        <pattern id="p" width="2" height="2" patternUnits="userSpaceOnUse">
+          <image width="2" height="2" href="data:image/png;base64,{PNG_2X2}"/></pattern>
+        <rect width="8" height="8" fill="url(#p)"/></svg>"#
+    );
+    let limits = Limits {
+        max_svg_image_texels: 99,
+        ..Limits::default()
+    };
+    let e = parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &limits).unwrap_err();
+    assert!(e.to_string().contains("max_svg_image_texels"), "{e}");
+    let limits = Limits {
+        max_svg_image_texels: 100,
+        ..Limits::default()
+    };
+    assert!(parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &limits).is_ok());
+}
+
+#[test]
+fn images_that_cannot_be_drawn_are_errors_naming_them() {
+    let parse = |body: &str| {
+        let svg =
+            format!(r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">{body}</svg>"#);
+        parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &Limits::default())
+            .unwrap_err()
+            .to_string()
+    };
+    let e = parse(r#"<image href="missing.png" width="10" height="10"/>"#);
+    assert!(
+        e.contains("t.svg") && e.contains("image \"missing.png\" could not be read"),
+        "{e}"
+    );
+    let e = parse(r#"<image href="https://example.com/a.png" width="10" height="10"/>"#);
+    assert!(e.contains("is remote"), "{e}");
+    let e = parse(
+        r#"<image id="anim" width="10" height="10" href="data:image/gif;base64,R0lGODlhAQABAIAAAP///wAAACH5BAEAAAAALAAAAAABAAEAAAICRAEAOw=="/>"#,
+    );
+    assert!(e.contains("unsupported: image in GIF format"), "{e}");
+    let e =
+        parse(r#"<image width="10" height="10" href="data:image/png;base64,iVBORw0KGgoAAAA"/>"#);
+    assert!(e.contains("t.svg"), "{e}");
+    // Found by the SVG fuzz target: a PNG header claiming 8 × 2³¹ + 2
+    // texels (its CRC right), placed by a malformed `preserveAspectRatio`,
+    // made usvg 0.49 panic.
+    let e = parse(
+        r#"<image x="0" y="1" width="18" height="18" preserveAspectRatio="xMidYMx2 slice" href="data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAiAAAACCAIAAACMowr1AAAAC0lEQVR4nGNggAEAAAoAAX+AdF4AAAAASUVORK5CYII="/>"#,
+    );
+    assert!(
+        e.contains("t.svg") && e.contains("max_dimension") && e.contains("2147483650"),
+        "{e}"
+    );
+}
+
+/// Found by the SVG fuzz target after 13 M executions: stroked text
+/// whose outline sends tiny-skia's curvature search (inside usvg's
+/// parser) to an `unwrap` on NaN. The panic is this file's error.
+#[test]
+fn a_panic_inside_the_svg_parser_is_an_error_naming_the_file() {
+    let data = include_bytes!("../../tests/data/stroked-text-parser-panic.svg");
+    let e = parse_svg(data, Path::new("panic.svg"), 4, &Limits::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("panic.svg") && e.contains("the SVG parser (usvg) failed"),
+        "{e}"
+    );
+}
+
+/// Found by the SVG fuzz target: a stroked circle of radius 8 × 10¹⁸
+/// flattened to 2 GB of points before the packer refused its
+/// coordinates. Both bounds are now checked while flattening.
+#[test]
+fn far_away_curves_are_refused_before_they_are_flattened() {
+    let parse = |body: &str| {
+        let svg = format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 100 100">{body}</svg>"#
+        );
+        parse_svg(svg.as_bytes(), Path::new("far.svg"), 4, &Limits::default())
+            .unwrap_err()
+            .to_string()
+    };
+    let e = parse(
+        r#"<circle cx="88" cy="12" r="8111111111111111111.0" fill="none" stroke="black" stroke-width="0.4"/>"#,
+    );
+    assert!(
+        e.contains("far.svg") && e.contains("texture units") && e.contains("beyond ±1e12"),
+        "{e}"
+    );
+    // Within the coordinate bound, but each curve flattens to the most
+    // segments one curve may have (65 536).
+    let curves = " C 1e9 0 -1e9 100 0 100 C 1e9 100 -1e9 0 0 0".repeat(130);
+    let e = parse(&format!(r#"<path d="M0 0{curves}Z"/>"#));
+    assert!(
+        e.contains("far.svg") && e.contains("flatten to more than 16777216 points"),
+        "{e}"
+    );
+}
