@@ -63,8 +63,7 @@ fn quadtex_pixels(svg: &str) -> Vec<Rgba> {
     let art = parse_svg(
         svg.as_bytes(),
         Path::new("case.svg"),
-        level,
-        &Limits::default(),
+        &quadtex_io::SvgOptions::at_level(level).with_limits(Limits::default()),
     )
     .unwrap();
     let options = VectorOptions {

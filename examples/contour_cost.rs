@@ -22,17 +22,29 @@ use quadtex_io::Limits;
 fn main() {
     let limits = Limits::default();
     for name in ["samples/threshold.svg", "samples/star.svg"] {
-        let art = quadtex_io::load_svg(Path::new(name), 12, &limits).unwrap();
+        let art = quadtex_io::load_svg(
+            Path::new(name),
+            &quadtex_io::SvgOptions::at_level(12).with_limits(limits),
+        )
+        .unwrap();
         println!("\n{name}");
         println!(
             "| tree | nodes | contour leaves | most edges in a leaf | memory | file | pack s |"
         );
         println!("|---|---:|---:|---:|---:|---:|---:|");
         let mut trees = Vec::new();
-        let fine =
-            quadtex_io::load_svg_flattened(Path::new(name), CONTOUR_CURVE_TOLERANCE, &limits)
-                .unwrap();
-        let art16 = quadtex_io::load_svg(Path::new(name), 16, &limits).unwrap();
+        let fine = quadtex_io::load_svg(
+            Path::new(name),
+            &quadtex_io::SvgOptions::default()
+                .with_curve_tolerance(CONTOUR_CURVE_TOLERANCE)
+                .with_limits(limits),
+        )
+        .unwrap();
+        let art16 = quadtex_io::load_svg(
+            Path::new(name),
+            &quadtex_io::SvgOptions::at_level(16).with_limits(limits),
+        )
+        .unwrap();
         for (label, level, budget, art) in [
             ("level 12", 12, None, &art),
             ("level 16", 16, None, &art16),

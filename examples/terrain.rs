@@ -14,7 +14,7 @@
 use std::time::Instant;
 
 use quadtex_render::terrain::{TERRAIN_CELLS, write_terrain};
-use quadtex_render::{Filter, RenderOptions};
+use quadtex_render::{RenderOptions, TextureFilter};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -31,7 +31,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         started.elapsed().as_secs_f64()
     );
     let started = Instant::now();
-    let scene = quadtex_render::load_scene(&file)?;
+    let scene = quadtex_render::load_scene(&file, &quadtex_io::Limits::default())?;
     let load = started.elapsed().as_secs_f64();
     let mesh_bytes = scene
         .surfaces
@@ -47,8 +47,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let mut nearest = None;
     for (name, filter) in [
-        ("nearest", Filter::Nearest),
-        ("quadtree", Filter::Quadtree(Default::default())),
+        ("nearest", TextureFilter::Nearest),
+        ("quadtree", TextureFilter::Quadtree(Default::default())),
     ] {
         let options = RenderOptions {
             width: Some(width),

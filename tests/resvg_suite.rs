@@ -99,7 +99,11 @@ static MOST_SWEEP_WORK: std::sync::Mutex<(u64, Option<PathBuf>)> = std::sync::Mu
 
 fn check(svg: &Path) -> Outcome {
     let data = std::fs::read(svg).unwrap();
-    let art = match parse_svg(&data, svg, LEVEL, &Limits::default()) {
+    let art = match parse_svg(
+        &data,
+        svg,
+        &quadtex_io::SvgOptions::at_level(LEVEL).with_limits(Limits::default()),
+    ) {
         Ok(art) => art,
         Err(Error::UnsupportedSvg { element, .. }) => {
             let feature = element.split(" (id ").next().unwrap_or("").to_string();

@@ -329,7 +329,7 @@ fn write_query_times(
 
 /// `quadtex bench --frames`: median frame times at 1920×1080.
 fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
-    use quadtex_render::{Filter, RenderOptions};
+    use quadtex_render::{RenderOptions, TextureFilter};
     let (width, height) = (1920, 1080);
     let dir = std::env::temp_dir().join(format!("quadtex-bench-terrain-{}", std::process::id()));
     let started = Instant::now();
@@ -339,7 +339,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
         width,
         height,
     )
-    .and_then(|file| quadtex_render::load_scene_with_limits(&file, limits));
+    .and_then(|file| quadtex_render::load_scene(&file, limits));
     let _ = std::fs::remove_dir_all(&dir);
     let terrain = terrain?;
     let terrain_load = started.elapsed().as_secs_f64();
@@ -347,8 +347,8 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
         include_str!("../../scenes/runway.toml"),
         std::path::Path::new("scenes/runway.toml"),
     )?;
-    let quadtree = Filter::Quadtree(quadtex_core::FilterOptions::default());
-    let options_for = |filter: Filter| RenderOptions {
+    let quadtree = TextureFilter::Quadtree(quadtex_core::FilterOptions::default());
+    let options_for = |filter: TextureFilter| RenderOptions {
         width: Some(width),
         height: Some(height),
         filter,
@@ -366,11 +366,11 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
         ("terrain, 1 002 528 triangles (glTF)", terrain),
     ];
     let filters = [
-        ("nearest", Filter::Nearest),
+        ("nearest", TextureFilter::Nearest),
         ("quadtree", quadtree),
         (
             "ewa",
-            Filter::Ewa {
+            TextureFilter::Ewa {
                 max_anisotropy: 8.0,
             },
         ),

@@ -38,7 +38,7 @@ pub struct Args {
 /// Runs `quadtex compare`.
 pub fn run(args: Args) -> Result<()> {
     let settings = args.options.settings(args.width, &args.memory.limits())?;
-    let scene = quadtex_render::load_scene_with_limits(&args.scene, &args.memory.limits())?;
+    let scene = quadtex_render::load_scene(&args.scene, &args.memory.limits())?;
     let name = args
         .scene
         .file_stem()

@@ -16,7 +16,7 @@ use quadtex_eval::report::{
     Figures, Provenance, ReportInfo, csv, file_stem, html_report, markdown_table, plot_svg,
 };
 use quadtex_io::LinearImage;
-use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene, scene};
+use quadtex_render::{PixelFilter, RenderOptions, Scene, TextureFilter, scene};
 
 use super::Result;
 use super::common::in_range;
@@ -104,7 +104,7 @@ fn render_one(
     scene: &Scene,
     w: u32,
     h: u32,
-    filter: Filter,
+    filter: TextureFilter,
     pixel_filter: PixelFilter,
 ) -> Result<(LinearImage, quadtex_render::RenderSummary)> {
     render_seeded(scene, w, h, filter, pixel_filter, 0)
@@ -119,7 +119,7 @@ fn render_reference(
     grid: u32,
     pixel_filter: PixelFilter,
 ) -> Result<LinearImage> {
-    let filter = Filter::Supersample(grid);
+    let filter = TextureFilter::Supersample(grid);
     Ok(render_seeded(
         scene,
         w,
@@ -135,7 +135,7 @@ fn render_seeded(
     scene: &Scene,
     w: u32,
     h: u32,
-    filter: Filter,
+    filter: TextureFilter,
     pixel_filter: PixelFilter,
     seed: u64,
 ) -> Result<(LinearImage, quadtex_render::RenderSummary)> {
@@ -153,7 +153,7 @@ fn render_seeded(
 /// the tree; an RGBA8 raster at the tree's full resolution (nearest,
 /// bilinear, supersampling); RGBA8 raster + mips at the baselines'
 /// resolution (trilinear, EWA); a summed-area table of 4 × u32 per texel.
-pub fn texture_bytes(scene: &Scene, filter: Filter) -> u64 {
+pub fn texture_bytes(scene: &Scene, filter: TextureFilter) -> u64 {
     scene
         .distinct_textures()
         .iter()
@@ -163,29 +163,36 @@ pub fn texture_bytes(scene: &Scene, filter: Filter) -> u64 {
             let b = scene::baseline_level(t.depth());
             let base = 1u64 << (2 * u32::from(b));
             match filter {
-                Filter::Quadtree { .. } => t.memory_bytes(),
-                Filter::Nearest | Filter::Bilinear | Filter::Supersample(_) => full,
-                Filter::Trilinear | Filter::Ewa { .. } => scene::mipmapped_raster_bytes(b),
-                Filter::EwaSameMemory { .. } => scene::mipmapped_raster_bytes(
+                TextureFilter::Quadtree { .. } => t.memory_bytes(),
+                TextureFilter::Nearest
+                | TextureFilter::Bilinear
+                | TextureFilter::Supersample(_) => full,
+                TextureFilter::Trilinear | TextureFilter::Ewa { .. } => {
+                    scene::mipmapped_raster_bytes(b)
+                }
+                TextureFilter::EwaSameMemory { .. } => scene::mipmapped_raster_bytes(
                     scene::same_memory_level(t.memory_bytes(), t.depth()),
                 ),
-                Filter::Sat { .. } => 16 * base,
+                TextureFilter::Sat { .. } => 16 * base,
             }
         })
         .sum()
 }
 
-fn lookups_per_pixel(filter: Filter, summary: &quadtex_render::RenderSummary) -> Option<f64> {
+fn lookups_per_pixel(
+    filter: TextureFilter,
+    summary: &quadtex_render::RenderSummary,
+) -> Option<f64> {
     let textured = summary.textured_pixels.max(1) as f64;
     match filter {
-        Filter::Quadtree { .. } | Filter::Sat { .. } => {
+        TextureFilter::Quadtree { .. } | TextureFilter::Sat { .. } => {
             Some(summary.filter.traversal.queries as f64 / textured)
         }
-        Filter::Nearest => Some(1.0),
-        Filter::Bilinear => Some(4.0),
-        Filter::Trilinear => Some(8.0),
-        Filter::Supersample(n) => Some(f64::from(n * n)),
-        Filter::Ewa { .. } | Filter::EwaSameMemory { .. } => None,
+        TextureFilter::Nearest => Some(1.0),
+        TextureFilter::Bilinear => Some(4.0),
+        TextureFilter::Trilinear => Some(8.0),
+        TextureFilter::Supersample(n) => Some(f64::from(n * n)),
+        TextureFilter::Ewa { .. } | TextureFilter::EwaSameMemory { .. } => None,
     }
 }
 
@@ -544,7 +551,7 @@ fn write_images(
     let window = ((w / 8).max(8), (h / 8).max(8));
     let nearest = contenders
         .iter()
-        .position(|c| c.filter == Filter::Nearest)
+        .position(|c| c.filter == TextureFilter::Nearest)
         .map(|i| &frames[i]);
     let pixel = |img: &LinearImage, x: u32, y: u32| img.pixels[(y * img.width + x) as usize];
     let luma = |img: &LinearImage, x: u32, y: u32| {

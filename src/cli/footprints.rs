@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use quadtex_core::WrapMode;
 use quadtex_io::LinearImage;
 use quadtex_io::footprints::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
-use quadtex_render::{Filter, PixelFilter, RenderOptions};
+use quadtex_render::{PixelFilter, RenderOptions, TextureFilter};
 
 use super::Result;
 use super::common::{MemoryArgs, in_range};
@@ -52,23 +52,23 @@ pub struct Args {
 }
 
 /// The quadtex lookups timed against the peer: label, file stem, filter.
-const TIMED: [(&str, &str, Filter); 3] = [
+const TIMED: [(&str, &str, TextureFilter); 3] = [
     (
         "quadtex quadtree",
         "quadtex-quadtree",
-        Filter::Quadtree(quadtex_core::FilterOptions::DEFAULT),
+        TextureFilter::Quadtree(quadtex_core::FilterOptions::DEFAULT),
     ),
     (
         "quadtex EWA 8 (pbrt-v4 style)",
         "quadtex-ewa8",
-        Filter::Ewa {
+        TextureFilter::Ewa {
             max_anisotropy: 8.0,
         },
     ),
     (
         "quadtex trilinear (pbrt-v4 style)",
         "quadtex-trilinear",
-        Filter::Trilinear,
+        TextureFilter::Trilinear,
     ),
 ];
 
@@ -85,7 +85,7 @@ pub fn run(args: Args) -> Result<()> {
     } = args;
     let grid = (f64::from(reference_spp.clamp(1, 4096)).sqrt().round() as u32).max(1);
     let limits = memory.limits();
-    let scene = quadtex_render::load_scene_with_limits(&path, &limits)?;
+    let scene = quadtex_render::load_scene(&path, &limits)?;
     if timing_only {
         let height = scene.camera.height_for_width(width);
         let mut out = Text::stdout();
@@ -154,7 +154,7 @@ pub fn run(args: Args) -> Result<()> {
         &RenderOptions {
             width: Some(width),
             height: Some(height),
-            filter: Filter::Supersample(grid),
+            filter: TextureFilter::Supersample(grid),
             pixel_filter: PixelFilter::Box,
             seed: quadtex_render::REFERENCE_SEED,
         },

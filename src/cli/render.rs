@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use quadtex_core::FilterOptions;
 use quadtex_core::baseline::StripOptions;
-use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene};
+use quadtex_render::{PixelFilter, RenderOptions, Scene, TextureFilter};
 
 use super::Result;
 use super::common::{MemoryArgs, budget_scene, level};
@@ -212,15 +212,15 @@ impl RenderArgs {
             width: self.width,
             height: self.height,
             filter: match self.filter {
-                FilterName::Quadtree => Filter::Quadtree(quadtree),
-                FilterName::Nearest => Filter::Nearest,
-                FilterName::Trilinear => Filter::Trilinear,
-                FilterName::Ewa => Filter::Ewa {
+                FilterName::Quadtree => TextureFilter::Quadtree(quadtree),
+                FilterName::Nearest => TextureFilter::Nearest,
+                FilterName::Trilinear => TextureFilter::Trilinear,
+                FilterName::Ewa => TextureFilter::Ewa {
                     max_anisotropy: 8.0,
                 },
-                FilterName::Sat => Filter::Sat(quality),
-                FilterName::Bilinear => Filter::Bilinear,
-                FilterName::Supersample(n) => Filter::Supersample(n),
+                FilterName::Sat => TextureFilter::Sat(quality),
+                FilterName::Bilinear => TextureFilter::Bilinear,
+                FilterName::Supersample(n) => TextureFilter::Supersample(n),
             },
             pixel_filter: self.pixel_filter.unwrap_or_default(),
             seed: 0,
@@ -241,11 +241,11 @@ pub fn run(args: Args) -> Result<()> {
             .map_or(quadtex_io::ImageFormat::Png, quadtex_io::ImageFormat::from);
         let limits = args.memory.limits();
         let camera_path = quadtex_render::load_camera_path(path, &limits)?;
-        let scene = quadtex_render::load_scene_with_limits(&args.scene, &limits)?;
+        let scene = quadtex_render::load_scene(&args.scene, &limits)?;
         return render_path(&scene, &camera_path, frames, &options, dir, format);
     }
     let format = args.output.image_format(args.format.format)?;
-    let scene = quadtex_render::load_scene_with_limits(&args.scene, &args.memory.limits())?;
+    let scene = quadtex_render::load_scene(&args.scene, &args.memory.limits())?;
     render(&scene, &options, &args.output, format)
 }
 

@@ -5,7 +5,7 @@
 //! the largest error and the render time.
 
 use quadtex_core::FilterOptions;
-use quadtex_render::{Filter, PixelFilter, RenderOptions, load_scene, render};
+use quadtex_render::{PixelFilter, RenderOptions, TextureFilter, load_scene, render};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -20,12 +20,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(n) = args.get(4) {
         options = options.with_budget(n.parse()?)?;
     }
-    let scene = load_scene(std::path::Path::new(path))?;
+    let scene = load_scene(std::path::Path::new(path), &quadtex_io::Limits::default())?;
     let height = scene.camera.height_for_width(width);
     let render_options = RenderOptions {
         width: Some(width),
         height: Some(height),
-        filter: Filter::Quadtree(options),
+        filter: TextureFilter::Quadtree(options),
         pixel_filter: PixelFilter::Box,
         ..RenderOptions::default()
     };
@@ -98,7 +98,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .texture
             .as_ref()
             .ok_or("untextured")?
-            .sampler(surface.wrap);
+            .texture(surface.wrap);
         if let quadtex_render::scene::Geometry::Plane {
             point,
             normal,

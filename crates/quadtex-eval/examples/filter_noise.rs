@@ -8,7 +8,7 @@
 //! noise cannot be told from the exact filtered image by this reference.
 
 use quadtex_core::FilterOptions;
-use quadtex_render::{Filter, PixelFilter, RenderOptions, load_scene, render};
+use quadtex_render::{PixelFilter, RenderOptions, TextureFilter, load_scene, render};
 
 fn rmse(a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]) -> f64 {
     let sum: f64 = a
@@ -25,7 +25,10 @@ fn rmse(a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]) -> f64 {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let usage = "usage: filter_noise SCENE WIDTH tent|mitchell [SAMPLES] [BUDGET] [BOUND]";
-    let scene = load_scene(std::path::Path::new(args.get(1).ok_or(usage)?))?;
+    let scene = load_scene(
+        std::path::Path::new(args.get(1).ok_or(usage)?),
+        &quadtex_io::Limits::default(),
+    )?;
     let width: u32 = args.get(2).ok_or(usage)?.parse()?;
     let pixel_filter = match args.get(3).map(String::as_str) {
         Some("tent") => PixelFilter::Tent,
@@ -59,10 +62,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )
     };
     let t = std::time::Instant::now();
-    let (quadtree, _) = go(Filter::Quadtree(options), base.seed)?;
+    let (quadtree, _) = go(TextureFilter::Quadtree(options), base.seed)?;
     let quadtree_time = t.elapsed().as_secs_f64();
-    let (r1, _) = go(Filter::Supersample(samples), 1)?;
-    let (r2, _) = go(Filter::Supersample(samples), 2)?;
+    let (r1, _) = go(TextureFilter::Supersample(samples), 1)?;
+    let (r2, _) = go(TextureFilter::Supersample(samples), 2)?;
     let mean: Vec<_> = r1
         .pixels
         .iter()

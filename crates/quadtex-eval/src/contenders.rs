@@ -2,7 +2,7 @@
 
 use quadtex_core::FilterOptions;
 use quadtex_core::baseline::StripOptions;
-use quadtex_render::{Filter, PixelFilter};
+use quadtex_render::{PixelFilter, TextureFilter};
 
 /// A filter configuration taking part in a comparison.
 #[derive(Debug, Clone, PartialEq)]
@@ -10,13 +10,13 @@ pub struct Contender {
     /// Short name for tables and plots.
     pub label: String,
     /// Texture filter.
-    pub filter: Filter,
+    pub filter: TextureFilter,
     /// Pixel filter.
     pub pixel_filter: PixelFilter,
 }
 
 impl Contender {
-    fn new(label: &str, filter: Filter, pixel_filter: PixelFilter) -> Contender {
+    fn new(label: &str, filter: TextureFilter, pixel_filter: PixelFilter) -> Contender {
         Contender {
             label: label.into(),
             filter,
@@ -29,41 +29,41 @@ impl Contender {
 pub fn default_contenders() -> Vec<Contender> {
     use PixelFilter::{Box, Tent};
     vec![
-        Contender::new("quadtree", Filter::default(), Box),
+        Contender::new("quadtree", TextureFilter::default(), Box),
         Contender::new(
             "quadtree b1024",
-            Filter::Quadtree(quadtree_budget(1024)),
+            TextureFilter::Quadtree(quadtree_budget(1024)),
             Box,
         ),
-        Contender::new("quadtree tent", Filter::default(), Tent),
-        Contender::new("nearest", Filter::Nearest, Box),
-        Contender::new("bilinear", Filter::Bilinear, Box),
-        Contender::new("trilinear", Filter::Trilinear, Box),
+        Contender::new("quadtree tent", TextureFilter::default(), Tent),
+        Contender::new("nearest", TextureFilter::Nearest, Box),
+        Contender::new("bilinear", TextureFilter::Bilinear, Box),
+        Contender::new("trilinear", TextureFilter::Trilinear, Box),
         Contender::new(
             "EWA aniso 8",
-            Filter::Ewa {
+            TextureFilter::Ewa {
                 max_anisotropy: 8.0,
             },
             Box,
         ),
         Contender::new(
             "EWA aniso 32",
-            Filter::Ewa {
+            TextureFilter::Ewa {
                 max_anisotropy: 32.0,
             },
             Box,
         ),
         Contender::new(
             "EWA 32, same memory",
-            Filter::EwaSameMemory {
+            TextureFilter::EwaSameMemory {
                 max_anisotropy: 32.0,
             },
             Box,
         ),
-        Contender::new("SAT", Filter::Sat(StripOptions::default()), Box),
-        Contender::new("supersample 4", Filter::Supersample(2), Box),
-        Contender::new("supersample 16", Filter::Supersample(4), Box),
-        Contender::new("supersample 64", Filter::Supersample(8), Box),
+        Contender::new("SAT", TextureFilter::Sat(StripOptions::default()), Box),
+        Contender::new("supersample 4", TextureFilter::Supersample(2), Box),
+        Contender::new("supersample 16", TextureFilter::Supersample(4), Box),
+        Contender::new("supersample 64", TextureFilter::Supersample(8), Box),
     ]
 }
 

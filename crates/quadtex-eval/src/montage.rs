@@ -84,8 +84,7 @@ pub fn label(text: &str) -> Option<LinearImage> {
     let art = quadtex_io::parse_svg(
         svg.as_bytes(),
         std::path::Path::new("label.svg"),
-        LEVEL,
-        &limits,
+        &quadtex_io::SvgOptions::at_level(LEVEL).with_limits(limits),
     )
     .ok()?;
     let options = quadtex_core::VectorOptions {

@@ -6,7 +6,7 @@
 mod scenes;
 
 use quadtex_eval::{metrics, reference};
-use quadtex_render::{Filter, RenderOptions, render};
+use quadtex_render::{RenderOptions, TextureFilter, render};
 use scenes::{grazing, render_with};
 
 /// Sanity check of the comparison harness: stratified supersampling
@@ -17,16 +17,16 @@ use scenes::{grazing, render_with};
 fn supersampling_error_falls_as_samples_grow() {
     let scene = grazing(64, 36, 1.5);
     let go = |filter| render_with(&scene, filter);
-    let reference = go(Filter::Supersample(32));
+    let reference = go(TextureFilter::Supersample(32));
     let errors: Vec<f64> = [1, 2, 4, 8]
         .iter()
-        .map(|&n| metrics::rmse(&go(Filter::Supersample(n)), &reference).unwrap())
+        .map(|&n| metrics::rmse(&go(TextureFilter::Supersample(n)), &reference).unwrap())
         .collect();
     assert!(
         errors.windows(2).all(|w| w[1] < w[0]),
         "supersampling errors for 1, 4, 16, 64 samples: {errors:?}"
     );
-    let quadtree = metrics::rmse(&go(Filter::default()), &reference).unwrap();
+    let quadtree = metrics::rmse(&go(TextureFilter::default()), &reference).unwrap();
     assert!(
         quadtree < errors[3],
         "quadtree {quadtree} vs 64 samples {}",
@@ -45,7 +45,7 @@ fn closed_form_checkerboard_validates_the_reference() {
     let exact = reference::closed_form_plane(&scene, w, h).expect("a plane scene");
     let go = |filter| render_with(&scene, filter);
     let (reference, defined) =
-        metrics::rmse_where_defined(&go(Filter::Supersample(64)), &exact).unwrap();
+        metrics::rmse_where_defined(&go(TextureFilter::Supersample(64)), &exact).unwrap();
     assert!(
         defined == 1.0,
         "closed form defined on {defined} of the pixels"
@@ -55,9 +55,9 @@ fn closed_form_checkerboard_validates_the_reference() {
         reference < 0.004,
         "4096-sample reference vs closed form: {reference}"
     );
-    let (quadtree, _) = metrics::rmse_where_defined(&go(Filter::default()), &exact).unwrap();
+    let (quadtree, _) = metrics::rmse_where_defined(&go(TextureFilter::default()), &exact).unwrap();
     let (ewa, _) = metrics::rmse_where_defined(
-        &go(Filter::Ewa {
+        &go(TextureFilter::Ewa {
             max_anisotropy: 8.0,
         }),
         &exact,
@@ -90,9 +90,15 @@ fn a_contender_with_the_references_sample_count_is_not_the_reference() {
         .unwrap()
         .0
     };
-    let reference = go(Filter::Supersample(8), quadtex_render::REFERENCE_SEED);
-    let contender = go(Filter::Supersample(8), 0);
-    let dense = go(Filter::Supersample(32), quadtex_render::REFERENCE_SEED);
+    let reference = go(
+        TextureFilter::Supersample(8),
+        quadtex_render::REFERENCE_SEED,
+    );
+    let contender = go(TextureFilter::Supersample(8), 0);
+    let dense = go(
+        TextureFilter::Supersample(32),
+        quadtex_render::REFERENCE_SEED,
+    );
     let same_count = metrics::rmse(&contender, &reference).unwrap();
     let noise = metrics::rmse(&contender, &dense).unwrap();
     eprintln!("64 spp vs 64-spp reference {same_count:.5}; vs 1024-spp reference {noise:.5}");

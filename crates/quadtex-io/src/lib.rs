@@ -37,10 +37,7 @@ pub use qtx::{
     write_qtx_to,
 };
 pub use query::parse_query_line;
-pub use svg::{
-    MIN_CURVE_TOLERANCE, SvgOptions, load_svg, load_svg_flattened, pack_svg, parse_svg,
-    parse_svg_flattened,
-};
+pub use svg::{MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, parse_svg};
 pub use tiles::{TileFolder, pack_tiles};
 
 pub use quadtex_core::TexelGrid;

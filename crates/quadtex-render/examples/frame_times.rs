@@ -20,7 +20,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .ok_or("usage: frame_times SCENE.toml [WIDTH] [FRAMES]")?;
     let width: u32 = args.next().map_or(Ok(960), |a| a.parse())?;
     let frames: u32 = args.next().map_or(Ok(2), |a| a.parse())?;
-    let scene = quadtex_render::load_scene(std::path::Path::new(&scene))?;
+    let scene =
+        quadtex_render::load_scene(std::path::Path::new(&scene), &quadtex_io::Limits::default())?;
     let options = quadtex_render::RenderOptions {
         width: Some(width),
         height: Some(scene.camera.height_for_width(width)),

@@ -13,9 +13,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .ok_or("usage: profile_lookups SCENE.toml [WIDTH] [PASSES]")?;
     let width: u32 = args.next().map_or(Ok(480), |a| a.parse())?;
     let passes: u32 = args.next().map_or(Ok(20), |a| a.parse())?;
-    let scene = quadtex_render::load_scene(std::path::Path::new(&scene))?;
+    let scene =
+        quadtex_render::load_scene(std::path::Path::new(&scene), &quadtex_io::Limits::default())?;
     let height = scene.camera.height_for_width(width);
-    let filter = quadtex_render::Filter::Quadtree(quadtex_core::FilterOptions::DEFAULT);
+    let filter = quadtex_render::TextureFilter::Quadtree(quadtex_core::FilterOptions::DEFAULT);
     let t = quadtex_render::time_lookups(&scene, width, height, filter, passes)?;
     println!(
         "{:.1} ns per lookup over {} lookups (median of {passes})",

@@ -7,7 +7,7 @@ use quadtex_core::{BuildOptions, QuadTree, Rgba, TexelGrid, Wrap};
 
 use crate::Error;
 use crate::math::Vec3;
-use crate::scene::{Camera, Geometry, Lighting, Scene, Sky, Surface, Texture, UvTransform};
+use crate::scene::{Camera, Geometry, Lighting, Scene, SceneTexture, Sky, Surface, UvTransform};
 
 /// The sign's art: white lettering on red in the band `z ∈ [0, 1/4)` of the
 /// unit square (a 4:1 sign; map it with a UV scale of `[1, 0.25]`).
@@ -31,10 +31,10 @@ pub(crate) fn builtin_grid(name: &str) -> Option<Result<TexelGrid, quadtex_core:
 
 /// A built-in texture, packed once per process and shared (with its lazily
 /// built raster baselines) by every scene that names it.
-pub(crate) fn builtin_texture(name: &str) -> Result<Texture, Error> {
+pub(crate) fn builtin_texture(name: &str) -> Result<SceneTexture, Error> {
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock};
-    static CACHE: OnceLock<Mutex<HashMap<String, Texture>>> = OnceLock::new();
+    static CACHE: OnceLock<Mutex<HashMap<String, SceneTexture>>> = OnceLock::new();
     let cache = CACHE.get_or_init(Mutex::default);
     // A poisoned lock only means another thread panicked mid-insert; the
     // map itself is still a valid cache.
@@ -53,7 +53,7 @@ pub(crate) fn builtin_texture(name: &str) -> Result<Texture, Error> {
     Ok(texture)
 }
 
-fn pack_builtin(name: &str) -> Result<Texture, Error> {
+fn pack_builtin(name: &str) -> Result<SceneTexture, Error> {
     let key = format!("builtin:{name}");
     let grid = builtin_grid(name)
         .ok_or_else(|| {
@@ -70,7 +70,7 @@ fn pack_builtin(name: &str) -> Result<Texture, Error> {
             key: key.clone(),
             source,
         })?;
-    Ok(Texture::new(key, Arc::new(tree)))
+    Ok(SceneTexture::new(key, Arc::new(tree)))
 }
 
 /// The demo scene, built in code with no files: a 45 m × 1800 m runway with

@@ -21,7 +21,7 @@ impl<'a> Frame<'a> {
         let textures = scene
             .surfaces
             .iter()
-            .map(|s| s.texture.as_ref().map(|t| t.sampler(s.wrap)))
+            .map(|s| s.texture.as_ref().map(|t| t.texture(s.wrap)))
             .collect();
         Frame {
             scene,

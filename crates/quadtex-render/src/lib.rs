@@ -50,10 +50,10 @@ pub use gltf_scene::write_glb;
 pub use measure::{
     LookupTiming, PixelFootprint, centre_distance, pixel_footprints, texture_only, time_lookups,
 };
-pub use options::{Filter, PixelFilter, REFERENCE_SEED, RenderOptions};
+pub use options::{PixelFilter, REFERENCE_SEED, RenderOptions, TextureFilter};
 pub use parse::{
-    load_camera_path, load_scene, load_scene_with_limits, parse_camera_path, parse_obj,
-    parse_scene, parse_scene_with_limits,
+    load_camera_path, load_scene, parse_camera_path, parse_obj, parse_scene,
+    parse_scene_with_limits,
 };
 pub use path::CameraPath;
 pub use render::{render, render_into};

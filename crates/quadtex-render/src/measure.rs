@@ -9,7 +9,7 @@ use quadtex_io::LinearImage;
 
 use crate::caster::Caster;
 use crate::frame::Frame;
-use crate::options::{Filter, PixelFilter};
+use crate::options::{PixelFilter, TextureFilter};
 use crate::render::{prepare_baselines, sized_scene};
 use crate::scene::{Hit, Lighting, Scene, Sky};
 use crate::shade::{TexturedHit, texture_colour};
@@ -63,7 +63,7 @@ pub fn time_lookups(
     scene: &Scene,
     width: u32,
     height: u32,
-    filter: Filter,
+    filter: TextureFilter,
     passes: u32,
 ) -> Result<LookupTiming, crate::Error> {
     let scene = sized_scene(scene, width, height)?;

@@ -6,7 +6,7 @@ use quadtex_core::baseline::StripOptions;
 
 /// How pixels sample textures.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Filter {
+pub enum TextureFilter {
     /// The method: each pixel's footprint filtered by
     /// [`quadtex_core::Texture::filter`] with these options.
     Quadtree(FilterOptions),
@@ -41,9 +41,9 @@ pub enum Filter {
     Sat(StripOptions),
 }
 
-impl Default for Filter {
+impl Default for TextureFilter {
     fn default() -> Self {
-        Filter::Quadtree(FilterOptions::default())
+        TextureFilter::Quadtree(FilterOptions::default())
     }
 }
 
@@ -66,7 +66,7 @@ pub struct RenderOptions {
     /// Override the camera's height.
     pub height: Option<u32>,
     /// Texture filter.
-    pub filter: Filter,
+    pub filter: TextureFilter,
     /// Pixel filter (for `Quadtree` and `Supersample`).
     pub pixel_filter: PixelFilter,
     /// The stream `Supersample` draws its jitter from (default 0). Two

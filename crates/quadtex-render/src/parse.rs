@@ -15,7 +15,8 @@ use crate::demo::builtin_texture;
 use crate::math::Vec3;
 use crate::path::{CameraPath, Key, MAX_PATH_KEYS};
 use crate::scene::{
-    Camera, Geometry, Lighting, MESH_BYTES_PER_TRIANGLE, Scene, Sky, Surface, Texture, UvTransform,
+    Camera, Geometry, Lighting, MESH_BYTES_PER_TRIANGLE, Scene, SceneTexture, Sky, Surface,
+    UvTransform,
 };
 use quadtex_io::Limits;
 
@@ -40,15 +41,9 @@ const SURFACE_KEYS: [&str; 10] = [
     "uv_rotation",
 ];
 
-/// Reads and validates a scene file under the default limits; textures load
-/// relative to its folder.
-pub fn load_scene(path: &Path) -> Result<Scene, Error> {
-    load_scene_with_limits(path, &Limits::default())
-}
-
 /// Reads and validates a scene file under `limits` (scene file size, shapes,
 /// mesh triangles, and everything its textures read).
-pub fn load_scene_with_limits(path: &Path, limits: &Limits) -> Result<Scene, Error> {
+pub fn load_scene(path: &Path, limits: &Limits) -> Result<Scene, Error> {
     let len = std::fs::metadata(path)
         .map_err(|source| Error::Io {
             path: path.into(),
@@ -242,7 +237,7 @@ pub fn parse_camera_path(text: &str, path: &Path) -> Result<CameraPath, Error> {
 struct Context<'a> {
     text: &'a str,
     path: &'a Path,
-    textures: HashMap<(PathBuf, u8, Option<usize>), Texture>,
+    textures: HashMap<(PathBuf, u8, Option<usize>), SceneTexture>,
     limits: Limits,
 }
 
@@ -594,7 +589,7 @@ impl Context<'_> {
 
     /// A surface's texture, packed at its `texture_level` (or the default
     /// for its kind) with its `contour_leaves`; `None` when it has none.
-    fn surface_texture(&mut self, t: &Table, key: &str) -> Result<Option<Texture>, Error> {
+    fn surface_texture(&mut self, t: &Table, key: &str) -> Result<Option<SceneTexture>, Error> {
         let svg_level = match self.number(t, key, "texture_level")? {
             None => None,
             Some(l) if l.fract() == 0.0 && (0.0..=f64::from(MAX_VECTOR_LEVEL)).contains(&l) => {
@@ -718,7 +713,7 @@ impl Context<'_> {
                 .0;
             let name = format!("{}#image{i}", file.display());
             textures.push(
-                Texture::new(&name, Arc::new(tree)).with_memory_budget(self.limits.max_memory),
+                SceneTexture::new(&name, Arc::new(tree)).with_memory_budget(self.limits.max_memory),
             );
         }
         Ok(model
@@ -769,7 +764,7 @@ impl Context<'_> {
         key: &str,
         svg_level: u8,
         contour_leaves: Option<usize>,
-    ) -> Result<Texture, Error> {
+    ) -> Result<SceneTexture, Error> {
         if let Some(name) = spec.strip_prefix("builtin:") {
             return builtin_texture(name).map_err(|e| self.err(key, &e.to_string()));
         }
@@ -821,7 +816,8 @@ impl Context<'_> {
                 ));
             }
         };
-        let texture = Texture::new(spec, Arc::new(tree)).with_memory_budget(self.limits.max_memory);
+        let texture =
+            SceneTexture::new(spec, Arc::new(tree)).with_memory_budget(self.limits.max_memory);
         self.textures.insert(cache_key, texture.clone());
         Ok(texture)
     }

@@ -15,7 +15,7 @@ use quadtex_core::Rgba;
 use crate::caster::{Seen, surface_and_triangle};
 use crate::exact::{Scratch, SurfaceViews, exact_pixel};
 use crate::frame::Frame;
-use crate::options::{Filter, PixelFilter, RenderOptions};
+use crate::options::{PixelFilter, RenderOptions, TextureFilter};
 use crate::shade::shade_ray;
 use crate::stats::PixelStats;
 use crate::tangent_plane::ScreenSquare;
@@ -73,13 +73,13 @@ pub(crate) fn shade_pixel<'v>(
     let (filter, pixel, seed) = (options.filter, options.pixel_filter, options.seed);
     let scene = frame.scene;
     let (px, py) = (f64::from(x), f64::from(y));
-    if let Filter::Quadtree(options) = filter
+    if let TextureFilter::Quadtree(options) = filter
         && let Some(c) = exact_pixel(frame, &options, pixel, (x, y), near, scratch, stats)
     {
         return c;
     }
     let near_silhouette = near.mixed();
-    if let Filter::Supersample(n) = filter {
+    if let TextureFilter::Supersample(n) = filter {
         let mut acc = Rgba::TRANSPARENT;
         let mut weights = 0f32;
         for j in 0..n {
@@ -100,7 +100,7 @@ pub(crate) fn shade_pixel<'v>(
                 let (sx, sy, w) = (px + 0.5 + dx, py + 0.5 + dy, pixel.weight(dx, dy) as f32);
                 let c = shade_ray(
                     frame,
-                    Filter::Nearest,
+                    TextureFilter::Nearest,
                     PixelFilter::Box,
                     (&scene.camera.ray(sx, sy), None),
                     ScreenSquare::pixel(sx, sy),
@@ -141,7 +141,7 @@ pub(crate) fn shade_pixel<'v>(
 /// visibility grid saw through the centre, when `square` is a whole pixel.
 fn shade_square(
     frame: &Frame<'_>,
-    filter: Filter,
+    filter: TextureFilter,
     square: ScreenSquare,
     centre_seen: Option<Seen>,
     splits: u32,

@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use crate::caster::Seen;
 use crate::exact::{Scratch, SurfaceViews};
 use crate::frame::Frame;
-use crate::options::{Filter, RenderOptions};
+use crate::options::{RenderOptions, TextureFilter};
 use crate::pixel::{Neighbourhood, shade_pixel};
 use crate::scene::Scene;
 use crate::stats::{PixelStats, RenderSummary};
@@ -69,7 +69,7 @@ fn render_with(
 ) -> Result<RenderSummary, crate::Error> {
     let (w, h) = output_size(scene, options);
     let scene = sized_scene(scene, w, h)?;
-    if let Filter::Supersample(n) = options.filter
+    if let TextureFilter::Supersample(n) = options.filter
         && (n == 0 || n > 64)
     {
         return Err(crate::Error::Option(format!(
@@ -179,7 +179,7 @@ impl CentreGrid {
     ) -> CentreGrid {
         let pad = PAD as i64;
         let (gw, gh) = (i64::from(w) + 2 * pad, i64::from(h) + 2 * pad);
-        let seen: Vec<Seen> = if !matches!(options.filter, Filter::Supersample(_)) {
+        let seen: Vec<Seen> = if !matches!(options.filter, TextureFilter::Supersample(_)) {
             let (seen, reach, bins) = crate::visibility::visibility_grid(
                 scene,
                 &frame.rays,
@@ -272,7 +272,7 @@ impl Rows<'_> {
             self.width as usize,
         );
         let runs = match (spans, options.filter) {
-            (Spans::Shared, Filter::Quadtree(_)) => runs_of_primitives(&uniform),
+            (Spans::Shared, TextureFilter::Quadtree(_)) => runs_of_primitives(&uniform),
             _ => Vec::new(),
         };
         for (x, out) in (0..self.width).zip(row.iter_mut()) {
@@ -281,7 +281,7 @@ impl Rows<'_> {
                 stats.merge_parts(parts);
                 continue;
             }
-            if let (Spans::Shared, Filter::Quadtree(filter_options), Some(Some(0))) =
+            if let (Spans::Shared, TextureFilter::Quadtree(filter_options), Some(Some(0))) =
                 (spans, options.filter, uniform.get(x as usize))
                 && let Some(colour) = scratch.sky_pixel(
                     self.scene,
@@ -318,10 +318,10 @@ const PAD: u32 = 3;
 
 /// Builds the raster baselines a baseline filter needs, before any pixel
 /// asks for them (so a failure is one error, not one per pixel).
-pub(crate) fn prepare_baselines(scene: &Scene, filter: Filter) -> Result<(), crate::Error> {
+pub(crate) fn prepare_baselines(scene: &Scene, filter: TextureFilter) -> Result<(), crate::Error> {
     if matches!(
         filter,
-        Filter::Trilinear | Filter::Ewa { .. } | Filter::Sat(_)
+        TextureFilter::Trilinear | TextureFilter::Ewa { .. } | TextureFilter::Sat(_)
     ) {
         for s in &scene.surfaces {
             if let Some(t) = &s.texture {
@@ -330,7 +330,7 @@ pub(crate) fn prepare_baselines(scene: &Scene, filter: Filter) -> Result<(), cra
             }
         }
     }
-    if matches!(filter, Filter::EwaSameMemory { .. }) {
+    if matches!(filter, TextureFilter::EwaSameMemory { .. }) {
         for s in &scene.surfaces {
             if let Some(t) = &s.texture {
                 t.same_memory_pyramid()

@@ -834,7 +834,7 @@ impl Default for UvTransform {
 }
 
 impl UvTransform {
-    /// Texture space back to UV (the inverse of [`UvTransform::apply`]).
+    /// SceneTexture space back to UV (the inverse of [`UvTransform::apply`]).
     pub fn invert(&self, t: [f64; 2]) -> [f64; 2] {
         let (s, c) = self.sin_cos();
         let (x, z) = (t[0] - self.offset[0], t[1] - self.offset[1]);
@@ -866,7 +866,7 @@ impl UvTransform {
 
 /// A texture bound to a surface.
 #[derive(Clone)]
-pub struct Texture {
+pub struct SceneTexture {
     /// Where it came from (file name or built-in name), for reports.
     pub name: String,
     /// The packed tree.
@@ -919,10 +919,10 @@ pub fn baseline_bytes(level: u8) -> u64 {
     8 * cells + 16 * cells * 4 / 3 + 32 * (side + 1) * (side + 1)
 }
 
-impl Texture {
+impl SceneTexture {
     /// A texture from its tree.
-    pub fn new(name: impl Into<String>, tree: Arc<QuadTree>) -> Texture {
-        Texture {
+    pub fn new(name: impl Into<String>, tree: Arc<QuadTree>) -> SceneTexture {
+        SceneTexture {
             name: name.into(),
             tree,
             baselines: Arc::default(),
@@ -934,13 +934,13 @@ impl Texture {
     /// The same texture, refusing to build raster baselines whose
     /// [`baseline_bytes`] exceed `bytes` (scenes loaded under
     /// `quadtex_io::Limits` get its `max_memory`).
-    pub fn with_memory_budget(mut self, bytes: u64) -> Texture {
+    pub fn with_memory_budget(mut self, bytes: u64) -> SceneTexture {
         self.memory_budget = Some(bytes);
         self
     }
 
     /// The filtering view of this texture under `wrap` (shares the tree).
-    pub fn sampler(&self, wrap: Wrap) -> quadtex_core::Texture {
+    pub fn texture(&self, wrap: Wrap) -> quadtex_core::Texture {
         quadtex_core::Texture::new(Arc::clone(&self.tree), wrap)
     }
 
@@ -970,7 +970,7 @@ impl Texture {
     }
 }
 
-impl Texture {
+impl SceneTexture {
     /// The mip pyramid of the largest raster that fits the tree's memory
     /// ([`same_memory_level`]), built once.
     pub(crate) fn same_memory_pyramid(&self) -> Result<&quadtex_core::baseline::MipPyramid, &str> {
@@ -988,9 +988,9 @@ impl Texture {
     }
 }
 
-impl std::fmt::Debug for Texture {
+impl std::fmt::Debug for SceneTexture {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Texture")
+        f.debug_struct("SceneTexture")
             .field("name", &self.name)
             .field("nodes", &self.tree.node_count())
             .finish()
@@ -1002,8 +1002,8 @@ impl std::fmt::Debug for Texture {
 pub struct Surface {
     /// Shape.
     pub geometry: Geometry,
-    /// Texture, or `None` for a flat colour.
-    pub texture: Option<Texture>,
+    /// SceneTexture, or `None` for a flat colour.
+    pub texture: Option<SceneTexture>,
     /// Flat colour (untextured) or multiplier (textured), linear.
     pub colour: Rgba,
     /// UV to texture space.
@@ -1029,7 +1029,7 @@ pub enum Sky {
 /// Shading.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Lighting {
-    /// Texture colour as is.
+    /// SceneTexture colour as is.
     Unlit,
     /// Lambert with one directional light and hard shadows.
     Lambert {
@@ -1058,8 +1058,8 @@ pub struct Scene {
 impl Scene {
     /// The scene's textures, each tree once, in order of first use, with the
     /// index of the first surface that uses it.
-    pub fn distinct_textures(&self) -> Vec<(usize, &Texture)> {
-        let mut out: Vec<(usize, &Texture)> = Vec::new();
+    pub fn distinct_textures(&self) -> Vec<(usize, &SceneTexture)> {
+        let mut out: Vec<(usize, &SceneTexture)> = Vec::new();
         for (i, s) in self.surfaces.iter().enumerate() {
             if let Some(t) = &s.texture
                 && !out.iter().any(|(_, o)| Arc::ptr_eq(&o.tree, &t.tree))

@@ -1,5 +1,5 @@
 //! Shading one ray: what it hits, the texture's filtered colour there (by
-//! the chosen [`Filter`]), lighting and shadows, or the sky.
+//! the chosen [`TextureFilter`]), lighting and shadows, or the sky.
 
 use quadtex_core::baseline::filter_by_strips;
 use quadtex_core::{Rgba, Texture};
@@ -7,7 +7,7 @@ use quadtex_core::{Rgba, Texture};
 use crate::caster::Seen;
 use crate::frame::{Frame, lambert, sky};
 use crate::math::Ray;
-use crate::options::{Filter, PixelFilter};
+use crate::options::{PixelFilter, TextureFilter};
 use crate::scene::{Hit, Surface};
 use crate::stats::PixelStats;
 use crate::tangent_plane::{self, ScreenSquare};
@@ -17,7 +17,7 @@ use crate::tangent_plane::{self, ScreenSquare};
 /// ray (so only it is intersected).
 pub(crate) fn shade_ray(
     frame: &Frame<'_>,
-    filter: Filter,
+    filter: TextureFilter,
     pixel_filter: PixelFilter,
     (ray, seen): (&Ray, Option<Seen>),
     square: ScreenSquare,
@@ -81,7 +81,7 @@ pub(crate) struct TexturedHit<'h> {
 pub(crate) fn texture_colour(
     frame: &Frame<'_>,
     at: TexturedHit<'_>,
-    filter: Filter,
+    filter: TextureFilter,
     pixel_filter: PixelFilter,
     square: ScreenSquare,
     footprint: impl FnOnce() -> Option<quadtex_core::Footprint>,
@@ -97,25 +97,29 @@ pub(crate) fn texture_colour(
     let centre = tangent_plane::centre_point(surface, hit);
     let traversal = &mut stats.filter.traversal;
     match filter {
-        Filter::Nearest | Filter::Supersample(_) => texture.nearest_counted(centre, traversal),
-        Filter::Bilinear => texture.bilinear_counted(centre, traversal),
-        Filter::Trilinear | Filter::Ewa { .. } => {
+        TextureFilter::Nearest | TextureFilter::Supersample(_) => {
+            texture.nearest_counted(centre, traversal)
+        }
+        TextureFilter::Bilinear => texture.bilinear_counted(centre, traversal),
+        TextureFilter::Trilinear | TextureFilter::Ewa { .. } => {
             let (Ok(b), Some(fp)) = (surface_baselines(surface), footprint()) else {
                 return texture.nearest_counted(centre, traversal);
             };
             match filter {
-                Filter::Ewa { max_anisotropy } => b.pyramid.ewa(&fp, max_anisotropy, surface.wrap),
+                TextureFilter::Ewa { max_anisotropy } => {
+                    b.pyramid.ewa(&fp, max_anisotropy, surface.wrap)
+                }
                 _ => b.pyramid.trilinear(&fp, surface.wrap),
             }
         }
-        Filter::EwaSameMemory { max_anisotropy } => {
+        TextureFilter::EwaSameMemory { max_anisotropy } => {
             let same_memory = surface.texture.as_ref().map(|t| t.same_memory_pyramid());
             let (Some(Ok(pyramid)), Some(fp)) = (same_memory, footprint()) else {
                 return texture.nearest_counted(centre, traversal);
             };
             pyramid.ewa(&fp, max_anisotropy, surface.wrap)
         }
-        Filter::Sat(options) => {
+        TextureFilter::Sat(options) => {
             let (Ok(b), Some(fp)) = (surface_baselines(surface), footprint()) else {
                 return texture.nearest_counted(centre, traversal);
             };
@@ -124,7 +128,7 @@ pub(crate) fn texture_colour(
             filter_by_strips(&b.sat, None, surface.wrap, &fp, &options, &mut stats.filter)
                 .unwrap_or_else(|| texture.nearest_counted(centre, &mut stats.filter.traversal))
         }
-        Filter::Quadtree(options) => {
+        TextureFilter::Quadtree(options) => {
             let mean = match pixel_filter {
                 PixelFilter::Box => {
                     footprint().map(|fp| texture.filter_counted(&fp, &options, &mut stats.filter))

@@ -63,8 +63,8 @@ fn checker_mesh(dir: &Path, name: &str, obj: &str, camera: &str) -> (Scene, [Rgb
     );
     let scene = parse_scene(&text, &dir.join(format!("{name}.toml"))).unwrap();
     let surface = &scene.surfaces[0];
-    let sampler = surface.texture.as_ref().unwrap().sampler(surface.wrap);
-    let colour = |uv: [f64; 2]| sampler.nearest(surface.uv_transform.apply(uv));
+    let texture = surface.texture.as_ref().unwrap().texture(surface.wrap);
+    let colour = |uv: [f64; 2]| texture.nearest(surface.uv_transform.apply(uv));
     let colours = [colour([0.25, 0.2]), colour([0.75, 0.2])];
     assert!(colours[0] != colours[1]);
     (scene, colours)

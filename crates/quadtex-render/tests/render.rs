@@ -8,7 +8,7 @@ mod scenes;
 
 use std::path::Path;
 
-use quadtex_render::{Filter, PixelFilter, RenderOptions, Scene, parse_scene, render};
+use quadtex_render::{PixelFilter, RenderOptions, Scene, TextureFilter, parse_scene, render};
 use scenes::{grazing, render_with};
 
 /// RMSE of the red channel over rows `from..` (row-major images of equal size).
@@ -29,10 +29,11 @@ fn grazing_checkerboard_matches_a_supersampled_box_reference() {
         filter,
         ..RenderOptions::default()
     };
-    let (exact, _) = render(&scene, &options(Filter::default()), &|_, _| {}).unwrap();
+    let (exact, _) = render(&scene, &options(TextureFilter::default()), &|_, _| {}).unwrap();
     // 32×32 = 1024 stratified samples per pixel: the same box pixel filter.
-    let (reference, _) = render(&scene, &options(Filter::Supersample(32)), &|_, _| {}).unwrap();
-    let (nearest, _) = render(&scene, &options(Filter::Nearest), &|_, _| {}).unwrap();
+    let (reference, _) =
+        render(&scene, &options(TextureFilter::Supersample(32)), &|_, _| {}).unwrap();
+    let (nearest, _) = render(&scene, &options(TextureFilter::Nearest), &|_, _| {}).unwrap();
     // Compare texture filtering where pixels lie wholly on the plane: the row
     // straddling the horizon (y = 16·(1 − tan(atan(1.5/40))/tan 15°) = 13.76)
     // is part sky, a silhouette the texture filter does not handle.
@@ -56,7 +57,7 @@ fn grazing_checkerboard_matches_a_supersampled_box_reference() {
 fn horizon_converges_to_the_mean_grey() {
     let scene = grazing(64, 48, 1.0);
     let converged = RenderOptions {
-        filter: quadtex_render::Filter::Quadtree(
+        filter: quadtex_render::TextureFilter::Quadtree(
             quadtex_core::FilterOptions::default()
                 .with_error_bound(1e-4)
                 .unwrap()
@@ -113,7 +114,7 @@ fn obj_mesh_renders_like_the_same_quad() {
     // its own budget, so at the default budget the two differ within their
     // reported bounds: measured up to 0.01).
     let options = RenderOptions {
-        filter: quadtex_render::Filter::Quadtree(
+        filter: quadtex_render::TextureFilter::Quadtree(
             quadtex_core::FilterOptions::default()
                 .with_error_bound(1e-6)
                 .unwrap()
@@ -169,10 +170,11 @@ fn tent_pixel_filter_matches_a_tent_weighted_supersampled_reference() {
         pixel_filter: PixelFilter::Tent,
         ..RenderOptions::default()
     };
-    let (tent, _) = render(&scene, &options(Filter::default()), &|_, _| {}).unwrap();
+    let (tent, _) = render(&scene, &options(TextureFilter::default()), &|_, _| {}).unwrap();
     // 64×64 samples: tent weights leave ~45% effective samples, so 1024 would
     // be as noisy (σ ≈ 0.016) as the error we want to bound.
-    let (reference, _) = render(&scene, &options(Filter::Supersample(64)), &|_, _| {}).unwrap();
+    let (reference, _) =
+        render(&scene, &options(TextureFilter::Supersample(64)), &|_, _| {}).unwrap();
     let (boxed, _) = render(&scene, &RenderOptions::default(), &|_, _| {}).unwrap();
     // Rows whose 2×2-pixel support lies wholly below the horizon (y = 13.76).
     let e = rmse(&tent.pixels, &reference.pixels, 48, 15);
@@ -186,14 +188,16 @@ fn tent_pixel_filter_matches_a_tent_weighted_supersampled_reference() {
 fn quadtree_beats_trilinear_and_ewa_at_a_grazing_angle() {
     let scene = grazing(48, 32, 1.5);
     let go = |filter| render_with(&scene, filter);
-    let reference = go(Filter::Supersample(32));
+    let reference = go(TextureFilter::Supersample(32));
     let error = |filter| rmse(&go(filter).pixels, &reference.pixels, 48, 14);
-    let quadtree = error(Filter::default());
-    let trilinear = error(Filter::Trilinear);
-    let ewa = error(Filter::Ewa {
+    let quadtree = error(TextureFilter::default());
+    let trilinear = error(TextureFilter::Trilinear);
+    let ewa = error(TextureFilter::Ewa {
         max_anisotropy: 8.0,
     });
-    let sat = error(Filter::Sat(quadtex_core::baseline::StripOptions::default()));
+    let sat = error(TextureFilter::Sat(
+        quadtex_core::baseline::StripOptions::default(),
+    ));
     assert!(
         quadtree < trilinear && quadtree < ewa,
         "quadtree {quadtree}, trilinear {trilinear}, EWA {ewa}"
@@ -241,7 +245,7 @@ uv_scale = [0.5, 0.5]
     );
 
     let sat = RenderOptions {
-        filter: Filter::Sat(quadtex_core::baseline::StripOptions::default()),
+        filter: TextureFilter::Sat(quadtex_core::baseline::StripOptions::default()),
         ..RenderOptions::default()
     };
     let (_, s) = render(&scene, &sat, &|_, _| {}).unwrap();
@@ -270,7 +274,7 @@ uv_scale = [0.5, 0.5]
 #[test]
 fn tent_and_mitchell_converge_within_reference_noise() {
     let scene = grazing(48, 32, 1.5);
-    let converged = Filter::Quadtree(
+    let converged = TextureFilter::Quadtree(
         quadtex_core::FilterOptions::default()
             .with_budget(1 << 16)
             .unwrap()
@@ -285,8 +289,18 @@ fn tent_and_mitchell_converge_within_reference_noise() {
             ..RenderOptions::default()
         };
         let (exact, _) = render(&scene, &options(converged, 0), &|_, _| {}).unwrap();
-        let (r1, _) = render(&scene, &options(Filter::Supersample(64), 11), &|_, _| {}).unwrap();
-        let (r2, _) = render(&scene, &options(Filter::Supersample(64), 22), &|_, _| {}).unwrap();
+        let (r1, _) = render(
+            &scene,
+            &options(TextureFilter::Supersample(64), 11),
+            &|_, _| {},
+        )
+        .unwrap();
+        let (r2, _) = render(
+            &scene,
+            &options(TextureFilter::Supersample(64), 22),
+            &|_, _| {},
+        )
+        .unwrap();
         let noise = rmse(&r1.pixels, &r2.pixels, 48, first) / 2f64.sqrt();
         for r in [&r1, &r2] {
             let e = rmse(&exact.pixels, &r.pixels, 48, first);
@@ -360,7 +374,7 @@ fn gltf_mesh_renders_like_the_same_quad() {
     );
     assert_eq!(gltf.surfaces.len(), 1);
     let options = RenderOptions {
-        filter: quadtex_render::Filter::Quadtree(
+        filter: quadtex_render::TextureFilter::Quadtree(
             quadtex_core::FilterOptions::default()
                 .with_error_bound(1e-6)
                 .unwrap()
@@ -487,7 +501,7 @@ fn bad_gltf_files_name_the_problem() {
 fn a_terrains_pixels_keep_their_whole_weight() {
     let dir = std::env::temp_dir().join(format!("quadtex-weight-{}", std::process::id()));
     let file = quadtex_render::terrain::write_terrain(&dir, 300, 480, 270).unwrap();
-    let scene = quadtex_render::load_scene(&file).unwrap();
+    let scene = quadtex_render::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
     std::fs::remove_dir_all(&dir).ok();
     for pixel_filter in [PixelFilter::Box, PixelFilter::Tent] {
         let options = RenderOptions {

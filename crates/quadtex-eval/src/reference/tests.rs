@@ -6,7 +6,7 @@ fn scene(name: &str) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../scenes")
         .join(name);
-    quadtex_render::load_scene(&path).unwrap()
+    quadtex_render::load_scene(&path, &quadtex_io::Limits::default()).unwrap()
 }
 
 /// Dense midpoint sampling of pixel `(px, py)` on an `n × n` grid: each

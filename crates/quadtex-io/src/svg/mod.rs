@@ -102,7 +102,8 @@ pub struct SvgOptions {
 }
 
 impl SvgOptions {
-    /// The default options packing down to `max_level`.
+    /// The default options packing down to `max_level` (curves flattened to
+    /// a sixteenth of a square there).
     pub fn at_level(max_level: u8) -> SvgOptions {
         SvgOptions {
             vector: VectorOptions {
@@ -112,14 +113,27 @@ impl SvgOptions {
             ..SvgOptions::default()
         }
     }
+
+    /// These options with curves flattened to within `curve_tolerance` of
+    /// the texture's longer side, in `[MIN_CURVE_TOLERANCE, 1]`, whatever
+    /// the level.
+    pub fn with_curve_tolerance(mut self, curve_tolerance: f64) -> SvgOptions {
+        self.vector.curve_tolerance = Some(curve_tolerance);
+        self
+    }
+
+    /// These options under `limits`.
+    pub fn with_limits(mut self, limits: Limits) -> SvgOptions {
+        self.limits = limits;
+        self
+    }
 }
 
 /// Reads an SVG file and packs it with `options` (level, tolerance, leaf
 /// kinds, budgets and limits; see [`SvgOptions`]).
 pub fn pack_svg(path: &Path, options: &SvgOptions) -> Result<(QuadTree, VectorReport), Error> {
     let SvgOptions { vector, limits } = options;
-    check_level(vector.max_level, path)?;
-    let art = load_svg_flattened(path, vector.curve_tolerance_or_default(), limits)?;
+    let art = load_svg(path, options)?;
     let max_bytes = vector
         .max_bytes
         .map_or(limits.max_memory, |b| b.min(limits.max_memory));
@@ -134,20 +148,12 @@ pub fn pack_svg(path: &Path, options: &SvgOptions) -> Result<(QuadTree, VectorRe
     .map_err(crate::error::core(path))
 }
 
-/// Reads an SVG file into vector art flattened for `max_level`.
-pub fn load_svg(path: &Path, max_level: u8, limits: &Limits) -> Result<VectorArt, Error> {
-    check_level(max_level, path)?;
-    load_svg_flattened(path, level_curve_tolerance(max_level), limits)
-}
-
-/// Reads an SVG file into vector art whose curves are flattened to within
-/// `curve_tolerance` of the texture's longer side (see
-/// [`parse_svg_flattened`]).
-pub fn load_svg_flattened(
-    path: &Path,
-    curve_tolerance: f64,
-    limits: &Limits,
-) -> Result<VectorArt, Error> {
+/// Reads an SVG file into vector art flattened as `options` say (their
+/// curve tolerance, or a sixteenth of a square at their level), under
+/// their limits; see [`parse_svg`].
+pub fn load_svg(path: &Path, options: &SvgOptions) -> Result<VectorArt, Error> {
+    check_level(options.vector.max_level, path)?;
+    let limits = &options.limits;
     let len = std::fs::metadata(path)
         .map_err(|source| Error::Io {
             path: path.to_path_buf(),
@@ -159,12 +165,12 @@ pub fn load_svg_flattened(
         path: path.to_path_buf(),
         source,
     })?;
-    parse_svg_flattened(&data, path, curve_tolerance, limits)
-}
-
-/// Flattening for level `max_level`: a sixteenth of a square there.
-fn level_curve_tolerance(max_level: u8) -> f64 {
-    (-(f64::from(max_level) + 4.0)).exp2()
+    parse_flattened(
+        &data,
+        path,
+        options.vector.curve_tolerance_or_default(),
+        limits,
+    )
 }
 
 /// Refuses levels the vector packer cannot reach.
@@ -181,30 +187,29 @@ fn check_level(max_level: u8, path: &Path) -> Result<(), Error> {
     Ok(())
 }
 
-/// Finest curve flattening [`parse_svg_flattened`] accepts: 2⁻⁴⁰ of the
+/// Finest curve flattening [`parse_svg`] accepts: 2⁻⁴⁰ of the
 /// texture's side (below it, a curve's segments would outnumber what its
 /// `f64` points resolve).
 pub const MIN_CURVE_TOLERANCE: f64 = 1.0 / (1u64 << 40) as f64;
 
-/// Parses SVG text into vector art flattened for `max_level` (curves
-/// within a sixteenth of a square at that level); `path` names the source
-/// in errors.
-pub fn parse_svg(
-    data: &[u8],
-    path: &Path,
-    max_level: u8,
-    limits: &Limits,
-) -> Result<VectorArt, Error> {
-    check_level(max_level, path)?;
-    parse_svg_flattened(data, path, level_curve_tolerance(max_level), limits)
+/// Parses SVG text into vector art flattened as `options` say (curves,
+/// fills and stroke outlines within their curve tolerance of the true
+/// curves, in units of the texture's longer side, in
+/// `[MIN_CURVE_TOLERANCE, 1]`; by default a sixteenth of a square at their
+/// level), under their limits; the art states its tolerance
+/// ([`VectorArt::curve_tolerance`]). `path` names the source in errors.
+pub fn parse_svg(data: &[u8], path: &Path, options: &SvgOptions) -> Result<VectorArt, Error> {
+    check_level(options.vector.max_level, path)?;
+    parse_flattened(
+        data,
+        path,
+        options.vector.curve_tolerance_or_default(),
+        &options.limits,
+    )
 }
 
-/// Parses SVG text into vector art whose curves (fills and stroke
-/// outlines) lie within `curve_tolerance` of the true curves, in units of
-/// the texture's longer side, in `[MIN_CURVE_TOLERANCE, 1]`; the art
-/// states it ([`VectorArt::curve_tolerance`]). `path` names the source in
-/// errors.
-pub fn parse_svg_flattened(
+/// [`parse_svg`] with the tolerance resolved.
+fn parse_flattened(
     data: &[u8],
     path: &Path,
     curve_tolerance: f64,

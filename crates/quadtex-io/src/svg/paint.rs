@@ -1,7 +1,7 @@
 //! Paints: solid colours, gradients and patterns as the core's paints.
 
-use quadtex_core::{FillRule, Paint, Rgba};
 use quadtex_core::{Circle, Gradient, Interpolation, Spread, Stop};
+use quadtex_core::{FillRule, Paint, Rgba};
 
 use crate::Error;
 use crate::image_io::srgb_to_linear;

@@ -5,7 +5,12 @@ use quadtex_core::Fragment;
 /// The packed alpha integral over the unit square (the root colour,
 /// within one 16-bit step) of an SVG 100 units wide.
 fn coverage(svg: &str) -> f64 {
-    let art = parse_svg(svg.as_bytes(), Path::new("t.svg"), 8, &Limits::default()).unwrap();
+    let art = parse_svg(
+        svg.as_bytes(),
+        Path::new("t.svg"),
+        &SvgOptions::at_level(8).with_limits(Limits::default()),
+    )
+    .unwrap();
     let options = VectorOptions {
         max_level: 8,
         ..VectorOptions::default()
@@ -35,11 +40,10 @@ fn curves_are_flattened_to_the_stated_tolerance() {
     }
     truth *= h / 3.0;
     for tolerance in [1e-6, 1e-3] {
-        let art = parse_svg_flattened(
+        let art = parse_svg(
             svg.as_bytes(),
             Path::new("c.svg"),
-            tolerance,
-            &Limits::default(),
+            &SvgOptions::default().with_curve_tolerance(tolerance),
         )
         .unwrap();
         assert_eq!(art.curve_tolerance(), Some(tolerance));
@@ -63,11 +67,10 @@ fn curves_are_flattened_to_the_stated_tolerance() {
             assert!((got - truth).abs() > 0.01 * bound, "{got} vs {truth}");
         }
     }
-    let refused = parse_svg_flattened(
+    let refused = parse_svg(
         svg.as_bytes(),
         Path::new("c.svg"),
-        1e-13,
-        &Limits::default(),
+        &SvgOptions::default().with_curve_tolerance(1e-13),
     );
     assert!(refused.unwrap_err().to_string().contains("curve tolerance"));
 }
@@ -139,7 +142,12 @@ fn multiply_blends_encoded_colours_exactly() {
     let svg = r##"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
         <rect width="10" height="10" fill="#ff4000"/>
         <rect width="10" height="10" fill="#808080" style="mix-blend-mode:multiply"/></svg>"##;
-    let art = parse_svg(svg.as_bytes(), Path::new("t.svg"), 2, &Limits::default()).unwrap();
+    let art = parse_svg(
+        svg.as_bytes(),
+        Path::new("t.svg"),
+        &SvgOptions::at_level(2).with_limits(Limits::default()),
+    )
+    .unwrap();
     let (tree, _) = QuadTree::from_vector(&art, &VectorOptions::default()).unwrap();
     let f = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
     let got = tree.weighted_colour(&f, 0).0;
@@ -164,7 +172,12 @@ fn an_embedded_image_packs_to_its_exact_texel_means() {
         r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">
         <image width="10" height="10" href="data:image/png;base64,{PNG_2X2}"/></svg>"#
     );
-    let art = parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &Limits::default()).unwrap();
+    let art = parse_svg(
+        svg.as_bytes(),
+        Path::new("t.svg"),
+        &SvgOptions::at_level(4).with_limits(Limits::default()),
+    )
+    .unwrap();
     let (tree, report) = QuadTree::from_vector(
         &art,
         &VectorOptions {
@@ -211,13 +224,25 @@ fn image_copies_beyond_the_texel_limit_are_refused() {
         max_svg_image_texels: 99,
         ..Limits::default()
     };
-    let e = parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &limits).unwrap_err();
+    let e = parse_svg(
+        svg.as_bytes(),
+        Path::new("t.svg"),
+        &SvgOptions::at_level(4).with_limits(limits),
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("max_svg_image_texels"), "{e}");
     let limits = Limits {
         max_svg_image_texels: 100,
         ..Limits::default()
     };
-    assert!(parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &limits).is_ok());
+    assert!(
+        parse_svg(
+            svg.as_bytes(),
+            Path::new("t.svg"),
+            &SvgOptions::at_level(4).with_limits(limits)
+        )
+        .is_ok()
+    );
 }
 
 #[test]
@@ -225,9 +250,13 @@ fn images_that_cannot_be_drawn_are_errors_naming_them() {
     let parse = |body: &str| {
         let svg =
             format!(r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">{body}</svg>"#);
-        parse_svg(svg.as_bytes(), Path::new("t.svg"), 4, &Limits::default())
-            .unwrap_err()
-            .to_string()
+        parse_svg(
+            svg.as_bytes(),
+            Path::new("t.svg"),
+            &SvgOptions::at_level(4).with_limits(Limits::default()),
+        )
+        .unwrap_err()
+        .to_string()
     };
     let e = parse(r#"<image href="missing.png" width="10" height="10"/>"#);
     assert!(
@@ -261,9 +290,13 @@ fn images_that_cannot_be_drawn_are_errors_naming_them() {
 #[test]
 fn a_panic_inside_the_svg_parser_is_an_error_naming_the_file() {
     let data = include_bytes!("../../tests/data/stroked-text-parser-panic.svg");
-    let e = parse_svg(data, Path::new("panic.svg"), 4, &Limits::default())
-        .unwrap_err()
-        .to_string();
+    let e = parse_svg(
+        data,
+        Path::new("panic.svg"),
+        &SvgOptions::at_level(4).with_limits(Limits::default()),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         e.contains("panic.svg") && e.contains("the SVG parser (usvg) failed"),
         "{e}"
@@ -279,9 +312,13 @@ fn far_away_curves_are_refused_before_they_are_flattened() {
         let svg = format!(
             r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 100 100">{body}</svg>"#
         );
-        parse_svg(svg.as_bytes(), Path::new("far.svg"), 4, &Limits::default())
-            .unwrap_err()
-            .to_string()
+        parse_svg(
+            svg.as_bytes(),
+            Path::new("far.svg"),
+            &SvgOptions::at_level(4).with_limits(Limits::default()),
+        )
+        .unwrap_err()
+        .to_string()
     };
     let e = parse(
         r#"<circle cx="88" cy="12" r="8111111111111111111.0" fill="none" stroke="black" stroke-width="0.4"/>"#,

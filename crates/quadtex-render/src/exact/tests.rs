@@ -62,7 +62,7 @@ fn a_memo_is_kept_for_its_frame_alone() {
 fn a_uniform_light_is_what_each_point_gets() {
     let dir = std::env::temp_dir().join(format!("quadtex-light-{}", std::process::id()));
     let file = crate::terrain::write_terrain(&dir, 400, 320, 180).unwrap();
-    let scene = crate::load_scene(&file).unwrap();
+    let scene = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
     std::fs::remove_dir_all(&dir).ok();
     let Lighting::Lambert {
         colour, ambient, ..
@@ -166,11 +166,15 @@ fn check_uniform_light(scene: &Scene) {
 /// RMS over every 7th pixel of row `y` of `scenes/checker.toml` at
 /// 960×540: default options against the finished integral.
 fn row_rms(y: f64) -> f64 {
-    let mut scene = crate::load_scene(std::path::Path::new("../../scenes/checker.toml")).unwrap();
+    let mut scene = crate::load_scene(
+        std::path::Path::new("../../scenes/checker.toml"),
+        &quadtex_io::Limits::default(),
+    )
+    .unwrap();
     scene.camera = scene.camera.with_size(960, 540);
     let surface = &scene.surfaces[0];
     let view = View::new(&scene, 0, &surface.geometry.planar(0).unwrap()).unwrap();
-    let texture = surface.texture.as_ref().unwrap().sampler(surface.wrap);
+    let texture = surface.texture.as_ref().unwrap().texture(surface.wrap);
     let finished = FilterOptions::default()
         .with_error_bound(1e-6)
         .and_then(|o| o.with_budget(1 << 18))

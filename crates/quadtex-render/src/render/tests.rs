@@ -79,7 +79,7 @@ fn spans_give_each_pixel_what_it_gets_alone() {
         let options = RenderOptions {
             width: Some(width),
             height: None,
-            filter: Filter::default(),
+            filter: TextureFilter::default(),
             pixel_filter,
             seed: 0,
         };
@@ -146,7 +146,7 @@ fn rendering_into_a_used_image_is_rendering_afresh() {
     }
     let mut image = fresh.clone();
     let bad = RenderOptions {
-        filter: Filter::Supersample(0),
+        filter: TextureFilter::Supersample(0),
         ..options(96)
     };
     assert!(render_into(&scene, &bad, &mut image, &|_, _| ()).is_err());

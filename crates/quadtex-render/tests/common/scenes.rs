@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use quadtex_render::{Filter, RenderOptions, Scene, parse_scene, render};
+use quadtex_render::{RenderOptions, Scene, TextureFilter, parse_scene, render};
 
 /// A checkerboard plane (1 m squares) seen at a grazing angle, unlit.
 pub fn grazing(width: u32, height: u32, eye_height: f64) -> Scene {
@@ -32,7 +32,7 @@ uv_scale = [0.5, 0.5]
 }
 
 /// `scene` rendered with `filter` and otherwise default options.
-pub fn render_with(scene: &Scene, filter: Filter) -> quadtex_io::LinearImage {
+pub fn render_with(scene: &Scene, filter: TextureFilter) -> quadtex_io::LinearImage {
     render(
         scene,
         &RenderOptions {
