@@ -15,8 +15,9 @@
 
 use std::path::{Path, PathBuf};
 
+use quadtex_core::srgb_decode_f32;
 use quadtex_core::{Fragment, QuadTree, Rgba, VectorOptions};
-use quadtex_io::{Limits, LinearImage, parse_svg, save_image, srgb_to_linear};
+use quadtex_io::{Limits, LinearImage, parse_svg, save_image};
 use resvg::{tiny_skia, usvg};
 
 /// Pixels on a side of each rendering.
@@ -51,7 +52,7 @@ fn resvg_pixels(svg: &str) -> Vec<Rgba> {
             if a == 0.0 {
                 return Rgba::TRANSPARENT;
             }
-            let c = |v: u8| srgb_to_linear((f32::from(v) / 255.0 / a).min(1.0)) * a;
+            let c = |v: u8| srgb_decode_f32((f32::from(v) / 255.0 / a).min(1.0)) * a;
             Rgba::new(c(p.red()), c(p.green()), c(p.blue()), a)
         })
         .collect()

@@ -25,8 +25,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use quadtex_core::srgb_encode_f32;
 use quadtex_core::{Fragment, QuadTree, VectorOptions};
-use quadtex_io::{Error, Limits, linear_to_srgb, load_linear_image, parse_svg};
+use quadtex_io::{Error, Limits, load_linear_image, parse_svg};
 
 /// Packing level: leaves of `1/4096`, a fourteenth of a pixel.
 const LEVEL: u8 = 12;
@@ -90,7 +91,7 @@ fn encoded(c: [f32; 4]) -> [f64; 4] {
     if a <= 0.0 {
         return [0.0; 4];
     }
-    let e = |v: f32| f64::from(linear_to_srgb(v / a) * a) * 255.0;
+    let e = |v: f32| f64::from(srgb_encode_f32(v / a) * a) * 255.0;
     [e(c[0]), e(c[1]), e(c[2]), f64::from(a) * 255.0]
 }
 

@@ -7,7 +7,7 @@ mod common;
 
 use std::sync::Arc;
 
-use quadtex_io::srgb_to_linear;
+use quadtex_core::srgb_decode_f32;
 use resvg::{tiny_skia, usvg};
 
 const SIDE: u32 = 4096;
@@ -45,7 +45,7 @@ fn linear(p: tiny_skia::PremultipliedColorU8) -> [f64; 4] {
     if a == 0.0 {
         return [0.0; 4];
     }
-    let c = |v: u8| f64::from(srgb_to_linear((f64::from(v) / 255.0 / a).min(1.0) as f32)) * a;
+    let c = |v: u8| f64::from(srgb_decode_f32((f64::from(v) / 255.0 / a).min(1.0) as f32)) * a;
     [c(p.red()), c(p.green()), c(p.blue()), a]
 }
 

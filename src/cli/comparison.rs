@@ -200,7 +200,7 @@ fn srgb8(img: &LinearImage) -> Vec<u8> {
     let mut out = Vec::with_capacity(img.pixels.len() * 3);
     for p in &img.pixels {
         for v in [p.r, p.g, p.b] {
-            out.push((quadtex_io::linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8);
+            out.push((quadtex_core::srgb_encode_f32(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8);
         }
     }
     out

@@ -197,7 +197,7 @@ fn decode_table() -> &'static [f32] {
     static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
     TABLE.get_or_init(|| {
         (0..=u16::MAX)
-            .map(|v| quadtex_io::srgb_to_linear(f32::from(v) / 65535.0))
+            .map(|v| quadtex_core::srgb_decode_f32(f32::from(v) / 65535.0))
             .collect()
     })
 }

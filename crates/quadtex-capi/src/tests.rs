@@ -485,7 +485,7 @@ fn pack_svg_sample() {
         rect(0.02, 0.1, 0.2, 0.9),
         &qtx_filter_options_default(),
     );
-    let lin = |v: u8| quadtex_io::srgb_to_linear(f32::from(v) / 255.0);
+    let lin = |v: u8| quadtex_core::srgb_decode_f32(f32::from(v) / 255.0);
     assert!(
         close(grass, [lin(0x4a), lin(0x6b), lin(0x34), 1.0], 1e-4),
         "{grass:?}"

@@ -244,3 +244,33 @@ impl Mul<f64> for WeightedColour {
         WeightedColour(self.0.map(|c| c * s))
     }
 }
+
+/// The sRGB transfer function (IEC 61966-2-1), written once for both float
+/// widths: each width keeps its own literals and arithmetic, so `f32`
+/// callers get exactly what `f32` arithmetic gives (the texel tables and
+/// PNG output depend on it) and `f64` callers what `f64` gives.
+macro_rules! srgb_transfer {
+    ($float:ty, $decode:ident, $encode:ident) => {
+        /// sRGB decoding: encoded `[0,1]` → linear light.
+        pub fn $decode(v: $float) -> $float {
+            if v <= 0.04045 {
+                v / 12.92
+            } else {
+                ((v + 0.055) / 1.055).powf(2.4)
+            }
+        }
+
+        /// sRGB encoding: linear light → encoded, clamped to `[0,1]`.
+        pub fn $encode(v: $float) -> $float {
+            let v = v.clamp(0.0, 1.0);
+            if v <= 0.003_130_8 {
+                v * 12.92
+            } else {
+                1.055 * v.powf(1.0 / 2.4) - 0.055
+            }
+        }
+    };
+}
+
+srgb_transfer!(f64, srgb_decode, srgb_encode);
+srgb_transfer!(f32, srgb_decode_f32, srgb_encode_f32);

@@ -64,7 +64,10 @@ pub mod synth;
 #[cfg(test)]
 mod test_rng;
 
-pub use colour::{ColourEncoding, Rgba, Unorm16Rgba, WeightedColour};
+pub use colour::{
+    ColourEncoding, Rgba, Unorm16Rgba, WeightedColour, srgb_decode, srgb_decode_f32, srgb_encode,
+    srgb_encode_f32,
+};
 pub use error::Error;
 pub use filter::footprint::Footprint;
 pub use filter::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET, Weighting};
@@ -82,9 +85,7 @@ pub use raster::{
     raster_grid_bytes,
 };
 pub use tree::shared::SharedBytes;
-pub use tree::texel_block::{
-    BLOCK_LOG2_SIDE, BlockFormat, TexelBlocks, srgb_to_linear, srgb8_texel,
-};
+pub use tree::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, TexelBlocks, srgb8_texel};
 pub use tree::variant;
 pub use tree::{
     Aspect, FLAT_GRID_MAX_DEPTH, LevelStats, MAX_DEPTH, MAX_NODES, QuadTree, TraversalStats,
@@ -94,9 +95,7 @@ pub use vector::blend::{BlendMode, blend, blend_range};
 pub use vector::contour_leaf::{
     ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
 };
-pub use vector::gradient::{
-    Circle, Gradient, Interpolation, MAX_PERIODS, MAX_STOPS, Spread, Stop, srgb_decode, srgb_encode,
-};
+pub use vector::gradient::{Circle, Gradient, Interpolation, MAX_PERIODS, MAX_STOPS, Spread, Stop};
 pub use vector::gradient_leaf::{GradientLeaves, LeafPaint, MAX_CELL_LEVELS, MAX_GRADIENT_LEAVES};
 pub use vector::image_paint::ImagePaint;
 pub use vector::{

@@ -29,20 +29,10 @@ pub struct LinearImage {
     pub pixels: Vec<Rgba>,
 }
 
-pub use quadtex_core::srgb_to_linear;
-
-/// The sRGB transfer function: linear `[0,1]` → encoded `[0,1]` (clamped).
-pub fn linear_to_srgb(v: f32) -> f32 {
-    let v = v.clamp(0.0, 1.0);
-    if v <= 0.003_130_8 {
-        v * 12.92
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    }
-}
+use quadtex_core::{srgb_decode_f32, srgb_encode};
 
 /// The 8-bit sRGB code of linear `v` in `[0, 1]`: `⌊255·srgb(v) + ½⌋`, the
-/// transfer function evaluated exactly (in `f64`, where [`linear_to_srgb`]'s
+/// transfer function evaluated exactly (in `f64`, where [`srgb_encode_f32`]'s
 /// `f32` power may round a value at a code's edge the other way); 0 for
 /// NaN and below 0, 255 above 1. A table lookup: every pixel of every
 /// written PNG takes three.
@@ -75,19 +65,10 @@ struct Srgb8Table {
     bucket_code: Vec<u8>,
 }
 
-/// The sRGB encoding in `f64`.
-fn linear_to_srgb_f64(v: f64) -> f64 {
-    if v <= 0.003_130_8 {
-        v * 12.92
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    }
-}
-
 fn srgb8_encode_table() -> &'static Srgb8Table {
     static TABLE: OnceLock<Srgb8Table> = OnceLock::new();
     TABLE.get_or_init(|| {
-        let code = |x: f64| (255.0 * linear_to_srgb_f64(x) + 0.5).floor();
+        let code = |x: f64| (255.0 * srgb_encode(x) + 0.5).floor();
         let mut threshold = [0.0; 256];
         for (k, t) in threshold.iter_mut().enumerate().skip(1) {
             // Bisection on the (monotone) encoding to the last f64 bit.
@@ -121,7 +102,7 @@ fn decode_table() -> &'static [f32] {
     static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
     TABLE.get_or_init(|| {
         (0..=u16::MAX)
-            .map(|v| srgb_to_linear(f32::from(v) / 65535.0))
+            .map(|v| srgb_decode_f32(f32::from(v) / 65535.0))
             .collect()
     })
 }
@@ -443,6 +424,7 @@ fn to_dynamic(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use quadtex_core::srgb_encode_f32;
 
     fn temp(name: &str) -> std::path::PathBuf {
         std::env::temp_dir().join(format!("quadtex-img-{}-{name}", std::process::id()))
@@ -595,14 +577,14 @@ mod tests {
     fn srgb8_codes_are_the_exact_transfer_function() {
         let exact = |v: f32| {
             let x = f64::from(v.clamp(0.0, 1.0));
-            (255.0 * linear_to_srgb_f64(x) + 0.5).floor() as u8
+            (255.0 * srgb_encode(x) + 0.5).floor() as u8
         };
         let (mut checked, mut f32_differs) = (0, 0);
         let mut check = |v: f32| {
             let code = linear_to_srgb8(v);
             assert_eq!(code, exact(v), "{v:e}");
-            let scaled = 255.0 * linear_to_srgb_f64(f64::from(v)) + 0.5;
-            if code != (linear_to_srgb(v) * 255.0 + 0.5) as u8 {
+            let scaled = 255.0 * srgb_encode(f64::from(v)) + 0.5;
+            if code != (srgb_encode_f32(v) * 255.0 + 0.5) as u8 {
                 f32_differs += 1;
                 assert!((scaled - scaled.round()).abs() < 1e-4, "{v:e}: {scaled}");
             }
@@ -626,8 +608,8 @@ mod tests {
     #[test]
     fn srgb_round_trips_every_8_bit_code() {
         for v in 0..=255u8 {
-            let lin = srgb_to_linear(f32::from(v) / 255.0);
-            assert_eq!((linear_to_srgb(lin) * 255.0 + 0.5) as u8, v);
+            let lin = srgb_decode_f32(f32::from(v) / 255.0);
+            assert_eq!((srgb_encode_f32(lin) * 255.0 + 0.5) as u8, v);
             assert_eq!(linear_to_srgb8(lin), v);
         }
     }

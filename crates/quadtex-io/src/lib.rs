@@ -28,8 +28,8 @@ mod tiles;
 pub use atomic::write_atomically;
 pub use error::Error;
 pub use image_io::{
-    ImageFormat, LinearImage, linear_to_srgb, linear_to_srgb8, load_linear_image, load_texels,
-    load_texels_from_bytes, save_image, save_image_as, srgb_to_linear, write_image,
+    ImageFormat, LinearImage, linear_to_srgb8, load_linear_image, load_texels,
+    load_texels_from_bytes, save_image, save_image_as, write_image,
 };
 pub use limits::{FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE, default_memory_budget};
 pub use qtx::{

@@ -18,7 +18,7 @@
 
 use crate::Error;
 use crate::SharedBytes;
-use crate::colour::{Rgba, Unorm16Rgba};
+use crate::colour::{Rgba, Unorm16Rgba, srgb_decode_f32};
 
 /// Side of a block, `log2`: blocks are 4 × 4 texels.
 pub const BLOCK_LOG2_SIDE: u8 = 2;
@@ -146,20 +146,11 @@ impl BlockFormat {
     }
 }
 
-/// The sRGB transfer function's inverse: encoded `[0,1]` → linear `[0,1]`.
-pub fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 fn srgb8_table() -> &'static [f32; 256] {
     static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
     // Through the 16-bit code (×257), as 16-bit sources decode: the same curve.
     TABLE.get_or_init(|| {
-        std::array::from_fn(|v| srgb_to_linear(f32::from(v as u16 * 257) / 65535.0))
+        std::array::from_fn(|v| srgb_decode_f32(f32::from(v as u16 * 257) / 65535.0))
     })
 }
 

@@ -13,7 +13,7 @@
 //! blend: the sum of the two premultiplied colours, clamped to 1, taken on
 //! sRGB-encoded premultiplied channels as browsers and resvg add them.
 
-use crate::vector::gradient::{srgb_decode, srgb_encode};
+use crate::colour::{srgb_decode, srgb_encode};
 
 /// How a group's colour combines with what lies below it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

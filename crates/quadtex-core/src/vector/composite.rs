@@ -349,7 +349,7 @@ pub(super) fn mask_coverage(kind: MaskKind, rgb: [f64; 3], alpha: f64) -> f64 {
         MaskKind::Alpha => a,
         MaskKind::Luminance if a <= 0.0 => 0.0,
         MaskKind::Luminance => {
-            let e = |c: f64| crate::vector::gradient::srgb_encode((c / a).clamp(0.0, 1.0)) * a;
+            let e = |c: f64| crate::colour::srgb_encode((c / a).clamp(0.0, 1.0)) * a;
             (0.2125 * e(rgb[0]) + 0.7154 * e(rgb[1]) + 0.0721 * e(rgb[2])).clamp(0.0, 1.0)
         }
     }
@@ -360,7 +360,7 @@ pub(super) fn mask_coverage(kind: MaskKind, rgb: [f64; 3], alpha: f64) -> f64 {
 pub(super) fn encoded(range: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
     let mut out = range;
     for r in &mut out[..3] {
-        *r = r.map(crate::vector::gradient::srgb_encode);
+        *r = r.map(crate::colour::srgb_encode);
     }
     out
 }

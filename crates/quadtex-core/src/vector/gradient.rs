@@ -43,6 +43,7 @@
 //! the focal circle lies inside the end circle, which is therefore required.
 
 use crate::Error;
+use crate::colour::srgb_decode;
 
 type Point = [f64; 2];
 
@@ -121,25 +122,6 @@ pub struct Gradient {
     /// stops, and where an interpolated channel crosses sRGB's branch point
     /// (sorted; from the stops, so equal stops give equal breaks).
     breaks: Vec<f64>,
-}
-
-/// The sRGB decoding (encoded `[0,1]` → linear light).
-pub fn srgb_decode(v: f64) -> f64 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// The sRGB encoding (linear light `[0,1]` → encoded), clamped to `[0,1]`.
-pub fn srgb_encode(v: f64) -> f64 {
-    let v = v.clamp(0.0, 1.0);
-    if v <= 0.003_130_8 {
-        v * 12.92
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    }
 }
 
 fn bad(why: String) -> Error {

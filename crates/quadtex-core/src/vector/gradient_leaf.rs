@@ -32,8 +32,9 @@
 //! parameter.
 
 use crate::Error;
+use crate::colour::srgb_encode;
 use crate::tree::leaf_nodes::LeafNodes;
-use crate::vector::gradient::{Gradient, srgb_encode};
+use crate::vector::gradient::Gradient;
 
 type Point = [f64; 2];
 

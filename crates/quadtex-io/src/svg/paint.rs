@@ -4,7 +4,7 @@ use quadtex_core::{Circle, Gradient, Interpolation, Spread, Stop};
 use quadtex_core::{FillRule, Paint, Rgba};
 
 use crate::Error;
-use crate::image_io::srgb_to_linear;
+use quadtex_core::srgb_decode_f32;
 
 use super::Walker;
 use super::geometry::*;
@@ -224,7 +224,7 @@ pub(super) fn fill_rule(rule: usvg::FillRule) -> FillRule {
 /// A flat paint from sRGB-encoded channels in `[0,1]` and an opacity.
 pub(super) fn solid(rgb: [f64; 3], opacity: f64) -> Paint {
     let a = opacity as f32;
-    let lin = |v: f64| srgb_to_linear(v as f32) * a;
+    let lin = |v: f64| srgb_decode_f32(v as f32) * a;
     Paint::Solid(Rgba::new(lin(rgb[0]), lin(rgb[1]), lin(rgb[2]), a))
 }
 
