@@ -64,6 +64,8 @@ impl Texture {
         signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = 64),
         text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=64)"
     )]
+    // pyo3 maps each Python keyword to one Rust parameter, and the keywords
+    // are the module's API: the one allowance of its kind in the project.
     #[allow(clippy::too_many_arguments)]
     fn filter<'py>(
         &self,

@@ -157,7 +157,7 @@ impl FewCells {
 /// tile, or neither. One descent of stored nodes, and a look at each
 /// cell the box reaches (at most [`SMALL_SCAN_CELLS`]).
 ///
-/// A mesh triangle's piece of a pixel over a photograph spans one to four
+/// A mesh triangle's region of a pixel over a photograph spans one to four
 /// texels: here it costs a descent and a texel read or four, where the
 /// uniform search ([`crate::filter::wrap::uniform_colour_in`]) and the walk's set-up (buffers,
 /// tile frame, start node, first square) each cost several times that.
