@@ -13,8 +13,8 @@
 
 use std::time::Instant;
 
-use quadtex_render::terrain::{TERRAIN_CELLS, write_terrain};
 use quadtex_render::{RenderOptions, TextureFilter};
+use quadtex_render::{TERRAIN_CELLS, write_terrain};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -37,7 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .surfaces
         .iter()
         .filter_map(|s| match &s.geometry {
-            quadtex_render::scene::Geometry::Mesh(m) => Some(m.memory_bytes()),
+            quadtex_render::Geometry::Mesh(m) => Some(m.memory_bytes()),
             _ => None,
         })
         .sum::<usize>();

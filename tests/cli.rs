@@ -536,7 +536,7 @@ fn footprint_dump_round_trips_through_the_cli() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let dump = quadtex_io::footprints::read_footprints(&dir.join("footprints.bin")).unwrap();
+    let dump = quadtex_io::read_footprints(&dir.join("footprints.bin")).unwrap();
     assert_eq!((dump.width, dump.height), (32, 18));
     assert_eq!(dump.textures.len(), 1);
     assert!(dir.join(&dump.textures[0].file).is_file());

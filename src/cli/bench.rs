@@ -333,19 +333,15 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     let (width, height) = (1920, 1080);
     let dir = std::env::temp_dir().join(format!("quadtex-bench-terrain-{}", std::process::id()));
     let started = Instant::now();
-    let terrain = quadtex_render::terrain::write_terrain(
-        &dir,
-        quadtex_render::terrain::TERRAIN_CELLS,
-        width,
-        height,
-    )
-    .and_then(|file| quadtex_render::load_scene(&file, limits));
+    let terrain = quadtex_render::write_terrain(&dir, quadtex_render::TERRAIN_CELLS, width, height)
+        .and_then(|file| quadtex_render::load_scene(&file, limits));
     let _ = std::fs::remove_dir_all(&dir);
     let terrain = terrain?;
     let terrain_load = started.elapsed().as_secs_f64();
     let runway = quadtex_render::parse_scene(
         include_str!("../../scenes/runway.toml"),
         std::path::Path::new("scenes/runway.toml"),
+        &quadtex_io::Limits::default(),
     )?;
     let quadtree = TextureFilter::Quadtree(quadtex_core::FilterOptions::default());
     let options_for = |filter: TextureFilter| RenderOptions {

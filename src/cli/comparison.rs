@@ -16,7 +16,10 @@ use quadtex_eval::report::{
     Figures, Provenance, ReportInfo, csv, file_stem, html_report, markdown_table, plot_svg,
 };
 use quadtex_io::LinearImage;
-use quadtex_render::{PixelFilter, RenderOptions, Scene, TextureFilter, scene};
+use quadtex_render::{
+    PixelFilter, RenderOptions, Scene, TextureFilter, baseline_level, mipmapped_raster_bytes,
+    same_memory_level,
+};
 
 use super::Result;
 use super::common::in_range;
@@ -160,19 +163,17 @@ pub fn texture_bytes(scene: &Scene, filter: TextureFilter) -> u64 {
         .map(|(_, texture)| {
             let t = &texture.tree;
             let full = 4u64.saturating_mul(1u64 << (2 * u32::from(t.depth()).min(31)));
-            let b = scene::baseline_level(t.depth());
+            let b = baseline_level(t.depth());
             let base = 1u64 << (2 * u32::from(b));
             match filter {
                 TextureFilter::Quadtree { .. } => t.memory_bytes(),
                 TextureFilter::Nearest
                 | TextureFilter::Bilinear
                 | TextureFilter::Supersample(_) => full,
-                TextureFilter::Trilinear | TextureFilter::Ewa { .. } => {
-                    scene::mipmapped_raster_bytes(b)
+                TextureFilter::Trilinear | TextureFilter::Ewa { .. } => mipmapped_raster_bytes(b),
+                TextureFilter::EwaSameMemory { .. } => {
+                    mipmapped_raster_bytes(same_memory_level(t.memory_bytes(), t.depth()))
                 }
-                TextureFilter::EwaSameMemory { .. } => scene::mipmapped_raster_bytes(
-                    scene::same_memory_level(t.memory_bytes(), t.depth()),
-                ),
                 TextureFilter::Sat { .. } => 16 * base,
             }
         })

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use quadtex_core::WrapMode;
 use quadtex_io::LinearImage;
-use quadtex_io::footprints::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
+use quadtex_io::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
 use quadtex_render::{PixelFilter, RenderOptions, TextureFilter};
 
 use super::Result;
@@ -107,7 +107,7 @@ pub fn run(args: Args) -> Result<()> {
         };
         let tree = &texture.tree;
         // The peer gets the same raster the in-project baselines use.
-        let level = quadtex_render::scene::baseline_level(tree.depth());
+        let level = quadtex_render::baseline_level(tree.depth());
         quadtex_core::memory::check_budget(
             || format!("rasterising texture {i} at level {level}"),
             quadtex_core::QuadTree::rasterise_bytes(level),

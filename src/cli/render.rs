@@ -39,7 +39,7 @@ pub struct Args {
     /// Frames along `--path`, spread evenly in time from its first key to
     /// its last (1..=100000).
     #[arg(long, value_name = "N", requires = "path",
-          value_parser = clap::value_parser!(u32).range(1..=i64::from(quadtex_render::path::MAX_PATH_FRAMES)))]
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(quadtex_render::MAX_PATH_FRAMES)))]
     frames: Option<u32>,
     #[command(flatten)]
     render: RenderArgs,

@@ -99,7 +99,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .as_ref()
             .ok_or("untextured")?
             .texture(surface.wrap);
-        if let quadtex_render::scene::Geometry::Plane {
+        if let quadtex_render::Geometry::Plane {
             point,
             normal,
             u_axis,

@@ -1,7 +1,7 @@
 //! Every pixel's lookup in OpenImageIO's conventions (see
 //! `quadtex_io::footprints`), for the peer benchmark.
 
-use quadtex_io::footprints::FootprintRecord;
+use quadtex_io::FootprintRecord;
 use quadtex_render::Scene;
 
 /// Every pixel's lookup at `width × height` (an untextured record where no

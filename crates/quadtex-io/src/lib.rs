@@ -1,7 +1,7 @@
 //! # quadtex-io
 //!
 //! Everything of quadtex that touches files: decoding PNG and JPEG into the
-//! core's linear, premultiplied [`TexelGrid`]; writing rendered images
+//! core's linear, premultiplied [`quadtex_core::TexelGrid`]; writing rendered images
 //! (PNG in sRGB 8-bit, OpenEXR in linear float); SVG art as vector art for
 //! the exact vector packer ([`svg`]); and the `.qtx` tree file
 //! (see `docs/format.md`). Every file is written atomically: to a temporary
@@ -17,16 +17,20 @@
 
 mod atomic;
 mod error;
-pub mod footprints;
+mod footprints;
 mod image_io;
 mod limits;
 mod qtx;
 mod query;
-pub mod svg;
+mod svg;
 mod tiles;
 
 pub use atomic::write_atomically;
 pub use error::Error;
+pub use footprints::{
+    DumpTexture, DumpWrap, FOOTPRINT_MAGIC, FootprintDump, FootprintRecord, RECORD_BYTES,
+    read_footprints, write_footprints,
+};
 pub use image_io::{
     ImageFormat, LinearImage, linear_to_srgb8, load_linear_image, load_texels,
     load_texels_from_bytes, save_image, save_image_as, write_image,
@@ -37,7 +41,5 @@ pub use qtx::{
     write_qtx_to,
 };
 pub use query::parse_query_line;
-pub use svg::{MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, parse_svg};
+pub use svg::{MAX_PATTERN_TILES, MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, parse_svg};
 pub use tiles::{TileFolder, pack_tiles};
-
-pub use quadtex_core::TexelGrid;

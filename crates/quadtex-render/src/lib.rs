@@ -23,22 +23,22 @@ mod demo;
 mod exact;
 mod frame;
 mod gltf_scene;
-pub mod math;
+mod math;
 mod measure;
 mod options;
 mod parse;
-pub mod path;
+mod path;
 mod pixel;
 mod reach;
 mod render;
-pub mod scene;
+mod scene;
 mod screen_bins;
 mod shade;
 mod span;
 mod stats;
 mod sun_grid;
 mod tangent_plane;
-pub mod terrain;
+mod terrain;
 mod view;
 mod visibility;
 
@@ -47,18 +47,21 @@ use std::path::PathBuf;
 
 pub use demo::{demo_scene, sign_art};
 pub use gltf_scene::write_glb;
+pub use math::{Ray, Vec3};
 pub use measure::{
     LookupTiming, PixelFootprint, centre_distance, pixel_footprints, texture_only, time_lookups,
 };
 pub use options::{PixelFilter, REFERENCE_SEED, RenderOptions, TextureFilter};
-pub use parse::{
-    load_camera_path, load_scene, parse_camera_path, parse_obj, parse_scene,
-    parse_scene_with_limits,
-};
-pub use path::CameraPath;
+pub use parse::{load_camera_path, load_scene, parse_camera_path, parse_obj, parse_scene};
+pub use path::{CameraPath, Key, MAX_PATH_FRAMES, MAX_PATH_KEYS};
 pub use render::{render, render_into};
-pub use scene::Scene;
+pub use scene::{
+    Camera, Geometry, Lighting, MESH_BYTES_PER_TRIANGLE, Mesh, Scene, SceneTexture, Sky, Surface,
+    Triangle, UvTransform, baseline_bytes, baseline_level, mipmapped_raster_bytes,
+    same_memory_level,
+};
 pub use stats::RenderSummary;
+pub use terrain::{TERRAIN_CELLS, write_terrain};
 
 /// Most pixels one render may have (64 megapixels).
 pub const MAX_PIXELS: u64 = 1 << 26;

@@ -65,17 +65,12 @@ pub fn load_scene(path: &Path, limits: &Limits) -> Result<Scene, Error> {
         path: path.into(),
         source,
     })?;
-    parse_scene_with_limits(&text, path, limits)
+    parse_scene(&text, path, limits)
 }
 
-/// Parses scene text under the default limits; `path` names it in errors
-/// and anchors relative paths.
-pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, Error> {
-    parse_scene_with_limits(text, path, &Limits::default())
-}
-
-/// Parses scene text under `limits`.
-pub fn parse_scene_with_limits(text: &str, path: &Path, limits: &Limits) -> Result<Scene, Error> {
+/// Parses scene text under `limits`; `path` names it in errors and anchors
+/// relative paths.
+pub fn parse_scene(text: &str, path: &Path, limits: &Limits) -> Result<Scene, Error> {
     let mut cx = Context {
         text,
         path,
@@ -969,7 +964,7 @@ uv_scale = [0.5, 0.5]
 "#;
 
     fn parse(text: &str) -> Result<Scene, Error> {
-        parse_scene(text, Path::new("test.toml"))
+        parse_scene(text, Path::new("test.toml"), &quadtex_io::Limits::default())
     }
 
     #[test]
@@ -992,14 +987,14 @@ uv_scale = [0.5, 0.5]
             max_scene_shapes: 0,
             ..Limits::default()
         };
-        let e = parse_scene_with_limits(GOOD, Path::new("small.toml"), &limits)
+        let e = parse_scene(GOOD, Path::new("small.toml"), &limits)
             .unwrap_err()
             .to_string();
         assert!(
             e.contains("small.toml") && e.contains("max_scene_shapes 0"),
             "{e}"
         );
-        assert!(parse_scene(GOOD, Path::new("ok.toml")).is_ok());
+        assert!(parse_scene(GOOD, Path::new("ok.toml"), &quadtex_io::Limits::default()).is_ok());
     }
 
     #[test]

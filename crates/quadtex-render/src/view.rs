@@ -497,7 +497,12 @@ mod tests {
         let text = "[camera]\nposition = [0.3, 3, 2]\nlook_at = [0, 0, 0]\nfov = 60\n\
                     width = 64\nheight = 48\n\n[[shape]]\ntype = \"sphere\"\n\
                     centre = [0, -9, 0]\nradius = 0.1\n";
-        let mut scene = crate::parse_scene(text, std::path::Path::new("grid.toml")).unwrap();
+        let mut scene = crate::parse_scene(
+            text,
+            std::path::Path::new("grid.toml"),
+            &quadtex_io::Limits::default(),
+        )
+        .unwrap();
         let n = 6;
         let corner = |i: i32, j: i32| {
             let (x, z) = (f64::from(i) / 3.0 - 1.0, f64::from(j) / 3.0 - 1.0);

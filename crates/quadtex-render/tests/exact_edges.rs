@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use quadtex_core::{ConvexPolygon, Rgba};
-use quadtex_render::math::Vec3;
+use quadtex_render::Vec3;
 use quadtex_render::{RenderOptions, Scene, parse_scene, render};
 
 /// Area of the projection of the convex planar polygon `world` (all in
@@ -61,7 +61,12 @@ fn checker_mesh(dir: &Path, name: &str, obj: &str, camera: &str) -> (Scene, [Rgb
          [[shape]]\ntype = \"mesh\"\nfile = \"{name}.obj\"\n\
          texture = \"builtin:checker\"\nwrap = \"clamp\"\n"
     );
-    let scene = parse_scene(&text, &dir.join(format!("{name}.toml"))).unwrap();
+    let scene = parse_scene(
+        &text,
+        &dir.join(format!("{name}.toml")),
+        &quadtex_io::Limits::default(),
+    )
+    .unwrap();
     let surface = &scene.surfaces[0];
     let texture = surface.texture.as_ref().unwrap().texture(surface.wrap);
     let colour = |uv: [f64; 2]| texture.nearest(surface.uv_transform.apply(uv));
@@ -92,7 +97,7 @@ edge_u = [2.1, 0.3, -0.9]
 edge_v = [0.4, 1.5, -0.6]
 colour = [0.8, 0.5, 0.25]
 "#;
-    let scene = parse_scene(text, Path::new("edge.toml")).unwrap();
+    let scene = parse_scene(text, Path::new("edge.toml"), &quadtex_io::Limits::default()).unwrap();
     let o = Vec3::new(-1.3, -0.2, 0.4);
     let (u, v) = (Vec3::new(2.1, 0.3, -0.9), Vec3::new(0.4, 1.5, -0.6));
     let quad = vec![o, o + u, o + u + v, o + v];
@@ -226,8 +231,7 @@ fn an_occluder_no_centre_sees_hides_the_mesh_below_it() {
         &format!(
             "[camera]\n{FINE_CAMERA}\n\n[[shape]]\ntype = \"sphere\"\ncentre = [0, 0, 0]\nradius = 0.1\n"
         ),
-        &dir.join("probe.toml"),
-    )
+        &dir.join("probe.toml"), &quadtex_io::Limits::default())
     .unwrap();
     // The point of the plane y = 0.3 seen at screen point (x, y).
     let above = |[x, y]: [f64; 2]| {
@@ -293,6 +297,7 @@ fn needles_between_the_centres_are_found_against_the_sky() {
             "[camera]\n{camera}\n\n[[shape]]\ntype = \"sphere\"\ncentre = [0, 0, 0]\nradius = 0.1\n"
         ),
         &dir.join("probe.toml"),
+        &quadtex_io::Limits::default(),
     )
     .unwrap();
     // The point of the plane y = 0 seen at screen point (x, y).

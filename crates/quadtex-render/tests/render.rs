@@ -101,7 +101,12 @@ fn panel_scene(shape: &str) -> Scene {
     let text = format!(
         "[camera]\nposition = [3, 5, 20]\nlook_at = [0, 2, 0]\nfov = 50\nwidth = 96\nheight = 48\n\n[[shape]]\n{shape}\ntexture = \"builtin:sign\"\nwrap = \"clamp\"\n"
     );
-    parse_scene(&text, &Path::new(dir).join("panel.toml")).unwrap()
+    parse_scene(
+        &text,
+        &Path::new(dir).join("panel.toml"),
+        &quadtex_io::Limits::default(),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -145,16 +150,20 @@ fn bad_meshes_name_the_problem() {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("nouv.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let text = "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nwidth = 8\nheight = 8\n\n[[shape]]\ntype = \"mesh\"\nfile = \"nouv.obj\"\n";
-    let e = parse_scene(text, &dir.join("s.toml"))
+    let e = parse_scene(text, &dir.join("s.toml"), &quadtex_io::Limits::default())
         .unwrap_err()
         .to_string();
     assert!(
         e.contains("shape[0].file") && e.contains("no texture coordinates"),
         "{e}"
     );
-    let e = parse_scene(&text.replace("nouv.obj", "absent.obj"), &dir.join("s.toml"))
-        .unwrap_err()
-        .to_string();
+    let e = parse_scene(
+        &text.replace("nouv.obj", "absent.obj"),
+        &dir.join("s.toml"),
+        &quadtex_io::Limits::default(),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         e.contains("shape[0].file") && e.contains("absent.obj"),
         "{e}"
@@ -233,7 +242,7 @@ normal = [0, 1, 0]
 texture = "builtin:checker"
 uv_scale = [0.5, 0.5]
 "#;
-    let scene = parse_scene(down, Path::new("down.toml")).unwrap();
+    let scene = parse_scene(down, Path::new("down.toml"), &quadtex_io::Limits::default()).unwrap();
     let (_, s) = render(&scene, &RenderOptions::default(), &|_, _| {}).unwrap();
     assert_eq!(s.textured_pixels, 40 * 30);
     assert_eq!(s.filter.fragments, 40 * 30, "one region per pixel");
@@ -366,7 +375,7 @@ fn gltf_mesh_renders_like_the_same_quad() {
         let text = format!(
             "[camera]\nposition = [3, 5, 20]\nlook_at = [0, 2, 0]\nfov = 50\nwidth = 96\nheight = 48\n\n[[shape]]\n{shape}\n"
         );
-        parse_scene(&text, &dir.join("s.toml")).unwrap()
+        parse_scene(&text, &dir.join("s.toml"), &quadtex_io::Limits::default()).unwrap()
     };
     let gltf = scene("type = \"gltf\"\nfile = \"panel.glb\"");
     let quad = scene(
@@ -420,7 +429,7 @@ fn bad_gltf_files_name_the_problem() {
         let text = format!(
             "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nwidth = 8\nheight = 8\n\n[[shape]]\ntype = \"gltf\"\nfile = \"{name}\"\n"
         );
-        let e = parse_scene(&text, &dir.join("s.toml"))
+        let e = parse_scene(&text, &dir.join("s.toml"), &quadtex_io::Limits::default())
             .unwrap_err()
             .to_string();
         assert!(
@@ -500,7 +509,7 @@ fn bad_gltf_files_name_the_problem() {
 #[test]
 fn a_terrains_pixels_keep_their_whole_weight() {
     let dir = std::env::temp_dir().join(format!("quadtex-weight-{}", std::process::id()));
-    let file = quadtex_render::terrain::write_terrain(&dir, 300, 480, 270).unwrap();
+    let file = quadtex_render::write_terrain(&dir, 300, 480, 270).unwrap();
     let scene = quadtex_render::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
     std::fs::remove_dir_all(&dir).ok();
     for pixel_filter in [PixelFilter::Box, PixelFilter::Tent] {

@@ -56,8 +56,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use quadtex_core::{Rgba, WrapMode};
 use quadtex_render::Scene;
-use quadtex_render::math::Vec3;
-use quadtex_render::scene::{Geometry, Lighting, Sky, Surface};
+use quadtex_render::Vec3;
+use quadtex_render::{Geometry, Lighting, Sky, Surface};
 
 /// Bound on the far-tail error of one pixel edge's periodic part (plane
 /// scenes, horizon row only), per channel.

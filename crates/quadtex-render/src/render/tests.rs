@@ -227,10 +227,10 @@ fn kept_views_do_not_cross_frames() {
     let dir = std::env::temp_dir().join(format!("quadtex-kept-{}", std::process::id()));
     let file = crate::terrain::write_terrain(&dir, 60, 160, 90).unwrap();
     let text = std::fs::read_to_string(&file).unwrap();
-    let first = crate::parse_scene(&text, &file).unwrap();
+    let first = crate::parse_scene(&text, &file, &quadtex_io::Limits::default()).unwrap();
     let moved = text.replace("position = [30, 60, 600]", "position = [-40, 35, 420]");
     assert_ne!(moved, text);
-    let second = crate::parse_scene(&moved, &file).unwrap();
+    let second = crate::parse_scene(&moved, &file, &quadtex_io::Limits::default()).unwrap();
     std::fs::remove_dir_all(&dir).ok();
     let pool = || {
         rayon::ThreadPoolBuilder::new()

@@ -28,7 +28,12 @@ texture = "builtin:checker"
 uv_scale = [0.5, 0.5]
 "#
     );
-    parse_scene(&text, Path::new("grazing.toml")).unwrap()
+    parse_scene(
+        &text,
+        Path::new("grazing.toml"),
+        &quadtex_io::Limits::default(),
+    )
+    .unwrap()
 }
 
 /// `scene` rendered with `filter` and otherwise default options.
