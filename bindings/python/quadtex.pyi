@@ -18,7 +18,7 @@ names the file and the field; work estimated above the memory budget
 (``memory_limit``) raises ``ValueError`` naming the estimate and the budget.
 
 Batch calls release the GIL while they filter or integrate, and check for
-Ctrl-C between chunks of 65536 footprints (``KeyboardInterrupt``).
+Ctrl-C every 50 ms or so (``KeyboardInterrupt``).
 """
 
 import os
@@ -96,7 +96,7 @@ class Texture:
 
         Returns ``(N, 4)`` float32 linear premultiplied RGBA.
 
-        Raises ``KeyboardInterrupt`` on Ctrl-C (checked between chunks).
+        Raises ``KeyboardInterrupt`` on Ctrl-C (checked every 50 ms or so).
         """
 
     def integrate(

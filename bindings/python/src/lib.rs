@@ -18,6 +18,7 @@ mod errors;
 
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
@@ -32,6 +33,12 @@ use crate::errors::{core_error, io_error};
 
 /// Footprints (or rectangles) converted and processed per GIL release.
 const CHUNK: usize = 1 << 16;
+
+/// Longest stretch of batch work without the GIL before Ctrl-C is checked.
+const SIGNAL_INTERVAL: Duration = Duration::from_millis(50);
+
+/// Items a batch does between looks at the clock.
+const STEP: usize = 64;
 
 /// Max level of SVG art packed without `max_level` (as `quadtex pack`).
 const DEFAULT_SVG_LEVEL: u8 = 12;
@@ -72,7 +79,7 @@ impl Texture {
     /// Raises: ValueError (a shape, a non-finite corner `quads[i]`, an
     /// unknown name, an option out of range), TypeError (`quads` does not
     /// hold real numbers), KeyboardInterrupt (Ctrl-C, checked between
-    /// chunks of 65536 footprints). The GIL is released while filtering.
+    /// stretches of about 50 ms). The GIL is released while filtering.
     #[pyo3(
         signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = 64),
         text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=64)"
@@ -119,10 +126,10 @@ impl Texture {
                     .map_err(|e| PyValueError::new_err(format!("quads[{i}]: {e}")))?;
                 footprints.push(footprint);
             }
-            let colours = py.detach(|| texture.filter_batch(&footprints, &options));
-            out.extend(colours.iter().flat_map(|c| c.to_array()));
-            // Ctrl-C raises KeyboardInterrupt between chunks, not at the end.
-            py.check_signals()?;
+            detached(py, &footprints, &mut out, |step, out| {
+                let colours = texture.filter_batch(step, &options);
+                out.extend(colours.iter().flat_map(|c| c.to_array()));
+            })?;
         }
         PyArray1::from_vec(py, out)
             .reshape([n, 4])
@@ -142,7 +149,7 @@ impl Texture {
     ///
     /// Raises: ValueError (a shape, reversed or non-finite bounds
     /// `rects[i]`, `level` out of range), TypeError (`rects` does not hold
-    /// real numbers), KeyboardInterrupt (Ctrl-C, checked between chunks).
+    /// real numbers), KeyboardInterrupt (Ctrl-C, checked every 50 ms or so).
     /// The GIL is released while integrating.
     #[pyo3(signature = (rects, level = None))]
     fn integrate<'py>(
@@ -170,12 +177,11 @@ impl Texture {
                     .map_err(|e| PyValueError::new_err(format!("rects[{i}]: {e}")))?;
                 fragments.push(fragment);
             }
-            py.detach(|| {
-                for f in &fragments {
+            detached(py, &fragments, &mut out, |step, out| {
+                for f in step {
                     out.extend(tree.weighted_colour(f, k).0);
                 }
-            });
-            py.check_signals()?;
+            })?;
         }
         PyArray1::from_vec(py, out)
             .reshape([n, 4])
@@ -546,6 +552,35 @@ fn pack_file(
         source: Some((grid.width(), grid.height())),
         file: None,
     })
+}
+
+/// Runs `work` over `items` (appending to `out`) with the GIL released, in
+/// stretches of about `SIGNAL_INTERVAL`, checking for Ctrl-C between them:
+/// a long batch raises `KeyboardInterrupt` promptly instead of at its end.
+fn detached<T: Sync, O: Send>(
+    py: Python<'_>,
+    items: &[T],
+    out: &mut Vec<O>,
+    work: impl Fn(&[T], &mut Vec<O>) + Sync,
+) -> PyResult<()> {
+    let mut done = 0;
+    while done < items.len() {
+        let rest = &items[done..];
+        done += py.detach(|| {
+            let started = Instant::now();
+            let mut n = 0;
+            for step in rest.chunks(STEP) {
+                work(step, out);
+                n += step.len();
+                if started.elapsed() >= SIGNAL_INTERVAL {
+                    break;
+                }
+            }
+            n
+        });
+        py.check_signals()?;
+    }
+    Ok(())
 }
 
 /// The default limits (as the CLI's), with `memory_limit` bytes as the
