@@ -313,7 +313,12 @@ pub unsafe extern "C" fn qtx_pack(
         out.set(std::ptr::null_mut());
         // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
         let path = unsafe { ptr::path_arg(path, "path") }?;
-        out.set(ptr::into_raw(ops::pack(&path, tolerance, max_level, memory_limit)?));
+        out.set(ptr::into_raw(ops::pack(
+            &path,
+            tolerance,
+            max_level,
+            memory_limit,
+        )?));
         Ok(())
     })
 }
@@ -382,7 +387,11 @@ pub unsafe extern "C" fn qtx_pack_tiles(
         out.set(std::ptr::null_mut());
         // SAFETY: `dir` is NULL or NUL-terminated, by this function's contract.
         let dir = unsafe { ptr::path_arg(dir, "dir") }?;
-        out.set(ptr::into_raw(ops::pack_tiles(&dir, tolerance, memory_limit)?));
+        out.set(ptr::into_raw(ops::pack_tiles(
+            &dir,
+            tolerance,
+            memory_limit,
+        )?));
         Ok(())
     })
 }

@@ -400,7 +400,11 @@ fn pack_memory_limit_refuses_work_above_it() {
     let (png, tiles, svg) = (c_path(&png), c_path(&tiles), sample("threshold.svg"));
     let mut texture = null_mut();
     for limit in [1024, 0] {
-        let want = if limit == 0 { QtxStatus::Ok } else { QtxStatus::Limit };
+        let want = if limit == 0 {
+            QtxStatus::Ok
+        } else {
+            QtxStatus::Limit
+        };
         let status = unsafe { qtx_pack(png.as_ptr(), 0.0, -1, limit, &mut texture) };
         assert_eq!(status, want, "raster, limit {limit}: {:?}", last_error());
         if limit > 0 {
@@ -419,7 +423,12 @@ fn pack_memory_limit_refuses_work_above_it() {
             ..qtx_svg_options_default()
         };
         let status = unsafe { qtx_pack_svg(svg.as_ptr(), &options, &mut texture) };
-        assert_eq!(status, want, "qtx_pack_svg, limit {limit}: {:?}", last_error());
+        assert_eq!(
+            status,
+            want,
+            "qtx_pack_svg, limit {limit}: {:?}",
+            last_error()
+        );
         unsafe { qtx_free(texture) };
         let status = unsafe { qtx_pack_tiles(tiles.as_ptr(), 0.0, limit, &mut texture) };
         assert_eq!(status, want, "tiles, limit {limit}: {:?}", last_error());
