@@ -209,6 +209,12 @@ typedef struct QtxSvgOptions {
      * `QTX_STATUS_LIMIT`, the message naming the steps it needs.
      */
     uint64_t max_sweep_work;
+    /**
+     * Memory budget in bytes (`quadtex pack --memory-limit`), or 0 (the
+     * default) for the detected budget: art whose rasterisation is
+     * estimated above it is refused with `QTX_STATUS_LIMIT`.
+     */
+    uint64_t memory_limit;
 } QtxSvgOptions;
 
 /**
@@ -270,7 +276,7 @@ struct QtxFilterOptions qtx_filter_options_default(void);
 
 /**
  * The default SVG packing options: `QTX_LEVEL_AUTO`, no contour leaves,
- * a sweep budget of 2^31 steps.
+ * a sweep budget of 2^31 steps, the detected memory budget.
  */
 struct QtxSvgOptions qtx_svg_options_default(void);
 
@@ -334,6 +340,13 @@ enum QtxStatus qtx_verify(const struct QtxTexture *texture);
  *   `max_level` in 0..=`QTX_MAX_SVG_LEVEL`, negative for
  *   `QTX_DEFAULT_SVG_LEVEL` (12).
  *
+ * `memory_limit`: the memory budget in bytes decoding and packing may use
+ * (`quadtex pack --memory-limit`), or 0 for the detected budget (the
+ * smallest of the cgroup's limit, the address space left and 3/4 of
+ * physical memory, as the CLI's default); work estimated above it is
+ * refused with `QTX_STATUS_LIMIT` before it allocates, the message naming
+ * the estimate and the budget.
+ *
  * `path` and `out` as for `qtx_open`. Returns `QTX_STATUS_OK`;
  * `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance or level out of
  * range), `QTX_STATUS_IO`, `QTX_STATUS_FORMAT` (an image that does not
@@ -346,7 +359,11 @@ enum QtxStatus qtx_verify(const struct QtxTexture *texture);
  * # Safety
  * As `qtx_open`.
  */
-enum QtxStatus qtx_pack(const char *path, double tolerance, int max_level, struct QtxTexture **out);
+enum QtxStatus qtx_pack(const char *path,
+                        double tolerance,
+                        int max_level,
+                        uint64_t memory_limit,
+                        struct QtxTexture **out);
 
 /**
  * Packs SVG art into a texture with `options` (NULL for
@@ -372,7 +389,8 @@ enum QtxStatus qtx_pack_svg(const char *path,
  * time: tiles named `ROW_COL.png` (or `.jpg`; row 0 at the top) forming a
  * complete grid of 1, 2, 4, … tiles a side, every tile the same square of
  * a power of two texels. The texture is the one `qtx_pack` would make of
- * the whole mosaic. `tolerance` as for `qtx_pack` (0 = lossless).
+ * the whole mosaic. `tolerance` and `memory_limit` as for `qtx_pack` (0 =
+ * lossless; 0 = the detected memory budget).
  *
  * `dir` (NUL-terminated) and `out` as for `qtx_open`. Returns
  * `QTX_STATUS_OK`; `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance
@@ -383,7 +401,10 @@ enum QtxStatus qtx_pack_svg(const char *path,
  * # Safety
  * As `qtx_open`, with `dir` for `path`.
  */
-enum QtxStatus qtx_pack_tiles(const char *dir, double tolerance, struct QtxTexture **out);
+enum QtxStatus qtx_pack_tiles(const char *dir,
+                              double tolerance,
+                              uint64_t memory_limit,
+                              struct QtxTexture **out);
 
 /**
  * Filters `n` pixel footprints: the mean colour of the texture over each.

@@ -12,10 +12,13 @@ Errors: bad arguments raise ``ValueError`` (shape, value, names; the message
 names the offending index, e.g. ``quads[17]: coordinate corner[2].z is not
 finite (NaN)``) or ``TypeError`` (an array that does not hold real numbers);
 files the operating system refuses raise ``OSError`` (``FileNotFoundError``,
-``PermissionError``…, with ``filename`` set); malformed files raise
-``ValueError`` with quadtex's message, which names the file and the field.
+``PermissionError``, ``IsADirectoryError``…, with ``errno`` and ``filename``
+set); malformed files raise ``ValueError`` with quadtex's message, which
+names the file and the field; work estimated above the memory budget
+(``memory_limit``) raises ``ValueError`` naming the estimate and the budget.
 
-Batch calls release the GIL while they filter or integrate.
+Batch calls release the GIL while they filter or integrate, and check for
+Ctrl-C every 50 ms or so (``KeyboardInterrupt``).
 """
 
 import os
@@ -24,7 +27,7 @@ from typing import Optional, Sequence, Tuple, Union, final
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Texture", "open", "pack", "__version__"]
+__all__ = ["Texture", "open", "pack", "pack_tiles", "__version__"]
 __version__: str
 
 _StrPath = Union[str, bytes, "os.PathLike[str]", "os.PathLike[bytes]"]
@@ -92,6 +95,8 @@ class Texture:
             ``error_bound``.
 
         Returns ``(N, 4)`` float32 linear premultiplied RGBA.
+
+        Raises ``KeyboardInterrupt`` on Ctrl-C (checked every 50 ms or so).
         """
 
     def integrate(
@@ -111,12 +116,23 @@ class Texture:
         """Writes a ``.qtx`` file atomically (a temporary file in the same
         directory, renamed over ``path``). A symbolic link is followed (the
         file it names is replaced; the link stays); a device or FIFO is
-        written in place."""
+        written in place. A directory raises ``IsADirectoryError`` (errno
+        ``EISDIR``, ``filename`` set)."""
+
+    def verify(self) -> None:
+        """Checks every colour and texel of the tree: what
+        ``open(path, mapped=True)`` leaves unread. Raises ``ValueError``
+        naming the file and the first node that fails."""
 
     def __repr__(self) -> str: ...
 
-def open(path: _StrPath) -> Texture:
-    """Reads a ``.qtx`` file (fully validated)."""
+def open(path: _StrPath, mapped: bool = False) -> Texture:
+    """Reads a ``.qtx`` file, checking its checksums and every colour.
+
+    mapped: if True the file is memory-mapped instead: only its header and
+        structure are checked (fast at any size) and queries read the nodes
+        they touch; :meth:`Texture.verify` checks the rest.
+    """
 
 def pack(
     source: Union[_StrPath, npt.ArrayLike],
@@ -125,6 +141,7 @@ def pack(
     hdr: bool = False,
     contour_leaves: Optional[int] = None,
     max_sweep_work: Optional[int] = None,
+    memory_limit: Optional[int] = None,
 ) -> Texture:
     """Packs an image into a texture, as ``quadtex pack`` does.
 
@@ -149,6 +166,9 @@ def pack(
     max_level: depth of the tree's finest cells (0..30; a raster builds at
         most 15). Default: the smallest level whose cells are no larger than
         a texel for rasters, 12 for SVG.
+    hdr: float arrays only: keep them unclamped as half floats (as an
+        OpenEXR file is read) instead of clamping them. Files decide by
+        their format (OpenEXR and ``.hdr`` are HDR).
     contour_leaves: SVG art only, 3..1024: squares of flat art crossed by
         at most this many edges keep their contours (``quadtex pack
         --contour-leaves``), exact at any magnification; the texture then
@@ -157,4 +177,26 @@ def pack(
         coverage sweep may take (``quadtex pack --max-sweep-work``); art
         needing more (thousands of dashes piled on a point) is a ValueError
         naming the steps it needs. Default: 2**31, about a minute.
+    memory_limit: bytes (at least 1), the memory decoding and packing may
+        use (``quadtex pack --memory-limit``): work estimated above it is
+        refused with a ``ValueError`` naming the estimate and the budget,
+        before it allocates. Default: the detected budget (the smallest of
+        the cgroup's limit, the address space left and 3/4 of physical
+        memory), as the CLI's.
+
+    A folder of tiles packs with :func:`pack_tiles`.
+    """
+
+def pack_tiles(
+    directory: _StrPath, tolerance: float = 0.0, memory_limit: Optional[int] = None
+) -> Texture:
+    """Packs a folder of raster tiles into one texture, one tile in memory
+    at a time, as ``quadtex pack-tiles`` does: the texture :func:`pack`
+    would make of the whole mosaic.
+
+    directory: a folder of tiles named ``ROW_COL.png`` (or ``.jpg``; row 0
+        at the top): a complete grid of 1, 2, 4, … tiles a side, every tile
+        the same power-of-two square.
+    tolerance: in [0, 1], as for :func:`pack` (0 is lossless).
+    memory_limit: bytes, as for :func:`pack`.
     """

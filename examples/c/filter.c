@@ -64,7 +64,7 @@ static float srgb8_to_linear(unsigned v) {
 int main(int argc, char **argv) {
     const int sample = argc < 2;
     QtxTexture *texture = NULL;
-    QtxStatus status = sample ? qtx_pack("samples/threshold.svg", 0.0, 10, &texture)
+    QtxStatus status = sample ? qtx_pack("samples/threshold.svg", 0.0, 10, 0, &texture)
                               : qtx_open(argv[1], &texture);
     if (status != QTX_STATUS_OK) {
         fprintf(stderr, "filter: %s (status %d)\n", qtx_last_error(), (int)status);

@@ -1,28 +1,56 @@
 //! quadtex errors as Python exceptions: the operating system's refusals as
 //! `OSError` (the subclass its errno selects, e.g. `FileNotFoundError`, with
-//! `filename` set), everything else (bad files, bad data, limits) as
-//! `ValueError`; messages are quadtex's, naming the file and the field.
+//! `errno`, `strerror` and `filename` set), everything else (bad files, bad
+//! data, limits) as `ValueError`; messages are quadtex's, naming the file
+//! and the field.
 
+use std::io::ErrorKind;
 use std::path::Path;
 
-use pyo3::PyErr;
 use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::prelude::*;
 
 /// A `quadtex-io` error as an exception.
 pub(crate) fn io_error(e: quadtex_io::Error) -> PyErr {
     match &e {
-        quadtex_io::Error::Io { path, source } => match source.raw_os_error() {
+        quadtex_io::Error::Io { path, source } => {
+            let filename = path.display().to_string();
+            let text = source.to_string();
+            let errno = source.raw_os_error().or_else(|| kind_errno(source.kind()));
             // OSError(errno, strerror, filename) picks the subclass by errno.
-            Some(errno) => {
-                let text = source.to_string();
-                let suffix = format!(" (os error {errno})");
-                let strerror = text.strip_suffix(&suffix).unwrap_or(&text).to_string();
-                PyOSError::new_err((errno, strerror, path.display().to_string()))
+            match errno {
+                Some(errno) => {
+                    let suffix = format!(" (os error {errno})");
+                    let strerror = text.strip_suffix(&suffix).unwrap_or(&text).to_string();
+                    PyOSError::new_err((errno, strerror, filename))
+                }
+                None => PyOSError::new_err((None::<i32>, text, filename)),
             }
-            None => PyOSError::new_err(e.to_string()),
-        },
+        }
         _ => PyValueError::new_err(e.to_string()),
     }
+}
+
+/// The errno of an `io::Error` quadtex made itself (no OS error code), from
+/// its kind: e.g. saving over a directory is `EISDIR`. Read from Python's
+/// `errno` module, so the numbers are the platform's.
+fn kind_errno(kind: ErrorKind) -> Option<i32> {
+    let name = match kind {
+        ErrorKind::NotFound => "ENOENT",
+        ErrorKind::PermissionDenied => "EACCES",
+        ErrorKind::AlreadyExists => "EEXIST",
+        ErrorKind::IsADirectory => "EISDIR",
+        ErrorKind::NotADirectory => "ENOTDIR",
+        ErrorKind::DirectoryNotEmpty => "ENOTEMPTY",
+        ErrorKind::ReadOnlyFilesystem => "EROFS",
+        ErrorKind::StorageFull => "ENOSPC",
+        ErrorKind::FileTooLarge => "EFBIG",
+        ErrorKind::CrossesDevices => "EXDEV",
+        ErrorKind::Interrupted => "EINTR",
+        ErrorKind::OutOfMemory => "ENOMEM",
+        _ => return None,
+    };
+    Python::attach(|py| py.import("errno")?.getattr(name)?.extract::<i32>()).ok()
 }
 
 /// A `quadtex-core` error (the data was refused) as a `ValueError`, prefixed

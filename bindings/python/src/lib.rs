@@ -18,6 +18,7 @@ mod errors;
 
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
@@ -32,6 +33,12 @@ use crate::errors::{core_error, io_error};
 
 /// Footprints (or rectangles) converted and processed per GIL release.
 const CHUNK: usize = 1 << 16;
+
+/// Longest stretch of batch work without the GIL before Ctrl-C is checked.
+const SIGNAL_INTERVAL: Duration = Duration::from_millis(50);
+
+/// Items a batch does between looks at the clock.
+const STEP: usize = 64;
 
 /// Max level of SVG art packed without `max_level` (as `quadtex pack`).
 const DEFAULT_SVG_LEVEL: u8 = 12;
@@ -49,17 +56,30 @@ struct Texture {
 
 #[pymethods]
 impl Texture {
-    /// Mean colour over each footprint: `quads` is an `(N, 4, 2)` array of
-    /// the texture-space images of the pixel corners (0,0), (1,0), (1,1),
-    /// (0,1). Returns `(N, 4)` float32, linear premultiplied RGBA.
+    /// Mean colour over each footprint (the exact filter).
     ///
-    /// wrap: "repeat", "clamp", "mirror" or "border", or a pair (x, z).
-    /// weighting: "screen" (box over the pixel) or "texture" (box over the
-    /// footprint). border: RGBA outside the unit square on a "border" axis.
-    /// error_bound (> 0): the bound each footprint's error aims at (squares
-    /// are refined, largest error first, until it is met or `budget`
-    /// squares are spent); level (0..30) refines every square to that level
-    /// instead. The GIL is released while filtering.
+    /// Parameters:
+    ///   quads: `(N, 4, 2)` array-like, the texture-space images of the pixel
+    ///     corners (0,0), (1,0), (1,1), (0,1) (any real dtype, read as float64).
+    ///   wrap: "repeat", "clamp", "mirror" or "border", or a pair (x, z) of
+    ///     them: how texture space continues beyond the unit square.
+    ///   weighting: "screen" (a box over the pixel) or "texture" (a box over
+    ///     the footprint in texture space).
+    ///   border: RGBA (linear, premultiplied) outside the unit square on an
+    ///     axis whose wrap is "border".
+    ///   error_bound: > 0; the bound each footprint's error aims at (squares
+    ///     are refined, largest error first, until it is met or `budget`
+    ///     squares are spent).
+    ///   level: 0..30, or None; refines every square to this level instead
+    ///     of `error_bound`.
+    ///   budget: >= 1; most squares refined per footprint.
+    ///
+    /// Returns: `(N, 4)` float32, linear premultiplied RGBA.
+    ///
+    /// Raises: ValueError (a shape, a non-finite corner `quads[i]`, an
+    /// unknown name, an option out of range), TypeError (`quads` does not
+    /// hold real numbers), KeyboardInterrupt (Ctrl-C, checked between
+    /// stretches of about 50 ms). The GIL is released while filtering.
     #[pyo3(
         signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = 64),
         text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=64)"
@@ -106,18 +126,31 @@ impl Texture {
                     .map_err(|e| PyValueError::new_err(format!("quads[{i}]: {e}")))?;
                 footprints.push(footprint);
             }
-            let colours = py.detach(|| texture.filter_batch(&footprints, &options));
-            out.extend(colours.iter().flat_map(|c| c.to_array()));
+            detached(py, &footprints, &mut out, |step, out| {
+                let colours = texture.filter_batch(step, &options);
+                out.extend(colours.iter().flat_map(|c| c.to_array()));
+            })?;
         }
         PyArray1::from_vec(py, out)
             .reshape([n, 4])
             .map(Bound::into_any)
     }
 
-    /// Integral of colour over each rectangle's overlap with the unit square
-    /// (linear premultiplied RGBA × area, no wrap), traversing to `level`
-    /// (the tree's depth when None): `rects` is `(N, 4)` rows `x0 z0 x1 z1`.
-    /// Returns `(N, 4)` float64, what `quadtex query` prints.
+    /// Integral of colour over each rectangle's overlap with the unit
+    /// square, no wrap: what `quadtex query` prints.
+    ///
+    /// Parameters:
+    ///   rects: `(N, 4)` array-like, rows `x0 z0 x1 z1` with `x0 <= x1`,
+    ///     `z0 <= z1` (any real dtype, read as float64).
+    ///   level: 0..30, or None (the tree's depth): traverse down to this level.
+    ///
+    /// Returns: `(N, 4)` float64, linear premultiplied RGBA × area; divide by
+    /// the rectangle's area for its mean colour.
+    ///
+    /// Raises: ValueError (a shape, reversed or non-finite bounds
+    /// `rects[i]`, `level` out of range), TypeError (`rects` does not hold
+    /// real numbers), KeyboardInterrupt (Ctrl-C, checked every 50 ms or so).
+    /// The GIL is released while integrating.
     #[pyo3(signature = (rects, level = None))]
     fn integrate<'py>(
         &self,
@@ -144,11 +177,11 @@ impl Texture {
                     .map_err(|e| PyValueError::new_err(format!("rects[{i}]: {e}")))?;
                 fragments.push(fragment);
             }
-            py.detach(|| {
-                for f in &fragments {
+            detached(py, &fragments, &mut out, |step, out| {
+                for f in step {
                     out.extend(tree.weighted_colour(f, k).0);
                 }
-            });
+            })?;
         }
         PyArray1::from_vec(py, out)
             .reshape([n, 4])
@@ -159,6 +192,16 @@ impl Texture {
     /// the same directory, renamed over `path`). A symbolic link is followed
     /// (the file it names is replaced; the link stays); a device or FIFO is
     /// written in place.
+    ///
+    /// Parameters:
+    ///   path: str, bytes or os.PathLike; the `.qtx` file to write.
+    ///
+    /// Returns: None.
+    ///
+    /// Raises: OSError when the system refuses (the subclass its errno
+    /// selects, e.g. IsADirectoryError for a directory, FileNotFoundError
+    /// for a missing folder; `errno` and `filename` set).
+    #[pyo3(signature = (path))]
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let (tree, source) = (&*self.tree, self.source);
         py.detach(|| quadtex_io::write_qtx(&path, tree, source))
@@ -168,7 +211,13 @@ impl Texture {
     /// Checks every colour and texel of the tree: what `open(path,
     /// mapped=True)` leaves unread (premultiplied colours, each inner colour
     /// the mean of its children, each texel block the mean of its texels).
-    /// Raises ValueError naming the first node that fails.
+    ///
+    /// Parameters: none.
+    ///
+    /// Returns: None.
+    ///
+    /// Raises: ValueError naming the file and the first node that fails.
+    #[pyo3(signature = ())]
     fn verify(&self, py: Python<'_>) -> PyResult<()> {
         let tree = &*self.tree;
         py.detach(|| tree.verify())
@@ -208,6 +257,7 @@ impl Texture {
         self.source
     }
 
+    /// `<quadtex.Texture depth=… node_count=… nbytes=… source=WxH>`.
     fn __repr__(&self) -> String {
         let source = self
             .source
@@ -221,11 +271,20 @@ impl Texture {
     }
 }
 
-/// Reads a `.qtx` file, checking its checksums and every colour.
+/// Reads a `.qtx` file (written by `Texture.save` or `quadtex pack`),
+/// checking its checksums and every colour.
 ///
-/// With `mapped=True` the file is memory-mapped instead: only its header
-/// and structure are checked (fast at any size) and queries read the nodes
-/// they touch; `Texture.verify()` checks the rest.
+/// Parameters:
+///   path: str, bytes or os.PathLike; a `.qtx` file.
+///   mapped: if True the file is memory-mapped instead: only its header and
+///     structure are checked (fast at any size) and queries read the nodes
+///     they touch; `Texture.verify()` checks the rest.
+///
+/// Returns: a `Texture`.
+///
+/// Raises: OSError when the system refuses (e.g. FileNotFoundError; `errno`
+/// and `filename` set), ValueError for a malformed file (the message names
+/// the file and the field).
 #[pyfunction]
 #[pyo3(signature = (path, mapped = false))]
 fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
@@ -248,9 +307,43 @@ fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
     })
 }
 
-/// Packs an image file (PNG, JPEG, EXR, SVG) or a numpy array into a texture.
+/// Packs an image file or a numpy array into a texture, as `quadtex pack`
+/// does.
+///
+/// Parameters:
+///   source: a path (str, bytes, os.PathLike) to a PNG, JPEG, OpenEXR or
+///     Radiance `.hdr` image (recognised by content; OpenEXR and `.hdr`
+///     pack as HDR textures) or an SVG document (by its `.svg` extension);
+///     or an array `(H, W)` / `(H, W, C)`, C in 1..4 (grey, grey+alpha,
+///     RGB, RGBA), row 0 at the top: uint8/uint16 are sRGB with straight
+///     alpha, floats linear with premultiplied alpha. A folder of tiles is
+///     `pack_tiles`.
+///   tolerance: in [0, 1]; largest per-channel deviation of a texel from
+///     its leaf's colour (0 is lossless). Raster images only.
+///   max_level: 0..30, or None: depth of the finest cells (default: the
+///     smallest level whose cells are no larger than a texel; 12 for SVG).
+///   hdr: float arrays only: keep them unclamped as half floats (as an
+///     OpenEXR file is read); otherwise they are clamped to [0, alpha].
+///   contour_leaves: SVG only, 3..1024, or None: squares crossed by at most
+///     this many edges keep their contours (`--contour-leaves`).
+///   max_sweep_work: SVG only, >= 1, or None: most steps of the exact
+///     coverage sweep (`--max-sweep-work`).
+///   memory_limit: bytes, >= 1, or None (the detected budget, as the
+///     CLI's default): the memory decoding and packing may use
+///     (`--memory-limit`); work estimated above it is refused before it
+///     allocates.
+///
+/// Returns: a `Texture` (`source_size` is the raster's size).
+///
+/// Raises: OSError when the system refuses a file (e.g. FileNotFoundError;
+/// `errno` and `filename` set); ValueError for a malformed or unsupported
+/// file (naming the file and the field), an option out of range, or work
+/// above `memory_limit` (the message names the estimate and the budget);
+/// TypeError for an array of another dtype.
 #[pyfunction]
-#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None, max_sweep_work = None))]
+#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None, max_sweep_work = None, memory_limit = None))]
+// pyo3 maps each Python keyword to one Rust parameter (as `Texture.filter`).
+#[allow(clippy::too_many_arguments)]
 fn pack(
     py: Python<'_>,
     source: &Bound<'_, PyAny>,
@@ -259,7 +352,9 @@ fn pack(
     hdr: bool,
     contour_leaves: Option<i64>,
     max_sweep_work: Option<i64>,
+    memory_limit: Option<i64>,
 ) -> PyResult<Texture> {
+    let limits = limits(memory_limit)?;
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
         return Err(PyValueError::new_err(format!(
             "tolerance must be in [0, 1], got {tolerance}"
@@ -293,7 +388,7 @@ fn pack(
         || source.hasattr("__fspath__")?;
     if is_path {
         let path: PathBuf = source.extract()?;
-        return pack_file(py, path, tolerance, max_level, svg_only);
+        return pack_file(py, path, tolerance, max_level, svg_only, &limits);
     }
     if let Some(name) = svg_only.given() {
         return Err(PyValueError::new_err(format!(
@@ -305,8 +400,8 @@ fn pack(
     let options = BuildOptions {
         tolerance,
         max_level,
-        // The detected memory budget, as the CLI's default.
-        max_bytes: Some(quadtex_io::Limits::default().max_memory),
+        max_nodes: limits.max_nodes,
+        max_bytes: Some(limits.max_memory),
         ..BuildOptions::default()
     };
     let (tree, size) = py
@@ -323,20 +418,38 @@ fn pack(
     })
 }
 
-/// Packs a folder of raster tiles named `ROW_COL.png` (or `.jpg`; row 0 at
-/// the top; a complete grid of 1, 2, 4, … tiles a side, every tile the same
-/// power-of-two square) into one texture, one tile in memory at a time, as
-/// `quadtex pack-tiles` does.
+/// Packs a folder of raster tiles into one texture, one tile in memory at a
+/// time, as `quadtex pack-tiles` does.
+///
+/// Parameters:
+///   directory: str, bytes or os.PathLike; a folder of tiles named
+///     `ROW_COL.png` (or `.jpg`; row 0 at the top): a complete grid of 1,
+///     2, 4, … tiles a side, every tile the same power-of-two square.
+///   tolerance: in [0, 1]; as for `pack` (0 is lossless).
+///   memory_limit: bytes, >= 1, or None (the detected budget): as for
+///     `pack` (`--memory-limit`).
+///
+/// Returns: a `Texture`, the one `pack` would make of the whole mosaic.
+///
+/// Raises: OSError when the system refuses (`errno` and `filename` set);
+/// ValueError for a malformed grid or tile (naming the tile), an option
+/// out of range, or work above `memory_limit`.
 #[pyfunction]
-#[pyo3(signature = (directory, tolerance = 0.0))]
-fn pack_tiles(py: Python<'_>, directory: PathBuf, tolerance: f64) -> PyResult<Texture> {
+#[pyo3(signature = (directory, tolerance = 0.0, memory_limit = None))]
+fn pack_tiles(
+    py: Python<'_>,
+    directory: PathBuf,
+    tolerance: f64,
+    memory_limit: Option<i64>,
+) -> PyResult<Texture> {
+    let limits = limits(memory_limit)?;
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
         return Err(PyValueError::new_err(format!(
             "tolerance must be in [0, 1], got {tolerance}"
         )));
     }
     let (tree, _, folder) = py
-        .detach(|| quadtex_io::pack_tiles(&directory, tolerance, &quadtex_io::Limits::default()))
+        .detach(|| quadtex_io::pack_tiles(&directory, tolerance, &limits))
         .map_err(io_error)?;
     let side = u32::try_from(folder.texels())
         .map_err(|_| PyValueError::new_err("texture side beyond 2^32 texels"))?;
@@ -374,6 +487,7 @@ fn pack_file(
     tolerance: f64,
     max_level: Option<u8>,
     svg_only: SvgOnly,
+    limits: &quadtex_io::Limits,
 ) -> PyResult<Texture> {
     let SvgOnly {
         contour_leaves,
@@ -402,7 +516,7 @@ fn pack_file(
                 max_sweep_work: max_sweep_work.unwrap_or(defaults.max_sweep_work),
                 ..defaults
             },
-            limits: quadtex_io::Limits::default(),
+            limits: *limits,
         };
         let (tree, _) = py
             .detach(|| quadtex_io::pack_svg(&path, &options))
@@ -423,12 +537,12 @@ fn pack_file(
     let options = BuildOptions {
         tolerance,
         max_level,
-        // The detected memory budget, as the CLI's default.
-        max_bytes: Some(quadtex_io::Limits::default().max_memory),
+        max_nodes: limits.max_nodes,
+        max_bytes: Some(limits.max_memory),
         ..BuildOptions::default()
     };
     let grid = py
-        .detach(|| quadtex_io::load_texels(&path, &quadtex_io::Limits::default()))
+        .detach(|| quadtex_io::load_texels(&path, limits))
         .map_err(io_error)?;
     let (tree, _) = py
         .detach(|| QuadTree::from_texels(&grid, &options))
@@ -438,6 +552,52 @@ fn pack_file(
         source: Some((grid.width(), grid.height())),
         file: None,
     })
+}
+
+/// Runs `work` over `items` (appending to `out`) with the GIL released, in
+/// stretches of about `SIGNAL_INTERVAL`, checking for Ctrl-C between them:
+/// a long batch raises `KeyboardInterrupt` promptly instead of at its end.
+fn detached<T: Sync, O: Send>(
+    py: Python<'_>,
+    items: &[T],
+    out: &mut Vec<O>,
+    work: impl Fn(&[T], &mut Vec<O>) + Sync,
+) -> PyResult<()> {
+    let mut done = 0;
+    while done < items.len() {
+        let rest = &items[done..];
+        done += py.detach(|| {
+            let started = Instant::now();
+            let mut n = 0;
+            for step in rest.chunks(STEP) {
+                work(step, out);
+                n += step.len();
+                if started.elapsed() >= SIGNAL_INTERVAL {
+                    break;
+                }
+            }
+            n
+        });
+        py.check_signals()?;
+    }
+    Ok(())
+}
+
+/// The default limits (as the CLI's), with `memory_limit` bytes as the
+/// memory budget when given (`--memory-limit`).
+fn limits(memory_limit: Option<i64>) -> PyResult<quadtex_io::Limits> {
+    let mut limits = quadtex_io::Limits::default();
+    match memory_limit.map(u64::try_from) {
+        None => {}
+        Some(Ok(bytes @ 1..)) => limits.max_memory = bytes,
+        Some(_) => {
+            return Err(PyValueError::new_err(format!(
+                "memory_limit must be at least 1 byte, got {}",
+                memory_limit.unwrap_or_default()
+            )));
+        }
+    }
+    Ok(limits)
 }
 
 /// A level in `0..=MAX_DEPTH`.

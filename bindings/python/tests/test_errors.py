@@ -1,5 +1,6 @@
 """Bad input raises ValueError / TypeError naming the index, field or shape."""
 
+import errno
 import re
 import struct
 import zlib
@@ -330,3 +331,53 @@ def test_mapped_open_refuses_corrupt_structure(tmp_path, qtx_bytes):
     path.write_bytes(bytes(b))
     with pytest.raises(ValueError, match=r"flags\.qtx: invalid \.qtx file: structure_crc"):
         quadtex.open(path, mapped=True)
+
+
+def test_save_to_a_directory_is_isadirectoryerror_with_errno_and_filename(tmp_path, tex):
+    with pytest.raises(IsADirectoryError) as e:
+        tex.save(tmp_path)
+    assert e.value.errno == errno.EISDIR
+    assert e.value.filename == str(tmp_path)
+    assert e.value.strerror
+
+
+def test_open_missing_file_has_errno_and_filename(tmp_path):
+    path = tmp_path / "absent.qtx"
+    with pytest.raises(FileNotFoundError) as e:
+        quadtex.open(path)
+    assert (e.value.errno, e.value.filename) == (errno.ENOENT, str(path))
+    with pytest.raises(FileNotFoundError) as e:
+        quadtex.open(path, mapped=True)
+    assert (e.value.errno, e.value.filename) == (errno.ENOENT, str(path))
+
+
+def test_save_into_missing_folder_has_errno_and_filename(tmp_path, tex):
+    path = tmp_path / "no" / "t.qtx"
+    with pytest.raises(FileNotFoundError) as e:
+        tex.save(path)
+    assert e.value.errno == errno.ENOENT
+    assert e.value.filename is not None and str(tmp_path / "no") in e.value.filename
+
+
+def test_memory_limit_refuses_work_above_it(tmp_path):
+    img = np.random.default_rng(3).integers(0, 256, (512, 512, 3), dtype=np.uint8)
+    png = tmp_path / "big.png"
+    write_png(png, img)
+    for source in (img, png):
+        with pytest.raises(ValueError, match=r"above the memory budget of 1\.0 KiB"):
+            quadtex.pack(source, memory_limit=1024)
+        # The same work under the detected budget packs.
+        assert quadtex.pack(source).source_size == (512, 512)
+    svg = tmp_path / "art.svg"
+    svg.write_text(SVG_HEAD + '<rect width="5" height="7" fill="red"/></svg>')
+    with pytest.raises(ValueError, match=r"art\.svg.*above the memory budget of 1\.0 KiB"):
+        quadtex.pack(svg, max_level=9, memory_limit=1024)
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    write_png(tiles / "0_0.png", img)
+    with pytest.raises(ValueError, match=r"above the memory budget of 1\.0 KiB"):
+        quadtex.pack_tiles(tiles, memory_limit=1024)
+    assert quadtex.pack_tiles(tiles).source_size == (512, 512)
+    for bad in (0, -5):
+        with pytest.raises(ValueError, match=rf"memory_limit must be at least 1 byte, got {bad}"):
+            quadtex.pack(img, memory_limit=bad)

@@ -89,7 +89,7 @@ impl From<quadtex_io::Error> for Failure {
         use quadtex_io::Error as E;
         let status = match &e {
             E::Io { .. } => QtxStatus::Io,
-            E::Limit { .. } => QtxStatus::Limit,
+            E::Limit { .. } | E::MemoryBudget { .. } => QtxStatus::Limit,
             E::UnsupportedSvg { .. } | E::UnsupportedExtension(_) => QtxStatus::Unsupported,
             E::Core { source, .. } => core_status(source),
             _ => QtxStatus::Format,

@@ -127,6 +127,10 @@ pub struct QtxSvgOptions {
     /// more (thousands of dashes piled on a point) is refused with
     /// `QTX_STATUS_LIMIT`, the message naming the steps it needs.
     pub max_sweep_work: u64,
+    /// Memory budget in bytes (`quadtex pack --memory-limit`), or 0 (the
+    /// default) for the detected budget: art whose rasterisation is
+    /// estimated above it is refused with `QTX_STATUS_LIMIT`.
+    pub memory_limit: u64,
 }
 
 /// What `qtx_texture_info` reports.
@@ -173,7 +177,7 @@ pub extern "C" fn qtx_filter_options_default() -> QtxFilterOptions {
 }
 
 /// The default SVG packing options: `QTX_LEVEL_AUTO`, no contour leaves,
-/// a sweep budget of 2^31 steps.
+/// a sweep budget of 2^31 steps, the detected memory budget.
 #[unsafe(no_mangle)]
 #[allow(unsafe_code)]
 pub extern "C" fn qtx_svg_options_default() -> QtxSvgOptions {
@@ -276,6 +280,13 @@ pub unsafe extern "C" fn qtx_verify(texture: *const QtxTexture) -> QtxStatus {
 ///   `max_level` in 0..=`QTX_MAX_SVG_LEVEL`, negative for
 ///   `QTX_DEFAULT_SVG_LEVEL` (12).
 ///
+/// `memory_limit`: the memory budget in bytes decoding and packing may use
+/// (`quadtex pack --memory-limit`), or 0 for the detected budget (the
+/// smallest of the cgroup's limit, the address space left and 3/4 of
+/// physical memory, as the CLI's default); work estimated above it is
+/// refused with `QTX_STATUS_LIMIT` before it allocates, the message naming
+/// the estimate and the budget.
+///
 /// `path` and `out` as for `qtx_open`. Returns `QTX_STATUS_OK`;
 /// `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance or level out of
 /// range), `QTX_STATUS_IO`, `QTX_STATUS_FORMAT` (an image that does not
@@ -293,6 +304,7 @@ pub unsafe extern "C" fn qtx_pack(
     path: *const c_char,
     tolerance: f64,
     max_level: c_int,
+    memory_limit: u64,
     out: *mut *mut QtxTexture,
 ) -> QtxStatus {
     guard(|| {
@@ -301,7 +313,12 @@ pub unsafe extern "C" fn qtx_pack(
         out.set(std::ptr::null_mut());
         // SAFETY: `path` is NULL or NUL-terminated, by this function's contract.
         let path = unsafe { ptr::path_arg(path, "path") }?;
-        out.set(ptr::into_raw(ops::pack(&path, tolerance, max_level)?));
+        out.set(ptr::into_raw(ops::pack(
+            &path,
+            tolerance,
+            max_level,
+            memory_limit,
+        )?));
         Ok(())
     })
 }
@@ -345,7 +362,8 @@ pub unsafe extern "C" fn qtx_pack_svg(
 /// time: tiles named `ROW_COL.png` (or `.jpg`; row 0 at the top) forming a
 /// complete grid of 1, 2, 4, … tiles a side, every tile the same square of
 /// a power of two texels. The texture is the one `qtx_pack` would make of
-/// the whole mosaic. `tolerance` as for `qtx_pack` (0 = lossless).
+/// the whole mosaic. `tolerance` and `memory_limit` as for `qtx_pack` (0 =
+/// lossless; 0 = the detected memory budget).
 ///
 /// `dir` (NUL-terminated) and `out` as for `qtx_open`. Returns
 /// `QTX_STATUS_OK`; `QTX_STATUS_INVALID_ARGUMENT` (NULL pointers, tolerance
@@ -360,6 +378,7 @@ pub unsafe extern "C" fn qtx_pack_svg(
 pub unsafe extern "C" fn qtx_pack_tiles(
     dir: *const c_char,
     tolerance: f64,
+    memory_limit: u64,
     out: *mut *mut QtxTexture,
 ) -> QtxStatus {
     guard(|| {
@@ -368,7 +387,11 @@ pub unsafe extern "C" fn qtx_pack_tiles(
         out.set(std::ptr::null_mut());
         // SAFETY: `dir` is NULL or NUL-terminated, by this function's contract.
         let dir = unsafe { ptr::path_arg(dir, "dir") }?;
-        out.set(ptr::into_raw(ops::pack_tiles(&dir, tolerance)?));
+        out.set(ptr::into_raw(ops::pack_tiles(
+            &dir,
+            tolerance,
+            memory_limit,
+        )?));
         Ok(())
     })
 }

@@ -59,19 +59,29 @@ fn is_svg(path: &Path) -> bool {
 /// (default 12, at most 24); raster `max_level` at most 30 (default: the
 /// image's natural depth).
 /// `qtx_pack_tiles`: a folder of `ROW_COL` tiles, as `quadtex pack-tiles`.
-pub(crate) fn pack_tiles(dir: &Path, tolerance: f64) -> Result<QtxTexture, Failure> {
+pub(crate) fn pack_tiles(
+    dir: &Path,
+    tolerance: f64,
+    memory_limit: u64,
+) -> Result<QtxTexture, Failure> {
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
         return Err(Failure::invalid(format!(
             "{}: tolerance must be in [0, 1], got {tolerance}",
             dir.display()
         )));
     }
-    let (tree, _, _) = quadtex_io::pack_tiles(dir, tolerance, &quadtex_io::Limits::default())?;
+    let (tree, _, _) = quadtex_io::pack_tiles(dir, tolerance, &limits(memory_limit))?;
     Ok(QtxTexture::new(tree))
 }
 
-pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTexture, Failure> {
+pub(crate) fn pack(
+    path: &Path,
+    tolerance: f64,
+    max_level: i32,
+    memory_limit: u64,
+) -> Result<QtxTexture, Failure> {
     let shown = path.display();
+    let limits = limits(memory_limit);
     let level = if max_level < 0 { None } else { Some(max_level) };
     if is_svg(path) {
         if tolerance != 0.0 {
@@ -87,7 +97,11 @@ pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTex
                 ))
             })?,
         };
-        let (tree, _) = quadtex_io::pack_svg(path, &quadtex_io::SvgOptions::at_level(level))?;
+        let options = quadtex_io::SvgOptions {
+            limits,
+            ..quadtex_io::SvgOptions::at_level(level)
+        };
+        let (tree, _) = quadtex_io::pack_svg(path, &options)?;
         return Ok(QtxTexture::new(tree));
     }
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
@@ -108,17 +122,27 @@ pub(crate) fn pack(path: &Path, tolerance: f64, max_level: i32) -> Result<QtxTex
                 })?,
         ),
     };
-    let grid = quadtex_io::load_texels(path, &quadtex_io::Limits::default())?;
+    let grid = quadtex_io::load_texels(path, &limits)?;
     let options = BuildOptions {
         tolerance,
         max_level,
-        // The detected memory budget, as the CLI's default.
-        max_bytes: Some(quadtex_io::Limits::default().max_memory),
+        max_nodes: limits.max_nodes,
+        max_bytes: Some(limits.max_memory),
         ..BuildOptions::default()
     };
     let (tree, _) = QuadTree::from_texels(&grid, &options)
         .map_err(|e| Failure::from(e).context(&shown.to_string()))?;
     Ok(QtxTexture::new(tree))
+}
+
+/// The default limits (as the CLI's), with `memory_limit` bytes as the
+/// memory budget unless 0 (`--memory-limit`).
+fn limits(memory_limit: u64) -> quadtex_io::Limits {
+    let mut limits = quadtex_io::Limits::default();
+    if memory_limit > 0 {
+        limits.max_memory = memory_limit;
+    }
+    limits
 }
 
 /// `level` if SVG art can be packed at it (0..=`MAX_VECTOR_LEVEL`).
@@ -132,6 +156,7 @@ pub(crate) fn default_svg_options() -> QtxSvgOptions {
         max_level: QtxLevel::Auto as i32,
         contour_leaves: 0,
         max_sweep_work: quadtex_core::DEFAULT_MAX_SWEEP_WORK,
+        memory_limit: 0,
     }
 }
 
@@ -175,7 +200,7 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
             max_sweep_work: options.max_sweep_work,
             ..quadtex_core::VectorOptions::default()
         },
-        limits: quadtex_io::Limits::default(),
+        limits: limits(options.memory_limit),
     };
     let (tree, _) = quadtex_io::pack_svg(path, &options)?;
     Ok(QtxTexture::new(tree))

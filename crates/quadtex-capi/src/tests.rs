@@ -114,12 +114,12 @@ fn null_pointers_are_refused() {
     );
     assert_error(&["out is NULL"]);
     assert_eq!(
-        unsafe { qtx_pack(null(), 0.0, 4, &mut out) },
+        unsafe { qtx_pack(null(), 0.0, 4, 0, &mut out) },
         QtxStatus::InvalidArgument
     );
     assert_error(&["path is NULL"]);
     assert_eq!(
-        unsafe { qtx_pack(path.as_ptr(), 0.0, 4, null_mut()) },
+        unsafe { qtx_pack(path.as_ptr(), 0.0, 4, 0, null_mut()) },
         QtxStatus::InvalidArgument
     );
 
@@ -378,6 +378,69 @@ fn non_utf8_paths_are_file_names_on_unix() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `memory_limit` (and `QtxSvgOptions::memory_limit`) is the budget
+/// `--memory-limit` sets: 1 KiB refuses a 512×512 image, SVG art at level
+/// 9 and a mosaic with `QTX_STATUS_LIMIT` naming the budget; 0 is the
+/// detected budget, under which they pack.
+#[test]
+fn pack_memory_limit_refuses_work_above_it() {
+    let dir = temp_dir("capi-memory-limit");
+    let png = dir.join("big.png");
+    let image = quadtex_io::LinearImage {
+        width: 512,
+        height: 512,
+        pixels: (0..512 * 512)
+            .map(|i| Rgba::opaque((i % 512) as f32 / 511.0, (i / 512) as f32 / 511.0, 0.5))
+            .collect(),
+    };
+    quadtex_io::save_image(&png, &image).unwrap();
+    let tiles = dir.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    quadtex_io::save_image(&tiles.join("0_0.png"), &image).unwrap();
+    let (png, tiles, svg) = (c_path(&png), c_path(&tiles), sample("threshold.svg"));
+    let mut texture = null_mut();
+    for limit in [1024, 0] {
+        let want = if limit == 0 {
+            QtxStatus::Ok
+        } else {
+            QtxStatus::Limit
+        };
+        let status = unsafe { qtx_pack(png.as_ptr(), 0.0, -1, limit, &mut texture) };
+        assert_eq!(status, want, "raster, limit {limit}: {:?}", last_error());
+        if limit > 0 {
+            assert_error(&["big.png", "memory budget of 1.0 KiB"]);
+        }
+        unsafe { qtx_free(texture) };
+        let status = unsafe { qtx_pack(svg.as_ptr(), 0.0, 9, limit, &mut texture) };
+        assert_eq!(status, want, "SVG, limit {limit}: {:?}", last_error());
+        if limit > 0 {
+            assert_error(&["threshold.svg", "memory budget of 1.0 KiB"]);
+        }
+        unsafe { qtx_free(texture) };
+        let options = QtxSvgOptions {
+            max_level: 9,
+            memory_limit: limit,
+            ..qtx_svg_options_default()
+        };
+        let status = unsafe { qtx_pack_svg(svg.as_ptr(), &options, &mut texture) };
+        assert_eq!(
+            status,
+            want,
+            "qtx_pack_svg, limit {limit}: {:?}",
+            last_error()
+        );
+        unsafe { qtx_free(texture) };
+        let status = unsafe { qtx_pack_tiles(tiles.as_ptr(), 0.0, limit, &mut texture) };
+        assert_eq!(status, want, "tiles, limit {limit}: {:?}", last_error());
+        if limit > 0 {
+            assert_error(&["memory budget of 1.0 KiB"]);
+            assert!(texture.is_null());
+        }
+        unsafe { qtx_free(texture) };
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn pack_checks_its_arguments() {
     let dir = temp_dir("pack");
@@ -409,7 +472,7 @@ fn pack_checks_its_arguments() {
     ];
     for (path, tolerance, level, message) in cases {
         assert_eq!(
-            unsafe { qtx_pack(path.as_ptr(), tolerance, level, &mut texture) },
+            unsafe { qtx_pack(path.as_ptr(), tolerance, level, 0, &mut texture) },
             QtxStatus::InvalidArgument,
             "{message}"
         );
@@ -419,7 +482,7 @@ fn pack_checks_its_arguments() {
 
     // A raster image, lossless at its natural depth and capped.
     assert_eq!(
-        unsafe { qtx_pack(png.as_ptr(), 0.0, QtxLevel::Auto as c_int, &mut texture) },
+        unsafe { qtx_pack(png.as_ptr(), 0.0, QtxLevel::Auto as c_int, 0, &mut texture) },
         QtxStatus::Ok
     );
     let mut info = std::mem::MaybeUninit::<QtxTextureInfo>::uninit();
@@ -448,7 +511,7 @@ fn pack_checks_its_arguments() {
     )
     .unwrap();
     assert_eq!(
-        unsafe { qtx_pack(c_path(&masked).as_ptr(), 0.0, 4, &mut texture) },
+        unsafe { qtx_pack(c_path(&masked).as_ptr(), 0.0, 4, 0, &mut texture) },
         QtxStatus::Unsupported
     );
     assert_error(&["filter.svg"]);
@@ -456,7 +519,7 @@ fn pack_checks_its_arguments() {
     let text = dir.join("notes.png");
     std::fs::write(&text, "hello").unwrap();
     assert_eq!(
-        unsafe { qtx_pack(c_path(&text).as_ptr(), 0.0, -1, &mut texture) },
+        unsafe { qtx_pack(c_path(&text).as_ptr(), 0.0, -1, 0, &mut texture) },
         QtxStatus::Format
     );
     assert_error(&["notes.png"]);
@@ -468,7 +531,7 @@ fn pack_svg_sample() {
     let mut texture = null_mut();
     let svg = sample("threshold.svg");
     assert_eq!(
-        unsafe { qtx_pack(svg.as_ptr(), 0.0, 6, &mut texture) },
+        unsafe { qtx_pack(svg.as_ptr(), 0.0, 6, 0, &mut texture) },
         QtxStatus::Ok,
         "{:?}",
         last_error()
@@ -624,7 +687,7 @@ fn pack_bytes_fails(case: &str, name: &str, bytes: &[u8], status: QtxStatus, par
     std::fs::write(&file, bytes).unwrap();
     let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
     assert_eq!(
-        unsafe { qtx_pack(c_path(&file).as_ptr(), 0.0, -1, &mut texture) },
+        unsafe { qtx_pack(c_path(&file).as_ptr(), 0.0, -1, 0, &mut texture) },
         status,
         "{:?}",
         last_error()
@@ -704,7 +767,7 @@ fn pack_missing_file() {
     let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
     let missing = dir.join("absent.png");
     assert_eq!(
-        unsafe { qtx_pack(c_path(&missing).as_ptr(), 0.0, -1, &mut texture) },
+        unsafe { qtx_pack(c_path(&missing).as_ptr(), 0.0, -1, 0, &mut texture) },
         QtxStatus::Io
     );
     assert!(texture.is_null());
@@ -813,7 +876,7 @@ fn pack_radiance_hdr_packs_unclamped() {
     std::fs::write(&file, bytes).unwrap();
     let mut texture = null_mut();
     assert_eq!(
-        unsafe { qtx_pack(c_path(&file).as_ptr(), 0.0, -1, &mut texture) },
+        unsafe { qtx_pack(c_path(&file).as_ptr(), 0.0, -1, 0, &mut texture) },
         QtxStatus::Ok,
         "{:?}",
         last_error()
@@ -857,7 +920,7 @@ fn pack_exr_with_non_finite_texels_is_refused() {
     .unwrap();
     let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
     assert_eq!(
-        unsafe { qtx_pack(c_path(&exr).as_ptr(), 0.0, -1, &mut texture) },
+        unsafe { qtx_pack(c_path(&exr).as_ptr(), 0.0, -1, 0, &mut texture) },
         QtxStatus::Format
     );
     assert!(texture.is_null());
@@ -870,7 +933,7 @@ fn pack_empty_path_and_no_image() {
     let mut texture: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
     let empty = CString::default();
     assert_eq!(
-        unsafe { qtx_pack(empty.as_ptr(), 0.0, -1, &mut texture) },
+        unsafe { qtx_pack(empty.as_ptr(), 0.0, -1, 0, &mut texture) },
         QtxStatus::InvalidArgument
     );
     assert_error(&["path is empty"]);
@@ -950,13 +1013,13 @@ fn tiles_pack_like_the_whole_mosaic_and_bad_tiles_are_named() {
     }
     let (mut a, mut b) = (null_mut(), null_mut());
     assert_eq!(
-        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 0.0, &mut a) },
+        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 0.0, 0, &mut a) },
         QtxStatus::Ok,
         "{:?}",
         last_error()
     );
     assert_eq!(
-        unsafe { qtx_pack(c_path(&dir.join("whole.png")).as_ptr(), 0.0, -1, &mut b) },
+        unsafe { qtx_pack(c_path(&dir.join("whole.png")).as_ptr(), 0.0, -1, 0, &mut b) },
         QtxStatus::Ok
     );
     let options = qtx_filter_options_default();
@@ -974,17 +1037,17 @@ fn tiles_pack_like_the_whole_mosaic_and_bad_tiles_are_named() {
     std::fs::remove_file(tiles.join("1_0.png")).unwrap();
     let mut t: *mut QtxTexture = std::ptr::NonNull::dangling().as_ptr();
     assert_eq!(
-        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 0.0, &mut t) },
+        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 0.0, 0, &mut t) },
         QtxStatus::Format
     );
     assert!(t.is_null());
     assert_error(&["1_0.png", "missing"]);
     assert_eq!(
-        unsafe { qtx_pack_tiles(null(), 0.0, &mut t) },
+        unsafe { qtx_pack_tiles(null(), 0.0, 0, &mut t) },
         QtxStatus::InvalidArgument
     );
     assert_eq!(
-        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 1.5, &mut t) },
+        unsafe { qtx_pack_tiles(c_path(&tiles).as_ptr(), 1.5, 0, &mut t) },
         QtxStatus::InvalidArgument
     );
     std::fs::remove_dir_all(&dir).unwrap();
