@@ -19,7 +19,7 @@ Batch calls release the GIL while they filter or integrate.
 """
 
 import os
-from typing import Optional, Sequence, Tuple, Union, final
+from typing import Literal, Optional, Sequence, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
@@ -125,6 +125,7 @@ def pack(
     hdr: bool = False,
     contour_leaves: Optional[int] = None,
     max_sweep_work: Optional[int] = None,
+    resources: Optional[Literal["same-folder", "anywhere", "none"]] = None,
 ) -> Texture:
     """Packs an image into a texture, as ``quadtex pack`` does.
 
@@ -157,4 +158,11 @@ def pack(
         coverage sweep may take (``quadtex pack --max-sweep-work``); art
         needing more (thousands of dashes piled on a point) is a ValueError
         naming the steps it needs. Default: 2**31, about a minute.
+    resources: SVG art only: which files its ``<image href>`` may read
+        (``quadtex pack --resources``): ``"same-folder"`` (default: only
+        files inside the SVG's own folder; no absolute path, no ``..`` or
+        symbolic link out of it), ``"anywhere"`` (any readable file; for
+        trusted files) or ``"none"`` (data: URIs only, which are always
+        read). A refused reference is a ValueError naming the SVG and the
+        reference.
     """

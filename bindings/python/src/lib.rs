@@ -250,15 +250,15 @@ fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
 
 /// Packs an image file (PNG, JPEG, EXR, SVG) or a numpy array into a texture.
 #[pyfunction]
-#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None, max_sweep_work = None))]
+#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None, max_sweep_work = None, resources = None))]
 fn pack(
-    py: Python<'_>,
     source: &Bound<'_, PyAny>,
     tolerance: f64,
     max_level: Option<i64>,
     hdr: bool,
     contour_leaves: Option<i64>,
     max_sweep_work: Option<i64>,
+    resources: Option<&str>,
 ) -> PyResult<Texture> {
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
         return Err(PyValueError::new_err(format!(
@@ -284,9 +284,21 @@ fn pack(
             )));
         }
     };
+    let py = source.py();
+    let resources = resources
+        .map(|name| {
+            quadtex_io::ExternalResources::parse(name).ok_or_else(|| {
+                PyValueError::new_err(format!(
+                    "resources must be one of {}, got {name:?}",
+                    quadtex_io::ExternalResources::NAMES.join(", ")
+                ))
+            })
+        })
+        .transpose()?;
     let svg_only = SvgOnly {
         contour_leaves,
         max_sweep_work,
+        resources,
     };
     let is_path = source.is_instance_of::<PyString>()
         || source.is_instance_of::<PyBytes>()
@@ -352,6 +364,8 @@ fn pack_tiles(py: Python<'_>, directory: PathBuf, tolerance: f64) -> PyResult<Te
 struct SvgOnly {
     contour_leaves: Option<usize>,
     max_sweep_work: Option<u64>,
+    /// The external-resources policy (default same-folder).
+    resources: Option<quadtex_io::ExternalResources>,
 }
 
 impl SvgOnly {
@@ -361,6 +375,8 @@ impl SvgOnly {
             Some("contour_leaves")
         } else if self.max_sweep_work.is_some() {
             Some("max_sweep_work")
+        } else if self.resources.is_some() {
+            Some("resources")
         } else {
             None
         }
@@ -378,6 +394,7 @@ fn pack_file(
     let SvgOnly {
         contour_leaves,
         max_sweep_work,
+        resources,
     } = svg_only;
     let is_svg = path
         .extension()
@@ -402,7 +419,10 @@ fn pack_file(
                 max_sweep_work: max_sweep_work.unwrap_or(defaults.max_sweep_work),
                 ..defaults
             },
-            limits: quadtex_io::Limits::default(),
+            limits: quadtex_io::Limits {
+                external_resources: resources.unwrap_or_default(),
+                ..quadtex_io::Limits::default()
+            },
         };
         let (tree, _) = py
             .detach(|| quadtex_io::pack_svg(&path, &options))
