@@ -1502,7 +1502,10 @@ fn svg_image_outside_its_folder() {
     let d = dir("svg-image-outside");
     let sub = d.join("sub");
     std::fs::create_dir_all(&sub).unwrap();
-    let png = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/resvg-suite/resources/image.png");
+    let png = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/resvg-suite/resources/image.png"
+    );
     std::fs::copy(png, d.join("outside.png")).unwrap();
     std::fs::copy(png, sub.join("beside.png")).unwrap();
     let absolute = d.join("outside.png").to_str().unwrap().to_string();
@@ -1514,17 +1517,32 @@ fn svg_image_outside_its_folder() {
             format!("{SVG_HEAD}<image width=\"10\" height=\"10\" href=\"{href}\"/></svg>"),
         )
         .unwrap();
-        let args = ["pack", svg.to_str().unwrap(), "-o", out.to_str().unwrap(), "--max-level", "4"];
+        let args = [
+            "pack",
+            svg.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--max-level",
+            "4",
+        ];
         expect_failure(
             &args,
             "",
-            &["a.svg", &format!("external resource \"{href}\" refused"), "--resources anywhere"],
+            &[
+                "a.svg",
+                &format!("external resource \"{href}\" refused"),
+                "--resources anywhere",
+            ],
             Some(&out),
         );
         let mut wide = args.to_vec();
         wide.extend(["--resources", "anywhere"]);
         let ok = run(&wide, "");
-        assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+        assert!(
+            ok.status.success(),
+            "{}",
+            String::from_utf8_lossy(&ok.stderr)
+        );
         assert!(out.exists());
         std::fs::remove_file(&out).unwrap();
     }
@@ -1534,13 +1552,29 @@ fn svg_image_outside_its_folder() {
         format!("{SVG_HEAD}<image width=\"10\" height=\"10\" href=\"beside.png\"/></svg>"),
     )
     .unwrap();
-    let args = ["pack", svg.to_str().unwrap(), "-o", out.to_str().unwrap(), "--max-level", "4"];
+    let args = [
+        "pack",
+        svg.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--max-level",
+        "4",
+    ];
     let ok = run(&args, "");
-    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
     std::fs::remove_file(&out).unwrap();
     let mut none = args.to_vec();
     none.extend(["--resources", "none"]);
-    expect_failure(&none, "", &["beside.svg", "\"beside.png\" refused"], Some(&out));
+    expect_failure(
+        &none,
+        "",
+        &["beside.svg", "\"beside.png\" refused"],
+        Some(&out),
+    );
     expect_usage_error(
         &[&args[..], &["--resources", "everywhere"]].concat(),
         &["--resources", "same-folder, anywhere, none"],

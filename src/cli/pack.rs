@@ -8,7 +8,8 @@ use quadtex_core::{BuildOptions, QuadTree};
 
 use super::Result;
 use super::common::{
-    MemoryArgs, ResourcesArgs, blocks_summary, human_bytes, is_svg, level, raster_bytes, smooth_summary, tolerance,
+    MemoryArgs, ResourcesArgs, blocks_summary, human_bytes, is_svg, level, raster_bytes,
+    smooth_summary, tolerance,
 };
 use super::output::Output;
 

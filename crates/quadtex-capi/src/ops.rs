@@ -12,8 +12,7 @@ use quadtex_core::{
 use crate::error::Failure;
 use crate::{
     QTX_DEFAULT_SVG_LEVEL, QtxFilterOptions, QtxLevel, QtxResources, QtxSvgOptions, QtxTexture,
-    QtxTextureInfo,
-    QtxWeighting, QtxWrapMode,
+    QtxTextureInfo, QtxWeighting, QtxWrapMode,
 };
 
 /// A C string's bytes as a path. On Unix a file name is any bytes, so any

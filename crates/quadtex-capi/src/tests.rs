@@ -596,7 +596,8 @@ fn pack_svg_reads_images_only_from_its_folder_by_default() {
     let dir = std::env::temp_dir().join(format!("quadtex-capi-resources-{}", std::process::id()));
     let sub = dir.join("sub");
     std::fs::create_dir_all(&sub).unwrap();
-    let png = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/resvg-suite/resources/image.png");
+    let png =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/resvg-suite/resources/image.png");
     std::fs::copy(&png, dir.join("outside.png")).unwrap();
     std::fs::copy(&png, sub.join("beside.png")).unwrap();
     let write = |name: &str, href: &str| {

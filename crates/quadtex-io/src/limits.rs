@@ -133,7 +133,10 @@ impl ExternalResources {
                     ));
                 }
                 let root = folder.canonicalize().map_err(|e| {
-                    refuse(format!("the file's folder {} cannot be resolved: {e}", folder.display()))
+                    refuse(format!(
+                        "the file's folder {} cannot be resolved: {e}",
+                        folder.display()
+                    ))
                 })?;
                 // A missing or unreadable file is the read error it would
                 // have been under any policy.

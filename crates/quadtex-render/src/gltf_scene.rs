@@ -672,7 +672,10 @@ mod tests {
                 &format!("\"images\":[{{\"uri\":\"{image_uri}\"}}]"),
                 1,
             );
-        assert!(json.contains(buffer_uri) && json.contains(image_uri), "{json}");
+        assert!(
+            json.contains(buffer_uri) && json.contains(image_uri),
+            "{json}"
+        );
         let file = model.join("m.gltf");
         std::fs::write(&file, json.trim_end()).unwrap();
         file
@@ -693,10 +696,23 @@ mod tests {
         let model = load(&inside, SameFolder).unwrap();
         assert_eq!((model.parts.len(), model.images.len()), (1, 1));
         let e = load(&inside, None).err().unwrap();
-        assert!(e.contains("m.gltf") && e.contains("\"inside.bin\" refused"), "{e}");
+        assert!(
+            e.contains("m.gltf") && e.contains("\"inside.bin\" refused"),
+            "{e}"
+        );
         for (name, buffer, image, refused) in [
-            ("gltf-buffer", "../outside.bin", "inside.png", "../outside.bin"),
-            ("gltf-image", "inside.bin", "../outside.png", "../outside.png"),
+            (
+                "gltf-buffer",
+                "../outside.bin",
+                "inside.png",
+                "../outside.bin",
+            ),
+            (
+                "gltf-image",
+                "inside.bin",
+                "../outside.png",
+                "../outside.png",
+            ),
         ] {
             let file = external_model(name, buffer, image);
             let e = load(&file, SameFolder).err().unwrap();

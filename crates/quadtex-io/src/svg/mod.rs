@@ -253,9 +253,7 @@ fn parse_flattened(
                     limits
                         .external_resources
                         .resolve(path, href)
-                        .and_then(|file| {
-                            read_limited(&file, limits).map(|data| (file, data))
-                        })
+                        .and_then(|file| read_limited(&file, limits).map(|data| (file, data)))
                         .map_err(|e| match e {
                             Error::ExternalResource { .. } => e,
                             e => svg_err(format!("image \"{href}\" could not be read: {e}")),

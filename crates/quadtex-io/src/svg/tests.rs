@@ -391,7 +391,11 @@ fn images_outside_the_folder_are_refused_by_default() {
     use crate::ExternalResources::{Anywhere, SameFolder};
     let (root, sub) = resource_tree("svg-resources");
     let absolute = root.join("outside.png").display().to_string();
-    let mut refs = vec![absolute.as_str(), "../../outside.png", "deeper/../../../outside.png"];
+    let mut refs = vec![
+        absolute.as_str(),
+        "../../outside.png",
+        "deeper/../../../outside.png",
+    ];
     if cfg!(unix) {
         refs.push("link.png");
     }
@@ -422,7 +426,9 @@ fn images_outside_the_folder_are_refused_by_default() {
 fn resources_none_reads_no_file_but_data_urls() {
     use crate::ExternalResources::None;
     let (root, sub) = resource_tree("svg-resources-none");
-    let e = load_with_href(&sub, "in.png", None).unwrap_err().to_string();
+    let e = load_with_href(&sub, "in.png", None)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("a.svg") && e.contains("\"in.png\" refused") && e.contains("none"),
         "{e}"
