@@ -73,8 +73,10 @@ typedef enum QtxStatus {
     QTX_STATUS_UNSUPPORTED = 4,
     /**
      * A resource limit would be exceeded (image dimensions, file size, node
-     * count, tree depth, sweep work, the memory budget), or the system
-     * refused the memory the input asked for; nothing was built.
+     * count, tree depth, sweep work, the memory budget), an SVG refers to
+     * an image outside what `QtxSvgOptions.resources` allows (by default,
+     * outside its own folder), or the system refused the memory the input
+     * asked for; nothing was built.
      */
     QTX_STATUS_LIMIT = 5,
     /**
@@ -137,6 +139,26 @@ typedef enum QtxWeighting {
      */
     QTX_WEIGHTING_TEXTURE = 1,
 } QtxWeighting;
+
+/**
+ * Which files an SVG's `<image href>` may read (values for
+ * `QtxSvgOptions.resources`). Data URIs are always read; remote URLs never.
+ */
+typedef enum QtxResources {
+    /**
+     * Only files inside the SVG's own folder: no absolute path, no `..` or
+     * symbolic link out of it (the default).
+     */
+    QTX_RESOURCES_SAME_FOLDER = 0,
+    /**
+     * Any file the process may read (for trusted files).
+     */
+    QTX_RESOURCES_ANYWHERE = 1,
+    /**
+     * No files, not even beside the SVG: data URIs only.
+     */
+    QTX_RESOURCES_NONE = 2,
+} QtxResources;
 
 /**
  * A packed texture (an incomplete quadtree). Opaque: create it with
@@ -215,6 +237,13 @@ typedef struct QtxSvgOptions {
      * estimated above it is refused with `QTX_STATUS_LIMIT`.
      */
     uint64_t memory_limit;
+    /**
+     * A `QtxResources`: which files the art's images may come from
+     * (default `QTX_RESOURCES_SAME_FOLDER`: only inside the SVG's own
+     * folder). A refused reference is `QTX_STATUS_LIMIT`, the message
+     * naming the SVG and the reference.
+     */
+    int resources;
 } QtxSvgOptions;
 
 /**
@@ -276,7 +305,8 @@ struct QtxFilterOptions qtx_filter_options_default(void);
 
 /**
  * The default SVG packing options: `QTX_LEVEL_AUTO`, no contour leaves,
- * a sweep budget of 2^31 steps, the detected memory budget.
+ * a sweep budget of 2^31 steps, the detected memory budget, images only
+ * from the SVG's own folder.
  */
 struct QtxSvgOptions qtx_svg_options_default(void);
 
@@ -353,7 +383,9 @@ enum QtxStatus qtx_verify(const struct QtxTexture *texture);
  * decode, SVG that does not parse), `QTX_STATUS_UNSUPPORTED` (SVG features
  * not supported: filters, GIF/WebP/svgz images, patterns over too many
  * tiles),
- * `QTX_STATUS_LIMIT`. SVG gradients are packed to the default smooth-colour
+ * `QTX_STATUS_LIMIT` (also an SVG image outside the SVG's folder: `qtx_pack`
+ * reads images only from there; `qtx_pack_svg` takes
+ * `options.resources`). SVG gradients are packed to the default smooth-colour
  * tolerance (a quarter of an 8-bit step; `tolerance` must be 0 for SVG).
  *
  * # Safety

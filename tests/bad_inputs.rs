@@ -1492,3 +1492,92 @@ fn tiles_missing_duplicate_mismatched_and_corrupt() {
         &["no tiles named ROW_COL.png"],
     );
 }
+
+/// An SVG in `sub/` drawing `../outside.png`, or the same image by its
+/// absolute path, is refused by default naming the SVG and the reference,
+/// packs with `--resources anywhere`; `--resources none` refuses even an
+/// image beside the SVG.
+#[test]
+fn svg_image_outside_its_folder() {
+    let d = dir("svg-image-outside");
+    let sub = d.join("sub");
+    std::fs::create_dir_all(&sub).unwrap();
+    let png = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/resvg-suite/resources/image.png"
+    );
+    std::fs::copy(png, d.join("outside.png")).unwrap();
+    std::fs::copy(png, sub.join("beside.png")).unwrap();
+    let absolute = d.join("outside.png").to_str().unwrap().to_string();
+    let out = d.join("out.qtx");
+    for href in ["../outside.png", absolute.as_str()] {
+        let svg = sub.join("a.svg");
+        std::fs::write(
+            &svg,
+            format!("{SVG_HEAD}<image width=\"10\" height=\"10\" href=\"{href}\"/></svg>"),
+        )
+        .unwrap();
+        let args = [
+            "pack",
+            svg.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--max-level",
+            "4",
+        ];
+        expect_failure(
+            &args,
+            "",
+            &[
+                "a.svg",
+                &format!("external resource \"{href}\" refused"),
+                "--resources anywhere",
+            ],
+            Some(&out),
+        );
+        let mut wide = args.to_vec();
+        wide.extend(["--resources", "anywhere"]);
+        let ok = run(&wide, "");
+        assert!(
+            ok.status.success(),
+            "{}",
+            String::from_utf8_lossy(&ok.stderr)
+        );
+        assert!(out.exists());
+        std::fs::remove_file(&out).unwrap();
+    }
+    let svg = sub.join("beside.svg");
+    std::fs::write(
+        &svg,
+        format!("{SVG_HEAD}<image width=\"10\" height=\"10\" href=\"beside.png\"/></svg>"),
+    )
+    .unwrap();
+    let args = [
+        "pack",
+        svg.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--max-level",
+        "4",
+    ];
+    let ok = run(&args, "");
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    std::fs::remove_file(&out).unwrap();
+    let mut none = args.to_vec();
+    none.extend(["--resources", "none"]);
+    expect_failure(
+        &none,
+        "",
+        &["beside.svg", "\"beside.png\" refused"],
+        Some(&out),
+    );
+    expect_usage_error(
+        &[&args[..], &["--resources", "everywhere"]].concat(),
+        &["--resources", "same-folder, anywhere, none"],
+        Some(&out),
+    );
+}

@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 
 use quadtex_core::srgb_encode_f32;
 use quadtex_core::{Fragment, QuadTree, VectorOptions};
-use quadtex_io::{Error, Limits, load_linear_image, parse_svg};
+use quadtex_io::{Error, ExternalResources, Limits, load_linear_image, parse_svg};
 
 /// Packing level: leaves of `1/4096`, a fourteenth of a pixel.
 const LEVEL: u8 = 12;
@@ -100,10 +100,17 @@ static MOST_SWEEP_WORK: std::sync::Mutex<(u64, Option<PathBuf>)> = std::sync::Mu
 
 fn check(svg: &Path) -> Outcome {
     let data = std::fs::read(svg).unwrap();
+    // The suite's images live in `tests/resvg-suite/resources/`, beside
+    // the tests' folders (`../../../resources/image.png`), outside each
+    // SVG's own folder: the policy is widened for this trusted suite.
+    let limits = Limits {
+        external_resources: ExternalResources::Anywhere,
+        ..Limits::default()
+    };
     let art = match parse_svg(
         &data,
         svg,
-        &quadtex_io::SvgOptions::at_level(LEVEL).with_limits(Limits::default()),
+        &quadtex_io::SvgOptions::at_level(LEVEL).with_limits(limits),
     ) {
         Ok(art) => art,
         Err(Error::UnsupportedSvg { element, .. }) => {

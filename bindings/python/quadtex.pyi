@@ -22,7 +22,7 @@ Ctrl-C every 50 ms or so (``KeyboardInterrupt``).
 """
 
 import os
-from typing import Optional, Sequence, Tuple, Union, final
+from typing import Literal, Optional, Sequence, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
@@ -142,6 +142,7 @@ def pack(
     contour_leaves: Optional[int] = None,
     max_sweep_work: Optional[int] = None,
     memory_limit: Optional[int] = None,
+    resources: Optional[Literal["same-folder", "anywhere", "none"]] = None,
 ) -> Texture:
     """Packs an image into a texture, as ``quadtex pack`` does.
 
@@ -183,6 +184,13 @@ def pack(
         before it allocates. Default: the detected budget (the smallest of
         the cgroup's limit, the address space left and 3/4 of physical
         memory), as the CLI's.
+    resources: SVG art only: which files its ``<image href>`` may read
+        (``quadtex pack --resources``): ``"same-folder"`` (default: only
+        files inside the SVG's own folder; no absolute path, no ``..`` or
+        symbolic link out of it), ``"anywhere"`` (any readable file; for
+        trusted files) or ``"none"`` (data: URIs only, which are always
+        read). A refused reference is a ValueError naming the SVG and the
+        reference.
 
     A folder of tiles packs with :func:`pack_tiles`.
     """

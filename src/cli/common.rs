@@ -67,6 +67,42 @@ impl MemoryArgs {
     }
 }
 
+/// Which files an SVG or glTF file may make quadtex read (its `<image
+/// href>`s, its buffer and image URIs), shared (flattened) by every command
+/// that reads SVG art or scenes.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct ResourcesArgs {
+    /// Files an SVG's images or a glTF model's buffers and images may come
+    /// from: same-folder (default: only inside the referring file's own
+    /// folder; no absolute paths, no `..` or symbolic link out of it),
+    /// anywhere (any readable file: only for files you trust) or none
+    /// (only data: URIs, which are always read). A refused reference is an
+    /// error naming the file and the reference.
+    #[arg(long, value_name = "POLICY", default_value = "same-folder", value_parser = resources)]
+    resources: quadtex_io::ExternalResources,
+}
+
+impl ResourcesArgs {
+    /// `limits` with this policy.
+    pub fn apply(&self, limits: quadtex_io::Limits) -> quadtex_io::Limits {
+        quadtex_io::Limits {
+            external_resources: self.resources,
+            ..limits
+        }
+    }
+}
+
+/// A value parser: an external-resources policy, `same-folder`, `anywhere`
+/// or `none`.
+pub fn resources(text: &str) -> std::result::Result<quadtex_io::ExternalResources, String> {
+    quadtex_io::ExternalResources::parse(text).ok_or_else(|| {
+        format!(
+            "--resources: unknown policy `{text}` (use {})",
+            quadtex_io::ExternalResources::NAMES.join(", ")
+        )
+    })
+}
+
 /// Gives every texture of `scene` the memory budget for its raster baselines.
 pub fn budget_scene(scene: &mut quadtex_render::Scene, bytes: u64) {
     for s in &mut scene.surfaces {

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use super::Result;
-use super::common::{MemoryArgs, in_range};
+use super::common::{MemoryArgs, ResourcesArgs, in_range};
 use super::comparison::{CompareArgs, Settings, compare_scene};
 
 /// Compare every filter against a converged reference on a scene (report.html).
@@ -33,12 +33,15 @@ pub struct Args {
     options: CompareArgs,
     #[command(flatten)]
     memory: MemoryArgs,
+    #[command(flatten)]
+    resources: ResourcesArgs,
 }
 
 /// Runs `quadtex compare`.
 pub fn run(args: Args) -> Result<()> {
     let settings = args.options.settings(args.width, &args.memory.limits())?;
-    let scene = quadtex_render::load_scene(&args.scene, &args.memory.limits())?;
+    let scene =
+        quadtex_render::load_scene(&args.scene, &args.resources.apply(args.memory.limits()))?;
     let name = args
         .scene
         .file_stem()

@@ -11,7 +11,7 @@ use quadtex_io::{DumpTexture, DumpWrap, FootprintDump, write_footprints};
 use quadtex_render::{PixelFilter, RenderOptions, TextureFilter};
 
 use super::Result;
-use super::common::{MemoryArgs, in_range};
+use super::common::{MemoryArgs, ResourcesArgs, in_range};
 use super::comparison::texture_bytes;
 use super::output::Text;
 
@@ -49,6 +49,8 @@ pub struct Args {
     timing_only: bool,
     #[command(flatten)]
     memory: MemoryArgs,
+    #[command(flatten)]
+    resources: ResourcesArgs,
 }
 
 /// The quadtex lookups timed against the peer: label, file stem, filter.
@@ -82,9 +84,10 @@ pub fn run(args: Args) -> Result<()> {
         reference_spp,
         timing_only,
         memory,
+        resources,
     } = args;
     let grid = (f64::from(reference_spp.clamp(1, 4096)).sqrt().round() as u32).max(1);
-    let limits = memory.limits();
+    let limits = resources.apply(memory.limits());
     let scene = quadtex_render::load_scene(&path, &limits)?;
     if timing_only {
         let height = scene.camera.height_for_width(width);

@@ -8,7 +8,7 @@ use std::time::Instant;
 use quadtex_core::MAX_VECTOR_LEVEL;
 
 use super::Result;
-use super::common::{MemoryArgs, human_bytes, is_svg, raster_bytes, smooth_summary};
+use super::common::{MemoryArgs, ResourcesArgs, human_bytes, is_svg, raster_bytes, smooth_summary};
 use super::output::Text;
 
 /// Describe a .qtx file, or SVG art's tree against rasters per level.
@@ -32,6 +32,8 @@ pub struct Args {
     verify: bool,
     #[command(flatten)]
     memory: MemoryArgs,
+    #[command(flatten)]
+    resources: ResourcesArgs,
 }
 
 /// A value parser: one of `--levels`, at most the vector packer's limit.
@@ -55,8 +57,9 @@ pub fn run(args: Args) -> Result<()> {
         levels,
         verify,
         memory,
+        resources,
     } = args;
-    let limits = memory.limits();
+    let limits = resources.apply(memory.limits());
     if is_svg(&path) {
         return info_svg(
             &path,

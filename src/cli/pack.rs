@@ -8,7 +8,8 @@ use quadtex_core::{BuildOptions, QuadTree};
 
 use super::Result;
 use super::common::{
-    MemoryArgs, blocks_summary, human_bytes, is_svg, level, raster_bytes, smooth_summary, tolerance,
+    MemoryArgs, ResourcesArgs, blocks_summary, human_bytes, is_svg, level, raster_bytes,
+    smooth_summary, tolerance,
 };
 use super::output::Output;
 
@@ -69,6 +70,8 @@ pub struct Args {
     max_sweep_work: Option<u64>,
     #[command(flatten)]
     memory: MemoryArgs,
+    #[command(flatten)]
+    resources: ResourcesArgs,
 }
 
 /// A value parser: a curve tolerance in `[2^-40, 1]`.
@@ -92,8 +95,9 @@ pub fn run(args: Args) -> Result<()> {
         curve_tolerance,
         max_sweep_work,
         memory,
+        resources,
     } = args;
-    let limits = memory.limits();
+    let limits = resources.apply(memory.limits());
     let mut options = BuildOptions {
         max_level,
         max_nodes: limits.max_nodes,

@@ -10,7 +10,7 @@ use quadtex_core::baseline::StripOptions;
 use quadtex_render::{PixelFilter, RenderOptions, Scene, TextureFilter};
 
 use super::Result;
-use super::common::{MemoryArgs, budget_scene, level};
+use super::common::{MemoryArgs, ResourcesArgs, budget_scene, level};
 use super::comparison::{CompareArgs, Settings, compare_scene};
 use super::output::{FormatFlag, Output, Text};
 
@@ -45,6 +45,8 @@ pub struct Args {
     render: RenderArgs,
     #[command(flatten)]
     memory: MemoryArgs,
+    #[command(flatten)]
+    resources: ResourcesArgs,
     #[command(flatten)]
     format: FormatFlag,
 }
@@ -239,13 +241,14 @@ pub fn run(args: Args) -> Result<()> {
             .format
             .format
             .map_or(quadtex_io::ImageFormat::Png, quadtex_io::ImageFormat::from);
-        let limits = args.memory.limits();
+        let limits = args.resources.apply(args.memory.limits());
         let camera_path = quadtex_render::load_camera_path(path, &limits)?;
         let scene = quadtex_render::load_scene(&args.scene, &limits)?;
         return render_path(&scene, &camera_path, frames, &options, dir, format);
     }
     let format = args.output.image_format(args.format.format)?;
-    let scene = quadtex_render::load_scene(&args.scene, &args.memory.limits())?;
+    let scene =
+        quadtex_render::load_scene(&args.scene, &args.resources.apply(args.memory.limits()))?;
     render(&scene, &options, &args.output, format)
 }
 

@@ -84,9 +84,6 @@ impl Texture {
         signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = 64),
         text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=64)"
     )]
-    // pyo3 maps each Python keyword to one Rust parameter, and the keywords
-    // are the module's API: the one allowance of its kind in the project.
-    #[allow(clippy::too_many_arguments)]
     fn filter<'py>(
         &self,
         py: Python<'py>,
@@ -332,20 +329,21 @@ fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
 ///     CLI's default): the memory decoding and packing may use
 ///     (`--memory-limit`); work estimated above it is refused before it
 ///     allocates.
+///   resources: SVG only: which files its `<image href>` may read
+///     (`--resources`): "same-folder" (the default: only inside the SVG's
+///     folder), "anywhere" (trusted files) or "none" (data: URIs only).
 ///
 /// Returns: a `Texture` (`source_size` is the raster's size).
 ///
 /// Raises: OSError when the system refuses a file (e.g. FileNotFoundError;
 /// `errno` and `filename` set); ValueError for a malformed or unsupported
 /// file (naming the file and the field), an option out of range, or work
-/// above `memory_limit` (the message names the estimate and the budget);
+/// above `memory_limit` (the message names the estimate and the budget), or
+/// an image reference the `resources` policy refuses (naming it);
 /// TypeError for an array of another dtype.
 #[pyfunction]
-#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None, max_sweep_work = None, memory_limit = None))]
-// pyo3 maps each Python keyword to one Rust parameter (as `Texture.filter`).
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (source, tolerance = 0.0, max_level = None, hdr = false, contour_leaves = None, max_sweep_work = None, memory_limit = None, resources = None))]
 fn pack(
-    py: Python<'_>,
     source: &Bound<'_, PyAny>,
     tolerance: f64,
     max_level: Option<i64>,
@@ -353,6 +351,7 @@ fn pack(
     contour_leaves: Option<i64>,
     max_sweep_work: Option<i64>,
     memory_limit: Option<i64>,
+    resources: Option<&str>,
 ) -> PyResult<Texture> {
     let limits = limits(memory_limit)?;
     if !(tolerance.is_finite() && (0.0..=1.0).contains(&tolerance)) {
@@ -379,9 +378,21 @@ fn pack(
             )));
         }
     };
+    let py = source.py();
+    let resources = resources
+        .map(|name| {
+            quadtex_io::ExternalResources::parse(name).ok_or_else(|| {
+                PyValueError::new_err(format!(
+                    "resources must be one of {}, got {name:?}",
+                    quadtex_io::ExternalResources::NAMES.join(", ")
+                ))
+            })
+        })
+        .transpose()?;
     let svg_only = SvgOnly {
         contour_leaves,
         max_sweep_work,
+        resources,
     };
     let is_path = source.is_instance_of::<PyString>()
         || source.is_instance_of::<PyBytes>()
@@ -465,6 +476,8 @@ fn pack_tiles(
 struct SvgOnly {
     contour_leaves: Option<usize>,
     max_sweep_work: Option<u64>,
+    /// The external-resources policy (default same-folder).
+    resources: Option<quadtex_io::ExternalResources>,
 }
 
 impl SvgOnly {
@@ -474,6 +487,8 @@ impl SvgOnly {
             Some("contour_leaves")
         } else if self.max_sweep_work.is_some() {
             Some("max_sweep_work")
+        } else if self.resources.is_some() {
+            Some("resources")
         } else {
             None
         }
@@ -492,6 +507,7 @@ fn pack_file(
     let SvgOnly {
         contour_leaves,
         max_sweep_work,
+        resources,
     } = svg_only;
     let is_svg = path
         .extension()
@@ -516,7 +532,10 @@ fn pack_file(
                 max_sweep_work: max_sweep_work.unwrap_or(defaults.max_sweep_work),
                 ..defaults
             },
-            limits: *limits,
+            limits: quadtex_io::Limits {
+                external_resources: resources.unwrap_or_default(),
+                ..*limits
+            },
         };
         let (tree, _) = py
             .detach(|| quadtex_io::pack_svg(&path, &options))

@@ -189,6 +189,37 @@ def test_pack_svg_sweep_budget():
         quadtex.pack(np.zeros((4, 4), dtype=np.uint8), max_sweep_work=10)
 
 
+def test_pack_svg_resources(tmp_path):
+    """An SVG's image outside its folder is refused unless widened."""
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    red = np.full((2, 2, 3), [200, 10, 10], dtype=np.uint8)
+    write_png(tmp_path / "outside.png", red)
+    write_png(sub / "beside.png", red)
+    head = '<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10">'
+
+    def svg(name, href):
+        path = sub / name
+        path.write_text(f'{head}<image width="10" height="10" href="{href}"/></svg>')
+        return path
+
+    for href in ["../outside.png", str(tmp_path / "outside.png")]:
+        path = svg("a.svg", href)
+        with pytest.raises(ValueError, match="external resource") as e:
+            quadtex.pack(path, max_level=4)
+        assert "a.svg" in str(e.value) and f'"{href}"' in str(e.value)
+        wide = quadtex.pack(path, max_level=4, resources="anywhere")
+        assert wide.integrate(WHOLE)[0, 3] > 0.99
+    beside = svg("b.svg", "beside.png")
+    assert quadtex.pack(beside, max_level=4).integrate(WHOLE)[0, 3] > 0.99
+    with pytest.raises(ValueError, match='"beside.png" refused'):
+        quadtex.pack(beside, max_level=4, resources="none")
+    with pytest.raises(ValueError, match="resources must be one of same-folder, anywhere, none"):
+        quadtex.pack(beside, resources="everywhere")
+    with pytest.raises(ValueError, match="resources applies to SVG art"):
+        quadtex.pack(np.zeros((4, 4), dtype=np.uint8), resources="none")
+
+
 def test_file_errors(tmp_path):
     missing = tmp_path / "missing.qtx"
     with pytest.raises(FileNotFoundError) as e:

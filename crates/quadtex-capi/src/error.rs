@@ -24,8 +24,10 @@ pub enum QtxStatus {
     /// filters, GIF/WebP/svgz images, patterns over too many tiles).
     Unsupported = 4,
     /// A resource limit would be exceeded (image dimensions, file size, node
-    /// count, tree depth, sweep work, the memory budget), or the system
-    /// refused the memory the input asked for; nothing was built.
+    /// count, tree depth, sweep work, the memory budget), an SVG refers to
+    /// an image outside what `QtxSvgOptions.resources` allows (by default,
+    /// outside its own folder), or the system refused the memory the input
+    /// asked for; nothing was built.
     Limit = 5,
     /// A bug in quadtex (an internal panic, caught at the boundary). The
     /// library remains usable; please report the message.
@@ -89,7 +91,9 @@ impl From<quadtex_io::Error> for Failure {
         use quadtex_io::Error as E;
         let status = match &e {
             E::Io { .. } => QtxStatus::Io,
-            E::Limit { .. } | E::MemoryBudget { .. } => QtxStatus::Limit,
+            E::Limit { .. } | E::MemoryBudget { .. } | E::ExternalResource { .. } => {
+                QtxStatus::Limit
+            }
             E::UnsupportedSvg { .. } | E::UnsupportedExtension(_) => QtxStatus::Unsupported,
             E::Core { source, .. } => core_status(source),
             _ => QtxStatus::Format,

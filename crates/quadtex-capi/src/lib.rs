@@ -68,6 +68,20 @@ pub enum QtxWrapMode {
     Border = 3,
 }
 
+/// Which files an SVG's `<image href>` may read (values for
+/// `QtxSvgOptions.resources`). Data URIs are always read; remote URLs never.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum QtxResources {
+    /// Only files inside the SVG's own folder: no absolute path, no `..` or
+    /// symbolic link out of it (the default).
+    SameFolder = 0,
+    /// Any file the process may read (for trusted files).
+    Anywhere = 1,
+    /// No files, not even beside the SVG: data URIs only.
+    None = 2,
+}
+
 /// How a footprint's points are weighted in its mean colour (values for
 /// `QtxFilterOptions.weighting`).
 #[repr(C)]
@@ -131,6 +145,11 @@ pub struct QtxSvgOptions {
     /// default) for the detected budget: art whose rasterisation is
     /// estimated above it is refused with `QTX_STATUS_LIMIT`.
     pub memory_limit: u64,
+    /// A `QtxResources`: which files the art's images may come from
+    /// (default `QTX_RESOURCES_SAME_FOLDER`: only inside the SVG's own
+    /// folder). A refused reference is `QTX_STATUS_LIMIT`, the message
+    /// naming the SVG and the reference.
+    pub resources: c_int,
 }
 
 /// What `qtx_texture_info` reports.
@@ -177,7 +196,8 @@ pub extern "C" fn qtx_filter_options_default() -> QtxFilterOptions {
 }
 
 /// The default SVG packing options: `QTX_LEVEL_AUTO`, no contour leaves,
-/// a sweep budget of 2^31 steps, the detected memory budget.
+/// a sweep budget of 2^31 steps, the detected memory budget, images only
+/// from the SVG's own folder.
 #[unsafe(no_mangle)]
 #[allow(unsafe_code)]
 pub extern "C" fn qtx_svg_options_default() -> QtxSvgOptions {
@@ -293,7 +313,9 @@ pub unsafe extern "C" fn qtx_verify(texture: *const QtxTexture) -> QtxStatus {
 /// decode, SVG that does not parse), `QTX_STATUS_UNSUPPORTED` (SVG features
 /// not supported: filters, GIF/WebP/svgz images, patterns over too many
 /// tiles),
-/// `QTX_STATUS_LIMIT`. SVG gradients are packed to the default smooth-colour
+/// `QTX_STATUS_LIMIT` (also an SVG image outside the SVG's folder: `qtx_pack`
+/// reads images only from there; `qtx_pack_svg` takes
+/// `options.resources`). SVG gradients are packed to the default smooth-colour
 /// tolerance (a quarter of an 8-bit step; `tolerance` must be 0 for SVG).
 ///
 /// # Safety

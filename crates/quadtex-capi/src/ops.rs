@@ -11,8 +11,8 @@ use quadtex_core::{
 
 use crate::error::Failure;
 use crate::{
-    QTX_DEFAULT_SVG_LEVEL, QtxFilterOptions, QtxLevel, QtxSvgOptions, QtxTexture, QtxTextureInfo,
-    QtxWeighting, QtxWrapMode,
+    QTX_DEFAULT_SVG_LEVEL, QtxFilterOptions, QtxLevel, QtxResources, QtxSvgOptions, QtxTexture,
+    QtxTextureInfo, QtxWeighting, QtxWrapMode,
 };
 
 /// A C string's bytes as a path. On Unix a file name is any bytes, so any
@@ -157,6 +157,7 @@ pub(crate) fn default_svg_options() -> QtxSvgOptions {
         contour_leaves: 0,
         max_sweep_work: quadtex_core::DEFAULT_MAX_SWEEP_WORK,
         memory_limit: 0,
+        resources: QtxResources::SameFolder as i32,
     }
 }
 
@@ -193,6 +194,17 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
             "options.max_sweep_work must be at least 1 (steps of the exact sweep), got 0",
         ));
     }
+    let external_resources = match options.resources {
+        r if r == QtxResources::SameFolder as i32 => quadtex_io::ExternalResources::SameFolder,
+        r if r == QtxResources::Anywhere as i32 => quadtex_io::ExternalResources::Anywhere,
+        r if r == QtxResources::None as i32 => quadtex_io::ExternalResources::None,
+        r => {
+            return Err(Failure::invalid(format!(
+                "options.resources must be QTX_RESOURCES_SAME_FOLDER (0), \
+                 QTX_RESOURCES_ANYWHERE (1) or QTX_RESOURCES_NONE (2), got {r}"
+            )));
+        }
+    };
     let options = quadtex_io::SvgOptions {
         vector: quadtex_core::VectorOptions {
             max_level,
@@ -200,7 +212,10 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
             max_sweep_work: options.max_sweep_work,
             ..quadtex_core::VectorOptions::default()
         },
-        limits: limits(options.memory_limit),
+        limits: quadtex_io::Limits {
+            external_resources,
+            ..limits(options.memory_limit)
+        },
     };
     let (tree, _) = quadtex_io::pack_svg(path, &options)?;
     Ok(QtxTexture::new(tree))

@@ -611,6 +611,13 @@ fn pack_svg_takes_its_options_and_names_the_one_at_fault() {
             },
             "options.max_sweep_work",
         ),
+        (
+            QtxSvgOptions {
+                resources: 3,
+                ..defaults
+            },
+            "options.resources",
+        ),
     ] {
         let (status, texture) = pack(Some(&options));
         assert_eq!(status, QtxStatus::InvalidArgument, "{field}");
@@ -642,6 +649,72 @@ fn pack_svg_takes_its_options_and_names_the_one_at_fault() {
         QtxStatus::InvalidArgument
     );
     assert_error(&["astronaut.png", "qtx_pack"]);
+}
+
+/// An SVG drawing `../outside.png`: refused by default (`qtx_pack` and
+/// `qtx_pack_svg`) as a limit naming the reference, packed with
+/// `QTX_RESOURCES_ANYWHERE`; `QTX_RESOURCES_NONE` refuses an image beside it.
+#[test]
+fn pack_svg_reads_images_only_from_its_folder_by_default() {
+    let dir = std::env::temp_dir().join(format!("quadtex-capi-resources-{}", std::process::id()));
+    let sub = dir.join("sub");
+    std::fs::create_dir_all(&sub).unwrap();
+    let png =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/resvg-suite/resources/image.png");
+    std::fs::copy(&png, dir.join("outside.png")).unwrap();
+    std::fs::copy(&png, sub.join("beside.png")).unwrap();
+    let write = |name: &str, href: &str| {
+        let file = sub.join(name);
+        std::fs::write(
+            &file,
+            format!(
+                r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10"><image width="10" height="10" href="{href}"/></svg>"#
+            ),
+        )
+        .unwrap();
+        c_path(&file)
+    };
+    let outside = write("out.svg", "../outside.png");
+    let beside = write("in.svg", "beside.png");
+    let mut texture = null_mut();
+    assert_eq!(
+        unsafe { qtx_pack(outside.as_ptr(), 0.0, 4, 0, &mut texture) },
+        QtxStatus::Limit
+    );
+    assert!(texture.is_null());
+    assert_error(&["out.svg", "\"../outside.png\" refused"]);
+    let options = |resources: QtxResources| QtxSvgOptions {
+        max_level: 4,
+        resources: resources as c_int,
+        ..qtx_svg_options_default()
+    };
+    let same = options(QtxResources::SameFolder);
+    assert_eq!(
+        unsafe { qtx_pack_svg(outside.as_ptr(), &same, &mut texture) },
+        QtxStatus::Limit
+    );
+    assert_eq!(
+        unsafe { qtx_pack_svg(beside.as_ptr(), &same, &mut texture) },
+        QtxStatus::Ok,
+        "{:?}",
+        last_error()
+    );
+    unsafe { qtx_free(texture) };
+    let anywhere = options(QtxResources::Anywhere);
+    assert_eq!(
+        unsafe { qtx_pack_svg(outside.as_ptr(), &anywhere, &mut texture) },
+        QtxStatus::Ok,
+        "{:?}",
+        last_error()
+    );
+    unsafe { qtx_free(texture) };
+    let none = options(QtxResources::None);
+    assert_eq!(
+        unsafe { qtx_pack_svg(beside.as_ptr(), &none, &mut texture) },
+        QtxStatus::Limit
+    );
+    assert_error(&["in.svg", "\"beside.png\" refused"]);
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

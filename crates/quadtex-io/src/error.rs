@@ -82,6 +82,17 @@ pub enum Error {
         /// The settings that lower the estimate or raise the budget.
         knobs: &'static str,
     },
+    /// An SVG or glTF file refers to a file its
+    /// [`crate::ExternalResources`] policy does not let it read (by default,
+    /// one outside its own folder).
+    ExternalResource {
+        /// The referring file.
+        path: PathBuf,
+        /// The reference as written (an `href` or `uri`).
+        reference: String,
+        /// Why it was refused.
+        reason: String,
+    },
     /// The core library refused the data.
     Core {
         /// The file.
@@ -139,6 +150,17 @@ impl fmt::Display for Error {
                 path.display(),
                 quadtex_core::memory::format_bytes(*estimate),
                 quadtex_core::memory::format_bytes(*budget)
+            ),
+            Error::ExternalResource {
+                path,
+                reference,
+                reason,
+            } => write!(
+                f,
+                "{}: external resource \"{reference}\" refused: {reason}; \
+                 `--resources anywhere` (Python `resources=\"anywhere\"`, Rust \
+                 `Limits::external_resources`) reads it if the file is trusted",
+                path.display()
             ),
             Error::Core { path, source } => write!(f, "{}: {source}", path.display()),
         }

@@ -35,7 +35,10 @@ pub use image_io::{
     ImageFormat, LinearImage, linear_to_srgb8, load_linear_image, load_texels,
     load_texels_from_bytes, save_image, save_image_as, write_image,
 };
-pub use limits::{FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE, default_memory_budget};
+pub use limits::{
+    ExternalResources, FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE,
+    default_memory_budget,
+};
 pub use qtx::{
     FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, parse_qtx, parse_qtx_structure, read_qtx, write_qtx,
     write_qtx_to,

@@ -40,6 +40,119 @@ pub struct Limits {
     /// [`quadtex_core::VectorArt::estimate_build_bytes`]; reading a `.qtx`,
     /// [`QTX_READ_BYTES_PER_NODE`] a node.
     pub max_memory: u64,
+    /// Which files an SVG's `<image href>` and a glTF model's buffer and
+    /// image URIs may read (default [`ExternalResources::SameFolder`]: only
+    /// files inside the referring file's own folder). Data URIs are always
+    /// read; remote URLs never are.
+    pub external_resources: ExternalResources,
+}
+
+/// Which files outside itself an SVG or glTF file may make quadtex read,
+/// through an SVG's `<image href="…">` or a glTF model's buffer and image
+/// `uri`s. Data URIs (`data:…`) are inside the file and always allowed;
+/// remote URLs (`…://…`) are never fetched, whatever the policy. A refused
+/// reference is [`crate::Error::ExternalResource`], naming the file and the
+/// reference.
+///
+/// It is a plain `Copy` enum, so [`Limits`] and [`crate::SvgOptions`] stay
+/// `Copy`; a list of extra folders would need an allocation in every
+/// `Limits`. To read from another folder, use [`ExternalResources::Anywhere`]
+/// for files you trust, or copy the resources beside the file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum ExternalResources {
+    /// Only files inside the referring file's folder or its subfolders: no
+    /// absolute paths, no `..` out of it, no symbolic link leading out
+    /// (the reference is resolved with every link followed, then checked
+    /// against the folder, itself resolved). The default: a downloaded file
+    /// reads only what came with it.
+    #[default]
+    SameFolder,
+    /// Any file the process may read, relative paths resolved against the
+    /// referring file's folder (quadtex's behaviour before this policy).
+    Anywhere,
+    /// No files at all, not even beside the referring file: only data URIs.
+    None,
+}
+
+impl ExternalResources {
+    /// The names [`ExternalResources::parse`] accepts, as the command line
+    /// spells them: `same-folder`, `anywhere`, `none`.
+    pub const NAMES: [&'static str; 3] = ["same-folder", "anywhere", "none"];
+
+    /// The policy named `name` (`same-folder`, `anywhere` or `none`).
+    pub fn parse(name: &str) -> Option<ExternalResources> {
+        match name {
+            "same-folder" => Some(ExternalResources::SameFolder),
+            "anywhere" => Some(ExternalResources::Anywhere),
+            "none" => Some(ExternalResources::None),
+            _ => None,
+        }
+    }
+
+    /// This policy's name, as [`ExternalResources::parse`] reads it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ExternalResources::SameFolder => "same-folder",
+            ExternalResources::Anywhere => "anywhere",
+            ExternalResources::None => "none",
+        }
+    }
+
+    /// The file that `reference` (a path relative to `document`'s folder,
+    /// or absolute; not a data URI or URL) names, if this policy lets
+    /// `document` read it. Under [`ExternalResources::SameFolder`] the
+    /// path returned is the resolved one (links followed), so the file
+    /// read is the file checked. A refusal, or a file that does not exist
+    /// under `SameFolder` (it cannot be resolved), is an error naming
+    /// `document` and `reference`.
+    pub fn resolve(
+        self,
+        document: &std::path::Path,
+        reference: &str,
+    ) -> Result<std::path::PathBuf, crate::Error> {
+        let refuse = |reason: String| crate::Error::ExternalResource {
+            path: document.to_path_buf(),
+            reference: reference.to_string(),
+            reason,
+        };
+        let folder = match document.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => std::path::Path::new("."),
+        };
+        let named = std::path::Path::new(reference);
+        match self {
+            ExternalResources::Anywhere => Ok(folder.join(named)),
+            ExternalResources::None => Err(refuse(
+                "external files are not read (resources policy `none`; data URIs only)".into(),
+            )),
+            ExternalResources::SameFolder => {
+                if named.has_root() || named.is_absolute() {
+                    return Err(refuse(
+                        "an absolute path, outside the file's folder (resources policy `same-folder`)"
+                            .into(),
+                    ));
+                }
+                let root = folder.canonicalize().map_err(|e| {
+                    refuse(format!(
+                        "the file's folder {} cannot be resolved: {e}",
+                        folder.display()
+                    ))
+                })?;
+                // A missing or unreadable file is the read error it would
+                // have been under any policy.
+                let joined = folder.join(named);
+                let file = joined.canonicalize().map_err(crate::error::io(&joined))?;
+                if !file.starts_with(&root) {
+                    return Err(refuse(format!(
+                        "it resolves to {}, outside the file's folder {} (resources policy `same-folder`)",
+                        file.display(),
+                        root.display()
+                    )));
+                }
+                Ok(file)
+            }
+        }
+    }
 }
 
 /// Peak bytes per node while reading a `.qtx`: the file's bytes (8.125 a
@@ -123,6 +236,7 @@ impl Default for Limits {
             max_svg_elements: 100_000,
             max_svg_image_texels: 1 << 28,
             max_scene_shapes: 10_000,
+            external_resources: ExternalResources::SameFolder,
             max_mesh_triangles: 1 << 22,
             max_memory: default_memory_budget(),
         }

@@ -66,7 +66,6 @@ pub(crate) fn load_gltf(
 ) -> Result<Model, String> {
     let bytes = read_limited(file, limits)?;
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not a valid glTF: {e}"))?;
-    let base = file.parent().unwrap_or(Path::new("."));
     let mut buffers = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
@@ -76,7 +75,7 @@ pub(crate) fn load_gltf(
                     buffer.index()
                 )
             })?,
-            gltf::buffer::Source::Uri(uri) => read_uri(uri, base, limits)
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, file, limits)
                 .map_err(|e| format!("buffer {}: {e}", buffer.index()))?,
         };
         if data.len() < buffer.length() {
@@ -108,7 +107,7 @@ pub(crate) fn load_gltf(
         images: HashMap::new(),
         grids: Vec::new(),
         triangles: 0,
-        base,
+        file,
     };
     for node in scene.nodes() {
         loader.node(&node, identity, 0)?;
@@ -148,7 +147,8 @@ struct Loader<'a> {
     images: HashMap<usize, usize>,
     grids: Vec<TexelGrid>,
     triangles: u64,
-    base: &'a Path,
+    /// The model's file (its URIs are resolved against its folder).
+    file: &'a Path,
 }
 
 type Matrix = [[f32; 4]; 4];
@@ -338,7 +338,7 @@ impl Loader<'_> {
                     })?
                     .to_vec()
             }
-            gltf::image::Source::Uri { uri, .. } => read_uri(uri, self.base, self.limits)
+            gltf::image::Source::Uri { uri, .. } => read_uri(uri, self.file, self.limits)
                 .map_err(|e| format!("image {}: {e}", image.index()))?,
         };
         let grid = quadtex_io::load_texels_from_bytes(&data, &name, self.limits)
@@ -475,10 +475,11 @@ fn read_limited(file: &Path, limits: &Limits) -> Result<Vec<u8>, String> {
     std::fs::read(file).map_err(|e| e.to_string())
 }
 
-/// The bytes a buffer or image URI names: a base64 data URI, or a file
-/// relative to `base` (percent-escapes are not decoded; remote URLs are
-/// refused).
-fn read_uri(uri: &str, base: &Path, limits: &Limits) -> Result<Vec<u8>, String> {
+/// The bytes a buffer or image URI of the model in `model` names: a base64
+/// data URI, or a file relative to the model's folder that
+/// [`Limits::external_resources`] lets it read (percent-escapes are not
+/// decoded; remote URLs are refused).
+fn read_uri(uri: &str, model: &Path, limits: &Limits) -> Result<Vec<u8>, String> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let (_, payload) = rest
             .split_once(";base64,")
@@ -491,7 +492,10 @@ fn read_uri(uri: &str, base: &Path, limits: &Limits) -> Result<Vec<u8>, String> 
     if uri.contains("://") {
         return Err(format!("\"{uri}\" is remote (not fetched)"));
     }
-    let file = base.join(uri);
+    let file = limits
+        .external_resources
+        .resolve(model, uri)
+        .map_err(|e| e.to_string())?;
     read_limited(&file, limits).map_err(|e| format!("{}: {e}", file.display()))
 }
 
@@ -626,6 +630,101 @@ mod tests {
         assert_eq!(decode_base64("AAEC").unwrap(), [0, 1, 2]);
         assert!(decode_base64("a$bc").is_err());
         assert!(decode_base64("a").is_err());
+    }
+
+    /// A textured triangle as a `.gltf` in `tmp/<name>/model/m.gltf`
+    /// whose buffer is the file `buffer_uri` and image the file
+    /// `image_uri` (both written at `tmp/<name>/outside.*` and beside the
+    /// model as `inside.*`); returns the model's path.
+    fn external_model(name: &str, buffer_uri: &str, image_uri: &str) -> PathBuf {
+        let root = std::env::temp_dir().join(format!("quadtex-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let model = root.join("model");
+        std::fs::create_dir_all(&model).unwrap();
+        let glb = root.join("t.glb");
+        // A 2 × 2 RGB PNG.
+        let png = decode_base64("iVBORw0KGgoAAAANSUhEUgAAAAIAAAACCAIAAAD91JpzAAAAEklEQVR4nGP4z8DAAMIM/4EAAB/uBfsL2WiLAAAAAElFTkSuQmCC").unwrap();
+        write_glb(
+            &glb,
+            &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
+            &[[0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+            &[0, 1, 2],
+            Some(&png),
+        )
+        .unwrap();
+        let bytes = std::fs::read(&glb).unwrap();
+        let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let json = String::from_utf8(bytes[20..20 + json_len].to_vec()).unwrap();
+        let bin = &bytes[20 + json_len + 8..];
+        for dir in [&root, &model] {
+            let stem = if dir == &root { "outside" } else { "inside" };
+            std::fs::write(dir.join(format!("{stem}.bin")), bin).unwrap();
+            std::fs::write(dir.join(format!("{stem}.png")), &png).unwrap();
+        }
+        let json = json
+            .replacen(
+                "\"buffers\":[{",
+                &format!("\"buffers\":[{{\"uri\":\"{buffer_uri}\","),
+                1,
+            )
+            .replacen(
+                "\"images\":[{\"bufferView\":3,\"mimeType\":\"image/png\"}]",
+                &format!("\"images\":[{{\"uri\":\"{image_uri}\"}}]"),
+                1,
+            );
+        assert!(
+            json.contains(buffer_uri) && json.contains(image_uri),
+            "{json}"
+        );
+        let file = model.join("m.gltf");
+        std::fs::write(&file, json.trim_end()).unwrap();
+        file
+    }
+
+    fn load(file: &Path, policy: quadtex_io::ExternalResources) -> Result<Model, String> {
+        let limits = Limits {
+            external_resources: policy,
+            ..Limits::default()
+        };
+        load_gltf(file, 1.0, Vec3::default(), &limits)
+    }
+
+    #[test]
+    fn uris_outside_the_model_folder_are_refused_by_default() {
+        use quadtex_io::ExternalResources::{Anywhere, None, SameFolder};
+        let inside = external_model("gltf-in", "inside.bin", "inside.png");
+        let model = load(&inside, SameFolder).unwrap();
+        assert_eq!((model.parts.len(), model.images.len()), (1, 1));
+        let e = load(&inside, None).err().unwrap();
+        assert!(
+            e.contains("m.gltf") && e.contains("\"inside.bin\" refused"),
+            "{e}"
+        );
+        for (name, buffer, image, refused) in [
+            (
+                "gltf-buffer",
+                "../outside.bin",
+                "inside.png",
+                "../outside.bin",
+            ),
+            (
+                "gltf-image",
+                "inside.bin",
+                "../outside.png",
+                "../outside.png",
+            ),
+        ] {
+            let file = external_model(name, buffer, image);
+            let e = load(&file, SameFolder).err().unwrap();
+            assert!(
+                e.contains("m.gltf") && e.contains(&format!("\"{refused}\" refused")),
+                "{e}"
+            );
+            let model = load(&file, Anywhere).unwrap();
+            assert_eq!((model.parts.len(), model.images.len()), (1, 1));
+            std::fs::remove_dir_all(file.parent().unwrap().parent().unwrap()).unwrap();
+        }
+        std::fs::remove_dir_all(inside.parent().unwrap().parent().unwrap()).unwrap();
     }
 
     #[test]

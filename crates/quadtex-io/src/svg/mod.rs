@@ -19,7 +19,8 @@
 //! once per tile the shape reaches, clipped to the tile and the shape; at
 //! most [`MAX_PATTERN_TILES`] tiles a fill); `mix-blend-mode` (every CSS
 //! mode, `plus-lighter` included); images: PNG and JPEG, from data URLs or from
-//! files named relative to the SVG (each texel a flat square; every square
+//! files named relative to the SVG, by default only inside the SVG's own
+//! folder (see [`crate::ExternalResources`]; each texel a flat square; every square
 //! of the tree gets the exact area mean of the texels it covers, see
 //! `quadtex_core::image_paint`), and SVG images, walked as nested art
 //! clipped to their size. An image that cannot be read (a missing file, a
@@ -245,14 +246,20 @@ fn parse_flattened(
                 })
             }),
             resolve_string: Box::new(|href, opts| {
-                let file = opts.get_abs_path(Path::new(href));
+                // Data URLs never get here (usvg hands them to `resolve_data`).
                 let read = if href.contains("://") {
                     Err(svg_err(format!("image \"{href}\" is remote (not fetched)")))
                 } else {
-                    read_limited(&file, limits)
-                        .map_err(|e| svg_err(format!("image \"{href}\" could not be read: {e}")))
+                    limits
+                        .external_resources
+                        .resolve(path, href)
+                        .and_then(|file| read_limited(&file, limits).map(|data| (file, data)))
+                        .map_err(|e| match e {
+                            Error::ExternalResource { .. } => e,
+                            e => svg_err(format!("image \"{href}\" could not be read: {e}")),
+                        })
                 };
-                read.and_then(|data| {
+                read.and_then(|(file, data)| {
                     resolve_image("text/plain", Arc::new(data), opts, &file, limits)
                 })
                 .unwrap_or_else(|e| {

@@ -336,3 +336,105 @@ fn far_away_curves_are_refused_before_they_are_flattened() {
         "{e}"
     );
 }
+
+/// A fresh folder `tmp/quadtex-io-<name>-<pid>` holding `outside.png` and
+/// `dir/sub/` with `in.png`, `deeper/in2.png` and (on Unix) `link.png`, a
+/// symbolic link to `outside.png`; returns the folder and `dir/sub`.
+fn resource_tree(name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let root = std::env::temp_dir().join(format!("quadtex-io-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let sub = root.join("dir").join("sub");
+    std::fs::create_dir_all(sub.join("deeper")).unwrap();
+    let png = image::RgbaImage::from_pixel(2, 2, image::Rgba([200, 10, 10, 255]));
+    png.save(root.join("outside.png")).unwrap();
+    png.save(sub.join("in.png")).unwrap();
+    png.save(sub.join("deeper").join("in2.png")).unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(root.join("outside.png"), sub.join("link.png")).unwrap();
+    (root, sub)
+}
+
+/// Whether `art` covers the unit square opaquely (the image was drawn).
+fn opaque(art: &VectorArt) -> bool {
+    let options = VectorOptions {
+        max_level: 4,
+        ..VectorOptions::default()
+    };
+    let (tree, _) = QuadTree::from_vector(art, &options).unwrap();
+    let f = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
+    tree.weighted_colour(&f, 4).0[3] > 0.99
+}
+
+/// Loads `sub/a.svg` drawing one image `href` under `policy`.
+fn load_with_href(
+    sub: &Path,
+    href: &str,
+    policy: crate::ExternalResources,
+) -> Result<VectorArt, Error> {
+    let file = sub.join("a.svg");
+    std::fs::write(
+        &file,
+        format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 10 10"><image width="10" height="10" href="{href}"/></svg>"#
+        ),
+    )
+    .unwrap();
+    let limits = Limits {
+        external_resources: policy,
+        ..Limits::default()
+    };
+    load_svg(&file, &SvgOptions::at_level(4).with_limits(limits))
+}
+
+#[test]
+fn images_outside_the_folder_are_refused_by_default() {
+    use crate::ExternalResources::{Anywhere, SameFolder};
+    let (root, sub) = resource_tree("svg-resources");
+    let absolute = root.join("outside.png").display().to_string();
+    let mut refs = vec![
+        absolute.as_str(),
+        "../../outside.png",
+        "deeper/../../../outside.png",
+    ];
+    if cfg!(unix) {
+        refs.push("link.png");
+    }
+    for href in refs {
+        let e = load_with_href(&sub, href, SameFolder).unwrap_err();
+        let text = e.to_string();
+        assert!(
+            matches!(&e, Error::ExternalResource { reference, .. } if reference == href),
+            "{href}: {text}"
+        );
+        assert!(
+            text.contains("a.svg") && text.contains(&format!("\"{href}\"")),
+            "{text}"
+        );
+        // Widened, the same file is drawn.
+        let art = load_with_href(&sub, href, Anywhere).unwrap();
+        assert!(opaque(&art), "{href}");
+    }
+    // Inside the folder, however written, the default reads it.
+    for href in ["in.png", "./in.png", "deeper/in2.png", "deeper/../in.png"] {
+        let art = load_with_href(&sub, href, SameFolder).unwrap();
+        assert!(opaque(&art), "{href}");
+    }
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
+fn resources_none_reads_no_file_but_data_urls() {
+    use crate::ExternalResources::None;
+    let (root, sub) = resource_tree("svg-resources-none");
+    let e = load_with_href(&sub, "in.png", None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("a.svg") && e.contains("\"in.png\" refused") && e.contains("none"),
+        "{e}"
+    );
+    let data = format!("data:image/png;base64,{PNG_2X2}");
+    let art = load_with_href(&sub, &data, None).unwrap();
+    assert!(opaque(&art));
+    std::fs::remove_dir_all(&root).unwrap();
+}
