@@ -33,8 +33,8 @@ pub use image_io::{
 };
 pub use limits::{FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE, default_memory_budget};
 pub use qtx::{
-    FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, parse_qtx, parse_qtx_structure, read_qtx, write_qtx,
-    write_qtx_to,
+    FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, map_qtx_unverified, parse_qtx, parse_qtx_structure,
+    read_qtx, write_qtx, write_qtx_to,
 };
 pub use query::parse_query_line;
 pub use svg::{MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, parse_svg};
