@@ -115,8 +115,14 @@ class Texture:
 
     def __repr__(self) -> str: ...
 
-def open(path: _StrPath) -> Texture:
-    """Reads a ``.qtx`` file (fully validated)."""
+def open(path: _StrPath, mapped: bool = False, verify: bool = True) -> Texture:
+    """Reads a ``.qtx`` file (fully validated).
+
+    ``mapped=True`` memory-maps it: header, structure and payload checksum
+    checked (a damaged file is refused), colours read where queries go.
+    ``verify=False`` (mapped only) skips the payload checksum for trusted
+    files, giving up the promise that a damaged file is refused.
+    """
 
 def pack(
     source: Union[_StrPath, npt.ArrayLike],

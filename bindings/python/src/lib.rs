@@ -223,20 +223,26 @@ impl Texture {
 
 /// Reads a `.qtx` file, checking its checksums and every colour.
 ///
-/// With `mapped=True` the file is memory-mapped instead: only its header
-/// and structure are checked (fast at any size) and queries read the nodes
-/// they touch; `Texture.verify()` checks the rest.
+/// With `mapped=True` the file is memory-mapped instead: its header,
+/// structure and payload checksum are checked (one pass at memory speed,
+/// so a damaged file is refused) and queries read the nodes they touch;
+/// `Texture.verify()` checks the colours' invariants. `verify=False` (with
+/// `mapped=True` only) skips the payload checksum for trusted files,
+/// giving up the promise that a damaged file is refused.
 #[pyfunction]
-#[pyo3(signature = (path, mapped = false))]
-fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
+#[pyo3(signature = (path, mapped = false, verify = true))]
+fn open(py: Python<'_>, path: PathBuf, mapped: bool, verify: bool) -> PyResult<Texture> {
+    if !verify && !mapped {
+        return Err(PyValueError::new_err(
+            "verify=False applies to mapped=True only (reading a file whole always verifies it)",
+        ));
+    }
     let limits = quadtex_io::Limits::default();
     let (tree, info) = py
-        .detach(|| {
-            if mapped {
-                quadtex_io::map_qtx(&path, &limits)
-            } else {
-                quadtex_io::read_qtx(&path, &limits)
-            }
+        .detach(|| match (mapped, verify) {
+            (true, true) => quadtex_io::map_qtx(&path, &limits),
+            (true, false) => quadtex_io::map_qtx_unverified(&path, &limits),
+            _ => quadtex_io::read_qtx(&path, &limits),
         })
         .map_err(io_error)?;
     let source = (info.source_width > 0 && info.source_height > 0)
