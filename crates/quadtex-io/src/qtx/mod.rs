@@ -434,7 +434,7 @@ fn build_tree(
     let texel_blocks = match header.blocks {
         None => None,
         Some((format, level)) => Some(decode_blocks(
-            &all,
+            all,
             colour_start + 8 * nodes..payload.end,
             format,
             level,
