@@ -330,12 +330,14 @@ struct QtxSvgOptions qtx_svg_options_default(void);
 enum QtxStatus qtx_open(const char *path, struct QtxTexture **out);
 
 /**
- * Opens a `.qtx` file by memory-mapping it: only the header and the
- * structure are checked (time and memory proportional to 1/64 of the
- * file), and filtering reads the nodes it touches. Colours are not read:
- * `qtx_verify` checks them. The file must not be truncated or rewritten
- * in place while the texture lives (quadtex's writers replace files by
- * renaming, which is safe).
+ * Opens a `.qtx` file by memory-mapping it: the header, the structure and
+ * the payload checksum are checked (one pass over the file at memory
+ * speed, so a damaged colour or texel is refused with
+ * `QTX_STATUS_FORMAT`, the message naming the file and the damaged
+ * bytes), and filtering reads the nodes it touches. The colours'
+ * invariants are not checked: `qtx_verify` checks them. The file must not
+ * be truncated or rewritten in place while the texture lives (quadtex's
+ * writers replace files by renaming, which is safe).
  *
  * Arguments, returns and safety as `qtx_open`.
  *
@@ -343,6 +345,20 @@ enum QtxStatus qtx_open(const char *path, struct QtxTexture **out);
  * As `qtx_open`.
  */
 enum QtxStatus qtx_open_mapped(const char *path, struct QtxTexture **out);
+
+/**
+ * As `qtx_open_mapped` without the payload checksum, for trusted files:
+ * only the header and the structure are checked (time and memory
+ * proportional to 1/64 of the file). This gives up the promise that a
+ * damaged file is refused: a corrupt colour is filtered as it is, until
+ * `qtx_verify` is asked.
+ *
+ * Arguments, returns and safety as `qtx_open`.
+ *
+ * # Safety
+ * As `qtx_open`.
+ */
+enum QtxStatus qtx_open_mapped_unverified(const char *path, struct QtxTexture **out);
 
 /**
  * Checks every colour and texel of a texture (what `qtx_open_mapped`

@@ -114,19 +114,25 @@ fn qtx_case(case: &str, mutate: impl FnOnce(&mut Vec<u8>), field: &str) {
     qtx_case_with(case, mutate, field, &[&[], &["--verify"]]);
 }
 
-/// A `.qtx` case in the colours: mapped, `info` and `query` do not read
-/// them (and must not crash); `--verify` refuses them by name.
+/// A `.qtx` case in the colours with valid checksums (crafted, not
+/// damaged): mapped, `info` and `query` do not check the colours'
+/// invariants (and must not crash); `--verify` refuses them by name.
 fn qtx_colour_case(case: &str, mutate: impl Fn(&mut Vec<u8>), field: &str) {
     qtx_case_with(case, &mutate, field, &[&["--verify"]]);
+    qtx_answers_unchecked(case, mutate, &[]);
+}
+
+/// Runs `quadtex query args…` on the valid file mutated by `mutate`;
+/// asserts it answers both fragments.
+fn qtx_answers_unchecked(case: &str, mutate: impl Fn(&mut Vec<u8>), args: &[&str]) {
     let d = dir(&format!("{case}-mapped"));
     let mut bytes = valid_qtx(&d);
     mutate(&mut bytes);
     let p = d.join(format!("{case}.qtx"));
     std::fs::write(&p, &bytes).unwrap();
-    let out = run(
-        &["query", p.to_str().unwrap()],
-        "0 0 1 1\n0.1 0.2 0.3 0.9\n",
-    );
+    let mut query = vec!["query", p.to_str().unwrap()];
+    query.extend_from_slice(args);
+    let out = run(&query, "0 0 1 1\n0.1 0.2 0.3 0.9\n");
     assert!(
         out.status.success(),
         "{}",
@@ -193,10 +199,59 @@ qtx_cases! {
     qtx_block_level_below_the_tree: "block_level", |b| { b[29] = 31; reseal_header(b); };
     qtx_wrong_header_size: "header_bytes", |b| { b[12] = 128; reseal_header(b); };
     qtx_inner_flags_cleared: "inner_bits", |b| { b[64] = 0; reseal_payload(b); };
+    qtx_payload_bit_flip: "payload_crc", |b| { let n = b.len(); b[n - 9] ^= 0x01; };
+}
+
+/// A damaged colour is refused by default (above), and answered as it is
+/// with `--no-verify`, which gives up that promise for trusted files.
+#[test]
+fn qtx_payload_bit_flip_answers_with_no_verify() {
+    qtx_answers_unchecked(
+        "qtx_payload_bit_flip_no_verify",
+        |b| {
+            let n = b.len();
+            b[n - 9] ^= 0x01;
+        },
+        &["--no-verify"],
+    );
+}
+
+/// One to three bits flipped at random in the colours of 24 copies of a
+/// packed file: `quadtex query` (mapped, the default) refuses every copy,
+/// exit status 1, naming the file and the payload checksum.
+#[test]
+fn qtx_random_colour_bit_flips_are_refused_by_query() {
+    let d = dir("qtx-random-flips");
+    let good = valid_qtx(&d);
+    let nodes = u64::from_le_bytes(good[32..40].try_into().unwrap()) as usize;
+    let colours = 64 + nodes.div_ceil(8);
+    let mut rng = 0x2545_F491_4F6C_DD1D_u64;
+    for copy in 0..24 {
+        let mut bytes = good.clone();
+        for _ in 0..1 + copy % 3 {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            let bit = (rng % (64 * nodes as u64)) as usize;
+            bytes[colours + bit / 8] ^= 1 << (bit % 8);
+        }
+        if bytes == good {
+            continue; // the same bit flipped twice
+        }
+        let name = format!("copy-{copy}.qtx");
+        let p = d.join(&name);
+        std::fs::write(&p, &bytes).unwrap();
+        expect_failure(
+            &["query", p.to_str().unwrap()],
+            "0 0 1 1\n",
+            &[&name, "payload_crc", "colours (bytes"],
+            None,
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
 }
 
 qtx_colour_cases! {
-    qtx_payload_bit_flip: "payload_crc", |b| { let n = b.len(); b[n - 9] ^= 0x01; };
     qtx_not_premultiplied: "premultiplied", |b| {
         // Node 0's red channel (first colour, after the inner bits) above its alpha.
         let n = u64::from_le_bytes(b[32..40].try_into().unwrap()) as usize;

@@ -126,12 +126,15 @@ class Texture:
 
     def __repr__(self) -> str: ...
 
-def open(path: _StrPath, mapped: bool = False) -> Texture:
+def open(path: _StrPath, mapped: bool = False, verify: bool = True) -> Texture:
     """Reads a ``.qtx`` file, checking its checksums and every colour.
 
-    mapped: if True the file is memory-mapped instead: only its header and
-        structure are checked (fast at any size) and queries read the nodes
-        they touch; :meth:`Texture.verify` checks the rest.
+    mapped: if True the file is memory-mapped instead: its header, structure
+        and payload checksum are checked (one pass at memory speed, so a
+        damaged file is refused) and queries read the nodes they touch;
+        :meth:`Texture.verify` checks the colours' invariants.
+    verify: with ``mapped=True`` only: False skips the payload checksum for
+        trusted files, giving up the promise that a damaged file is refused.
     """
 
 def pack(

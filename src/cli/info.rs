@@ -25,11 +25,16 @@ pub struct Args {
     /// SVG art only: the levels to pack, comma-separated [default: 8,10,12,14,16].
     #[arg(long, value_name = "L,L,...", value_delimiter = ',', value_parser = vector_level)]
     levels: Option<Vec<u8>>,
-    /// A .qtx file is memory-mapped and only its header and structure are
-    /// checked (fast at any size); with --verify, read it whole and check
-    /// its payload checksum and every colour as well.
-    #[arg(long)]
+    /// A .qtx file is memory-mapped and its header, structure and payload
+    /// checksum are checked (one pass at memory speed); with --verify, read
+    /// it whole and check every colour as well.
+    #[arg(long, conflicts_with = "no_verify")]
     verify: bool,
+    /// For trusted .qtx files: map without checking the payload checksum
+    /// (opens in time proportional to the structure, 1/64 of the file),
+    /// giving up the promise that a damaged file is refused.
+    #[arg(long)]
+    no_verify: bool,
     #[command(flatten)]
     memory: MemoryArgs,
     #[command(flatten)]
@@ -56,6 +61,7 @@ pub fn run(args: Args) -> Result<()> {
         path,
         levels,
         verify,
+        no_verify,
         memory,
         resources,
     } = args;
@@ -73,6 +79,8 @@ pub fn run(args: Args) -> Result<()> {
     let start = Instant::now();
     let (tree, meta) = if verify {
         quadtex_io::read_qtx(&path, &limits)?
+    } else if no_verify {
+        quadtex_io::map_qtx_unverified(&path, &limits)?
     } else {
         quadtex_io::map_qtx(&path, &limits)?
     };
@@ -91,8 +99,10 @@ pub fn run(args: Args) -> Result<()> {
         opened.as_secs_f64() * 1e3,
         if verify {
             "read whole; checksums, structure and every colour verified"
+        } else if no_verify {
+            "mapped unverified; header and structure checked, colours not read (--verify reads them)"
         } else {
-            "mapped; header and structure checked, colours not read (--verify reads them)"
+            "mapped; checksums and structure checked (--verify checks every colour too)"
         }
     )?;
     writeln!(out, "depth:       {}", tree.depth())?;

@@ -273,26 +273,33 @@ impl Texture {
 ///
 /// Parameters:
 ///   path: str, bytes or os.PathLike; a `.qtx` file.
-///   mapped: if True the file is memory-mapped instead: only its header and
-///     structure are checked (fast at any size) and queries read the nodes
-///     they touch; `Texture.verify()` checks the rest.
+///   mapped: if True the file is memory-mapped instead: its header,
+///     structure and payload checksum are checked (one pass at memory speed,
+///     so a damaged file is refused) and queries read the nodes they touch;
+///     `Texture.verify()` checks the colours' invariants.
+///   verify: with `mapped=True` only: False skips the payload checksum for
+///     trusted files, giving up the promise that a damaged file is refused.
 ///
 /// Returns: a `Texture`.
 ///
 /// Raises: OSError when the system refuses (e.g. FileNotFoundError; `errno`
-/// and `filename` set), ValueError for a malformed file (the message names
-/// the file and the field).
+/// and `filename` set), ValueError for a malformed or damaged file (the
+/// message names the file and the field or the damaged bytes), or for
+/// `verify=False` without `mapped=True`.
 #[pyfunction]
-#[pyo3(signature = (path, mapped = false))]
-fn open(py: Python<'_>, path: PathBuf, mapped: bool) -> PyResult<Texture> {
+#[pyo3(signature = (path, mapped = false, verify = true))]
+fn open(py: Python<'_>, path: PathBuf, mapped: bool, verify: bool) -> PyResult<Texture> {
+    if !verify && !mapped {
+        return Err(PyValueError::new_err(
+            "verify=False applies to mapped=True only (reading a file whole always verifies it)",
+        ));
+    }
     let limits = quadtex_io::Limits::default();
     let (tree, info) = py
-        .detach(|| {
-            if mapped {
-                quadtex_io::map_qtx(&path, &limits)
-            } else {
-                quadtex_io::read_qtx(&path, &limits)
-            }
+        .detach(|| match (mapped, verify) {
+            (true, true) => quadtex_io::map_qtx(&path, &limits),
+            (true, false) => quadtex_io::map_qtx_unverified(&path, &limits),
+            _ => quadtex_io::read_qtx(&path, &limits),
         })
         .map_err(io_error)?;
     let source = (info.source_width > 0 && info.source_height > 0)

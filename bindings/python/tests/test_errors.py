@@ -1,6 +1,7 @@
 """Bad input raises ValueError / TypeError naming the index, field or shape."""
 
 import errno
+import random
 import re
 import struct
 import zlib
@@ -309,19 +310,40 @@ def test_mapped_open_reads_colours_lazily_and_verify_finds_them(tmp_path, tex, q
     mapped.verify()
     rects = np.array([[0.1, 0.2, 0.6, 0.9], [0.0, 0.0, 1.0, 1.0]])
     np.testing.assert_array_equal(mapped.integrate(rects), tex.integrate(rects))
-    # The last node's alpha zeroed: it opens mapped (colours are not read)
-    # and answers without crashing, but verify and a full open refuse it.
+    # The last node's alpha zeroed: mapping refuses it by its payload
+    # checksum; mapped unverified it opens (colours are not read) and
+    # answers without crashing, but verify and a full open refuse it.
     nodes = struct.unpack_from("<Q", qtx_bytes, 32)[0]
     colours = 64 + (nodes + 7) // 8
     b = bytearray(qtx_bytes)
     b[colours + 8 * nodes - 2 : colours + 8 * nodes] = b"\0\0"
     path.write_bytes(bytes(b))
-    lazy = quadtex.open(path, mapped=True)
+    with pytest.raises(ValueError, match=r"lazy\.qtx: invalid \.qtx file: payload_crc"):
+        quadtex.open(path, mapped=True)
+    lazy = quadtex.open(path, mapped=True, verify=False)
     assert np.isfinite(lazy.integrate(rects)).all()
     with pytest.raises(ValueError, match=r"lazy\.qtx: .*node"):
         lazy.verify()
     with pytest.raises(ValueError, match=r"lazy\.qtx: invalid \.qtx file: payload_crc"):
         quadtex.open(path)
+
+
+def test_every_open_refuses_flipped_colour_bits(tmp_path, qtx_bytes):
+    # 50 copies, one to three bits flipped at random in the colours.
+    rng = random.Random(62)
+    nodes = struct.unpack_from("<Q", qtx_bytes, 32)[0]
+    colours = 64 + (nodes + 7) // 8
+    for copy in range(50):
+        b = bytearray(qtx_bytes)
+        for bit in rng.sample(range(64 * nodes), 1 + copy % 3):
+            b[colours + bit // 8] ^= 1 << (bit % 8)
+        path = tmp_path / f"flip{copy}.qtx"
+        path.write_bytes(bytes(b))
+        for mapped in (False, True):
+            with pytest.raises(ValueError, match=rf"flip{copy}\.qtx: .*payload_crc.*bytes"):
+                quadtex.open(path, mapped=mapped)
+    with pytest.raises(ValueError, match="mapped=True only"):
+        quadtex.open(path, verify=False)
 
 
 def test_mapped_open_refuses_corrupt_structure(tmp_path, qtx_bytes):

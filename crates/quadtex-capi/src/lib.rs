@@ -226,7 +226,8 @@ pub unsafe extern "C" fn qtx_open(path: *const c_char, out: *mut *mut QtxTexture
     unsafe { open_with(path, out, ops::open) }
 }
 
-/// `qtx_open` and `qtx_open_mapped`: `open` makes the texture from the path.
+/// `qtx_open` and the `qtx_open_mapped` functions: `open` makes the
+/// texture from the path.
 ///
 /// # Safety
 /// As `qtx_open`.
@@ -247,12 +248,14 @@ unsafe fn open_with(
     })
 }
 
-/// Opens a `.qtx` file by memory-mapping it: only the header and the
-/// structure are checked (time and memory proportional to 1/64 of the
-/// file), and filtering reads the nodes it touches. Colours are not read:
-/// `qtx_verify` checks them. The file must not be truncated or rewritten
-/// in place while the texture lives (quadtex's writers replace files by
-/// renaming, which is safe).
+/// Opens a `.qtx` file by memory-mapping it: the header, the structure and
+/// the payload checksum are checked (one pass over the file at memory
+/// speed, so a damaged colour or texel is refused with
+/// `QTX_STATUS_FORMAT`, the message naming the file and the damaged
+/// bytes), and filtering reads the nodes it touches. The colours'
+/// invariants are not checked: `qtx_verify` checks them. The file must not
+/// be truncated or rewritten in place while the texture lives (quadtex's
+/// writers replace files by renaming, which is safe).
 ///
 /// Arguments, returns and safety as `qtx_open`.
 ///
@@ -266,6 +269,26 @@ pub unsafe extern "C" fn qtx_open_mapped(
 ) -> QtxStatus {
     // SAFETY: forwarded from this function's contract.
     unsafe { open_with(path, out, ops::open_mapped) }
+}
+
+/// As `qtx_open_mapped` without the payload checksum, for trusted files:
+/// only the header and the structure are checked (time and memory
+/// proportional to 1/64 of the file). This gives up the promise that a
+/// damaged file is refused: a corrupt colour is filtered as it is, until
+/// `qtx_verify` is asked.
+///
+/// Arguments, returns and safety as `qtx_open`.
+///
+/// # Safety
+/// As `qtx_open`.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_open_mapped_unverified(
+    path: *const c_char,
+    out: *mut *mut QtxTexture,
+) -> QtxStatus {
+    // SAFETY: forwarded from this function's contract.
+    unsafe { open_with(path, out, ops::open_mapped_unverified) }
 }
 
 /// Checks every colour and texel of a texture (what `qtx_open_mapped`

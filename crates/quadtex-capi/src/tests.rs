@@ -1126,8 +1126,8 @@ fn tiles_pack_like_the_whole_mosaic_and_bad_tiles_are_named() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A mapped texture filters as an opened one; a corrupt colour opens
-/// mapped but fails `qtx_verify`; NULL is refused.
+/// A mapped texture filters as an opened one; a corrupt colour is refused
+/// mapped, opens mapped unverified but fails `qtx_verify`; NULL is refused.
 #[test]
 fn mapped_open_and_verify() {
     let dir = temp_dir("mapped");
@@ -1155,6 +1155,12 @@ fn mapped_open_and_verify() {
     std::fs::write(&file, &bytes).unwrap();
     assert_eq!(
         unsafe { qtx_open_mapped(c_path(&file).as_ptr(), &mut texture) },
+        QtxStatus::Format
+    );
+    assert!(texture.is_null());
+    assert_error(&["checker.qtx", "payload_crc", "colours (bytes"]);
+    assert_eq!(
+        unsafe { qtx_open_mapped_unverified(c_path(&file).as_ptr(), &mut texture) },
         QtxStatus::Ok
     );
     assert_eq!(unsafe { qtx_verify(texture) }, QtxStatus::Format);
@@ -1166,6 +1172,50 @@ fn mapped_open_and_verify() {
         QtxStatus::Format
     );
     assert_error(&["checker.qtx", "payload_crc"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// One to three bits flipped at random in the colours of 50 copies of a
+/// packed file: `qtx_open` and `qtx_open_mapped` refuse every copy, the
+/// message naming the file and the payload checksum.
+#[test]
+fn flipped_colour_bits_are_refused_by_every_open() {
+    let dir = temp_dir("flips");
+    let good_file = dir.join("good.qtx");
+    let g = quadtex_core::synth::runway_art().rasterise(32, 32).unwrap();
+    let (tree, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+    quadtex_io::write_qtx(&good_file, &tree, None).unwrap();
+    let good = std::fs::read(&good_file).unwrap();
+    let nodes = tree.node_count() as usize;
+    let colours = 64 + nodes.div_ceil(8);
+    let mut rng = 0x9E37_79B9_7F4A_7C15_u64;
+    for copy in 0..50 {
+        let mut bytes = good.clone();
+        let mut flipped = Vec::new();
+        while flipped.len() < 1 + copy % 3 {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            let bit = (rng % (64 * nodes as u64)) as usize;
+            if !flipped.contains(&bit) {
+                flipped.push(bit);
+                bytes[colours + bit / 8] ^= 1 << (bit % 8);
+            }
+        }
+        let name = format!("flip{copy}.qtx");
+        let file = dir.join(&name);
+        std::fs::write(&file, &bytes).unwrap();
+        for open in [qtx_open, qtx_open_mapped] {
+            let mut texture = null_mut();
+            assert_eq!(
+                unsafe { open(c_path(&file).as_ptr(), &mut texture) },
+                QtxStatus::Format,
+                "{name}: {flipped:?}"
+            );
+            assert!(texture.is_null());
+            assert_error(&[&name, "payload_crc"]);
+        }
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -40,8 +40,8 @@ pub use limits::{
     default_memory_budget,
 };
 pub use qtx::{
-    FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, parse_qtx, parse_qtx_structure, read_qtx, write_qtx,
-    write_qtx_to,
+    FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, map_qtx_unverified, parse_qtx, parse_qtx_structure,
+    read_qtx, write_qtx, write_qtx_to,
 };
 pub use query::parse_query_line;
 pub use svg::{MAX_PATTERN_TILES, MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, parse_svg};

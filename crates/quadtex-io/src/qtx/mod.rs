@@ -181,33 +181,55 @@ pub fn read_qtx(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Err
 }
 
 /// Opens a `.qtx` file by memory-mapping it: the tree reads its colours
-/// and texels in place, so opening costs time and memory proportional to
-/// the inner-node flags (1/64 of the file), not to the file, and a query
-/// loads only the pages it touches.
+/// and texels in place, so opening takes memory proportional to the
+/// inner-node flags (1/32 of the file), not to the file.
 ///
-/// Opening checks the header, its checksum, the structure checksum of a
-/// version-2 file and the structure itself (levels, depth, block flags) as
-/// [`read_qtx`] does; it does **not** read the colours, so
-/// their checksum and invariants are left to [`QuadTree::verify`] (or to
-/// [`read_qtx`]). A corrupt colour then gives a wrong colour,
-/// never a panic. A version-1 file has no structure checksum: its whole
-/// payload checksum is checked instead, which reads the file.
+/// Opening checks the header, its checksum, the structure checksum and
+/// the structure itself (levels, depth, block flags) as [`read_qtx`] does,
+/// **and the payload checksum over every byte after the header**: one pass
+/// over the file at memory speed (CRC-32, several GB/s), so a damaged
+/// colour or texel is refused on opening with an error naming the file and
+/// the damaged bytes ([`Error::Format`], field `payload_crc`), never
+/// answered from. The colours' own invariants (premultiplied, each parent
+/// the mean of its children) are not checked; [`QuadTree::verify`] (or
+/// [`read_qtx`]) checks them. [`map_qtx_unverified`] skips the payload
+/// checksum for trusted files, giving up that promise for an open in time
+/// proportional to the flags.
 ///
 /// Memory mapping has one hazard no reader can check: another process
 /// truncating the file while it is mapped makes later reads of the lost
 /// pages fail with `SIGBUS`, and one rewriting it in place changes colours
-/// under the tree. quadtex's writers never do either: they write a
-/// temporary file and rename it over the old one, which leaves a mapped
-/// file intact.
+/// under the tree (after the checksum was checked). quadtex's writers never
+/// do either: they write a temporary file and rename it over the old one,
+/// which leaves a mapped file intact.
 pub fn map_qtx(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
+    map_checked(path, limits, Check::Payload)
+}
+
+/// As [`map_qtx`] without the payload checksum, for trusted files: opening
+/// reads only the header and the structure (the inner flags, 1/64 of the
+/// file; a version-1 file, which has no structure checksum, is still read
+/// whole), so a giant opens in milliseconds and a query loads only the
+/// pages it touches. **This gives up the promise that a damaged file is
+/// refused:** a corrupt colour or texel then gives a wrong colour (never a
+/// panic) until [`QuadTree::verify`] is asked.
+pub fn map_qtx_unverified(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Error> {
+    map_checked(path, limits, Check::Structure)
+}
+
+/// [`map_qtx`] and [`map_qtx_unverified`]: maps `path`, checking what
+/// `check` asks.
+fn map_checked(path: &Path, limits: &Limits, check: Check) -> Result<(QuadTree, QtxInfo), Error> {
     let (file, file_bytes, h, _) = open_checked(path, limits)?;
     check_map_memory(&h, path, limits)?;
     let map = map_file(&file).map_err(io(path))?;
-    // Opening reads the inner flags front to back: read them ahead. Queries
-    // then touch a few scattered colours each: read ahead nothing there, so
-    // memory holds what is read. (Advice only; a refusal changes nothing.)
+    // Opening without the payload checksum reads the inner flags front to
+    // back: read them ahead. Queries then touch a few scattered colours
+    // each: read ahead nothing there, so memory holds what is read. The
+    // payload checksum reads the whole file once: the kernel's default
+    // read-ahead serves it. (Advice only; a refusal changes nothing.)
     #[cfg(unix)]
-    {
+    if check == Check::Structure {
         let flags = HEADER_BYTES + h.nodes.div_ceil(8) as usize;
         let _ = map.advise(memmap2::Advice::Random);
         let _ = map.advise_range(memmap2::Advice::Sequential, 0, flags.min(map.len()));
@@ -223,7 +245,7 @@ pub fn map_qtx(path: &Path, limits: &Limits) -> Result<(QuadTree, QtxInfo), Erro
             ),
         });
     }
-    parse_shared(SharedBytes::from_owner(map), path, limits, Check::Structure)
+    parse_shared(SharedBytes::from_owner(map), path, limits, check)
 }
 
 /// Opens `path` and checks its header (and its size against the limits)
@@ -305,8 +327,9 @@ pub fn parse_qtx(bytes: &[u8], path: &Path, limits: &Limits) -> Result<(QuadTree
     parse_shared(bytes.to_vec().into(), path, limits, Check::Everything)
 }
 
-/// As [`parse_qtx`], checking only what [`map_qtx`] checks: the tree reads
-/// its colours in place from `bytes` and they are not read here.
+/// As [`parse_qtx`], checking only what [`map_qtx_unverified`] checks: the
+/// tree reads its colours in place from `bytes` and they are not read here
+/// (nor is their checksum: a damaged colour gives a wrong colour).
 pub fn parse_qtx_structure(
     bytes: SharedBytes,
     path: &Path,
@@ -322,6 +345,9 @@ pub fn parse_qtx_structure(
 enum Check {
     /// Both checksums, the structure and every colour.
     Everything,
+    /// Both checksums and the structure; the colours' invariants are left
+    /// to [`QuadTree::verify`].
+    Payload,
     /// The header, the structure checksum (the payload checksum for a
     /// version-1 file) and the structure; colours are read on demand.
     Structure,
@@ -329,7 +355,9 @@ enum Check {
 
 /// Parses a file whose header `check_header` accepts: checksums as `check`
 /// asks, the inner flags, the texel blocks and the leaf sections, then the
-/// tree (verified too under [`Check::Everything`]).
+/// tree (verified too under [`Check::Everything`]). A payload checksum
+/// mismatch is reported naming the bytes it can be in, and the first node
+/// the colour checks refuse, if any.
 fn parse_shared(
     all: SharedBytes,
     path: &Path,
@@ -338,16 +366,64 @@ fn parse_shared(
 ) -> Result<(QuadTree, QtxInfo), Error> {
     let file_bytes = all.len() as u64;
     let header = check_header(&all, file_bytes, path, limits)?;
+    let payload = HEADER_BYTES..HEADER_BYTES + header.payload as usize;
+    let data = &all[payload.clone()];
+    let nodes = header.nodes as usize;
+    let (bits, rest) = data.split_at(nodes.div_ceil(8));
+    let block_section = &rest[8 * nodes..];
+    if !checksums_enforced() {
+        return build_tree(&all, &header, path, limits, check == Check::Everything);
+    }
+    let crc = &all[payload.end..];
+    check_structure_crc(&header, bits, block_section, path)?;
+    let payload_checked = check != Check::Structure || header.structure_crc.is_none();
+    if !payload_checked
+        || crc32fast::hash(data) == u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]])
+    {
+        return build_tree(&all, &header, path, limits, check == Check::Everything);
+    }
+    // Damaged: where the bytes the structure checksum leaves are, and what
+    // the colour checks find there (a hint; the checksum decides).
+    let colours = payload.start + bits.len()..payload.start + bits.len() + 8 * nodes;
+    let region = match header.structure_crc {
+        None => format!("the payload (bytes {}..{})", payload.start, payload.end),
+        Some(_) if header.blocks.is_some() => format!(
+            "the colours (bytes {}..{}) or the texel blocks' texels (bytes {}..{})",
+            colours.start,
+            colours.end,
+            colours.end + structure_bytes(block_section),
+            payload.end
+        ),
+        Some(_) => format!("the colours (bytes {}..{})", colours.start, colours.end),
+    };
+    let hint = build_tree(&all, &header, path, limits, false)
+        .ok()
+        .and_then(|(t, _)| t.verify().err())
+        .map_or(String::new(), |e| format!("; the colour checks find {e}"));
+    Err(format_error(
+        path,
+        "payload_crc",
+        format!("payload checksum mismatch: {region} are damaged{hint}"),
+    ))
+}
+
+/// The tree of a file whose header and checksums are checked: its inner
+/// flags, texel blocks and leaf sections checked and decoded, and every
+/// colour checked too when `verify` is set.
+fn build_tree(
+    all: &SharedBytes,
+    header: &Header,
+    path: &Path,
+    limits: &Limits,
+    verify: bool,
+) -> Result<(QuadTree, QtxInfo), Error> {
+    let file_bytes = all.len() as u64;
     let bad = |field: &'static str, message: String| format_error(path, field, message);
     let payload = HEADER_BYTES..HEADER_BYTES + header.payload as usize;
     let data = &all[payload.clone()];
     let nodes = header.nodes as usize;
     let (bits, rest) = data.split_at(nodes.div_ceil(8));
     let block_section = &rest[8 * nodes..];
-    if checksums_enforced() {
-        let crc = &all[payload.end..];
-        check_checksums(&header, data, bits, block_section, crc, check, path)?;
-    }
     check_inner_flags(bits, nodes, header.inner, path)?;
     let colour_start = payload.start + bits.len();
     let shared = |range: std::ops::Range<usize>| {
@@ -358,7 +434,7 @@ fn parse_shared(
     let texel_blocks = match header.blocks {
         None => None,
         Some((format, level)) => Some(decode_blocks(
-            &all,
+            all,
             colour_start + 8 * nodes..payload.end,
             format,
             level,
@@ -366,7 +442,7 @@ fn parse_shared(
         )?),
     };
     let (gradient_leaves, contour_leaves) =
-        decode_leaf_sections(block_section, &header, path, limits)?;
+        decode_leaf_sections(block_section, header, path, limits)?;
     let tree = QuadTree::from_shared_parts(
         header.depth,
         header.aspect,
@@ -384,7 +460,7 @@ fn parse_shared(
         None => Ok(t),
     })
     .and_then(|t| {
-        if check == Check::Everything {
+        if verify {
             t.verify()?;
         }
         Ok(t)
@@ -413,16 +489,12 @@ fn format_error(path: &Path, field: &'static str, message: String) -> Error {
 }
 
 /// Checks the structure checksum (over the inner flags `bits` and the
-/// structure of `block_section`) when the file has one, and the payload
-/// checksum `crc` over `data` when `check` reads everything or the file
-/// has no structure checksum (version 1).
-fn check_checksums(
+/// structure of `block_section`) when the file has one (version 2 and
+/// later).
+fn check_structure_crc(
     header: &Header,
-    data: &[u8],
     bits: &[u8],
     block_section: &[u8],
-    crc: &[u8],
-    check: Check,
     path: &Path,
 ) -> Result<(), Error> {
     if let Some(expected) = header.structure_crc {
@@ -436,15 +508,6 @@ fn check_checksums(
                 "structure checksum mismatch (corrupt inner flags or block flags)".into(),
             ));
         }
-    }
-    if (check == Check::Everything || header.structure_crc.is_none())
-        && crc32fast::hash(data) != u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]])
-    {
-        return Err(format_error(
-            path,
-            "payload_crc",
-            "payload checksum mismatch (corrupt node data)".into(),
-        ));
     }
     Ok(())
 }

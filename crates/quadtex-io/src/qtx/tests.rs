@@ -128,9 +128,9 @@ fn texel_blocks_round_trip_and_lies_are_refused() {
 }
 
 /// A mapped file gives the tree a full read gives, and the same answers;
-/// it reads no colour on opening, so a corrupt colour opens (and
-/// queries without panicking) but fails `verify`, while corrupt
-/// structure is refused on opening.
+/// a corrupt colour is refused on mapping by the payload checksum, while
+/// mapped unverified it opens (and queries without panicking) but fails
+/// `verify`; corrupt structure is refused on opening either way.
 #[test]
 fn mapped_files_open_lazily_and_verify_on_demand() {
     let p = temp("map.qtx");
@@ -154,7 +154,9 @@ fn mapped_files_open_lazily_and_verify_on_demand() {
         let mut bytes = good.clone();
         bytes[colours + 8 * n - 2..colours + 8 * n].fill(0);
         std::fs::write(&p, &bytes).unwrap();
-        let (lazy, _) = map_qtx(&p, &Limits::default()).unwrap();
+        let e = map_qtx(&p, &Limits::default()).unwrap_err().to_string();
+        assert!(e.contains("payload_crc") && e.contains("colours"), "{e}");
+        let (lazy, _) = map_qtx_unverified(&p, &Limits::default()).unwrap();
         let w = lazy.weighted_colour(&f, 30);
         assert!(w.0.iter().all(|c| c.is_finite()));
         let e = lazy.verify().unwrap_err().to_string();
@@ -165,13 +167,88 @@ fn mapped_files_open_lazily_and_verify_on_demand() {
         let mut bytes = good.clone();
         bytes[64] ^= 1;
         std::fs::write(&p, &bytes).unwrap();
-        let e = map_qtx(&p, &Limits::default()).unwrap_err().to_string();
-        assert!(e.contains("structure_crc"), "{e}");
+        for open in [map_qtx, map_qtx_unverified] {
+            let e = open(&p, &Limits::default()).unwrap_err().to_string();
+            assert!(e.contains("structure_crc"), "{e}");
+        }
         // Resealed, the same flip is refused by the structure checks.
         reseal(&mut bytes, n);
         std::fs::write(&p, &bytes).unwrap();
-        let e = map_qtx(&p, &Limits::default()).unwrap_err().to_string();
-        assert!(e.contains("nodes") || e.contains("inner_bits"), "{e}");
+        for open in [map_qtx, map_qtx_unverified] {
+            let e = open(&p, &Limits::default()).unwrap_err().to_string();
+            assert!(e.contains("nodes") || e.contains("inner_bits"), "{e}");
+        }
+    }
+    std::fs::remove_file(&p).unwrap();
+}
+
+/// Bits flipped at random in the colours or texels of a packed file (50
+/// copies, one to three bits each, over a vector tree and a photo with
+/// texel blocks): every opener that promises
+/// detection refuses every copy, naming the file and the payload checksum.
+#[test]
+fn flipped_payload_bits_are_refused_by_every_verified_opener() {
+    let p = temp("flips.qtx");
+    let mut rng = 0x9E37_79B9_7F4A_7C15_u64;
+    let mut next = move |below: usize| {
+        // xorshift64*: a fixed sequence, so a failure repeats.
+        rng ^= rng >> 12;
+        rng ^= rng << 25;
+        rng ^= rng >> 27;
+        (rng.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as usize % below
+    };
+    for (tree, name) in [(sample(), "vector"), (photo_sample(), "photo")] {
+        write_qtx(&p, &tree, None).unwrap();
+        let good = std::fs::read(&p).unwrap();
+        let n = tree.node_count() as usize;
+        let colours = 64 + n.div_ceil(8);
+        // The bytes no structure checksum covers: the colours, and the
+        // texels after a block section's counts and flags.
+        let end = good.len() - 4;
+        let texels = colours + 8 * n + structure_bytes(&good[colours + 8 * n..end]);
+        let texels = if tree.texel_blocks().is_some() {
+            texels..end
+        } else {
+            end..end
+        };
+        let unchecked = 8 * n + texels.len();
+        for copy in 0..50 {
+            let mut bytes = good.clone();
+            let flips = 1 + copy % 3;
+            let mut seen = Vec::new();
+            while seen.len() < flips {
+                let k = next(8 * unchecked);
+                if seen.contains(&k) {
+                    continue;
+                }
+                seen.push(k);
+                let byte = k / 8;
+                let at = if byte < 8 * n {
+                    colours + byte
+                } else {
+                    texels.start + byte - 8 * n
+                };
+                bytes[at] ^= 1 << (k % 8);
+            }
+            std::fs::write(&p, &bytes).unwrap();
+            let shown = p.display().to_string();
+            let results = [
+                ("read_qtx", read_qtx(&p, &Limits::default()).map(|_| ())),
+                ("map_qtx", map_qtx(&p, &Limits::default()).map(|_| ())),
+                (
+                    "parse_qtx",
+                    parse_qtx(&bytes, &p, &Limits::default()).map(|_| ()),
+                ),
+            ];
+            for (opener, r) in results {
+                let e = r.expect_err(&format!("{name} copy {copy}: {opener} accepted {seen:?}"));
+                let e = e.to_string();
+                assert!(
+                    e.contains(&shown) && e.contains("payload_crc") && e.contains("bytes"),
+                    "{name} copy {copy} {opener}: {e}"
+                );
+            }
+        }
     }
     std::fs::remove_file(&p).unwrap();
 }
