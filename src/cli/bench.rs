@@ -347,7 +347,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
         include_str!("../../scenes/runway.toml"),
         std::path::Path::new("scenes/runway.toml"),
     )?;
-    let quadtree = TextureFilter::Quadtree(quadtex_core::FilterOptions::default());
+    let quadtree = TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER);
     let options_for = |filter: TextureFilter| RenderOptions {
         width: Some(width),
         height: Some(height),

@@ -22,7 +22,7 @@ use std::sync::Arc;
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyString};
+use pyo3::types::{PyBytes, PyString, PyTuple};
 use quadtex_core::{
     BuildOptions, FilterOptions, Footprint, Fragment, MAX_DEPTH, QuadTree, Rgba, Weighting, Wrap,
     WrapMode,
@@ -57,12 +57,15 @@ impl Texture {
     /// weighting: "screen" (box over the pixel) or "texture" (box over the
     /// footprint). border: RGBA outside the unit square on a "border" axis.
     /// error_bound (> 0): the bound each footprint's error aims at (squares
-    /// are refined, largest error first, until it is met or `budget`
-    /// squares are spent); level (0..30) refines every square to that level
-    /// instead. The GIL is released while filtering.
+    /// are refined, largest error first, until it is met, or `budget`
+    /// squares are spent when a budget is given; by default there is none);
+    /// level (0..30) refines every square to that level instead.
+    /// return_bound: also return each footprint's bound reached, `(N,)`
+    /// float64 relative to the texture's contrast. The GIL is released
+    /// while filtering.
     #[pyo3(
-        signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = 64),
-        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=64)"
+        signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = None, return_bound = false),
+        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=None, return_bound=False)"
     )]
     // pyo3 maps each Python keyword to one Rust parameter, and the keywords
     // are the module's API: the one allowance of its kind in the project.
@@ -76,7 +79,8 @@ impl Texture {
         border: Option<&Bound<'py, PyAny>>,
         error_bound: f64,
         level: Option<i64>,
-        budget: u64,
+        budget: Option<u64>,
+        return_bound: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let border = match border {
             Some(b) => {
@@ -87,15 +91,19 @@ impl Texture {
             None => [0.0; 4],
         };
         let wrap = parse_wrap(wrap, border)?;
-        let options = filter_options(weighting, error_bound, level)?
-            .with_budget(budget)
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let mut options = filter_options(weighting, error_bound, level)?;
+        if let Some(budget) = budget {
+            options = options
+                .with_budget(budget)
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        }
         let texture = quadtex_core::Texture::new(Arc::clone(&self.tree), wrap);
         let quads = arrays::float64(quads, "quads", &[None, Some(4), Some(2)], "(N, 4, 2)")?;
         let readonly = quads.try_readonly()?;
         let view = arrays::view3(&readonly)?;
         let n = view.shape()[0];
         let mut out: Vec<f32> = Vec::with_capacity(4 * n);
+        let mut bounds: Vec<f64> = Vec::with_capacity(if return_bound { n } else { 0 });
         let mut footprints = Vec::with_capacity(n.min(CHUNK));
         for start in (0..n).step_by(CHUNK) {
             footprints.clear();
@@ -106,12 +114,24 @@ impl Texture {
                     .map_err(|e| PyValueError::new_err(format!("quads[{i}]: {e}")))?;
                 footprints.push(footprint);
             }
-            let colours = py.detach(|| texture.filter_batch(&footprints, &options));
-            out.extend(colours.iter().flat_map(|c| c.to_array()));
+            let filtered = py.detach(|| {
+                let mut stats = quadtex_core::FilterStats::default();
+                footprints
+                    .iter()
+                    .map(|f| texture.filter_with_bound(f, &options, &mut stats))
+                    .collect::<Vec<_>>()
+            });
+            out.extend(filtered.iter().flat_map(|(c, _)| c.to_array()));
+            if return_bound {
+                bounds.extend(filtered.iter().map(|&(_, b)| b));
+            }
         }
-        PyArray1::from_vec(py, out)
-            .reshape([n, 4])
-            .map(Bound::into_any)
+        let rgba = PyArray1::from_vec(py, out).reshape([n, 4])?.into_any();
+        if !return_bound {
+            return Ok(rgba);
+        }
+        let bounds = PyArray1::from_vec(py, bounds).into_any();
+        Ok(PyTuple::new(py, [rgba, bounds])?.into_any())
     }
 
     /// Integral of colour over each rectangle's overlap with the unit square
