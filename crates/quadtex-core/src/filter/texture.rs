@@ -107,8 +107,9 @@ impl Texture {
     }
 
     /// As [`Texture::filter_counted`], with the error bound the colour
-    /// reached, relative to full contrast (each channel is within
-    /// `bound × `[`QuadTree::bound_scale`] of the exact mean; 0 when exact).
+    /// reached, relative to the texture's contrast (each channel is within
+    /// `bound × `[`QuadTree::bound_scale`] of the exact mean: the bound
+    /// itself for LDR textures; 0 when exact).
     /// It is at most the error bound asked for unless a square budget
     /// ([`FilterOptions::with_budget`]) or the hard cap
     /// ([`crate::FIXED_LEVEL_CAP`]) stopped the refinement; such footprints
@@ -123,7 +124,10 @@ impl Texture {
         options: &FilterOptions,
         stats: &mut FilterStats,
     ) -> (Rgba, f64) {
-        let (colour, bound) = self.filter_unclamped(footprint, options, stats);
+        let (colour, absolute) = self.filter_unclamped(footprint, options, stats);
+        // The pipeline's bound is in colour units; the target is relative to
+        // the texture's contrast (the widest channel range for HDR).
+        let bound = absolute / self.tree.bound_scale();
         let mut c = [colour.r, colour.g, colour.b, colour.a];
         let clamped = match self.tree.encoding() {
             ColourEncoding::Unorm16 => &mut c[..],
