@@ -314,6 +314,16 @@ pub(crate) fn polygon_area(p: &[[f64; 2]]) -> f64 {
     crate::geometry::polygon::signed_area(p).abs()
 }
 
+/// True when segments `p0p1` and `q0q1` cross at a point inside both
+/// (touching at an end or overlapping along a line does not count).
+fn segments_cross(p0: [f64; 2], p1: [f64; 2], q0: [f64; 2], q1: [f64; 2]) -> bool {
+    let orient = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        let d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        i8::from(d > 0.0) - i8::from(d < 0.0)
+    };
+    orient(p0, p1, q0) * orient(p0, p1, q1) < 0 && orient(q0, q1, p0) * orient(q0, q1, p1) < 0
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -399,23 +409,13 @@ mod tests {
     }
 
     #[test]
-    fn parallelograms_are_affine_and_folded_quads_have_no_square_to_quad() {
+    fn parallelograms_are_affine_and_folded_quads_are_refused() {
         let p = Footprint::from_differentials([0.5, 0.5], [0.25, 0.0], [0.0, 0.125]).unwrap();
         let h = p.square_to_quad().unwrap();
         assert!(h.is_affine());
         assert_eq!(p.centre(), [0.5, 0.5]);
-        // Corners out of order (a bow tie) do not bound a projective image.
-        let bow = quad([[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]);
-        assert!(bow.square_to_quad().is_none());
+        // Corners out of order (a bow tie) do not bound a projective image:
+        // refused.
+        assert!(Footprint::from_corners([[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]).is_err());
     }
-}
-
-/// True when segments `p0p1` and `q0q1` cross at a point inside both
-/// (touching at an end or overlapping along a line does not count).
-fn segments_cross(p0: [f64; 2], p1: [f64; 2], q0: [f64; 2], q1: [f64; 2]) -> bool {
-    let orient = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
-        let d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-        i8::from(d > 0.0) - i8::from(d < 0.0)
-    };
-    orient(p0, p1, q0) * orient(p0, p1, q1) < 0 && orient(q0, q1, p0) * orient(q0, q1, p1) < 0
 }
