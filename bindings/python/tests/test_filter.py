@@ -163,9 +163,10 @@ def test_budget_refines_towards_the_exact_value(rng):
 
 
 def photo_like(rng):
-    """Issue 62's texture: 64×64 sRGB uint8 texels in 4×4 blocks of random colours."""
-    blocks = rng.integers(0, 256, size=(16, 16, 3), dtype=np.uint8)
-    return np.repeat(np.repeat(blocks, 4, axis=0), 4, axis=1)
+    """Issue 62's texture: 64×64 sRGB uint8 texels of random colours (a
+    6-level tree; at the old default budget of 64 squares, 170 of 200
+    random rectangles missed the bound, by up to 2.8e-2)."""
+    return rng.integers(0, 256, size=(64, 64, 3), dtype=np.uint8)
 
 
 def test_default_calls_keep_their_bound(rng):
@@ -187,9 +188,9 @@ def test_default_calls_keep_their_bound(rng):
     # footprint it stops reports a bound above the target.
     np.testing.assert_array_equal(tex.filter(rect_quads(rects), weighting="texture"), got)
     _, budgeted = tex.filter(
-        rect_quads(rects), weighting="texture", budget=1, return_bound=True
+        rect_quads(rects), weighting="texture", budget=64, return_bound=True
     )
-    assert (budgeted >= bound).all()
+    assert (budgeted > 1 / 512).sum() > len(rects) // 2
 
 
 def test_bow_ties_and_huge_coordinates_are_value_errors(random_texels):

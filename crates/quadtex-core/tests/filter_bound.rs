@@ -41,9 +41,11 @@ fn srgb_decode(v: f64) -> f32 {
     }) as f32
 }
 
-/// The texture: 64×64 texels in 4×4 blocks of random sRGB colours.
+/// The texture: 64×64 texels of random sRGB colours (random per
+/// texel, so the tree is 6 levels deep: 4×4-texel blocks of one colour
+/// would give a depth-4 tree, scanned cell by cell, exactly).
 fn photo_like(rng: &mut Rng) -> TexelGrid {
-    let colours: Vec<Rgba> = (0..256)
+    let colours: Vec<Rgba> = (0..64 * 64)
         .map(|_| {
             Rgba::opaque(
                 srgb_decode(rng.range(0.0, 1.0)),
@@ -52,7 +54,7 @@ fn photo_like(rng: &mut Rng) -> TexelGrid {
             )
         })
         .collect();
-    TexelGrid::from_fn(64, 64, |c, r| colours[(r / 4 * 16 + c / 4) as usize]).unwrap()
+    TexelGrid::from_fn(64, 64, |c, r| colours[(r * 64 + c) as usize]).unwrap()
 }
 
 /// Vector art (rectangles and lettering from `synth`), rasterised.
@@ -159,6 +161,9 @@ fn default_calls_keep_their_bound_on_random_textures_and_footprints() {
         if name == "HDR" {
             assert_eq!(tree.encoding(), ColourEncoding::Half);
         }
+        if name == "photo-like" {
+            assert_eq!(tree.depth(), 6);
+        }
         let scale = tree.bound_scale();
         // Stored means are rounded to the colour encoding (a 16-bit step,
         // or a half float's 11 bits), and colours come back as f32.
@@ -169,7 +174,7 @@ fn default_calls_keep_their_bound_on_random_textures_and_footprints() {
         let leaves = leaves(&tree);
         let texture = Texture::new(tree, Wrap::REPEAT);
         let mut worst = 0.0f64;
-        for case in 0..120 {
+        for case in 0..300 {
             let width = 10f64.powf(rng.range(-4.0, 4f64.log10()));
             let affine = case % 2 == 0;
             let corners = random_quad(&mut rng, width, affine);
