@@ -457,7 +457,12 @@ pub unsafe extern "C" fn qtx_filter_with_bounds(
         // Checked here, before slices exist: Rust must not see a mutable
         // slice aliasing another.
         let buffers = [
-            ("quads", quads.addr(), quad_len.saturating_mul(8), quads.is_null()),
+            (
+                "quads",
+                quads.addr(),
+                quad_len.saturating_mul(8),
+                quads.is_null(),
+            ),
             (
                 "out_rgba",
                 out_rgba.addr(),

@@ -920,15 +920,28 @@ fn filter_with_bounds_reports_each_bound_and_refuses_bow_ties() {
         )
     };
     assert_eq!(status, QtxStatus::Ok, "{:?}", last_error());
-    assert!(bounds.iter().all(|&b| (0.0..=1.0 / 512.0).contains(&b)), "{bounds:?}");
+    assert!(
+        bounds.iter().all(|&b| (0.0..=1.0 / 512.0).contains(&b)),
+        "{bounds:?}"
+    );
     // The same colours as `qtx_filter`.
     let mut plain = [f32::NAN; 12];
-    let status =
-        unsafe { qtx_filter(texture, quads.as_ptr().cast(), 3, null(), plain.as_mut_ptr()) };
+    let status = unsafe {
+        qtx_filter(
+            texture,
+            quads.as_ptr().cast(),
+            3,
+            null(),
+            plain.as_mut_ptr(),
+        )
+    };
     assert_eq!(status, QtxStatus::Ok);
     assert_eq!(out, plain);
     // The whole plane: the checker's mean.
-    assert!(close(out[8..].try_into().unwrap(), [0.5, 0.5, 0.5, 1.0], 1e-4), "{out:?}");
+    assert!(
+        close(out[8..].try_into().unwrap(), [0.5, 0.5, 0.5, 1.0], 1e-4),
+        "{out:?}"
+    );
     for (bad, words) in [
         ([0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0], "bow tie"),
         (rect(0.0, 0.0, 1e20, 1.0), "MAX_TEXTURE_COORDINATE"),

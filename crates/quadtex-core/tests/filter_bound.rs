@@ -303,11 +303,11 @@ fn huge_footprints_are_right_or_refused() {
         }
     }
     for far in [1e20, 1e300] {
-        let e = Footprint::from_corners([[0.0, 0.0], [far, 0.0], [far, 1.0], [0.0, 1.0]])
-            .unwrap_err();
+        let e =
+            Footprint::from_corners([[0.0, 0.0], [far, 0.0], [far, 1.0], [0.0, 1.0]]).unwrap_err();
         assert!(e.to_string().contains("MAX_TEXTURE_COORDINATE"), "{e}");
     }
-    assert!(MAX_TEXTURE_COORDINATE >= 1e15);
+    const { assert!(MAX_TEXTURE_COORDINATE >= 1e15) };
 }
 
 /// No channel of an LDR texture's filtered colour is negative (rounding in

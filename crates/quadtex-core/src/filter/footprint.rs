@@ -336,8 +336,8 @@ mod tests {
     #[test]
     fn bow_ties_and_huge_coordinates_are_refused() {
         // Corners 2 and 3 swapped: edges 1–2 and 3–0 cross.
-        let e = Footprint::from_corners([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
-            .unwrap_err();
+        let e =
+            Footprint::from_corners([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]).unwrap_err();
         assert!(matches!(e, Error::BadPolygon(_)), "{e:?}");
         assert!(e.to_string().contains("bow tie"), "{e}");
         // Convex, concave, degenerate and touching quads are accepted.

@@ -280,6 +280,9 @@ mod tests {
             FilterOptions::default().with_budget(SQUARE_BUDGET).unwrap(),
             FilterOptions::RENDER
         );
-        assert_eq!(FilterOptions::RENDER.without_budget(), FilterOptions::DEFAULT);
+        assert_eq!(
+            FilterOptions::RENDER.without_budget(),
+            FilterOptions::DEFAULT
+        );
     }
 }
