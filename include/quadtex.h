@@ -475,7 +475,13 @@ enum QtxStatus qtx_pack_tiles(const char *dir,
  * `out_rgba` with `n > 0` (both may be NULL when `n` is 0), misaligned or
  * overlapping buffers, an option out of range (the message names the field,
  * `options.error_bound`), a NaN or infinite coordinate (the message names the
- * quad and the field, `quad 3: coordinate corner[2].z is not finite (NaN)`).
+ * quad and the field, `quad 3: coordinate corner[2].z is not finite (NaN)`),
+ * a coordinate beyond 1e15 in magnitude (MAX_TEXTURE_COORDINATE) or a quad
+ * that crosses itself (a bow tie), each naming the quad.
+ *
+ * Each colour is within `options.error_bound` of the exact mean (relative
+ * to the texture's contrast), whatever the footprint's size; use
+ * `qtx_filter_with_bounds` for the bound each quad reached.
  *
  * # Safety
  * `texture` is NULL or a live texture from `qtx_open` / `qtx_pack`;
@@ -488,6 +494,28 @@ enum QtxStatus qtx_filter(const struct QtxTexture *texture,
                           size_t n,
                           const struct QtxFilterOptions *options,
                           float *out_rgba);
+
+/**
+ * As `qtx_filter`, and when `out_bounds` is not NULL, writes each quad's
+ * error bound to `out_bounds[i]`: every channel of quad i's colour is
+ * within `out_bounds[i]` times the texture's contrast (1 for 8- and
+ * 16-bit textures, the widest channel range for HDR ones) of the exact
+ * mean, 0 when exact. Under an error bound it is at most
+ * `options.error_bound` (the refinement stops only at a hard cap of
+ * `2^20` squares a footprint, and then reports the larger bound reached).
+ *
+ * Returns as `qtx_filter`; also `QTX_STATUS_INVALID_ARGUMENT` when
+ * `out_bounds` is misaligned or overlaps `quads` or `out_rgba`.
+ *
+ * # Safety
+ * As `qtx_filter`; `out_bounds` is NULL or points to `n` writable doubles.
+ */
+enum QtxStatus qtx_filter_with_bounds(const struct QtxTexture *texture,
+                                      const double *quads,
+                                      size_t n,
+                                      const struct QtxFilterOptions *options,
+                                      float *out_rgba,
+                                      double *out_bounds);
 
 /**
  * Fills `*out` with the texture's depth, size and mean colour.

@@ -69,8 +69,12 @@ class Texture:
         border: Sequence[float] = (0.0, 0.0, 0.0, 0.0),
         error_bound: float = 0.001953125,  # 1/512
         level: Optional[int] = None,
-        budget: int = 64,
-    ) -> npt.NDArray[np.float32]:
+        budget: Optional[int] = None,
+        return_bound: bool = False,
+    ) -> Union[
+        npt.NDArray[np.float32],
+        Tuple[npt.NDArray[np.float32], npt.NDArray[np.float64]],
+    ]:
         """Mean colour over each footprint.
 
         quads: ``(N, 4, 2)`` texture-space corners in pixel order (any real
@@ -86,15 +90,24 @@ class Texture:
             an axis whose wrap is ``"border"``.
         error_bound: ``> 0``; the bound each footprint's error aims at,
             relative to the texture's contrast: squares are refined,
-            largest error first, until it is met or ``budget`` squares are
-            spent.
+            largest error first, until it is met (whatever the footprint's
+            size), or ``budget`` squares are spent if a budget is given.
         level: if given (0..30), every square is refined down to this
             level (clamped to the tree's depth) instead; ``error_bound`` is
             then unused (still checked).
-        budget: ``>= 1``; most squares refined per footprint under
+        budget: ``None`` (the default: no budget, refine until the bound is
+            met) or ``>= 1``, the most squares refined per footprint under
+            ``error_bound``; a footprint it stops reports a bound above
             ``error_bound``.
+        return_bound: also return each footprint's error bound reached.
 
-        Returns ``(N, 4)`` float32 linear premultiplied RGBA.
+        Returns ``(N, 4)`` float32 linear premultiplied RGBA; with
+        ``return_bound=True`` the pair ``(rgba, bound)``, ``bound`` an
+        ``(N,)`` float64 array: every channel of footprint i is within
+        ``bound[i]`` times the texture's contrast of the exact mean.
+
+        Raises ValueError for a NaN, infinite or too large coordinate
+        (beyond 1e15) or a quad that crosses itself (a bow tie), naming it.
 
         Raises ``KeyboardInterrupt`` on Ctrl-C (checked every 50 ms or so).
         """

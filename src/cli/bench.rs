@@ -343,7 +343,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
         std::path::Path::new("scenes/runway.toml"),
         &quadtex_io::Limits::default(),
     )?;
-    let quadtree = TextureFilter::Quadtree(quadtex_core::FilterOptions::default());
+    let quadtree = TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER);
     let options_for = |filter: TextureFilter| RenderOptions {
         width: Some(width),
         height: Some(height),

@@ -58,7 +58,7 @@ const TIMED: [(&str, &str, TextureFilter); 3] = [
     (
         "quadtex quadtree",
         "quadtex-quadtree",
-        TextureFilter::Quadtree(quadtex_core::FilterOptions::DEFAULT),
+        TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
     ),
     (
         "quadtex EWA 8 (pbrt-v4 style)",

@@ -200,7 +200,7 @@ impl RenderArgs {
     /// The render options these arguments ask for.
     fn options(&self) -> Result<RenderOptions> {
         let quality = StripOptions::default().with_quality(self.quality)?;
-        let mut quadtree = FilterOptions::default();
+        let mut quadtree = FilterOptions::RENDER;
         if let Some(e) = self.error_bound {
             quadtree = quadtree.with_error_bound(e)?;
         }

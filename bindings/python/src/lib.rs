@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyString};
+use pyo3::types::{PyBytes, PyString, PyTuple};
 use quadtex_core::{
     BuildOptions, FilterOptions, Footprint, Fragment, MAX_DEPTH, QuadTree, Rgba, Weighting, Wrap,
     WrapMode,
@@ -68,33 +68,39 @@ impl Texture {
     ///   border: RGBA (linear, premultiplied) outside the unit square on an
     ///     axis whose wrap is "border".
     ///   error_bound: > 0; the bound each footprint's error aims at (squares
-    ///     are refined, largest error first, until it is met or `budget`
-    ///     squares are spent).
+    ///     are refined, largest error first, until it is met).
     ///   level: 0..30, or None; refines every square to this level instead
     ///     of `error_bound`.
-    ///   budget: >= 1; most squares refined per footprint.
+    ///   budget: >= 1, or None (the default: no budget); most squares refined
+    ///     per footprint, for real-time callers: a footprint that stops at it
+    ///     reports a bound above `error_bound`.
+    ///   return_bound: also return each footprint's bound reached, `(N,)`
+    ///     float64 relative to the texture's contrast.
     ///
-    /// Returns: `(N, 4)` float32, linear premultiplied RGBA.
+    /// Returns: `(N, 4)` float32, linear premultiplied RGBA; with
+    /// `return_bound=True` the pair `(rgba, bound)`.
     ///
-    /// Raises: ValueError (a shape, a non-finite corner `quads[i]`, an
-    /// unknown name, an option out of range), TypeError (`quads` does not
-    /// hold real numbers), KeyboardInterrupt (Ctrl-C, checked between
-    /// stretches of about 50 ms). The GIL is released while filtering.
+    /// Raises: ValueError (a shape, a corner `quads[i]` that is not finite or
+    /// beyond 1e15, a quad whose edges cross, an unknown name, an option out
+    /// of range), TypeError (`quads` does not hold real numbers),
+    /// KeyboardInterrupt (Ctrl-C, checked between stretches of about 50 ms).
+    /// The GIL is released while filtering.
     #[pyo3(
-        signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = 64),
-        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=64)"
+        signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = None, return_bound = false),
+        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=None, return_bound=False)"
     )]
     fn filter<'py>(
         &self,
-        py: Python<'py>,
         quads: &Bound<'py, PyAny>,
         wrap: Option<&Bound<'py, PyAny>>,
         weighting: &str,
         border: Option<&Bound<'py, PyAny>>,
         error_bound: f64,
         level: Option<i64>,
-        budget: u64,
+        budget: Option<u64>,
+        return_bound: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let py = quads.py();
         let border = match border {
             Some(b) => {
                 let b = arrays::float64(b, "border", &[Some(4)], "(4,)")?.try_readonly()?;
@@ -104,15 +110,19 @@ impl Texture {
             None => [0.0; 4],
         };
         let wrap = parse_wrap(wrap, border)?;
-        let options = filter_options(weighting, error_bound, level)?
-            .with_budget(budget)
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let mut options = filter_options(weighting, error_bound, level)?;
+        if let Some(budget) = budget {
+            options = options
+                .with_budget(budget)
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        }
         let texture = quadtex_core::Texture::new(Arc::clone(&self.tree), wrap);
         let quads = arrays::float64(quads, "quads", &[None, Some(4), Some(2)], "(N, 4, 2)")?;
         let readonly = quads.try_readonly()?;
         let view = arrays::view3(&readonly)?;
         let n = view.shape()[0];
         let mut out: Vec<f32> = Vec::with_capacity(4 * n);
+        let mut bounds: Vec<f64> = Vec::with_capacity(if return_bound { n } else { 0 });
         let mut footprints = Vec::with_capacity(n.min(CHUNK));
         for start in (0..n).step_by(CHUNK) {
             footprints.clear();
@@ -123,14 +133,25 @@ impl Texture {
                     .map_err(|e| PyValueError::new_err(format!("quads[{i}]: {e}")))?;
                 footprints.push(footprint);
             }
-            detached(py, &footprints, &mut out, |step, out| {
-                let colours = texture.filter_batch(step, &options);
-                out.extend(colours.iter().flat_map(|c| c.to_array()));
+            let mut filtered: Vec<(quadtex_core::Rgba, f64)> = Vec::with_capacity(footprints.len());
+            detached(py, &footprints, &mut filtered, |step, out| {
+                let mut stats = quadtex_core::FilterStats::default();
+                out.extend(
+                    step.iter()
+                        .map(|f| texture.filter_with_bound(f, &options, &mut stats)),
+                );
             })?;
+            out.extend(filtered.iter().flat_map(|(c, _)| c.to_array()));
+            if return_bound {
+                bounds.extend(filtered.iter().map(|&(_, b)| b));
+            }
         }
-        PyArray1::from_vec(py, out)
-            .reshape([n, 4])
-            .map(Bound::into_any)
+        let rgba = PyArray1::from_vec(py, out).reshape([n, 4])?.into_any();
+        if !return_bound {
+            return Ok(rgba);
+        }
+        let bounds = PyArray1::from_vec(py, bounds).into_any();
+        Ok(PyTuple::new(py, [rgba, bounds])?.into_any())
     }
 
     /// Integral of colour over each rectangle's overlap with the unit

@@ -162,6 +162,52 @@ def test_budget_refines_towards_the_exact_value(rng):
         tex.filter(quad, budget=0)
 
 
+def photo_like(rng):
+    """Issue 62's texture: 64×64 sRGB uint8 texels of random colours (a
+    6-level tree; at the old default budget of 64 squares, 170 of 200
+    random rectangles missed the bound, by up to 2.8e-2)."""
+    return rng.integers(0, 256, size=(64, 64, 3), dtype=np.uint8)
+
+
+def test_default_calls_keep_their_bound(rng):
+    # Issue 62: with the old default budget of 64 squares, large rectangles
+    # on this texture were off by up to 2.3e-2 (twelve times the bound).
+    tex = quadtex.pack(photo_like(rng))
+    rects = random_rects(rng, 200)
+    area = (rects[:, 2] - rects[:, 0]) * (rects[:, 3] - rects[:, 1])
+    rects, area = rects[area > 1e-8], area[area > 1e-8]
+    want = tex.integrate(rects) / area[:, None]
+    got, bound = tex.filter(rect_quads(rects), weighting="texture", return_bound=True)
+    assert got.dtype == np.float32 and got.shape == (len(rects), 4)
+    assert bound.dtype == np.float64 and bound.shape == (len(rects),)
+    assert (bound <= 1 / 512).all(), bound.max()
+    # Within each footprint's bound (plus the 16-bit rounding of stored means).
+    err = np.abs(got - want).max(axis=1)
+    assert (err <= bound + 2e-5).all(), (err - bound).max()
+    # The same colours without the bounds; a budget is opt-in and a
+    # footprint it stops reports a bound above the target.
+    np.testing.assert_array_equal(tex.filter(rect_quads(rects), weighting="texture"), got)
+    _, budgeted = tex.filter(
+        rect_quads(rects), weighting="texture", budget=64, return_bound=True
+    )
+    assert (budgeted > 1 / 512).sum() > len(rects) // 2
+
+
+def test_bow_ties_and_huge_coordinates_are_value_errors(random_texels):
+    tex = quadtex.pack(random_texels)
+    bow = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]])
+    with pytest.raises(ValueError, match=r"quads\[0\].*bow tie"):
+        tex.filter(bow)
+    huge = np.array([[[0.0, 0.0], [1e20, 0.0], [1e20, 1.0], [0.0, 1.0]]])
+    with pytest.raises(ValueError, match="MAX_TEXTURE_COORDINATE"):
+        tex.filter(huge)
+    # Up to 1e15 the mean of a huge footprint is the texture's mean.
+    big = np.array([[[-1e15, -1e15], [1e15, -1e15], [1e15, 1e15], [-1e15, 1e15]]])
+    got, bound = tex.filter(big, return_bound=True)
+    mean = tex.integrate(np.array([[0.0, 0.0, 1.0, 1.0]]))
+    assert np.abs(got - mean).max() <= bound[0] + 1e-4
+
+
 def test_wrap_modes(random_texels):
     tex = quadtex.pack(random_texels)
     inside = rect_quads([[0.1, 0.2, 0.3, 0.25]])

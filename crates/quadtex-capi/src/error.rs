@@ -72,6 +72,7 @@ pub(crate) fn core_status(e: &quadtex_core::Error) -> QtxStatus {
         E::NonFiniteCoordinate { .. }
         | E::ReversedBounds { .. }
         | E::BadTolerance(_)
+        | E::BadPolygon(_)
         | E::BadOption { .. } => QtxStatus::InvalidArgument,
         _ => QtxStatus::Format,
     }

@@ -461,7 +461,13 @@ pub unsafe extern "C" fn qtx_pack_tiles(
 /// `out_rgba` with `n > 0` (both may be NULL when `n` is 0), misaligned or
 /// overlapping buffers, an option out of range (the message names the field,
 /// `options.error_bound`), a NaN or infinite coordinate (the message names the
-/// quad and the field, `quad 3: coordinate corner[2].z is not finite (NaN)`).
+/// quad and the field, `quad 3: coordinate corner[2].z is not finite (NaN)`),
+/// a coordinate beyond 1e15 in magnitude (MAX_TEXTURE_COORDINATE) or a quad
+/// that crosses itself (a bow tie), each naming the quad.
+///
+/// Each colour is within `options.error_bound` of the exact mean (relative
+/// to the texture's contrast), whatever the footprint's size; use
+/// `qtx_filter_with_bounds` for the bound each quad reached.
 ///
 /// # Safety
 /// `texture` is NULL or a live texture from `qtx_open` / `qtx_pack`;
@@ -477,6 +483,33 @@ pub unsafe extern "C" fn qtx_filter(
     options: *const QtxFilterOptions,
     out_rgba: *mut f32,
 ) -> QtxStatus {
+    // SAFETY: the same contract, with no bounds asked for.
+    unsafe { qtx_filter_with_bounds(texture, quads, n, options, out_rgba, std::ptr::null_mut()) }
+}
+
+/// As `qtx_filter`, and when `out_bounds` is not NULL, writes each quad's
+/// error bound to `out_bounds[i]`: every channel of quad i's colour is
+/// within `out_bounds[i]` times the texture's contrast (1 for 8- and
+/// 16-bit textures, the widest channel range for HDR ones) of the exact
+/// mean, 0 when exact. Under an error bound it is at most
+/// `options.error_bound` (the refinement stops only at a hard cap of
+/// `2^20` squares a footprint, and then reports the larger bound reached).
+///
+/// Returns as `qtx_filter`; also `QTX_STATUS_INVALID_ARGUMENT` when
+/// `out_bounds` is misaligned or overlaps `quads` or `out_rgba`.
+///
+/// # Safety
+/// As `qtx_filter`; `out_bounds` is NULL or points to `n` writable doubles.
+#[unsafe(no_mangle)]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn qtx_filter_with_bounds(
+    texture: *const QtxTexture,
+    quads: *const f64,
+    n: usize,
+    options: *const QtxFilterOptions,
+    out_rgba: *mut f32,
+    out_bounds: *mut f64,
+) -> QtxStatus {
     guard(|| {
         // SAFETY: `texture` is NULL or live, by this function's contract.
         let texture = unsafe { ptr::ref_arg(texture, "texture") }?;
@@ -491,24 +524,47 @@ pub unsafe extern "C" fn qtx_filter(
         );
         // Checked here, before slices exist: Rust must not see a mutable
         // slice aliasing another.
-        if !quads.is_null()
-            && !out_rgba.is_null()
-            && ops::overlap(
+        let buffers = [
+            (
+                "quads",
                 quads.addr(),
                 quad_len.saturating_mul(8),
+                quads.is_null(),
+            ),
+            (
+                "out_rgba",
                 out_rgba.addr(),
                 out_len.saturating_mul(4),
-            )
-        {
-            return Err(Failure::invalid("quads and out_rgba overlap"));
+                out_rgba.is_null(),
+            ),
+            (
+                "out_bounds",
+                out_bounds.addr(),
+                n.saturating_mul(8),
+                out_bounds.is_null(),
+            ),
+        ];
+        for (i, a) in buffers.iter().enumerate() {
+            for b in &buffers[i + 1..] {
+                if !a.3 && !b.3 && ops::overlap(a.1, a.2, b.1, b.2) {
+                    return Err(Failure::invalid(format!("{} and {} overlap", a.0, b.0)));
+                }
+            }
         }
         // SAFETY: `quads` is NULL or holds 8 n readable doubles, by contract;
-        // it does not overlap `out_rgba` (checked).
+        // it does not overlap the outputs (checked).
         let quads = unsafe { ptr::slice_arg(quads, quad_len, "quads") }?;
         // SAFETY: `out_rgba` is NULL or holds 4 n writable floats, by
-        // contract; it does not overlap `quads` (checked).
+        // contract; it does not overlap `quads` or `out_bounds` (checked).
         let out = unsafe { ptr::slice_mut_arg(out_rgba, out_len, "out_rgba") }?;
-        ops::filter(texture, quads, &options, out)
+        let bounds = if out_bounds.is_null() {
+            None
+        } else {
+            // SAFETY: `out_bounds` holds n writable doubles, by contract; it
+            // overlaps neither other buffer (checked).
+            Some(unsafe { ptr::slice_mut_arg(out_bounds, n, "out_bounds") }?)
+        };
+        ops::filter(texture, quads, &options, out, bounds)
     })
 }
 

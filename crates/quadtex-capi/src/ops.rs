@@ -319,6 +319,7 @@ pub(crate) fn filter(
     quads: &[f64],
     options: &QtxFilterOptions,
     out: &mut [f32],
+    mut bounds: Option<&mut [f64]>,
 ) -> Result<(), Failure> {
     let (wrap, options) = convert_options(options)?;
     let footprints = quads
@@ -330,8 +331,13 @@ pub(crate) fn filter(
         })
         .collect::<Result<Vec<_>, _>>()?;
     let texture = texture.texture.with_wrap(wrap);
-    for (footprint, pixel) in footprints.iter().zip(out.chunks_exact_mut(4)) {
-        pixel.copy_from_slice(&texture.filter(footprint, &options).to_array());
+    let mut stats = quadtex_core::FilterStats::default();
+    for (i, (footprint, pixel)) in footprints.iter().zip(out.chunks_exact_mut(4)).enumerate() {
+        let (colour, bound) = texture.filter_with_bound(footprint, &options, &mut stats);
+        pixel.copy_from_slice(&colour.to_array());
+        if let Some(b) = bounds.as_deref_mut() {
+            b[i] = bound;
+        }
     }
     Ok(())
 }

@@ -1033,6 +1033,87 @@ fn filter_rejects_every_non_finite_coordinate() {
     unsafe { qtx_free(texture) };
 }
 
+/// `qtx_filter_with_bounds` gives each quad's bound (at most the error
+/// bound asked for under the defaults); bow ties and coordinates beyond
+/// 1e15 are invalid arguments naming the quad; overlapping outputs too.
+#[test]
+fn filter_with_bounds_reports_each_bound_and_refuses_bow_ties() {
+    let texture = checker();
+    let quads = [
+        rect(0.1, 0.1, 0.9, 0.8),
+        [0.1, 0.4, 0.4, 0.45, 0.45, 0.05, 0.05, 0.1],
+        rect(-1e15, -1e15, 1e15, 1e15),
+    ];
+    let (mut out, mut bounds) = ([f32::NAN; 12], [f64::NAN; 3]);
+    let status = unsafe {
+        qtx_filter_with_bounds(
+            texture,
+            quads.as_ptr().cast(),
+            3,
+            null(),
+            out.as_mut_ptr(),
+            bounds.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, QtxStatus::Ok, "{:?}", last_error());
+    assert!(
+        bounds.iter().all(|&b| (0.0..=1.0 / 512.0).contains(&b)),
+        "{bounds:?}"
+    );
+    // The same colours as `qtx_filter`.
+    let mut plain = [f32::NAN; 12];
+    let status = unsafe {
+        qtx_filter(
+            texture,
+            quads.as_ptr().cast(),
+            3,
+            null(),
+            plain.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, QtxStatus::Ok);
+    assert_eq!(out, plain);
+    // The whole plane: the checker's mean.
+    assert!(
+        close(out[8..].try_into().unwrap(), [0.5, 0.5, 0.5, 1.0], 1e-4),
+        "{out:?}"
+    );
+    for (bad, words) in [
+        ([0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0], "bow tie"),
+        (rect(0.0, 0.0, 1e20, 1.0), "MAX_TEXTURE_COORDINATE"),
+    ] {
+        let quads = [rect(0.0, 0.0, 0.5, 0.5), bad];
+        let mut out = [7.0f32; 8];
+        let status = unsafe {
+            qtx_filter_with_bounds(
+                texture,
+                quads.as_ptr().cast(),
+                2,
+                null(),
+                out.as_mut_ptr(),
+                bounds.as_mut_ptr(),
+            )
+        };
+        assert_eq!(status, QtxStatus::InvalidArgument);
+        assert_error(&["quad 1", words]);
+        assert!(out.iter().all(|&v| v == 7.0), "out untouched on failure");
+    }
+    let mut shared = [0.0f64; 8];
+    let status = unsafe {
+        qtx_filter_with_bounds(
+            texture,
+            quads.as_ptr().cast(),
+            1,
+            null(),
+            shared.as_mut_ptr().cast(),
+            shared.as_mut_ptr().wrapping_add(1),
+        )
+    };
+    assert_eq!(status, QtxStatus::InvalidArgument);
+    assert_error(&["out_rgba and out_bounds overlap"]);
+    unsafe { qtx_free(texture) };
+}
+
 #[test]
 fn texture_info_and_filter_after_failed_open_are_refused() {
     // What C code that ignores the status would do: use the NULL `out`.

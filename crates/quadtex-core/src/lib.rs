@@ -69,13 +69,13 @@ pub use colour::{
     srgb_encode_f32,
 };
 pub use error::Error;
-pub use filter::footprint::Footprint;
+pub use filter::footprint::{Footprint, MAX_TEXTURE_COORDINATE};
 pub use filter::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET, Weighting};
 pub use filter::pixel_filter::PixelFilter;
 pub use filter::projection::Projection;
 pub use filter::region::{MAX_SCREEN_COORDINATE, RegionIntegral};
 pub use filter::texture::Texture;
-pub use filter::walk::{DEFAULT_SQUARE_BUDGET, FIXED_LEVEL_CAP};
+pub use filter::walk::FIXED_LEVEL_CAP;
 pub use filter::wrap::{BoxIntegral, Wrap, WrapMode, integrate_wrapped};
 pub use geometry::FillRule;
 pub use geometry::fragment::Fragment;

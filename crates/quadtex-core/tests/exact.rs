@@ -510,8 +510,22 @@ fn needles_over_many_tiles_take_the_coarse_sum_at_once() {
             let c = texture.filter_counted(&fp, options, &mut stats);
             (c, stats)
         };
-        let (coarse, quick) = run(&FilterOptions::default());
+        // The renderer's budget (the library default has none).
+        let (coarse, quick) = run(&FilterOptions::RENDER);
         let (refined, slow) = run(&FilterOptions::default().with_budget(1 << 16).unwrap());
+        let started = std::time::Instant::now();
+        let (unlimited, full) = run(&FilterOptions::default());
+        eprintln!(
+            "length {length}: no budget, {} squares, {:?}, bound {}",
+            full.traversal.nodes_visited,
+            started.elapsed(),
+            full.max_error_bound
+        );
+        assert!(full.traversal.nodes_visited <= 2 * quadtex_core::FIXED_LEVEL_CAP);
+        assert!(
+            max_diff(unlimited, refined) <= full.max_error_bound + slow.max_error_bound + 1e-9,
+            "length {length}: {unlimited:?} vs {refined:?}"
+        );
         assert!(
             quick.traversal.nodes_visited < 16,
             "length {length}: {} squares",
@@ -598,7 +612,7 @@ fn a_fixed_level_at_the_horizon_stops_at_the_cap() {
 
 /// Any projection and region, however extreme (huge or tiny scales, the
 /// horizon inside the region, far-away tiles), gives a finite answer or
-/// nothing, within the budget, and never panics.
+/// nothing, within the budget (the renderer's), and never panics.
 #[test]
 fn extreme_projections_never_panic() {
     arbtest::arbtest(|u| {
@@ -627,7 +641,7 @@ fn extreme_projections_never_panic() {
                 &region,
                 filter,
                 [x + w / 2.0, y + h / 2.0],
-                &FilterOptions::default(),
+                &FilterOptions::RENDER,
                 &mut stats,
             );
             assert!(r.weight.is_finite() && r.error_bound.is_finite(), "{r:?}");

@@ -3,13 +3,15 @@
 //! Python bindings can be compared with the same calls made from Rust.
 //!
 //! ```text
-//! cargo run --release -p quadtex-eval --example filter_batch -- TEXTURE.qtx QUADS.bin [--repeat N] [--out COLOURS.bin]
+//! cargo run --release -p quadtex-eval --example filter_batch -- TEXTURE.qtx QUADS.bin [--repeat N] [--out COLOURS.bin] [--budget N] [--weighting texture]
 //! ```
 //!
 //! `QUADS.bin` holds `N×4×2` little-endian `f64`: each footprint's corners
 //! (the texture-space images of pixel corners (0,0), (1,0), (1,1), (0,1)).
 //! Options are the defaults of both APIs: repeat wrap, screen weighting,
-//! quality 1, error bound 1/512. Reading, parsing and building the
+//! error bound 1/512, no square budget; `--budget N` sets one (64 is what
+//! the renderer and, before issue 62, the library used) and `--weighting
+//! texture` weights by texture area. Reading, parsing and building the
 //! `Vec<Footprint>` happen before the clock starts; one untimed warm-up call
 //! precedes `--repeat` timed calls (default 1), each printed as
 //! `seconds=…`. `--out` writes the colours (`N×4` little-endian `f32`) after
@@ -19,7 +21,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use quadtex_core::{FilterOptions, Footprint, Texture, Wrap};
+use quadtex_core::{FilterOptions, Footprint, Texture, Weighting, Wrap};
 
 fn main() -> ExitCode {
     match run() {
@@ -34,6 +36,7 @@ fn main() -> ExitCode {
 fn run() -> Result<(), String> {
     let mut args = std::env::args().skip(1);
     let (mut positional, mut repeat, mut out) = (Vec::new(), 1usize, None::<PathBuf>);
+    let mut options = FilterOptions::default();
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--repeat" => {
@@ -41,9 +44,19 @@ fn run() -> Result<(), String> {
                 repeat = v.parse().map_err(|e| format!("--repeat {v}: {e}"))?;
             }
             "--out" => out = Some(args.next().ok_or("--out needs a path")?.into()),
+            "--budget" => {
+                let v = args.next().ok_or("--budget needs a value")?;
+                let n = v.parse().map_err(|e| format!("--budget {v}: {e}"))?;
+                options = options.with_budget(n).map_err(|e| e.to_string())?;
+            }
+            "--weighting" => match args.next().as_deref() {
+                Some("texture") => options = options.with_weighting(Weighting::Texture),
+                Some("screen") => options = options.with_weighting(Weighting::Screen),
+                other => return Err(format!("--weighting {other:?}: expected screen or texture")),
+            },
             "-h" | "--help" => {
                 println!(
-                    "usage: filter_batch TEXTURE.qtx QUADS.bin [--repeat N] [--out COLOURS.bin]"
+                    "usage: filter_batch TEXTURE.qtx QUADS.bin [--repeat N] [--out COLOURS.bin] [--budget N] [--weighting screen|texture]"
                 );
                 return Ok(());
             }
@@ -78,8 +91,6 @@ fn run() -> Result<(), String> {
             Footprint::from_corners(corners).map_err(|e| format!("footprint {i}: {e}"))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let options = FilterOptions::default();
-
     let mut colours = texture.filter_batch(&footprints, &options);
     for _ in 0..repeat {
         let start = Instant::now();

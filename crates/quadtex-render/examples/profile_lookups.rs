@@ -16,7 +16,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let scene =
         quadtex_render::load_scene(std::path::Path::new(&scene), &quadtex_io::Limits::default())?;
     let height = scene.camera.height_for_width(width);
-    let filter = quadtex_render::TextureFilter::Quadtree(quadtex_core::FilterOptions::DEFAULT);
+    let filter = quadtex_render::TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER);
     let t = quadtex_render::time_lookups(&scene, width, height, filter, passes)?;
     println!(
         "{:.1} ns per lookup over {} lookups (median of {passes})",

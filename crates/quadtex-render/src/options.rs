@@ -8,7 +8,10 @@ use quadtex_core::baseline::StripOptions;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum TextureFilter {
     /// The method: each pixel's footprint filtered by
-    /// [`quadtex_core::Texture::filter`] with these options.
+    /// [`quadtex_core::Texture::filter`] with these options. The default is
+    /// [`FilterOptions::RENDER`]: the library's defaults with a budget of
+    /// [`quadtex_core::SQUARE_BUDGET`] (64) squares a pixel region, which
+    /// pixels near a horizon reach (the render summary reports their bounds).
     Quadtree(FilterOptions),
     /// The texel under the pixel centre (finest level), no filtering.
     Nearest,
@@ -43,7 +46,7 @@ pub enum TextureFilter {
 
 impl Default for TextureFilter {
     fn default() -> Self {
-        TextureFilter::Quadtree(FilterOptions::default())
+        TextureFilter::Quadtree(FilterOptions::RENDER)
     }
 }
 

@@ -18,12 +18,22 @@ use crate::geometry::fragment::Fragment;
 /// point pairs fix it: the corners alone determine how screen area is
 /// distributed over the footprint ([`crate::Projection::for_pixel`]).
 ///
-/// Invariant: every coordinate is finite. Degenerate footprints (zero area:
-/// a point, a segment) are allowed and filter to the texture at their centre.
+/// Invariants: every coordinate is finite and at most
+/// [`MAX_TEXTURE_COORDINATE`] in magnitude, and the quad does not cross
+/// itself (no bow tie: its corners go around it in order). Degenerate
+/// footprints (zero area: a point, a segment) are allowed and filter to the
+/// texture at their centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Footprint {
     corners: [[f64; 2]; 4],
 }
+
+/// Largest magnitude of a footprint's coordinate (texture units),
+/// `10^15`: beyond it an `f64` no longer resolves a texel of the tile, so
+/// the filter could not tell where within a tile a corner lies (at `10^20`
+/// it returned zero under repeat). [`Footprint::from_corners`] refuses
+/// coordinates beyond it with [`Error::BadPolygon`] naming the corner.
+pub const MAX_TEXTURE_COORDINATE: f64 = 1e15;
 
 /// Field names for errors, `corner[i].x` / `corner[i].z`.
 const CORNER_FIELDS: [[&str; 2]; 4] = [
@@ -36,13 +46,28 @@ const CORNER_FIELDS: [[&str; 2]; 4] = [
 impl Footprint {
     /// A footprint from the texture-space images of the pixel's corners
     /// `(0,0), (1,0), (1,1), (0,1)`; [`Error::NonFiniteCoordinate`] names a
-    /// NaN or infinite coordinate (`corner[2].z`).
+    /// NaN or infinite coordinate (`corner[2].z`), [`Error::BadPolygon`] a
+    /// coordinate beyond [`MAX_TEXTURE_COORDINATE`] or a quad that crosses
+    /// itself (a bow tie: two opposite edges intersect, which no pixel
+    /// square seen in perspective gives; its corners are out of order).
     pub fn from_corners(corners: [[f64; 2]; 4]) -> Result<Footprint, Error> {
         for (corner, names) in corners.iter().zip(CORNER_FIELDS) {
             for (&value, field) in corner.iter().zip(names) {
                 if !value.is_finite() {
                     return Err(Error::NonFiniteCoordinate { field, value });
                 }
+                if value.abs() > MAX_TEXTURE_COORDINATE {
+                    return Err(Error::BadPolygon(format!(
+                        "footprint coordinate {field} = {value:e} is beyond the largest texture coordinate {MAX_TEXTURE_COORDINATE:e} (MAX_TEXTURE_COORDINATE)"
+                    )));
+                }
+            }
+        }
+        for (a, b, c, d) in [(0, 1, 2, 3), (1, 2, 3, 0)] {
+            if segments_cross(corners[a], corners[b], corners[c], corners[d]) {
+                return Err(Error::BadPolygon(format!(
+                    "footprint crosses itself (a bow tie): edge corner[{a}]–corner[{b}] crosses edge corner[{c}]–corner[{d}]; give the corners in order around the quad"
+                )));
             }
         }
         Ok(Footprint { corners })
@@ -71,8 +96,7 @@ impl Footprint {
         self.corners
     }
 
-    /// Area enclosed (shoelace formula, absolute value; a self-intersecting
-    /// quad counts its lobes with opposite signs).
+    /// Area enclosed (shoelace formula, absolute value).
     pub fn area(&self) -> f64 {
         polygon_area(&self.corners)
     }
@@ -290,6 +314,16 @@ pub(crate) fn polygon_area(p: &[[f64; 2]]) -> f64 {
     crate::geometry::polygon::signed_area(p).abs()
 }
 
+/// True when segments `p0p1` and `q0q1` cross at a point inside both
+/// (touching at an end or overlapping along a line does not count).
+fn segments_cross(p0: [f64; 2], p1: [f64; 2], q0: [f64; 2], q1: [f64; 2]) -> bool {
+    let orient = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        let d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        i8::from(d > 0.0) - i8::from(d < 0.0)
+    };
+    orient(p0, p1, q0) * orient(p0, p1, q1) < 0 && orient(q0, q1, p0) * orient(q0, q1, p1) < 0
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -297,6 +331,30 @@ mod tests {
 
     fn quad(c: [[f64; 2]; 4]) -> Footprint {
         Footprint::from_corners(c).unwrap()
+    }
+
+    #[test]
+    fn bow_ties_and_huge_coordinates_are_refused() {
+        // Corners 2 and 3 swapped: edges 1–2 and 3–0 cross.
+        let e =
+            Footprint::from_corners([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]).unwrap_err();
+        assert!(matches!(e, Error::BadPolygon(_)), "{e:?}");
+        assert!(e.to_string().contains("bow tie"), "{e}");
+        // Convex, concave, degenerate and touching quads are accepted.
+        for c in [
+            [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            [[0.0, 0.0], [1.0, 0.0], [0.2, 0.2], [0.0, 1.0]],
+            [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]],
+            [[0.5, 0.5]; 4],
+        ] {
+            assert!(Footprint::from_corners(c).is_ok(), "{c:?}");
+        }
+        let m = MAX_TEXTURE_COORDINATE;
+        assert!(Footprint::from_corners([[-m, -m], [m, -m], [m, m], [-m, m]]).is_ok());
+        let e = Footprint::from_corners([[0.0, 0.0], [1e20, 0.0], [1e20, 1.0], [0.0, 1.0]])
+            .unwrap_err();
+        assert!(e.to_string().contains("corner[1].x"), "{e}");
+        assert!(e.to_string().contains("MAX_TEXTURE_COORDINATE"), "{e}");
     }
 
     #[test]
@@ -351,13 +409,13 @@ mod tests {
     }
 
     #[test]
-    fn parallelograms_are_affine_and_folded_quads_have_no_square_to_quad() {
+    fn parallelograms_are_affine_and_folded_quads_are_refused() {
         let p = Footprint::from_differentials([0.5, 0.5], [0.25, 0.0], [0.0, 0.125]).unwrap();
         let h = p.square_to_quad().unwrap();
         assert!(h.is_affine());
         assert_eq!(p.centre(), [0.5, 0.5]);
-        // Corners out of order (a bow tie) do not bound a projective image.
-        let bow = quad([[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]);
-        assert!(bow.square_to_quad().is_none());
+        // Corners out of order (a bow tie) do not bound a projective image:
+        // refused.
+        assert!(Footprint::from_corners([[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]).is_err());
     }
 }

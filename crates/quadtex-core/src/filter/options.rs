@@ -4,9 +4,12 @@
 use crate::Error;
 use crate::tree::TraversalStats;
 
-/// Most squares and blocks one region evaluates under an error bound by
-/// default: past it the largest remaining errors are left unrefined and the
-/// bound reported is what was reached (a fixed level has no budget).
+/// The renderer's square budget: most squares and blocks one pixel region
+/// evaluates under an error bound in `quadtex-render` (and the CLI's
+/// `render --budget` default). Past it the largest remaining errors are
+/// left unrefined and the bound reported is what was reached. Library
+/// calls ([`FilterOptions::default`]) have no budget: they opt in with
+/// [`FilterOptions::with_budget`].
 pub const SQUARE_BUDGET: u64 = 64;
 
 /// How a footprint's points are weighted in its mean colour.
@@ -68,7 +71,8 @@ impl LevelOfDetail {
     }
 }
 
-/// Options of [`crate::Texture::filter`]: weighting, level of detail, budget.
+/// Options of [`crate::Texture::filter`]: weighting, level of detail, and
+/// an optional square budget.
 ///
 /// Invariants (checked by the `with_*` constructors): an error bound is
 /// finite and `> 0`, a budget at least 1.
@@ -76,7 +80,9 @@ impl LevelOfDetail {
 pub struct FilterOptions {
     weighting: Weighting,
     lod: LevelOfDetail,
-    budget: u64,
+    /// `None`: refine until the bound is met (up to the hard cap
+    /// [`crate::FIXED_LEVEL_CAP`] squares a region).
+    budget: Option<u64>,
 }
 
 impl Default for FilterOptions {
@@ -87,12 +93,23 @@ impl Default for FilterOptions {
 }
 
 impl FilterOptions {
-    /// Screen weighting, error bound 1/512, a budget of
-    /// [`SQUARE_BUDGET`] squares.
+    /// Screen weighting, error bound 1/512, no square budget: every
+    /// footprint is refined until its bound is met (a region stops only at
+    /// the hard cap of [`crate::FIXED_LEVEL_CAP`] squares, and then reports
+    /// the larger bound it reached).
     pub const DEFAULT: FilterOptions = FilterOptions {
         weighting: Weighting::Screen,
         lod: LevelOfDetail::ErrorBound(1.0 / 512.0),
-        budget: SQUARE_BUDGET,
+        budget: None,
+    };
+
+    /// What the renderer asks for: [`FilterOptions::DEFAULT`] with a budget
+    /// of [`SQUARE_BUDGET`] squares a region (pixels near a horizon stop at
+    /// it and report the bound reached).
+    pub const RENDER: FilterOptions = FilterOptions {
+        weighting: Weighting::Screen,
+        lod: LevelOfDetail::ErrorBound(1.0 / 512.0),
+        budget: Some(SQUARE_BUDGET),
     };
 
     /// The defaults ([`FilterOptions::default`]).
@@ -132,7 +149,9 @@ impl FilterOptions {
 
     /// With at most `budget` squares and tile blocks evaluated per region
     /// under an error bound (`≥ 1`; see [`crate::filter::region`]): past it the
-    /// largest remaining errors stay and the bound reached is reported.
+    /// largest remaining errors stay and the bound reached is reported
+    /// (it may then exceed the error bound asked for; [`FilterStats`]
+    /// counts such footprints). Opt-in: the default has no budget.
     /// Shallow repeated textures (depth ≤ 4) are scanned cell by cell
     /// instead, exactly, up to 512 cells a region, whatever the budget.
     pub fn with_budget(self, budget: u64) -> Result<FilterOptions, Error> {
@@ -143,12 +162,33 @@ impl FilterOptions {
                 expected: "at least 1",
             });
         }
-        Ok(FilterOptions { budget, ..self })
+        Ok(FilterOptions {
+            budget: Some(budget),
+            ..self
+        })
     }
 
-    /// The square budget per region.
-    pub fn budget(&self) -> u64 {
+    /// With no square budget (the default): refine until the bound is met,
+    /// up to the hard cap of [`crate::FIXED_LEVEL_CAP`] squares a region.
+    pub fn without_budget(self) -> FilterOptions {
+        FilterOptions {
+            budget: None,
+            ..self
+        }
+    }
+
+    /// The square budget per region, `None` when there is none.
+    pub fn budget(&self) -> Option<u64> {
         self.budget
+    }
+
+    /// The error bound aimed at (relative to full contrast), `None` under a
+    /// fixed level.
+    pub fn target_bound(&self) -> Option<f64> {
+        match self.lod {
+            LevelOfDetail::ErrorBound(e) => Some(e),
+            LevelOfDetail::Fixed(_) => None,
+        }
     }
 
     /// The weighting.
@@ -181,6 +221,10 @@ pub struct FilterStats {
     pub max_error_bound: f64,
     /// Sum of the filtered colours' error bounds (mean = sum / footprints).
     pub sum_error_bound: f64,
+    /// Footprints whose reported bound (relative to the texture's
+    /// contrast) is above the error bound asked for: stopped by a square
+    /// budget or by the hard cap ([`crate::FIXED_LEVEL_CAP`]).
+    pub over_target: u64,
 }
 
 impl FilterStats {
@@ -194,6 +238,7 @@ impl FilterStats {
         self.sum_mismatch += other.sum_mismatch;
         self.max_error_bound = self.max_error_bound.max(other.max_error_bound);
         self.sum_error_bound += other.sum_error_bound;
+        self.over_target += other.over_target;
     }
 
     /// Records one filtered colour's relative error bound.
@@ -225,5 +270,19 @@ mod tests {
         let e = o.with_error_bound(-1.0).unwrap_err().to_string();
         assert!(e.contains("error bound"), "{e}");
         assert!(o.with_budget(0).is_err());
+    }
+
+    #[test]
+    fn library_default_has_no_budget_renderer_keeps_64() {
+        assert_eq!(FilterOptions::default().budget(), None);
+        assert_eq!(FilterOptions::RENDER.budget(), Some(SQUARE_BUDGET));
+        assert_eq!(
+            FilterOptions::default().with_budget(SQUARE_BUDGET).unwrap(),
+            FilterOptions::RENDER
+        );
+        assert_eq!(
+            FilterOptions::RENDER.without_budget(),
+            FilterOptions::DEFAULT
+        );
     }
 }

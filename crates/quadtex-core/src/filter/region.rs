@@ -48,7 +48,8 @@
 //! walk below does the rest.
 //!
 //! **Budget.** Refinement also stops after a budget of squares
-//! ([`crate::FilterOptions::budget`]). Over more than 16 repeated tiles a
+//! ([`crate::FilterOptions::budget`]: 64 in the renderer, none by default,
+//! where it stops only at [`crate::FIXED_LEVEL_CAP`]). Over more than 16 repeated tiles a
 //! refinement the budget cuts short with its bound above 5% of full
 //! contrast is replaced by the coarse sum (every tile at the tile mean):
 //! the partial one is biased by moiré, the coarse one keeps the

@@ -23,7 +23,7 @@
 
 use std::sync::Arc;
 
-use crate::colour::{Rgba, WeightedColour};
+use crate::colour::{ColourEncoding, Rgba, WeightedColour};
 use crate::filter::footprint::Footprint;
 use crate::filter::options::{FilterOptions, FilterStats, Weighting};
 use crate::filter::pixel_filter::PixelFilter;
@@ -88,7 +88,10 @@ impl Texture {
     }
 
     /// The mean colour (linear, premultiplied) over `footprint` under
-    /// `options` (module documentation).
+    /// `options` (module documentation). Under the default options it is
+    /// within the error bound (1/512 of the texture's contrast) of the exact
+    /// mean, whatever the footprint; [`Texture::filter_with_bound`] also
+    /// returns the bound reached.
     pub fn filter(&self, footprint: &Footprint, options: &FilterOptions) -> Rgba {
         self.filter_counted(footprint, options, &mut FilterStats::default())
     }
@@ -100,6 +103,56 @@ impl Texture {
         options: &FilterOptions,
         stats: &mut FilterStats,
     ) -> Rgba {
+        self.filter_with_bound(footprint, options, stats).0
+    }
+
+    /// As [`Texture::filter_counted`], with the error bound the colour
+    /// reached, relative to the texture's contrast (each channel is within
+    /// `bound × `[`QuadTree::bound_scale`] of the exact mean: the bound
+    /// itself for LDR textures; 0 when exact).
+    /// It is at most the error bound asked for unless a square budget
+    /// ([`FilterOptions::with_budget`]) or the hard cap
+    /// ([`crate::FIXED_LEVEL_CAP`]) stopped the refinement; such footprints
+    /// are counted in [`FilterStats::over_target`].
+    ///
+    /// Channels that cannot be negative (every channel of an LDR texture,
+    /// alpha of an HDR one) are clamped at 0: rounding in the sums can
+    /// otherwise leave tiny negatives (`-2e-20`) where the mean is 0.
+    pub fn filter_with_bound(
+        &self,
+        footprint: &Footprint,
+        options: &FilterOptions,
+        stats: &mut FilterStats,
+    ) -> (Rgba, f64) {
+        let (colour, absolute) = self.filter_unclamped(footprint, options, stats);
+        // The pipeline's bound is in colour units; the target is relative to
+        // the texture's contrast (the widest channel range for HDR).
+        let bound = absolute / self.tree.bound_scale();
+        let mut c = [colour.r, colour.g, colour.b, colour.a];
+        let clamped = match self.tree.encoding() {
+            ColourEncoding::Unorm16 => &mut c[..],
+            ColourEncoding::Half => &mut c[3..],
+        };
+        for v in clamped {
+            *v = v.max(0.0);
+        }
+        if let Some(target) = options.target_bound()
+            && bound > target
+        {
+            stats.over_target += 1;
+        }
+        let [r, g, b, a] = c;
+        (Rgba { r, g, b, a }, bound)
+    }
+
+    /// The filtered colour and its relative bound, as the pipeline gives
+    /// them (no clamping).
+    fn filter_unclamped(
+        &self,
+        footprint: &Footprint,
+        options: &FilterOptions,
+        stats: &mut FilterStats,
+    ) -> (Rgba, f64) {
         let unit = ConvexPolygon::rect(0.0, 0.0, 1.0, 1.0);
         let screen = match options.weighting() {
             Weighting::Screen => Projection::for_pixel(footprint, [0.0, 0.0]),
@@ -115,7 +168,7 @@ impl Texture {
                 stats,
             ),
             // Texture weighting, or corners no projective map of the square
-            // reaches (a bow tie, a degenerate quad): uniform over the hull.
+            // reaches (a concave or degenerate quad): uniform over the hull.
             None => self.integrate_region(
                 &Projection::identity(),
                 &ConvexPolygon::hull(&footprint.corners()),
@@ -127,10 +180,17 @@ impl Texture {
         };
         match result.mean() {
             Some(c) if result.weight > 0.0 => {
-                stats.record_bound(result.error_bound / result.weight);
-                c
+                let bound = result.error_bound / result.weight;
+                stats.record_bound(bound);
+                (c, bound)
             }
-            _ => self.nearest_counted(footprint.centre(), &mut stats.traversal),
+            _ => {
+                stats.record_bound(0.0);
+                (
+                    self.nearest_counted(footprint.centre(), &mut stats.traversal),
+                    0.0,
+                )
+            }
         }
     }
 

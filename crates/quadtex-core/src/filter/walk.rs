@@ -2,7 +2,7 @@
 //! plane a region covers, largest error first, within a budget.
 
 use crate::colour::WeightedColour;
-use crate::filter::options::{FilterStats, SQUARE_BUDGET};
+use crate::filter::options::FilterStats;
 use crate::filter::pixel_filter::PixelFilter;
 use crate::filter::projection::{Mat3, adjugate, apply};
 use crate::filter::region::{RegionIntegral, RegionQuery};
@@ -146,7 +146,7 @@ pub(super) fn walk_region(
         queued_bound: 0.0,
         target: epsilon * filter.k_max() * area,
         area,
-        budget: query.options.budget(),
+        budget: query.options.budget().unwrap_or(FIXED_LEVEL_CAP),
         tree,
         wrap: query.wrap,
         filter,
@@ -180,12 +180,10 @@ pub(super) fn walk_region(
 }
 
 /// Most squares a region evaluates under a fixed level
-/// ([`crate::LevelOfDetail::Fixed`]) before it stops refining and reports its
-/// bound: about 80 MiB of pending parts at most.
+/// ([`crate::LevelOfDetail::Fixed`]), or under an error bound with no square
+/// budget ([`crate::FilterOptions::default`]), before it stops refining and
+/// reports its bound: about 80 MiB of pending parts at most.
 pub const FIXED_LEVEL_CAP: u64 = 1 << 20;
-
-/// The default budget of squares ([`crate::FilterOptions::budget`]).
-pub const DEFAULT_SQUARE_BUDGET: u64 = SQUARE_BUDGET;
 
 /// One clamp stripe's edge seen from one of its tiles: the edge beyond
 /// which it lies (`axis`, `high`) and how the tile's axis along the edge

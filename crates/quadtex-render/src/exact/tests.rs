@@ -175,7 +175,7 @@ fn row_rms(y: f64) -> f64 {
     let surface = &scene.surfaces[0];
     let view = View::new(&scene, 0, &surface.geometry.planar(0).unwrap()).unwrap();
     let texture = surface.texture.as_ref().unwrap().texture(surface.wrap);
-    let finished = FilterOptions::default()
+    let finished = FilterOptions::RENDER
         .with_error_bound(1e-6)
         .and_then(|o| o.with_budget(1 << 18))
         .unwrap();
@@ -187,7 +187,7 @@ fn row_rms(y: f64) -> f64 {
         let get = |o: &FilterOptions| {
             view.texture_integral(&texture, &support, PixelFilter::Box, centre, o)
         };
-        let (quick, exact) = (get(&FilterOptions::default()), get(&finished));
+        let (quick, exact) = (get(&FilterOptions::RENDER), get(&finished));
         assert!(exact.error_bound < 1e-4 * exact.weight, "{exact:?}");
         let d = quick.mean().unwrap().r - exact.mean().unwrap().r;
         assert!(f64::from(d.abs()) <= quick.error_bound / quick.weight + 1e-4);
@@ -493,7 +493,7 @@ fn the_sky_at_the_level_line_matches_a_dense_sum() {
                 Whole::Unknown,
                 PixelFilter::Box,
                 [x + 0.5, y0 + 0.5],
-                sky_tolerance(&FilterOptions::default()),
+                sky_tolerance(&FilterOptions::RENDER),
             );
             let (nx, ny) = (16, 4096);
             let (dx, dy) = (1.0 / f64::from(nx), (yh - y0) / f64::from(ny));
@@ -520,7 +520,7 @@ fn the_sky_at_the_level_line_matches_a_dense_sum() {
                 .fold(0.0, f64::max);
             worst = worst.max(error);
             assert!(
-                error <= sky_tolerance(&FilterOptions::default()),
+                error <= sky_tolerance(&FilterOptions::RENDER),
                 "{width}x{height}, pixel x {x}: off by {error}"
             );
         }
@@ -537,7 +537,7 @@ fn the_sky_at_the_level_line_matches_a_dense_sum() {
 fn the_sky_shortcut_takes_only_pixels_the_bound_accepts() {
     for (width, height) in [(192, 108), (1920, 1080)] {
         let scene = demo_at(width, height);
-        for tolerance in [sky_tolerance(&FilterOptions::default()), 1e-7] {
+        for tolerance in [sky_tolerance(&FilterOptions::RENDER), 1e-7] {
             let clear = sky_clear_above(&scene, tolerance);
             let g = sky_step(&scene);
             let (mut shortcut, mut sky_rows) = (0, 0);
