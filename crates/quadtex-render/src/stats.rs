@@ -55,9 +55,10 @@ impl std::fmt::Display for RenderSummary {
         if s.max_error_bound > 0.0 {
             write!(
                 f,
-                "; error bound per textured pixel mean {:.2e}, max {:.2e}; pixel weight off by {:.1e} at most",
+                "; error bound per textured pixel mean {:.2e}, max {:.2e}, above the target in {} pixels; pixel weight off by {:.1e} at most",
                 s.sum_error_bound / tp,
                 s.max_error_bound,
+                s.over_target,
                 self.max_weight_error
             )?;
         }

@@ -246,12 +246,33 @@ impl FilterStats {
         self.max_error_bound = self.max_error_bound.max(relative);
         self.sum_error_bound += relative;
     }
+
+    /// Records one result's relative error bound, counting it in
+    /// [`FilterStats::over_target`] when it is above `target` (the bound
+    /// asked for; `None` under a fixed level, which aims at none).
+    pub fn record_bound_against(&mut self, relative: f64, target: Option<f64>) {
+        self.record_bound(relative);
+        if target.is_some_and(|t| relative > t) {
+            self.over_target += 1;
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    #[test]
+    fn bounds_above_the_target_are_counted() {
+        let mut stats = FilterStats::default();
+        stats.record_bound_against(1e-3, Some(1.0 / 512.0));
+        stats.record_bound_against(1.0 / 512.0, Some(1.0 / 512.0));
+        stats.record_bound_against(0.5, Some(1.0 / 512.0));
+        stats.record_bound_against(0.9, None);
+        assert_eq!(stats.over_target, 1);
+        assert_eq!(stats.max_error_bound, 0.9);
+    }
 
     #[test]
     fn level_of_detail_rule() {

@@ -184,7 +184,9 @@ impl<'a> ExactPixel<'_, 'a> {
         sums.add(c, w, b);
         parts.weight_error = weight_error(w);
         stats.merge_parts(&parts);
-        stats.filter.record_bound(b / w.abs().max(1e-300));
+        stats
+            .filter
+            .record_bound_against(b / w.abs().max(1e-300), self.shading.options.target_bound());
         Some(mean(sums.colour, sums.weight))
     }
 
@@ -513,9 +515,10 @@ impl<'a> ExactPixel<'_, 'a> {
         }
         parts.weight_error = weight_error(sums.weight);
         stats.merge_parts(&parts);
-        stats
-            .filter
-            .record_bound(sums.bound / sums.weight.abs().max(1e-300));
+        stats.filter.record_bound_against(
+            sums.bound / sums.weight.abs().max(1e-300),
+            self.shading.options.target_bound(),
+        );
         Some(mean(sums.colour, sums.weight))
     }
 }
