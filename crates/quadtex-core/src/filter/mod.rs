@@ -12,6 +12,7 @@ pub(crate) mod footprint;
 pub(crate) mod options;
 pub(crate) mod pixel_filter;
 pub(crate) mod projection;
+pub(crate) mod query;
 pub(crate) mod region;
 pub(crate) mod scan;
 pub(crate) mod texture;

@@ -71,6 +71,7 @@ use crate::filter::few_cells::{RasterBox, raster_box};
 use crate::filter::options::{FilterOptions, FilterStats, LevelOfDetail};
 use crate::filter::pixel_filter::PixelFilter;
 use crate::filter::projection::{Projection, apply};
+use crate::filter::query::{RegionIntegral, RegionQuery};
 use crate::filter::scan::scan_flat_grid;
 use crate::filter::walk::{WalkPlan, walk_region};
 use crate::filter::wrap::Wrap;
@@ -81,43 +82,6 @@ use crate::tree::QuadTree;
 /// Largest screen coordinate a region may have (`2^50` pixels); beyond it
 /// the integral is empty (the caller falls back to a point lookup).
 pub const MAX_SCREEN_COORDINATE: f64 = (1u64 << 50) as f64;
-
-/// What [`crate::Texture::integrate_region`] returns.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct RegionIntegral {
-    /// `∫ colour · k` over the region (linear, premultiplied; units of
-    /// colour × screen area).
-    pub colour: WeightedColour,
-    /// `∫ k` over the region.
-    pub weight: f64,
-    /// A bound on `|colour − exact|` per channel, in the same units: what
-    /// taking squares at their mean cost (module documentation).
-    pub error_bound: f64,
-}
-
-impl RegionIntegral {
-    /// Adds another region's integral.
-    pub fn add(&mut self, other: &RegionIntegral) {
-        self.colour += other.colour;
-        self.weight += other.weight;
-        self.error_bound += other.error_bound;
-    }
-
-    /// `colour / weight`, `None` when the weight is zero.
-    pub fn mean(&self) -> Option<Rgba> {
-        // Not `mean_over`: a Mitchell lobe's weight may be negative.
-        (self.weight != 0.0 && self.weight.is_finite()).then(|| {
-            let s = 1.0 / self.weight;
-            let c = self.colour.0;
-            Rgba::new(
-                (c[0] * s) as f32,
-                (c[1] * s) as f32,
-                (c[2] * s) as f32,
-                (c[3] * s) as f32,
-            )
-        })
-    }
-}
 
 /// The least `w` a vertex of `region` may have for [`integrate_region`]
 /// to take the region as it is: nearer the horizon it cuts off the sliver
@@ -195,17 +159,6 @@ pub(crate) fn uniform_colour_over(
         }
     }
     uniform_colour_in(tree, lo, hi, wrap)
-}
-
-/// What one region integral is asked: the texture (its tree and wrap), the
-/// map from the screen, and the pixel filter with its centre (pixel units).
-pub(crate) struct RegionQuery<'a> {
-    pub(crate) tree: &'a QuadTree,
-    pub(crate) wrap: Wrap,
-    pub(crate) projection: &'a Projection,
-    pub(crate) filter: PixelFilter,
-    pub(crate) centre: [f64; 2],
-    pub(crate) options: &'a FilterOptions,
 }
 
 /// A screen region in front of the horizon, with its bounds and area

@@ -5,7 +5,7 @@ use arrayvec::ArrayVec;
 
 use crate::filter::pixel_filter::PixelFilter;
 use crate::filter::projection::{Mat3, apply};
-use crate::filter::region::RegionQuery;
+use crate::filter::query::RegionQuery;
 use crate::filter::tiles::{one_run_of_tiles, segments};
 use crate::filter::wrap::fold_cell;
 use crate::geometry::polygon::ConvexPolygon;

@@ -28,7 +28,8 @@ use crate::filter::footprint::Footprint;
 use crate::filter::options::{FilterOptions, FilterStats, Weighting};
 use crate::filter::pixel_filter::PixelFilter;
 use crate::filter::projection::Projection;
-use crate::filter::region::{self, RegionIntegral};
+use crate::filter::query::{RegionIntegral, RegionQuery};
+use crate::filter::region;
 use crate::filter::wrap::{Wrap, integrate_wrapped};
 use crate::geometry::fragment::Fragment;
 use crate::geometry::polygon::ConvexPolygon;
@@ -208,7 +209,7 @@ impl Texture {
         options: &FilterOptions,
         stats: &mut FilterStats,
     ) -> RegionIntegral {
-        let query = region::RegionQuery {
+        let query = RegionQuery {
             tree: &self.tree,
             wrap: self.wrap,
             projection,

@@ -5,7 +5,7 @@ use crate::colour::WeightedColour;
 use crate::filter::options::FilterStats;
 use crate::filter::pixel_filter::PixelFilter;
 use crate::filter::projection::{Mat3, adjugate, apply};
-use crate::filter::region::{RegionIntegral, RegionQuery};
+use crate::filter::query::{RegionIntegral, RegionQuery};
 use crate::filter::scan::scan_grid;
 use crate::filter::tiles::{
     Class, Line, MAX_EDGES, Segment, TileFrame, classify, edges_of, one_run_of_tiles, segments,

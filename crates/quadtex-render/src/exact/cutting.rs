@@ -1,15 +1,19 @@
 //! Cutting a pixel's support among its primitives' regions: front to
 //! back ([`Order`], [`Cut::among`]), or whole when they tile it or lie
 //! apart ([`Cut::tiling`]), and again as primitives join ([`Cut::insert`]).
+//! The support's mesh triangles are first spread to their neighbours
+//! ([`Flood`]) so the cut sees every triangle that tiles it.
 
 use std::ops::Deref;
 
 use quadtex_core::ConvexPolygon;
 
+use crate::caster::{Seen, seen_id};
+use crate::scene::{Geometry, Scene};
 use crate::view::{Placement, View, placement};
 
-use super::GAP_AREA;
-use super::views::ViewRef;
+use super::views::{SurfaceViews, ViewMemo, ViewRef, candidate_view};
+use super::{GAP_AREA, MAX_GAP_PRIMITIVES};
 
 /// Relative size, against the terms of an edge line's value at a vertex,
 /// below which a vertex beyond the line counts as on it in
@@ -508,5 +512,79 @@ impl Order {
             order.push(left[pick]);
         }
         order
+    }
+}
+
+/// A pixel's mesh triangles spread to their neighbours across the edges
+/// the support reaches over ([`Flood::spread`]).
+pub(super) struct Flood<'s, 'a> {
+    pub(super) scene: &'s Scene,
+    pub(super) cache: &'a SurfaceViews,
+    pub(super) support: &'s ConvexPolygon,
+}
+
+impl<'a> Flood<'_, 'a> {
+    /// Adds to `views` (and `regions`, `tried`) each mesh triangle across
+    /// an edge of a listed triangle whose region of the support is not
+    /// empty, where the support reaches past that edge, and the same from
+    /// those it adds, breadth first, up to [`MAX_GAP_PRIMITIVES`]: the
+    /// triangles of a mesh around those the centres see, which tile the
+    /// support with them where the surface does not fold. Their indices go
+    /// to `flooded`.
+    pub(super) fn spread(
+        &self,
+        views: &mut Vec<ViewRef<'a>>,
+        regions: &mut Regions,
+        tried: &mut Vec<(Seen, Option<usize>)>,
+        memo: &mut ViewMemo,
+        flooded: &mut Vec<usize>,
+    ) {
+        flooded.clear();
+        let corners = self.support.vertices();
+        let mut i = 0;
+        while i < views.len() && flooded.len() < MAX_GAP_PRIMITIVES {
+            let view = &views[i];
+            let (surface, triangle) = (view.surface(), view.triangle());
+            let mesh = match self.scene.surfaces.get(surface).map(|s| &s.geometry) {
+                Some(Geometry::Mesh(mesh)) if !regions[i].is_empty() => mesh,
+                _ => {
+                    i += 1;
+                    continue;
+                }
+            };
+            let Some(triangle) = triangle else {
+                i += 1;
+                continue;
+            };
+            // `lines()`: in front, then the edges in `Mesh::neighbour`'s order.
+            let mut edges = [[0.0; 3]; 3];
+            for (e, l) in edges.iter_mut().zip(view.lines().skip(1)) {
+                *e = l;
+            }
+            for (edge, [a, b, c]) in edges.into_iter().enumerate() {
+                if corners.iter().all(|&[x, y]| a * x + b * y + c >= 0.0) {
+                    continue;
+                }
+                let Some(next) = mesh.neighbour(triangle, edge) else {
+                    continue;
+                };
+                let id = seen_id(surface, next);
+                if tried.iter().any(|(t, _)| *t == id) || flooded.len() == MAX_GAP_PRIMITIVES {
+                    continue;
+                }
+                let Some(Some(next)) = candidate_view(self.scene, self.cache, memo, id) else {
+                    continue;
+                };
+                let region = regions.next_slot();
+                next.region_into(self.support, region);
+                if !region.is_empty() {
+                    regions.keep_slot();
+                    flooded.push(views.len());
+                    tried.push((id, Some(views.len())));
+                    views.push(next);
+                }
+            }
+            i += 1;
+        }
     }
 }

@@ -14,13 +14,14 @@ use crate::span::{SpanQuery, UniformSpan};
 use crate::stats::PixelStats;
 use crate::view::View;
 
+use super::cutting::Flood;
 use super::cutting::{Cut, Order, Regions, overlap, push_region};
 use super::lighting::{Shading, shade_region, shade_span_pixel};
 use super::sky::{
     SkySpan, Whole, sky_at_centre, sky_clear_above, sky_integral, sky_range, sky_step,
     sky_tolerance, views_miss,
 };
-use super::views::{Confirmed, Flood, SurfaceViews, ViewMemo, ViewRef, candidate_view};
+use super::views::{Confirmed, SurfaceViews, ViewMemo, ViewRef, candidate_view};
 use super::{GAP_AREA, MAX_GAP_PRIMITIVES, MAX_MESH_SCAN};
 
 /// The filtered colour of pixel `(x, y)` whose neighbourhood's centres see

@@ -17,9 +17,6 @@ use crate::scene::{Geometry, Hit, Scene};
 use crate::screen_bins::ScreenBins;
 use crate::view::View;
 
-use super::MAX_GAP_PRIMITIVES;
-use super::cutting::Regions;
-
 /// The view of candidate `id`: `None` when it is not planar (a sphere: the
 /// pixel takes the tangent-plane path), `Some(None)` when it is seen
 /// edge-on. A mesh triangle's view comes from `memo` when a neighbouring
@@ -127,80 +124,6 @@ impl ViewMemo {
 /// hashing, so that neighbouring triangle numbers spread out.
 pub(super) fn fibonacci_slot(id: Seen, bits: u32) -> usize {
     (id.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - bits)) as usize
-}
-
-/// A pixel's mesh triangles spread to their neighbours across the edges
-/// the support reaches over ([`Flood::spread`]).
-pub(super) struct Flood<'s, 'a> {
-    pub(super) scene: &'s Scene,
-    pub(super) cache: &'a SurfaceViews,
-    pub(super) support: &'s ConvexPolygon,
-}
-
-impl<'a> Flood<'_, 'a> {
-    /// Adds to `views` (and `regions`, `tried`) each mesh triangle across
-    /// an edge of a listed triangle whose region of the support is not
-    /// empty, where the support reaches past that edge, and the same from
-    /// those it adds, breadth first, up to [`MAX_GAP_PRIMITIVES`]: the
-    /// triangles of a mesh around those the centres see, which tile the
-    /// support with them where the surface does not fold. Their indices go
-    /// to `flooded`.
-    pub(super) fn spread(
-        &self,
-        views: &mut Vec<ViewRef<'a>>,
-        regions: &mut Regions,
-        tried: &mut Vec<(Seen, Option<usize>)>,
-        memo: &mut ViewMemo,
-        flooded: &mut Vec<usize>,
-    ) {
-        flooded.clear();
-        let corners = self.support.vertices();
-        let mut i = 0;
-        while i < views.len() && flooded.len() < MAX_GAP_PRIMITIVES {
-            let view = &views[i];
-            let (surface, triangle) = (view.surface(), view.triangle());
-            let mesh = match self.scene.surfaces.get(surface).map(|s| &s.geometry) {
-                Some(Geometry::Mesh(mesh)) if !regions[i].is_empty() => mesh,
-                _ => {
-                    i += 1;
-                    continue;
-                }
-            };
-            let Some(triangle) = triangle else {
-                i += 1;
-                continue;
-            };
-            // `lines()`: in front, then the edges in `Mesh::neighbour`'s order.
-            let mut edges = [[0.0; 3]; 3];
-            for (e, l) in edges.iter_mut().zip(view.lines().skip(1)) {
-                *e = l;
-            }
-            for (edge, [a, b, c]) in edges.into_iter().enumerate() {
-                if corners.iter().all(|&[x, y]| a * x + b * y + c >= 0.0) {
-                    continue;
-                }
-                let Some(next) = mesh.neighbour(triangle, edge) else {
-                    continue;
-                };
-                let id = seen_id(surface, next);
-                if tried.iter().any(|(t, _)| *t == id) || flooded.len() == MAX_GAP_PRIMITIVES {
-                    continue;
-                }
-                let Some(Some(next)) = candidate_view(self.scene, self.cache, memo, id) else {
-                    continue;
-                };
-                let region = regions.next_slot();
-                next.region_into(self.support, region);
-                if !region.is_empty() {
-                    regions.keep_slot();
-                    flooded.push(views.len());
-                    tried.push((id, Some(views.len())));
-                    views.push(next);
-                }
-            }
-            i += 1;
-        }
-    }
 }
 
 /// The mesh triangles recent pixels of a row confirmed by a ray through
