@@ -109,48 +109,70 @@ fn full_depth_equals_sum_over_texels_for_power_of_two_grids() {
 }
 
 #[test]
-fn any_size_image_integrates_to_its_texels_at_cell_resolution() {
-    // Non-power-of-two: cells straddle texel borders and hold exact area
-    // means, so the integral is exact for cell-aligned fragments and the
-    // whole square, and within one cell's worth of colour elsewhere.
+fn any_size_image_keeps_its_texels_and_integrates_to_them() {
+    // Any size packs its own texels as the finest cells (the texture spans
+    // `w × h` cells of its natural depth, the rest of the square is pad), so
+    // the full-depth integral over any fragment is the texel sum, and a
+    // truncated one agrees with the slow references.
     arbtest::arbtest(|u| {
         let grid = any_grid(u)?;
-        let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
-        let d = tree.depth().max(1);
-        // The cells follow the image's own aspect: 2^⌈log2 w⌉ × 2^⌈log2 h⌉.
-        let [columns, rows] = tree.finest_grid();
-        let log2 = |n: u32| n.next_power_of_two().trailing_zeros() as u8;
+        let (tree, report) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+        assert!(!report.resampled);
+        let (w, h) = (grid.width(), grid.height());
         assert_eq!(
             tree.aspect(),
-            Aspect::of_grid(log2(grid.width()), log2(grid.height()))
+            Aspect::from_extent(w, h, grid.natural_depth()).unwrap()
         );
+        // A tree that stops above its texels (a uniform image) is shallower.
+        if tree.depth() == grid.natural_depth() {
+            assert_eq!(tree.finest_grid(), [u64::from(w), u64::from(h)]);
+            assert_eq!(tree.raster_size(tree.depth()), [w, h]);
+        }
         let whole = Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap();
         assert!(close(
-            tree.weighted_colour(&whole, d),
+            tree.weighted_colour(&whole, 0),
             texel_sum(&grid, &whole),
-            2e-5
+            0.5 / 65535.0 + 1e-12
         ));
         for _ in 0..10 {
-            let cells = columns as f64;
-            let i = f64::from(u.int_in_range(0..=(columns as u32))?) / cells;
-            let j = f64::from(u.int_in_range(0..=(columns as u32))?) / cells;
-            let f = Fragment::new(i.min(j), 0.0, i.max(j), 1.0).unwrap();
+            let f = fragment(u)?;
+            let texels = texel_sum(&grid, &f);
+            let fast = tree.weighted_colour(&f, u8::MAX);
             assert!(
-                close(tree.weighted_colour(&f, 30), texel_sum(&grid, &f), 2e-5),
-                "{f:?}"
+                close(fast, texels, storage_tol(&f)),
+                "{w}x{h} {f:?}: tree {fast:?} vs texels {texels:?}"
             );
-            let cells = rows as f64;
-            let i = f64::from(u.int_in_range(0..=(rows as u32))?) / cells;
-            let j = f64::from(u.int_in_range(0..=(rows as u32))?) / cells;
-            let f = Fragment::new(0.0, i.min(j), 1.0, i.max(j)).unwrap();
+            let k = u.int_in_range(0..=tree.depth() + 1)?;
+            let fast = tree.weighted_colour(&f, k);
+            let slow = truncated_tree_sum(&tree, &f, k);
+            let paper = paper_traversal(&tree, &f, k, f_init);
             assert!(
-                close(tree.weighted_colour(&f, 30), texel_sum(&grid, &f), 2e-5),
-                "{f:?}"
+                close(fast, slow, storage_tol(&f)),
+                "{w}x{h} {f:?} k={k}: fast {fast:?} vs truncated sum {slow:?}"
             );
+            assert!(
+                close(fast, paper, storage_tol(&f)),
+                "{w}x{h} {f:?} k={k}: fast {fast:?} vs paper {paper:?}"
+            );
+        }
+        // A texel's rectangle integrates to that texel.
+        let (c, r) = (u.int_in_range(0..=w - 1)?, u.int_in_range(0..=h - 1)?);
+        let (fw, fh) = (f64::from(w), f64::from(h));
+        let texel = Fragment::new(
+            f64::from(c) / fw,
+            1.0 - f64::from(r + 1) / fh,
+            f64::from(c + 1) / fw,
+            1.0 - f64::from(r) / fh,
+        )
+        .unwrap();
+        let want = grid.texel(c, r).0.map(|v| f64::from(v) / 65535.0);
+        let got = tree.weighted_colour(&texel, u8::MAX).0.map(|v| v * fw * fh);
+        for (g, t) in got.iter().zip(want) {
+            assert!((g - t).abs() <= 1e-9, "{w}x{h} texel ({c}, {r}): {got:?} vs {want:?}");
         }
         Ok(())
     })
-    .budget_ms(1000);
+    .budget_ms(2000);
 }
 
 #[test]

@@ -8,9 +8,9 @@ use crate::geometry::polygon::ConvexPolygon;
 /// An edge line `n·p + c ≥ 0` (inside).
 pub(super) type Line = [f64; 3];
 
-/// The region's edges, plus one that keeps a non-square texture's tile off
-/// the tree's pad ([`crate::Aspect`]).
-pub(super) const MAX_EDGES: usize = crate::geometry::polygon::MAX_VERTICES + 1;
+/// The region's edges, plus two that keep a texture's tile off the tree's
+/// pad ([`crate::Aspect`]).
+pub(super) const MAX_EDGES: usize = crate::geometry::polygon::MAX_VERTICES + 2;
 
 pub(super) fn edges_of(p: &ConvexPolygon) -> ([Line; MAX_EDGES], usize) {
     let mut lines = [[0.0; 3]; MAX_EDGES];

@@ -663,12 +663,12 @@ impl Walk<'_> {
             *l = [l[0] * sx, l[1] * sz, l[0] * ox + l[1] * oz + l[2]];
         }
         // The pad is not texture: keep the tile to x < ex, z < ez.
-        if !aspect.is_square() {
-            edges.0[edges.1] = if ex < 1.0 {
-                [-1.0, 0.0, ex]
-            } else {
-                [0.0, -1.0, ez]
-            };
+        if ex < 1.0 {
+            edges.0[edges.1] = [-1.0, 0.0, ex];
+            edges.1 += 1;
+        }
+        if ez < 1.0 {
+            edges.0[edges.1] = [0.0, -1.0, ez];
             edges.1 += 1;
         }
         let m = &self.screen_from_texture;
@@ -996,12 +996,12 @@ impl Walk<'_> {
 }
 
 /// Which half of a level-`level` square on the texture's edge (`axis`,
-/// `high`) holds that edge: the high one for the high edge, except above a
-/// shrunk axis's level, where the texture's high edge lies in the low half
-/// ([`crate::Aspect`]).
+/// `high`) holds that edge: the low one for the low edge; for the high
+/// edge, the half holding the texture's last cells along `axis`, the low
+/// one where the extent ends in it ([`crate::Aspect`]).
 #[inline]
 pub(super) fn across_high(aspect: crate::Aspect, axis: usize, high: bool, level: u8) -> bool {
-    high && level >= aspect.shrink()[axis]
+    high && aspect.last_index(axis, level + 1) & 1 == 1
 }
 
 /// Screen length of the edges of `piece` (a region clipped to the box

@@ -178,25 +178,25 @@ fn hdr_texels_keep_their_range_to_half_precision() {
             }
             acc
         };
-        let power_of_two = w.is_power_of_two() && h.is_power_of_two();
-        assert_eq!(report.resampled, !power_of_two);
-        let fragments: Vec<Fragment> = if power_of_two {
-            (0..h)
-                .flat_map(|r| (0..w).map(move |c| (c, r)))
-                .map(|(c, r)| {
-                    Fragment::new(
-                        f64::from(c) / f64::from(w),
-                        1.0 - f64::from(r + 1) / f64::from(h),
-                        f64::from(c + 1) / f64::from(w),
-                        1.0 - f64::from(r) / f64::from(h),
-                    )
-                    .unwrap()
-                })
-                .chain([Fragment::new(0.1, 0.2, 0.7, 0.9).unwrap()])
-                .collect()
-        } else {
-            vec![Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap()]
-        };
+        // Every size keeps its texels as its cells: each texel's rectangle
+        // integrates back to that texel.
+        assert!(!report.resampled, "{w}x{h}");
+        let fragments: Vec<Fragment> = (0..h)
+            .flat_map(|r| (0..w).map(move |c| (c, r)))
+            .map(|(c, r)| {
+                Fragment::new(
+                    f64::from(c) / f64::from(w),
+                    1.0 - f64::from(r + 1) / f64::from(h),
+                    f64::from(c + 1) / f64::from(w),
+                    1.0 - f64::from(r) / f64::from(h),
+                )
+                .unwrap()
+            })
+            .chain([
+                Fragment::new(0.1, 0.2, 0.7, 0.9).unwrap(),
+                Fragment::new(0.0, 0.0, 1.0, 1.0).unwrap(),
+            ])
+            .collect();
         for f in fragments {
             let got = t.weighted_colour(&f, 30).0;
             let want = exact(&f);

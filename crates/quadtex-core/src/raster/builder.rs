@@ -81,6 +81,17 @@ impl<C: Cell> Builder<'_, C> {
         self.cells[(self.rows - 1 - iz) * self.side + ix]
     }
 
+    /// How many cells of the texture square `(level, ix, iz)` holds (cells
+    /// of the pad excluded, [`Aspect`]).
+    fn texture_cells(&self, level: u8, ix: usize, iz: usize) -> u64 {
+        let shift = self.depth - level;
+        let count = |i: usize, n: usize| {
+            let lo = (i as u64) << shift;
+            ((lo + (1u64 << shift)).min(n as u64)).saturating_sub(lo)
+        };
+        count(ix, self.side) * count(iz, self.rows)
+    }
+
     /// Builds the subtree of square `(level, ix, iz)`: returns its stats and
     /// its colour and kind; pushes its descendants if it is inner.
     /// `None` for a square of the pad (its parent gives it a colour).
@@ -128,12 +139,7 @@ impl<C: Cell> Builder<'_, C> {
         let Some(stats) = C::merge(parts) else {
             return Ok(None);
         };
-        // Cells of the texture under this square: a power of two on each axis.
-        let [sx, sz] = self.aspect.shrink();
-        let below = u32::from(self.depth - level);
-        let log2_cells =
-            below.min(u32::from(self.depth - sx)) + below.min(u32::from(self.depth - sz));
-        let mean = C::mean(&stats, log2_cells);
+        let mean = C::mean(&stats, self.texture_cells(level, ix, iz));
         // Pad children carry the mean, so the parent stays their average.
         let children = children.map(|c| c.unwrap_or((mean, Kind::Terminal)));
         let deviation = C::deviation(&stats, mean);
@@ -324,6 +330,9 @@ impl<C: Cell> Builder<'_, C> {
             })?;
         for tz in iz * side..(iz + 1) * side {
             for tx in ix * side..(ix + 1) * side {
+                // A block across the texture's edge repeats the edge's texels
+                // in the pad (never read; see `Aspect`).
+                let (tx, tz) = (tx.min(self.side - 1), tz.min(self.rows - 1));
                 let i = (self.rows - 1 - tz) * self.side + tx;
                 match (w.format.is_srgb8(), self.srgb8) {
                     (true, Some(src)) => w.format.put_srgb8(&mut w.data, src[i]),

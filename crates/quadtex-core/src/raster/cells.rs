@@ -18,8 +18,8 @@ pub(crate) trait Cell: Copy + Send + Sync {
     fn stats(self) -> Self::Stats;
     /// The stats of the parts present (`None` when none is).
     fn merge(parts: [Option<Self::Stats>; 4]) -> Option<Self::Stats>;
-    /// The rounded mean over `2^log2_cells` cells, as stored.
-    fn mean(s: &Self::Stats, log2_cells: u32) -> Unorm16Rgba;
+    /// The rounded mean over `cells` cells (at least one), as stored.
+    fn mean(s: &Self::Stats, cells: u64) -> Unorm16Rgba;
     /// Largest deviation of any cell from the stored `mean`, per channel,
     /// in full-scale units (`1` = an LDR channel's range).
     fn deviation(s: &Self::Stats, mean: Unorm16Rgba) -> f64;
@@ -68,10 +68,9 @@ impl Cell for Unorm16Rgba {
         }
         Some(s)
     }
-    fn mean(s: &Stats, log2_cells: u32) -> Unorm16Rgba {
-        let shift = log2_cells;
-        let half = if shift == 0 { 0 } else { 1u64 << (shift - 1) };
-        Unorm16Rgba(s.sum.map(|v| ((v + half) >> shift) as u16))
+    fn mean(s: &Stats, cells: u64) -> Unorm16Rgba {
+        let n = cells.max(1);
+        Unorm16Rgba(s.sum.map(|v| ((v + n / 2) / n) as u16))
     }
     fn deviation(s: &Stats, mean: Unorm16Rgba) -> f64 {
         let steps = (0..4)
@@ -132,10 +131,9 @@ impl Cell for HalfRgba {
         }
         Some(s)
     }
-    fn mean(s: &HalfStats, log2_cells: u32) -> Unorm16Rgba {
-        // Sums of halves over at most 2^60 cells: exact enough in f64,
-        // and a power-of-two division is exact.
-        let n = f64::from_bits((1023 + u64::from(log2_cells)) << 52);
+    fn mean(s: &HalfStats, cells: u64) -> Unorm16Rgba {
+        // Sums of halves over at most 2^60 cells: exact enough in f64.
+        let n = cells.max(1) as f64;
         Unorm16Rgba(s.sum.map(|v| ColourEncoding::Half.encode(v / n)))
     }
     fn deviation(s: &HalfStats, mean: Unorm16Rgba) -> f64 {

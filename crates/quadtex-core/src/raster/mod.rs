@@ -213,11 +213,26 @@ fn ceil_log2(n: u32) -> u8 {
 }
 
 /// The aspect of a `width × height` raster packed at `depth`, and its cell
-/// grid `(columns, rows)`: the image's own power-of-two shape, as deep as
-/// `depth` allows on the long side.
+/// grid `(columns, rows)`. At the natural depth `D` or deeper, the cells are
+/// the texels (each repeated `2^(depth − D)` times a side when deeper) and
+/// the texture spans exactly their extent ([`Aspect`]): no resampling. Above
+/// `D` (a coarser tree than the image), the image's own power-of-two shape,
+/// as deep as `depth` allows on the long side, its cells area-weighted
+/// means of the texels.
 pub fn raster_cells(width: u32, height: u32, depth: u8) -> (Aspect, usize, usize) {
+    let natural = ceil_log2(width.max(height));
+    if depth >= natural && depth <= MAX_DEPTH {
+        let finer = depth - natural;
+        let (columns, rows) = (u64::from(width) << finer, u64::from(height) << finer);
+        if let Ok(aspect) = Aspect::from_extent(columns as u32, rows as u32, depth) {
+            return (aspect, columns as usize, rows as usize);
+        }
+    }
     let aspect = Aspect::of_grid(ceil_log2(width), ceil_log2(height));
-    let [sx, sz] = aspect.shrink().map(|s| s.min(depth));
+    let [sx, sz] = aspect
+        .shrink()
+        .unwrap_or([0, 0])
+        .map(|s| s.min(depth));
     let aspect = Aspect::new(sx, sz).unwrap_or(Aspect::SQUARE);
     (aspect, 1usize << (depth - sx), 1usize << (depth - sz))
 }
@@ -362,6 +377,13 @@ impl QuadTree {
             rows: 0,
             parallel_cells: usize::MAX,
         };
+        // The mosaic's cells, for the means of squares above the tiles.
+        let cells = (tiles as usize) << side.trailing_zeros();
+        let b = Builder {
+            side: cells,
+            rows: cells,
+            ..b
+        };
         b.build(false)
     }
 
@@ -428,11 +450,12 @@ impl QuadTree {
             &grid.texels
         };
         let tolerance = Unorm16Rgba::tolerance(options.tolerance);
-        // Blocks where the block level lies wholly in the texture.
+        // Blocks unless a strip is thinner than a block: a block across the
+        // texture's edge stores pad texels too.
         let blocks = depth
             .checked_sub(BLOCK_LOG2_SIDE)
             .filter(|_| options.texel_blocks)
-            .filter(|&l| aspect.shrink().iter().all(|&s| s <= l))
+            .filter(|&l| aspect.shrink().is_none_or(|s| s.iter().all(|&s| s <= l)))
             .map(|level| BlockWriter {
                 level,
                 format: block_format(grid, resampled),

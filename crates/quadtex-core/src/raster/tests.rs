@@ -49,6 +49,12 @@ fn quarters_built_apart_make_the_sequential_tree() {
             0.05,
         ),
         (hdr(32, 32), false, 0.0),
+        (hdr(21, 30), false, 0.0),
+        (
+            TexelGrid::from_fn(75, 49, mosaic_texel).unwrap(),
+            true,
+            0.0,
+        ),
     ];
     for (grid, texel_blocks, tolerance) in &cases {
         let options = BuildOptions {
@@ -143,6 +149,41 @@ fn tiles_of_the_wrong_size_or_failing_to_load_stop_the_build() {
     assert!(QuadTree::from_tiles(2, 8, &levelled, &mut |_, _| unreachable!()).is_err());
 }
 
+/// Photo-like 8-bit texels of any size pack losslessly as their own
+/// bytes: no resampling, blocks across the texture's edge included, the
+/// tree passes `verify`, and it costs no more than the RGBA8 raster and its
+/// mip pyramid (`4/3 · 4` bytes a texel).
+#[test]
+fn any_size_packs_its_own_bytes_within_raster_and_mips() {
+    for (w, h) in [(600u32, 400u32), (601, 403), (300, 7), (5, 130), (512, 512)] {
+        let srgb8: Vec<[u8; 4]> = (0..w * h)
+            .map(|i| {
+                let (c, r) = (i % w, i / w);
+                // 4×4 blocks of random colours with a little noise.
+                let block = (c / 4).wrapping_mul(2_654_435_761) ^ (r / 4).wrapping_mul(40_503);
+                let noise = (c.wrapping_mul(97) ^ r.wrapping_mul(31)) % 9;
+                let v = |k: u32| ((block >> (8 * k)) as u8).wrapping_add(noise as u8);
+                [v(0), v(1), v(2), 255]
+            })
+            .collect();
+        let grid = TexelGrid::from_srgb8(w, h, srgb8).unwrap();
+        let (tree, report) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+        let what = format!("{w}x{h}");
+        assert!(!report.resampled && report.max_error == 0.0, "{what}");
+        tree.verify().unwrap_or_else(|e| panic!("{what}: {e}"));
+        assert!(
+            tree.texel_blocks().is_some_and(|b| b.format().is_srgb8()),
+            "{what}: blocks keep the source bytes"
+        );
+        let raster_and_mips = 4.0 * f64::from(w) * f64::from(h) * 4.0 / 3.0;
+        let bytes = tree.memory_bytes() as f64;
+        assert!(
+            bytes <= raster_and_mips || w * h < 4096,
+            "{what}: {bytes} B against {raster_and_mips} B of raster and mips"
+        );
+    }
+}
+
 #[test]
 fn weights_cover_each_cell_once() {
     for (t, c) in [(3, 4), (5, 8), (8, 8), (16, 4), (7, 2), (1, 1)] {
@@ -210,28 +251,31 @@ fn grid_estimate_counts_texels_cells_and_resampling_rows() {
         8 * 64 * 16,
         "a strip packs its own texels"
     );
-    // The 1×20000 column on its own 1×32768 cells: texels + cells + rows.
+    // Other sizes keep their texels as cells: no cell grid, no resampling.
+    assert_eq!(raster_grid_bytes(1, 20000, 15), 8 * 20000);
+    assert_eq!(raster_grid_bytes(3000, 3000, 12), 8 * 9_000_000);
+    // Deeper than the image, each texel repeated 2×2: texels + cells + rows.
     assert_eq!(
-        raster_grid_bytes(1, 20000, 15),
-        8 * 20000 + 8 * 32768 + 16 * 20000
+        raster_grid_bytes(3000, 3000, 13),
+        8 * 9_000_000 + 8 * 6000 * 6000 + 16 * 3000 * 6000
     );
-    // A square of another size still resamples onto the square around it.
+    // Coarser than the image: the square around it, resampled.
     assert_eq!(
-        raster_grid_bytes(3000, 3000, 12),
-        8 * 9_000_000 + 8 * 4096 * 4096 + 16 * 3000 * 4096
+        raster_grid_bytes(3000, 3000, 11),
+        8 * 9_000_000 + 8 * 2048 * 2048 + 16 * 3000 * 2048
     );
     let g = TexelGrid::from_fn(1, 20000, |_, r| {
         Rgba::opaque((r % 7) as f32 / 7.0, 0.0, 0.0)
     })
     .unwrap();
     let opts = BuildOptions {
-        max_bytes: Some(512 << 10),
+        max_bytes: Some(128 << 10),
         ..BuildOptions::default()
     };
     let e = QuadTree::from_texels(&g, &opts).unwrap_err();
     assert!(
         e.to_string().starts_with(
-            "packing 1x20000 texels at level 15 (1x32768 cells) needs an estimated 724.8 KiB, above the memory budget of 512.0 KiB"
+            "packing 1x20000 texels at level 15 (1x20000 cells) needs an estimated 156.3 KiB, above the memory budget of 128.0 KiB"
         ),
         "{e}"
     );

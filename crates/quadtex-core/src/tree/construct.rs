@@ -391,6 +391,9 @@ impl QuadTree {
     /// within rounding (|4·parent − Σ children| ≤ 4 per channel; for half
     /// floats, within two steps of the larger magnitude).
     fn check_averages(&self) -> Result<(), Error> {
+        if self.aspect.shrink().is_none() {
+            return self.check_averages_over_extent();
+        }
         for p in PAD..PAD + self.node_count() as usize {
             if !self.is_inner(p) {
                 continue;
@@ -429,6 +432,75 @@ impl QuadTree {
         Ok(())
     }
 
+    /// [`QuadTree::check_averages`] for an extent that is not a power of
+    /// two ([`Aspect`]): an inner colour is the mean of its children
+    /// weighted by the texture each holds, the pad's weighing nothing.
+    fn check_averages_over_extent(&self) -> Result<(), Error> {
+        let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
+        while let Some((p, level, ix, iz)) = stack.pop() {
+            if !self.is_inner(p) {
+                continue;
+            }
+            let c = self.first_child(p);
+            let mut weights = [0.0; 4];
+            for (k, w) in weights.iter_mut().enumerate() {
+                let (cx, cz) = (2 * ix + (k & 1) as u32, 2 * iz + (k >> 1) as u32);
+                *w = self.aspect.texture_fraction(level + 1, cx, cz);
+                stack.push((c + k, level + 1, cx, cz));
+            }
+            let total: f64 = weights.iter().sum();
+            let parent = self.encoding.decode_colour(self.colour(p));
+            for (ch, &stored) in parent.iter().enumerate() {
+                let mean = (0..4)
+                    .map(|k| weights[k] * self.encoding.decode(self.colour(c + k).0[ch]))
+                    .sum::<f64>()
+                    / total;
+                let slack = match self.encoding {
+                    ColourEncoding::Half => stored.abs().max(mean.abs()).max(6.1e-5) * (2.0 / 1024.0),
+                    _ => 1.0 / 65535.0,
+                };
+                if (stored - mean).abs() > slack + 1e-12 {
+                    return Err(Error::MalformedTree(format!(
+                        "node {}: channel {ch} is {stored} but its children's texture averages {mean}",
+                        p - PAD
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// For each node of the block level (from `block_nodes.start`), the
+    /// texels of its block that lie in the texture, as `(columns, rows)`
+    /// from the block's bottom-left corner: the whole block except where it
+    /// crosses the extent's edge ([`Aspect`]).
+    fn block_texture_parts(&self, tb: &TexelBlocks) -> Vec<(u32, u32)> {
+        let side = tb.side();
+        let mut parts = vec![(side, side); self.block_nodes.len()];
+        if self.aspect.shrink().is_some() {
+            return parts;
+        }
+        let [w, h] = self.aspect.cells_at(tb.level() + tb.log2_side());
+        let part = |i: u32, n: u64| {
+            n.saturating_sub(u64::from(i) * u64::from(side))
+                .min(side.into()) as u32
+        };
+        let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
+        while let Some((p, level, ix, iz)) = stack.pop() {
+            if level == tb.level() {
+                if let Some(slot) = p.checked_sub(self.block_nodes.start).and_then(|i| parts.get_mut(i)) {
+                    *slot = (part(ix, w), part(iz, h));
+                }
+            } else if self.is_inner(p) {
+                let c = self.first_child(p);
+                for k in 0..4 {
+                    stack.push((c + k, level + 1, 2 * ix + (k & 1) as u32, 2 * iz + (k >> 1) as u32));
+                }
+            }
+        }
+        parts
+    }
+
     /// Checks that block nodes are terminal and hold their texels' mean
     /// (within rounding: `|n·node − Σ texels| ≤ n` per channel).
     fn check_blocks(&self) -> Result<(), Error> {
@@ -436,6 +508,7 @@ impl QuadTree {
             return Ok(());
         };
         tb.check_texels()?;
+        let parts = self.block_texture_parts(tb);
         for p in self.block_nodes.clone() {
             let Some(b) = tb.block_of(p - self.block_nodes.start) else {
                 continue;
@@ -446,7 +519,8 @@ impl QuadTree {
                     p - PAD
                 )));
             }
-            let (sum, n) = tb.cell_sum(b, 0, 0, 0);
+            let (columns, rows) = parts[p - self.block_nodes.start];
+            let (sum, n) = tb.texture_sum(b, columns, rows);
             for (ch, (&total, &stored)) in sum.iter().zip(&self.colour(p).0).enumerate() {
                 if (u64::from(n) * u64::from(stored)).abs_diff(total) > u64::from(n) {
                     return Err(Error::MalformedTree(format!(

@@ -361,22 +361,19 @@ impl QuadTree {
         self.aspect
     }
 
-    /// The finest cell's size in texture units, `[width, height]`: `2^-depth`
-    /// scaled up by the aspect's shrink on that axis.
+    /// The finest cell's size in texture units, `[width, height]`: the
+    /// side `2^-depth` over the texture's extent on that axis ([`Aspect`]);
+    /// a raster's texel at its natural depth.
     pub fn finest_cell_size(&self) -> [f64; 2] {
-        let [sx, sz] = self.aspect.shrink();
-        let side = |s: u8| unit_side(self.depth - s.min(self.depth));
-        [side(sx), side(sz)]
+        let side = unit_side(self.depth);
+        let [ex, ez] = self.aspect.scale();
+        [(side / ex).min(1.0), (side / ez).min(1.0)]
     }
 
-    /// Columns and rows of the finest grid over the texture:
-    /// `[2^(depth−sx), 2^(depth−sz)]`, at least one each.
+    /// Columns and rows of the finest grid over the texture: the extent in
+    /// cells of the depth ([`Aspect::cells_at`]), at least one each.
     pub fn finest_grid(&self) -> [u64; 2] {
-        let [sx, sz] = self.aspect.shrink();
-        [
-            1u64 << self.depth.saturating_sub(sx),
-            1u64 << self.depth.saturating_sub(sz),
-        ]
+        self.aspect.cells_at(self.depth)
     }
 
     /// Number of nodes.
@@ -638,12 +635,12 @@ impl QuadTree {
         crate::TexelGrid::new(w as u32, h as u32, texels)
     }
 
-    /// Columns and rows of [`QuadTree::rasterise`] at `level`: `2^level`
-    /// shrunk by the aspect, at least one.
+    /// Columns and rows of [`QuadTree::rasterise`] at `level`: the cells
+    /// of `level` that hold texture ([`Aspect::cells_at`]), at least one.
     pub fn raster_size(&self, level: u8) -> [u32; 2] {
-        let [sx, sz] = self.aspect.shrink();
-        let cells = |s: u8| 1u32 << level.saturating_sub(s).min(31);
-        [cells(sx), cells(sz)]
+        self.aspect
+            .cells_at(level)
+            .map(|c| c.clamp(1, u64::from(u32::MAX)) as u32)
     }
 
     /// Bytes [`QuadTree::rasterise`] allocates at `level` (8 a cell) for a

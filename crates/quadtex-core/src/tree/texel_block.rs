@@ -437,6 +437,21 @@ impl TexelBlocks {
         (sum, span * span)
     }
 
+    /// The sum (unorm16 units) of the texels `tx < columns`, `tz < rows` of
+    /// `block`, and their number: a block across the texture's edge counts
+    /// its texture part ([`crate::Aspect`]).
+    pub(crate) fn texture_sum(&self, block: usize, columns: u32, rows: u32) -> ([u64; 4], u32) {
+        let mut sum = [0u64; 4];
+        for tz in 0..rows.min(self.side()) {
+            for tx in 0..columns.min(self.side()) {
+                for (s, v) in sum.iter_mut().zip(self.texel(block, tx, tz).0) {
+                    *s += u64::from(v);
+                }
+            }
+        }
+        (sum, columns.min(self.side()) * rows.min(self.side()))
+    }
+
     /// The mean of cell `(ix, iz)` of `block` cut `2^j × 2^j`, in `[0, 1]`.
     pub(crate) fn cell_mean(&self, block: usize, j: u8, ix: u32, iz: u32) -> [f64; 4] {
         let (sum, n) = self.cell_sum(block, j, ix, iz);

@@ -20,12 +20,15 @@ use leaves::*;
 /// First eight bytes of every `.qtx` file (PNG-style: a high byte, a name,
 /// and line endings that reveal text-mode corruption).
 pub const MAGIC: [u8; 8] = *b"\x89QTX\r\n\x1a\n";
-/// The newest version this library writes (files with gradient leaves);
-/// it reads this one and every earlier one (version 1 lacks the structure
-/// checksum, version 2 gradient leaves). Files without gradient leaves
-/// are written as version 2, so older readers still read them.
-pub const FORMAT_VERSION: u32 = 3;
+/// The newest version this library writes (textures whose extent is not
+/// a power of two, [`Aspect`]); it reads this one and every earlier one
+/// (version 1 lacks the structure checksum, version 2 gradient leaves,
+/// version 3 other extents). Each file is written in the oldest version
+/// that holds it, so older readers still read every other file.
+pub const FORMAT_VERSION: u32 = 4;
 
+/// The version of files with gradient or contour leaves.
+const LEAVES_VERSION: u32 = 3;
 /// The version of files without gradient leaves.
 const PLAIN_VERSION: u32 = 2;
 const HEADER_BYTES: usize = 64;
@@ -94,12 +97,21 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
     let kinds = u8::from(!gradient_section.is_empty()) * LEAF_KIND_GRADIENT
         + u8::from(!contour_section.is_empty()) * LEAF_KIND_CONTOUR;
     gradient_section.extend(contour_section);
-    let version = if gradient_section.is_empty() {
-        PLAIN_VERSION
-    } else {
-        FORMAT_VERSION
+    let aspect = tree.aspect();
+    // Version 4 keeps an extent that is not a power of two as the source
+    // size (`source_width × source_height` texels of their natural depth,
+    // reduced as `Aspect::from_extent` does); shrink bytes are then zero.
+    let shrink = aspect.shrink();
+    let version = match (shrink, gradient_section.is_empty()) {
+        (None, _) => FORMAT_VERSION,
+        (Some(_), true) => PLAIN_VERSION,
+        (Some(_), false) => LEAVES_VERSION,
     };
-    let (sw, sh) = source.unwrap_or((0, 0));
+    let (sw, sh) = match (shrink, source) {
+        (Some(_), source) => source.unwrap_or((0, 0)),
+        (None, Some((w, h))) if extent_of_source(w, h) == Some(aspect) => (w, h),
+        (None, _) => (aspect.cells()[0], aspect.cells()[1]),
+    };
     let mut header = [0u8; HEADER_BYTES];
     header[0..8].copy_from_slice(&MAGIC);
     header[8..12].copy_from_slice(&version.to_le_bytes());
@@ -111,7 +123,7 @@ fn encode_qtx(tree: &QuadTree, source: Option<(u32, u32)>) -> [Vec<u8>; 5] {
         blocks = gradient_section;
     }
     header[17] = tree.encoding().code();
-    header[18..20].copy_from_slice(&tree.aspect().shrink());
+    header[18..20].copy_from_slice(&shrink.unwrap_or([0, 0]));
     header[20..24].copy_from_slice(&sw.to_le_bytes());
     header[24..28].copy_from_slice(&sh.to_le_bytes());
     header[32..40].copy_from_slice(&n.to_le_bytes());
@@ -696,6 +708,14 @@ struct Header {
     source_height: u32,
 }
 
+/// The extent of a `width × height` raster at its natural depth
+/// (`⌈log2 max(width, height)⌉`); `None` for a zero or too large side.
+fn extent_of_source(width: u32, height: u32) -> Option<Aspect> {
+    let long = width.max(height);
+    let level = (32 - long.checked_sub(1)?.leading_zeros()) as u8;
+    Aspect::from_extent(width, height, level).ok()
+}
+
 /// Validates the 64-byte header of a file of `file_bytes` bytes; `h` may be
 /// shorter than 64 bytes (a truncated file).
 fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Result<Header, Error> {
@@ -771,7 +791,26 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
     if depth > limits.max_depth {
         return Err(limit("max_depth", depth.into(), limits.max_depth.into()));
     }
-    let aspect = Aspect::new(h[18], h[19]).map_err(|e| bad("aspect", e.to_string()))?;
+    let aspect = if version >= 4 {
+        if h[18..20] != [0, 0] {
+            return Err(bad(
+                "aspect",
+                "a version-4 file keeps its extent as its source size; shrink bytes must be zero".into(),
+            ));
+        }
+        extent_of_source(u32_at(20), u32_at(24)).ok_or_else(|| {
+            bad(
+                "source_size",
+                format!(
+                    "extent {}x{} is not a texture size (1 to 2^30 texels a side)",
+                    u32_at(20),
+                    u32_at(24)
+                ),
+            )
+        })?
+    } else {
+        Aspect::new(h[18], h[19]).map_err(|e| bad("aspect", e.to_string()))?
+    };
     let blocks = match h[28] {
         0 if h[29..31] == [0, 0] => None,
         0 => {

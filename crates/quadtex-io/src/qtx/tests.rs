@@ -46,7 +46,7 @@ fn round_trips() {
 fn strips_round_trip_with_their_aspect() {
     let g = synth::runway_art().rasterise(64, 8).unwrap();
     let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
-    assert_eq!(t.aspect().shrink(), [0, 3]);
+    assert_eq!(t.aspect().shrink(), Some([0, 3]));
     let mut bytes = Vec::new();
     write_qtx_to(&mut bytes, Path::new("strip"), &t, Some((64, 8))).unwrap();
     let (back, _) = parse_qtx(&bytes, Path::new("strip"), &Limits::default()).unwrap();
@@ -57,6 +57,53 @@ fn strips_round_trip_with_their_aspect() {
     bytes[56..60].copy_from_slice(&crc.to_le_bytes());
     let e = parse_qtx(&bytes, Path::new("strip"), &Limits::default()).unwrap_err();
     assert!(e.to_string().contains("aspect"), "{e}");
+}
+
+/// A texture of any size keeps its extent through the file (version 4,
+/// as its source size) and passes `verify` after reading; strips and
+/// squares stay version 2; a version-4 header with shrink bytes or an
+/// empty extent is refused by name.
+#[test]
+fn any_size_round_trips_as_version_4() {
+    let bytes: Vec<[u8; 4]> = (0..37u32 * 23)
+        .map(|i| {
+            let h = (i / 3).wrapping_mul(2_654_435_761);
+            [(h >> 8) as u8, (h >> 16) as u8, (h >> 24) as u8, 255]
+        })
+        .collect();
+    let g = quadtex_core::TexelGrid::from_srgb8(37, 23, bytes).unwrap();
+    let (t, _) = QuadTree::from_texels(&g, &BuildOptions::default()).unwrap();
+    assert_eq!(t.aspect().shrink(), None);
+    for source in [Some((37, 23)), None] {
+        let mut file = Vec::new();
+        write_qtx_to(&mut file, Path::new("odd"), &t, source).unwrap();
+        assert_eq!(u32::from_le_bytes(file[8..12].try_into().unwrap()), 4);
+        let (back, info) = parse_qtx(&file, Path::new("odd"), &Limits::default()).unwrap();
+        assert_eq!(back, t);
+        back.verify().unwrap();
+        assert_eq!((info.source_width, info.source_height), (37, 23));
+    }
+    let mut file = Vec::new();
+    write_qtx_to(&mut file, Path::new("odd"), &t, Some((37, 23))).unwrap();
+    let reheader = |b: &mut Vec<u8>| {
+        let crc = crc32fast::hash(&b[..56]);
+        b[56..60].copy_from_slice(&crc.to_le_bytes());
+    };
+    let mut shrunk = file.clone();
+    shrunk[19] = 1;
+    reheader(&mut shrunk);
+    let e = parse_qtx(&shrunk, Path::new("odd"), &Limits::default()).unwrap_err();
+    assert!(e.to_string().contains("aspect"), "{e}");
+    let mut empty = file.clone();
+    empty[20..24].copy_from_slice(&0u32.to_le_bytes());
+    reheader(&mut empty);
+    let e = parse_qtx(&empty, Path::new("odd"), &Limits::default()).unwrap_err();
+    assert!(e.to_string().contains("source_size"), "{e}");
+    let mut strip = Vec::new();
+    let s = synth::runway_art().rasterise(64, 8).unwrap();
+    let (s, _) = QuadTree::from_texels(&s, &BuildOptions::default()).unwrap();
+    write_qtx_to(&mut strip, Path::new("strip"), &s, Some((64, 8))).unwrap();
+    assert_eq!(u32::from_le_bytes(strip[8..12].try_into().unwrap()), 2);
 }
 
 /// A photograph-like 8-bit grid: most of its bottom in texel blocks.
