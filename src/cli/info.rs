@@ -107,20 +107,25 @@ pub fn run(args: Args) -> Result<()> {
     )?;
     writeln!(out, "depth:       {}", tree.depth())?;
     let [columns, rows] = tree.finest_grid();
-    let [sx, sz] = tree.aspect().shrink();
+    let aspect = tree.aspect();
     writeln!(
         out,
         "cells:       {columns}x{rows} at the deepest level{}",
-        match (sx, sz) {
-            (0, 0) => String::new(),
-            (s, 0) => format!(
+        match aspect.shrink() {
+            Some([0, 0]) => String::new(),
+            Some([s, 0]) => format!(
                 " (texture is the left 1/{} of the tree's square)",
                 1u64 << s
             ),
-            (_, s) => format!(
+            Some([_, s]) => format!(
                 " (texture is the bottom 1/{} of the tree's square)",
                 1u64 << s
             ),
+            None => {
+                let [cx, cz] = aspect.cells();
+                let side = 1u64 << aspect.level();
+                format!(" (texture is the bottom-left {cx}/{side} x {cz}/{side} of the tree's square)")
+            }
         }
     )?;
     writeln!(out, "nodes:       {}", tree.node_count())?;

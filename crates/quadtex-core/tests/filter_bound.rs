@@ -81,28 +81,51 @@ fn hdr(rng: &mut Rng) -> TexelGrid {
     TexelGrid::from_linear_f32(32, 32, &texels).unwrap()
 }
 
-/// The tree's uniform squares (texture space: the textures are square).
+/// A photo-like texture of an odd size, `w × h` random texels: the tree
+/// spans part of its square and blocks cross the texture's edge.
+fn odd_photo(rng: &mut Rng, w: u32, h: u32) -> TexelGrid {
+    let bytes: Vec<[u8; 4]> = (0..w * h)
+        .map(|_| {
+            let v = rng.next();
+            [v as u8, (v >> 8) as u8, (v >> 16) as u8, 255]
+        })
+        .collect();
+    TexelGrid::from_srgb8(w, h, bytes).unwrap()
+}
+
+/// The tree's uniform squares in texture space (tree squares over the
+/// texture's extent, clipped to it).
 fn leaves(tree: &QuadTree) -> Vec<([f64; 4], [f64; 4])> {
     let mut out = Vec::new();
+    let [ex, ez] = tree.aspect().scale();
     tree.for_each_leaf(tree.depth(), |level, ix, iz, colour| {
         let s = 0.5f64.powi(i32::from(level));
         let (x, z) = (f64::from(ix) * s, f64::from(iz) * s);
-        out.push(([x, z, x + s, z + s], colour));
+        let r = [x / ex, z / ez, ((x + s) / ex).min(1.0), ((z + s) / ez).min(1.0)];
+        out.push((r, colour));
     });
     out
 }
 
-/// The exact mean over the quad under repeat: every leaf in every tile the
-/// quad's box reaches, clipped against it.
-fn reference(leaves: &[([f64; 4], [f64; 4])], quad: &ConvexPolygon) -> [f64; 4] {
+/// The exact mean over the quad under repeat (or mirror): every leaf in
+/// every tile the quad's box reaches, clipped against it.
+fn reference(leaves: &[([f64; 4], [f64; 4])], quad: &ConvexPolygon, mirror: bool) -> [f64; 4] {
     let (lo, hi) = quad.bounds();
     let mut acc = [0.0; 4];
     let mut area = 0.0;
     for tz in lo[1].floor() as i64..=hi[1].floor() as i64 {
         for tx in lo[0].floor() as i64..=hi[0].floor() as i64 {
             let (ox, oz) = (tx as f64, tz as f64);
+            let flip = |a: f64, b: f64, t: i64| {
+                if mirror && t.rem_euclid(2) == 1 {
+                    (1.0 - b, 1.0 - a)
+                } else {
+                    (a, b)
+                }
+            };
             for (r, colour) in leaves {
-                let [x0, z0, x1, z1] = [r[0] + ox, r[1] + oz, r[2] + ox, r[3] + oz];
+                let ((x0, x1), (z0, z1)) = (flip(r[0], r[2], tx), flip(r[1], r[3], tz));
+                let [x0, z0, x1, z1] = [x0 + ox, z0 + oz, x1 + ox, z1 + oz];
                 if x1 <= lo[0] || x0 >= hi[0] || z1 <= lo[1] || z0 >= hi[1] {
                     continue;
                 }
@@ -151,12 +174,14 @@ fn random_quad(rng: &mut Rng, width: f64, affine: bool) -> [[f64; 2]; 4] {
 fn default_calls_keep_their_bound_on_random_textures_and_footprints() {
     let mut rng = Rng(0x5EED_0062);
     let grids = [
-        ("photo-like", photo_like(&mut rng)),
-        ("vector art", vector_art()),
-        ("HDR", hdr(&mut rng)),
+        ("photo-like", photo_like(&mut rng), Wrap::REPEAT),
+        ("vector art", vector_art(), Wrap::REPEAT),
+        ("HDR", hdr(&mut rng), Wrap::REPEAT),
+        ("photo-like 37x23", odd_photo(&mut rng, 37, 23), Wrap::REPEAT),
+        ("photo-like 19x50", odd_photo(&mut rng, 19, 50), Wrap::MIRROR),
     ];
     let target = 1.0 / 512.0;
-    for (name, grid) in grids {
+    for (name, grid, wrap) in grids {
         let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
         if name == "HDR" {
             assert_eq!(tree.encoding(), ColourEncoding::Half);
@@ -172,14 +197,15 @@ fn default_calls_keep_their_bound_on_random_textures_and_footprints() {
             _ => 8.0 * 2f64.powi(-11),
         };
         let leaves = leaves(&tree);
-        let texture = Texture::new(tree, Wrap::REPEAT);
+        let texture = Texture::new(tree, wrap);
+        let mirror = wrap == Wrap::MIRROR;
         let mut worst = 0.0f64;
         for case in 0..300 {
             let width = 10f64.powf(rng.range(-4.0, 4f64.log10()));
             let affine = case % 2 == 0;
             let corners = random_quad(&mut rng, width, affine);
             let footprint = Footprint::from_corners(corners).unwrap();
-            let exact = reference(&leaves, &ConvexPolygon::hull(&corners));
+            let exact = reference(&leaves, &ConvexPolygon::hull(&corners), mirror);
             // Texture weighting always; screen weighting too on
             // parallelograms, where the two agree.
             let weightings: &[Weighting] = if affine {

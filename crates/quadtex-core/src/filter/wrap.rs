@@ -600,7 +600,7 @@ mod tests {
     /// cells stretched by hand, with cells of their own width and height.
     #[test]
     fn strips_wrap_like_squares() {
-        for (w, h) in [(16u32, 2u32), (2, 16), (8, 1)] {
+        for (w, h) in [(16u32, 2u32), (2, 16), (8, 1), (13, 6), (5, 11), (3, 1)] {
             let g = TexelGrid::from_fn(w, h, |c, r| {
                 Rgba::opaque(
                     c as f32 / w as f32,

@@ -362,18 +362,25 @@ impl QuadTree {
     }
 
     /// The finest cell's size in texture units, `[width, height]`: the
-    /// side `2^-depth` over the texture's extent on that axis ([`Aspect`]);
-    /// a raster's texel at its natural depth.
+    /// side of a square of the finest level ([`QuadTree::finest_grid`]) over
+    /// the texture's extent on that axis ([`Aspect`]); a raster's texel.
     pub fn finest_cell_size(&self) -> [f64; 2] {
-        let side = unit_side(self.depth);
+        let side = unit_side(self.finest_level());
         let [ex, ez] = self.aspect.scale();
         [(side / ex).min(1.0), (side / ez).min(1.0)]
     }
 
     /// Columns and rows of the finest grid over the texture: the extent in
-    /// cells of the depth ([`Aspect::cells_at`]), at least one each.
+    /// squares of the finest level ([`Aspect::cells_at`]), at least one each.
     pub fn finest_grid(&self) -> [u64; 2] {
-        self.aspect.cells_at(self.depth)
+        self.aspect.cells_at(self.finest_level())
+    }
+
+    /// The level of the finest grid: the depth, or the extent's level when
+    /// deeper (a texture uniform down to its texels still has them as its
+    /// cells: a square of a shallower level would cross the extent's edge).
+    fn finest_level(&self) -> u8 {
+        self.depth.max(self.aspect.level())
     }
 
     /// Number of nodes.

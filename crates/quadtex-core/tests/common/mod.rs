@@ -34,8 +34,13 @@ pub fn blocky_grid_any_aspect(u: &mut Unstructured<'_>, max_depth: u32) -> ArbRe
         blocky_grid(u, max_depth)?
     };
     let side = grid.width();
-    if side == 1 || u.ratio(1, 2)? {
+    if side == 1 || u.ratio(1, 3)? {
         return Ok(grid);
+    }
+    if u.ratio(1, 2)? {
+        // Any size: a crop, which keeps its texels on part of the tree.
+        let (w, h) = (u.int_in_range(1..=side)?, u.int_in_range(1..=side)?);
+        return Ok(TexelGrid::from_fn(w, h, |c, r| grid.texel(c, r).to_rgba()).unwrap());
     }
     let short = side >> u.int_in_range(1..=side.trailing_zeros())?;
     let (w, h) = if u.ratio(1, 2)? {
