@@ -165,7 +165,7 @@ pub fn run(args: Args) -> Result<()> {
         mips as f64 / bytes as f64,
         error,
         if report.resampled {
-            ", cells resampled (area-weighted) from a non-power-of-two raster"
+            ", cells resampled (area-weighted): --max-level is not the image's depth"
         } else {
             ""
         },

@@ -1,22 +1,23 @@
 //! Packing a raster into an incomplete quadtree.
 //!
-//! The raster is first brought onto a grid of *cells*, the squares of the
-//! deepest level `D` that cover the texture: `2^a × 2^b` of them for a
-//! `W × H` image, `a = ⌈log2 W⌉`, `b = ⌈log2 H⌉`, `D = max(a, b)`; a
-//! non-square texture covers part of the tree's square (see
-//! [`Aspect`]), so a strip costs its own cells, not the square around it.
-//! When the image is already that size, cells are texels. Otherwise every
-//! cell stores the exact area-weighted mean of the texels it overlaps
-//! (texels are rectangles of the unit square, see the crate conventions), so
-//! a square that straddles texel borders is exact on average.
+//! The raster's texels are the *cells*, the squares of the deepest level
+//! `D = ⌈log2 max(W, H)⌉`: a `W × H` image of any size covers the
+//! bottom-left `W × H` cells of the tree's square, its extent, and the rest
+//! is pad, never read (see [`Aspect`]); so an image costs its own texels,
+//! not the square around it, and nothing is resampled. Only a `max_level`
+//! above `D` (a coarser tree) brings the raster onto the `2^a × 2^b` cells
+//! of its power-of-two shape at that level (`a`, `b` the sides' `⌈log2⌉`,
+//! shortened alike), each cell the exact area-weighted mean of the texels
+//! it overlaps (texels are rectangles of the unit square, see the crate
+//! conventions); a deeper one repeats each texel.
 //!
 //! Then one bottom-up pass computes, for every square, the integer sum, the
 //! minimum and the maximum of its cells per channel. A square is **terminal**
 //! iff every cell lies within the tolerance `T` of the square's (rounded)
 //! mean in every channel (the L∞ metric on linear, premultiplied
 //! channels, in units of full scale); with `T = 0` iff all its cells are equal.
-//! An inner square's colour is the rounded exact mean of all its cells, so
-//! rounding never accumulates up the tree.
+//! An inner square's colour is the rounded exact mean of all its texture
+//! cells, so rounding never accumulates up the tree.
 
 mod builder;
 mod cells;
@@ -294,8 +295,9 @@ impl Default for BuildOptions {
 pub struct BuildReport {
     /// Depth of the cell grid (the tree may stop above it).
     pub cell_depth: u8,
-    /// True when cells are not the texels themselves (non-power-of-two or
-    /// resized input): each cell then holds an area-weighted mean.
+    /// True when cells are not the texels themselves (a `max_level` other
+    /// than the image's natural depth): each cell then holds an
+    /// area-weighted mean of texels, or repeats one.
     pub resampled: bool,
     /// Largest deviation, per channel in full-scale units, between a cell and
     /// the colour of the terminal square that holds it. `0` when lossless.
