@@ -237,6 +237,45 @@ fn default_calls_keep_their_bound_on_random_textures_and_footprints() {
     }
 }
 
+/// Under clamp and border, footprints reaching up to a thousand texture
+/// widths past the edges keep their bound within the target: the
+/// stretched edge cells are taken whole only where the region's own
+/// boundary pays for them, however far the stripe reaches. Under mirror
+/// (and repeat), texture-weighted footprints too; screen-weighted ones up
+/// to ten widths (a hundred tiles: beyond a few thousand, projective ones
+/// can reach the square cap and report a bound above the target, see
+/// `docs/limits.md`).
+#[test]
+fn far_reaching_footprints_keep_the_bound_under_every_wrap() {
+    let mut rng = Rng(0x5EED_0063);
+    let grid = photo_like(&mut rng);
+    let (tree, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+    let target = 1.0 / 512.0;
+    for (wrap, weighting, widest) in [
+        (Wrap::CLAMP, Weighting::Screen, 1000.0f64),
+        (Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)), Weighting::Screen, 1000.0),
+        (Wrap::MIRROR, Weighting::Texture, 1000.0),
+        (Wrap::MIRROR, Weighting::Screen, 10.0),
+    ] {
+        let texture = Texture::new(tree.clone(), wrap);
+        let options = FilterOptions::default().with_weighting(weighting);
+        let mut worst = 0.0f64;
+        for case in 0..60 {
+            let width = 10f64.powf(rng.range(0.0, widest.log10()));
+            let corners = random_quad(&mut rng, width, case % 2 == 0);
+            let footprint = Footprint::from_corners(corners).unwrap();
+            let mut stats = FilterStats::default();
+            let (_, bound) = texture.filter_with_bound(&footprint, &options, &mut stats);
+            worst = worst.max(bound);
+            assert!(
+                bound <= target,
+                "{wrap:?} {weighting:?}, case {case} (width {width:.3e}, {corners:?}): bound {bound:e} above the target"
+            );
+        }
+        assert!(worst > 0.0 || wrap != Wrap::CLAMP, "{wrap:?}: nothing approximated");
+    }
+}
+
 /// With a budget (opt-in), a large footprint stops short and says so;
 /// without, it meets the bound. (An HDR texture: no texel blocks, so no
 /// cell-by-cell scan that is exact whatever the budget.)

@@ -848,6 +848,34 @@ impl Walk<'_> {
         }
     }
 
+    /// Screen length of the region's boundary inside `piece`, a part of
+    /// the clamp stripe beyond edge (`axis`, `high`) between `lo` and `hi`
+    /// along the edge: its sides but those on the edge and on the cuts at
+    /// `lo` and `hi`. Pieces taken whole when their area is at most
+    /// `boundary_coef` times this share the region's perimeter, so their
+    /// bounds add up to at most half the target, however far the stripe
+    /// reaches across (a diameter would count that reach once a piece).
+    fn stripe_cut(&self, piece: &ConvexPolygon, axis: usize, high: bool, (lo, hi): (f64, f64)) -> f64 {
+        let edge = if high { 1.0 } else { 0.0 };
+        let v = piece.vertices();
+        let n = v.len();
+        let tol = 1e-9 * (hi - lo).abs().max(1.0);
+        let on = |a: f64, b: f64, c: f64| (a - c).abs() <= tol && (b - c).abs() <= tol;
+        let m = &self.screen_from_texture;
+        let mut total = 0.0;
+        for i in 0..n {
+            let (a, b) = (v[i], v[(i + 1) % n]);
+            let along = 1 - axis;
+            if on(a[axis], b[axis], edge) || on(a[along], b[along], lo) || on(a[along], b[along], hi)
+            {
+                continue;
+            }
+            let (p, q) = (apply(m, a), apply(m, b));
+            total += (q[0] - p[0]).hypot(q[1] - p[1]);
+        }
+        total
+    }
+
     /// Tiles `j0..=j1` along the stripe beyond edge (`axis`, `high`).
     fn stripe(&mut self, axis: usize, high: bool, j0: i64, j1: i64, piece: &ConvexPolygon) {
         let (b0, b1) = (j0 as f64, (j1 + 1) as f64);
@@ -876,7 +904,9 @@ impl Walk<'_> {
             self.add(c, &screen, true);
             return;
         }
-        if self.fixed.is_none() && screen.area() <= self.boundary_coef * diameter(&screen) {
+        if self.fixed.is_none()
+            && screen.area() <= self.boundary_coef * self.stripe_cut(&part, axis, high, (b0, b1))
+        {
             let c = self.edge_mean(axis, high);
             self.add(c, &screen, true);
             return;
@@ -920,7 +950,9 @@ impl Walk<'_> {
             || self.over_budget()
             || match self.fixed {
                 Some(f) => level >= f,
-                None => screen.area() <= self.boundary_coef * diameter(&screen),
+                None => {
+                    screen.area() <= self.boundary_coef * self.stripe_cut(&piece, axis, high, (t0, t1))
+                }
             };
         if take {
             self.add(stored, &screen, inner);
@@ -1071,12 +1103,6 @@ pub(super) fn bbox_diagonal(points: &[[f64; 2]]) -> f64 {
     }
     let (dx, dy) = (hi[0] - lo[0], hi[1] - lo[1]);
     (dx * dx + dy * dy).sqrt()
-}
-
-/// The bounding box's diagonal of a polygon.
-#[inline]
-pub(super) fn diameter(p: &ConvexPolygon) -> f64 {
-    bbox_diagonal(p.vertices())
 }
 
 /// Extremes of the screen density `|det m| / w³` over `corners`.
