@@ -7,7 +7,7 @@ use crate::filter::scan::{
     BAND_VERTICES, BandBuffer, Bands, LeftOf, band_left_of, band_to_screen, scan_grid, shoelace,
 };
 use crate::filter::tiles::tile_map;
-use crate::filter::walk::diameter;
+use crate::filter::walk::bbox_diagonal;
 use crate::filter::wrap::WrapMode;
 use crate::geometry::polygon::ConvexPolygon;
 use crate::tree::unit_side;
@@ -450,7 +450,8 @@ fn the_box_scan_gives_what_clipping_every_cell_gives() {
         let swept = scan_grid(&region, &m, h, PixelFilter::Box, centre, max_cells, colour)
             .unwrap_or_else(|| panic!("case {case}: no box scan of {texture:?}"));
         let screen = region.map(|t| apply(&m, t));
-        let scale = diameter(&screen) * (diameter(&screen) + 1.0);
+        let d = bbox_diagonal(screen.vertices());
+        let scale = d * (d + 1.0);
         let tolerance = 1e-12 * scale * (1.0 + clipped.2);
         assert!(
             (swept.1 - clipped.1).abs() <= tolerance,
