@@ -124,7 +124,9 @@ pub fn run(args: Args) -> Result<()> {
             None => {
                 let [cx, cz] = aspect.cells();
                 let side = 1u64 << aspect.level();
-                format!(" (texture is the bottom-left {cx}/{side} x {cz}/{side} of the tree's square)")
+                format!(
+                    " (texture is the bottom-left {cx}/{side} x {cz}/{side} of the tree's square)"
+                )
             }
         }
     )?;

@@ -101,7 +101,12 @@ fn leaves(tree: &QuadTree) -> Vec<([f64; 4], [f64; 4])> {
     tree.for_each_leaf(tree.depth(), |level, ix, iz, colour| {
         let s = 0.5f64.powi(i32::from(level));
         let (x, z) = (f64::from(ix) * s, f64::from(iz) * s);
-        let r = [x / ex, z / ez, ((x + s) / ex).min(1.0), ((z + s) / ez).min(1.0)];
+        let r = [
+            x / ex,
+            z / ez,
+            ((x + s) / ex).min(1.0),
+            ((z + s) / ez).min(1.0),
+        ];
         out.push((r, colour));
     });
     out
@@ -177,8 +182,16 @@ fn default_calls_keep_their_bound_on_random_textures_and_footprints() {
         ("photo-like", photo_like(&mut rng), Wrap::REPEAT),
         ("vector art", vector_art(), Wrap::REPEAT),
         ("HDR", hdr(&mut rng), Wrap::REPEAT),
-        ("photo-like 37x23", odd_photo(&mut rng, 37, 23), Wrap::REPEAT),
-        ("photo-like 19x50", odd_photo(&mut rng, 19, 50), Wrap::MIRROR),
+        (
+            "photo-like 37x23",
+            odd_photo(&mut rng, 37, 23),
+            Wrap::REPEAT,
+        ),
+        (
+            "photo-like 19x50",
+            odd_photo(&mut rng, 19, 50),
+            Wrap::MIRROR,
+        ),
     ];
     let target = 1.0 / 512.0;
     for (name, grid, wrap) in grids {
@@ -253,7 +266,11 @@ fn far_reaching_footprints_keep_the_bound_under_every_wrap() {
     let target = 1.0 / 512.0;
     for (wrap, weighting, widest) in [
         (Wrap::CLAMP, Weighting::Screen, 1000.0f64),
-        (Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)), Weighting::Screen, 1000.0),
+        (
+            Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)),
+            Weighting::Screen,
+            1000.0,
+        ),
         (Wrap::MIRROR, Weighting::Texture, 1000.0),
         (Wrap::MIRROR, Weighting::Screen, 10.0),
     ] {
@@ -272,7 +289,10 @@ fn far_reaching_footprints_keep_the_bound_under_every_wrap() {
                 "{wrap:?} {weighting:?}, case {case} (width {width:.3e}, {corners:?}): bound {bound:e} above the target"
             );
         }
-        assert!(worst > 0.0 || wrap != Wrap::CLAMP, "{wrap:?}: nothing approximated");
+        assert!(
+            worst > 0.0 || wrap != Wrap::CLAMP,
+            "{wrap:?}: nothing approximated"
+        );
     }
 }
 

@@ -168,7 +168,10 @@ fn any_size_image_keeps_its_texels_and_integrates_to_them() {
         let want = grid.texel(c, r).0.map(|v| f64::from(v) / 65535.0);
         let got = tree.weighted_colour(&texel, u8::MAX).0.map(|v| v * fw * fh);
         for (g, t) in got.iter().zip(want) {
-            assert!((g - t).abs() <= 1e-9, "{w}x{h} texel ({c}, {r}): {got:?} vs {want:?}");
+            assert!(
+                (g - t).abs() <= 1e-9,
+                "{w}x{h} texel ({c}, {r}): {got:?} vs {want:?}"
+            );
         }
         Ok(())
     })

@@ -855,7 +855,13 @@ impl Walk<'_> {
     /// `boundary_coef` times this share the region's perimeter, so their
     /// bounds add up to at most half the target, however far the stripe
     /// reaches across (a diameter would count that reach once a piece).
-    fn stripe_cut(&self, piece: &ConvexPolygon, axis: usize, high: bool, (lo, hi): (f64, f64)) -> f64 {
+    fn stripe_cut(
+        &self,
+        piece: &ConvexPolygon,
+        axis: usize,
+        high: bool,
+        (lo, hi): (f64, f64),
+    ) -> f64 {
         let edge = if high { 1.0 } else { 0.0 };
         let v = piece.vertices();
         let n = v.len();
@@ -866,7 +872,9 @@ impl Walk<'_> {
         for i in 0..n {
             let (a, b) = (v[i], v[(i + 1) % n]);
             let along = 1 - axis;
-            if on(a[axis], b[axis], edge) || on(a[along], b[along], lo) || on(a[along], b[along], hi)
+            if on(a[axis], b[axis], edge)
+                || on(a[along], b[along], lo)
+                || on(a[along], b[along], hi)
             {
                 continue;
             }
@@ -951,7 +959,8 @@ impl Walk<'_> {
             || match self.fixed {
                 Some(f) => level >= f,
                 None => {
-                    screen.area() <= self.boundary_coef * self.stripe_cut(&piece, axis, high, (t0, t1))
+                    screen.area()
+                        <= self.boundary_coef * self.stripe_cut(&piece, axis, high, (t0, t1))
                 }
             };
         if take {

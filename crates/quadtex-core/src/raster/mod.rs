@@ -230,10 +230,7 @@ pub fn raster_cells(width: u32, height: u32, depth: u8) -> (Aspect, usize, usize
         }
     }
     let aspect = Aspect::of_grid(ceil_log2(width), ceil_log2(height));
-    let [sx, sz] = aspect
-        .shrink()
-        .unwrap_or([0, 0])
-        .map(|s| s.min(depth));
+    let [sx, sz] = aspect.shrink().unwrap_or([0, 0]).map(|s| s.min(depth));
     let aspect = Aspect::new(sx, sz).unwrap_or(Aspect::SQUARE);
     (aspect, 1usize << (depth - sx), 1usize << (depth - sz))
 }

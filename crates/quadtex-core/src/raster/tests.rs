@@ -50,11 +50,7 @@ fn quarters_built_apart_make_the_sequential_tree() {
         ),
         (hdr(32, 32), false, 0.0),
         (hdr(21, 30), false, 0.0),
-        (
-            TexelGrid::from_fn(75, 49, mosaic_texel).unwrap(),
-            true,
-            0.0,
-        ),
+        (TexelGrid::from_fn(75, 49, mosaic_texel).unwrap(), true, 0.0),
     ];
     for (grid, texel_blocks, tolerance) in &cases {
         let options = BuildOptions {

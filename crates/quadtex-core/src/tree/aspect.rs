@@ -179,9 +179,8 @@ impl Aspect {
     #[inline]
     pub fn is_pad(self, level: u8, ix: u32, iz: u32) -> bool {
         // ix·2^-level ≥ cells·2^-self.level, in integers.
-        let beyond = |i: u32, c: u32| {
-            (u128::from(i) << self.level) >= (u128::from(c) << level.min(100))
-        };
+        let beyond =
+            |i: u32, c: u32| (u128::from(i) << self.level) >= (u128::from(c) << level.min(100));
         beyond(ix, self.cells[0]) || beyond(iz, self.cells[1])
     }
 
@@ -189,9 +188,8 @@ impl Aspect {
     #[inline]
     pub fn straddles(self, level: u8, ix: u32, iz: u32) -> bool {
         // (i+1)·2^-level > cells·2^-self.level, in integers.
-        let over = |i: u32, c: u32| {
-            (u128::from(i) + 1) << self.level > u128::from(c) << level.min(100)
-        };
+        let over =
+            |i: u32, c: u32| (u128::from(i) + 1) << self.level > u128::from(c) << level.min(100);
         !self.is_pad(level, ix, iz) && (over(ix, self.cells[0]) || over(iz, self.cells[1]))
     }
 

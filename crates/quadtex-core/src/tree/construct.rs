@@ -456,7 +456,9 @@ impl QuadTree {
                     .sum::<f64>()
                     / total;
                 let slack = match self.encoding {
-                    ColourEncoding::Half => stored.abs().max(mean.abs()).max(6.1e-5) * (2.0 / 1024.0),
+                    ColourEncoding::Half => {
+                        stored.abs().max(mean.abs()).max(6.1e-5) * (2.0 / 1024.0)
+                    }
                     _ => 1.0 / 65535.0,
                 };
                 if (stored - mean).abs() > slack + 1e-12 {
@@ -488,13 +490,21 @@ impl QuadTree {
         let mut stack = vec![(PAD, 0u8, 0u32, 0u32)];
         while let Some((p, level, ix, iz)) = stack.pop() {
             if level == tb.level() {
-                if let Some(slot) = p.checked_sub(self.block_nodes.start).and_then(|i| parts.get_mut(i)) {
+                if let Some(slot) = p
+                    .checked_sub(self.block_nodes.start)
+                    .and_then(|i| parts.get_mut(i))
+                {
                     *slot = (part(ix, w), part(iz, h));
                 }
             } else if self.is_inner(p) {
                 let c = self.first_child(p);
                 for k in 0..4 {
-                    stack.push((c + k, level + 1, 2 * ix + (k & 1) as u32, 2 * iz + (k >> 1) as u32));
+                    stack.push((
+                        c + k,
+                        level + 1,
+                        2 * ix + (k & 1) as u32,
+                        2 * iz + (k >> 1) as u32,
+                    ));
                 }
             }
         }

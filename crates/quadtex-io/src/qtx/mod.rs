@@ -795,7 +795,8 @@ fn check_header(h: &[u8], file_bytes: u64, path: &Path, limits: &Limits) -> Resu
         if h[18..20] != [0, 0] {
             return Err(bad(
                 "aspect",
-                "a version-4 file keeps its extent as its source size; shrink bytes must be zero".into(),
+                "a version-4 file keeps its extent as its source size; shrink bytes must be zero"
+                    .into(),
             ));
         }
         extent_of_source(u32_at(20), u32_at(24)).ok_or_else(|| {
