@@ -185,7 +185,7 @@ qtx_cases! {
     qtx_trailing_garbage: "length", |b| b.extend_from_slice(b"extra");
     qtx_wrong_magic: "magic", |b| b[1] = b'P';
     qtx_text_file: "magic", |b| { *b = b"x0 z0 x1 z1\n0 0 1 1\n".repeat(5); };
-    qtx_future_version: "version", |b| { b[8] = 4; reseal_header(b); };
+    qtx_future_version: "version", |b| { b[8] = 5; reseal_header(b); };
     qtx_structure_bit_flip: "structure_crc", |b| b[64] ^= 0x02;
     qtx_header_bit_flip: "header_crc", |b| b[33] ^= 0x04;
     qtx_terabyte_node_count: "max_nodes", |b| { b[32..40].copy_from_slice(&(1u64 << 40).to_le_bytes()); reseal_header(b); };
