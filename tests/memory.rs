@@ -73,8 +73,9 @@ fn deep_svg_pack_is_refused_up_front() {
     );
 }
 
-/// A 1×20000 column packs on its own 1×32768 cells (no square around it):
-/// within a 50 MB budget; a budget below its texels and cells refuses up front.
+/// A 1×20000 column packs on its own 1×20000 texels (no square around it,
+/// no resampling): within a 50 MB budget; a budget below its texels
+/// refuses up front.
 #[test]
 fn tall_png_packs_in_its_own_cells() {
     let dir = temp_dir("mem-tall");
@@ -105,18 +106,18 @@ fn tall_png_packs_in_its_own_cells() {
         String::from_utf8_lossy(&packed.stderr)
     );
     std::fs::remove_file(&out).unwrap();
-    // Texels (160 000 B), cells (262 144 B) and the resampler's rows (320 000 B).
+    // The texels (160 000 B) are the cells: nothing else up front.
     let stderr = refused(&[
         "pack",
         png.to_str().unwrap(),
         "--memory-limit",
-        "256K",
+        "128K",
         "-o",
         out.to_str().unwrap(),
     ]);
     assert!(
         stderr.contains(
-            "packing 1x20000 texels at level 15 (1x32768 cells) needs an estimated 724.8 KiB"
+            "packing 1x20000 texels at level 15 (1x20000 cells) needs an estimated 156.3 KiB"
         ),
         "{stderr}"
     );
