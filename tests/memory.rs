@@ -74,8 +74,9 @@ fn deep_svg_pack_is_refused_up_front() {
 }
 
 /// A 1×20000 column packs on its own 1×20000 texels (no square around it,
-/// no resampling): within a 50 MB budget; a budget below its texels
-/// refuses up front.
+/// no resampling): within a 50 MB budget; a budget that holds the texels
+/// but not the tree refuses while building, and one below the decoded
+/// image refuses before decoding.
 #[test]
 fn tall_png_packs_in_its_own_cells() {
     let dir = temp_dir("mem-tall");
@@ -106,7 +107,20 @@ fn tall_png_packs_in_its_own_cells() {
         String::from_utf8_lossy(&packed.stderr)
     );
     std::fs::remove_file(&out).unwrap();
-    // The texels (160 000 B) are the cells: nothing else up front.
+    // The texels (160 000 B) are the cells: nothing else up front, so a
+    // budget that holds the decoded image refuses only as the tree grows.
+    let stderr = refused(&[
+        "pack",
+        png.to_str().unwrap(),
+        "--memory-limit",
+        "256K",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        stderr.contains("packing at level 15 (stopped after"),
+        "{stderr}"
+    );
     let stderr = refused(&[
         "pack",
         png.to_str().unwrap(),
@@ -116,9 +130,7 @@ fn tall_png_packs_in_its_own_cells() {
         out.to_str().unwrap(),
     ]);
     assert!(
-        stderr.contains(
-            "packing 1x20000 texels at level 15 (1x20000 cells) needs an estimated 156.3 KiB"
-        ),
+        stderr.contains("decoding 1x20000 texels needs an estimated 234.4 KiB"),
         "{stderr}"
     );
     assert!(!out.exists());
