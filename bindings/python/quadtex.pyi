@@ -44,9 +44,10 @@ class Texture:
 
     @property
     def cells(self) -> tuple[int, int]:
-        """``(columns, rows)`` of the finest grid over the texture: ``2**depth``
-        each for a square texture; a strip packs its own shape (powers of two
-        per axis), fewer cells along its short side."""
+        """``(columns, rows)`` of the finest grid over the texture: a packed
+        image's own width and height in texels, whatever its size (a texture
+        uniform down to its texels included); ``2**depth`` each for square
+        vector art."""
 
     @property
     def node_count(self) -> int:

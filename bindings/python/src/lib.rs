@@ -248,8 +248,10 @@ impl Texture {
         self.tree.depth()
     }
 
-    /// `(columns, rows)` of the finest grid over the texture: `2^depth`
-    /// each for a square texture; a strip packs its own shape.
+    /// `(columns, rows)` of the finest grid over the texture: a packed
+    /// image's own width and height in texels, whatever its size (a texture
+    /// uniform down to its texels included); `2^depth` each for square
+    /// vector art.
     #[getter]
     fn cells(&self) -> (u64, u64) {
         let [columns, rows] = self.tree.finest_grid();
