@@ -624,8 +624,10 @@ impl Walk<'_> {
     /// first order about each tile's centre, the first-order terms are the
     /// tile's first moments `m` dotted with `Σ ∇ρ(centres)`, which telescopes
     /// along rows and columns to the density's range `D` across the block;
-    /// the remainder is bounded by the Hessian `|∂²ρ| ≤ 12ρ|∇w|²/w²`.
-    /// Returned as the first-order part and the remainder.
+    /// the second order is the Hessian `|∂²ρ| ≤ 12ρ|∇w|²/w²` against the
+    /// colour's second moments ([`QuadTree::second_moments`]), the third
+    /// `|∂³ρ| ≤ 60ρ|∇w|³/w³` against its spread (`docs/algorithm.md`).
+    /// Returned as the first-order part and the rest.
     fn block_bound(&self, corners: &[[f64; 2]; 4], nx: f64, nz: f64) -> (f64, f64) {
         let (m, det) = (&self.screen_from_texture, self.screen_det);
         let w_min = corners
@@ -637,12 +639,23 @@ impl Walk<'_> {
         let g2 = m[2][0] * m[2][0] + m[2][1] * m[2][1];
         let hessian = 12.0 * rmax * g2 / (w_min * w_min);
         let [mx, mz] = self.tree.first_moments();
-        // Per tile: the colour's spread times the remainder over a unit
-        // tile (|δ|² ≤ ½), plus the moments times the Hessian for the error
-        // of the telescoped sum of gradients.
+        // Per tile, the second-order term: the Hessian (each entry at most
+        // `hessian`, as g_x², 2|g_x g_z|, g_z² ≤ |g|²) against the colour's
+        // second moments, plus the third-order remainder (|∂³ρ| ≤
+        // 60ρ|∇w|³/w³, |δ| ≤ √½ from the tile's centre) against its spread;
+        // without second moments, the second-order remainder against the
+        // spread (|δ|² ≤ ½). Plus the moments times the Hessian for the
+        // error of the telescoped sum of gradients.
+        let per_tile = match self.tree.second_moments() {
+            Some([xx, xz, zz]) => {
+                let third = 10.0 * rmax * g2 * g2.sqrt() / w_min.powi(3) * 0.5f64.powf(1.5);
+                0.5 * hessian * (xx + xz + zz) + third
+            }
+            None => 0.25 * hessian,
+        };
         (
             (mx * nz + mz * nx) * d,
-            (mx * nz + mz * nx) * hessian + nx * nz * hessian * (0.25 + mx + mz),
+            (mx * nz + mz * nx) * hessian + nx * nz * (per_tile + hessian * (mx + mz)),
         )
     }
 

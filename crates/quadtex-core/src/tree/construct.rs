@@ -357,6 +357,7 @@ impl QuadTree {
             top_level,
             top: Vec::new(),
             moments: std::sync::OnceLock::new(),
+            second_moments: std::sync::OnceLock::new(),
             grid: std::sync::OnceLock::new(),
             texel_blocks,
             block_nodes,

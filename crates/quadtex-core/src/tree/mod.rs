@@ -117,6 +117,9 @@ pub struct QuadTree {
     /// The colour's first moments about the centre, computed when first
     /// needed ([`QuadTree::first_moments`]).
     moments: std::sync::OnceLock<[f64; 2]>,
+    /// The colour's second moments ([`QuadTree::second_moments`]),
+    /// computed when first needed.
+    second_moments: std::sync::OnceLock<Option<[f64; 3]>>,
     /// The colours of the grid at the tree's depth, for shallow trees
     /// ([`QuadTree::flat_grid`]), computed when first needed.
     grid: std::sync::OnceLock<Option<Vec<[f64; 4]>>>,
@@ -488,6 +491,45 @@ impl QuadTree {
             });
             let max = |m: [f64; 4]| m.iter().fold(0f64, |a, v| a.max(v.abs())) + slack;
             [max(mx), max(mz)]
+        })
+    }
+
+    /// The largest, over channels, of `|∫ (c − c̄)(x − ½)²|`,
+    /// `|∫ (c − c̄)(x − ½)(z − ½)|` and `|∫ (c − c̄)(z − ½)²|` over the unit
+    /// square of texture space, `c̄` the stored mean: how the colour
+    /// correlates with a density that bends across one tile. Weighing a
+    /// whole tile at its mean errs by these times the density's Hessian,
+    /// to second order ([`crate::filter`]). `None` for trees with gradient
+    /// or contour leaves (they count at their means; the walk then assumes
+    /// the colour's whole spread). One pass over the leaves, the first time.
+    pub fn second_moments(&self) -> Option<[f64; 3]> {
+        *self.second_moments.get_or_init(|| {
+            if self.gradient_leaves.is_some() || self.contour_leaves.is_some() {
+                return None;
+            }
+            let mean = self.mean_colour();
+            let [ex, ez] = self.aspect.scale();
+            let (mut xx, mut xz, mut zz) = ([0f64; 4], [0f64; 4], [0f64; 4]);
+            // ∫ from a to b of (t − ½) dt, and of (t − ½)² dt.
+            let first = |a: f64, b: f64| 0.5 * ((b - 0.5).powi(2) - (a - 0.5).powi(2));
+            let second = |a: f64, b: f64| ((b - 0.5).powi(3) - (a - 0.5).powi(3)) / 3.0;
+            self.visit_leaves(self.depth, false, |level, ix, iz, c| {
+                // The leaf's texture part, in texture units.
+                let side = unit_side(level);
+                let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
+                let (x1, z1) = ((x0 + side).min(ex) / ex, (z0 + side).min(ez) / ez);
+                let (x0, z0) = (x0 / ex, z0 / ez);
+                let (fx, fz) = (first(x0, x1), first(z0, z1));
+                let (sx, sz) = (second(x0, x1), second(z0, z1));
+                for ch in 0..4 {
+                    let d = c[ch] - mean[ch];
+                    xx[ch] += d * sx * (z1 - z0);
+                    xz[ch] += d * fx * fz;
+                    zz[ch] += d * sz * (x1 - x0);
+                }
+            });
+            let max = |m: [f64; 4]| m.iter().fold(0f64, |a, v| a.max(v.abs()));
+            Some([max(xx), max(xz), max(zz)])
         })
     }
 
