@@ -3,7 +3,8 @@
 //! one at a time.
 
 use super::cells::{Cell, Stats};
-use super::{BuildReport, RASTER_KNOBS, TexelGrid, block_format};
+use super::packed_tile::{PackedTile, tile_format_error};
+use super::{BuildOptions, BuildReport, RASTER_KNOBS, TexelGrid};
 use crate::Error;
 use crate::colour::Unorm16Rgba;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
@@ -11,13 +12,25 @@ use crate::tree::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, BlockWriter};
 use crate::tree::{self, Aspect, MAX_DEPTH, QuadTree};
 
 /// Where the squares of one level come from whole: tiles packed one at a
-/// time (see [`QuadTree::from_tiles`]).
+/// time (see [`QuadTree::from_tiles`]), or packed elsewhere
+/// ([`QuadTree::from_packed_tiles`]).
 pub(super) struct Tiles<'a> {
     /// The level whose squares are tiles (`2^level` tiles a side).
     pub(super) level: u8,
     /// Texels on a tile's side.
     pub(super) side: u32,
-    pub(super) load: &'a mut dyn FnMut(u32, u32) -> Result<TexelGrid, Error>,
+    pub(super) source: TileSource<'a>,
+    /// The options the mosaic is packed with.
+    pub(super) options: BuildOptions,
+}
+
+/// What a tile-level square is made from.
+pub(super) enum TileSource<'a> {
+    /// The tile's texels, `(row, col)`.
+    Texels(&'a mut dyn FnMut(u32, u32) -> Result<TexelGrid, Error>),
+    /// The tile packed elsewhere, `(row, col, format)`: `format`, when
+    /// given, is the block format it must be packed in.
+    Packed(&'a mut dyn FnMut(u32, u32, Option<BlockFormat>) -> Result<PackedTile, Error>),
 }
 
 /// What a square became.
@@ -95,7 +108,7 @@ impl<C: Cell> Builder<'_, C> {
     /// Builds the subtree of square `(level, ix, iz)`: returns its stats and
     /// its colour and kind; pushes its descendants if it is inner.
     /// `None` for a square of the pad (its parent gives it a colour).
-    fn square(
+    pub(super) fn square(
         &mut self,
         level: u8,
         ix: usize,
@@ -380,9 +393,10 @@ impl<C: Cell> Builder<'_, C> {
 }
 
 impl Builder<'_, Unorm16Rgba> {
-    /// Square `(level, ix, iz)` as a whole tile: loads it, packs it on its
-    /// own and splices its levels below this one (breadth-first order holds:
-    /// squares are visited in the order their level lists them).
+    /// Square `(level, ix, iz)` as a whole tile: loads it and packs it on
+    /// its own (or takes it packed elsewhere), then splices its levels below
+    /// this one (breadth-first order holds: squares are visited in the
+    /// order their level lists them).
     pub(super) fn tile(
         &mut self,
         level: u8,
@@ -394,104 +408,103 @@ impl Builder<'_, Unorm16Rgba> {
         };
         let (n, side) = (1u32 << level, tiles.side);
         let (row, col) = (n - 1 - iz as u32, ix as u32);
-        let grid = (tiles.load)(row, col)?;
-        if grid.is_hdr() {
-            // Tiles are packed as unorm16 or 8-bit: an HDR tile would be clamped.
-            return Err(Error::HdrTile { row, col });
-        }
-        if (grid.width, grid.height) != (side, side) {
-            return Err(Error::BadDimensions {
-                width: grid.width.into(),
-                height: grid.height.into(),
-                reason: "not the size of the first tile (tiles must all be the same square)",
+        // The first tile fixes the blocks' format; the others must agree,
+        // 8-bit tiles sharing the widest of their formats.
+        let global = self.blocks.as_ref().map(|w| w.format);
+        let wrong_size = |w: u32, h: u32| Error::BadDimensions {
+            width: w.into(),
+            height: h.into(),
+            reason: "not the size of the first tile (tiles must all be the same square)",
+        };
+        let packed = match &mut tiles.source {
+            TileSource::Texels(load) => {
+                let grid = load(row, col)?;
+                if grid.is_hdr() {
+                    return Err(Error::HdrTile { row, col });
+                }
+                if (grid.width, grid.height) != (side, side) {
+                    return Err(wrong_size(grid.width, grid.height));
+                }
+                let context =
+                    tiles
+                        .options
+                        .tile_context(side, global, self.nodes, self.fixed_bytes);
+                PackedTile::pack(&grid, (row, col), &context)?
+            }
+            TileSource::Packed(load) => {
+                let packed = load(row, col, None)?;
+                if packed.side != side {
+                    return Err(wrong_size(packed.side, packed.side));
+                }
+                // Packed in its own format: the sequential build writes it in
+                // the widest of those before it too.
+                match (global, packed.own_format) {
+                    (Some(g), Some(own)) if g.is_srgb8() != own.is_srgb8() => {
+                        return Err(tile_format_error(row, col, own, g));
+                    }
+                    (Some(g), Some(own)) if packed.block_format() != Some(g.widest(own)) => {
+                        let again = load(row, col, Some(g.widest(own)))?;
+                        if again.block_format() != Some(g.widest(own)) || again.side != side {
+                            return Err(Error::MalformedTree(format!(
+                                "tile ({row}, {col}) was packed again in another block format than asked"
+                            )));
+                        }
+                        again
+                    }
+                    _ => packed,
+                }
+            }
+        };
+        self.splice_tile(level, packed)
+    }
+
+    /// Appends a packed tile's blocks, levels and counts below square
+    /// `level`; returns what the square above it needs.
+    fn splice_tile(
+        &mut self,
+        level: u8,
+        packed: PackedTile,
+    ) -> Result<(Stats, Unorm16Rgba, Kind), Error> {
+        self.nodes += packed.nodes;
+        if self.nodes > self.max_nodes {
+            return Err(Error::TooManyNodes {
+                nodes: self.nodes,
+                max: self.max_nodes,
             });
         }
-        let depth = self.depth - level;
-        // The first tile fixes the blocks' format; the others must agree.
-        let format = block_format(&grid, false);
-        let block_level = self
-            .depth
-            .checked_sub(BLOCK_LOG2_SIDE)
-            .filter(|&l| l >= level && self.texel_blocks_allowed);
-        let sub_blocks = match (block_level, self.blocks.as_mut()) {
-            (None, _) => None,
-            (Some(_), Some(w)) if w.format.is_srgb8() != format.is_srgb8() => {
-                let name = |f: BlockFormat| {
-                    if f.is_srgb8() {
-                        "8-bit"
-                    } else {
-                        "16-bit or float"
-                    }
-                };
-                return Err(Error::TileFormat {
-                    row,
-                    col,
-                    found: name(format),
-                    expected: name(w.format),
-                });
-            }
-            (Some(l), w) => {
-                // 8-bit tiles share the widest of their formats.
-                let format = match w {
-                    Some(w) => {
-                        w.widen(w.format.widest(format))?;
-                        w.format
-                    }
-                    None => format,
-                };
-                if self.blocks.is_none() {
-                    self.blocks = Some(BlockWriter {
-                        level: l,
-                        format,
-                        flags: Vec::new(),
-                        data: Vec::new(),
-                    });
+        let (nodes, depth) = (self.nodes, self.depth);
+        check_budget(
+            || format!("packing at level {depth} (stopped after {nodes} nodes)"),
+            self.fixed_bytes + nodes * BUILD_BYTES_PER_NODE,
+            self.max_bytes,
+            RASTER_KNOBS,
+        )?;
+        self.max_error = self.max_error.max(packed.max_error);
+        if let Some((format, flags, data)) = packed.blocks {
+            let w = match self.blocks.as_mut() {
+                Some(w) => {
+                    w.widen(w.format.widest(format))?;
+                    w
                 }
-                Some(BlockWriter {
-                    level: l - level,
+                None => self.blocks.insert(BlockWriter {
+                    level: self.depth - BLOCK_LOG2_SIDE,
                     format,
                     flags: Vec::new(),
                     data: Vec::new(),
-                })
-            }
-        };
-        let mut b = Builder {
-            cells: &grid.texels,
-            srgb8: grid.srgb8.as_deref(),
-            blocks: sub_blocks,
-            texel_blocks_allowed: self.texel_blocks_allowed,
-            tiles: None,
-            side: side as usize,
-            depth,
-            tolerance: self.tolerance,
-            levels: vec![Vec::new(); usize::from(depth) + 1],
-            nodes: self.nodes,
-            max_nodes: self.max_nodes,
-            max_error: self.max_error,
-            fixed_bytes: self.fixed_bytes,
-            max_bytes: self.max_bytes,
-            aspect: Aspect::SQUARE,
-            rows: side as usize,
-            parallel_cells: usize::MAX,
-        };
-        let Some((stats, root, kind)) = b.square(0, 0, 0)? else {
-            return Err(Error::MalformedTree("a tile lies wholly in the pad".into()));
-        };
-        self.nodes = b.nodes;
-        self.max_error = b.max_error;
-        if let (Some(w), Some(sub)) = (self.blocks.as_mut(), b.blocks) {
-            w.flags.extend(sub.flags);
+                }),
+            };
+            w.flags.extend(flags);
             w.data
-                .try_reserve(sub.data.len())
+                .try_reserve(data.len())
                 .map_err(|_| Error::AllocationFailed {
                     what: "texel blocks".into(),
-                    bytes: (w.data.len() + sub.data.len()) as u64,
+                    bytes: (w.data.len() + data.len()) as u64,
                 })?;
-            w.data.extend(sub.data);
+            w.data.extend(data);
         }
         for (below, tile_level) in self.levels[usize::from(level) + 1..]
             .iter_mut()
-            .zip(b.levels.into_iter().skip(1))
+            .zip(packed.levels)
         {
             below
                 .try_reserve(tile_level.len())
@@ -501,6 +514,6 @@ impl Builder<'_, Unorm16Rgba> {
                 })?;
             below.extend(tile_level);
         }
-        Ok((stats, root, kind))
+        Ok((packed.stats, packed.root, packed.kind))
     }
 }

@@ -36,11 +36,11 @@ pub(crate) trait Cell: Copy + Send + Sync {
 }
 
 /// Sums, minima and maxima of unorm16 cells.
-#[derive(Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Stats {
-    sum: [u64; 4],
-    min: [u16; 4],
-    max: [u16; 4],
+    pub(super) sum: [u64; 4],
+    pub(super) min: [u16; 4],
+    pub(super) max: [u16; 4],
 }
 
 impl Cell for Unorm16Rgba {

@@ -21,6 +21,7 @@
 
 mod builder;
 mod cells;
+mod packed_tile;
 mod resample;
 
 use crate::Error;
@@ -28,8 +29,9 @@ use crate::colour::{ColourEncoding, Rgba, Unorm16Rgba};
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget};
 use crate::tree::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, BlockWriter};
 use crate::tree::{Aspect, MAX_DEPTH, MAX_NODES, QuadTree};
-use builder::{Builder, Tiles};
+use builder::{Builder, TileSource, Tiles};
 use cells::{Cell, HalfRgba};
+pub use packed_tile::PackedTile;
 use resample::{resample_with, try_resample};
 
 pub(crate) use resample::resample;
@@ -317,38 +319,71 @@ impl QuadTree {
         options: &BuildOptions,
         load: &mut dyn FnMut(u32, u32) -> Result<TexelGrid, Error>,
     ) -> Result<(QuadTree, BuildReport), Error> {
-        if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
-            return Err(Error::BadTolerance(options.tolerance));
-        }
-        if !tiles.is_power_of_two() || !side.is_power_of_two() || side > MAX_DIMENSION {
+        Self::from_tile_source(tiles, side, options, TileSource::Texels(load))
+    }
+
+    /// Packs tile `(row, col)` (row 0 at the top) of a `tiles × tiles`
+    /// mosaic of `side × side` tiles on its own, as [`QuadTree::from_tiles`]
+    /// would, for [`QuadTree::from_packed_tiles`] to splice: on another
+    /// thread, process or machine. `format`, when given, is the texel-block
+    /// format to write (the splicer asks for it when the tiles before this
+    /// one need a wider one); `None` packs in the tile's own. Refused: an
+    /// HDR tile, one of another size, an 8-bit tile asked for a 16-bit
+    /// format or the other way round, and the limits of `options` (the
+    /// node limit and budget count this tile alone).
+    pub fn pack_tile(
+        tiles: u32,
+        side: u32,
+        (row, col): (u32, u32),
+        grid: &TexelGrid,
+        options: &BuildOptions,
+        format: Option<crate::BlockFormat>,
+    ) -> Result<PackedTile, Error> {
+        check_mosaic(tiles, side, options)?;
+        if row >= tiles || col >= tiles {
             return Err(Error::BadDimensions {
-                width: u64::from(tiles),
-                height: u64::from(side),
-                reason: "tiles a side and texels a tile side must be powers of two",
+                width: u64::from(col),
+                height: u64::from(row),
+                reason: "tile (row, col) outside the mosaic",
             });
         }
-        if side < 1 << BLOCK_LOG2_SIDE {
+        if (grid.width, grid.height) != (side, side) {
             return Err(Error::BadDimensions {
-                width: u64::from(side),
-                height: u64::from(side),
-                reason: "tiles must be at least 4x4 texels",
+                width: grid.width.into(),
+                height: grid.height.into(),
+                reason: "not the size of the mosaic's tiles",
             });
         }
-        if options.max_level.is_some() {
-            return Err(Error::BadDimensions {
-                width: u64::from(tiles) * u64::from(side),
-                height: u64::from(tiles) * u64::from(side),
-                reason: "a tiled texture is packed at its own depth (no max level)",
-            });
-        }
-        let level = tiles.trailing_zeros() as u8;
-        let depth = level + side.trailing_zeros() as u8;
-        if depth > MAX_DEPTH {
-            return Err(Error::DepthTooLarge {
-                depth: depth.into(),
-                max: MAX_DEPTH.into(),
-            });
-        }
+        let fixed = 8 * u64::from(side) * u64::from(side);
+        let context = options.tile_context(side, format, 0, fixed);
+        packed_tile::PackedTile::pack(grid, (row, col), &context)
+    }
+
+    /// The tree [`QuadTree::from_tiles`] builds, from tiles packed by
+    /// [`QuadTree::pack_tile`] (with the same `tiles`, `side` and
+    /// `options`): `load(row, col, format)` returns tile `(row, col)`,
+    /// packed in `format` when that is given. The splicer visits tiles in
+    /// Morton order, as the sequential build does, and asks for a tile
+    /// again, in the wider format, when its blocks were written narrower
+    /// than the tiles before it make the mosaic's. The result is byte for
+    /// byte the sequential one; only the squares above the tiles are built
+    /// here, so the memory is the tree's, not a tile's texels.
+    pub fn from_packed_tiles(
+        tiles: u32,
+        side: u32,
+        options: &BuildOptions,
+        load: &mut dyn FnMut(u32, u32, Option<crate::BlockFormat>) -> Result<PackedTile, Error>,
+    ) -> Result<(QuadTree, BuildReport), Error> {
+        Self::from_tile_source(tiles, side, options, TileSource::Packed(load))
+    }
+
+    fn from_tile_source(
+        tiles: u32,
+        side: u32,
+        options: &BuildOptions,
+        source: TileSource<'_>,
+    ) -> Result<(QuadTree, BuildReport), Error> {
+        let (level, depth) = check_mosaic(tiles, side, options)?;
         let fixed_bytes = 8 * u64::from(side) * u64::from(side);
         check_budget(
             || format!("packing {tiles}x{tiles} tiles of {side}x{side} texels"),
@@ -362,7 +397,12 @@ impl QuadTree {
             // Made when the first tile shows the format.
             blocks: None,
             texel_blocks_allowed: options.texel_blocks,
-            tiles: Some(Tiles { level, side, load }),
+            tiles: Some(Tiles {
+                level,
+                side,
+                source,
+                options: *options,
+            }),
             side: 0,
             depth,
             tolerance: Unorm16Rgba::tolerance(options.tolerance),
@@ -482,6 +522,44 @@ impl QuadTree {
         };
         b.build(resampled)
     }
+}
+
+/// Checks a mosaic of `tiles × tiles` tiles of `side × side` texels and the
+/// options it is packed with; returns the tiles' level and the depth.
+fn check_mosaic(tiles: u32, side: u32, options: &BuildOptions) -> Result<(u8, u8), Error> {
+    if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
+        return Err(Error::BadTolerance(options.tolerance));
+    }
+    if !tiles.is_power_of_two() || !side.is_power_of_two() || side > MAX_DIMENSION {
+        return Err(Error::BadDimensions {
+            width: u64::from(tiles),
+            height: u64::from(side),
+            reason: "tiles a side and texels a tile side must be powers of two",
+        });
+    }
+    if side < 1 << BLOCK_LOG2_SIDE {
+        return Err(Error::BadDimensions {
+            width: u64::from(side),
+            height: u64::from(side),
+            reason: "tiles must be at least 4x4 texels",
+        });
+    }
+    if options.max_level.is_some() {
+        return Err(Error::BadDimensions {
+            width: u64::from(tiles) * u64::from(side),
+            height: u64::from(tiles) * u64::from(side),
+            reason: "a tiled texture is packed at its own depth (no max level)",
+        });
+    }
+    let level = tiles.trailing_zeros() as u8;
+    let depth = level + side.trailing_zeros() as u8;
+    if depth > MAX_DEPTH {
+        return Err(Error::DepthTooLarge {
+            depth: depth.into(),
+            max: MAX_DEPTH.into(),
+        });
+    }
+    Ok((level, depth))
 }
 
 /// Textures of at least this many cells (1024 × 1024) have the root's

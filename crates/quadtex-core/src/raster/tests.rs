@@ -1,5 +1,6 @@
 use super::resample::weights_1d;
 use super::*;
+use crate::tree::texel_block::BlockFormat;
 
 /// A mosaic with uniform regions, edges and noise: `(col, row)` texel.
 fn mosaic_texel(col: u32, row: u32) -> Rgba {
@@ -113,6 +114,152 @@ fn tiles_pack_to_the_tree_of_the_whole_mosaic() {
         loaded.dedup();
         assert_eq!(loaded.len(), (tiles * tiles) as usize);
     }
+}
+
+/// An 8-bit tile of a mosaic whose format depends on where it is: grey,
+/// RGB or translucent by quadrant, so the mosaic's block format widens
+/// as the build goes.
+fn mixed_tile(tiles: u32, side: u32, row: u32, col: u32) -> TexelGrid {
+    let bytes = (0..side * side)
+        .map(|i| {
+            let (c, r) = (col * side + i % side, row * side + i / side);
+            let h = (c.wrapping_mul(2_654_435_761) ^ r.wrapping_mul(40_503)) as u8;
+            match (row >= tiles / 2, col >= tiles / 2) {
+                (false, false) => [h, h, h, 255],
+                (false, true) => [h, h / 2, 7, 255],
+                (true, false) => [h, h, h, 255],
+                (true, true) => [h, 3, h / 3, 200],
+            }
+        })
+        .collect();
+    TexelGrid::from_srgb8(side, side, bytes).unwrap()
+}
+
+/// Tiles packed on their own (on threads, through bytes) splice into the
+/// tree the sequential build makes, byte for byte: plain and 8-bit tiles
+/// whose formats widen along the way (grey, then RGB, then RGBA: the
+/// splicer asks for tiles again in the wider format), with a tolerance.
+#[test]
+fn tiles_packed_apart_splice_into_the_sequential_tree() {
+    type Load = fn(u32, u32, u32, u32) -> TexelGrid;
+    let plain: Load = |_, side, row, col| {
+        TexelGrid::from_fn(side, side, |c, r| {
+            mosaic_texel(col * side + c, row * side + r)
+        })
+        .unwrap()
+    };
+    let mixed: Load = mixed_tile;
+    for (load, tiles, side, tolerance) in [
+        (plain, 4u32, 8u32, 0.0),
+        (plain, 4, 8, 0.05),
+        (plain, 1, 16, 0.0),
+        (mixed, 4, 8, 0.0),
+        (mixed, 2, 16, 0.0),
+    ] {
+        let options = BuildOptions {
+            tolerance,
+            ..BuildOptions::default()
+        };
+        let sequential = QuadTree::from_tiles(tiles, side, &options, &mut |row, col| {
+            Ok(load(tiles, side, row, col))
+        })
+        .unwrap();
+        // Every tile packed on a thread of its own, in its own format.
+        let packed: Vec<Vec<u8>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..tiles * tiles)
+                .map(|i| {
+                    let options = &options;
+                    scope.spawn(move || {
+                        let (row, col) = (i / tiles, i % tiles);
+                        let grid = load(tiles, side, row, col);
+                        QuadTree::pack_tile(tiles, side, (row, col), &grid, options, None)
+                            .unwrap()
+                            .to_bytes()
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        let mut again = 0;
+        let spliced = QuadTree::from_packed_tiles(
+            tiles,
+            side,
+            &options,
+            &mut |row, col, format| match format {
+                None => PackedTile::from_bytes(&packed[(row * tiles + col) as usize]),
+                Some(f) => {
+                    again += 1;
+                    let grid = load(tiles, side, row, col);
+                    QuadTree::pack_tile(tiles, side, (row, col), &grid, &options, Some(f))
+                }
+            },
+        )
+        .unwrap();
+        let what = format!("{tiles}x{tiles} tiles of {side}, tolerance {tolerance}");
+        assert_eq!(spliced.0, sequential.0, "{what}");
+        assert_eq!(spliced.1, sequential.1, "{what}");
+        if load == mixed {
+            // The RGB quadrant's tiles come first in Morton order after the
+            // grey ones; the grey tiles after them are packed again as RGB.
+            assert!(again > 0, "{what}: no tile packed again");
+            assert_eq!(
+                spliced.0.texel_blocks().map(|b| b.format()),
+                Some(BlockFormat::Srgb8Rgba)
+            );
+        }
+    }
+}
+
+/// Packed tiles read back only what was written: a flipped bit, a cut, a
+/// foreign file are refused by name; a tile of the wrong size or format
+/// stops the splice.
+#[test]
+fn packed_tiles_refuse_damage_and_mismatches() {
+    let options = BuildOptions::default();
+    let grid = mixed_tile(2, 8, 0, 0);
+    let tile = QuadTree::pack_tile(2, 8, (0, 0), &grid, &options, None).unwrap();
+    let bytes = tile.to_bytes();
+    assert_eq!(PackedTile::from_bytes(&bytes).unwrap(), tile);
+    let mut flipped = bytes.clone();
+    flipped[40] ^= 0x10;
+    assert!(
+        PackedTile::from_bytes(&flipped)
+            .unwrap_err()
+            .to_string()
+            .contains("checksum")
+    );
+    assert!(PackedTile::from_bytes(&bytes[..bytes.len() - 9]).is_err());
+    assert!(
+        PackedTile::from_bytes(b"PNG, not a tile")
+            .unwrap_err()
+            .to_string()
+            .contains("magic")
+    );
+    let e = QuadTree::pack_tile(2, 16, (0, 0), &grid, &options, None).unwrap_err();
+    assert!(e.to_string().contains("not the size"), "{e}");
+    assert!(QuadTree::pack_tile(2, 8, (2, 0), &grid, &options, None).is_err());
+    let e = QuadTree::pack_tile(
+        2,
+        8,
+        (0, 0),
+        &grid,
+        &options,
+        Some(BlockFormat::Unorm16Rgba),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("8-bit"), "{e}");
+    // A 16-bit tile among 8-bit ones.
+    let sixteen = TexelGrid::from_fn(8, 8, mosaic_texel).unwrap();
+    let e = QuadTree::from_packed_tiles(2, 8, &options, &mut |row, col, format| {
+        let g = if (row, col) == (1, 1) {
+            sixteen.clone()
+        } else {
+            mixed_tile(2, 8, row, col)
+        };
+        QuadTree::pack_tile(2, 8, (row, col), &g, &options, format)
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("16-bit"), "{e}");
 }
 
 #[test]
