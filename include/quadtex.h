@@ -39,7 +39,8 @@
 
 /**
  * The level SVG art is packed at when `qtx_pack` gets `QTX_LEVEL_AUTO`
- * (4096 x 4096 effective texels).
+ * (4096 x 4096 effective texels), unless its estimate is above the memory
+ * budget: then the deepest level that fits, not below 8.
  */
 #define QTX_DEFAULT_SVG_LEVEL 12
 
@@ -94,7 +95,8 @@ typedef enum QtxLevel {
     /**
      * Passed as `level` in `QtxFilterOptions` or as `max_level` to
      * `qtx_pack`: choose automatically (the error bound picks the filter's
-     * level; packing uses the image's natural depth, or level 12 for SVG).
+     * level; packing uses the image's natural depth, or level 12 for SVG,
+     * lowered to fit the memory budget).
      */
     QTX_LEVEL_AUTO = -1,
 } QtxLevel;
@@ -214,7 +216,10 @@ typedef struct QtxSvgOptions {
     /**
      * `QTX_LEVEL_AUTO` (-1, the default) for `QTX_DEFAULT_SVG_LEVEL` (12;
      * 20 with contour leaves, where squares split only while they hold
-     * more edges than the budget), or a level in 0..=`QTX_MAX_SVG_LEVEL`.
+     * more edges than the budget), lowered (not below 8) when the
+     * packing's estimate is above the memory budget, as `quadtex pack`
+     * does; or a level in 0..=`QTX_MAX_SVG_LEVEL`, kept: art that does
+     * not fit at it is refused with `QTX_STATUS_LIMIT`.
      */
     int max_level;
     /**
@@ -384,7 +389,8 @@ enum QtxStatus qtx_verify(const struct QtxTexture *texture);
  *   natural depth.
  * * SVG (`.svg`, any case): packed exactly; `tolerance` must be 0;
  *   `max_level` in 0..=`QTX_MAX_SVG_LEVEL`, negative for
- *   `QTX_DEFAULT_SVG_LEVEL` (12).
+ *   `QTX_DEFAULT_SVG_LEVEL` (12), lowered (not below 8) when the
+ *   packing's estimate is above the memory budget.
  *
  * `memory_limit`: the memory budget in bytes decoding and packing may use
  * (`quadtex pack --memory-limit`), or 0 for the detected budget (the

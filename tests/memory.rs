@@ -73,6 +73,75 @@ fn deep_svg_pack_is_refused_up_front() {
     );
 }
 
+/// Without `--max-level`, SVG art whose default level does not fit the
+/// budget packs at the deepest level that does, and the summary says which
+/// and why; `--max-level 12` under the same budget is refused. With
+/// `--contour-leaves` the summary states the default level and the
+/// estimate within the budget.
+#[test]
+fn default_svg_level_is_lowered_to_fit_and_said() {
+    let dir = temp_dir("mem-fit");
+    let out = dir.join("star.qtx");
+    let packed = run(
+        &[
+            "pack",
+            &star(),
+            "--memory-limit",
+            "20M",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+    );
+    let stdout = String::from_utf8_lossy(&packed.stdout);
+    assert!(
+        packed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&packed.stderr)
+    );
+    assert!(
+        stdout.contains("depth 10")
+            && stdout.contains("level 10 chosen to fit the memory budget of 20.0 MiB")
+            && stdout.contains("the default, level 12, needs an estimated 57.1 MiB"),
+        "{stdout}"
+    );
+    std::fs::remove_file(&out).unwrap();
+    let stderr = refused(&[
+        "pack",
+        &star(),
+        "--max-level",
+        "12",
+        "--memory-limit",
+        "20M",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        stderr.contains("star.svg: packing at level 12 needs an estimated 57.1 MiB"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    let contour = run(
+        &[
+            "pack",
+            &star(),
+            "--contour-leaves",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+    );
+    let stdout = String::from_utf8_lossy(&contour.stdout);
+    assert!(
+        contour.status.success()
+            && stdout.contains(
+                "level 20 (default) with contour leaves of up to 16 edges, estimated peak"
+            )
+            && stdout.contains("within the memory budget of"),
+        "{stdout}"
+    );
+}
+
 /// A 1×20000 column packs on its own 1×20000 texels (no square around it,
 /// no resampling): within a 50 MB budget; a budget that holds the texels
 /// but not the tree refuses while building, and one below the decoded

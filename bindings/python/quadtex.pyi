@@ -183,7 +183,11 @@ def pack(
         quarter of an 8-bit step).
     max_level: depth of the tree's finest cells (0..30; a raster builds at
         most 15). Default: the smallest level whose cells are no larger than
-        a texel for rasters, 12 for SVG.
+        a texel for rasters; for SVG 12 (20 with ``contour_leaves``),
+        lowered (not below 8) when the packing's estimate is above
+        ``memory_limit``, as ``quadtex pack`` does (``source_size`` is
+        ``2**level``). A level given is kept: SVG art that does not fit at
+        it is a ``ValueError``.
     hdr: float arrays only: keep them unclamped as half floats (as an
         OpenEXR file is read) instead of clamping them. Files decide by
         their format (OpenEXR and ``.hdr`` are HDR).

@@ -207,6 +207,12 @@ pub fn smooth_summary(report: &quadtex_core::VectorReport) -> String {
             "; {} contour leaves keep {} contour points: exact at any magnification",
             report.contour_leaves, report.contour_leaf_points
         );
+        if report.crowded_leaves > 0 {
+            leaves += &format!(
+                " except in {} squares at the max level holding more edges than a contour leaf may (exact down to that level)",
+                report.crowded_leaves
+            );
+        }
     }
     if report.max_smooth_deviation == 0.0 && report.max_mean_error == 0.0 {
         return leaves;

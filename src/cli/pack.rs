@@ -16,6 +16,10 @@ use super::output::Output;
 /// Max level of SVG art packed without `--max-level` (4096² effective).
 const DEFAULT_SVG_LEVEL: u8 = 12;
 
+/// Edges a contour leaf may hold when `--contour-leaves` is given without
+/// a value.
+const DEFAULT_CONTOUR_EDGES: u16 = 16;
+
 /// Pack an image or SVG art into a quadtree texture.
 ///
 /// Raster images (PNG, JPEG) are decoded to linear colour and packed,
@@ -40,7 +44,10 @@ pub struct Args {
     /// as cells within it.
     #[arg(long, value_name = "T", allow_negative_numbers = true, value_parser = tolerance)]
     tolerance: Option<f64>,
-    /// Depth of the finest cells (default: the image's natural depth; 12 for SVG art).
+    /// Depth of the finest cells (default: the image's natural depth; for
+    /// SVG art 12, or 20 with --contour-leaves, lowered when the packing's
+    /// estimate is above the memory budget; the summary says so). A level
+    /// given here is kept: art that does not fit at it is refused.
     #[arg(long, value_name = "L", value_parser = level("--max-level"))]
     max_level: Option<u8>,
     /// SVG art: split squares painted by one linear gradient down to
@@ -49,12 +56,13 @@ pub struct Args {
     #[arg(long)]
     no_gradient_leaves: bool,
     /// SVG art: keep squares of flat art crossed by at most EDGES edges
-    /// (default 16 when the flag is given without a value) as contour
-    /// leaves, exact at any magnification, instead of splitting them
-    /// towards `--max-level`. The file is then version 3.
-    #[arg(long, value_name = "EDGES", num_args = 0..=1, default_missing_value = "16",
+    /// (default 16 when the flag is given without a value, raised up to
+    /// 256 when the packing's estimate is above the memory budget) as
+    /// contour leaves, exact at any magnification, instead of splitting
+    /// them towards `--max-level`. The file is then version 3.
+    #[arg(long, value_name = "EDGES", num_args = 0..=1,
           value_parser = clap::value_parser!(u16).range(3..=1024))]
-    contour_leaves: Option<u16>,
+    contour_leaves: Option<Option<u16>>,
     /// SVG art: flatten curves to within T of the texture's longer side
     /// (default 2^-22 with --contour-leaves, else a sixteenth of a square
     /// at --max-level), at least 2^-40. `quadtex info` states it for trees
@@ -108,6 +116,11 @@ pub fn run(args: Args) -> Result<()> {
         options.tolerance = t;
     }
     if is_svg(&input) {
+        let adjustable = quadtex_core::Adjustable {
+            max_level: max_level.is_none(),
+            contour_edges: contour_leaves == Some(None),
+        };
+        let contour_leaves = contour_leaves.map(|edges| edges.unwrap_or(DEFAULT_CONTOUR_EDGES));
         let svg = quadtex_core::VectorOptions {
             max_level: options.max_level.unwrap_or(if contour_leaves.is_some() {
                 quadtex_core::CONTOUR_MAX_LEVEL
@@ -124,6 +137,7 @@ pub fn run(args: Args) -> Result<()> {
         let options = quadtex_io::SvgOptions {
             vector: svg,
             limits,
+            adjustable,
         };
         return pack_svg(&input, &output, &options);
     }
@@ -176,11 +190,11 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn pack_svg(input: &Path, output: &Output, options: &quadtex_io::SvgOptions) -> Result<()> {
-    let level = options.vector.max_level;
     let progress = Progress::new();
     let start = Instant::now();
-    progress.stage(&format!("packing {} at level {level}", input.display()));
-    let (tree, report) = quadtex_io::pack_svg(input, options)?;
+    progress.stage(&format!("packing {}", input.display()));
+    let (tree, report, fit) = quadtex_io::pack_svg_fitted(input, options)?;
+    let level = fit.max_level;
     progress.stage(&format!("writing {output}"));
     let side = 1u32 << level.min(31);
     output.write_qtx(&tree, Some((side, side)))?;
@@ -190,13 +204,14 @@ fn pack_svg(input: &Path, output: &Output, options: &quadtex_io::SvgOptions) -> 
     let mut text = output.text();
     writeln!(
         text,
-        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept (at most {} edges in one, {} sweep steps){}; {:.2} s",
+        "packed {} -> {}: {} nodes, depth {}, {} ({:.2} B/node); {}; effective {side}x{side}: RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; exact coverage, {} leaves swept (at most {} edges in one, {} sweep steps){}; {:.2} s",
         input.display(),
         output,
         tree.node_count(),
         tree.depth(),
         human_bytes(bytes),
         bytes as f64 / tree.node_count() as f64,
+        fit_summary(&fit, &options.adjustable),
         raster as f64 / bytes as f64,
         mips as f64 / bytes as f64,
         report.swept_leaves,
@@ -207,6 +222,56 @@ fn pack_svg(input: &Path, output: &Output, options: &quadtex_io::SvgOptions) -> 
     )?;
     text.flush()?;
     Ok(())
+}
+
+/// The summary's words on the level (and contour-leaf budget) packed at:
+/// `level 20 (default) with contour leaves of up to 16 edges, estimated
+/// peak 156.6 MiB within the memory budget of 17.7 GiB`, or, when what was
+/// asked for did not fit, what was chosen instead and why.
+fn fit_summary(fit: &quadtex_core::BudgetFit, adjustable: &quadtex_core::Adjustable) -> String {
+    use quadtex_core::memory::format_bytes;
+    let edges = |e: Option<usize>| {
+        e.map_or(String::new(), |e| {
+            format!(" with contour leaves of up to {e} edges")
+        })
+    };
+    let (estimate, budget) = (fit.estimate.unwrap_or(0), fit.budget.unwrap_or(0));
+    if let Some((level, asked_edges, asked)) = fit.asked {
+        let defaults = match (level != fit.max_level, asked_edges != fit.contour_leaves) {
+            (true, true) => format!(
+                "the defaults, level {level} and {} edges, need",
+                asked_edges.unwrap_or(0)
+            ),
+            (false, true) => format!("the default, {} edges, needs", asked_edges.unwrap_or(0)),
+            _ => format!("the default, level {level}, needs"),
+        };
+        return format!(
+            "level {}{} chosen to fit the memory budget of {} (estimated peak {}; {defaults} an estimated {})",
+            fit.max_level,
+            edges(fit.contour_leaves),
+            format_bytes(budget),
+            format_bytes(estimate),
+            format_bytes(asked)
+        );
+    }
+    let default = if adjustable.max_level {
+        " (default)"
+    } else {
+        ""
+    };
+    let within = match (fit.estimate, fit.budget) {
+        (Some(e), Some(b)) => format!(
+            ", estimated peak {} within the memory budget of {}",
+            format_bytes(e),
+            format_bytes(b)
+        ),
+        _ => String::new(),
+    };
+    format!(
+        "level {}{default}{}{within}",
+        fit.max_level,
+        edges(fit.contour_leaves)
+    )
 }
 
 /// Stage messages on a spinner when stderr is a terminal, nothing otherwise.

@@ -348,7 +348,11 @@ fn open(py: Python<'_>, path: PathBuf, mapped: bool, verify: bool) -> PyResult<T
 ///   tolerance: in [0, 1]; largest per-channel deviation of a texel from
 ///     its leaf's colour (0 is lossless). Raster images only.
 ///   max_level: 0..30, or None: depth of the finest cells (default: the
-///     smallest level whose cells are no larger than a texel; 12 for SVG).
+///     smallest level whose cells are no larger than a texel; for SVG 12,
+///     or 20 with contour_leaves, lowered (not below 8) when the packing's
+///     estimate is above `memory_limit`, as `quadtex pack` does: the
+///     level packed at is log2 of `source_size`). A level given is kept:
+///     art that does not fit at it raises ValueError.
 ///   hdr: float arrays only: keep them unclamped as half floats (as an
 ///     OpenEXR file is read); otherwise they are clamped to [0, alpha].
 ///   contour_leaves: SVG only, 3..1024, or None: squares crossed by at most
@@ -566,11 +570,16 @@ fn pack_file(
                 external_resources: resources.unwrap_or_default(),
                 ..*limits
             },
+            // As `quadtex pack`: a level left out is lowered to fit the budget.
+            adjustable: quadtex_core::Adjustable {
+                max_level: max_level.is_none(),
+                contour_edges: false,
+            },
         };
-        let (tree, _) = py
-            .detach(|| quadtex_io::pack_svg(&path, &options))
+        let (tree, _, fit) = py
+            .detach(|| quadtex_io::pack_svg_fitted(&path, &options))
             .map_err(io_error)?;
-        let side = 1u32 << level.min(31);
+        let side = 1u32 << fit.max_level.min(31);
         return Ok(Texture {
             tree: Arc::new(tree),
             source: Some((side, side)),

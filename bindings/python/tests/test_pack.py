@@ -178,6 +178,17 @@ def test_pack_svg_with_contour_leaves():
         quadtex.pack(np.zeros((4, 4), dtype=np.uint8), contour_leaves=16)
 
 
+def test_pack_svg_default_level_fits_the_memory_limit():
+    """Without max_level, as `quadtex pack`: level 12 of the star needs an
+    estimated 57.1 MiB, so under 20 MiB it packs at level 10; level 12 given
+    is refused."""
+    star = REPO / "samples" / "star.svg"
+    tex = quadtex.pack(star, memory_limit=20 << 20)
+    assert (tex.depth, tex.source_size) == (10, (1024, 1024))
+    with pytest.raises(ValueError, match=r"packing at level 12 needs an estimated 57\.1 MiB"):
+        quadtex.pack(star, max_level=12, memory_limit=20 << 20)
+
+
 def test_pack_svg_sweep_budget():
     # Dashes piled on a point: 3.9e8 sweep steps at the default level.
     slow = REPO / "fuzz" / "slow" / "dashed-star-15s.svg"

@@ -107,6 +107,11 @@ pub(crate) fn pack(
         };
         let options = quadtex_io::SvgOptions {
             limits,
+            // As `quadtex pack`: `QTX_LEVEL_AUTO` is lowered to fit the budget.
+            adjustable: quadtex_core::Adjustable {
+                max_level: max_level < 0,
+                contour_edges: false,
+            },
             ..quadtex_io::SvgOptions::at_level(level)
         };
         let (tree, _) = quadtex_io::pack_svg(path, &options)?;
@@ -186,6 +191,7 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
             )));
         }
     };
+    let level_auto = options.max_level < 0;
     let max_level = match options.max_level {
         l if l < 0 => match contour_leaves {
             Some(_) => quadtex_core::CONTOUR_MAX_LEVEL,
@@ -223,6 +229,11 @@ pub(crate) fn pack_svg(path: &Path, options: &QtxSvgOptions) -> Result<QtxTextur
         limits: quadtex_io::Limits {
             external_resources,
             ..limits(options.memory_limit)
+        },
+        // As `quadtex pack`: `QTX_LEVEL_AUTO` is lowered to fit the budget.
+        adjustable: quadtex_core::Adjustable {
+            max_level: level_auto,
+            contour_edges: false,
         },
     };
     let (tree, _) = quadtex_io::pack_svg(path, &options)?;

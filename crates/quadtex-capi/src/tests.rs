@@ -6,7 +6,7 @@
     clippy::multiple_unsafe_ops_per_block
 )]
 
-use std::ffi::{CStr, CString, c_char};
+use std::ffi::{CStr, CString, c_char, c_int};
 use std::path::{Path, PathBuf};
 use std::ptr::{null, null_mut};
 
@@ -439,6 +439,52 @@ fn pack_memory_limit_refuses_work_above_it() {
         unsafe { qtx_free(texture) };
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `QTX_LEVEL_AUTO` packs SVG art as `quadtex pack` without `--max-level`:
+/// under a budget level 12 does not fit, the deepest level that fits is
+/// taken; level 12 given is refused. The same through `qtx_pack_svg`.
+#[test]
+fn auto_svg_level_is_lowered_to_fit_the_memory_budget() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../samples/threshold.svg");
+    let art = quadtex_io::load_svg(&path, &quadtex_io::SvgOptions::at_level(12)).unwrap();
+    let estimates = art.estimate_bytes_per_level(12, None, None);
+    let budget = estimates[10];
+    assert!(estimates[11] > budget, "{estimates:?}");
+    let svg = sample("threshold.svg");
+    let depth = |texture: *mut QtxTexture| {
+        let mut info = std::mem::MaybeUninit::<QtxTextureInfo>::uninit();
+        assert_eq!(
+            unsafe { qtx_texture_info(texture, info.as_mut_ptr()) },
+            QtxStatus::Ok
+        );
+        unsafe { info.assume_init() }.depth
+    };
+    let mut texture = null_mut();
+    let status = unsafe {
+        qtx_pack(
+            svg.as_ptr(),
+            0.0,
+            QtxLevel::Auto as c_int,
+            budget,
+            &mut texture,
+        )
+    };
+    assert_eq!(status, QtxStatus::Ok, "{:?}", last_error());
+    assert_eq!(depth(texture), 10);
+    unsafe { qtx_free(texture) };
+    let options = QtxSvgOptions {
+        memory_limit: budget,
+        ..qtx_svg_options_default()
+    };
+    let status = unsafe { qtx_pack_svg(svg.as_ptr(), &options, &mut texture) };
+    assert_eq!(status, QtxStatus::Ok, "{:?}", last_error());
+    assert_eq!(depth(texture), 10);
+    unsafe { qtx_free(texture) };
+    let status = unsafe { qtx_pack(svg.as_ptr(), 0.0, 12, budget, &mut texture) };
+    assert_eq!(status, QtxStatus::Limit);
+    assert_error(&["threshold.svg: packing at level 12 needs an estimated"]);
+    assert!(texture.is_null());
 }
 
 #[test]

@@ -100,10 +100,11 @@ pub use vector::gradient::{Circle, Gradient, Interpolation, MAX_PERIODS, MAX_STO
 pub use vector::gradient_leaf::{GradientLeaves, LeafPaint, MAX_CELL_LEVELS, MAX_GRADIENT_LEAVES};
 pub use vector::image_paint::ImagePaint;
 pub use vector::{
+    Adjustable, BudgetFit, CONTOUR_BYTES_PER_LEAF, CONTOUR_BYTES_PER_POINT,
     CONTOUR_CURVE_TOLERANCE, CONTOUR_MAX_LEVEL, ClipId, DEFAULT_MAX_SWEEP_WORK,
     DEFAULT_SMOOTH_TOLERANCE, GroupId, MAX_CLIP_DEPTH, MAX_MASK_DEPTH, MAX_VECTOR_COORDINATE,
-    MAX_VECTOR_LEVEL, MAX_VECTOR_POINTS, MaskId, MaskKind, Paint, VectorArt, VectorOptions,
-    VectorReport,
+    MAX_VECTOR_LEVEL, MAX_VECTOR_POINTS, MIN_FITTED_LEVEL, MaskId, MaskKind, Paint, VectorArt,
+    VectorOptions, VectorReport,
 };
 
 /// The README's Rust examples, run as doctests.

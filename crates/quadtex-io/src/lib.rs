@@ -44,5 +44,8 @@ pub use qtx::{
     read_qtx, write_qtx, write_qtx_to,
 };
 pub use query::parse_query_line;
-pub use svg::{MAX_PATTERN_TILES, MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, parse_svg};
+pub use svg::{
+    MAX_PATTERN_TILES, MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, pack_svg_fitted,
+    parse_svg,
+};
 pub use tiles::{TileFolder, pack_tiles};

@@ -37,7 +37,7 @@ pub struct Limits {
     /// sets it). Estimates: decoding an image, the decoder's buffer plus 8
     /// bytes a texel; packing a raster, see
     /// [`quadtex_core::raster_grid_bytes`]; packing SVG, see
-    /// [`quadtex_core::VectorArt::estimate_build_bytes`]; reading a `.qtx`,
+    /// [`quadtex_core::VectorArt::estimate_bytes`]; reading a `.qtx`,
     /// [`QTX_READ_BYTES_PER_NODE`] a node.
     pub max_memory: u64,
     /// Which files an SVG's `<image href>` and a glTF model's buffer and

@@ -799,6 +799,8 @@ impl Context<'_> {
                         ..quadtex_core::VectorOptions::default()
                     },
                     limits: self.limits,
+                    // Scenes keep their levels (a texture that does not fit is refused).
+                    adjustable: quadtex_core::Adjustable::NONE,
                 };
                 quadtex_io::pack_svg(&file, &options)
                     .map_err(|e| self.err(key, &e.to_string()))?

@@ -86,12 +86,16 @@ pub(crate) mod image_paint;
 
 mod art;
 mod composite;
+mod estimate;
 mod options;
 mod pack;
 
 pub use art::{
     ClipId, GroupId, MAX_CLIP_DEPTH, MAX_MASK_DEPTH, MAX_VECTOR_COORDINATE, MAX_VECTOR_LEVEL,
     MAX_VECTOR_POINTS, MaskId, MaskKind, Paint, VectorArt,
+};
+pub use estimate::{
+    Adjustable, BudgetFit, CONTOUR_BYTES_PER_LEAF, CONTOUR_BYTES_PER_POINT, MIN_FITTED_LEVEL,
 };
 pub use options::{
     CONTOUR_CURVE_TOLERANCE, CONTOUR_MAX_LEVEL, DEFAULT_MAX_SWEEP_WORK, DEFAULT_SMOOTH_TOLERANCE,

@@ -13,9 +13,13 @@ pub struct VectorOptions {
     pub max_nodes: u64,
     /// Memory budget in bytes (`None`: no budget). Before building, the
     /// packer refuses with [`Error::MemoryBudget`] when
-    /// [`VectorArt::estimate_build_bytes`] exceeds it (in a time
-    /// proportional to the points times the levels); while building, when
-    /// [`crate::memory::BUILD_BYTES_PER_NODE`] per node so far does.
+    /// [`crate::VectorArt::estimate_bytes`] exceeds it (in a time about
+    /// proportional to the points times the levels;
+    /// [`crate::QuadTree::from_vector_within`] lowers the settings left to it
+    /// instead); while building, when the nodes so far at
+    /// [`crate::memory::BUILD_BYTES_PER_NODE`] and the contour leaves so
+    /// far at [`crate::CONTOUR_BYTES_PER_POINT`] a point and
+    /// [`crate::CONTOUR_BYTES_PER_LEAF`] a leaf do.
     pub max_bytes: Option<u64>,
     /// Largest per-channel deviation between any point of a square painted
     /// by gradients and the square's one colour (its exact mean) for the
@@ -141,4 +145,10 @@ pub struct VectorReport {
     pub contour_leaves: u64,
     /// Points their contours hold.
     pub contour_leaf_points: u64,
+    /// With contour leaves: squares of flat art at the max level holding
+    /// more edges than a contour leaf may there (the budget or 256,
+    /// whichever is larger), kept as their exact mean instead. The art is
+    /// exact at any magnification except inside these squares, where it
+    /// is exact down to the max level only.
+    pub crowded_leaves: u64,
 }

@@ -13,10 +13,8 @@ use crate::colour::Unorm16Rgba;
 use crate::geometry::{clip_to_rect, on_rect_border, signed_area};
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
 use crate::tree::{self, MAX_DEPTH, MAX_NODES, QuadTree};
-use crate::vector::blend::BlendMode;
-use crate::vector::contour_leaf::{
-    ContourLeaves, ContourParts, LeafGroup, LeafPiece, MAX_LEAF_GROUP_DEPTH,
-};
+use crate::vector::contour_leaf::{ContourLeaves, ContourParts, LeafGroup, LeafPiece};
+use crate::vector::estimate::{CONTOUR_BYTES_PER_LEAF, CONTOUR_BYTES_PER_POINT};
 use crate::vector::gradient_leaf::{GradientLeaves, LeafPaint};
 use sweep::{SWEEP_EDGES, SweepScratch};
 
@@ -104,6 +102,9 @@ struct VectorBuilder<'a> {
     leaves: Vec<(u8, usize, u32)>,
     /// The edge budget of contour leaves, if they are made.
     contour_budget: Option<usize>,
+    /// Points of the contour leaves made so far, counted against the
+    /// memory budget with the nodes.
+    contour_points: u64,
     /// Each contour leaf's groups, and its pieces (paint order) with their
     /// contours.
     contour_leaves: Vec<ContourLeaf>,
@@ -124,124 +125,138 @@ struct VectorBuilder<'a> {
 
 impl QuadTree {
     /// Packs vector art (see the [module documentation](crate::vector)).
+    /// With a memory budget, art whose estimate
+    /// ([`VectorArt::estimate_bytes`]) is above it is refused with
+    /// [`Error::MemoryBudget`] before anything is built;
+    /// [`QuadTree::from_vector_within`] lowers the settings left to it
+    /// instead.
     pub fn from_vector(
         art: &VectorArt,
         options: &VectorOptions,
     ) -> Result<(QuadTree, VectorReport), Error> {
-        if options.max_level > MAX_VECTOR_LEVEL {
-            return Err(Error::DepthTooLarge {
-                depth: options.max_level.into(),
-                max: MAX_VECTOR_LEVEL.into(),
-            });
-        }
-        if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
-            return Err(Error::BadTolerance(options.tolerance));
-        }
-        if options.max_bytes.is_some() {
-            let level = options.max_level;
-            check_budget(
-                || format!("packing at level {level}"),
-                art.estimate_build_bytes(level),
-                options.max_bytes,
-                VECTOR_KNOBS,
-            )?;
-        }
-        let mut b = VectorBuilder {
-            art,
-            max_level: options.max_level,
-            tolerance: options.tolerance,
-            max_nodes: options.max_nodes.min(MAX_NODES),
-            max_bytes: options.max_bytes,
-            nodes: 1,
-            levels: vec![Vec::new(); usize::from(options.max_level) + 1],
-            report: VectorReport::default(),
-            gradient_leaves: options.gradient_leaves,
-            leaf_paints: Vec::new(),
-            leaf_paint_index: std::collections::HashMap::new(),
-            leaves: Vec::new(),
-            contour_budget: options.contour_leaves,
-            contour_leaves: Vec::new(),
-            contour_nodes: Vec::new(),
-            made_leaf: None,
-            scratch: [Vec::new(), Vec::new()],
-            work: (0..=options.max_level).map(|_| Pieces::default()).collect(),
-            sweep: SweepScratch::default(),
-            max_sweep_work: options.max_sweep_work,
-        };
-        let root = Square {
-            x0: 0.0,
-            z0: 0.0,
-            side: 1.0,
-        };
-        let mut top = Pieces::default();
-        for (s, shape) in art.shapes.iter().enumerate() {
-            b.clip_piece_into(
-                s as u32,
-                0,
-                shape
-                    .contours
-                    .iter()
-                    .map(|c| (c.points.as_slice(), Some(c.bounds))),
-                root,
-                &mut top,
+        check_options(options)?;
+        art.check_estimate(options)?;
+        build(art, options)
+    }
+}
+
+/// Refuses a level beyond [`MAX_VECTOR_LEVEL`] and a bad tolerance.
+pub(super) fn check_options(options: &VectorOptions) -> Result<(), Error> {
+    if options.max_level > MAX_VECTOR_LEVEL {
+        return Err(Error::DepthTooLarge {
+            depth: options.max_level.into(),
+            max: MAX_VECTOR_LEVEL.into(),
+        });
+    }
+    if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
+        return Err(Error::BadTolerance(options.tolerance));
+    }
+    Ok(())
+}
+
+/// Packs `art` with `options`, already checked (and their estimate with
+/// them), refusing once the nodes and contour leaves built so far pass the
+/// memory budget.
+pub(super) fn build(
+    art: &VectorArt,
+    options: &VectorOptions,
+) -> Result<(QuadTree, VectorReport), Error> {
+    let mut b = VectorBuilder {
+        art,
+        max_level: options.max_level,
+        tolerance: options.tolerance,
+        max_nodes: options.max_nodes.min(MAX_NODES),
+        max_bytes: options.max_bytes,
+        nodes: 1,
+        levels: vec![Vec::new(); usize::from(options.max_level) + 1],
+        report: VectorReport::default(),
+        gradient_leaves: options.gradient_leaves,
+        leaf_paints: Vec::new(),
+        leaf_paint_index: std::collections::HashMap::new(),
+        leaves: Vec::new(),
+        contour_budget: options.contour_leaves,
+        contour_points: 0,
+        contour_leaves: Vec::new(),
+        contour_nodes: Vec::new(),
+        made_leaf: None,
+        scratch: [Vec::new(), Vec::new()],
+        work: (0..=options.max_level).map(|_| Pieces::default()).collect(),
+        sweep: SweepScratch::default(),
+        max_sweep_work: options.max_sweep_work,
+    };
+    let root = Square {
+        x0: 0.0,
+        z0: 0.0,
+        side: 1.0,
+    };
+    let mut top = Pieces::default();
+    for (s, shape) in art.shapes.iter().enumerate() {
+        b.clip_piece_into(
+            s as u32,
+            0,
+            shape
+                .contours
+                .iter()
+                .map(|c| (c.points.as_slice(), Some(c.bounds))),
+            root,
+            &mut top,
+        );
+    }
+    b.work[0] = top;
+    let (_, colour, terminal) = b.square(0, root)?;
+    b.levels[0].push((!terminal, colour));
+    let made = b.made_leaf.take();
+    b.record(made, 0, 0);
+    while b.levels.last().is_some_and(Vec::is_empty) {
+        b.levels.pop();
+    }
+    let mut level_start = vec![0usize];
+    for l in &b.levels {
+        level_start.push(level_start.last().copied().unwrap_or(0) + l.len());
+    }
+    let mut tree = tree::from_levels(b.levels, tree::Aspect::SQUARE)?;
+    if !b.contour_nodes.is_empty() {
+        let mut order: Vec<(u32, usize)> = b
+            .contour_nodes
+            .iter()
+            .map(|&(level, i, leaf)| ((level_start[usize::from(level)] + i) as u32, leaf))
+            .collect();
+        order.sort_unstable();
+        let mut parts = ContourParts::default();
+        for (node, leaf) in order {
+            let (groups, pieces) = std::mem::take(&mut b.contour_leaves[leaf]);
+            parts.push_leaf(
+                node,
+                &groups,
+                pieces.iter().map(|(piece, contours)| {
+                    (*piece, contours.iter().map(Vec::as_slice).collect())
+                }),
             );
         }
-        b.work[0] = top;
-        let (_, colour, terminal) = b.square(0, root)?;
-        b.levels[0].push((!terminal, colour));
-        let made = b.made_leaf.take();
-        b.record(made, 0, 0);
-        while b.levels.last().is_some_and(Vec::is_empty) {
-            b.levels.pop();
-        }
-        let mut level_start = vec![0usize];
-        for l in &b.levels {
-            level_start.push(level_start.last().copied().unwrap_or(0) + l.len());
-        }
-        let mut tree = tree::from_levels(b.levels, tree::Aspect::SQUARE)?;
-        if !b.contour_nodes.is_empty() {
-            let mut order: Vec<(u32, usize)> = b
-                .contour_nodes
-                .iter()
-                .map(|&(level, i, leaf)| ((level_start[usize::from(level)] + i) as u32, leaf))
-                .collect();
-            order.sort_unstable();
-            let mut parts = ContourParts::default();
-            for (node, leaf) in order {
-                let (groups, pieces) = std::mem::take(&mut b.contour_leaves[leaf]);
-                parts.push_leaf(
-                    node,
-                    &groups,
-                    pieces.iter().map(|(piece, contours)| {
-                        (*piece, contours.iter().map(Vec::as_slice).collect())
-                    }),
-                );
-            }
-            b.report.contour_leaves = parts.nodes.len() as u64;
-            let leaves = ContourLeaves::new(MAX_DEPTH, parts)?
-                .with_curve_tolerance(art.curve_tolerance())?;
-            b.report.contour_leaf_points = leaves.point_count() as u64;
-            tree = tree.with_contour_leaves(leaves)?;
-        }
-        if b.leaves.is_empty() {
-            return Ok((tree, b.report));
-        }
-        let mut leaves: Vec<(u32, u32)> = b
-            .leaves
-            .iter()
-            .map(|&(level, i, paint)| ((level_start[usize::from(level)] + i) as u32, paint))
-            .collect();
-        leaves.sort_unstable();
-        b.report.gradient_leaves = leaves.len() as u64;
-        b.report.gradient_leaf_paints = b.leaf_paints.len() as u64;
-        let leaves = GradientLeaves::new(
-            options.max_level,
-            options.tolerance.min(1.0),
-            b.leaf_paints,
-            &leaves,
-        )?;
-        Ok((tree.with_gradient_leaves(leaves)?, b.report))
+        b.report.contour_leaves = parts.nodes.len() as u64;
+        let leaves =
+            ContourLeaves::new(MAX_DEPTH, parts)?.with_curve_tolerance(art.curve_tolerance())?;
+        b.report.contour_leaf_points = leaves.point_count() as u64;
+        tree = tree.with_contour_leaves(leaves)?;
     }
+    if b.leaves.is_empty() {
+        return Ok((tree, b.report));
+    }
+    let mut leaves: Vec<(u32, u32)> = b
+        .leaves
+        .iter()
+        .map(|&(level, i, paint)| ((level_start[usize::from(level)] + i) as u32, paint))
+        .collect();
+    leaves.sort_unstable();
+    b.report.gradient_leaves = leaves.len() as u64;
+    b.report.gradient_leaf_paints = b.leaf_paints.len() as u64;
+    let leaves = GradientLeaves::new(
+        options.max_level,
+        options.tolerance.min(1.0),
+        b.leaf_paints,
+        &leaves,
+    )?;
+    Ok((tree.with_gradient_leaves(leaves)?, b.report))
 }
 
 fn quantise(c: [f64; 4]) -> Unorm16Rgba {
@@ -314,6 +329,7 @@ impl VectorBuilder<'_> {
                 }
         {
             let mean = self.sweep(here, sq)?;
+            self.contour_points += edge_count(here) as u64;
             // The leaf's groups, parents first, by their global ids.
             let mut local: Vec<(u32, LeafGroup)> = Vec::new();
             let pieces = here
@@ -348,6 +364,10 @@ impl VectorBuilder<'_> {
             return Ok((mean, quantise(mean), true));
         }
         if level == self.max_level {
+            if self.contour_budget.is_some() && self.plain(here) {
+                // Flat art a contour leaf could keep but for its edges.
+                self.report.crowded_leaves += 1;
+            }
             let (mean, bound) = self.sweep_split(here, sq, 0)?;
             self.report.max_mean_error = self.report.max_mean_error.max(bound);
             return Ok((mean, quantise(mean), true));
@@ -360,9 +380,12 @@ impl VectorBuilder<'_> {
             });
         }
         let (nodes, max_level) = (self.nodes, self.max_level);
+        let (points, leaves) = (self.contour_points, self.contour_leaves.len() as u64);
         check_budget(
             || format!("packing at level {max_level} (stopped after {nodes} nodes)"),
-            nodes * BUILD_BYTES_PER_NODE,
+            nodes * BUILD_BYTES_PER_NODE
+                + points * CONTOUR_BYTES_PER_POINT
+                + leaves * CONTOUR_BYTES_PER_LEAF,
             self.max_bytes,
             VECTOR_KNOBS,
         )?;
@@ -409,19 +432,10 @@ impl VectorBuilder<'_> {
     /// True when every piece is a solid fill outside clip paths and masks,
     /// in groups (if any) of plain opacity: what a contour leaf can hold.
     fn plain(&self, pieces: &Pieces) -> bool {
-        pieces.pieces.iter().all(|p| {
-            let shape = &self.art.shapes[p.shape as usize];
-            let plain_group = |&g: &u32| {
-                self.art.group_blend[g as usize] == BlendMode::Normal
-                    && self.art.group_masks[g as usize].is_empty()
-            };
-            shape.gradient.is_none()
-                && shape.groups.len() <= MAX_LEAF_GROUP_DEPTH
-                && shape.groups.iter().all(plain_group)
-                && shape.clip.is_none()
-                && !shape.member
-                && shape.mask_of.is_none()
-        })
+        pieces
+            .pieces
+            .iter()
+            .all(|p| self.art.is_plain_shape(p.shape as usize))
     }
 
     /// The square `poly`'s mean and the index of its gradient-leaf paint,

@@ -276,3 +276,164 @@ fn sweep_work_is_counted_and_its_budget_refuses_art_beyond_it() {
         other => panic!("{other:?}"),
     }
 }
+
+/// Discs side by side, each a 2000-gon: flat art whose squares split only
+/// where more than a contour leaf's edges meet.
+fn discs() -> VectorArt {
+    let mut art = VectorArt::new();
+    for i in 0..4 {
+        for j in 0..4 {
+            let (cx, cz) = (0.125 + 0.25 * f64::from(i), 0.125 + 0.25 * f64::from(j));
+            art.fill(
+                vec![disc(cx, cz, 0.1, 2000)],
+                FillRule::NonZero,
+                Rgba::opaque(0.1 * i as f32, 0.2 * j as f32, 0.5),
+                &[],
+            )
+            .unwrap();
+        }
+    }
+    art
+}
+
+/// With contour leaves the estimate simulates the subdivision: close to
+/// what is built (nodes at 30 bytes, contour points at 40, leaves at 200,
+/// the art's points at 32 for clipping), and far below the estimate of a
+/// tree without them, which splits every square an edge crosses.
+#[test]
+fn contour_estimate_follows_what_is_built() {
+    let art = discs();
+    for (level, edges) in [(12u8, 16usize), (20, 16), (20, 64)] {
+        let options = VectorOptions {
+            max_level: level,
+            contour_leaves: Some(edges),
+            ..VectorOptions::default()
+        };
+        let (tree, report) = QuadTree::from_vector(&art, &options).unwrap();
+        let built = tree.node_count() as f64 * 30.0
+            + report.contour_leaf_points as f64 * 40.0
+            + report.contour_leaves as f64 * 200.0
+            + art.point_count() as f64 * 32.0;
+        let estimate = art.estimate_bytes(&options) as f64;
+        assert!(
+            (0.8..1.3).contains(&(estimate / built)),
+            "level {level}, {edges} edges: estimate {estimate} vs {built}"
+        );
+        if level == 20 {
+            let classic = art.estimate_build_bytes(level) as f64;
+            assert!(classic > 100.0 * estimate, "{classic} vs {estimate}");
+        }
+        // Per level, as one pass gives them, the same.
+        let per_level = art.estimate_bytes_per_level(level, Some(edges), None);
+        assert_eq!(per_level[usize::from(level)], estimate as u64);
+    }
+}
+
+/// Settings the caller left open are changed until the estimate fits:
+/// the level lowered (not below `MIN_FITTED_LEVEL`), the contour-leaf
+/// edge budget raised; fixed settings are refused as `from_vector` does.
+#[test]
+fn fitting_the_budget_changes_only_what_was_left_open() {
+    let art = discs();
+    let asked = VectorOptions {
+        max_level: 20,
+        contour_leaves: Some(16),
+        ..VectorOptions::default()
+    };
+    let at = |level, edges| {
+        art.estimate_bytes(&VectorOptions {
+            max_level: level,
+            contour_leaves: Some(edges),
+            ..asked
+        })
+    };
+    let budget = at(20, 64);
+    assert!(at(20, 16) > budget && at(20, 32) > budget);
+    let options = VectorOptions {
+        max_bytes: Some(budget),
+        ..asked
+    };
+    let strict = QuadTree::from_vector(&art, &options).unwrap_err();
+    assert!(
+        strict
+            .to_string()
+            .starts_with("packing at level 20 needs an estimated"),
+        "{strict}"
+    );
+    let fixed = QuadTree::from_vector_within(&art, &options, Adjustable::NONE).unwrap_err();
+    assert_eq!(fixed.to_string(), strict.to_string());
+    let edges = Adjustable {
+        max_level: false,
+        contour_edges: true,
+    };
+    let (tree, report, fit) = QuadTree::from_vector_within(&art, &options, edges).unwrap();
+    assert_eq!((fit.max_level, fit.contour_leaves), (20, Some(64)));
+    assert_eq!(fit.asked, Some((20, Some(16), at(20, 16))));
+    assert_eq!(fit.estimate, Some(budget));
+    assert!(fit.changed() && report.contour_leaves > 0);
+    let (same, _) = QuadTree::from_vector(
+        &art,
+        &VectorOptions {
+            contour_leaves: Some(64),
+            ..asked
+        },
+    )
+    .unwrap();
+    assert_eq!(tree.node_count(), same.node_count());
+    // The level alone, down to the floor: nothing fits under 1 KiB.
+    let level = Adjustable {
+        max_level: true,
+        contour_edges: false,
+    };
+    let tiny = VectorOptions {
+        max_bytes: Some(1024),
+        ..asked
+    };
+    let e = QuadTree::from_vector_within(&art, &tiny, level).unwrap_err();
+    assert!(
+        e.to_string().starts_with(&format!(
+            "packing at level 20 (and at every level down to {MIN_FITTED_LEVEL}) needs an estimated"
+        )),
+        "{e}"
+    );
+    // Without a budget nothing is estimated or changed.
+    let (_, _, free) = QuadTree::from_vector_within(&art, &asked, level).unwrap();
+    assert_eq!(
+        (free.max_level, free.estimate, free.asked),
+        (20, None, None)
+    );
+}
+
+/// Contour leaves report the squares at the max level they could not keep
+/// (more edges than a leaf may hold there): 1600 wedges meet at the centre.
+#[test]
+fn crowded_squares_at_the_max_level_are_reported() {
+    let (n, r) = (1600, 0.4);
+    let period = std::f64::consts::TAU / f64::from(n);
+    let wedges = (0..n)
+        .map(|i| {
+            let a = f64::from(i) * period;
+            let b = a + 0.5 * period;
+            vec![
+                [0.5, 0.5],
+                [0.5 + r * a.cos(), 0.5 + r * a.sin()],
+                [0.5 + r * b.cos(), 0.5 + r * b.sin()],
+            ]
+        })
+        .collect();
+    let mut art = VectorArt::new();
+    art.fill(wedges, FillRule::NonZero, Rgba::opaque(1.0, 1.0, 1.0), &[])
+        .unwrap();
+    let options = VectorOptions {
+        max_level: 8,
+        contour_leaves: Some(16),
+        ..VectorOptions::default()
+    };
+    let (_, report) = QuadTree::from_vector(&art, &options).unwrap();
+    // The squares around the centre, within about five squares of it:
+    // there more than 256 edges (the wedges' sides, and the runs that
+    // clipping adds along the squares' borders) crowd one square.
+    assert!((4..=120).contains(&report.crowded_leaves), "{report:?}");
+    let (_, plain) = QuadTree::from_vector(&discs(), &options).unwrap();
+    assert_eq!(plain.crowded_leaves, 0);
+}

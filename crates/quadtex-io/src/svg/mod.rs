@@ -50,8 +50,8 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::{Arc, Mutex, OnceLock};
 
+use quadtex_core::{Adjustable, BudgetFit, QuadTree, VectorArt, VectorOptions, VectorReport};
 use quadtex_core::{ClipId, GroupId};
-use quadtex_core::{QuadTree, VectorArt, VectorOptions, VectorReport};
 
 use crate::Error;
 use crate::limits::Limits;
@@ -92,7 +92,8 @@ fn fonts() -> Arc<usvg::fontdb::Database> {
 /// smooth-colour tolerance, gradient and contour leaves, budgets) and the
 /// resource limits of reading. The default packs at level 12 with the
 /// default smooth-colour tolerance ([`quadtex_core::DEFAULT_SMOOTH_TOLERANCE`])
-/// under the default [`Limits`].
+/// under the default [`Limits`], and refuses art whose estimate is above
+/// the memory budget; `adjustable` lets it lower the level instead.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SvgOptions {
     /// The vector packer's options; their node and memory budgets are
@@ -100,6 +101,13 @@ pub struct SvgOptions {
     pub vector: VectorOptions,
     /// Limits on the file, its elements, images and memory.
     pub limits: Limits,
+    /// The settings of `vector` the packer may change to fit the memory
+    /// budget (see [`QuadTree::from_vector_within`]): those the user left
+    /// at their defaults. `quadtex pack`, Python's `quadtex.pack` and C's
+    /// `qtx_pack` leave the level to it when none is given, and the
+    /// contour-leaf edge budget when contour leaves are asked for without
+    /// one. None by default: settings that do not fit are refused.
+    pub adjustable: Adjustable,
 }
 
 impl SvgOptions {
@@ -133,18 +141,34 @@ impl SvgOptions {
 /// Reads an SVG file and packs it with `options` (level, tolerance, leaf
 /// kinds, budgets and limits; see [`SvgOptions`]).
 pub fn pack_svg(path: &Path, options: &SvgOptions) -> Result<(QuadTree, VectorReport), Error> {
-    let SvgOptions { vector, limits } = options;
+    pack_svg_fitted(path, options).map(|(tree, report, _)| (tree, report))
+}
+
+/// [`pack_svg`], also returning the level and contour-leaf budget it
+/// packed with, their estimated peak and the budget, and what was asked
+/// for when `options.adjustable` let it change them to fit the budget
+/// (to be said to the user).
+pub fn pack_svg_fitted(
+    path: &Path,
+    options: &SvgOptions,
+) -> Result<(QuadTree, VectorReport, BudgetFit), Error> {
+    let SvgOptions {
+        vector,
+        limits,
+        adjustable,
+    } = options;
     let art = load_svg(path, options)?;
     let max_bytes = vector
         .max_bytes
         .map_or(limits.max_memory, |b| b.min(limits.max_memory));
-    QuadTree::from_vector(
+    QuadTree::from_vector_within(
         &art,
         &VectorOptions {
             max_nodes: vector.max_nodes.min(limits.max_nodes),
             max_bytes: Some(max_bytes),
             ..*vector
         },
+        *adjustable,
     )
     .map_err(crate::error::core(path))
 }

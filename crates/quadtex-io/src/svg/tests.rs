@@ -1,5 +1,6 @@
 #![allow(clippy::unwrap_used)]
 use super::*;
+use quadtex_core::Adjustable;
 use quadtex_core::Fragment;
 
 /// The packed alpha integral over the unit square (the root colour,
@@ -437,4 +438,165 @@ fn resources_none_reads_no_file_but_data_urls() {
     let art = load_with_href(&sub, &data, None).unwrap();
     assert!(opaque(&art));
     std::fs::remove_dir_all(&root).unwrap();
+}
+
+/// Many overlapping curved paths (stroked ellipses and filled petals, a
+/// small stand-in for the Ghostscript tiger), written to a fresh file.
+fn curvy_art(name: &str) -> std::path::PathBuf {
+    let mut svg = String::from(r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 200 200">"#);
+    for i in 0..24 {
+        let t = f64::from(i);
+        let (cx, cy) = (
+            100.0 + 50.0 * (0.7 * t).cos(),
+            100.0 + 50.0 * (0.5 * t).sin(),
+        );
+        svg += &format!(
+            r##"<ellipse cx="{cx:.2}" cy="{cy:.2}" rx="{:.2}" ry="{:.2}" fill="#{:02x}8040" fill-opacity="0.8" stroke="#000" stroke-width="0.4"/>"##,
+            20.0 + 2.0 * t,
+            10.0 + t,
+            (10 * i) % 256
+        );
+        svg += &format!(
+            r##"<path d="M{cx:.2} {cy:.2} C {:.2} {:.2}, {:.2} {:.2}, {:.2} {:.2} S {:.2} {:.2}, {cx:.2} {cy:.2} Z" fill="#2060{:02x}"/>"##,
+            cx + 30.0,
+            cy - 40.0,
+            cx + 60.0,
+            cy + 10.0,
+            cx + 20.0,
+            cy + 30.0,
+            cx - 30.0,
+            cy + 20.0,
+            (7 * i) % 256
+        );
+    }
+    svg += "</svg>";
+    let path = std::env::temp_dir().join(format!("quadtex-io-{name}-{}.svg", std::process::id()));
+    std::fs::write(&path, svg).unwrap();
+    path
+}
+
+/// Left to the packer (as `quadtex pack`, Python and C do when no level is
+/// given), a level whose estimate is above the memory budget is lowered to
+/// the deepest that fits, and the fit says what was asked and what was
+/// chosen; a level given is refused with the estimate and the budget.
+#[test]
+fn default_level_is_lowered_to_fit_the_memory_budget() {
+    let path = curvy_art("fit-level");
+    let art = load_svg(&path, &SvgOptions::at_level(12)).unwrap();
+    let estimates = art.estimate_bytes_per_level(12, None, None);
+    // Room for level 10, not for 11.
+    let budget = estimates[10];
+    assert!(
+        estimates[11] > budget && estimates[12] > estimates[11],
+        "{estimates:?}"
+    );
+    let limits = Limits {
+        max_memory: budget,
+        ..Limits::default()
+    };
+    let given = SvgOptions::at_level(12).with_limits(limits);
+    match pack_svg(&path, &given) {
+        Err(
+            e @ Error::MemoryBudget {
+                estimate,
+                budget: b,
+                ..
+            },
+        ) => {
+            assert_eq!((estimate, b), (estimates[12], budget));
+            let e = e.to_string();
+            assert!(
+                e.contains("packing at level 12 needs an estimated")
+                    && e.contains("lower --max-level"),
+                "{e}"
+            );
+        }
+        other => panic!("{:?}", other.map(|(_, r)| r)),
+    }
+    let left = SvgOptions {
+        adjustable: Adjustable {
+            max_level: true,
+            contour_edges: false,
+        },
+        ..given
+    };
+    let (tree, _, fit) = pack_svg_fitted(&path, &left).unwrap();
+    assert_eq!(fit.max_level, 10);
+    assert_eq!(fit.asked, Some((12, None, estimates[12])));
+    assert_eq!((fit.estimate, fit.budget), (Some(budget), Some(budget)));
+    assert_eq!(tree.depth(), 10);
+    // Nothing fits down to level 8: refused, naming the levels tried.
+    let tiny = SvgOptions {
+        limits: Limits {
+            max_memory: 1024,
+            ..Limits::default()
+        },
+        ..left
+    };
+    let e = pack_svg(&path, &tiny).unwrap_err().to_string();
+    assert!(
+        e.contains("packing at level 12 (and at every level down to 8) needs an estimated")
+            && e.contains("memory budget of 1.0 KiB (raise --memory-limit)"),
+        "{e}"
+    );
+    let _ = std::fs::remove_file(&path);
+}
+
+/// With contour leaves whose edge budget was left to the packer, one that
+/// does not fit is raised (fewer, larger leaves hold fewer points) before
+/// the level is lowered; the estimate follows what is built.
+#[test]
+fn default_contour_edges_are_raised_to_fit_the_memory_budget() {
+    let path = curvy_art("fit-edges");
+    let asked = SvgOptions {
+        vector: VectorOptions {
+            max_level: 20,
+            contour_leaves: Some(16),
+            ..VectorOptions::default()
+        },
+        ..SvgOptions::default()
+    };
+    let art = load_svg(&path, &asked).unwrap();
+    let at = |edges| {
+        art.estimate_bytes(&VectorOptions {
+            contour_leaves: Some(edges),
+            ..asked.vector
+        })
+    };
+    let (sixteen, budget) = (at(16), at(64));
+    assert!(sixteen > budget, "{sixteen} vs {budget}");
+    let options = SvgOptions {
+        limits: Limits {
+            max_memory: budget,
+            ..Limits::default()
+        },
+        adjustable: Adjustable {
+            max_level: true,
+            contour_edges: true,
+        },
+        ..asked
+    };
+    let (tree, report, fit) = pack_svg_fitted(&path, &options).unwrap();
+    assert_eq!(fit.max_level, 20);
+    assert!(
+        matches!(fit.contour_leaves, Some(32 | 64)),
+        "{:?}",
+        fit.contour_leaves
+    );
+    assert_eq!(fit.asked, Some((20, Some(16), sixteen)));
+    assert!(fit.estimate.unwrap() <= budget);
+    assert!(report.contour_leaves > 0 && tree.contour_leaves().is_some());
+    // The estimate against what was built, at the settings chosen: above
+    // it here (it does not see the opaque petals hide what lies under
+    // them), never far below.
+    let built = tree.node_count() as f64 * 30.0
+        + report.contour_leaf_points as f64 * 40.0
+        + report.contour_leaves as f64 * 200.0
+        + art.point_count() as f64 * 32.0;
+    let estimate = fit.estimate.unwrap() as f64;
+    assert!(
+        (0.8..2.0).contains(&(estimate / built)),
+        "estimate {estimate} vs {built} for what was built"
+    );
+    let _ = std::fs::remove_file(&path);
 }

@@ -7,7 +7,7 @@ use crate::geometry::{SlabScratch, SweepEdge, for_each_slab, winding};
 
 /// Edges above which a leaf is swept quadrant by quadrant (see
 /// `VectorBuilder::sweep_split`).
-pub(super) const SWEEP_EDGES: usize = 256;
+pub(in crate::vector) const SWEEP_EDGES: usize = 256;
 
 /// Deepest a leaf is split for its sweep while it holds more than
 /// [`SWEEP_EDGES`] edges: `4^6` sub-squares. Below, a square is swept
