@@ -82,7 +82,7 @@ pub use geometry::FillRule;
 pub use geometry::fragment::Fragment;
 pub use geometry::polygon::{ConvexPolygon, MAX_VERTICES};
 pub use raster::{
-    BuildOptions, BuildReport, MAX_BUILD_DEPTH, MAX_DIMENSION, TexelGrid, raster_cells,
+    BuildOptions, BuildReport, MAX_BUILD_DEPTH, MAX_DIMENSION, PackedTile, TexelGrid, raster_cells,
     raster_grid_bytes,
 };
 pub use tree::shared::SharedBytes;
