@@ -48,4 +48,4 @@ pub use svg::{
     MAX_PATTERN_TILES, MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, pack_svg_fitted,
     parse_svg,
 };
-pub use tiles::{TileFolder, pack_tiles};
+pub use tiles::{TileFolder, pack_tile, pack_tiles, splice_tiles};

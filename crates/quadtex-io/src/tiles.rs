@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use quadtex_core::{BuildOptions, BuildReport, QuadTree};
+use quadtex_core::{BlockFormat, BuildOptions, BuildReport, PackedTile, QuadTree, TexelGrid};
 
 use crate::Error;
 use crate::limits::Limits;
@@ -136,47 +136,113 @@ pub fn pack_tiles(
     limits: &Limits,
 ) -> Result<(QuadTree, BuildReport, TileFolder), Error> {
     let folder = TileFolder::scan(dir, limits)?;
-    let options = BuildOptions {
-        tolerance,
-        max_level: None,
-        max_nodes: limits.max_nodes,
-        max_bytes: Some(limits.max_memory),
-        ..BuildOptions::default()
-    };
+    let options = folder.options(tolerance, limits);
     // The loader's own error (naming the tile) is kept aside: the core sees a placeholder.
     let mut failure: Option<Error> = None;
-    let side = folder.side;
     let mut load = |row: u32, col: u32| {
-        let file = &folder.files[(row * folder.tiles + col) as usize];
-        let fail = |e: Error, failure: &mut Option<Error>| {
-            *failure = Some(e);
-            quadtex_core::Error::BadDimensions {
-                width: 0,
-                height: 0,
-                reason: "a tile failed to load",
-            }
-        };
-        let grid = match crate::image_io::load_texels(file, limits) {
-            Ok(g) => g,
-            Err(e) => return Err(fail(e, &mut failure)),
-        };
+        folder
+            .load_tile(row, col, limits)
+            .map_err(|e| set_aside(e, &mut failure))
+    };
+    let result = QuadTree::from_tiles(folder.tiles, folder.side, &options, &mut load);
+    match (result, failure) {
+        (Ok((tree, report)), _) => Ok((tree, report, folder)),
+        (Err(_), Some(e)) => Err(e),
+        (Err(e), None) => Err(crate::error::core(&folder.dir)(e)),
+    }
+}
+
+/// Keeps a loader's own error (naming the tile) aside and gives the core a
+/// placeholder that stops the build.
+fn set_aside(e: Error, failure: &mut Option<Error>) -> quadtex_core::Error {
+    *failure = Some(e);
+    quadtex_core::Error::BadDimensions {
+        width: 0,
+        height: 0,
+        reason: "a tile failed to load",
+    }
+}
+
+/// Packs tile `(row, col)` (row 0 at the top) of the folder on its own, as
+/// [`pack_tiles`] would, for [`splice_tiles`] to splice (on another
+/// process or machine: [`PackedTile::to_bytes`]). `format`, when given, is
+/// the texel-block format to write (the splicer asks for it).
+pub fn pack_tile(
+    folder: &TileFolder,
+    (row, col): (u32, u32),
+    tolerance: f64,
+    limits: &Limits,
+    format: Option<BlockFormat>,
+) -> Result<PackedTile, Error> {
+    if row >= folder.tiles || col >= folder.tiles {
+        return Err(Error::Tiles {
+            path: folder.dir.clone(),
+            message: format!("tile ({row}, {col}) outside the {0}x{0} grid", folder.tiles),
+        });
+    }
+    let grid = folder.load_tile(row, col, limits)?;
+    let file = folder.files[(row * folder.tiles + col) as usize].clone();
+    QuadTree::pack_tile(
+        folder.tiles,
+        folder.side,
+        (row, col),
+        &grid,
+        &folder.options(tolerance, limits),
+        format,
+    )
+    .map_err(crate::error::core(&file))
+}
+
+/// The texture [`pack_tiles`] makes of the folder, from its tiles packed
+/// by [`pack_tile`] elsewhere: `load(row, col, format)` returns tile
+/// `(row, col)`, packed in `format` when that is given
+/// ([`QuadTree::from_packed_tiles`]). Byte for byte the same tree.
+pub fn splice_tiles(
+    folder: &TileFolder,
+    tolerance: f64,
+    limits: &Limits,
+    load: &mut dyn FnMut(u32, u32, Option<BlockFormat>) -> Result<PackedTile, Error>,
+) -> Result<(QuadTree, BuildReport), Error> {
+    let options = folder.options(tolerance, limits);
+    let mut failure: Option<Error> = None;
+    let mut load = |row: u32, col: u32, format: Option<BlockFormat>| {
+        load(row, col, format).map_err(|e| set_aside(e, &mut failure))
+    };
+    let result = QuadTree::from_packed_tiles(folder.tiles, folder.side, &options, &mut load);
+    match (result, failure) {
+        (Ok(done), _) => Ok(done),
+        (Err(_), Some(e)) => Err(e),
+        (Err(e), None) => Err(crate::error::core(&folder.dir)(e)),
+    }
+}
+
+impl TileFolder {
+    /// The options a mosaic of this folder packs with.
+    fn options(&self, tolerance: f64, limits: &Limits) -> BuildOptions {
+        BuildOptions {
+            tolerance,
+            max_level: None,
+            max_nodes: limits.max_nodes,
+            max_bytes: Some(limits.max_memory),
+            ..BuildOptions::default()
+        }
+    }
+
+    /// Tile `(row, col)`'s texels, refused unless the first tile's size.
+    fn load_tile(&self, row: u32, col: u32, limits: &Limits) -> Result<TexelGrid, Error> {
+        let file = &self.files[(row * self.tiles + col) as usize];
+        let grid = crate::image_io::load_texels(file, limits)?;
+        let side = self.side;
         if (grid.width(), grid.height()) != (side, side) {
-            let e = Error::Tiles {
+            return Err(Error::Tiles {
                 path: file.clone(),
                 message: format!(
                     "{}x{} texels, but the first tile is {side}x{side}",
                     grid.width(),
                     grid.height()
                 ),
-            };
-            return Err(fail(e, &mut failure));
+            });
         }
         Ok(grid)
-    };
-    let result = QuadTree::from_tiles(folder.tiles, side, &options, &mut load);
-    match (result, failure) {
-        (Ok((tree, report)), _) => Ok((tree, report, folder)),
-        (Err(_), Some(e)) => Err(e),
-        (Err(e), None) => Err(crate::error::core(&folder.dir)(e)),
     }
 }

@@ -149,12 +149,12 @@ fn tiles_packed_apart_splice_into_the_sequential_tree() {
         .unwrap()
     };
     let mixed: Load = mixed_tile;
-    for (load, tiles, side, tolerance) in [
-        (plain, 4u32, 8u32, 0.0),
-        (plain, 4, 8, 0.05),
-        (plain, 1, 16, 0.0),
-        (mixed, 4, 8, 0.0),
-        (mixed, 2, 16, 0.0),
+    for (load, widens, tiles, side, tolerance) in [
+        (plain, false, 4u32, 8u32, 0.0),
+        (plain, false, 4, 8, 0.05),
+        (plain, false, 1, 16, 0.0),
+        (mixed, true, 4, 8, 0.0),
+        (mixed, true, 2, 16, 0.0),
     ] {
         let options = BuildOptions {
             tolerance,
@@ -198,7 +198,7 @@ fn tiles_packed_apart_splice_into_the_sequential_tree() {
         let what = format!("{tiles}x{tiles} tiles of {side}, tolerance {tolerance}");
         assert_eq!(spliced.0, sequential.0, "{what}");
         assert_eq!(spliced.1, sequential.1, "{what}");
-        if load == mixed {
+        if widens {
             // The RGB quadrant's tiles come first in Morton order after the
             // grey ones; the grey tiles after them are packed again as RGB.
             assert!(again > 0, "{what}: no tile packed again");
