@@ -200,7 +200,8 @@ impl PackedTile {
             bytes: &body[MAGIC.len()..],
         };
         let side = r.u32()?;
-        if !side.is_power_of_two() || side < 1 << BLOCK_LOG2_SIDE || side > super::MAX_DIMENSION {
+        if !side.is_power_of_two() || !(1 << BLOCK_LOG2_SIDE..=super::MAX_DIMENSION).contains(&side)
+        {
             return Err(bad("side is not a power of two of at least 4"));
         }
         let kind = match r.u8()? {
