@@ -688,6 +688,201 @@ fn render_along_a_camera_path_writes_numbered_frames() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// `quadtex render scenes/runway.toml` along the approach path, 4 frames
+/// 48 pixels wide with the quadtree filter, into `dir`, with `extra`
+/// arguments (`--range …`); returns standard output, asserting success.
+fn render_approach(dir: &Path, extra: &[&str]) -> String {
+    let mut args = vec![
+        "render",
+        "scenes/runway.toml",
+        "--path",
+        "scenes/runway-approach.path.toml",
+        "--frames",
+        "4",
+        "--width",
+        "48",
+        "-o",
+        dir.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let out = run(&args, "");
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "{args:?}: {text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    text
+}
+
+/// Every file in `dir` (hidden ones included), by name, with its bytes.
+fn files_of(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+#[test]
+fn render_ranges_split_a_camera_path_into_the_same_frames() {
+    let d = temp_dir("path-ranges");
+    let whole = d.join("whole");
+    render_approach(&whole, &[]);
+    let expected = files_of(&whole);
+    let names: Vec<&str> = expected.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "frame_0000.png",
+            "frame_0001.png",
+            "frame_0002.png",
+            "frame_0003.png"
+        ]
+    );
+    // Split two ways, in and out of order, one frame alone: the same
+    // names and bytes, and nothing else left in the directory.
+    for (case, ranges) in [
+        ("halves", &["0-1", "2-3"][..]),
+        ("single", &["3", "0-0", "1-2"][..]),
+        ("whole-range", &["0-3"][..]),
+    ] {
+        let split = d.join(case);
+        for range in ranges {
+            let text = render_approach(&split, &["--range", range]);
+            let (first, last) = range.split_once('-').unwrap_or((range, range));
+            let count = last.parse::<u32>().unwrap() - first.parse::<u32>().unwrap() + 1;
+            // The summary writes a one-frame range as its frame.
+            let shown = if first == last { first } else { range };
+            assert!(
+                text.contains(&format!("wrote {count} frames to {}", split.display()))
+                    && text.contains(&format!(
+                        "--range {shown} of 4: {count} rendered, 0 skipped as already complete"
+                    )),
+                "{case} {range}: {text}"
+            );
+        }
+        assert!(files_of(&split) == expected, "{case}");
+    }
+}
+
+#[test]
+fn render_range_skips_frames_whose_file_exists() {
+    let d = temp_dir("path-resume");
+    let frames = d.join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    // Completeness is judged by the file's existence alone (frames are
+    // renamed into place whole): a file under a frame's final name, whatever
+    // it holds, is kept.
+    let sentinel = frames.join("frame_0001.png");
+    std::fs::write(&sentinel, b"not a png: left alone").unwrap();
+    let text = render_approach(&frames, &["--range", "0-2"]);
+    assert!(
+        text.contains("wrote 2 frames")
+            && text.contains("(frame_0000.png … frame_0002.png)")
+            && text.contains("--range 0-2 of 4: 2 rendered, 1 skipped as already complete")
+            && text.contains("frame time:"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read(&sentinel).unwrap(), b"not a png: left alone");
+    assert!(!frames.join("frame_0003.png").exists());
+    // Run again, a frame more: only the missing one is rendered.
+    let before = files_of(&frames);
+    let text = render_approach(&frames, &["--range", "0-3"]);
+    assert!(
+        text.contains("wrote 1 frames")
+            && text.contains("(frame_0003.png … frame_0003.png)")
+            && text.contains("--range 0-3 of 4: 1 rendered, 3 skipped as already complete"),
+        "{text}"
+    );
+    let after = files_of(&frames);
+    assert_eq!(after.len(), 4);
+    assert!(before.iter().all(|f| after.contains(f)));
+    // Nothing left to do: no frame time.
+    let text = render_approach(&frames, &["--range", "1-3"]);
+    assert_eq!(
+        text,
+        format!(
+            "wrote 0 frames to {}; --range 1-3 of 4: 0 rendered, 3 skipped as already complete\n",
+            frames.display()
+        )
+    );
+    assert!(files_of(&frames) == after);
+    // Without --range every frame is rendered and replaced, the sentinel too.
+    let text = render_approach(&frames, &[]);
+    assert!(
+        text.contains("wrote 4 frames") && !text.contains("skipped"),
+        "{text}"
+    );
+    assert_ne!(std::fs::read(&sentinel).unwrap(), b"not a png: left alone");
+    quadtex_io::load_linear_image(&sentinel).unwrap();
+}
+
+#[test]
+fn render_refuses_bad_ranges_naming_the_option() {
+    let d = temp_dir("path-bad-range");
+    let frames = d.join("frames");
+    let path_args = [
+        "--path",
+        "scenes/runway-approach.path.toml",
+        "--frames",
+        "4",
+    ];
+    for (range, with_path, needle) in [
+        (
+            "3-2",
+            true,
+            "--range 3-2: the last frame 2 comes before the first 3",
+        ),
+        (
+            "0-4",
+            true,
+            "--range 0-4: frame 4 is past the last of --frames 4 (frames are numbered 0 to 3)",
+        ),
+        (
+            "4",
+            true,
+            "--range 4: frame 4 is past the last of --frames 4",
+        ),
+        ("x", true, "--range x: expected A-B"),
+        ("1-", true, "--range 1-: expected A-B"),
+        ("-1", true, "--range -1: expected A-B"),
+        ("0..3", true, "--range 0..3: expected A-B"),
+        ("1-2-3", true, "--range 1-2-3: expected A-B"),
+        (
+            "0-1",
+            false,
+            "--range 0-1 picks frames of a camera path: it needs --path PATH.toml and --frames N",
+        ),
+    ] {
+        let range_arg = format!("--range={range}");
+        let mut args = vec!["render", "scenes/runway.toml", "--width", "48"];
+        if with_path {
+            args.extend_from_slice(&path_args);
+        }
+        args.extend_from_slice(&[range_arg.as_str(), "-o", frames.to_str().unwrap()]);
+        let out = run(&args, "");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            matches!(out.status.code(), Some(1 | 2)),
+            "{range}: {:?} {err}",
+            out.status
+        );
+        assert!(
+            err.contains(needle) && !err.contains("panicked"),
+            "{range}: {err}"
+        );
+        assert!(!frames.exists(), "{range}");
+    }
+}
+
 #[test]
 fn compare_measures_shimmer_along_a_camera_path() {
     let d = temp_dir("compare-path");

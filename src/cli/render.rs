@@ -41,6 +41,17 @@ pub struct Args {
     #[arg(long, value_name = "N", requires = "path",
           value_parser = clap::value_parser!(u32).range(1..=i64::from(quadtex_render::MAX_PATH_FRAMES)))]
     frames: Option<u32>,
+    /// With `--path` and `--frames N`: render only frames A to B, both
+    /// included, numbered from 0 (so B ≤ N−1; `--range 7` is frame 7 alone),
+    /// under the names the whole run gives them and with the same bytes,
+    /// however the frames are split among runs (a render farm's jobs). A
+    /// frame whose file already exists is skipped as complete: frames are
+    /// written to a temporary file and renamed, so a crash never leaves a
+    /// partial one, and running a range again resumes it. To render a frame
+    /// again, delete its file (without `--range`, every frame is rendered
+    /// and replaced).
+    #[arg(long, value_name = "A-B", value_parser = frame_range)]
+    range: Option<FrameRange>,
     #[command(flatten)]
     render: RenderArgs,
     #[command(flatten)]
@@ -161,6 +172,65 @@ fn filter_name(text: &str) -> std::result::Result<FilterName, String> {
     })
 }
 
+/// `--range A-B`: frames `first..=last` of a camera path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FrameRange {
+    first: u32,
+    last: u32,
+}
+
+impl std::fmt::Display for FrameRange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.first == self.last {
+            write!(f, "{}", self.first)
+        } else {
+            write!(f, "{}-{}", self.first, self.last)
+        }
+    }
+}
+
+impl FrameRange {
+    /// The range, checked against `--frames frames`.
+    fn within(self, frames: u32) -> Result<FrameRange> {
+        if self.last >= frames {
+            return Err(format!(
+                "--range {self}: frame {} is past the last of --frames {frames} (frames are numbered 0 to {})",
+                self.last,
+                frames - 1
+            )
+            .into());
+        }
+        Ok(self)
+    }
+}
+
+/// A value parser: `--range A-B` (decimal frame numbers, `A ≤ B`) or `--range
+/// A` (the one frame `A-A`).
+fn frame_range(text: &str) -> std::result::Result<FrameRange, String> {
+    let number = |part: &str| {
+        if part.is_empty() || !part.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(format!(
+                "--range {text}: expected A-B, two frame numbers (from 0) such as 0-9, or one frame such as 7"
+            ));
+        }
+        part.parse::<u32>()
+            .map_err(|e| format!("--range {text}: {part}: {e}"))
+    };
+    let (first, last) = match text.split_once('-') {
+        Some((a, b)) => (number(a)?, number(b)?),
+        None => {
+            let a = number(text)?;
+            (a, a)
+        }
+    };
+    if last < first {
+        return Err(format!(
+            "--range {text}: the last frame {last} comes before the first {first}"
+        ));
+    }
+    Ok(FrameRange { first, last })
+}
+
 /// A value parser: `--quality` in 1..=64.
 fn quality(text: &str) -> std::result::Result<f64, String> {
     let quality = text.parse::<f64>().map_err(|e| e.to_string())?;
@@ -233,10 +303,17 @@ impl RenderArgs {
 /// Runs `quadtex render`.
 pub fn run(args: Args) -> Result<()> {
     let options = args.render.options()?;
+    if let (Some(range), None) = (args.range, &args.path) {
+        return Err(format!(
+            "--range {range} picks frames of a camera path: it needs --path PATH.toml and --frames N"
+        )
+        .into());
+    }
     if let (Some(path), Some(frames)) = (&args.path, args.frames) {
         let Output::File(dir) = &args.output else {
             return Err("render --path writes a directory of frames: -o - is not possible".into());
         };
+        let range = args.range.map(|r| r.within(frames)).transpose()?;
         let format = args
             .format
             .format
@@ -244,7 +321,7 @@ pub fn run(args: Args) -> Result<()> {
         let limits = args.resources.apply(args.memory.limits());
         let camera_path = quadtex_render::load_camera_path(path, &limits)?;
         let scene = quadtex_render::load_scene(&args.scene, &limits)?;
-        return render_path(&scene, &camera_path, frames, &options, dir, format);
+        return render_path(&scene, &camera_path, frames, range, &options, dir, format);
     }
     let format = args.output.image_format(args.format.format)?;
     let scene =
@@ -252,14 +329,16 @@ pub fn run(args: Args) -> Result<()> {
     render(&scene, &options, &args.output, format)
 }
 
-/// Renders `frames` frames of `scene` along `path` into `dir` as `format`,
-/// with a progress bar over frames on a terminal, then prints where they
-/// went and the frame times. Every frame's camera is checked first, so a
-/// bad path writes nothing.
+/// Renders `frames` frames of `scene` along `path` into `dir` as `format`
+/// (or, with `range`, those frames of the `frames`, skipping any whose file
+/// exists), with a progress bar over frames on a terminal, then prints where
+/// they went, how many were skipped and the frame times. Every frame's
+/// camera is checked first, so a bad path writes nothing.
 fn render_path(
     scene: &Scene,
     path: &quadtex_render::CameraPath,
     frames: u32,
+    range: Option<FrameRange>,
     options: &RenderOptions,
     dir: &std::path::Path,
     format: quadtex_io::ImageFormat,
@@ -275,27 +354,35 @@ fn render_path(
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let digits = (frames - 1).max(1).ilog10() as usize + 1;
     let digits = digits.max(4);
+    let todo = range.map_or(0..=frames - 1, |r| r.first..=r.last);
     let bar = std::io::stderr().is_terminal().then(|| {
-        let bar = indicatif::ProgressBar::new(u64::from(frames));
+        let bar = indicatif::ProgressBar::new(u64::from(todo.end() - todo.start() + 1));
         bar.set_style(
             indicatif::ProgressStyle::with_template("{bar:40} frame {pos}/{len} {elapsed}")
                 .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         bar
     });
-    let mut seconds = Vec::with_capacity(cameras.len());
-    let mut names = Vec::with_capacity(cameras.len());
+    let mut seconds = Vec::new();
+    let mut names = Vec::new();
+    let mut skipped = 0u32;
     let mut image = quadtex_io::LinearImage::default();
-    for (i, camera) in cameras.into_iter().enumerate() {
-        let framed = Scene {
-            camera,
-            ..scene.clone()
-        };
-        let summary = quadtex_render::render_into(&framed, options, &mut image, &|_, _| {})?;
+    for i in todo {
         let file = dir.join(format!("frame_{i:0digits$}.{}", format.extension()));
-        quadtex_io::save_image_as(&file, &image, format)?;
-        seconds.push(summary.seconds);
-        names.push(file);
+        // Complete when its file exists: frames are renamed into place
+        // whole, so a crash leaves no partial one under this name.
+        if range.is_some() && std::fs::metadata(&file).is_ok_and(|m| m.is_file()) {
+            skipped += 1;
+        } else {
+            let framed = Scene {
+                camera: cameras[i as usize].clone(),
+                ..scene.clone()
+            };
+            let summary = quadtex_render::render_into(&framed, options, &mut image, &|_, _| {})?;
+            quadtex_io::save_image_as(&file, &image, format)?;
+            seconds.push(summary.seconds);
+            names.push(file);
+        }
         if let Some(bar) = &bar {
             bar.inc(1);
         }
@@ -303,30 +390,37 @@ fn render_path(
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
-    let mut sorted = seconds.clone();
-    sorted.sort_by(f64::total_cmp);
     let mut text = Text::stdout();
-    writeln!(
-        text,
-        "wrote {} frames to {} ({} … {})",
-        names.len(),
-        dir.display(),
-        names
-            .first()
-            .and_then(|n| n.file_name())
-            .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
-        names
-            .last()
-            .and_then(|n| n.file_name())
-            .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
-    )?;
-    writeln!(
-        text,
-        "frame time: median {:.3} s, fastest {:.3} s, slowest {:.3} s",
-        sorted[sorted.len() / 2],
-        sorted[0],
-        sorted[sorted.len() - 1]
-    )?;
+    let file_name = |n: Option<&PathBuf>| {
+        n.and_then(|n| n.file_name())
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned())
+    };
+    write!(text, "wrote {} frames to {}", names.len(), dir.display())?;
+    if !names.is_empty() {
+        write!(
+            text,
+            " ({} … {})",
+            file_name(names.first()),
+            file_name(names.last())
+        )?;
+    }
+    if let Some(range) = range {
+        write!(
+            text,
+            "; --range {range} of {frames}: {} rendered, {skipped} skipped as already complete",
+            names.len()
+        )?;
+    }
+    writeln!(text)?;
+    let mut sorted = seconds;
+    sorted.sort_by(f64::total_cmp);
+    if let (Some(fastest), Some(slowest)) = (sorted.first(), sorted.last()) {
+        writeln!(
+            text,
+            "frame time: median {:.3} s, fastest {fastest:.3} s, slowest {slowest:.3} s",
+            sorted[sorted.len() / 2],
+        )?;
+    }
     text.flush()?;
     Ok(())
 }
@@ -417,6 +511,40 @@ mod tests {
                 "{bad}"
             );
         }
+    }
+
+    #[test]
+    fn range_grammar() {
+        assert_eq!(frame_range("0-47"), Ok(FrameRange { first: 0, last: 47 }));
+        assert_eq!(frame_range("7"), Ok(FrameRange { first: 7, last: 7 }));
+        assert_eq!(frame_range("7-7"), Ok(FrameRange { first: 7, last: 7 }));
+        for bad in [
+            "",
+            "-",
+            "3-",
+            "-3",
+            "a-b",
+            "1-2-3",
+            "+1-2",
+            " 1-2",
+            "1..2",
+            "99999999999",
+        ] {
+            assert!(
+                frame_range(bad).is_err_and(|e| e.starts_with(&format!("--range {bad}: "))),
+                "{bad}"
+            );
+        }
+        assert_eq!(
+            frame_range("9-3"),
+            Err("--range 9-3: the last frame 3 comes before the first 9".to_string())
+        );
+        let r = FrameRange { first: 2, last: 4 };
+        assert_eq!(r.within(5).unwrap(), r);
+        assert_eq!(
+            r.within(4).unwrap_err().to_string(),
+            "--range 2-4: frame 4 is past the last of --frames 4 (frames are numbered 0 to 3)"
+        );
     }
 
     #[test]
