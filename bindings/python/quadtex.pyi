@@ -22,12 +22,21 @@ Ctrl-C every 50 ms or so (``KeyboardInterrupt``).
 """
 
 import os
-from typing import Literal, Optional, Sequence, Tuple, Union, final
+from typing import Callable, Literal, Optional, Sequence, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Texture", "open", "pack", "pack_tiles", "__version__"]
+__all__ = [
+    "Texture",
+    "open",
+    "pack",
+    "pack_tiles",
+    "tile_grid",
+    "pack_tile",
+    "splice_tiles",
+    "__version__",
+]
 __version__: str
 
 _StrPath = Union[str, bytes, "os.PathLike[str]", "os.PathLike[bytes]"]
@@ -229,3 +238,34 @@ def pack_tiles(
     tolerance: in [0, 1], as for :func:`pack` (0 is lossless).
     memory_limit: bytes, as for :func:`pack`.
     """
+
+def tile_grid(directory: _StrPath) -> tuple[int, int]:
+    """``(tiles, side)`` of a folder of tiles as :func:`pack_tiles` reads
+    it: tiles on a side of the grid and texels on a tile's side."""
+
+def pack_tile(
+    directory: _StrPath,
+    row: int,
+    col: int,
+    tolerance: float = 0.0,
+    memory_limit: Optional[int] = None,
+    block_format: Optional[int] = None,
+) -> bytes:
+    """Packs tile ``(row, col)`` (row 0 at the top) of a tile folder on its
+    own, for :func:`splice_tiles`; returns it as bytes (checked when read
+    back). ``block_format``: None (the tile's own), or the code
+    :func:`splice_tiles` passes when it asks for the tile again in a wider
+    format."""
+
+def splice_tiles(
+    directory: _StrPath,
+    load: Callable[[int, int, Optional[int]], bytes],
+    tolerance: float = 0.0,
+    memory_limit: Optional[int] = None,
+) -> Texture:
+    """Splices tiles packed by :func:`pack_tile` into the texture
+    :func:`pack_tiles` makes of the folder, byte for byte. ``load(row, col,
+    block_format)`` returns ``pack_tile(directory, row, col, tolerance,
+    block_format=block_format)``; tiles are asked for in Morton order, again
+    with a ``block_format`` code when the tiles before need a wider one."""
+

@@ -15,6 +15,7 @@
 
 mod arrays;
 mod errors;
+mod tiles;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -46,12 +47,12 @@ const DEFAULT_SVG_LEVEL: u8 = 12;
 /// A packed texture: an incomplete quadtree (linear light, premultiplied
 /// RGBA, 16 bits a channel). Made by `quadtex.open` or `quadtex.pack`.
 #[pyclass(frozen, module = "quadtex", name = "Texture")]
-struct Texture {
-    tree: Arc<QuadTree>,
+pub(crate) struct Texture {
+    pub(crate) tree: Arc<QuadTree>,
     /// Size of the raster it was packed from (kept in saved files).
-    source: Option<(u32, u32)>,
+    pub(crate) source: Option<(u32, u32)>,
     /// The file it was opened from, named in `verify`'s errors.
-    file: Option<PathBuf>,
+    pub(crate) file: Option<PathBuf>,
 }
 
 #[pymethods]
@@ -643,7 +644,7 @@ fn detached<T: Sync, O: Send>(
 
 /// The default limits (as the CLI's), with `memory_limit` bytes as the
 /// memory budget when given (`--memory-limit`).
-fn limits(memory_limit: Option<i64>) -> PyResult<quadtex_io::Limits> {
+pub(crate) fn limits(memory_limit: Option<i64>) -> PyResult<quadtex_io::Limits> {
     let mut limits = quadtex_io::Limits::default();
     match memory_limit.map(u64::try_from) {
         None => {}
@@ -745,6 +746,9 @@ fn quadtex_python(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(open, m)?)?;
     m.add_function(wrap_pyfunction!(pack, m)?)?;
     m.add_function(wrap_pyfunction!(pack_tiles, m)?)?;
+    m.add_function(wrap_pyfunction!(tiles::tile_grid, m)?)?;
+    m.add_function(wrap_pyfunction!(tiles::pack_tile, m)?)?;
+    m.add_function(wrap_pyfunction!(tiles::splice_tiles, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

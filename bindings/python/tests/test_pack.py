@@ -292,3 +292,45 @@ def test_pack_tiles_equals_packing_the_mosaic(tmp_path, rng):
         quadtex.pack_tiles(tiles)
     with pytest.raises(ValueError, match="tolerance"):
         quadtex.pack_tiles(tiles, tolerance=2.0)
+
+
+def test_tiles_packed_apart_splice_into_the_pack_tiles_file(tmp_path, rng):
+    # Grey tiles first, then coloured and translucent ones: the mosaic's
+    # block format widens, so some tiles are asked for again.
+    mosaic = np.repeat(rng.integers(0, 256, size=(32, 32, 1)), 4, axis=2).astype(np.uint8)
+    mosaic[..., 3] = 255
+    mosaic[:16, 16:, 1] //= 2
+    mosaic[16:, 16:, 3] = 200
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    for row in range(4):
+        for col in range(4):
+            write_png(tiles / f"{row}_{col}.png", mosaic[row * 8:(row + 1) * 8, col * 8:(col + 1) * 8])
+    assert quadtex.tile_grid(tiles) == (4, 8)
+    packed = {(r, c): quadtex.pack_tile(tiles, r, c) for r in range(4) for c in range(4)}
+    asked_again = []
+
+    def load(row, col, block_format):
+        if block_format is None:
+            return packed[row, col]
+        asked_again.append((row, col))
+        return quadtex.pack_tile(tiles, row, col, block_format=block_format)
+
+    spliced = quadtex.splice_tiles(tiles, load)
+    assert asked_again, "no tile was asked for again in the wider format"
+    spliced.save(tmp_path / "spliced.qtx")
+    quadtex.pack_tiles(tiles).save(tmp_path / "serial.qtx")
+    assert (tmp_path / "spliced.qtx").read_bytes() == (tmp_path / "serial.qtx").read_bytes()
+    # Damaged bytes are refused by name; the callable's own error passes through.
+    damaged = bytearray(packed[0, 0])
+    damaged[30] ^= 1
+    with pytest.raises(ValueError, match="checksum"):
+        quadtex.splice_tiles(tiles, lambda r, c, f: bytes(damaged))
+
+    def fails(row, col, block_format):
+        raise KeyError("worker lost")
+
+    with pytest.raises(KeyError, match="worker lost"):
+        quadtex.splice_tiles(tiles, fails)
+    with pytest.raises(ValueError, match="outside"):
+        quadtex.pack_tile(tiles, 4, 0)
