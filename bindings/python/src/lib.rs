@@ -4,7 +4,7 @@
 //! a numpy array) into an incomplete-quadtree texture, open and save `.qtx`
 //! files, and filter footprints or integrate rectangles in batches.
 //!
-//! The Python-facing documentation is `quadtex.pyi` beside `Cargo.toml`
+//! The Python-facing documentation is `python/quadtex/__init__.pyi`
 //! (shipped in the wheel with `py.typed`); this crate's tests are Python
 //! (`tests/`, pytest).
 //!

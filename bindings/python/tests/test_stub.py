@@ -1,4 +1,4 @@
-"""The type stub `quadtex.pyi` matches the module, and every public callable
+"""The type stub `python/quadtex/__init__.pyi` matches the module, and every public callable
 documents its parameters."""
 
 import ast
@@ -12,7 +12,7 @@ import pytest
 
 import quadtex
 
-STUB = pathlib.Path(__file__).resolve().parents[1] / "quadtex.pyi"
+STUB = pathlib.Path(__file__).resolve().parents[1] / "python" / "quadtex" / "__init__.pyi"
 
 
 def _stub_tree():
@@ -90,7 +90,7 @@ def test_stubtest_agrees(tmp_path):
     # maturin installs the extension as the submodule quadtex.quadtex,
     # re-exported by the package; the stub describes the package.
     allow.write_text("quadtex\\.quadtex\n")
-    env = dict(os.environ, MYPYPATH=str(STUB.parent))
+    env = dict(os.environ, MYPYPATH=str(STUB.parent.parent))
     run = subprocess.run(
         [sys.executable, "-m", "mypy.stubtest", "quadtex", "--allowlist", str(allow)],
         cwd=tmp_path,
