@@ -1,0 +1,73 @@
+"""quadtex.dask on a real cluster: a LocalCluster of two worker processes
+(not a mock). Results equal the serial calls byte for byte."""
+
+import os
+import pathlib
+
+import numpy as np
+import pytest
+
+import quadtex
+
+from conftest import write_png
+
+distributed = pytest.importorskip("distributed")
+da = pytest.importorskip("dask.array")
+qdask = pytest.importorskip("quadtex.dask")
+
+
+@pytest.fixture(scope="module")
+def client():
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster, distributed.Client(cluster) as c:
+        yield c
+
+
+def test_importing_quadtex_does_not_import_dask():
+    import subprocess
+    import sys
+
+    code = "import sys, quadtex; quadtex.pack; print('dask' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_filter_equals_the_serial_call(client, tmp_path, rng):
+    texels = rng.random((64, 48, 4))
+    texels[..., :3] *= texels[..., 3:]
+    path = tmp_path / "t.qtx"
+    quadtex.pack(texels).save(path)
+    centres = rng.random((5000, 1, 2)) * 3 - 1
+    corners = np.array([[0, 0], [1, 0], [1.3, 1], [0.2, 0.8]]) * 0.05
+    quads = centres + corners
+    serial = quadtex.open(path).filter(quads, wrap="mirror", weighting="texture")
+    lazy = qdask.filter(path, da.from_array(quads, chunks=(700, 4, 2)), wrap="mirror", weighting="texture")
+    assert lazy.shape == (5000, 4) and lazy.dtype == np.float32
+    got = client.compute(lazy).result()
+    np.testing.assert_array_equal(got, serial)
+    # A numpy array is split into tasks of chunk_rows rows.
+    got = client.compute(qdask.filter(path, quads, chunk_rows=1000, wrap="mirror", weighting="texture")).result()
+    np.testing.assert_array_equal(got, serial)
+    with pytest.raises(ValueError, match=r"\(N, 4, 2\)"):
+        qdask.filter(path, np.zeros((3, 4, 3)))
+
+
+def test_pack_tiles_writes_the_pack_tiles_file(client, tmp_path, rng):
+    mosaic = rng.integers(0, 4, size=(64, 64, 3)).astype(np.uint8) * 80
+    mosaic[:32, :32] = 200
+    mosaic[32:, 32:, 1] = 7
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    for row in range(4):
+        for col in range(4):
+            write_png(tiles / f"{row}_{col}.png", mosaic[row * 16:(row + 1) * 16, col * 16:(col + 1) * 16])
+    out = tmp_path / "cluster.qtx"
+    texture = qdask.pack_tiles(client, tiles, out)
+    quadtex.pack_tiles(tiles).save(tmp_path / "serial.qtx")
+    assert out.read_bytes() == (tmp_path / "serial.qtx").read_bytes()
+    assert texture.source_size == (64, 64)
+    os.remove(tiles / "1_2.png")
+    with pytest.raises(ValueError, match="1_2"):
+        qdask.pack_tiles(client, tiles, tmp_path / "never.qtx")
+    assert not (tmp_path / "never.qtx").exists()
