@@ -7,7 +7,7 @@
 mod common;
 
 use arbtest::arbitrary::{Result as ArbResult, Unstructured};
-use common::{PALETTE, blocky_grid_any_aspect};
+use common::{PALETTE, blocky_grid_any_aspect, coefficients};
 use quadtex_core::{
     BuildOptions, ConvexPolygon, FilterOptions, FilterStats, Footprint, PixelFilter, Projection,
     QuadTree, Rgba, Texture, Wrap, WrapMode,
@@ -71,27 +71,6 @@ fn footprint(u: &mut Unstructured<'_>) -> ArbResult<Footprint> {
         rot([-far / 2.0, depth]),
     ])
     .unwrap())
-}
-
-/// Heckbert's square-to-quad coefficients, written out again here.
-fn coefficients(p: [[f64; 2]; 4]) -> [f64; 8] {
-    let [p0, p1, p2, p3] = p;
-    let sx = p0[0] - p1[0] + p2[0] - p3[0];
-    let sz = p0[1] - p1[1] + p2[1] - p3[1];
-    let (dx1, dx2, dz1, dz2) = (p1[0] - p2[0], p3[0] - p2[0], p1[1] - p2[1], p3[1] - p2[1]);
-    let den = dx1 * dz2 - dx2 * dz1;
-    let g = (sx * dz2 - dx2 * sz) / den;
-    let h = (dx1 * sz - sx * dz1) / den;
-    [
-        p1[0] - p0[0] + g * p1[0],
-        p3[0] - p0[0] + h * p3[0],
-        p0[0],
-        p1[1] - p0[1] + g * p1[1],
-        p3[1] - p0[1] + h * p3[1],
-        p0[1],
-        g,
-        h,
-    ]
 }
 
 /// The box-filtered pixel, slowly: every finest cell under the footprint's

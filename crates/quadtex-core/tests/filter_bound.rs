@@ -9,6 +9,9 @@
 //! that bound is at most the default target. Also: what huge, self-crossing
 //! and zero-coverage footprints give.
 
+mod common;
+
+use common::coefficients;
 use quadtex_core::synth::Art;
 use quadtex_core::{
     BuildOptions, ColourEncoding, ConvexPolygon, FilterOptions, FilterStats, Footprint,
@@ -295,28 +298,6 @@ fn far_reaching_footprints_keep_the_bound_under_every_wrap() {
             "{wrap:?}: nothing approximated"
         );
     }
-}
-
-/// Heckbert's square-to-quad coefficients: texture `(x, z) = ((a u + b v +
-/// c), (d u + e v + f)) / (g u + h v + 1)` for `(u, v)` in the pixel square.
-fn coefficients(p: [[f64; 2]; 4]) -> [f64; 8] {
-    let [p0, p1, p2, p3] = p;
-    let sx = p0[0] - p1[0] + p2[0] - p3[0];
-    let sz = p0[1] - p1[1] + p2[1] - p3[1];
-    let (dx1, dx2, dz1, dz2) = (p1[0] - p2[0], p3[0] - p2[0], p1[1] - p2[1], p3[1] - p2[1]);
-    let den = dx1 * dz2 - dx2 * dz1;
-    let g = (sx * dz2 - dx2 * sz) / den;
-    let h = (dx1 * sz - sx * dz1) / den;
-    [
-        p1[0] - p0[0] + g * p1[0],
-        p3[0] - p0[0] + h * p3[0],
-        p0[0],
-        p1[1] - p0[1] + g * p1[1],
-        p3[1] - p0[1] + h * p3[1],
-        p0[1],
-        g,
-        h,
-    ]
 }
 
 /// The exact screen-weighted (box) mean over the quad under repeat: every

@@ -94,6 +94,25 @@ impl<C: Cell> Builder<'_, C> {
         self.cells[(self.rows - 1 - iz) * self.side + ix]
     }
 
+    /// Counts `n` more nodes, refused past the node limit or the memory
+    /// budget.
+    fn add_nodes(&mut self, n: u64) -> Result<(), Error> {
+        self.nodes += n;
+        if self.nodes > self.max_nodes {
+            return Err(Error::TooManyNodes {
+                nodes: self.nodes,
+                max: self.max_nodes,
+            });
+        }
+        let (nodes, depth) = (self.nodes, self.depth);
+        check_budget(
+            || format!("packing at level {depth} (stopped after {nodes} nodes)"),
+            self.fixed_bytes + nodes * BUILD_BYTES_PER_NODE,
+            self.max_bytes,
+            RASTER_KNOBS,
+        )
+    }
+
     /// How many cells of the texture square `(level, ix, iz)` holds (cells
     /// of the pad excluded, [`Aspect`]).
     fn texture_cells(&self, level: u8, ix: usize, iz: usize) -> u64 {
@@ -185,20 +204,7 @@ impl<C: Cell> Builder<'_, C> {
                 return Ok(Some((stats, mean, Kind::Block)));
             }
         }
-        self.nodes += 4;
-        if self.nodes > self.max_nodes {
-            return Err(Error::TooManyNodes {
-                nodes: self.nodes,
-                max: self.max_nodes,
-            });
-        }
-        let (nodes, depth) = (self.nodes, self.depth);
-        check_budget(
-            || format!("packing at level {depth} (stopped after {nodes} nodes)"),
-            self.fixed_bytes + nodes * BUILD_BYTES_PER_NODE,
-            self.max_bytes,
-            RASTER_KNOBS,
-        )?;
+        self.add_nodes(4)?;
         let next = &mut self.levels[usize::from(level) + 1];
         for (c, kind) in children {
             try_push(next, (kind == Kind::Inner, c), "tree level")?;
@@ -465,20 +471,7 @@ impl Builder<'_, Unorm16Rgba> {
         level: u8,
         packed: PackedTile,
     ) -> Result<(Stats, Unorm16Rgba, Kind), Error> {
-        self.nodes += packed.nodes;
-        if self.nodes > self.max_nodes {
-            return Err(Error::TooManyNodes {
-                nodes: self.nodes,
-                max: self.max_nodes,
-            });
-        }
-        let (nodes, depth) = (self.nodes, self.depth);
-        check_budget(
-            || format!("packing at level {depth} (stopped after {nodes} nodes)"),
-            self.fixed_bytes + nodes * BUILD_BYTES_PER_NODE,
-            self.max_bytes,
-            RASTER_KNOBS,
-        )?;
+        self.add_nodes(packed.nodes)?;
         self.max_error = self.max_error.max(packed.max_error);
         if let Some((format, flags, data)) = packed.blocks {
             let w = match self.blocks.as_mut() {

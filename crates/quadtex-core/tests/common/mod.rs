@@ -92,3 +92,27 @@ pub fn fill(
     }
     Ok(())
 }
+
+/// Heckbert's square-to-quad coefficients `[a, b, c, d, e, f, g, h]`:
+/// texture `(x, z) = ((a u + b v + c), (d u + e v + f)) / (g u + h v + 1)`
+/// for `(u, v)` in the pixel square, corners in the footprint's order.
+#[allow(dead_code)]
+pub fn coefficients(p: [[f64; 2]; 4]) -> [f64; 8] {
+    let [p0, p1, p2, p3] = p;
+    let sx = p0[0] - p1[0] + p2[0] - p3[0];
+    let sz = p0[1] - p1[1] + p2[1] - p3[1];
+    let (dx1, dx2, dz1, dz2) = (p1[0] - p2[0], p3[0] - p2[0], p1[1] - p2[1], p3[1] - p2[1]);
+    let den = dx1 * dz2 - dx2 * dz1;
+    let g = (sx * dz2 - dx2 * sz) / den;
+    let h = (dx1 * sz - sx * dz1) / den;
+    [
+        p1[0] - p0[0] + g * p1[0],
+        p3[0] - p0[0] + h * p3[0],
+        p0[0],
+        p1[1] - p0[1] + g * p1[1],
+        p3[1] - p0[1] + h * p3[1],
+        p0[1],
+        g,
+        h,
+    ]
+}
