@@ -16,6 +16,18 @@ use crate::Error;
 /// tree's arrays (8.25 bytes a node) built from them.
 pub const BUILD_BYTES_PER_NODE: u64 = 30;
 
+/// Peak bytes the packer holds per point of a contour leaf: the point
+/// while the leaf is built (16 bytes), again in the finished leaves, and
+/// the slack of the lists that grow to hold them. Measured with a counting
+/// allocator on the Ghostscript tiger at edge budgets 16 to 256 and levels
+/// 12 to 20 (see `docs/limits.md`).
+pub const CONTOUR_BYTES_PER_POINT: u64 = 40;
+
+/// Peak bytes the packer holds per contour leaf beyond its points: the
+/// leaf's lists of pieces and contours while it is built, and their
+/// headers in the finished leaves; measured as [`CONTOUR_BYTES_PER_POINT`].
+pub const CONTOUR_BYTES_PER_LEAF: u64 = 200;
+
 /// Bytes per node of a finished tree (colour plus inner bit and rank
 /// counters; the top table adds at most 1/16 of the colour bytes).
 pub const TREE_BYTES_PER_NODE: u64 = 9;

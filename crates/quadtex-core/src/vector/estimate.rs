@@ -7,23 +7,11 @@ use super::art::{MAX_VECTOR_LEVEL, Point, VectorArt};
 use super::options::VectorOptions;
 use super::pack::sweep::SWEEP_EDGES;
 use crate::Error;
-use crate::memory::BUILD_BYTES_PER_NODE;
+use crate::memory::{BUILD_BYTES_PER_NODE, CONTOUR_BYTES_PER_LEAF, CONTOUR_BYTES_PER_POINT};
 use crate::tree::QuadTree;
 use crate::vector::blend::BlendMode;
 use crate::vector::contour_leaf::MAX_LEAF_GROUP_DEPTH;
 use crate::vector::options::VectorReport;
-
-/// Peak bytes the packer holds per point of a contour leaf: the point
-/// while the leaf is built (16 bytes), again in the finished leaves, and
-/// the slack of the lists that grow to hold them. Measured with a counting
-/// allocator on the Ghostscript tiger at edge budgets 16 to 256 and levels
-/// 12 to 20 (see `docs/limits.md`).
-pub const CONTOUR_BYTES_PER_POINT: u64 = 40;
-
-/// Peak bytes the packer holds per contour leaf beyond its points: the
-/// leaf's lists of pieces and contours while it is built, and their
-/// headers in the finished leaves; measured as [`CONTOUR_BYTES_PER_POINT`].
-pub const CONTOUR_BYTES_PER_LEAF: u64 = 200;
 
 /// Peak bytes per point of the art the packer holds while it clips the
 /// art to the squares being built (the whole art at the root, a quarter

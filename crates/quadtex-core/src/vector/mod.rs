@@ -90,13 +90,12 @@ mod estimate;
 mod options;
 mod pack;
 
+pub use crate::memory::{CONTOUR_BYTES_PER_LEAF, CONTOUR_BYTES_PER_POINT};
 pub use art::{
     ClipId, GroupId, MAX_CLIP_DEPTH, MAX_MASK_DEPTH, MAX_VECTOR_COORDINATE, MAX_VECTOR_LEVEL,
     MAX_VECTOR_POINTS, MaskId, MaskKind, Paint, VectorArt,
 };
-pub use estimate::{
-    Adjustable, BudgetFit, CONTOUR_BYTES_PER_LEAF, CONTOUR_BYTES_PER_POINT, MIN_FITTED_LEVEL,
-};
+pub use estimate::{Adjustable, BudgetFit, MIN_FITTED_LEVEL};
 pub use options::{
     CONTOUR_CURVE_TOLERANCE, CONTOUR_MAX_LEVEL, DEFAULT_MAX_SWEEP_WORK, DEFAULT_SMOOTH_TOLERANCE,
     VectorOptions, VectorReport,

@@ -12,9 +12,9 @@ use crate::Error;
 use crate::colour::Unorm16Rgba;
 use crate::geometry::{clip_to_rect, on_rect_border, signed_area};
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
+use crate::memory::{CONTOUR_BYTES_PER_LEAF, CONTOUR_BYTES_PER_POINT};
 use crate::tree::{self, MAX_DEPTH, MAX_NODES, QuadTree};
 use crate::vector::contour_leaf::{ContourLeaves, ContourParts, LeafGroup, LeafPiece};
-use crate::vector::estimate::{CONTOUR_BYTES_PER_LEAF, CONTOUR_BYTES_PER_POINT};
 use crate::vector::gradient_leaf::{GradientLeaves, LeafPaint};
 use sweep::{SWEEP_EDGES, SweepScratch};
 
