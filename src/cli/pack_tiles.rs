@@ -30,6 +30,10 @@ pub struct Args {
     /// default) is lossless.
     #[arg(long, value_name = "T", default_value_t = 0.0, value_parser = tolerance)]
     tolerance: f64,
+    /// Threads packing tiles (each holds one tile's texels); the output is
+    /// the same file whatever the count. Default: every core.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
     #[command(flatten)]
     memory: MemoryArgs,
 }
@@ -38,7 +42,13 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     let start = Instant::now();
     let limits = args.memory.limits();
-    let (tree, report, folder) = quadtex_io::pack_tiles(&args.dir, args.tolerance, &limits)?;
+    let folder = quadtex_io::TileFolder::scan(&args.dir, &limits)?;
+    let threads = args.threads.map_or_else(
+        || std::thread::available_parallelism().map_or(1, |n| n.get()),
+        usize::from,
+    );
+    let (tree, report) =
+        quadtex_io::pack_tiles_on_threads(&folder, args.tolerance, &limits, threads)?;
     let packed = start.elapsed().as_secs_f64();
     let side = u32::try_from(folder.texels()).map_err(|_| "texture side beyond 2^32")?;
     args.output.write_qtx(&tree, Some((side, side)))?;
@@ -52,7 +62,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut text = args.output.text();
     writeln!(
         text,
-        "packed {}x{} tiles of {}x{} from {} -> {}: {side}x{side} texels, {} nodes, depth {}, {}; RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {error}; packed in {packed:.2} s, {:.2} s with writing{}",
+        "packed {}x{} tiles of {}x{} from {} -> {}: {side}x{side} texels, {} nodes, depth {}, {}; RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {error}; packed in {packed:.2} s on {threads} thread{}, {:.2} s with writing{}",
         folder.tiles(),
         folder.tiles(),
         folder.side(),
@@ -64,6 +74,7 @@ pub fn run(args: Args) -> Result<()> {
         human_bytes(bytes),
         raster as f64 / bytes as f64,
         mips as f64 / bytes as f64,
+        if threads == 1 { "" } else { "s" },
         start.elapsed().as_secs_f64(),
         peak_memory().map_or(String::new(), |m| format!(
             "; peak memory {}",

@@ -24,6 +24,7 @@ mod qtx;
 mod query;
 mod svg;
 mod tiles;
+mod tiles_on_threads;
 
 pub use atomic::write_atomically;
 pub use error::Error;
@@ -49,3 +50,4 @@ pub use svg::{
     parse_svg,
 };
 pub use tiles::{TileFolder, pack_tile, pack_tiles, splice_tiles};
+pub use tiles_on_threads::pack_tiles_on_threads;
