@@ -2,7 +2,8 @@
 //!
 //! PyO3 bindings of `quadtex-core` and `quadtex-io`: pack an image (a file or
 //! a numpy array) into an incomplete-quadtree texture, open and save `.qtx`
-//! files, and filter footprints or integrate rectangles in batches.
+//! files, and filter footprints or integrate rectangles in batches; and of
+//! `quadtex-render`: render scenes as `quadtex render` does (`scene.rs`).
 //!
 //! The Python-facing documentation is `python/quadtex/__init__.pyi`
 //! (shipped in the wheel with `py.typed`); this crate's tests are Python
@@ -14,7 +15,10 @@
 #![forbid(unsafe_code)]
 
 mod arrays;
+mod differentials;
 mod errors;
+mod images;
+mod scene;
 mod tiles;
 
 use std::path::PathBuf;
@@ -737,7 +741,8 @@ fn filter_options(
 ///
 /// `pack` an image (file or numpy array) or `open` a .qtx file to get a
 /// `Texture`; `Texture.filter` averages it over pixel footprints and
-/// `Texture.integrate` over rectangles. Colours are linear light,
+/// `Texture.integrate` over rectangles. `Scene.open` a scene file and
+/// `Scene.render` it as `quadtex render` does. Colours are linear light,
 /// premultiplied alpha; texture space is the unit square, x right, z up.
 #[pymodule]
 #[pyo3(name = "quadtex")]
@@ -749,6 +754,9 @@ fn quadtex_python(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tiles::tile_grid, m)?)?;
     m.add_function(wrap_pyfunction!(tiles::pack_tile, m)?)?;
     m.add_function(wrap_pyfunction!(tiles::splice_tiles, m)?)?;
+    scene::register(m)?;
+    differentials::register(m)?;
+    images::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -53,6 +53,26 @@ pub fn linear_to_srgb8(v: f32) -> u8 {
     code as u8
 }
 
+/// The bytes a PNG written by [`save_image`] stores for linear,
+/// premultiplied `pixels`: four a pixel (R, G, B, A), sRGB-encoded with
+/// straight alpha. Each colour channel is divided by alpha (a pixel whose
+/// alpha is not above 0 gets colour 0) and encoded by [`linear_to_srgb8`];
+/// alpha is `⌊255·clamp(a, 0, 1) + ½⌋` (0 for NaN).
+pub fn srgb8_from_linear(pixels: &[Rgba]) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(4 * pixels.len());
+    for p in pixels {
+        let inv = if p.a > 0.0 { 1.0 / p.a } else { 0.0 };
+        let enc = |c: f32| linear_to_srgb8(c * inv);
+        bytes.extend([
+            enc(p.r),
+            enc(p.g),
+            enc(p.b),
+            (p.a.clamp(0.0, 1.0) * 255.0 + 0.5) as u8,
+        ]);
+    }
+    bytes
+}
+
 /// Buckets of `[0, 1)` in [`linear_to_srgb8`]'s table: fine enough that a
 /// bucket spans at most about one code (the curve's steepest slope is
 /// 255 · 12.92 codes per unit).
@@ -398,18 +418,7 @@ fn to_dynamic(
     }
     let dynamic = match format {
         ImageFormat::Png => {
-            let mut bytes = Vec::with_capacity(4 * n);
-            for p in &image.pixels {
-                let inv = if p.a > 0.0 { 1.0 / p.a } else { 0.0 };
-                let enc = |c: f32| linear_to_srgb8(c * inv);
-                bytes.extend([
-                    enc(p.r),
-                    enc(p.g),
-                    enc(p.b),
-                    (p.a.clamp(0.0, 1.0) * 255.0 + 0.5) as u8,
-                ]);
-            }
-            image::RgbaImage::from_raw(image.width, image.height, bytes)
+            image::RgbaImage::from_raw(image.width, image.height, srgb8_from_linear(&image.pixels))
                 .map(DynamicImage::ImageRgba8)
         }
         ImageFormat::Exr => {
@@ -491,6 +500,13 @@ mod tests {
         // Linear 0.25 is sRGB 137; premultiplied 0.1 at alpha 0.5 is straight 0.2 → 124.
         assert_eq!(back.get_pixel(0, 0).0, [137, 255, 0, 255]);
         assert_eq!(back.get_pixel(1, 0).0[0], 124);
+        // The PNG holds exactly the bytes `srgb8_from_linear` gives.
+        assert_eq!(back.into_raw(), srgb8_from_linear(&image.pixels));
+        assert_eq!(
+            srgb8_from_linear(&[Rgba::new(0.5, f32::NAN, 2.0, 0.0)]),
+            [0, 0, 0, 0],
+            "no alpha, no colour"
+        );
         assert!(matches!(
             save_image(&temp("out.bmp"), &image),
             Err(Error::UnsupportedExtension(_))

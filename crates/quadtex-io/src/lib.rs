@@ -34,7 +34,7 @@ pub use footprints::{
 };
 pub use image_io::{
     ImageFormat, LinearImage, linear_to_srgb8, load_linear_image, load_texels,
-    load_texels_from_bytes, save_image, save_image_as, write_image,
+    load_texels_from_bytes, save_image, save_image_as, srgb8_from_linear, write_image,
 };
 pub use limits::{
     ExternalResources, FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE,

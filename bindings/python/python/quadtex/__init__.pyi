@@ -22,7 +22,7 @@ Ctrl-C every 50 ms or so (``KeyboardInterrupt``).
 """
 
 import os
-from typing import Callable, Literal, Optional, Sequence, Tuple, Union, final
+from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
@@ -35,6 +35,11 @@ __all__ = [
     "tile_grid",
     "pack_tile",
     "splice_tiles",
+    "Scene",
+    "Camera",
+    "footprints_from_differentials",
+    "to_srgb8",
+    "save_image",
     "__version__",
 ]
 __version__: str
@@ -269,3 +274,203 @@ def splice_tiles(
     block_format=block_format)``; tiles are asked for in Morton order, again
     with a ``block_format`` code when the tiles before need a wider one."""
 
+@final
+class Camera:
+    """One frame's camera along a camera path: the pose the path's spline
+    gives at the frame's time (world space, ``y`` up). Made by
+    :meth:`Scene.path_frames`."""
+
+    @property
+    def frame(self) -> int:
+        """The frame's index along the path (0 for the first)."""
+
+    @property
+    def time(self) -> float:
+        """The frame's time on the path's clock (the keys' ``time`` unit)."""
+
+    @property
+    def position(self) -> Tuple[float, float, float]:
+        """Where the camera is."""
+
+    @property
+    def look_at(self) -> Tuple[float, float, float]:
+        """The point it looks at."""
+
+    @property
+    def up(self) -> Tuple[float, float, float]:
+        """The up direction fixing the roll, as interpolated (not made
+        perpendicular to the view)."""
+
+    @property
+    def fov(self) -> float:
+        """Vertical field of view, degrees."""
+
+    def __repr__(self) -> str: ...
+
+@final
+class Scene:
+    """A scene as ``quadtex render`` reads it (``docs/scenes.md``): planes,
+    quads, spheres, OBJ and glTF models, textures packed once, sky and
+    lights. Made by :meth:`Scene.open`; :meth:`Scene.render` renders it."""
+
+    @staticmethod
+    def open(
+        path: _StrPath,
+        memory_limit: Optional[int] = None,
+        resources: Optional[Literal["same-folder", "anywhere", "none"]] = None,
+    ) -> "Scene":
+        """Reads a TOML scene file, as ``quadtex render SCENE`` does: its
+        models and textures (``.qtx``, PNG, JPEG, OpenEXR, ``.hdr``, SVG,
+        ``builtin:``) are read and packed now, once. ``.qtx`` textures are
+        read whole and checked, as the CLI reads them.
+
+        memory_limit: bytes (at least 1), the memory reading and packing
+            textures may use (``--memory-limit``); default the detected
+            budget.
+        resources: which files glTF models and SVG textures may read
+            (``--resources``); default ``"same-folder"``.
+
+        Raises ``OSError`` when the system refuses the scene file
+        (``FileNotFoundError``…, ``errno`` and ``filename`` set) and
+        ``ValueError`` for a malformed scene, naming the file, line and key
+        (``shape[0].texture``); a texture that cannot be read is a
+        ``ValueError`` naming its key, with the system's message. The GIL
+        is released while reading.
+        """
+
+    @property
+    def width(self) -> int:
+        """The camera's width in pixels (the default render width)."""
+
+    @property
+    def height(self) -> int:
+        """The camera's height in pixels (the default render height)."""
+
+    def render(
+        self,
+        width: Optional[int] = None,
+        height: Optional[int] = None,
+        filter: str = "quadtree",
+        pixel_filter: Literal["box", "tent", "mitchell"] = "box",
+        path: Optional[_StrPath] = None,
+        frame: Optional[int] = None,
+        frames: Optional[int] = None,
+        error_bound: Optional[float] = None,
+        budget: Optional[int] = None,
+        level: Optional[int] = None,
+        quality: float = 1.0,
+        progress: bool = False,
+        return_summary: bool = False,
+    ) -> Union[
+        npt.NDArray[np.float32], Tuple[npt.NDArray[np.float32], Dict[str, Any]]
+    ]:
+        """Renders the scene as ``quadtex render`` does: the same pixels as
+        its OpenEXR output (``--format exr``), bit for bit.
+
+        width, height: pixels (at least 1; at most 2**26 pixels in all).
+            Default the camera's; one alone keeps the camera's aspect.
+        filter: the texture filter (``--filter``): ``"quadtree"`` (the
+            method), ``"nearest"``, ``"bilinear"``, ``"supersample:N"`` (N×N
+            nearest rays a pixel, N in 1..64), ``"trilinear"``, ``"ewa"``
+            (anisotropy 8) or ``"sat"``.
+        pixel_filter: ``"box"``, ``"tent"`` or ``"mitchell"``
+            (``--pixel-filter``), for quadtree and supersample.
+        path: a camera path file (``--path``; TOML keys, ``docs/scenes.md``)
+            to take the camera from instead of the scene's; needs ``frame``
+            and ``frames``. Frame ``frame`` of ``frames`` is exactly the
+            file ``quadtex render SCENE --path PATH --frames FRAMES``
+            writes as ``frame_<frame>.exr``.
+        frame: with ``path``: which frame, ``0 <= frame < frames``.
+        frames: with ``path``: frames along it, 1..100000 (``--frames``).
+        error_bound: quadtree only: ``> 0`` (default 1/512), the bound each
+            pixel aims at (``--error-bound``).
+        budget: quadtree only: ``>= 1`` (default 64), most squares a pixel
+            region refines (``--budget``).
+        level: quadtree only: 0..30, refine every square to this level
+            instead (``--level``).
+        quality: sat only, in [1, 64] (``--quality``).
+        progress: print ``quadtex: rendered R/H rows (P%)`` to standard
+            error (file descriptor 2, not ``sys.stderr``) as each tenth of
+            the rows is done.
+        return_summary: also return what the render cost: a dict with
+            ``width``, ``height``, ``seconds``, ``textured_pixels``,
+            ``max_error_bound``, ``mean_error_bound``, ``over_target``,
+            ``max_weight_error`` and ``text`` (the CLI's summary line).
+
+        Returns ``(height, width, 4)`` float32, linear light, premultiplied
+        RGBA, row 0 at the top (:func:`to_srgb8` and :func:`save_image`
+        make PNG bytes and files of it); with ``return_summary=True`` the
+        pair ``(image, summary)``.
+
+        Raises ``ValueError`` naming the argument (an unknown filter, a zero
+        size, ``frame >= frames``, ``frame`` without ``path``…), a malformed
+        camera path (file, line and key) or a frame whose camera is
+        degenerate; ``OSError`` when the system refuses the path file. The
+        GIL is released while rendering, on every core; Ctrl-C is seen when
+        the frame is done.
+        """
+
+    def path_frames(self, path: _StrPath, frames: int) -> List[Camera]:
+        """The camera of each frame along a camera path, as ``quadtex render
+        --path PATH --frames FRAMES`` places them: frame i of N is the
+        path's pose at time ``t0 + (t_last - t0)·i/(N - 1)`` (the first key
+        when N = 1); ``position`` and ``look_at`` follow a Catmull–Rom
+        spline through the keys, ``up`` and ``fov`` are linear between them.
+
+        path: a camera path file (TOML keys, ``docs/scenes.md``).
+        frames: how many frames along it, 1..100000.
+
+        Returns ``frames`` :class:`Camera` objects in frame order. Raises
+        ``ValueError`` for a malformed path (file, line and key), ``frames``
+        out of range, or a degenerate frame (named, as the CLI checks every
+        frame before rendering); ``OSError`` when the system refuses the file.
+        """
+
+    def __repr__(self) -> str: ...
+
+def footprints_from_differentials(
+    points: npt.ArrayLike, dpdx: npt.ArrayLike, dpdy: npt.ArrayLike
+) -> npt.NDArray[np.float64]:
+    """The footprints a renderer's ray differentials give: parallelograms
+    whose corner ``(i, j)`` is ``points + (i - 1/2)·dpdx + (j - 1/2)·dpdy``
+    (Rust ``Footprint::from_differentials``), in pixel order
+    ``(0,0), (1,0), (1,1), (0,1)``: ready for :meth:`Texture.filter`.
+
+    points: ``(N, 2)``, the texture point ``(x, z)`` at each pixel centre.
+    dpdx: ``(N, 2)``, its change per pixel step to the right.
+    dpdy: ``(N, 2)``, its change per pixel step *down* the screen.
+
+    Returns ``(N, 4, 2)`` float64. Raises ``ValueError`` for another shape,
+    differing lengths, a value that is not finite (named, e.g.
+    ``dpdx[3, 1]``) or a corner beyond 1e15 (naming the row); ``TypeError``
+    for arrays that do not hold real numbers.
+    """
+
+def to_srgb8(image: npt.ArrayLike) -> npt.NDArray[np.uint8]:
+    """8-bit sRGB with straight alpha: the bytes ``quadtex render -o x.png``
+    stores for a rendered image (the same code).
+
+    image: ``(H, W, 4)`` floating point (float64 is rounded to float32
+        first), linear light, premultiplied: what :meth:`Scene.render`
+        returns.
+
+    Returns ``(H, W, 4)`` uint8: colour divided by alpha (0 where alpha is
+    not above 0), sRGB-encoded and rounded (NaN and below 0 give 0, above 1
+    give 255); alpha ``round(255·clip(a, 0, 1))``. Raises ``ValueError``
+    (shape, empty) or ``TypeError`` (not floating point).
+    """
+
+def save_image(path: _StrPath, image: npt.ArrayLike) -> None:
+    """Writes a rendered image atomically, as ``quadtex render -o`` does;
+    the format follows the extension: ``.png`` (8-bit sRGB, straight alpha:
+    the bytes of :func:`to_srgb8`) or ``.exr`` (32-bit float, linear,
+    premultiplied).
+
+    path: ending in ``.png`` or ``.exr`` (any case); another extension is a
+        ``ValueError``.
+    image: ``(H, W, 4)`` floating point, linear premultiplied RGBA.
+
+    Raises ``OSError`` when the system refuses (``IsADirectoryError``,
+    ``FileNotFoundError``…, ``errno`` and ``filename`` set), ``ValueError``
+    or ``TypeError`` for a bad image.
+    """
