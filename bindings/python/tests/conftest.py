@@ -1,8 +1,12 @@
 """Shared helpers: a PNG writer on the standard library (no Pillow), and
 closed-form integrals of a raster over rectangles."""
 
+import json
+import os
 import pathlib
+import shutil
 import struct
+import subprocess
 import zlib
 
 import numpy as np
@@ -67,3 +71,30 @@ def rng():
 def random_texels(rng):
     """16×16 opaque RGB, linear, on the 16-bit grid (packs losslessly)."""
     return rng.integers(0, 65536, size=(16, 16, 3)) / 65535.0
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """The `quadtex` command: $QUADTEX_BIN (scripts/test sets it to the
+    binary `cargo test` built), else what `cargo build --bin quadtex` makes."""
+    exe = os.environ.get("QUADTEX_BIN")
+    if exe:
+        assert os.path.isfile(exe), f"QUADTEX_BIN={exe} is not a file"
+        return exe
+    cargo = shutil.which("cargo")
+    if cargo is None:
+        pytest.skip("no quadtex command: set QUADTEX_BIN or put cargo on the PATH")
+    run = subprocess.run(
+        [cargo, "build", "--quiet", "--bin", "quadtex", "--message-format=json"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=3600,
+    )
+    assert run.returncode == 0, run.stderr
+    for line in run.stdout.splitlines():
+        msg = json.loads(line)
+        if msg.get("reason") == "compiler-artifact" and msg.get("executable"):
+            if msg["target"]["name"] == "quadtex":
+                return msg["executable"]
+    raise AssertionError("cargo built no quadtex executable")

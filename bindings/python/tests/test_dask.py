@@ -71,3 +71,77 @@ def test_pack_tiles_writes_the_pack_tiles_file(client, tmp_path, rng):
     with pytest.raises(ValueError, match="1_2"):
         qdask.pack_tiles(client, tiles, tmp_path / "never.qtx")
     assert not (tmp_path / "never.qtx").exists()
+
+
+RUNWAY = pathlib.Path(__file__).resolve().parents[3] / "scenes" / "runway.toml"
+APPROACH = RUNWAY.with_name("runway-approach.path.toml")
+
+
+def test_render_path_writes_the_cli_frames(client, cli, tmp_path):
+    serial = tmp_path / "cli"
+    run = __import__("subprocess").run(
+        [cli, "render", str(RUNWAY), "--path", str(APPROACH), "--frames", "6", "--width", "64", "-o", f"{serial}/"],
+        capture_output=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr.decode()
+    out = tmp_path / "cluster"
+    files = qdask.render_path(client, RUNWAY, APPROACH, 6, out, width=64)
+    assert [pathlib.Path(f).name for f in files] == sorted(os.listdir(serial))
+    for f in files:
+        assert pathlib.Path(f).read_bytes() == (serial / pathlib.Path(f).name).read_bytes(), f
+    # A rerun finds every frame complete and renders none; a range, part.
+    before = {f: os.stat(f).st_mtime_ns for f in files}
+    assert qdask.render_path(client, RUNWAY, APPROACH, 6, out, width=64) == files
+    assert {f: os.stat(f).st_mtime_ns for f in files} == before
+    assert qdask.render_path(client, RUNWAY, APPROACH, 6, out, width=64, frame_range=(2, 3)) == files[2:4]
+    with pytest.raises(ValueError, match="frame_range"):
+        qdask.render_path(client, RUNWAY, APPROACH, 6, out, frame_range=(4, 6))
+    with pytest.raises(ValueError, match="filter"):
+        qdask.render_path(client, RUNWAY, APPROACH, 6, tmp_path / "bad", filter="blurry")
+
+
+def test_a_worker_killed_mid_path_loses_no_frame(cli, tmp_path):
+    """Kills one of two worker processes while a path renders: the
+    scheduler gives its frames to the other (or its restarted self), every
+    frame is written once, whole, and equals the CLI's."""
+    import signal
+    import threading
+    import time
+
+    frames, width = 16, 320
+    serial = tmp_path / "cli"
+    run = __import__("subprocess").run(
+        [cli, "render", str(RUNWAY), "--path", str(APPROACH), "--frames", str(frames), "--width", str(width), "-o", f"{serial}/"],
+        capture_output=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr.decode()
+    out = tmp_path / "cluster"
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster, distributed.Client(cluster) as c:
+        result = {}
+
+        def render():
+            result["files"] = qdask.render_path(c, RUNWAY, APPROACH, frames, out, width=width)
+
+        thread = threading.Thread(target=render)
+        thread.start()
+        deadline = time.monotonic() + 120
+        while not (out.exists() and any(n.startswith("frame_") for n in os.listdir(out))):
+            assert time.monotonic() < deadline, "no frame was written"
+            time.sleep(0.01)
+        pids = c.run(os.getpid)
+        victim = sorted(pids.values())[0]
+        os.kill(victim, signal.SIGKILL)
+        written = sum(n.startswith("frame_") for n in os.listdir(out))
+        assert written < frames, "the path was done before the kill"
+        thread.join(timeout=300)
+        assert not thread.is_alive()
+    files = result["files"]
+    assert len(files) == frames
+    names = sorted(n for n in os.listdir(out) if n.startswith("frame_"))
+    assert names == sorted(os.listdir(serial))
+    for n in names:
+        assert (out / n).read_bytes() == (serial / n).read_bytes(), n

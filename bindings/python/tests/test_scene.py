@@ -46,33 +46,6 @@ up = [0.1, 1, 0]
 """
 
 
-@pytest.fixture(scope="session")
-def cli():
-    """The `quadtex` command: $QUADTEX_BIN (scripts/test sets it to the
-    binary `cargo test` built), else what `cargo build --bin quadtex` makes."""
-    exe = os.environ.get("QUADTEX_BIN")
-    if exe:
-        assert os.path.isfile(exe), f"QUADTEX_BIN={exe} is not a file"
-        return exe
-    cargo = shutil.which("cargo")
-    if cargo is None:
-        pytest.skip("no quadtex command: set QUADTEX_BIN or put cargo on the PATH")
-    run = subprocess.run(
-        [cargo, "build", "--quiet", "--bin", "quadtex", "--message-format=json"],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=3600,
-    )
-    assert run.returncode == 0, run.stderr
-    for line in run.stdout.splitlines():
-        msg = json.loads(line)
-        if msg.get("reason") == "compiler-artifact" and msg.get("executable"):
-            if msg["target"]["name"] == "quadtex":
-                return msg["executable"]
-    raise AssertionError("cargo built no quadtex executable")
-
-
 def quadtex_cli(cli, *args):
     run = subprocess.run([cli, *map(str, args)], capture_output=True, timeout=600)
     assert run.returncode == 0, run.stderr.decode()

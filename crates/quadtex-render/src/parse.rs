@@ -773,8 +773,10 @@ impl Context<'_> {
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
         let tree = match ext.as_deref() {
+            // Mapped, its payload checksum verified at open: workers
+            // rendering the same scene share its pages.
             Some("qtx") => {
-                quadtex_io::read_qtx(&file, &self.limits)
+                quadtex_io::map_qtx(&file, &self.limits)
                     .map_err(|e| self.err(key, &e.to_string()))?
                     .0
             }

@@ -69,7 +69,7 @@ def _texture(path: str) -> "quadtex.Texture":
 
 
 def _scene(path: str) -> Any:
-    return _cached("scene", path, quadtex.Scene.open)  # type: ignore[attr-defined]
+    return _cached("scene", path, quadtex.Scene.open)
 
 
 def _frame_name(frame: int, frames: int, extension: str) -> str:
@@ -93,7 +93,7 @@ def _render_frame(
         return file
     scene = _scene(scene_path)
     image = scene.render(path=path_path, frame=frame, frames=frames, **options)
-    quadtex.save_image(file, image)  # type: ignore[attr-defined]
+    quadtex.save_image(file, image)
     return file
 
 
@@ -154,7 +154,7 @@ def render_path(
         options["height"] = height
     # Check the arguments once on the client (a bad filter name fails here,
     # not on every worker): the path's cameras, and one tiny render.
-    scene = quadtex.Scene.open(scene_path)  # type: ignore[attr-defined]
+    scene = quadtex.Scene.open(scene_path)
     scene.path_frames(path_path, frames)
     files = [os.path.join(out_dir, _frame_name(i, frames, format)) for i in range(first, last + 1)]
     token = uuid.uuid4().hex[:8]
