@@ -1548,6 +1548,168 @@ fn tiles_missing_duplicate_mismatched_and_corrupt() {
     );
 }
 
+/// A valid 16x16 8-bit RGB TIFF (one LZW strip) as `spoil` leaves it.
+fn tiff_bytes(spoil: impl FnOnce(&mut common::tiff_writer::Spec)) -> Vec<u8> {
+    let mut spec = common::tiff_writer::Spec {
+        compression: 5,
+        ..common::tiff_writer::Spec::rgb8(16, 16, (0..16 * 16 * 3).map(|i| i % 251).collect())
+    };
+    spoil(&mut spec);
+    spec.write()
+}
+
+#[test]
+fn tiff_truncated() {
+    let bytes = tiff_bytes(|_| {});
+    pack_case(
+        "tiff-trunc",
+        "cut.tif",
+        &bytes[..bytes.len() - 100],
+        &[],
+        &["cut.tif: TIFF", "the file ends early (truncated?)"],
+    );
+}
+
+#[test]
+fn tiff_magic_then_garbage() {
+    pack_case(
+        "tiff-magic",
+        "garbage.tif",
+        b"II*\0\xff\xff\xff\x7fnot an image file directory",
+        &[],
+        &["garbage.tif: TIFF header"],
+    );
+    // A wrong magic number: not recognised as TIFF at all.
+    pack_case(
+        "tiff-wrong-magic",
+        "wrong.tif",
+        b"II\x2a\x01 twenty-three bytes more",
+        &[],
+        &["wrong.tif"],
+    );
+}
+
+#[test]
+fn tiff_float_samples_are_unsupported() {
+    let bytes = tiff_bytes(|s| {
+        s.bits = 32;
+        s.sample_format = Some(3);
+    });
+    pack_case(
+        "tiff-float",
+        "float.tif",
+        &bytes,
+        &[],
+        &[
+            "float.tif",
+            "TIFF SampleFormat: floating-point samples are not supported",
+        ],
+    );
+}
+
+#[test]
+fn tiff_bilevel_is_unsupported() {
+    let bytes = tiff_bytes(|s| {
+        s.bits = 1;
+        s.samples_per_pixel = 1;
+        s.photometric = 1;
+    });
+    pack_case(
+        "tiff-bilevel",
+        "fax.tif",
+        &bytes,
+        &[],
+        &["fax.tif", "1-bit samples (bilevel) are not supported"],
+    );
+}
+
+#[test]
+fn tiff_declares_100000_columns() {
+    let bytes = tiff_bytes(|s| s.declared_size = Some((100_000, 16)));
+    pack_case(
+        "tiff-huge",
+        "huge.tif",
+        &bytes,
+        &[],
+        &["huge.tif", "max_dimension"],
+    );
+}
+
+/// `pack-tiles` on a tiled TIFF that is not a square mosaic of square
+/// power-of-two tiles: refused naming the file, pointing to `pack`.
+#[test]
+fn tiff_tiles_not_a_square_mosaic() {
+    for (case, w, h, tile, needle) in [
+        (
+            "3x2",
+            48,
+            32,
+            (16, 16),
+            "3x2 tiles of 16x16: pack-tiles needs a square grid",
+        ),
+        ("rect", 64, 32, (32, 16), "TIFF tiles of 32x16 texels"),
+        (
+            "edges",
+            40,
+            40,
+            (16, 16),
+            "not a whole number of 16x16 tiles",
+        ),
+        ("strips", 32, 32, (0, 0), "a stripped TIFF"),
+    ] {
+        let d = dir(&format!("tiff-mosaic-{case}"));
+        let tif = d.join(format!("{case}.tif"));
+        std::fs::write(
+            &tif,
+            tiff_bytes(|s| {
+                (s.width, s.height) = (w, h);
+                s.samples = vec![7; (w * h * 3) as usize];
+                s.rows_per_strip = h;
+                s.tile = (tile.0 > 0).then_some(tile);
+            }),
+        )
+        .unwrap();
+        let out = d.join("out.qtx");
+        expect_failure(
+            &[
+                "pack-tiles",
+                tif.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ],
+            "",
+            &[&format!("{case}.tif"), needle, "`quadtex pack`"],
+            Some(&out),
+        );
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}
+
+/// `pack-tiles` on a file that is not a TIFF (a PNG): neither a folder of
+/// tiles nor a tiled TIFF.
+#[test]
+fn tiles_of_a_single_png() {
+    let d = dir("tiles-png-file");
+    let png = valid_png(&d);
+    let out = d.join("out.qtx");
+    expect_failure(
+        &[
+            "pack-tiles",
+            png.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "",
+        &[
+            "ok.png",
+            "neither a folder of ROW_COL tiles nor a tiled TIFF",
+            "`quadtex pack`",
+        ],
+        Some(&out),
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// An SVG in `sub/` drawing `../outside.png`, or the same image by its
 /// absolute path, is refused by default naming the SVG and the reference,
 /// packs with `--resources anywhere`; `--resources none` refuses even an

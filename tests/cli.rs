@@ -983,6 +983,101 @@ fn pack_tiles_builds_the_tree_of_the_whole_mosaic() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// `image`'s bytes as the PNG encoder writes them: straight sRGB RGBA8.
+fn srgb8_samples(image: &LinearImage) -> Vec<u16> {
+    image
+        .pixels
+        .iter()
+        .flat_map(|p| {
+            let inv = if p.a > 0.0 { 1.0 / p.a } else { 0.0 };
+            let enc = |c: f32| u16::from(quadtex_io::linear_to_srgb8(c * inv));
+            [
+                enc(p.r),
+                enc(p.g),
+                enc(p.b),
+                (p.a.clamp(0.0, 1.0) * 255.0 + 0.5) as u16,
+            ]
+        })
+        .collect()
+}
+
+/// `pack` reads a TIFF as it reads the PNG of the same texels, and
+/// `pack-tiles` reads a tiled TIFF (4x4 tiles of 16x16, LZW) as the folder
+/// of its tiles as PNGs: byte-identical `.qtx` files. The GeoTIFF tags are
+/// printed in the summaries.
+#[test]
+fn tiff_packs_as_png_and_tiled_tiff_as_its_tiles() {
+    use common::tiff_writer::{Spec, utm33_keys};
+    let d = temp_dir("tiff");
+    let tiles = d.join("tiles");
+    std::fs::create_dir_all(&tiles).unwrap();
+    let whole = write_tiles(&tiles, 64, 4);
+    let png = d.join("whole.png");
+    save_image(&png, &whole).unwrap();
+    let spec = Spec {
+        samples_per_pixel: 4,
+        extra_samples: vec![2],
+        tile: Some((16, 16)),
+        compression: 5,
+        geo: Some((
+            [2.0, 2.0, 0.0],
+            [0.0, 0.0, 0.0, 440_000.0, 5_080_000.0, 0.0],
+            utm33_keys(),
+        )),
+        ..Spec::rgb8(64, 64, srgb8_samples(&whole))
+    };
+    let tif = d.join("mosaic.tif");
+    std::fs::write(&tif, spec.write()).unwrap();
+    let stripped = d.join("stripped.tif");
+    let strips = Spec {
+        tile: None,
+        rows_per_strip: 7,
+        compression: 8,
+        geo: None,
+        ..spec.clone()
+    };
+    std::fs::write(&stripped, strips.write()).unwrap();
+    let pack = |command: &str, input: &Path, name: &str| {
+        let qtx = d.join(name);
+        let out = run(
+            &[
+                command,
+                input.to_str().unwrap(),
+                "-o",
+                qtx.to_str().unwrap(),
+            ],
+            "",
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (
+            std::fs::read(&qtx).unwrap(),
+            String::from_utf8_lossy(&out.stdout).to_string(),
+        )
+    };
+    let (folder, _) = pack("pack-tiles", &tiles, "folder.qtx");
+    let (tiled, summary) = pack("pack-tiles", &tif, "tiled.qtx");
+    assert_eq!(tiled, folder);
+    assert!(
+        summary.contains("packed 4x4 tiles of 16x16 from ")
+            && summary.contains(
+                "georeferenced (not kept in the .qtx): EPSG:32633, tiepoint (0, 0, 0) -> (440000, 5080000, 0), pixel scale (2, 2, 0)"
+            ),
+        "{summary}"
+    );
+    let (from_png, summary) = pack("pack", &png, "png.qtx");
+    assert!(!summary.contains("georeferenced"), "{summary}");
+    assert_eq!(from_png, folder);
+    let (from_tif, summary) = pack("pack", &tif, "tif.qtx");
+    assert_eq!(from_tif, folder);
+    assert!(summary.contains("georeferenced"), "{summary}");
+    let (from_strips, _) = pack("pack", &stripped, "strips.qtx");
+    assert_eq!(from_strips, folder);
+}
+
 /// Art whose exact sweep would take seconds (a fuzzed star whose dashes pile
 /// on its centre) is refused under `--max-sweep-work`, naming the limit,
 /// and leaves no file behind; under the default it packs and the summary

@@ -223,6 +223,14 @@ pub fn smooth_summary(report: &quadtex_core::VectorReport) -> String {
     )
 }
 
+/// The summary's words on a GeoTIFF's georeferencing (`; georeferenced:
+/// EPSG:32633, tiepoint …, pixel scale …`), which the `.qtx` does not keep.
+pub fn georeferenced(georeference: Option<&quadtex_io::GeoReference>) -> String {
+    georeference.map_or(String::new(), |g| {
+        format!("; georeferenced (not kept in the .qtx): {g}")
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,8 +8,8 @@ use quadtex_core::{BuildOptions, QuadTree};
 
 use super::Result;
 use super::common::{
-    MemoryArgs, ResourcesArgs, blocks_summary, human_bytes, is_svg, level, raster_bytes,
-    smooth_summary, tolerance,
+    MemoryArgs, ResourcesArgs, blocks_summary, georeferenced, human_bytes, is_svg, level,
+    raster_bytes, smooth_summary, tolerance,
 };
 use super::output::Output;
 
@@ -22,13 +22,14 @@ const DEFAULT_CONTOUR_EDGES: u16 = 16;
 
 /// Pack an image or SVG art into a quadtree texture.
 ///
-/// Raster images (PNG, JPEG) are decoded to linear colour and packed,
-/// losslessly unless `--tolerance` allows merging. SVG art (`.svg`) is packed
-/// exactly: every cell's colour is the art's coverage integral, at most
-/// level 24, by default 12 (4096² effective).
+/// Raster images (PNG, JPEG, TIFF and BigTIFF, OpenEXR, Radiance HDR) are
+/// decoded to linear colour and packed, losslessly unless `--tolerance`
+/// allows merging; a GeoTIFF's georeferencing is printed in the summary.
+/// SVG art (`.svg`) is packed exactly: every cell's colour is the art's
+/// coverage integral, at most level 24, by default 12 (4096² effective).
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The image (PNG, JPEG) or SVG art to pack.
+    /// The image (PNG, JPEG, TIFF, OpenEXR, HDR) or SVG art to pack.
     #[arg(value_name = "IMAGE")]
     input: PathBuf,
     /// The .qtx file to write; `-` writes it to standard output (the
@@ -144,7 +145,7 @@ pub fn run(args: Args) -> Result<()> {
     let progress = Progress::new();
     let start = Instant::now();
     progress.stage(&format!("decoding {}", input.display()));
-    let grid = quadtex_io::load_texels(&input, &limits)?;
+    let (grid, georeference) = quadtex_io::load_texels_with_georeference(&input, &limits)?;
     progress.stage(&format!(
         "packing {}x{} texels",
         grid.width(),
@@ -166,7 +167,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut text = output.text();
     writeln!(
         text,
-        "packed {} -> {}: {} nodes ({} terminal){}, depth {}, {} ({:.2} B/texel); RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {}{}; {:.2} s",
+        "packed {} -> {}: {} nodes ({} terminal){}, depth {}, {} ({:.2} B/texel); RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {}{}{}; {:.2} s",
         input.display(),
         output,
         tree.node_count(),
@@ -183,6 +184,7 @@ pub fn run(args: Args) -> Result<()> {
         } else {
             ""
         },
+        georeferenced(georeference.as_ref()),
         start.elapsed().as_secs_f64()
     )?;
     text.flush()?;

@@ -1,25 +1,29 @@
-//! `quadtex pack-tiles`: a folder of raster tiles into one `.qtx` tree.
+//! `quadtex pack-tiles`: a folder of raster tiles, or a tiled TIFF, into
+//! one `.qtx` tree.
 
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use super::Result;
-use super::common::{MemoryArgs, human_bytes, raster_bytes, tolerance};
+use super::common::{MemoryArgs, georeferenced, human_bytes, raster_bytes, tolerance};
 use super::output::Output;
 
-/// Pack a folder of raster tiles into one quadtree texture.
+/// Pack a folder of raster tiles, or a tiled TIFF, into one quadtree texture.
 ///
-/// The folder holds tiles named ROW_COL.png (or .jpg; row 0 at the top):
-/// a complete square grid of 1, 2, 4, 8, … tiles a side, every tile the
-/// same square of a power of two texels. They are packed one at a time, so
-/// memory holds one tile's texels and the tree, never the whole mosaic; the
-/// tree is the one `pack` would build from the mosaic. A missing, duplicate,
-/// odd-sized or undecodable tile is an error naming it; nothing is written.
+/// The folder holds tiles named ROW_COL.png (or .jpg, .tif; row 0 at the
+/// top): a complete square grid of 1, 2, 4, 8, … tiles a side, every tile
+/// the same square of a power of two texels. A tiled TIFF (BigTIFF and
+/// Cloud-Optimized GeoTIFF included) gives its own tiles, which must form
+/// such a grid and cover the image exactly. They are packed one at a time,
+/// so memory holds one tile's texels and the tree, never the whole mosaic;
+/// the tree is the one `pack` would build from the mosaic. A missing,
+/// duplicate, odd-sized or undecodable tile is an error naming it; nothing
+/// is written.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The folder of ROW_COL.png tiles.
-    #[arg(value_name = "DIR")]
+    /// The folder of ROW_COL.png tiles, or a tiled TIFF.
+    #[arg(value_name = "DIR|FILE.tif")]
     dir: PathBuf,
     /// The .qtx file to write; `-` writes it to standard output (the
     /// summary then goes to standard error).
@@ -42,7 +46,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     let start = Instant::now();
     let limits = args.memory.limits();
-    let folder = quadtex_io::TileFolder::scan(&args.dir, &limits)?;
+    let folder = quadtex_io::TileSource::open(&args.dir, &limits)?;
     let threads = args.threads.map_or_else(
         || std::thread::available_parallelism().map_or(1, |n| n.get()),
         usize::from,
@@ -62,7 +66,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut text = args.output.text();
     writeln!(
         text,
-        "packed {}x{} tiles of {}x{} from {} -> {}: {side}x{side} texels, {} nodes, depth {}, {}; RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {error}; packed in {packed:.2} s on {threads} thread{}, {:.2} s with writing{}",
+        "packed {}x{} tiles of {}x{} from {} -> {}: {side}x{side} texels, {} nodes, depth {}, {}; RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {error}{}; packed in {packed:.2} s on {threads} thread{}, {:.2} s with writing{}",
         folder.tiles(),
         folder.tiles(),
         folder.side(),
@@ -74,6 +78,7 @@ pub fn run(args: Args) -> Result<()> {
         human_bytes(bytes),
         raster as f64 / bytes as f64,
         mips as f64 / bytes as f64,
+        georeferenced(folder.georeference()),
         if threads == 1 { "" } else { "s" },
         start.elapsed().as_secs_f64(),
         peak_memory().map_or(String::new(), |m| format!(

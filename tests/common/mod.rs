@@ -1,6 +1,9 @@
 //! Helpers shared by the CLI integration tests.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
+#[path = "../../crates/quadtex-io/tests/support/tiff_writer.rs"]
+pub mod tiff_writer;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

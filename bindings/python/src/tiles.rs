@@ -39,7 +39,7 @@ fn check_tolerance(tolerance: f64) -> PyResult<f64> {
 pub(crate) fn tile_grid(py: Python<'_>, directory: PathBuf) -> PyResult<(u32, u32)> {
     let limits = limits(None)?;
     let folder = py
-        .detach(|| quadtex_io::TileFolder::scan(&directory, &limits))
+        .detach(|| quadtex_io::TileSource::open(&directory, &limits))
         .map_err(io_error)?;
     Ok((folder.tiles(), folder.side()))
 }
@@ -81,7 +81,7 @@ pub(crate) fn pack_tile<'py>(
         };
     let bytes = py
         .detach(|| {
-            let folder = quadtex_io::TileFolder::scan(&directory, &limits)?;
+            let folder = quadtex_io::TileSource::open(&directory, &limits)?;
             quadtex_io::pack_tile(&folder, (row, col), tolerance, &limits, format)
                 .map(|tile| tile.to_bytes())
         })
@@ -119,7 +119,7 @@ pub(crate) fn splice_tiles(
     let tolerance = check_tolerance(tolerance)?;
     let limits = limits(memory_limit)?;
     let folder = py
-        .detach(|| quadtex_io::TileFolder::scan(&directory, &limits))
+        .detach(|| quadtex_io::TileSource::open(&directory, &limits))
         .map_err(io_error)?;
     // The callable's own exception is kept aside and raised as it is.
     let mut raised: Option<PyErr> = None;

@@ -57,10 +57,11 @@ pub enum Error {
         /// The element or property, with its `id` when it has one.
         element: String,
     },
-    /// A folder of tiles is not a complete square grid of equal square
-    /// tiles (see [`crate::pack_tiles`]); the message names the tile.
+    /// A folder of tiles, or a tiled TIFF, is not a complete square grid of
+    /// equal square tiles (see [`crate::pack_tiles`]); the message names
+    /// the tile, or says what the TIFF's tiles are.
     Tiles {
-        /// The folder, or the tile at fault.
+        /// The folder, the tile at fault, or the TIFF.
         path: PathBuf,
         /// What is wrong.
         message: String,

@@ -1,5 +1,6 @@
-//! Raster input (PNG, JPEG → linear premultiplied texels) and rendered-image
-//! output (PNG in sRGB 8-bit, OpenEXR in linear 32-bit float).
+//! Raster input (PNG, JPEG, OpenEXR, Radiance HDR, and TIFF through
+//! `tiff_io` → linear premultiplied texels) and rendered-image output (PNG
+//! in sRGB 8-bit, OpenEXR in linear 32-bit float).
 //!
 //! Input colour is taken to be sRGB (gamma chunks and ICC profiles are
 //! ignored) with straight alpha; it is decoded to linear light and then
@@ -10,11 +11,12 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use image::{DynamicImage, ImageReader};
-use quadtex_core::{Rgba, TexelGrid};
+use quadtex_core::{Rgba, TexelGrid, Unorm16Rgba};
 
 use crate::atomic::{Target, put, resolve, write_atomically};
 use crate::error::{Error, io};
 use crate::limits::Limits;
+use crate::tiff_io::GeoReference;
 
 /// A rendered image: linear light, premultiplied alpha, row 0 at the top.
 /// The default is the empty 0 × 0 image (a buffer for
@@ -118,7 +120,7 @@ fn srgb8_encode_table() -> &'static Srgb8Table {
 
 /// sRGB-encoded 16-bit value → linear, for every value (8-bit input is
 /// widened by ×257 first, which maps it onto the same curve exactly).
-fn decode_table() -> &'static [f32] {
+pub(crate) fn decode_table() -> &'static [f32] {
     static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
     TABLE.get_or_init(|| {
         (0..=u16::MAX)
@@ -127,18 +129,49 @@ fn decode_table() -> &'static [f32] {
     })
 }
 
-/// Decodes a PNG or JPEG (8- or 16-bit; grey, grey+alpha, RGB, RGBA) into
-/// linear, premultiplied texels; `limits` (often `&Limits::default()`) are
-/// checked before decoding.
+/// Straight-alpha sRGB-encoded 16-bit RGBA → the tree's linear,
+/// premultiplied texel (`lut` is [`decode_table`]).
+#[inline]
+pub(crate) fn srgb16_texel(lut: &[f32], p: [u16; 4]) -> Unorm16Rgba {
+    let a = f32::from(p[3]) / 65535.0;
+    Rgba::new(
+        lut[usize::from(p[0])] * a,
+        lut[usize::from(p[1])] * a,
+        lut[usize::from(p[2])] * a,
+        a,
+    )
+    .to_unorm16()
+}
+
+/// Decodes a PNG, JPEG or TIFF (8- or 16-bit; grey, grey+alpha, RGB, RGBA),
+/// or an OpenEXR or Radiance HDR image, into linear, premultiplied texels;
+/// `limits` (often `&Limits::default()`) are checked before decoding. TIFF
+/// and BigTIFF (stripped or tiled) are recognised by their first bytes,
+/// whatever the name; see [`load_texels_with_georeference`] for a
+/// GeoTIFF's georeferencing.
 pub fn load_texels(path: &Path, limits: &Limits) -> Result<TexelGrid, Error> {
+    load_texels_with_georeference(path, limits).map(|(grid, _)| grid)
+}
+
+/// As [`load_texels`], with the georeferencing of a GeoTIFF that has it
+/// (GeoKeys, tiepoints, pixel scale, transformation); `None` for other
+/// files and for TIFFs without it.
+pub fn load_texels_with_georeference(
+    path: &Path,
+    limits: &Limits,
+) -> Result<(TexelGrid, Option<GeoReference>), Error> {
     limits.check_file_size(path, std::fs::metadata(path).map_err(io(path))?.len())?;
+    if crate::tiff_io::file_is_tiff(path) {
+        let file = std::fs::File::open(path).map_err(io(path))?;
+        return crate::tiff_io::decode(std::io::BufReader::new(file), path, limits);
+    }
     let open = || {
         ImageReader::open(path)
             .map_err(io(path))?
             .with_guessed_format()
             .map_err(io(path))
     };
-    decode_texels(open, path, limits)
+    decode_texels(open, path, limits).map(|grid| (grid, None))
 }
 
 /// As [`load_texels`] for a file already in memory; `path`
@@ -149,6 +182,10 @@ pub fn load_texels_from_bytes(
     limits: &Limits,
 ) -> Result<TexelGrid, Error> {
     limits.check_file_size(path, bytes.len() as u64)?;
+    if crate::tiff_io::is_tiff(bytes) {
+        return crate::tiff_io::decode(std::io::Cursor::new(bytes), path, limits)
+            .map(|(grid, _)| grid);
+    }
     let open = || {
         ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
@@ -232,16 +269,7 @@ fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Err
             what: format!("decoding {w}x{h} texels"),
             bytes: 8 * u64::from(w) * u64::from(h),
         })?;
-    let to_texel = |p: [u16; 4]| {
-        let a = f32::from(p[3]) / 65535.0;
-        Rgba::new(
-            lut[usize::from(p[0])] * a,
-            lut[usize::from(p[1])] * a,
-            lut[usize::from(p[2])] * a,
-            a,
-        )
-        .to_unorm16()
-    };
+    let to_texel = |p: [u16; 4]| srgb16_texel(lut, p);
     match image {
         // Float images (OpenEXR, Radiance) are HDR: linear, premultiplied
         // already, kept unclamped; NaN or infinite texels are refused.
@@ -258,9 +286,25 @@ fn texels_from_image(image: DynamicImage) -> Result<TexelGrid, quadtex_core::Err
     TexelGrid::new(w, h, texels)
 }
 
+/// An image file's width and height from its header (TIFF included).
+pub(crate) fn image_dimensions(path: &Path) -> Result<(u32, u32), Error> {
+    if crate::tiff_io::file_is_tiff(path) {
+        return crate::tiff_io::dimensions(path);
+    }
+    image::image_dimensions(path).map_err(image_error(path))
+}
+
 /// Reads an image as a linear, premultiplied [`LinearImage`] without
 /// quantising: OpenEXR as stored, 8- and 16-bit formats decoded from sRGB.
 pub fn load_linear_image(path: &Path) -> Result<LinearImage, Error> {
+    if crate::tiff_io::file_is_tiff(path) {
+        let grid = load_texels(path, &Limits::default())?;
+        return Ok(LinearImage {
+            width: grid.width(),
+            height: grid.height(),
+            pixels: grid.texels().iter().map(|t| t.to_rgba()).collect(),
+        });
+    }
     let image_err = |e: image::ImageError| Error::Image {
         path: path.to_path_buf(),
         message: e.to_string(),

@@ -1,7 +1,10 @@
 //! # quadtex-io
 //!
-//! Everything of quadtex that touches files: decoding PNG and JPEG into the
-//! core's linear, premultiplied [`quadtex_core::TexelGrid`]; writing rendered images
+//! Everything of quadtex that touches files: decoding PNG, JPEG, TIFF (and
+//! BigTIFF, stripped or tiled, with GeoTIFF tags kept as [`GeoReference`])
+//! and OpenEXR into the core's linear, premultiplied
+//! [`quadtex_core::TexelGrid`]; packing mosaics of tiles ([`pack_tiles`]:
+//! a folder of tiles or a tiled TIFF); writing rendered images
 //! (PNG in sRGB 8-bit, OpenEXR in linear float); SVG art as vector art for
 //! the exact vector packer ([`svg`]); and the `.qtx` tree file
 //! (see `docs/format.md`). Every file is written atomically: to a temporary
@@ -23,6 +26,7 @@ mod limits;
 mod qtx;
 mod query;
 mod svg;
+mod tiff_io;
 mod tiles;
 mod tiles_on_threads;
 
@@ -34,7 +38,8 @@ pub use footprints::{
 };
 pub use image_io::{
     ImageFormat, LinearImage, linear_to_srgb8, load_linear_image, load_texels,
-    load_texels_from_bytes, save_image, save_image_as, srgb8_from_linear, write_image,
+    load_texels_from_bytes, load_texels_with_georeference, save_image, save_image_as,
+    srgb8_from_linear, write_image,
 };
 pub use limits::{
     ExternalResources, FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE,
@@ -49,5 +54,6 @@ pub use svg::{
     MAX_PATTERN_TILES, MIN_CURVE_TOLERANCE, SvgOptions, load_svg, pack_svg, pack_svg_fitted,
     parse_svg,
 };
-pub use tiles::{TileFolder, pack_tile, pack_tiles, splice_tiles};
+pub use tiff_io::GeoReference;
+pub use tiles::{TileFolder, TileSource, pack_tile, pack_tiles, splice_tiles};
 pub use tiles_on_threads::pack_tiles_on_threads;

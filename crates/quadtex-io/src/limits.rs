@@ -35,7 +35,8 @@ pub struct Limits {
     /// allocating and refuses work above the budget with
     /// [`crate::Error::MemoryBudget`] (the command line's `--memory-limit`
     /// sets it). Estimates: decoding an image, the decoder's buffer plus 8
-    /// bytes a texel; packing a raster, see
+    /// bytes a texel (a TIFF: twice one strip or tile, plus 12 bytes a
+    /// texel at 8 bits, 8 at 16); packing a raster, see
     /// [`quadtex_core::raster_grid_bytes`]; packing SVG, see
     /// [`quadtex_core::VectorArt::estimate_bytes`]; reading a `.qtx`,
     /// [`QTX_READ_BYTES_PER_NODE`] a node.

@@ -1,12 +1,17 @@
-//! Tiled rasters: a folder of tiles named `ROW_COL.png` (or `.jpg`,
-//! `.jpeg`; row 0 at the top, both counted from 0 in decimal) packed into
-//! one tree, one tile in memory at a time ([`QuadTree::from_tiles`]).
+//! Tiled rasters packed into one tree, one tile in memory at a time
+//! ([`QuadTree::from_tiles`]): a folder of tiles named `ROW_COL.png` (or
+//! `.jpg`, `.jpeg`, `.tif`, `.tiff`; row 0 at the top, both counted from 0
+//! in decimal), or a tiled TIFF (BigTIFF and Cloud-Optimized GeoTIFF
+//! included), whose own tiles are the mosaic's.
 //!
 //! The tiles must form a complete square grid whose side is a power of two
 //! (1, 2, 4, … tiles), every tile the same square size, a power of two
 //! texels. Other files in the folder are ignored. A missing tile, a
 //! duplicate (`3_5.png` and `3_5.jpg`), a tile of another size or format
 //! that does not decode is an error naming it, before anything is written.
+//! A tiled TIFF whose tiles are not such a grid (3 × 2 tiles, 512 × 256
+//! tiles, or an image that is not a whole number of tiles: partial edge
+//! tiles are not read) is refused, pointing to `quadtex pack`.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -15,22 +20,86 @@ use quadtex_core::{BlockFormat, BuildOptions, BuildReport, PackedTile, QuadTree,
 
 use crate::Error;
 use crate::limits::Limits;
+use crate::tiff_io::{GeoReference, TiffTiles};
 
-/// The tiles of a folder, checked for completeness (see the module docs).
+/// The tiles of a mosaic, checked for completeness (see the module docs):
+/// a folder of `ROW_COL` tiles or a tiled TIFF.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct TileFolder {
-    dir: PathBuf,
+pub struct TileSource {
+    /// The folder, or the TIFF file.
+    path: PathBuf,
     /// Tiles a side.
     tiles: u32,
-    /// Texels on a tile's side (from the first tile's header).
+    /// Texels on a tile's side.
     side: u32,
-    /// Row-major file names.
-    files: Vec<PathBuf>,
+    kind: Kind,
 }
 
-impl TileFolder {
+/// The former name of [`TileSource`], from when tiles came from folders only.
+pub type TileFolder = TileSource;
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Kind {
+    /// Row-major file names.
+    Folder(Vec<PathBuf>),
+    Tiff(Box<TiffTiles>),
+}
+
+impl TileSource {
+    /// The tiles at `path`: a folder's `ROW_COL` tiles ([`TileSource::scan`])
+    /// or a tiled TIFF's ([`TileSource::tiff`]).
+    pub fn open(path: &Path, limits: &Limits) -> Result<TileSource, Error> {
+        let meta = std::fs::metadata(path).map_err(crate::error::io(path))?;
+        if meta.is_dir() {
+            return Self::scan(path, limits);
+        }
+        if !crate::tiff_io::file_is_tiff(path) {
+            return Err(Error::Tiles {
+                path: path.to_path_buf(),
+                message: "neither a folder of ROW_COL tiles nor a tiled TIFF; `quadtex pack` packs a single image"
+                    .into(),
+            });
+        }
+        Self::tiff(path, limits)
+    }
+
+    /// The tiles of a tiled TIFF (or BigTIFF) file: its first image's tiles,
+    /// read one at a time. Refused (naming the file and why) unless they
+    /// form a square grid of 1, 2, 4, … square tiles of a power of two
+    /// texels covering the image exactly.
+    pub fn tiff(path: &Path, limits: &Limits) -> Result<TileSource, Error> {
+        let tiles = TiffTiles::open(path, limits)?;
+        Ok(TileSource {
+            path: path.to_path_buf(),
+            tiles: tiles.tiles(),
+            side: tiles.side(),
+            kind: Kind::Tiff(Box::new(tiles)),
+        })
+    }
+
+    /// The folder or file the tiles come from.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Whether the tiles are a tiled TIFF's (else a folder's).
+    pub fn is_tiff(&self) -> bool {
+        matches!(self.kind, Kind::Tiff(_))
+    }
+
+    /// A GeoTIFF's georeferencing (see [`GeoReference`]); `None` for a
+    /// folder and for a TIFF without it.
+    pub fn georeference(&self) -> Option<&GeoReference> {
+        match &self.kind {
+            Kind::Tiff(t) => t.georeference(),
+            Kind::Folder(_) => None,
+        }
+    }
+}
+
+impl TileSource {
     /// Scans `dir` for `ROW_COL` tiles and reads the first one's size.
-    pub fn scan(dir: &Path, limits: &Limits) -> Result<TileFolder, Error> {
+    pub fn scan(dir: &Path, limits: &Limits) -> Result<TileSource, Error> {
         let io = |source| Error::Io {
             path: dir.to_path_buf(),
             source,
@@ -48,7 +117,10 @@ impl TileFolder {
             ) else {
                 continue;
             };
-            if !matches!(ext.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg") {
+            if !matches!(
+                ext.to_ascii_lowercase().as_str(),
+                "png" | "jpg" | "jpeg" | "tif" | "tiff"
+            ) {
                 continue;
             }
             let Some((row, col)) = stem.split_once('_') else {
@@ -67,7 +139,7 @@ impl TileFolder {
         let Some(&(last_row, _)) = found.keys().next_back() else {
             return Err(bad(
                 dir,
-                "no tiles named ROW_COL.png (or .jpg) found".into(),
+                "no tiles named ROW_COL.png (or .jpg, .tif) found".into(),
             ));
         };
         let last_col = found.keys().map(|k| k.1).max().unwrap_or(0);
@@ -93,10 +165,7 @@ impl TileFolder {
             }
         }
         let first = &files[0];
-        let (w, h) = image::image_dimensions(first).map_err(|e| Error::Image {
-            path: first.clone(),
-            message: e.to_string(),
-        })?;
+        let (w, h) = crate::image_io::image_dimensions(first)?;
         if w != h || !w.is_power_of_two() {
             return Err(bad(
                 first,
@@ -104,11 +173,11 @@ impl TileFolder {
             ));
         }
         limits.check_dimensions(first, w, h)?;
-        Ok(TileFolder {
-            dir: dir.to_path_buf(),
+        Ok(TileSource {
+            path: dir.to_path_buf(),
             tiles,
             side: w,
-            files,
+            kind: Kind::Folder(files),
         })
     }
 
@@ -128,14 +197,15 @@ impl TileFolder {
     }
 }
 
-/// Packs the tiles of `dir` (see the module docs) into one tree, to
-/// `tolerance` (0: lossless), holding one tile's texels at a time.
+/// Packs the tiles at `path`, a folder of tiles or a tiled TIFF (see the
+/// module docs and [`TileSource::open`]), into one tree, to `tolerance`
+/// (0: lossless), holding one tile's texels at a time.
 pub fn pack_tiles(
-    dir: &Path,
+    path: &Path,
     tolerance: f64,
     limits: &Limits,
-) -> Result<(QuadTree, BuildReport, TileFolder), Error> {
-    let folder = TileFolder::scan(dir, limits)?;
+) -> Result<(QuadTree, BuildReport, TileSource), Error> {
+    let folder = TileSource::open(path, limits)?;
     let options = folder.options(tolerance, limits);
     // The loader's own error (naming the tile) is kept aside: the core sees a placeholder.
     let mut failure: Option<Error> = None;
@@ -148,7 +218,7 @@ pub fn pack_tiles(
     match (result, failure) {
         (Ok((tree, report)), _) => Ok((tree, report, folder)),
         (Err(_), Some(e)) => Err(e),
-        (Err(e), None) => Err(crate::error::core(&folder.dir)(e)),
+        (Err(e), None) => Err(crate::error::core(&folder.path)(e)),
     }
 }
 
@@ -163,12 +233,12 @@ fn set_aside(e: Error, failure: &mut Option<Error>) -> quadtex_core::Error {
     }
 }
 
-/// Packs tile `(row, col)` (row 0 at the top) of the folder on its own, as
+/// Packs tile `(row, col)` (row 0 at the top) of the mosaic on its own, as
 /// [`pack_tiles`] would, for [`splice_tiles`] to splice (on another
 /// process or machine: [`PackedTile::to_bytes`]). `format`, when given, is
 /// the texel-block format to write (the splicer asks for it).
 pub fn pack_tile(
-    folder: &TileFolder,
+    folder: &TileSource,
     (row, col): (u32, u32),
     tolerance: f64,
     limits: &Limits,
@@ -176,12 +246,12 @@ pub fn pack_tile(
 ) -> Result<PackedTile, Error> {
     if row >= folder.tiles || col >= folder.tiles {
         return Err(Error::Tiles {
-            path: folder.dir.clone(),
+            path: folder.path.clone(),
             message: format!("tile ({row}, {col}) outside the {0}x{0} grid", folder.tiles),
         });
     }
     let grid = folder.load_tile(row, col, limits)?;
-    let file = folder.files[(row * folder.tiles + col) as usize].clone();
+    let file = folder.tile_path(row, col);
     QuadTree::pack_tile(
         folder.tiles,
         folder.side,
@@ -193,12 +263,12 @@ pub fn pack_tile(
     .map_err(crate::error::core(&file))
 }
 
-/// The texture [`pack_tiles`] makes of the folder, from its tiles packed
+/// The texture [`pack_tiles`] makes of the mosaic, from its tiles packed
 /// by [`pack_tile`] elsewhere: `load(row, col, format)` returns tile
 /// `(row, col)`, packed in `format` when that is given
 /// ([`QuadTree::from_packed_tiles`]). Byte for byte the same tree.
 pub fn splice_tiles(
-    folder: &TileFolder,
+    folder: &TileSource,
     tolerance: f64,
     limits: &Limits,
     load: &mut dyn FnMut(u32, u32, Option<BlockFormat>) -> Result<PackedTile, Error>,
@@ -212,12 +282,12 @@ pub fn splice_tiles(
     match (result, failure) {
         (Ok(done), _) => Ok(done),
         (Err(_), Some(e)) => Err(e),
-        (Err(e), None) => Err(crate::error::core(&folder.dir)(e)),
+        (Err(e), None) => Err(crate::error::core(&folder.path)(e)),
     }
 }
 
-impl TileFolder {
-    /// The options a mosaic of this folder packs with.
+impl TileSource {
+    /// The options a mosaic of these tiles packs with.
     fn options(&self, tolerance: f64, limits: &Limits) -> BuildOptions {
         BuildOptions {
             tolerance,
@@ -228,9 +298,22 @@ impl TileFolder {
         }
     }
 
+    /// The file tile `(row, col)` is read from (the TIFF itself for a
+    /// tiled TIFF).
+    fn tile_path(&self, row: u32, col: u32) -> PathBuf {
+        match &self.kind {
+            Kind::Folder(files) => files[(row * self.tiles + col) as usize].clone(),
+            Kind::Tiff(_) => self.path.clone(),
+        }
+    }
+
     /// Tile `(row, col)`'s texels, refused unless the first tile's size.
     fn load_tile(&self, row: u32, col: u32, limits: &Limits) -> Result<TexelGrid, Error> {
-        let file = &self.files[(row * self.tiles + col) as usize];
+        let files = match &self.kind {
+            Kind::Folder(files) => files,
+            Kind::Tiff(tiff) => return tiff.load_tile(row, col, limits),
+        };
+        let file = &files[(row * self.tiles + col) as usize];
         let grid = crate::image_io::load_texels(file, limits)?;
         let side = self.side;
         if (grid.width(), grid.height()) != (side, side) {
@@ -244,5 +327,219 @@ impl TileFolder {
             });
         }
         Ok(grid)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tiff_io::tiff_writer::{Spec, utm33_keys};
+
+    fn temp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("quadtex-tiles-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    /// A `side × side` 8-bit RGB image with flat quarters and noisy detail.
+    fn rgb(side: u32) -> Vec<u16> {
+        let mut x = 7u32;
+        (0..side * side * 3)
+            .map(|i| {
+                x ^= x << 13;
+                x ^= x >> 17;
+                x ^= x << 5;
+                let (col, row) = ((i / 3) % side, (i / 3) / side);
+                if (col < side / 2) == (row < side / 2) {
+                    (40 * (i % 3) + 20) as u16
+                } else {
+                    (x % 256) as u16
+                }
+            })
+            .collect()
+    }
+
+    fn qtx_bytes(tree: &QuadTree, side: u32) -> Vec<u8> {
+        let mut out = Vec::new();
+        crate::write_qtx_to(&mut out, Path::new("-"), tree, Some((side, side))).unwrap();
+        out
+    }
+
+    /// Writes the `tiles × tiles` tiles of `spec`'s image as `ROW_COL.ext`.
+    fn folder_of(spec: &Spec, tile: u32, dir: &Path, ext: &str) {
+        let tiles = spec.width / tile;
+        for row in 0..tiles {
+            for col in 0..tiles {
+                let mut s = Vec::new();
+                for y in row * tile..(row + 1) * tile {
+                    let at = ((y * spec.width + col * tile) * 3) as usize;
+                    s.extend_from_slice(&spec.samples[at..at + 3 * tile as usize]);
+                }
+                let path = dir.join(format!("{row}_{col}.{ext}"));
+                if ext == "png" {
+                    let bytes = s.iter().map(|&v| v as u8).collect();
+                    image::RgbImage::from_raw(tile, tile, bytes)
+                        .unwrap()
+                        .save(&path)
+                        .unwrap();
+                } else {
+                    std::fs::write(&path, Spec::rgb8(tile, tile, s).write()).unwrap();
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_tiled_tiff_packs_as_a_folder_of_its_tiles() {
+        let limits = Limits::default();
+        let d = temp("tiff-vs-folder");
+        for (big, compression) in [(false, 5), (true, 8)] {
+            let spec = Spec {
+                tile: Some((16, 16)),
+                compression,
+                big,
+                geo: Some((
+                    [0.5, 0.5, 0.0],
+                    [0.0, 0.0, 0.0, 350_000.0, 5_000_000.0, 0.0],
+                    utm33_keys(),
+                )),
+                ..Spec::rgb8(64, 64, rgb(64))
+            };
+            let tif = d.join("mosaic.tif");
+            std::fs::write(&tif, spec.write()).unwrap();
+            let (tree, report, source) = pack_tiles(&tif, 0.0, &limits).unwrap();
+            assert!(source.is_tiff() && source.path() == tif);
+            assert_eq!(
+                (source.tiles(), source.side(), source.texels()),
+                (4, 16, 64)
+            );
+            assert_eq!(report.max_error, 0.0);
+            let geo = source.georeference().unwrap();
+            assert_eq!(geo.epsg(), Some(32633));
+            assert_eq!(geo.pixel_scale, Some([0.5, 0.5, 0.0]));
+            for ext in ["png", "tif"] {
+                let folder = d.join(format!("tiles-{ext}"));
+                std::fs::create_dir_all(&folder).unwrap();
+                folder_of(&spec, 16, &folder, ext);
+                let (other, _, f) = pack_tiles(&folder, 0.0, &limits).unwrap();
+                assert!(!f.is_tiff() && f.georeference().is_none());
+                assert!(other == tree, "{ext}");
+                assert_eq!(qtx_bytes(&other, 64), qtx_bytes(&tree, 64), "{ext}");
+            }
+            // The whole image packed at once: the same tree.
+            let grid = crate::load_texels(&tif, &limits).unwrap();
+            let (whole, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+            assert!(whole == tree);
+            // Tile by tile on two threads (each with its own decoder), then spliced.
+            let packed: Vec<Vec<(u32, u32, PackedTile)>> = std::thread::scope(|s| {
+                let workers: Vec<_> = (0..2u32)
+                    .map(|half| {
+                        let source = &source;
+                        let limits = &limits;
+                        s.spawn(move || {
+                            (half * 2..half * 2 + 2)
+                                .flat_map(|row| (0..4).map(move |col| (row, col)))
+                                .map(|(row, col)| {
+                                    let t = pack_tile(source, (row, col), 0.0, limits, None);
+                                    (row, col, t.unwrap())
+                                })
+                                .collect()
+                        })
+                    })
+                    .collect();
+                workers.into_iter().map(|w| w.join().unwrap()).collect()
+            });
+            let packed: Vec<_> = packed.into_iter().flatten().collect();
+            let (spliced, _) = splice_tiles(&source, 0.0, &limits, &mut |row, col, format| {
+                let (_, _, tile) = packed
+                    .iter()
+                    .find(|(r, c, _)| (*r, *c) == (row, col))
+                    .unwrap();
+                match format {
+                    None => Ok(tile.clone()),
+                    Some(f) => pack_tile(&source, (row, col), 0.0, &limits, Some(f)),
+                }
+            })
+            .unwrap();
+            assert!(spliced == tree);
+            // A clone opens its own decoder.
+            let again = source.clone();
+            assert_eq!(again, source);
+            assert!(pack_tile(&again, (3, 3), 0.0, &limits, None).is_ok());
+            assert!(pack_tile(&again, (4, 0), 0.0, &limits, None).is_err());
+        }
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    /// A TIFF `pack-tiles` must refuse, with every needle in the message.
+    fn refused(spec: &Spec, needles: &[&str]) {
+        let d = temp("refused");
+        let tif = d.join("refused.tif");
+        std::fs::write(&tif, spec.write()).unwrap();
+        let e = pack_tiles(&tif, 0.0, &Limits::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with(&format!("{}: ", tif.display())), "{e}");
+        for n in needles {
+            assert!(e.contains(n), "`{n}` not in: {e}");
+        }
+        // `pack` reads it all the same.
+        assert!(crate::load_texels(&tif, &Limits::default()).is_ok());
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn tiffs_that_are_not_a_square_mosaic_are_refused() {
+        let tiled = |w: u32, h: u32, tile: (u32, u32)| Spec {
+            tile: Some(tile),
+            ..Spec::rgb8(w, h, vec![9; (w * h * 3) as usize])
+        };
+        refused(
+            &Spec::rgb8(32, 32, vec![9; 32 * 32 * 3]),
+            &["a stripped TIFF (32x32, 32 rows a strip)", "`quadtex pack`"],
+        );
+        refused(
+            &tiled(48, 32, (16, 16)),
+            &[
+                "3x2 tiles of 16x16: pack-tiles needs a square grid",
+                "`quadtex pack`",
+            ],
+        );
+        refused(
+            &tiled(48, 48, (16, 16)),
+            &["3x3 tiles of 16x16: pack-tiles needs a square grid of 1, 2, 4, 8"],
+        );
+        refused(
+            &tiled(64, 32, (32, 16)),
+            &["TIFF tiles of 32x16 texels: pack-tiles needs square tiles of a power of two"],
+        );
+        refused(&tiled(48, 48, (24, 24)), &["TIFF tiles of 24x24 texels"]);
+        refused(
+            &tiled(40, 40, (16, 16)),
+            &[
+                "40x40 texels are not a whole number of 16x16 tiles",
+                "partial edge tiles",
+            ],
+        );
+    }
+
+    #[test]
+    fn a_file_that_is_not_a_tiff_is_not_a_mosaic() {
+        let d = temp("not-tiff");
+        let png = d.join("one.png");
+        image::RgbImage::new(4, 4).save(&png).unwrap();
+        let e = pack_tiles(&png, 0.0, &Limits::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("one.png: neither a folder of ROW_COL tiles nor a tiled TIFF"),
+            "{e}"
+        );
+        let e = pack_tiles(&d.join("absent"), 0.0, &Limits::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("absent"), "{e}");
+        std::fs::remove_dir_all(&d).unwrap();
     }
 }
