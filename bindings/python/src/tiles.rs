@@ -28,7 +28,7 @@ fn check_tolerance(tolerance: f64) -> PyResult<f64> {
 ///
 /// Parameters:
 ///   directory: str, bytes or os.PathLike; a folder of `ROW_COL.png`
-///     (or `.jpg`) tiles, as for `pack_tiles`.
+///     (or `.jpg`, `.tif`) tiles, or a tiled TIFF, as for `pack_tiles`.
 ///
 /// Returns: `(tiles, side)`: tiles on a side of the grid (a power of
 /// two) and texels on a tile's side.
@@ -47,7 +47,7 @@ pub(crate) fn tile_grid(py: Python<'_>, directory: PathBuf) -> PyResult<(u32, u3
 /// Packs one tile of a folder on its own, for `splice_tiles`.
 ///
 /// Parameters:
-///   directory: the tile folder (as for `pack_tiles`).
+///   directory: the tile folder or tiled TIFF (as for `pack_tiles`).
 ///   row, col: the tile (row 0 at the top), each in `0..tiles`.
 ///   tolerance: in [0, 1]; the same as the `splice_tiles` call's.
 ///   memory_limit: bytes, >= 1, or None (the detected budget).
@@ -93,7 +93,7 @@ pub(crate) fn pack_tile<'py>(
 /// of the folder, byte for byte.
 ///
 /// Parameters:
-///   directory: the tile folder (as for `pack_tiles`).
+///   directory: the tile folder or tiled TIFF (as for `pack_tiles`).
 ///   load: a callable `load(row, col, block_format)` returning the bytes
 ///     `pack_tile(directory, row, col, tolerance, block_format=block_format)`
 ///     returns. Tiles are asked for in Morton order; `block_format` is None
