@@ -264,21 +264,23 @@ def pack_tiles(
     tiles = os.fspath(tiles)
     n, _side = quadtex.tile_grid(tiles)
     token = uuid.uuid4().hex[:8]
-    futures = {
-        (row, col): client.submit(
+
+    def submit(row: int, col: int, block_format: Optional[int]) -> "distributed.Future":
+        """Tile ``(row, col)`` packed on a worker (in ``block_format`` when given)."""
+        suffix = "" if block_format is None else f"-{block_format}"
+        return client.submit(
             quadtex.pack_tile,
             tiles,
             row,
             col,
             tolerance,
             memory_limit,
-            None,
-            key=f"quadtex-tile-{row}-{col}-{token}",
+            block_format,
+            key=f"quadtex-tile-{row}-{col}{suffix}-{token}",
             retries=2,
         )
-        for row in range(n)
-        for col in range(n)
-    }
+
+    futures = {(row, col): submit(row, col, None) for row in range(n) for col in range(n)}
     if progress:
         from distributed import progress as show
 
@@ -287,20 +289,8 @@ def pack_tiles(
     def load(row: int, col: int, block_format: Optional[int]) -> bytes:
         if block_format is None:
             # Release the worker's copy once the client holds it.
-            future = futures.pop((row, col))
-            return bytes(future.result())
-        again = client.submit(
-            quadtex.pack_tile,
-            tiles,
-            row,
-            col,
-            tolerance,
-            memory_limit,
-            block_format,
-            key=f"quadtex-tile-{row}-{col}-{block_format}-{token}",
-            retries=2,
-        )
-        return bytes(again.result())
+            return bytes(futures.pop((row, col)).result())
+        return bytes(submit(row, col, block_format).result())
 
     try:
         texture = quadtex.splice_tiles(tiles, load, tolerance, memory_limit)

@@ -876,25 +876,12 @@ impl Walk<'_> {
         (lo, hi): (f64, f64),
     ) -> f64 {
         let edge = if high { 1.0 } else { 0.0 };
-        let v = piece.vertices();
-        let n = v.len();
         let tol = 1e-9 * (hi - lo).abs().max(1.0);
         let on = |a: f64, b: f64, c: f64| (a - c).abs() <= tol && (b - c).abs() <= tol;
-        let m = &self.screen_from_texture;
-        let mut total = 0.0;
-        for i in 0..n {
-            let (a, b) = (v[i], v[(i + 1) % n]);
-            let along = 1 - axis;
-            if on(a[axis], b[axis], edge)
-                || on(a[along], b[along], lo)
-                || on(a[along], b[along], hi)
-            {
-                continue;
-            }
-            let (p, q) = (apply(m, a), apply(m, b));
-            total += (q[0] - p[0]).hypot(q[1] - p[1]);
-        }
-        total
+        let along = 1 - axis;
+        boundary_length(piece, &self.screen_from_texture, |a, b| {
+            on(a[axis], b[axis], edge) || on(a[along], b[along], lo) || on(a[along], b[along], hi)
+        })
     }
 
     /// Tiles `j0..=j1` along the stripe beyond edge (`axis`, `high`).
@@ -1062,14 +1049,26 @@ pub(super) fn across_high(aspect: crate::Aspect, axis: usize, high: bool, level:
 /// `[x0, z0, x1, z1]`) that are not on the box's sides: where the region's
 /// boundary cuts the box.
 pub(super) fn cut_length(piece: &ConvexPolygon, [x0, z0, x1, z1]: [f64; 4], m: &Mat3) -> f64 {
-    let v = piece.vertices();
-    let n = v.len();
     let tol = 1e-9 * (x1 - x0).max(z1 - z0);
     let on = |a: f64, b: f64, c: f64| (a - c).abs() <= tol && (b - c).abs() <= tol;
+    boundary_length(piece, m, |a, b| {
+        on(a[0], b[0], x0) || on(a[0], b[0], x1) || on(a[1], b[1], z0) || on(a[1], b[1], z1)
+    })
+}
+
+/// Screen length of the edges `(a, b)` of `piece` for which `on_side` is
+/// false: the region's own boundary inside a part cut out of it.
+fn boundary_length(
+    piece: &ConvexPolygon,
+    m: &Mat3,
+    on_side: impl Fn([f64; 2], [f64; 2]) -> bool,
+) -> f64 {
+    let v = piece.vertices();
+    let n = v.len();
     let mut total = 0.0;
     for i in 0..n {
         let (a, b) = (v[i], v[(i + 1) % n]);
-        if on(a[0], b[0], x0) || on(a[0], b[0], x1) || on(a[1], b[1], z0) || on(a[1], b[1], z1) {
+        if on_side(a, b) {
             continue;
         }
         let (p, q) = (apply(m, a), apply(m, b));

@@ -184,15 +184,6 @@ impl Aspect {
         beyond(ix, self.cells[0]) || beyond(iz, self.cells[1])
     }
 
-    /// True when square `(level, ix, iz)` holds both texture and pad.
-    #[inline]
-    pub fn straddles(self, level: u8, ix: u32, iz: u32) -> bool {
-        // (i+1)·2^-level > cells·2^-self.level, in integers.
-        let over =
-            |i: u32, c: u32| (u128::from(i) + 1) << self.level > u128::from(c) << level.min(100);
-        !self.is_pad(level, ix, iz) && (over(ix, self.cells[0]) || over(iz, self.cells[1]))
-    }
-
     /// The fraction of square `(level, ix, iz)` that is texture, in `[0, 1]`.
     pub fn texture_fraction(self, level: u8, ix: u32, iz: u32) -> f64 {
         let side = unit_side(level);
@@ -238,7 +229,6 @@ mod tests {
         assert!(!a.is_pad(3, 4, 2) && a.is_pad(3, 5, 0) && a.is_pad(3, 0, 3));
         assert!(!a.is_pad(1, 1, 0) && a.is_pad(1, 0, 1));
         assert!(a.is_pad(2, 3, 0) && !a.is_pad(2, 2, 1));
-        assert!(a.straddles(2, 2, 1) && !a.straddles(2, 0, 0) && !a.straddles(3, 4, 2));
         assert_eq!(a.texture_fraction(2, 2, 1), 0.5 * 0.5);
         assert_eq!(a.last_index(0, 3), 4);
         assert_eq!(a.last_index(1, 1), 0);
