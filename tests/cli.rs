@@ -1076,6 +1076,45 @@ fn tiff_packs_as_png_and_tiled_tiff_as_its_tiles() {
     assert!(summary.contains("georeferenced"), "{summary}");
     let (from_strips, _) = pack("pack", &stripped, "strips.qtx");
     assert_eq!(from_strips, folder);
+    // A Cloud-Optimized GeoTIFF's layout: 56x40 texels in 16x16 tiles, so
+    // partial tiles on the right and bottom edges and a 4x3 grid.
+    // `pack-tiles` reads it tile by tile, on one thread or two, into the
+    // file `pack` writes from the whole image.
+    let full = srgb8_samples(&whole);
+    let (w, h) = (56usize, 40usize);
+    let cropped = (0..h)
+        .flat_map(|y| full[y * 64 * 4..(y * 64 + w) * 4].to_vec())
+        .collect();
+    let cog = d.join("cog.tif");
+    let cog_spec = Spec {
+        compression: 8,
+        ..Spec::rgb8(w as u32, h as u32, cropped)
+    };
+    let cog_spec = Spec {
+        samples_per_pixel: 4,
+        extra_samples: vec![2],
+        tile: Some((16, 16)),
+        ..cog_spec
+    };
+    std::fs::write(&cog, cog_spec.write()).unwrap();
+    let (whole_cog, _) = pack("pack", &cog, "cog-whole.qtx");
+    let (tiled_cog, summary) = pack("pack-tiles", &cog, "cog-tiles.qtx");
+    assert_eq!(tiled_cog, whole_cog);
+    assert!(summary.contains(": 56x40 texels,"), "{summary}");
+    let one_thread = d.join("cog-1.qtx");
+    let out = run(
+        &[
+            "pack-tiles",
+            cog.to_str().unwrap(),
+            "--threads",
+            "1",
+            "-o",
+            one_thread.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(out.status.success());
+    assert_eq!(std::fs::read(&one_thread).unwrap(), whole_cog);
 }
 
 /// Art whose exact sweep would take seconds (a fuzzed star whose dashes pile

@@ -14,8 +14,9 @@ use super::output::Output;
 /// The folder holds tiles named ROW_COL.png (or .jpg, .tif; row 0 at the
 /// top): a complete square grid of 1, 2, 4, 8, … tiles a side, every tile
 /// the same square of a power of two texels. A tiled TIFF (BigTIFF and
-/// Cloud-Optimized GeoTIFF included) gives its own tiles, which must form
-/// such a grid and cover the image exactly. They are packed one at a time,
+/// Cloud-Optimized GeoTIFF included) may be any size, partial edge tiles
+/// included; its tiles must be squares of a power of two texels. Tiles are
+/// packed one at a time,
 /// so memory holds one tile's texels and the tree, never the whole mosaic;
 /// the tree is the one `pack` would build from the mosaic. A missing,
 /// duplicate, odd-sized or undecodable tile is an error naming it; nothing
@@ -54,10 +55,10 @@ pub fn run(args: Args) -> Result<()> {
     let (tree, report) =
         quadtex_io::pack_tiles_on_threads(&folder, args.tolerance, &limits, threads)?;
     let packed = start.elapsed().as_secs_f64();
-    let side = u32::try_from(folder.texels()).map_err(|_| "texture side beyond 2^32")?;
-    args.output.write_qtx(&tree, Some((side, side)))?;
+    let (width, height) = folder.extent();
+    args.output.write_qtx(&tree, Some((width, height)))?;
     let bytes = tree.memory_bytes();
-    let (raster, mips) = raster_bytes(side, side);
+    let (raster, mips) = raster_bytes(width, height);
     let error = if report.max_error == 0.0 {
         "lossless".to_string()
     } else {
@@ -66,7 +67,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut text = args.output.text();
     writeln!(
         text,
-        "packed {}x{} tiles of {}x{} from {} -> {}: {side}x{side} texels, {} nodes, depth {}, {}; RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {error}{}; packed in {packed:.2} s on {threads} thread{}, {:.2} s with writing{}",
+        "packed {}x{} tiles of {}x{} from {} -> {}: {width}x{height} texels, {} nodes, depth {}, {}; RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {error}{}; packed in {packed:.2} s on {threads} thread{}, {:.2} s with writing{}",
         folder.tiles(),
         folder.tiles(),
         folder.side(),

@@ -501,11 +501,9 @@ fn pack_tiles(
     let (tree, _, folder) = py
         .detach(|| quadtex_io::pack_tiles(&directory, tolerance, &limits))
         .map_err(io_error)?;
-    let side = u32::try_from(folder.texels())
-        .map_err(|_| PyValueError::new_err("texture side beyond 2^32 texels"))?;
     Ok(Texture {
         tree: Arc::new(tree),
-        source: Some((side, side)),
+        source: Some(folder.extent()),
         file: None,
     })
 }
@@ -752,6 +750,7 @@ fn quadtex_python(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(pack, m)?)?;
     m.add_function(wrap_pyfunction!(pack_tiles, m)?)?;
     m.add_function(wrap_pyfunction!(tiles::tile_grid, m)?)?;
+    m.add_function(wrap_pyfunction!(tiles::mosaic_tiles, m)?)?;
     m.add_function(wrap_pyfunction!(tiles::pack_tile, m)?)?;
     m.add_function(wrap_pyfunction!(tiles::splice_tiles, m)?)?;
     scene::register(m)?;

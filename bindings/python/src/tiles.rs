@@ -1,6 +1,7 @@
 //! A tile folder packed tile by tile elsewhere (other processes, other
 //! machines: `quadtex.dask.pack_tiles`) and spliced into the texture
-//! `pack_tiles` makes: `tile_grid`, `pack_tile`, `splice_tiles`.
+//! `pack_tiles` makes: `tile_grid`, `mosaic_tiles`, `pack_tile`,
+//! `splice_tiles`.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -30,25 +31,47 @@ fn check_tolerance(tolerance: f64) -> PyResult<f64> {
 ///   directory: str, bytes or os.PathLike; a folder of `ROW_COL.png`
 ///     (or `.jpg`, `.tif`) tiles, or a tiled TIFF, as for `pack_tiles`.
 ///
-/// Returns: `(tiles, side)`: tiles on a side of the grid (a power of
-/// two) and texels on a tile's side.
+/// Returns: `(tiles, side)`: tiles on a side of the tree's square (a
+/// power of two) and texels on a tile's side. A folder fills the square;
+/// a tiled TIFF of another size covers its bottom-left part, and
+/// `mosaic_tiles` lists the tiles that hold texture.
 ///
 /// Raises: OSError when the folder cannot be read; ValueError for an
 /// incomplete or malformed grid, naming the tile.
 #[pyfunction]
 pub(crate) fn tile_grid(py: Python<'_>, directory: PathBuf) -> PyResult<(u32, u32)> {
-    let limits = limits(None)?;
-    let folder = py
-        .detach(|| quadtex_io::TileSource::open(&directory, &limits))
-        .map_err(io_error)?;
+    let folder = open_source(py, &directory)?;
     Ok((folder.tiles(), folder.side()))
+}
+
+/// The tiles `splice_tiles` asks for: those holding texture, in its order.
+///
+/// Parameters:
+///   directory: the tile folder or tiled TIFF (as for `pack_tiles`).
+///
+/// Returns: a list of `(row, col)` (row 0 at the top of the tree's
+/// square), in Morton order from the bottom-left: every tile of a folder;
+/// of a tiled TIFF whose size is not a square of whole tiles, only the
+/// tiles that hold part of the image (the others are pad, never packed).
+///
+/// Raises: as `tile_grid`.
+#[pyfunction]
+pub(crate) fn mosaic_tiles(py: Python<'_>, directory: PathBuf) -> PyResult<Vec<(u32, u32)>> {
+    let folder = open_source(py, &directory)?;
+    Ok(folder.mosaic().tiles_in_order())
+}
+
+fn open_source(py: Python<'_>, directory: &std::path::Path) -> PyResult<quadtex_io::TileSource> {
+    let limits = limits(None)?;
+    py.detach(|| quadtex_io::TileSource::open(directory, &limits))
+        .map_err(io_error)
 }
 
 /// Packs one tile of a folder on its own, for `splice_tiles`.
 ///
 /// Parameters:
 ///   directory: the tile folder or tiled TIFF (as for `pack_tiles`).
-///   row, col: the tile (row 0 at the top), each in `0..tiles`.
+///   row, col: the tile (row 0 at the top), one of `mosaic_tiles`.
 ///   tolerance: in [0, 1]; the same as the `splice_tiles` call's.
 ///   memory_limit: bytes, >= 1, or None (the detected budget).
 ///   block_format: None (the tile's own), or the code `splice_tiles`
@@ -146,11 +169,9 @@ pub(crate) fn splice_tiles(
         return Err(e);
     }
     let (tree, _) = result.map_err(io_error)?;
-    let side = u32::try_from(folder.texels())
-        .map_err(|_| PyValueError::new_err("texture side beyond 2^32 texels"))?;
     Ok(Texture {
         tree: Arc::new(tree),
-        source: Some((side, side)),
+        source: Some(folder.extent()),
         file: None,
     })
 }

@@ -40,6 +40,47 @@ def write_png(path, pixels):
     pathlib.Path(path).write_bytes(png)
 
 
+def write_tiled_tiff(path, pixels, tile):
+    """Writes `pixels` (H×W×3 uint8) as an uncompressed tiled TIFF of
+    `tile`×`tile` tiles; edge tiles are padded, as the format stores them."""
+    a = np.asarray(pixels, dtype=np.uint8)
+    h, w, _ = a.shape
+    across, down = -(-w // tile), -(-h // tile)
+    padded = np.zeros((down * tile, across * tile, 3), np.uint8)
+    padded[:h, :w] = a
+    blobs = [
+        padded[r * tile:(r + 1) * tile, c * tile:(c + 1) * tile].tobytes()
+        for r in range(down)
+        for c in range(across)
+    ]
+    n = len(blobs)
+    entries = 11
+    ifd = 8
+    extra = ifd + 2 + 12 * entries + 4
+    bits_at, offsets_at = extra, extra + 6
+    counts_at = offsets_at + 4 * n
+    data_at = counts_at + 4 * n
+    offsets, at = [], data_at
+    for b in blobs:
+        offsets.append(at)
+        at += len(b)
+
+    def entry(tag, kind, count, value):
+        if kind == 3 and count == 1:
+            return struct.pack("<HHIHH", tag, kind, count, value, 0)
+        return struct.pack("<HHII", tag, kind, count, value)
+
+    out = b"II*\x00" + struct.pack("<I", ifd) + struct.pack("<H", entries)
+    out += entry(256, 4, 1, w) + entry(257, 4, 1, h) + entry(258, 3, 3, bits_at)
+    out += entry(259, 3, 1, 1) + entry(262, 3, 1, 2) + entry(277, 3, 1, 3)
+    out += entry(284, 3, 1, 1) + entry(322, 4, 1, tile) + entry(323, 4, 1, tile)
+    out += entry(324, 4, n, offsets_at) + entry(325, 4, n, counts_at)
+    out += struct.pack("<I", 0) + struct.pack("<HHH", 8, 8, 8)
+    out += struct.pack(f"<{n}I", *offsets) + struct.pack(f"<{n}I", *[len(b) for b in blobs])
+    out += b"".join(blobs)
+    pathlib.Path(path).write_bytes(out)
+
+
 def exact_integral(texels, rects):
     """Integral of a W×H×C raster (row 0 at the top of the unit square) over
     each rectangle's overlap with the unit square: Σ value × overlap area."""

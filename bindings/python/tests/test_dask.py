@@ -9,7 +9,7 @@ import pytest
 
 import quadtex
 
-from conftest import write_png
+from conftest import write_png, write_tiled_tiff
 
 distributed = pytest.importorskip("distributed")
 da = pytest.importorskip("dask.array")
@@ -71,6 +71,31 @@ def test_pack_tiles_writes_the_pack_tiles_file(client, tmp_path, rng):
     with pytest.raises(ValueError, match="1_2"):
         qdask.pack_tiles(client, tiles, tmp_path / "never.qtx")
     assert not (tmp_path / "never.qtx").exists()
+
+
+def test_pack_tiles_reads_a_cloud_optimized_layout(client, cli, tmp_path, rng):
+    """A tiled TIFF of 100 × 70 texels in 32² tiles (partial tiles on the
+    right and bottom edges, a 4 × 3 grid): packed on the cluster, byte for
+    byte the file `quadtex pack` writes from the whole image."""
+    import subprocess
+
+    image = rng.integers(0, 3, size=(70, 100, 3)).astype(np.uint8) * 90
+    image[:40, :50] = (200, 30, 10)
+    tif = tmp_path / "cog.tif"
+    write_tiled_tiff(tif, image, 32)
+    assert quadtex.tile_grid(tif) == (4, 32)
+    tiles = quadtex.mosaic_tiles(tif)
+    # Tree tiles line up with the image's bottom edge: 4 columns, 3 rows.
+    assert len(tiles) == 12 and tiles[0] == (3, 0)
+    out = tmp_path / "cluster.qtx"
+    texture = qdask.pack_tiles(client, tif, out)
+    assert texture.source_size == (100, 70)
+    subprocess.run([cli, "pack", str(tif), "-o", str(tmp_path / "whole.qtx")], check=True, capture_output=True)
+    assert out.read_bytes() == (tmp_path / "whole.qtx").read_bytes()
+    quadtex.pack_tiles(tif).save(tmp_path / "serial.qtx")
+    assert out.read_bytes() == (tmp_path / "serial.qtx").read_bytes()
+    with pytest.raises(ValueError, match="holds none of the 100x70 texture"):
+        quadtex.pack_tile(tif, 0, 0)
 
 
 RUNWAY = pathlib.Path(__file__).resolve().parents[3] / "scenes" / "runway.toml"

@@ -82,8 +82,8 @@ pub use geometry::FillRule;
 pub use geometry::fragment::Fragment;
 pub use geometry::polygon::{ConvexPolygon, MAX_VERTICES};
 pub use raster::{
-    BuildOptions, BuildReport, MAX_BUILD_DEPTH, MAX_DIMENSION, PackedTile, TexelGrid, raster_cells,
-    raster_grid_bytes,
+    BuildOptions, BuildReport, MAX_BUILD_DEPTH, MAX_DIMENSION, Mosaic, PackedTile, TexelGrid,
+    raster_cells, raster_grid_bytes,
 };
 pub use tree::shared::SharedBytes;
 pub use tree::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, TexelBlocks, srgb8_texel};

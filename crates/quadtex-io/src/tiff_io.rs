@@ -22,7 +22,7 @@ use std::io::{BufReader, Read, Seek};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use quadtex_core::{TexelGrid, Unorm16Rgba};
+use quadtex_core::{Mosaic, TexelGrid, Unorm16Rgba};
 use tiff::decoder::{ChunkType, Decoder, DecodingResult};
 use tiff::tags::Tag;
 use tiff::{TiffError, TiffFormatError};
@@ -735,34 +735,38 @@ impl Layout {
     }
 
     /// Decodes the chunks `units` one at a time and calls `row(output
-    /// range, samples, first sample)` for each of their rows: the range in
-    /// the row-major `w`-wide output whose top-left texel is `(x0, y0)`.
+    /// range, samples, first sample)` for each of their rows' parts inside
+    /// the rectangle `(x0, y0, w, h)`: the range in the row-major `w`-wide
+    /// output whose top-left texel is `(x0, y0)`.
     fn for_each_row<R: Read + Seek>(
         &self,
         d: &mut Decoder<R>,
         path: &Path,
-        (x0, y0, w): (u32, u32, u32),
+        (x0, y0, w, h): (u32, u32, u32, u32),
         units: impl Iterator<Item = u32>,
         mut row: impl FnMut(std::ops::Range<usize>, &Samples, usize),
     ) -> Result<(), Error> {
         for unit in units {
             let samples = self.read_chunk(d, unit, path)?;
             let (cx, cy, cw, ch) = self.chunk_rect(unit);
-            let width = cw as usize;
-            for r in 0..ch {
-                let start = (cy + r - y0) as usize * w as usize + (cx - x0) as usize;
-                row(
-                    start..start + width,
-                    &samples,
-                    r as usize * width * self.stride,
-                );
+            // The chunk's part inside the rectangle.
+            let (xs, xe) = (cx.max(x0), (cx + cw).min(x0 + w));
+            let (ys, ye) = (cy.max(y0), (cy + ch).min(y0 + h));
+            if xs >= xe || ys >= ye {
+                continue;
+            }
+            let width = (xe - xs) as usize;
+            for y in ys..ye {
+                let start = (y - y0) as usize * w as usize + (xs - x0) as usize;
+                let first = ((y - cy) as usize * cw as usize + (xs - cx) as usize) * self.stride;
+                row(start..start + width, &samples, first);
             }
         }
         Ok(())
     }
 
-    /// The texels of the rectangle `(x0, y0, w, h)` made of the chunks
-    /// `units` (whole chunks, each inside it), decoded one at a time.
+    /// The texels of the rectangle `(x0, y0, w, h)`, from the chunks `units`
+    /// (those that overlap it), decoded one at a time.
     fn texels<R: Read + Seek>(
         &self,
         d: &mut Decoder<R>,
@@ -781,7 +785,7 @@ impl Layout {
             let mut bytes: Vec<[u8; 4]> = Vec::new();
             bytes.try_reserve_exact(n).map_err(|_| refused())?;
             bytes.resize(n, [0; 4]);
-            self.for_each_row(d, path, (x0, y0, w), units, |out, samples, first| {
+            self.for_each_row(d, path, (x0, y0, w, h), units, |out, samples, first| {
                 if let Samples::U8(v) = samples {
                     let input = &v[first..first + out.len() * self.stride];
                     self.row_to_srgb8(input, &mut bytes[out]);
@@ -793,7 +797,7 @@ impl Layout {
             let mut texels: Vec<Unorm16Rgba> = Vec::new();
             texels.try_reserve_exact(n).map_err(|_| refused())?;
             texels.resize(n, Unorm16Rgba::default());
-            self.for_each_row(d, path, (x0, y0, w), units, |out, samples, first| {
+            self.for_each_row(d, path, (x0, y0, w, h), units, |out, samples, first| {
                 if let Samples::U16(v) = samples {
                     let input = &v[first..first + out.len() * self.stride];
                     for (o, i) in texels[out].iter_mut().zip(input.chunks_exact(self.stride)) {
@@ -902,12 +906,14 @@ pub(crate) fn dimensions(path: &Path) -> Result<(u32, u32), Error> {
         .map_err(|e| decode_error(path, "ImageWidth", e))
 }
 
-/// A tiled TIFF read as a mosaic, one tile at a time: a square grid of
-/// 1, 2, 4, … tiles a side, each a square of a power of two texels, the
-/// image a whole number of them.
+/// A tiled TIFF read as a mosaic ([`Mosaic`]): square tiles of a power of
+/// two texels, any image size; a tree tile read from the one or two TIFF
+/// tiles it overlaps.
 pub(crate) struct TiffTiles {
     path: PathBuf,
     layout: Layout,
+    /// How the image is cut into tree tiles.
+    mosaic: Mosaic,
     georeference: Option<GeoReference>,
     /// Open decoders not in use: a call takes one (or opens another, so
     /// calls on several threads do not wait for each other) and puts it
@@ -934,22 +940,13 @@ impl TiffTiles {
                 layout.chunk.1
             )));
         }
-        if tw != th || !tw.is_power_of_two() {
+        if tw != th || !tw.is_power_of_two() || tw < 4 {
             return Err(mosaic(format!(
-                "TIFF tiles of {tw}x{th} texels: pack-tiles needs square tiles of a power of two texels"
+                "TIFF tiles of {tw}x{th} texels: pack-tiles needs square tiles of a power of two texels, at least 4"
             )));
         }
-        if w % tw != 0 || h % th != 0 {
-            return Err(mosaic(format!(
-                "{w}x{h} texels are not a whole number of {tw}x{th} tiles: pack-tiles does not read partial edge tiles"
-            )));
-        }
-        if layout.across != layout.down || !layout.across.is_power_of_two() {
-            return Err(mosaic(format!(
-                "{}x{} tiles of {tw}x{th}: pack-tiles needs a square grid of 1, 2, 4, 8, … tiles a side",
-                layout.across, layout.down
-            )));
-        }
+        let tree_tiles = Mosaic::of_texture(w, h, tw)
+            .map_err(|e| mosaic(format!("{w}x{h} texels in tiles of {tw}x{th}: {e}")))?;
         limits.check_dimensions(path, tw, th)?;
         Self::check_tile_memory(path, &layout, limits)?;
         let mut d = d;
@@ -957,6 +954,7 @@ impl TiffTiles {
         Ok(TiffTiles {
             path: path.to_path_buf(),
             layout,
+            mosaic: tree_tiles,
             georeference,
             spare: Mutex::new(vec![d]),
         })
@@ -984,25 +982,21 @@ impl TiffTiles {
         )
     }
 
-    /// Tiles a side.
-    pub(crate) fn tiles(&self) -> u32 {
-        self.layout.across
-    }
-
-    /// Texels on a tile's side.
-    pub(crate) fn side(&self) -> u32 {
-        self.layout.chunk.0
+    /// How the image is cut into tree tiles.
+    pub(crate) fn mosaic(&self) -> Mosaic {
+        self.mosaic
     }
 
     pub(crate) fn georeference(&self) -> Option<&GeoReference> {
         self.georeference.as_ref()
     }
 
-    /// Tile `(row, col)`'s texels (row 0 at the top).
-    pub(crate) fn load_tile(
+    /// The texels of the rectangle `rect = (x0, y0, w, h)` of the image (row
+    /// 0 at the top), no larger than a tile: a tree tile, read from the TIFF
+    /// tiles it overlaps, one at a time.
+    pub(crate) fn load_rect(
         &self,
-        row: u32,
-        col: u32,
+        (x0, y0, w, h): (u32, u32, u32, u32),
         limits: &Limits,
     ) -> Result<TexelGrid, Error> {
         Self::check_tile_memory(&self.path, &self.layout, limits)?;
@@ -1020,14 +1014,13 @@ impl TiffTiles {
                 d
             }
         };
-        let side = self.side();
-        let unit = row * self.layout.across + col;
-        let grid = self.layout.texels(
-            &mut d,
-            &self.path,
-            (col * side, row * side, side, side),
-            std::iter::once(unit),
-        )?;
+        let (tw, th) = self.layout.chunk;
+        let across = self.layout.across;
+        let units = (y0 / th..(y0 + h).div_ceil(th))
+            .flat_map(|r| (x0 / tw..(x0 + w).div_ceil(tw)).map(move |c| r * across + c));
+        let grid = self
+            .layout
+            .texels(&mut d, &self.path, (x0, y0, w, h), units)?;
         self.spare.lock().unwrap_or_else(|p| p.into_inner()).push(d);
         Ok(grid)
     }
@@ -1049,6 +1042,7 @@ impl Clone for TiffTiles {
         TiffTiles {
             path: self.path.clone(),
             layout: self.layout.clone(),
+            mosaic: self.mosaic,
             georeference: self.georeference.clone(),
             spare: Mutex::new(Vec::new()),
         }

@@ -4,19 +4,28 @@
 //! in decimal), or a tiled TIFF (BigTIFF and Cloud-Optimized GeoTIFF
 //! included), whose own tiles are the mosaic's.
 //!
-//! The tiles must form a complete square grid whose side is a power of two
-//! (1, 2, 4, … tiles), every tile the same square size, a power of two
-//! texels. Other files in the folder are ignored. A missing tile, a
+//! A folder's tiles must form a complete square grid whose side is a power
+//! of two (1, 2, 4, … tiles), every tile the same square size, a power of
+//! two texels. Other files in the folder are ignored. A missing tile, a
 //! duplicate (`3_5.png` and `3_5.jpg`), a tile of another size or format
 //! that does not decode is an error naming it, before anything is written.
-//! A tiled TIFF whose tiles are not such a grid (3 × 2 tiles, 512 × 256
-//! tiles, or an image that is not a whole number of tiles: partial edge
-//! tiles are not read) is refused, pointing to `quadtex pack`.
+//!
+//! A tiled TIFF may be any size and its tile grid any shape (partial tiles
+//! on its right and bottom edges, as Cloud-Optimized GeoTIFFs have); its
+//! tiles must be squares of a power of two texels (256 and 512 are usual)
+//! and the image larger than half a tile. The tree is cut into tiles of
+//! that size lined up with the image's bottom edge ([`Mosaic`]); where the
+//! image's height is not a whole number of tiles, a tree tile is read from
+//! the two TIFF tiles it straddles, one after the other: memory holds a
+//! tree tile's texels and one decoded TIFF tile.
+//! Other TIFFs are refused, pointing to `quadtex pack`.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use quadtex_core::{BlockFormat, BuildOptions, BuildReport, PackedTile, QuadTree, TexelGrid};
+use quadtex_core::{
+    BlockFormat, BuildOptions, BuildReport, Mosaic, PackedTile, QuadTree, TexelGrid,
+};
 
 use crate::Error;
 use crate::limits::Limits;
@@ -28,10 +37,8 @@ use crate::tiff_io::{GeoReference, TiffTiles};
 pub struct TileSource {
     /// The folder, or the TIFF file.
     path: PathBuf,
-    /// Tiles a side.
-    tiles: u32,
-    /// Texels on a tile's side.
-    side: u32,
+    /// How the texture is cut into tiles.
+    mosaic: Mosaic,
     kind: Kind,
 }
 
@@ -63,16 +70,15 @@ impl TileSource {
         Self::tiff(path, limits)
     }
 
-    /// The tiles of a tiled TIFF (or BigTIFF) file: its first image's tiles,
-    /// read one at a time. Refused (naming the file and why) unless they
-    /// form a square grid of 1, 2, 4, … square tiles of a power of two
-    /// texels covering the image exactly.
+    /// The tiles of a tiled TIFF (or BigTIFF) file: its first image, read a
+    /// tile or two at a time. Refused (naming the file and why) unless its
+    /// tiles are squares of a power of two texels and the image is larger
+    /// than half a tile (see the module docs).
     pub fn tiff(path: &Path, limits: &Limits) -> Result<TileSource, Error> {
         let tiles = TiffTiles::open(path, limits)?;
         Ok(TileSource {
             path: path.to_path_buf(),
-            tiles: tiles.tiles(),
-            side: tiles.side(),
+            mosaic: tiles.mosaic(),
             kind: Kind::Tiff(Box::new(tiles)),
         })
     }
@@ -173,27 +179,32 @@ impl TileSource {
             ));
         }
         limits.check_dimensions(first, w, h)?;
+        let mosaic = Mosaic::square(tiles, w).map_err(|e| bad(dir, e.to_string()))?;
         Ok(TileSource {
             path: dir.to_path_buf(),
-            tiles,
-            side: w,
+            mosaic,
             kind: Kind::Folder(files),
         })
     }
 
-    /// Tiles a side.
+    /// How the texture is cut into tiles.
+    pub fn mosaic(&self) -> Mosaic {
+        self.mosaic
+    }
+
+    /// Tiles on the tree square's side.
     pub fn tiles(&self) -> u32 {
-        self.tiles
+        self.mosaic.tiles()
     }
 
     /// Texels on a tile's side.
     pub fn side(&self) -> u32 {
-        self.side
+        self.mosaic.side()
     }
 
-    /// Texels on the whole texture's side.
-    pub fn texels(&self) -> u64 {
-        u64::from(self.tiles) * u64::from(self.side)
+    /// The texture's `(width, height)` in texels.
+    pub fn extent(&self) -> (u32, u32) {
+        (self.mosaic.width(), self.mosaic.height())
     }
 }
 
@@ -214,7 +225,7 @@ pub fn pack_tiles(
             .load_tile(row, col, limits)
             .map_err(|e| set_aside(e, &mut failure))
     };
-    let result = QuadTree::from_tiles(folder.tiles, folder.side, &options, &mut load);
+    let result = QuadTree::from_tiles(&folder.mosaic, &options, &mut load);
     match (result, failure) {
         (Ok((tree, report)), _) => Ok((tree, report, folder)),
         (Err(_), Some(e)) => Err(e),
@@ -233,7 +244,8 @@ fn set_aside(e: Error, failure: &mut Option<Error>) -> quadtex_core::Error {
     }
 }
 
-/// Packs tile `(row, col)` (row 0 at the top) of the mosaic on its own, as
+/// Packs tile `(row, col)` of the mosaic ([`Mosaic`]: row 0 at the top,
+/// tiles wholly in the pad refused) on its own, as
 /// [`pack_tiles`] would, for [`splice_tiles`] to splice (on another
 /// process or machine: [`PackedTile::to_bytes`]). `format`, when given, is
 /// the texel-block format to write (the splicer asks for it).
@@ -244,17 +256,25 @@ pub fn pack_tile(
     limits: &Limits,
     format: Option<BlockFormat>,
 ) -> Result<PackedTile, Error> {
-    if row >= folder.tiles || col >= folder.tiles {
+    if folder.mosaic.tile_rect(row, col).is_none() {
+        let (w, h) = folder.extent();
+        let n = folder.tiles();
+        let message = if row >= n || col >= n {
+            format!("tile ({row}, {col}) outside the {n}x{n} grid")
+        } else {
+            format!(
+                "tile ({row}, {col}) holds none of the {w}x{h} texture (pad of the {n}x{n} grid, never packed)"
+            )
+        };
         return Err(Error::Tiles {
             path: folder.path.clone(),
-            message: format!("tile ({row}, {col}) outside the {0}x{0} grid", folder.tiles),
+            message,
         });
     }
     let grid = folder.load_tile(row, col, limits)?;
     let file = folder.tile_path(row, col);
     QuadTree::pack_tile(
-        folder.tiles,
-        folder.side,
+        &folder.mosaic,
         (row, col),
         &grid,
         &folder.options(tolerance, limits),
@@ -278,7 +298,7 @@ pub fn splice_tiles(
     let mut load = |row: u32, col: u32, format: Option<BlockFormat>| {
         load(row, col, format).map_err(|e| set_aside(e, &mut failure))
     };
-    let result = QuadTree::from_packed_tiles(folder.tiles, folder.side, &options, &mut load);
+    let result = QuadTree::from_packed_tiles(&folder.mosaic, &options, &mut load);
     match (result, failure) {
         (Ok(done), _) => Ok(done),
         (Err(_), Some(e)) => Err(e),
@@ -302,7 +322,7 @@ impl TileSource {
     /// tiled TIFF).
     fn tile_path(&self, row: u32, col: u32) -> PathBuf {
         match &self.kind {
-            Kind::Folder(files) => files[(row * self.tiles + col) as usize].clone(),
+            Kind::Folder(files) => files[(row * self.tiles() + col) as usize].clone(),
             Kind::Tiff(_) => self.path.clone(),
         }
     }
@@ -311,11 +331,19 @@ impl TileSource {
     fn load_tile(&self, row: u32, col: u32, limits: &Limits) -> Result<TexelGrid, Error> {
         let files = match &self.kind {
             Kind::Folder(files) => files,
-            Kind::Tiff(tiff) => return tiff.load_tile(row, col, limits),
+            Kind::Tiff(tiff) => {
+                let Some(rect) = self.mosaic.tile_rect(row, col) else {
+                    return Err(Error::Tiles {
+                        path: self.path.clone(),
+                        message: format!("tile ({row}, {col}) holds none of the texture"),
+                    });
+                };
+                return tiff.load_rect(rect, limits);
+            }
         };
-        let file = &files[(row * self.tiles + col) as usize];
+        let file = &files[(row * self.tiles() + col) as usize];
         let grid = crate::image_io::load_texels(file, limits)?;
-        let side = self.side;
+        let side = self.side();
         if (grid.width(), grid.height()) != (side, side) {
             return Err(Error::Tiles {
                 path: file.clone(),
@@ -360,9 +388,9 @@ mod tests {
             .collect()
     }
 
-    fn qtx_bytes(tree: &QuadTree, side: u32) -> Vec<u8> {
+    fn qtx_bytes(tree: &QuadTree, (width, height): (u32, u32)) -> Vec<u8> {
         let mut out = Vec::new();
-        crate::write_qtx_to(&mut out, Path::new("-"), tree, Some((side, side))).unwrap();
+        crate::write_qtx_to(&mut out, Path::new("-"), tree, Some((width, height))).unwrap();
         out
     }
 
@@ -411,8 +439,8 @@ mod tests {
             let (tree, report, source) = pack_tiles(&tif, 0.0, &limits).unwrap();
             assert!(source.is_tiff() && source.path() == tif);
             assert_eq!(
-                (source.tiles(), source.side(), source.texels()),
-                (4, 16, 64)
+                (source.tiles(), source.side(), source.extent()),
+                (4, 16, (64, 64))
             );
             assert_eq!(report.max_error, 0.0);
             let geo = source.georeference().unwrap();
@@ -425,7 +453,11 @@ mod tests {
                 let (other, _, f) = pack_tiles(&folder, 0.0, &limits).unwrap();
                 assert!(!f.is_tiff() && f.georeference().is_none());
                 assert!(other == tree, "{ext}");
-                assert_eq!(qtx_bytes(&other, 64), qtx_bytes(&tree, 64), "{ext}");
+                assert_eq!(
+                    qtx_bytes(&other, (64, 64)),
+                    qtx_bytes(&tree, (64, 64)),
+                    "{ext}"
+                );
             }
             // The whole image packed at once: the same tree.
             let grid = crate::load_texels(&tif, &limits).unwrap();
@@ -490,7 +522,7 @@ mod tests {
     }
 
     #[test]
-    fn tiffs_that_are_not_a_square_mosaic_are_refused() {
+    fn tiffs_that_cannot_be_tiled_are_refused() {
         let tiled = |w: u32, h: u32, tile: (u32, u32)| Spec {
             tile: Some(tile),
             ..Spec::rgb8(w, h, vec![9; (w * h * 3) as usize])
@@ -500,28 +532,118 @@ mod tests {
             &["a stripped TIFF (32x32, 32 rows a strip)", "`quadtex pack`"],
         );
         refused(
-            &tiled(48, 32, (16, 16)),
-            &[
-                "3x2 tiles of 16x16: pack-tiles needs a square grid",
-                "`quadtex pack`",
-            ],
-        );
-        refused(
-            &tiled(48, 48, (16, 16)),
-            &["3x3 tiles of 16x16: pack-tiles needs a square grid of 1, 2, 4, 8"],
-        );
-        refused(
             &tiled(64, 32, (32, 16)),
             &["TIFF tiles of 32x16 texels: pack-tiles needs square tiles of a power of two"],
         );
         refused(&tiled(48, 48, (24, 24)), &["TIFF tiles of 24x24 texels"]);
         refused(
-            &tiled(40, 40, (16, 16)),
-            &[
-                "40x40 texels are not a whole number of 16x16 tiles",
-                "partial edge tiles",
-            ],
+            &tiled(8, 7, (16, 16)),
+            &["8x7 texels in tiles of 16x16", "no larger than half a tile"],
         );
+    }
+
+    /// Tiled TIFFs of any size (Cloud-Optimized GeoTIFF layouts: partial
+    /// tiles on the right and bottom edges, grids of any shape) pack tile by
+    /// tile to the tree of the whole image: in order, on threads, and packed
+    /// apart then spliced; 8-bit RGB and 16-bit RGBA, chunky and planar.
+    #[test]
+    fn tiffs_of_any_size_pack_tile_by_tile_to_the_tree_of_the_whole_image() {
+        let limits = Limits::default();
+        let d = temp("tiff-any-size");
+        let cases = [
+            (48, 32, 16, false, false),
+            (48, 48, 16, false, true),
+            (40, 40, 16, true, false),
+            (100, 37, 16, false, false),
+            (17, 70, 16, true, true),
+            (9, 5, 16, false, false),
+            (130, 129, 32, false, false),
+        ];
+        for (i, &(w, h, tile, sixteen, planar)) in cases.iter().enumerate() {
+            let (spp, bits) = if sixteen { (4u16, 16u16) } else { (3, 8) };
+            let max = if sixteen { 65535u32 } else { 255 };
+            // Flat patches and noise, so the tree has uniform squares and blocks.
+            let mut x = 0x9e37_79b9u32 ^ i as u32;
+            let samples = (0..w * h * u32::from(spp))
+                .map(|k| {
+                    x ^= x << 13;
+                    x ^= x >> 17;
+                    x ^= x << 5;
+                    let (c, r) = ((k / u32::from(spp)) % w, (k / u32::from(spp)) / w);
+                    if (c / 8 + r / 8) % 3 == 0 {
+                        (max / 3) as u16
+                    } else {
+                        (x % (max + 1)) as u16
+                    }
+                })
+                .collect();
+            let spec = Spec {
+                tile: Some((tile, tile)),
+                bits,
+                samples_per_pixel: spp,
+                extra_samples: if spp == 4 { vec![2] } else { Vec::new() },
+                planar,
+                compression: if i % 2 == 0 { 8 } else { 1 },
+                ..Spec::rgb8(w, h, samples)
+            };
+            let tif = d.join(format!("any-{i}.tif"));
+            std::fs::write(&tif, spec.write()).unwrap();
+            let what = format!("{w}x{h} in tiles of {tile}, 16-bit {sixteen}, planar {planar}");
+            let (tree, report, source) = pack_tiles(&tif, 0.0, &limits).expect(&what);
+            assert_eq!(source.extent(), (w, h), "{what}");
+            assert_eq!(report.max_error, 0.0, "{what}");
+            let grid = crate::load_texels(&tif, &limits).unwrap();
+            let (whole, _) = QuadTree::from_texels(&grid, &BuildOptions::default()).unwrap();
+            assert!(whole == tree, "{what}");
+            let on_threads = crate::pack_tiles_on_threads(&source, 0.0, &limits, 3)
+                .expect(&what)
+                .0;
+            assert!(on_threads == tree, "{what}");
+            let order = source.mosaic().tiles_in_order();
+            let packed: Vec<_> = order
+                .iter()
+                .map(|&at| {
+                    (
+                        at,
+                        pack_tile(&source, at, 0.0, &limits, None)
+                            .unwrap()
+                            .to_bytes(),
+                    )
+                })
+                .collect();
+            let (spliced, _) =
+                splice_tiles(
+                    &source,
+                    0.0,
+                    &limits,
+                    &mut |row, col, format| match format {
+                        None => {
+                            let (_, b) = packed.iter().find(|(at, _)| *at == (row, col)).unwrap();
+                            Ok(PackedTile::from_bytes(b).unwrap())
+                        }
+                        Some(f) => pack_tile(&source, (row, col), 0.0, &limits, Some(f)),
+                    },
+                )
+                .unwrap();
+            assert!(spliced == tree, "{what}");
+            assert_eq!(
+                qtx_bytes(&spliced, (w, h)),
+                qtx_bytes(&whole, (w, h)),
+                "{what}"
+            );
+            // A tile in the pad is refused by name.
+            let n = source.tiles();
+            if let Some(pad) = (0..n * n)
+                .map(|k| (k / n, k % n))
+                .find(|at| !order.contains(at))
+            {
+                let e = pack_tile(&source, pad, 0.0, &limits, None)
+                    .unwrap_err()
+                    .to_string();
+                assert!(e.contains("holds none of the"), "{e}");
+            }
+        }
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]

@@ -17,23 +17,6 @@ use crate::tiles::{TileFolder, pack_tile, splice_tiles};
 /// few enough that packed tiles waiting stay a small part of memory.
 const AHEAD_PER_THREAD: usize = 4;
 
-/// `(row, col)` of the tiles of a `tiles × tiles` grid in the order the
-/// builder visits them: Morton order of `(x, z)` squares, `x` the low bit,
-/// `z` counted from the bottom (row 0 is the top).
-fn builder_order(tiles: u32) -> Vec<(u32, u32)> {
-    let n = u64::from(tiles) * u64::from(tiles);
-    (0..n)
-        .map(|m| {
-            let (mut x, mut z) = (0u32, 0u32);
-            for bit in 0..32 {
-                x |= (((m >> (2 * bit)) & 1) as u32) << bit;
-                z |= (((m >> (2 * bit + 1)) & 1) as u32) << bit;
-            }
-            (tiles - 1 - z, x)
-        })
-        .collect()
-}
-
 /// What the packing threads and the splice share.
 struct Shared {
     /// Index (in builder order) of the next tile a thread takes.
@@ -57,7 +40,7 @@ pub fn pack_tiles_on_threads(
     threads: usize,
 ) -> Result<(QuadTree, BuildReport), Error> {
     let threads = threads.max(1);
-    let order = builder_order(folder.tiles());
+    let order = folder.mosaic().tiles_in_order();
     let ahead = threads * AHEAD_PER_THREAD;
     let shared = Mutex::new(Shared {
         next: 0,
@@ -125,18 +108,6 @@ pub fn pack_tiles_on_threads(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn builder_order_is_morton_from_the_bottom_left() {
-        assert_eq!(builder_order(1), vec![(0, 0)]);
-        assert_eq!(builder_order(2), vec![(1, 0), (1, 1), (0, 0), (0, 1)]);
-        let four = builder_order(4);
-        assert_eq!(&four[..5], &[(3, 0), (3, 1), (2, 0), (2, 1), (3, 2)]);
-        let mut sorted = four.clone();
-        sorted.sort_unstable();
-        sorted.dedup();
-        assert_eq!(sorted.len(), 16);
-    }
 
     /// A folder of 8×8 PNG tiles whose formats widen along the builder's
     /// order (grey, then opaque colour, then translucent), packed on 1, 2

@@ -33,6 +33,7 @@ __all__ = [
     "pack",
     "pack_tiles",
     "tile_grid",
+    "mosaic_tiles",
     "pack_tile",
     "splice_tiles",
     "Scene",
@@ -233,20 +234,31 @@ def pack(
 def pack_tiles(
     directory: _StrPath, tolerance: float = 0.0, memory_limit: Optional[int] = None
 ) -> Texture:
-    """Packs a folder of raster tiles into one texture, one tile in memory
-    at a time, as ``quadtex pack-tiles`` does: the texture :func:`pack`
-    would make of the whole mosaic.
+    """Packs a folder of raster tiles, or a tiled TIFF, into one texture,
+    one tile in memory at a time, as ``quadtex pack-tiles`` does: the
+    texture :func:`pack` would make of the whole mosaic.
 
     directory: a folder of tiles named ``ROW_COL.png`` (or ``.jpg``; row 0
         at the top): a complete grid of 1, 2, 4, … tiles a side, every tile
-        the same power-of-two square.
+        the same power-of-two square; or a tiled TIFF (BigTIFF and
+        Cloud-Optimized GeoTIFF included) of any size whose tiles are
+        power-of-two squares, partial edge tiles included.
     tolerance: in [0, 1], as for :func:`pack` (0 is lossless).
     memory_limit: bytes, as for :func:`pack`.
     """
 
 def tile_grid(directory: _StrPath) -> tuple[int, int]:
-    """``(tiles, side)`` of a folder of tiles as :func:`pack_tiles` reads
-    it: tiles on a side of the grid and texels on a tile's side."""
+    """``(tiles, side)`` of a folder of tiles or a tiled TIFF as
+    :func:`pack_tiles` reads it: tiles on a side of the tree's square and
+    texels on a tile's side. A TIFF that is not a square of whole tiles
+    covers the square's bottom-left part; :func:`mosaic_tiles` lists the
+    tiles that hold texture."""
+
+def mosaic_tiles(directory: _StrPath) -> list[tuple[int, int]]:
+    """The tiles :func:`splice_tiles` asks for, ``(row, col)`` (row 0 at the
+    top of the tree's square), in its order (Morton, from the bottom-left):
+    every tile of a folder; of a tiled TIFF, those holding part of the
+    image (the others are pad, never packed)."""
 
 def pack_tile(
     directory: _StrPath,
@@ -256,8 +268,9 @@ def pack_tile(
     memory_limit: Optional[int] = None,
     block_format: Optional[int] = None,
 ) -> bytes:
-    """Packs tile ``(row, col)`` (row 0 at the top) of a tile folder on its
-    own, for :func:`splice_tiles`; returns it as bytes (checked when read
+    """Packs tile ``(row, col)`` (row 0 at the top; one of
+    :func:`mosaic_tiles`) of a tile folder or tiled TIFF on its own, for
+    :func:`splice_tiles`; returns it as bytes (checked when read
     back). ``block_format``: None (the tile's own), or the code
     :func:`splice_tiles` passes when it asks for the tile again in a wider
     format."""

@@ -262,7 +262,6 @@ def pack_tiles(
     task raised.
     """
     tiles = os.fspath(tiles)
-    n, _side = quadtex.tile_grid(tiles)
     token = uuid.uuid4().hex[:8]
 
     def submit(row: int, col: int, block_format: Optional[int]) -> "distributed.Future":
@@ -280,7 +279,26 @@ def pack_tiles(
             retries=2,
         )
 
-    futures = {(row, col): submit(row, col, None) for row in range(n) for col in range(n)}
+    # One batched submission (client.map) costs the client and scheduler
+    # less than a submit a tile, which matters when they share the workers'
+    # cores.
+    cells = quadtex.mosaic_tiles(tiles)
+    futures = dict(
+        zip(
+            cells,
+            client.map(
+                quadtex.pack_tile,
+                [tiles] * len(cells),
+                [row for row, _ in cells],
+                [col for _, col in cells],
+                [tolerance] * len(cells),
+                [memory_limit] * len(cells),
+                [None] * len(cells),
+                key=[f"quadtex-tile-{row}-{col}-{token}" for row, col in cells],
+                retries=2,
+            ),
+        )
+    )
     if progress:
         from distributed import progress as show
 

@@ -1,3 +1,4 @@
+use super::tests::sq;
 use super::*;
 use crate::Fragment;
 use crate::tree::texel_block::srgb8_texel;
@@ -104,9 +105,10 @@ fn tiles_widen_their_blocks_to_the_mosaic_format() {
             .collect();
         TexelGrid::from_srgb8(8, 8, bytes)
     };
-    let (tree, _) = QuadTree::from_tiles(2, 8, &options, &mut |row, col| tile(row, col)).unwrap();
+    let (tree, _) =
+        QuadTree::from_tiles(&sq(2, 8), &options, &mut |row, col| tile(row, col)).unwrap();
     assert_eq!(tree, expected);
-    let e = QuadTree::from_tiles(2, 8, &options, &mut |row, col| {
+    let e = QuadTree::from_tiles(&sq(2, 8), &options, &mut |row, col| {
         let t = tile(row, col)?;
         if (row, col) == (1, 1) {
             TexelGrid::new(8, 8, t.texels().to_vec())
@@ -120,7 +122,7 @@ fn tiles_widen_their_blocks_to_the_mosaic_format() {
             .starts_with("tile (1, 1) is 16-bit or float, the first tile was 8-bit"),
         "{e}"
     );
-    let e = QuadTree::from_tiles(2, 8, &options, &mut |_, _| {
+    let e = QuadTree::from_tiles(&sq(2, 8), &options, &mut |_, _| {
         TexelGrid::from_linear_f32(8, 8, &[[2.0, 0.5, 0.5, 1.0]; 64])
     })
     .unwrap_err();

@@ -4,7 +4,7 @@
 
 use super::cells::{Cell, Stats};
 use super::packed_tile::{PackedTile, tile_format_error};
-use super::{BuildOptions, BuildReport, RASTER_KNOBS, TexelGrid};
+use super::{BuildOptions, BuildReport, Mosaic, RASTER_KNOBS, TexelGrid};
 use crate::Error;
 use crate::colour::Unorm16Rgba;
 use crate::memory::{BUILD_BYTES_PER_NODE, check_budget, try_push};
@@ -15,10 +15,8 @@ use crate::tree::{self, Aspect, MAX_DEPTH, QuadTree};
 /// time (see [`QuadTree::from_tiles`]), or packed elsewhere
 /// ([`QuadTree::from_packed_tiles`]).
 pub(super) struct Tiles<'a> {
-    /// The level whose squares are tiles (`2^level` tiles a side).
-    pub(super) level: u8,
-    /// Texels on a tile's side.
-    pub(super) side: u32,
+    /// How the texture is cut into tiles (its tile level's squares).
+    pub(super) mosaic: Mosaic,
     pub(super) source: TileSource<'a>,
     /// The options the mosaic is packed with.
     pub(super) options: BuildOptions,
@@ -136,7 +134,11 @@ impl<C: Cell> Builder<'_, C> {
         if self.aspect.is_pad(level, ix as u32, iz as u32) {
             return Ok(None);
         }
-        if self.tiles.as_ref().is_some_and(|t| t.level == level) {
+        if self
+            .tiles
+            .as_ref()
+            .is_some_and(|t| t.mosaic.tile_level() == level)
+        {
             return C::tile(self, level, ix, iz).map(Some);
         }
         if level == self.depth {
@@ -412,15 +414,20 @@ impl Builder<'_, Unorm16Rgba> {
         let Some(tiles) = self.tiles.as_mut() else {
             return Err(Error::MalformedTree("no tiles".into()));
         };
-        let (n, side) = (1u32 << level, tiles.side);
+        let mosaic = tiles.mosaic;
+        let (n, side) = (1u32 << level, mosaic.side());
         let (row, col) = (n - 1 - iz as u32, ix as u32);
+        // Squares wholly in the pad never get here.
+        let extent = mosaic
+            .tile_extent(row, col)
+            .ok_or_else(|| Error::MalformedTree(format!("tile ({row}, {col}) lies in the pad")))?;
         // The first tile fixes the blocks' format; the others must agree,
         // 8-bit tiles sharing the widest of their formats.
         let global = self.blocks.as_ref().map(|w| w.format);
         let wrong_size = |w: u32, h: u32| Error::BadDimensions {
             width: w.into(),
             height: h.into(),
-            reason: "not the size of the first tile (tiles must all be the same square)",
+            reason: "not the size of the mosaic's tile there",
         };
         let packed = match &mut tiles.source {
             TileSource::Texels(load) => {
@@ -428,19 +435,22 @@ impl Builder<'_, Unorm16Rgba> {
                 if grid.is_hdr() {
                     return Err(Error::HdrTile { row, col });
                 }
-                if (grid.width, grid.height) != (side, side) {
+                if (grid.width, grid.height) != extent {
                     return Err(wrong_size(grid.width, grid.height));
                 }
-                let context =
-                    tiles
-                        .options
-                        .tile_context(side, global, self.nodes, self.fixed_bytes);
+                let context = tiles.options.tile_context(
+                    &mosaic,
+                    extent,
+                    global,
+                    self.nodes,
+                    self.fixed_bytes,
+                );
                 PackedTile::pack(&grid, (row, col), &context)?
             }
             TileSource::Packed(load) => {
                 let packed = load(row, col, None)?;
-                if packed.side != side {
-                    return Err(wrong_size(packed.side, packed.side));
+                if packed.side != side || packed.extent != extent {
+                    return Err(wrong_size(packed.extent.0, packed.extent.1));
                 }
                 // Packed in its own format: the sequential build writes it in
                 // the widest of those before it too.
@@ -450,7 +460,10 @@ impl Builder<'_, Unorm16Rgba> {
                     }
                     (Some(g), Some(own)) if packed.block_format() != Some(g.widest(own)) => {
                         let again = load(row, col, Some(g.widest(own)))?;
-                        if again.block_format() != Some(g.widest(own)) || again.side != side {
+                        if again.block_format() != Some(g.widest(own))
+                            || again.side != side
+                            || again.extent != extent
+                        {
                             return Err(Error::MalformedTree(format!(
                                 "tile ({row}, {col}) was packed again in another block format than asked"
                             )));

@@ -21,6 +21,7 @@
 
 mod builder;
 mod cells;
+mod mosaic;
 mod packed_tile;
 mod resample;
 
@@ -31,6 +32,7 @@ use crate::tree::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, BlockWriter};
 use crate::tree::{Aspect, MAX_DEPTH, MAX_NODES, QuadTree};
 use builder::{Builder, TileSource, Tiles};
 use cells::{Cell, HalfRgba};
+pub use mosaic::Mosaic;
 pub use packed_tile::PackedTile;
 use resample::{resample_with, try_resample};
 
@@ -304,93 +306,91 @@ pub struct BuildReport {
 }
 
 impl QuadTree {
-    /// Packs a square grid of square tiles into one tree without holding
-    /// more than one tile's texels: `tiles × tiles` tiles (a power of two),
-    /// each `side × side` texels (a power of two), tile `(row, col)` (row 0
-    /// at the top) returned by `load` when the packer reaches it, in Morton
-    /// order. The result is the tree [`QuadTree::from_texels`] would build
-    /// from the whole mosaic, losslessly or to `options.tolerance`;
-    /// `options.max_level` must be `None` (the depth is the mosaic's). The
-    /// budget covers one tile's texels and the nodes so far. A tile of
-    /// another size, or any error `load` returns, stops the build.
+    /// Packs a texture tile by tile without holding more than one tile's
+    /// texels: the tiles of `mosaic` ([`Mosaic`]), tile `(row, col)`
+    /// returned by `load` when the packer reaches it, in Morton order
+    /// ([`Mosaic::tiles_in_order`]; tiles wholly in the pad are never
+    /// asked for), each of [`Mosaic::tile_extent`] texels. The result is
+    /// the tree [`QuadTree::from_texels`] would build from the whole
+    /// texture, losslessly or to `options.tolerance`; `options.max_level`
+    /// must be `None` (the depth is the mosaic's). The budget covers one
+    /// tile's texels and the nodes so far. A tile of another size, or any
+    /// error `load` returns, stops the build.
     pub fn from_tiles(
-        tiles: u32,
-        side: u32,
+        mosaic: &Mosaic,
         options: &BuildOptions,
         load: &mut dyn FnMut(u32, u32) -> Result<TexelGrid, Error>,
     ) -> Result<(QuadTree, BuildReport), Error> {
-        Self::from_tile_source(tiles, side, options, TileSource::Texels(load))
+        Self::from_tile_source(mosaic, options, TileSource::Texels(load))
     }
 
-    /// Packs tile `(row, col)` (row 0 at the top) of a `tiles × tiles`
-    /// mosaic of `side × side` tiles on its own, as [`QuadTree::from_tiles`]
-    /// would, for [`QuadTree::from_packed_tiles`] to splice: on another
-    /// thread, process or machine. `format`, when given, is the texel-block
-    /// format to write (the splicer asks for it when the tiles before this
-    /// one need a wider one); `None` packs in the tile's own. Refused: an
-    /// HDR tile, one of another size, an 8-bit tile asked for a 16-bit
-    /// format or the other way round, and the limits of `options` (the
-    /// node limit and budget count this tile alone).
+    /// Packs tile `(row, col)` of `mosaic` on its own, as
+    /// [`QuadTree::from_tiles`] would, for [`QuadTree::from_packed_tiles`]
+    /// to splice: on another thread, process or machine. `grid` holds the
+    /// tile's texels ([`Mosaic::tile_extent`] of them). `format`, when
+    /// given, is the texel-block format to write (the splicer asks for it
+    /// when the tiles before this one need a wider one); `None` packs in
+    /// the tile's own. Refused: an HDR grid, a grid of another size, a tile
+    /// outside the grid or wholly in the pad, options `from_tiles` refuses.
     pub fn pack_tile(
-        tiles: u32,
-        side: u32,
+        mosaic: &Mosaic,
         (row, col): (u32, u32),
         grid: &TexelGrid,
         options: &BuildOptions,
         format: Option<crate::BlockFormat>,
     ) -> Result<PackedTile, Error> {
-        check_mosaic(tiles, side, options)?;
-        if row >= tiles || col >= tiles {
+        check_mosaic(mosaic, options)?;
+        let Some(extent) = mosaic.tile_extent(row, col) else {
             return Err(Error::BadDimensions {
                 width: u64::from(col),
                 height: u64::from(row),
-                reason: "tile (row, col) outside the mosaic",
+                reason: "tile (row, col) outside the mosaic's texture",
             });
-        }
-        if (grid.width, grid.height) != (side, side) {
+        };
+        if (grid.width, grid.height) != extent {
             return Err(Error::BadDimensions {
                 width: grid.width.into(),
                 height: grid.height.into(),
-                reason: "not the size of the mosaic's tiles",
+                reason: "not the size of the mosaic's tile there",
             });
         }
-        let fixed = 8 * u64::from(side) * u64::from(side);
-        let context = options.tile_context(side, format, 0, fixed);
+        let fixed = tile_fixed_bytes(mosaic);
+        let context = options.tile_context(mosaic, extent, format, 0, fixed);
         packed_tile::PackedTile::pack(grid, (row, col), &context)
     }
 
     /// The tree [`QuadTree::from_tiles`] builds, from tiles packed by
-    /// [`QuadTree::pack_tile`] (with the same `tiles`, `side` and
-    /// `options`): `load(row, col, format)` returns tile `(row, col)`,
-    /// packed in `format` when that is given. The splicer visits tiles in
-    /// Morton order, as the sequential build does, and asks for a tile
-    /// again, in the wider format, when its blocks were written narrower
-    /// than the tiles before it make the mosaic's. The result is byte for
-    /// byte the sequential one; only the squares above the tiles are built
-    /// here, so the memory is the tree's, not a tile's texels.
+    /// [`QuadTree::pack_tile`] (with the same `mosaic` and `options`):
+    /// `load(row, col, format)` returns tile `(row, col)`, packed in
+    /// `format` when that is given. The splicer visits tiles in Morton
+    /// order, as the sequential build does, and asks for a tile again, in
+    /// the wider format, when its blocks were written narrower than the
+    /// tiles before it make the mosaic's. The result is byte for byte the
+    /// sequential one; only the squares above the tiles are built here, so
+    /// the memory is the tree's, not a tile's texels.
     pub fn from_packed_tiles(
-        tiles: u32,
-        side: u32,
+        mosaic: &Mosaic,
         options: &BuildOptions,
         load: &mut dyn FnMut(u32, u32, Option<crate::BlockFormat>) -> Result<PackedTile, Error>,
     ) -> Result<(QuadTree, BuildReport), Error> {
-        Self::from_tile_source(tiles, side, options, TileSource::Packed(load))
+        Self::from_tile_source(mosaic, options, TileSource::Packed(load))
     }
 
     fn from_tile_source(
-        tiles: u32,
-        side: u32,
+        mosaic: &Mosaic,
         options: &BuildOptions,
         source: TileSource<'_>,
     ) -> Result<(QuadTree, BuildReport), Error> {
-        let (level, depth) = check_mosaic(tiles, side, options)?;
-        let fixed_bytes = 8 * u64::from(side) * u64::from(side);
+        let depth = check_mosaic(mosaic, options)?;
+        let fixed_bytes = tile_fixed_bytes(mosaic);
+        let (tiles, side) = (mosaic.tiles(), mosaic.side());
         check_budget(
             || format!("packing {tiles}x{tiles} tiles of {side}x{side} texels"),
             fixed_bytes + BUILD_BYTES_PER_NODE,
             options.max_bytes,
             RASTER_KNOBS,
         )?;
+        let aspect = Aspect::from_extent(mosaic.width(), mosaic.height(), depth)?;
         let b = Builder::<Unorm16Rgba> {
             cells: &[],
             srgb8: None,
@@ -398,12 +398,12 @@ impl QuadTree {
             blocks: None,
             texel_blocks_allowed: options.texel_blocks,
             tiles: Some(Tiles {
-                level,
-                side,
+                mosaic: *mosaic,
                 source,
                 options: *options,
             }),
-            side: 0,
+            // The texture's cells, for the means of squares above the tiles.
+            side: mosaic.width() as usize,
             depth,
             tolerance: Unorm16Rgba::tolerance(options.tolerance),
             levels: vec![Vec::new(); usize::from(depth) + 1],
@@ -412,16 +412,9 @@ impl QuadTree {
             max_error: 0.0,
             fixed_bytes,
             max_bytes: options.max_bytes,
-            aspect: Aspect::SQUARE,
-            rows: 0,
+            aspect,
+            rows: mosaic.height() as usize,
             parallel_cells: usize::MAX,
-        };
-        // The mosaic's cells, for the means of squares above the tiles.
-        let cells = (tiles as usize) << side.trailing_zeros();
-        let b = Builder {
-            side: cells,
-            rows: cells,
-            ..b
         };
         b.build(false)
     }
@@ -526,40 +519,24 @@ impl QuadTree {
 
 /// Checks a mosaic of `tiles × tiles` tiles of `side × side` texels and the
 /// options it is packed with; returns the tiles' level and the depth.
-fn check_mosaic(tiles: u32, side: u32, options: &BuildOptions) -> Result<(u8, u8), Error> {
+/// The mosaic's depth, once `options` suit a tiled build.
+fn check_mosaic(mosaic: &Mosaic, options: &BuildOptions) -> Result<u8, Error> {
     if !(options.tolerance.is_finite() && options.tolerance >= 0.0) {
         return Err(Error::BadTolerance(options.tolerance));
     }
-    if !tiles.is_power_of_two() || !side.is_power_of_two() || side > MAX_DIMENSION {
-        return Err(Error::BadDimensions {
-            width: u64::from(tiles),
-            height: u64::from(side),
-            reason: "tiles a side and texels a tile side must be powers of two",
-        });
-    }
-    if side < 1 << BLOCK_LOG2_SIDE {
-        return Err(Error::BadDimensions {
-            width: u64::from(side),
-            height: u64::from(side),
-            reason: "tiles must be at least 4x4 texels",
-        });
-    }
     if options.max_level.is_some() {
         return Err(Error::BadDimensions {
-            width: u64::from(tiles) * u64::from(side),
-            height: u64::from(tiles) * u64::from(side),
+            width: u64::from(mosaic.width()),
+            height: u64::from(mosaic.height()),
             reason: "a tiled texture is packed at its own depth (no max level)",
         });
     }
-    let level = tiles.trailing_zeros() as u8;
-    let depth = level + side.trailing_zeros() as u8;
-    if depth > MAX_DEPTH {
-        return Err(Error::DepthTooLarge {
-            depth: depth.into(),
-            max: MAX_DEPTH.into(),
-        });
-    }
-    Ok((level, depth))
+    Ok(mosaic.depth())
+}
+
+/// Bytes a tiled build holds besides its tree: one tile's texels.
+fn tile_fixed_bytes(mosaic: &Mosaic) -> u64 {
+    8 * u64::from(mosaic.side()) * u64::from(mosaic.side())
 }
 
 /// Textures of at least this many cells (1024 × 1024) have the root's

@@ -12,7 +12,7 @@ use crate::tree::texel_block::{BLOCK_LOG2_SIDE, BlockFormat, BlockWriter};
 use crate::tree::{Aspect, MAX_DEPTH};
 
 /// First bytes of [`PackedTile::to_bytes`].
-const MAGIC: &[u8; 8] = b"QTXTILE1";
+const MAGIC: &[u8; 8] = b"QTXTILE2";
 
 /// A tile of a `tiles × tiles` mosaic packed on its own: its subtree (the
 /// levels below the tile's square), texel blocks, and the statistics the
@@ -38,8 +38,11 @@ pub struct PackedTile {
     /// Nodes the subtree adds below the tile's square.
     pub(super) nodes: u64,
     pub(super) max_error: f64,
-    /// Texels on the tile's side.
+    /// Texels on the tile square's side.
     pub(super) side: u32,
+    /// The tile's texels, `(w, h)`: `side × side` or less on the texture's
+    /// top and right edges ([`super::Mosaic::tile_extent`]).
+    pub(super) extent: (u32, u32),
     /// The tile's own narrowest block format (before widening).
     pub(super) own_format: Option<BlockFormat>,
 }
@@ -48,6 +51,8 @@ pub struct PackedTile {
 pub(super) struct TileContext {
     /// Levels below the tile's square: `log2 side`.
     pub(super) depth: u8,
+    /// The tile's texels, `(w, h)` ([`super::Mosaic::tile_extent`]).
+    pub(super) extent: (u32, u32),
     /// The block level inside the tile, if blocks are allowed.
     pub(super) block_level: Option<u8>,
     /// The format blocks are written in; `None`: the tile's own.
@@ -69,6 +74,13 @@ impl PackedTile {
         (row, col): (u32, u32),
         context: &TileContext,
     ) -> Result<PackedTile, Error> {
+        if (grid.width, grid.height) != context.extent {
+            return Err(Error::BadDimensions {
+                width: grid.width.into(),
+                height: grid.height.into(),
+                reason: "not the size of the mosaic's tile there",
+            });
+        }
         if grid.is_hdr() {
             // Tiles are packed as unorm16 or 8-bit: an HDR tile would be clamped.
             return Err(Error::HdrTile { row, col });
@@ -99,7 +111,7 @@ impl PackedTile {
             max_error: 0.0,
             fixed_bytes: context.fixed_bytes,
             max_bytes: context.max_bytes,
-            aspect: Aspect::SQUARE,
+            aspect: Aspect::from_extent(grid.width, grid.height, context.depth)?,
             rows: grid.height as usize,
             parallel_cells: usize::MAX,
         };
@@ -117,7 +129,8 @@ impl PackedTile {
             blocks: b.blocks.map(|w| (w.format, w.flags, w.data)),
             nodes,
             max_error: b.max_error,
-            side: grid.width,
+            side: 1 << context.depth,
+            extent: (grid.width, grid.height),
             own_format: context.block_level.map(|_| own),
         })
     }
@@ -128,9 +141,14 @@ impl PackedTile {
         self.blocks.as_ref().map(|b| b.0)
     }
 
-    /// Texels on the tile's side.
+    /// Texels on the tile square's side.
     pub fn side(&self) -> u32 {
         self.side
+    }
+
+    /// The tile's texels, `(w, h)` ([`super::Mosaic::tile_extent`]).
+    pub fn extent(&self) -> (u32, u32) {
+        self.extent
     }
 
     /// The tile as bytes, for carrying between processes
@@ -139,6 +157,8 @@ impl PackedTile {
         let mut out = Vec::new();
         out.extend(MAGIC);
         out.extend(self.side.to_le_bytes());
+        out.extend(self.extent.0.to_le_bytes());
+        out.extend(self.extent.1.to_le_bytes());
         out.push(match self.kind {
             Kind::Terminal => 0,
             Kind::Inner => 1,
@@ -203,6 +223,10 @@ impl PackedTile {
         if !side.is_power_of_two() || !(1 << BLOCK_LOG2_SIDE..=super::MAX_DIMENSION).contains(&side)
         {
             return Err(bad("side is not a power of two of at least 4"));
+        }
+        let extent = (r.u32()?, r.u32()?);
+        if extent.0 == 0 || extent.1 == 0 || extent.0 > side || extent.1 > side {
+            return Err(bad("extent empty or larger than the tile"));
         }
         let kind = match r.u8()? {
             0 => Kind::Terminal,
@@ -285,12 +309,14 @@ impl PackedTile {
         }
         if let Some((format, flags, data)) = &blocks {
             let block_level = side.trailing_zeros() as usize - usize::from(BLOCK_LOG2_SIDE);
-            let at = if block_level == 0 {
-                1
+            // A tile whose root is at the block level carries no flag for it
+            // (the square above pushes it when splicing): its kind says.
+            let (at, count) = if block_level == 0 {
+                (0, usize::from(kind == Kind::Block))
             } else {
-                levels.get(block_level - 1).map_or(0, Vec::len)
+                let at = levels.get(block_level - 1).map_or(0, Vec::len);
+                (at, flags.iter().filter(|&&f| f).count())
             };
-            let count = flags.iter().filter(|&&f| f).count();
             if flags.len() != at
                 || data.len() != count * (format.bytes_per_texel() << (2 * BLOCK_LOG2_SIDE))
             {
@@ -306,6 +332,7 @@ impl PackedTile {
             nodes,
             max_error,
             side,
+            extent,
             own_format,
         })
     }
@@ -384,19 +411,20 @@ fn crc32(bytes: &[u8]) -> u32 {
 }
 
 impl BuildOptions {
-    /// The tile context of tile-level squares of a `tiles × tiles` mosaic
-    /// of `side × side` tiles; `nodes_before` and `fixed_bytes` as the
-    /// builder holds them.
+    /// The tile context of a tile of `mosaic` holding `extent` texels;
+    /// `nodes_before` and `fixed_bytes` as the builder holds them.
     pub(super) fn tile_context(
         &self,
-        side: u32,
+        mosaic: &super::Mosaic,
+        extent: (u32, u32),
         format: Option<BlockFormat>,
         nodes_before: u64,
         fixed_bytes: u64,
     ) -> TileContext {
-        let depth = side.trailing_zeros() as u8;
+        let depth = mosaic.side().trailing_zeros() as u8;
         TileContext {
             depth,
+            extent,
             block_level: depth
                 .checked_sub(BLOCK_LOG2_SIDE)
                 .filter(|_| self.texel_blocks),

@@ -3,6 +3,11 @@ use super::*;
 use crate::tree::texel_block::BlockFormat;
 
 /// A mosaic with uniform regions, edges and noise: `(col, row)` texel.
+/// A complete square mosaic (test shorthand).
+pub(super) fn sq(tiles: u32, side: u32) -> Mosaic {
+    Mosaic::square(tiles, side).unwrap()
+}
+
 fn mosaic_texel(col: u32, row: u32) -> Rgba {
     let h = (col.wrapping_mul(2_654_435_761) ^ row.wrapping_mul(40_503)) % 7;
     if col < 20 && row < 12 {
@@ -97,7 +102,7 @@ fn tiles_pack_to_the_tree_of_the_whole_mosaic() {
         };
         let (expected, expected_report) = QuadTree::from_texels(&whole, &options).unwrap();
         let mut loaded = Vec::new();
-        let (tree, report) = QuadTree::from_tiles(tiles, side, &options, &mut |row, col| {
+        let (tree, report) = QuadTree::from_tiles(&sq(tiles, side), &options, &mut |row, col| {
             loaded.push((row, col));
             TexelGrid::from_fn(side, side, |c, r| {
                 mosaic_texel(col * side + c, row * side + r)
@@ -113,6 +118,104 @@ fn tiles_pack_to_the_tree_of_the_whole_mosaic() {
         loaded.sort_unstable();
         loaded.dedup();
         assert_eq!(loaded.len(), (tiles * tiles) as usize);
+    }
+}
+
+/// A texture of any size packed tile by tile, partial tiles on its top and
+/// right edges and tiles wholly in the pad included, is the tree of the
+/// whole texture: 16-bit and 8-bit texels, lossless and with a tolerance,
+/// tiles packed in order and packed apart (through bytes) then spliced.
+#[test]
+fn any_size_texture_packs_tile_by_tile_to_the_tree_of_the_whole() {
+    let mut uniform = crate::test_rng::uniform(0x7113);
+    let mut below = |n: u32| ((uniform() * f64::from(n)) as u32).min(n - 1);
+    for case in 0..60 {
+        let side = [4u32, 8, 16][below(3) as usize];
+        let width = 1 + below(5 * side);
+        let height = 1 + below(5 * side);
+        let Ok(mosaic) = Mosaic::of_texture(width, height, side) else {
+            assert!(2 * width.max(height) <= side, "{width}x{height}/{side}");
+            continue;
+        };
+        let eight = case % 2 == 0;
+        let tolerance = if case % 3 == 0 { 0.03 } else { 0.0 };
+        let texel8 = |c: u32, r: u32| -> [u8; 4] {
+            // Flat patches and noise, so trees have uniform squares and blocks.
+            let h = (c.wrapping_mul(2_654_435_761) ^ r.wrapping_mul(40_503)) as u8;
+            if (c / 8 + r / 8).is_multiple_of(3) {
+                [90, 40, 200, 255]
+            } else {
+                [h, h / 2, 30, 255]
+            }
+        };
+        let grid_of = |(x0, y0, w, h): (u32, u32, u32, u32)| {
+            if eight {
+                let bytes = (0..h)
+                    .flat_map(|y| (0..w).map(move |x| (x, y)))
+                    .map(|(x, y)| texel8(x0 + x, y0 + y))
+                    .collect();
+                TexelGrid::from_srgb8(w, h, bytes).unwrap()
+            } else {
+                TexelGrid::from_fn(w, h, |x, y| mosaic_texel(x0 + x, y0 + y)).unwrap()
+            }
+        };
+        let options = BuildOptions {
+            tolerance,
+            ..BuildOptions::default()
+        };
+        let what =
+            format!("{width}x{height} in tiles of {side}, 8-bit {eight}, tolerance {tolerance}");
+        let (expected, expected_report) =
+            QuadTree::from_texels(&grid_of((0, 0, width, height)), &options).unwrap();
+        let mut asked = Vec::new();
+        let (tree, report) = QuadTree::from_tiles(&mosaic, &options, &mut |row, col| {
+            asked.push((row, col));
+            Ok(grid_of(mosaic.tile_rect(row, col).unwrap()))
+        })
+        .unwrap();
+        assert!(tree == expected, "{what}");
+        assert_eq!(report.max_error, expected_report.max_error, "{what}");
+        assert_eq!(asked, mosaic.tiles_in_order(), "{what}");
+        let packed: Vec<((u32, u32), Vec<u8>)> = mosaic
+            .tiles_in_order()
+            .into_iter()
+            .map(|at| {
+                let grid = grid_of(mosaic.tile_rect(at.0, at.1).unwrap());
+                let tile = QuadTree::pack_tile(&mosaic, at, &grid, &options, None).unwrap();
+                (at, tile.to_bytes())
+            })
+            .collect();
+        let (spliced, _) =
+            QuadTree::from_packed_tiles(&mosaic, &options, &mut |row, col, format| match format {
+                None => {
+                    let (_, bytes) = packed.iter().find(|(at, _)| *at == (row, col)).unwrap();
+                    PackedTile::from_bytes(bytes)
+                }
+                Some(f) => {
+                    let grid = grid_of(mosaic.tile_rect(row, col).unwrap());
+                    QuadTree::pack_tile(&mosaic, (row, col), &grid, &options, Some(f))
+                }
+            })
+            .unwrap();
+        assert!(spliced == expected, "{what}");
+        // A pad tile, or one of another size, is refused by name.
+        let n = mosaic.tiles();
+        let full = grid_of((0, 0, side, side));
+        if let Some(pad) = (0..n * n)
+            .map(|i| (i / n, i % n))
+            .find(|&(r, c)| mosaic.tile_rect(r, c).is_none())
+        {
+            let e = QuadTree::pack_tile(&mosaic, pad, &full, &options, None).unwrap_err();
+            assert!(
+                e.to_string().contains("outside the mosaic's texture"),
+                "{e}"
+            );
+        }
+        let (row, col) = mosaic.tiles_in_order()[0];
+        if mosaic.tile_extent(row, col) != Some((side, side)) {
+            let e = QuadTree::pack_tile(&mosaic, (row, col), &full, &options, None).unwrap_err();
+            assert!(e.to_string().contains("not the size"), "{e}");
+        }
     }
 }
 
@@ -160,7 +263,7 @@ fn tiles_packed_apart_splice_into_the_sequential_tree() {
             tolerance,
             ..BuildOptions::default()
         };
-        let sequential = QuadTree::from_tiles(tiles, side, &options, &mut |row, col| {
+        let sequential = QuadTree::from_tiles(&sq(tiles, side), &options, &mut |row, col| {
             Ok(load(tiles, side, row, col))
         })
         .unwrap();
@@ -172,7 +275,7 @@ fn tiles_packed_apart_splice_into_the_sequential_tree() {
                     scope.spawn(move || {
                         let (row, col) = (i / tiles, i % tiles);
                         let grid = load(tiles, side, row, col);
-                        QuadTree::pack_tile(tiles, side, (row, col), &grid, options, None)
+                        QuadTree::pack_tile(&sq(tiles, side), (row, col), &grid, options, None)
                             .unwrap()
                             .to_bytes()
                     })
@@ -181,20 +284,18 @@ fn tiles_packed_apart_splice_into_the_sequential_tree() {
             handles.into_iter().map(|h| h.join().unwrap()).collect()
         });
         let mut again = 0;
-        let spliced = QuadTree::from_packed_tiles(
-            tiles,
-            side,
-            &options,
-            &mut |row, col, format| match format {
-                None => PackedTile::from_bytes(&packed[(row * tiles + col) as usize]),
-                Some(f) => {
-                    again += 1;
-                    let grid = load(tiles, side, row, col);
-                    QuadTree::pack_tile(tiles, side, (row, col), &grid, &options, Some(f))
+        let spliced =
+            QuadTree::from_packed_tiles(&sq(tiles, side), &options, &mut |row, col, format| {
+                match format {
+                    None => PackedTile::from_bytes(&packed[(row * tiles + col) as usize]),
+                    Some(f) => {
+                        again += 1;
+                        let grid = load(tiles, side, row, col);
+                        QuadTree::pack_tile(&sq(tiles, side), (row, col), &grid, &options, Some(f))
+                    }
                 }
-            },
-        )
-        .unwrap();
+            })
+            .unwrap();
         let what = format!("{tiles}x{tiles} tiles of {side}, tolerance {tolerance}");
         assert_eq!(spliced.0, sequential.0, "{what}");
         assert_eq!(spliced.1, sequential.1, "{what}");
@@ -217,7 +318,7 @@ fn tiles_packed_apart_splice_into_the_sequential_tree() {
 fn packed_tiles_refuse_damage_and_mismatches() {
     let options = BuildOptions::default();
     let grid = mixed_tile(2, 8, 0, 0);
-    let tile = QuadTree::pack_tile(2, 8, (0, 0), &grid, &options, None).unwrap();
+    let tile = QuadTree::pack_tile(&sq(2, 8), (0, 0), &grid, &options, None).unwrap();
     let bytes = tile.to_bytes();
     assert_eq!(PackedTile::from_bytes(&bytes).unwrap(), tile);
     let mut flipped = bytes.clone();
@@ -235,12 +336,11 @@ fn packed_tiles_refuse_damage_and_mismatches() {
             .to_string()
             .contains("magic")
     );
-    let e = QuadTree::pack_tile(2, 16, (0, 0), &grid, &options, None).unwrap_err();
+    let e = QuadTree::pack_tile(&sq(2, 16), (0, 0), &grid, &options, None).unwrap_err();
     assert!(e.to_string().contains("not the size"), "{e}");
-    assert!(QuadTree::pack_tile(2, 8, (2, 0), &grid, &options, None).is_err());
+    assert!(QuadTree::pack_tile(&sq(2, 8), (2, 0), &grid, &options, None).is_err());
     let e = QuadTree::pack_tile(
-        2,
-        8,
+        &sq(2, 8),
         (0, 0),
         &grid,
         &options,
@@ -250,13 +350,13 @@ fn packed_tiles_refuse_damage_and_mismatches() {
     assert!(e.to_string().contains("8-bit"), "{e}");
     // A 16-bit tile among 8-bit ones.
     let sixteen = TexelGrid::from_fn(8, 8, mosaic_texel).unwrap();
-    let e = QuadTree::from_packed_tiles(2, 8, &options, &mut |row, col, format| {
+    let e = QuadTree::from_packed_tiles(&sq(2, 8), &options, &mut |row, col, format| {
         let g = if (row, col) == (1, 1) {
             sixteen.clone()
         } else {
             mixed_tile(2, 8, row, col)
         };
-        QuadTree::pack_tile(2, 8, (row, col), &g, &options, format)
+        QuadTree::pack_tile(&sq(2, 8), (row, col), &g, &options, format)
     })
     .unwrap_err();
     assert!(e.to_string().contains("16-bit"), "{e}");
@@ -265,16 +365,16 @@ fn packed_tiles_refuse_damage_and_mismatches() {
 #[test]
 fn tiles_of_the_wrong_size_or_failing_to_load_stop_the_build() {
     let options = BuildOptions::default();
-    let e = QuadTree::from_tiles(2, 8, &options, &mut |row, col| {
+    let e = QuadTree::from_tiles(&sq(2, 8), &options, &mut |row, col| {
         let side = if (row, col) == (1, 1) { 4 } else { 8 };
         TexelGrid::from_fn(side, side, |_, _| Rgba::opaque(1.0, 0.0, 0.0))
     })
     .unwrap_err();
     assert!(
-        e.to_string().contains("not the size of the first tile"),
+        e.to_string().contains("not the size of the mosaic's tile"),
         "{e}"
     );
-    let e = QuadTree::from_tiles(2, 8, &options, &mut |_, _| {
+    let e = QuadTree::from_tiles(&sq(2, 8), &options, &mut |_, _| {
         Err(Error::BadDimensions {
             width: 0,
             height: 0,
@@ -283,13 +383,13 @@ fn tiles_of_the_wrong_size_or_failing_to_load_stop_the_build() {
     })
     .unwrap_err();
     assert!(e.to_string().contains("a test failure"), "{e}");
-    assert!(QuadTree::from_tiles(3, 8, &options, &mut |_, _| unreachable!()).is_err());
-    assert!(QuadTree::from_tiles(2, 6, &options, &mut |_, _| unreachable!()).is_err());
+    assert!(Mosaic::square(3, 8).is_err());
+    assert!(Mosaic::square(2, 6).is_err());
     let levelled = BuildOptions {
         max_level: Some(3),
         ..BuildOptions::default()
     };
-    assert!(QuadTree::from_tiles(2, 8, &levelled, &mut |_, _| unreachable!()).is_err());
+    assert!(QuadTree::from_tiles(&sq(2, 8), &levelled, &mut |_, _| unreachable!()).is_err());
 }
 
 /// Photo-like 8-bit texels of any size pack losslessly as their own
