@@ -206,6 +206,13 @@ typedef struct QtxFilterOptions {
      * every square is refined to.
      */
     int level;
+    /**
+     * Threads a batch runs on: 0 (the default) for one a core, or at
+     * least 1 (1 runs on the calling thread only, for callers that run
+     * batches on threads of their own). The colours are bit-identical
+     * whatever the count.
+     */
+    int threads;
 } QtxFilterOptions;
 
 /**
@@ -487,7 +494,9 @@ enum QtxStatus qtx_pack_tiles(const char *dir,
  *
  * Each colour is within `options.error_bound` of the exact mean (relative
  * to the texture's contrast), whatever the footprint's size; use
- * `qtx_filter_with_bounds` for the bound each quad reached.
+ * `qtx_filter_with_bounds` for the bound each quad reached. The batch runs
+ * on every core unless `options.threads` says how many threads; the
+ * colours are bit-identical whatever the count.
  *
  * # Safety
  * `texture` is NULL or a live texture from `qtx_open` / `qtx_pack`;

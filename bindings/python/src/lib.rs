@@ -30,8 +30,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyString, PyTuple};
 use quadtex_core::{
-    BuildOptions, FilterOptions, Footprint, Fragment, MAX_DEPTH, QuadTree, Rgba, Weighting, Wrap,
-    WrapMode,
+    BuildOptions, FilterOptions, Footprint, Fragment, MAX_DEPTH, QuadTree, Rgba, Threads,
+    Weighting, Wrap, WrapMode, map_runs_on_threads,
 };
 
 use crate::errors::{core_error, io_error};
@@ -42,7 +42,7 @@ const CHUNK: usize = 1 << 16;
 /// Longest stretch of batch work without the GIL before Ctrl-C is checked.
 const SIGNAL_INTERVAL: Duration = Duration::from_millis(50);
 
-/// Items a batch does between looks at the clock.
+/// Items a batch's first stretch gives each thread.
 const STEP: usize = 64;
 
 /// Max level of SVG art packed without `max_level` (as `quadtex pack`).
@@ -81,6 +81,9 @@ impl Texture {
     ///     reports a bound above `error_bound`.
     ///   return_bound: also return each footprint's bound reached, `(N,)`
     ///     float64 relative to the texture's contrast.
+    ///   threads: None (every core) or >= 1 (1: the calling thread only, for
+    ///     callers that run batches on threads of their own); the results
+    ///     are bit-identical whatever the count.
     ///
     /// Returns: `(N, 4)` float32, linear premultiplied RGBA; with
     /// `return_bound=True` the pair `(rgba, bound)`.
@@ -91,8 +94,8 @@ impl Texture {
     /// KeyboardInterrupt (Ctrl-C, checked between stretches of about 50 ms).
     /// The GIL is released while filtering.
     #[pyo3(
-        signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = None, return_bound = false),
-        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=None, return_bound=False)"
+        signature = (quads, wrap = None, weighting = "screen", border = None, error_bound = 1.0 / 512.0, level = None, budget = None, return_bound = false, threads = None),
+        text_signature = "($self, quads, wrap='repeat', weighting='screen', border=(0.0, 0.0, 0.0, 0.0), error_bound=0.001953125, level=None, budget=None, return_bound=False, threads=None)"
     )]
     fn filter<'py>(
         &self,
@@ -104,8 +107,10 @@ impl Texture {
         level: Option<i64>,
         budget: Option<u64>,
         return_bound: bool,
+        threads: Option<i64>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let py = quads.py();
+        let threads = batch_threads(threads)?;
         let border = match border {
             Some(b) => {
                 let b = arrays::float64(b, "border", &[Some(4)], "(4,)")?.try_readonly()?;
@@ -128,18 +133,30 @@ impl Texture {
         let n = view.shape()[0];
         let mut out: Vec<f32> = Vec::with_capacity(4 * n);
         let mut bounds: Vec<f64> = Vec::with_capacity(if return_bound { n } else { 0 });
-        let mut footprints = Vec::with_capacity(n.min(CHUNK));
+        let mut corners: Vec<[[f64; 2]; 4]> = Vec::with_capacity(n.min(CHUNK));
         for start in (0..n).step_by(CHUNK) {
-            footprints.clear();
+            // Copied while the GIL is held (another thread may write to the
+            // array once it is released), then checked and filtered on every
+            // core without it.
+            corners.clear();
             for i in start..(start + CHUNK).min(n) {
                 let q = |c: usize, k: usize| view[[i, c, k]];
-                let corners = [0, 1, 2, 3].map(|c| [q(c, 0), q(c, 1)]);
-                let footprint = Footprint::from_corners(corners)
-                    .map_err(|e| PyValueError::new_err(format!("quads[{i}]: {e}")))?;
-                footprints.push(footprint);
+                corners.push([0, 1, 2, 3].map(|c| [q(c, 0), q(c, 1)]));
+            }
+            let checked = py.detach(|| {
+                map_runs_on_threads(&corners, threads, |part, out| {
+                    out.extend(part.iter().map(|&c| Footprint::from_corners(c)));
+                })
+            });
+            let mut footprints = Vec::with_capacity(checked.len());
+            for (k, footprint) in checked.into_iter().enumerate() {
+                footprints
+                    .push(footprint.map_err(|e| {
+                        PyValueError::new_err(format!("quads[{}]: {e}", start + k))
+                    })?);
             }
             let mut filtered: Vec<(quadtex_core::Rgba, f64)> = Vec::with_capacity(footprints.len());
-            detached(py, &footprints, &mut filtered, |step, out| {
+            detached(py, &footprints, &mut filtered, threads, |step, out| {
                 let mut stats = quadtex_core::FilterStats::default();
                 out.extend(
                     step.iter()
@@ -166,6 +183,7 @@ impl Texture {
     ///   rects: `(N, 4)` array-like, rows `x0 z0 x1 z1` with `x0 <= x1`,
     ///     `z0 <= z1` (any real dtype, read as float64).
     ///   level: 0..30, or None (the tree's depth): traverse down to this level.
+    ///   threads: None (every core) or >= 1, as for `filter`.
     ///
     /// Returns: `(N, 4)` float64, linear premultiplied RGBA × area; divide by
     /// the rectangle's area for its mean colour.
@@ -174,13 +192,15 @@ impl Texture {
     /// `rects[i]`, `level` out of range), TypeError (`rects` does not hold
     /// real numbers), KeyboardInterrupt (Ctrl-C, checked every 50 ms or so).
     /// The GIL is released while integrating.
-    #[pyo3(signature = (rects, level = None))]
+    #[pyo3(signature = (rects, level = None, threads = None))]
     fn integrate<'py>(
         &self,
         py: Python<'py>,
         rects: &Bound<'py, PyAny>,
         level: Option<i64>,
+        threads: Option<i64>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let threads = batch_threads(threads)?;
         let k = match level {
             Some(level) => check_level(level, "level")?,
             None => self.tree.depth(),
@@ -200,7 +220,7 @@ impl Texture {
                     .map_err(|e| PyValueError::new_err(format!("rects[{i}]: {e}")))?;
                 fragments.push(fragment);
             }
-            detached(py, &fragments, &mut out, |step, out| {
+            detached(py, &fragments, &mut out, threads, |step, out| {
                 for f in step {
                     out.extend(tree.weighted_colour(f, k).0);
                 }
@@ -615,33 +635,52 @@ fn pack_file(
     })
 }
 
-/// Runs `work` over `items` (appending to `out`) with the GIL released, in
-/// stretches of about `SIGNAL_INTERVAL`, checking for Ctrl-C between them:
-/// a long batch raises `KeyboardInterrupt` promptly instead of at its end.
+/// Runs `work` over `items` (appending to `out`, in the items' order) on
+/// `threads` threads with the GIL released, in stretches of about
+/// `SIGNAL_INTERVAL`, checking for Ctrl-C between them: a long batch raises
+/// `KeyboardInterrupt` promptly instead of at its end.
 fn detached<T: Sync, O: Send>(
     py: Python<'_>,
     items: &[T],
     out: &mut Vec<O>,
+    threads: Threads,
     work: impl Fn(&[T], &mut Vec<O>) + Sync,
 ) -> PyResult<()> {
     let mut done = 0;
+    // Items a stretch: doubled while a stretch takes under half the interval.
+    let mut stretch = STEP * threads.count();
     while done < items.len() {
-        let rest = &items[done..];
-        done += py.detach(|| {
-            let started = Instant::now();
-            let mut n = 0;
-            for step in rest.chunks(STEP) {
-                work(step, out);
-                n += step.len();
-                if started.elapsed() >= SIGNAL_INTERVAL {
-                    break;
-                }
-            }
-            n
-        });
+        let end = done.saturating_add(stretch).min(items.len());
+        let started = Instant::now();
+        let part = py.detach(|| map_runs_on_threads(&items[done..end], threads, &work));
+        out.extend(part);
+        done = end;
+        let took = started.elapsed();
+        if took < SIGNAL_INTERVAL / 2 {
+            stretch = stretch.saturating_mul(2);
+        } else if took > SIGNAL_INTERVAL {
+            stretch = (stretch / 2).max(STEP);
+        }
         py.check_signals()?;
     }
     Ok(())
+}
+
+/// The `threads` argument of a batch call: None for every core, else at
+/// least 1.
+fn batch_threads(threads: Option<i64>) -> PyResult<Threads> {
+    match threads {
+        None => Ok(Threads::EveryCore),
+        Some(n) => usize::try_from(n)
+            .ok()
+            .filter(|&n| n >= 1)
+            .map(Threads::from_count)
+            .ok_or_else(|| {
+                PyValueError::new_err(format!(
+                    "threads must be None (every core) or at least 1, got {n}"
+                ))
+            }),
+    }
 }
 
 /// The default limits (as the CLI's), with `memory_limit` bytes as the

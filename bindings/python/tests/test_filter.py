@@ -193,6 +193,26 @@ def test_default_calls_keep_their_bound(rng):
     assert (budgeted > 1 / 512).sum() > len(rects) // 2
 
 
+def test_batches_give_the_same_bits_on_any_number_of_threads(rng):
+    tex = quadtex.pack(photo_like(rng))
+    rects = random_rects(rng, 3000, lo=-0.5, hi=1.5)
+    quads = rect_quads(rects)
+    # Projective footprints: the far corner pulled outwards (still convex).
+    quads[:, 2] += 0.3 * (quads[:, 2] - quads[:, 0])
+    one, one_bound = tex.filter(quads, return_bound=True, threads=1)
+    for threads in (None, 2, 5):
+        got, bound = tex.filter(quads, return_bound=True, threads=threads)
+        np.testing.assert_array_equal(got, one)
+        np.testing.assert_array_equal(bound, one_bound)
+    inside = random_rects(rng, 3000)
+    np.testing.assert_array_equal(tex.integrate(inside, threads=3), tex.integrate(inside, threads=1))
+    for bad in (0, -2):
+        with pytest.raises(ValueError, match="threads must be None"):
+            tex.filter(quads[:2], threads=bad)
+        with pytest.raises(ValueError, match="threads must be None"):
+            tex.integrate(inside[:2], threads=bad)
+
+
 def test_bow_ties_and_huge_coordinates_are_value_errors(random_texels):
     tex = quadtex.pack(random_texels)
     bow = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]])

@@ -122,6 +122,11 @@ pub struct QtxFilterOptions {
     /// fixed level in 0..=`QTX_MAX_DEPTH` (clamped to the texture's depth)
     /// every square is refined to.
     pub level: c_int,
+    /// Threads a batch runs on: 0 (the default) for one a core, or at
+    /// least 1 (1 runs on the calling thread only, for callers that run
+    /// batches on threads of their own). The colours are bit-identical
+    /// whatever the count.
+    pub threads: c_int,
 }
 
 /// Options of `qtx_pack_svg`. Start from `qtx_svg_options_default()` and
@@ -473,7 +478,9 @@ pub unsafe extern "C" fn qtx_pack_tiles(
 ///
 /// Each colour is within `options.error_bound` of the exact mean (relative
 /// to the texture's contrast), whatever the footprint's size; use
-/// `qtx_filter_with_bounds` for the bound each quad reached.
+/// `qtx_filter_with_bounds` for the bound each quad reached. The batch runs
+/// on every core unless `options.threads` says how many threads; the
+/// colours are bit-identical whatever the count.
 ///
 /// # Safety
 /// `texture` is NULL or a live texture from `qtx_open` / `qtx_pack`;

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use quadtex_core::MAX_VECTOR_LEVEL;
 use quadtex_core::{
-    BuildOptions, FilterOptions, Footprint, MAX_DEPTH, QuadTree, Rgba, Texture, Weighting, Wrap,
-    WrapMode,
+    BuildOptions, FilterOptions, Footprint, MAX_DEPTH, QuadTree, Rgba, Texture, Threads, Weighting,
+    Wrap, WrapMode,
 };
 
 use crate::error::Failure;
@@ -254,6 +254,7 @@ pub(crate) fn default_options() -> QtxFilterOptions {
             quadtex_core::LevelOfDetail::Fixed(_) => 1.0 / 512.0,
         },
         level: QtxLevel::Auto as i32,
+        threads: 0,
     }
 }
 
@@ -271,7 +272,9 @@ fn wrap_mode(value: i32, field: &str) -> Result<WrapMode, Failure> {
 
 /// The C options checked and converted; every message names the field
 /// (`options.weighting`).
-pub(crate) fn convert_options(o: &QtxFilterOptions) -> Result<(Wrap, FilterOptions), Failure> {
+pub(crate) fn convert_options(
+    o: &QtxFilterOptions,
+) -> Result<(Wrap, FilterOptions, Threads), Failure> {
     let x = wrap_mode(o.wrap_x, "wrap_x")?;
     let z = wrap_mode(o.wrap_z, "wrap_z")?;
     for (i, &c) in o.border.iter().enumerate() {
@@ -313,7 +316,13 @@ pub(crate) fn convert_options(o: &QtxFilterOptions) -> Result<(Wrap, FilterOptio
             })?;
         options = options.with_level(level);
     }
-    Ok((wrap, options))
+    let threads = usize::try_from(o.threads).map_err(|_| {
+        Failure::invalid(format!(
+            "options.threads must be 0 (one a core) or at least 1, got {}",
+            o.threads
+        ))
+    })?;
+    Ok((wrap, options, Threads::from_count(threads)))
 }
 
 /// Whether two buffers, given as address and length in bytes, share a byte.
@@ -332,22 +341,28 @@ pub(crate) fn filter(
     out: &mut [f32],
     mut bounds: Option<&mut [f64]>,
 ) -> Result<(), Failure> {
-    let (wrap, options) = convert_options(options)?;
-    let footprints = quads
+    let (wrap, options, threads) = convert_options(options)?;
+    let quads: Vec<[f64; 8]> = quads
         .chunks_exact(8)
-        .enumerate()
-        .map(|(i, q)| {
+        .map(|q| [q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7]])
+        .collect();
+    // Checked on every core too: the first bad quad is named.
+    let checked = quadtex_core::map_runs_on_threads(&quads, threads, |part, out| {
+        out.extend(part.iter().map(|q| {
             Footprint::from_corners([[q[0], q[1]], [q[2], q[3]], [q[4], q[5]], [q[6], q[7]]])
-                .map_err(|e| Failure::from(e).context(&format!("quad {i}")))
-        })
+        }));
+    });
+    let footprints = checked
+        .into_iter()
+        .enumerate()
+        .map(|(i, f)| f.map_err(|e| Failure::from(e).context(&format!("quad {i}"))))
         .collect::<Result<Vec<_>, _>>()?;
     let texture = texture.texture.with_wrap(wrap);
-    let mut stats = quadtex_core::FilterStats::default();
-    for (i, (footprint, pixel)) in footprints.iter().zip(out.chunks_exact_mut(4)).enumerate() {
-        let (colour, bound) = texture.filter_with_bound(footprint, &options, &mut stats);
+    let filtered = texture.filter_batch_with_bounds(&footprints, &options, threads);
+    for (i, ((colour, bound), pixel)) in filtered.iter().zip(out.chunks_exact_mut(4)).enumerate() {
         pixel.copy_from_slice(&colour.to_array());
         if let Some(b) = bounds.as_deref_mut() {
-            b[i] = bound;
+            b[i] = *bound;
         }
     }
     Ok(())

@@ -93,7 +93,8 @@ fn constants_match_the_core() {
         c_int::from(quadtex_core::MAX_VECTOR_LEVEL)
     );
     let d = qtx_filter_options_default();
-    let (wrap, options) = ops::convert_options(&d).unwrap();
+    let (wrap, options, threads) = ops::convert_options(&d).unwrap();
+    assert_eq!(threads, quadtex_core::Threads::EveryCore);
     assert_eq!(wrap, quadtex_core::Wrap::REPEAT);
     assert_eq!(options, quadtex_core::FilterOptions::default());
 }
@@ -189,7 +190,7 @@ fn bad_options_name_the_field() {
     let texture = checker();
     let quad = rect(0.0, 0.0, 1.0, 1.0);
     let d = qtx_filter_options_default();
-    let cases: [(QtxFilterOptions, &str); 8] = [
+    let cases: [(QtxFilterOptions, &str); 9] = [
         (QtxFilterOptions { wrap_x: 4, ..d }, "options.wrap_x"),
         (QtxFilterOptions { wrap_z: -1, ..d }, "options.wrap_z"),
         (
@@ -216,6 +217,7 @@ fn bad_options_name_the_field() {
         ),
         (QtxFilterOptions { level: 31, ..d }, "options.level"),
         (QtxFilterOptions { level: -2, ..d }, "options.level"),
+        (QtxFilterOptions { threads: -1, ..d }, "options.threads"),
     ];
     for (options, field) in cases {
         let mut out = [0.0f32; 4];
@@ -308,6 +310,44 @@ fn filtering_matches_the_texture() {
     let status = unsafe { qtx_filter(texture, quads.as_ptr().cast(), 2, null(), out.as_mut_ptr()) };
     assert_eq!(status, QtxStatus::Ok);
     assert_eq!(out, [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+    // A batch on one thread, on every core and on three: the same bits.
+    let many: Vec<[f64; 8]> = (0..1000)
+        .map(|i| {
+            let (x, z, s) = (
+                f64::from(i % 37) * 0.11,
+                f64::from(i / 37) * 0.07,
+                0.01 + f64::from(i % 11) * 0.3,
+            );
+            [
+                x,
+                z,
+                x + s,
+                z + 0.1 * s,
+                x + 1.2 * s,
+                z + s,
+                x - 0.1 * s,
+                z + 0.8 * s,
+            ]
+        })
+        .collect();
+    let batch = |threads: c_int| {
+        let options = QtxFilterOptions { threads, ..d };
+        let mut out = vec![0.0f32; 4 * many.len()];
+        let status = unsafe {
+            qtx_filter(
+                texture,
+                many.as_ptr().cast(),
+                many.len(),
+                &options,
+                out.as_mut_ptr(),
+            )
+        };
+        assert_eq!(status, QtxStatus::Ok);
+        out.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    };
+    let one = batch(1);
+    assert_eq!(batch(0), one);
+    assert_eq!(batch(3), one);
     unsafe { qtx_free(texture) };
 }
 

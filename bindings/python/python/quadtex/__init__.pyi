@@ -87,6 +87,7 @@ class Texture:
         level: Optional[int] = None,
         budget: Optional[int] = None,
         return_bound: bool = False,
+        threads: Optional[int] = None,
     ) -> Union[
         npt.NDArray[np.float32],
         Tuple[npt.NDArray[np.float32], npt.NDArray[np.float64]],
@@ -116,6 +117,9 @@ class Texture:
             ``error_bound``; a footprint it stops reports a bound above
             ``error_bound``.
         return_bound: also return each footprint's error bound reached.
+        threads: ``None`` (every core) or ``>= 1`` (1: the calling thread
+            only, for callers that run batches on threads of their own);
+            the results are bit-identical whatever the count.
 
         Returns ``(N, 4)`` float32 linear premultiplied RGBA; with
         ``return_bound=True`` the pair ``(rgba, bound)``, ``bound`` an
@@ -129,13 +133,17 @@ class Texture:
         """
 
     def integrate(
-        self, rects: npt.ArrayLike, level: Optional[int] = None
+        self,
+        rects: npt.ArrayLike,
+        level: Optional[int] = None,
+        threads: Optional[int] = None,
     ) -> npt.NDArray[np.float64]:
         """Integral of colour over each rectangle's overlap with the unit
         square, no wrap: what ``quadtex query`` prints.
 
         rects: ``(N, 4)`` rows ``x0 z0 x1 z1`` with ``x0 <= x1``, ``z0 <= z1``.
         level: traverse down to this level (0..30; default the tree's depth).
+        threads: ``None`` (every core) or ``>= 1``, as for :meth:`filter`.
 
         Returns ``(N, 4)`` float64 linear premultiplied RGBA × area; divide
         by the rectangle's area for its mean colour.

@@ -7,6 +7,7 @@
 //! over tiles ([`tiles`]) and squares; [`few_cells`] and [`scan`] the
 //! direct scans that answer small regions before any walk is set up.
 
+pub(crate) mod batch;
 pub(crate) mod few_cells;
 pub(crate) mod footprint;
 pub(crate) mod options;

@@ -24,6 +24,7 @@
 use std::sync::Arc;
 
 use crate::colour::{ColourEncoding, Rgba, WeightedColour};
+use crate::filter::batch::{Threads, map_runs_on_threads};
 use crate::filter::footprint::Footprint;
 use crate::filter::options::{FilterOptions, FilterStats, Weighting};
 use crate::filter::pixel_filter::PixelFilter;
@@ -240,14 +241,35 @@ impl Texture {
         region::uniform_colour_over(&self.tree, self.wrap, projection, span, pixel, options)
     }
 
-    /// [`Texture::filter`] over a slice, on the calling thread; `out[i]` is
-    /// the colour of `footprints[i]`.
+    /// [`Texture::filter`] over a slice, on every core; `out[i]` is the
+    /// colour of `footprints[i]`, bit for bit what [`Texture::filter`]
+    /// gives it. [`Texture::filter_batch_with_bounds`] chooses the threads.
     pub fn filter_batch(&self, footprints: &[Footprint], options: &FilterOptions) -> Vec<Rgba> {
-        let mut stats = FilterStats::default();
-        footprints
-            .iter()
-            .map(|f| self.filter_counted(f, options, &mut stats))
-            .collect()
+        map_runs_on_threads(footprints, Threads::EveryCore, |part, out| {
+            let mut stats = FilterStats::default();
+            out.extend(
+                part.iter()
+                    .map(|f| self.filter_counted(f, options, &mut stats)),
+            );
+        })
+    }
+
+    /// [`Texture::filter_with_bound`] over a slice, on `threads` threads:
+    /// `out[i]` is the colour of `footprints[i]` and its error bound, bit
+    /// for bit the same whatever the thread count.
+    pub fn filter_batch_with_bounds(
+        &self,
+        footprints: &[Footprint],
+        options: &FilterOptions,
+        threads: Threads,
+    ) -> Vec<(Rgba, f64)> {
+        map_runs_on_threads(footprints, threads, |part, out| {
+            let mut stats = FilterStats::default();
+            out.extend(
+                part.iter()
+                    .map(|f| self.filter_with_bound(f, options, &mut stats)),
+            );
+        })
     }
 
     /// The integral (linear, premultiplied colour × area) over the fragment,
