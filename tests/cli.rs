@@ -1100,7 +1100,10 @@ fn tiff_packs_as_png_and_tiled_tiff_as_its_tiles() {
     let (whole_cog, _) = pack("pack", &cog, "cog-whole.qtx");
     let (tiled_cog, summary) = pack("pack-tiles", &cog, "cog-tiles.qtx");
     assert_eq!(tiled_cog, whole_cog);
-    assert!(summary.contains(": 56x40 texels,"), "{summary}");
+    assert!(
+        summary.contains("packed 4x3 tiles of 16x16 from ") && summary.contains(": 56x40 texels,"),
+        "{summary}"
+    );
     let one_thread = d.join("cog-1.qtx");
     let out = run(
         &[

@@ -68,8 +68,8 @@ pub fn run(args: Args) -> Result<()> {
     writeln!(
         text,
         "packed {}x{} tiles of {}x{} from {} -> {}: {width}x{height} texels, {} nodes, depth {}, {}; RGBA8 raster / tree = {:.1}, raster+mips / tree = {:.1}; {error}{}; packed in {packed:.2} s on {threads} thread{}, {:.2} s with writing{}",
-        folder.tiles(),
-        folder.tiles(),
+        width.div_ceil(folder.side()),
+        height.div_ceil(folder.side()),
         folder.side(),
         folder.side(),
         args.dir.display(),
