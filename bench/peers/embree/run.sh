@@ -19,8 +19,8 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/../../.." && pwd)
 width=${1:-1920}
 height=${2:-1080}
-passes=${3:-3}
-rounds=${4:-5}
+passes=${3:-5}
+rounds=${4:-7}
 quality=${5:-high}
 [ "$rounds" -ge 5 ] || { echo "run.sh: ROUNDS must be at least 5" >&2; exit 2; }
 bash "$root/bench/peers/embree/install.sh"
