@@ -13,6 +13,7 @@ mod output;
 mod pack;
 mod pack_tiles;
 mod query;
+mod rays;
 mod render;
 mod sample;
 
@@ -53,6 +54,7 @@ enum Command {
     Demo(render::DemoArgs),
     Compare(compare::Args),
     Footprints(footprints::Args),
+    Rays(rays::Args),
     Diff(diff::Args),
     Bench(bench::Args),
     Sample(sample::Args),
@@ -76,6 +78,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Some(Command::Demo(args)) => render::run_demo(args),
         Some(Command::Compare(args)) => compare::run(args),
         Some(Command::Footprints(args)) => footprints::run(args),
+        Some(Command::Rays(args)) => rays::run(args),
         Some(Command::Diff(args)) => diff::run(args),
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Sample(args)) => sample::run(args),
@@ -143,6 +146,7 @@ mod tests {
             "demo",
             "compare",
             "footprints",
+            "rays",
             "bench",
         ] {
             let help = parse_error(&[cmd, "--help"]).to_string();

@@ -62,24 +62,35 @@ pub(crate) fn lambert(
     match rays.scene.lighting {
         Lighting::Unlit => [1.0; 3],
         Lighting::Lambert { direction, .. } => {
-            let n = if normal.dot(ray.direction) > 0.0 {
-                -normal
-            } else {
-                normal
-            };
-            let cos = n.dot(direction).max(0.0);
-            let lit = cos > 0.0 && {
-                let distance = (point - ray.origin).length();
-                let shadow = Ray {
-                    origin: point + n * 1e-6 * (1.0 + distance),
-                    direction,
-                };
-                !rays.occluded_leaving(&shadow, from)
-            };
+            let (cos, shadow) = sun_ray(direction, normal, point, ray);
+            let lit = shadow.is_some_and(|shadow| !rays.occluded_leaving(&shadow, from));
             let k = if lit { cos as f32 } else { 0.0 };
             lit_factor(&rays.scene.lighting, k)
         }
     }
+}
+
+/// The sun's `cos` at `point` (normal `normal`, turned to face `ray`) for
+/// a sun towards `direction` (unit), at least 0, and the shadow ray
+/// [`lambert`] casts from there when the cos is positive: from `point`
+/// lifted along the normal by `10⁻⁶` of `1 +` its distance from the ray's
+/// origin, towards the sun. Shared with `quadtex rays`, which dumps these
+/// very rays for a peer ray caster.
+pub(crate) fn sun_ray(direction: Vec3, normal: Vec3, point: Vec3, ray: &Ray) -> (f64, Option<Ray>) {
+    let n = if normal.dot(ray.direction) > 0.0 {
+        -normal
+    } else {
+        normal
+    };
+    let cos = n.dot(direction).max(0.0);
+    let shadow = (cos > 0.0).then(|| {
+        let distance = (point - ray.origin).length();
+        Ray {
+            origin: point + n * 1e-6 * (1.0 + distance),
+            direction,
+        }
+    });
+    (cos, shadow)
 }
 
 /// The lighting factor per colour channel where the sun's `cos` is `k`

@@ -14,7 +14,8 @@
 //! ray's colour), `pixel` (pixel strategies: exact, supersampling, spheres),
 //! `render` (the parallel loop), [`path`] (camera paths for sequences),
 //! `stats` (what a render cost), `measure`
-//! (lookups and footprints for the comparison and peer benchmarks).
+//! (lookups and footprints for the comparison and peer benchmarks), `rays`
+//! (the renderer's rays dumped and timed for a peer ray caster).
 #![forbid(unsafe_code)]
 
 mod bvh;
@@ -29,6 +30,7 @@ mod options;
 mod parse;
 mod path;
 mod pixel;
+mod rays;
 mod reach;
 mod render;
 mod scene;
@@ -54,6 +56,10 @@ pub use measure::{
 pub use options::{PixelFilter, REFERENCE_SEED, RenderOptions, TextureFilter};
 pub use parse::{load_camera_path, load_scene, parse_camera_path, parse_obj, parse_scene};
 pub use path::{CameraPath, Key, MAX_PATH_FRAMES, MAX_PATH_KEYS};
+pub use rays::{
+    DumpKind, DumpRay, DumpSurface, MISS, PrimaryHit, RayDump, RayResults, RayTiming, ShadowRay,
+    ray_dump, read_ray_dump, read_ray_results, time_rays, write_ray_dump, write_ray_results,
+};
 pub use render::{render, render_into};
 pub use scene::{
     Camera, Geometry, Lighting, MESH_BYTES_PER_TRIANGLE, Mesh, Scene, SceneTexture, Sky, Surface,
