@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the C API's static library (cargo's dev profile), compiles
+# Builds the C API's static library (cargo's debug profile), compiles
 # examples/c/filter.c against include/quadtex.h with strict warnings, and runs
 # it from the repository root (it packs samples/threshold.svg and checks the
 # colours it filters). Extra arguments are passed to the program.
@@ -14,14 +14,9 @@ if ! command -v "$cc" >/dev/null 2>&1; then
   cc=gcc
 fi
 
+cargo build -p quadtex-capi
 target="${CARGO_TARGET_DIR:-target}"
 lib="$target/debug/libquadtex_capi.a"
-# scripts/test sets QUADTEX_CAPI_BUILT=1: `cargo test --workspace` has just
-# built the library (its features unified with the whole workspace's; a
-# build of this crate alone would compile every dependency again).
-if [ "${QUADTEX_CAPI_BUILT:-}" != 1 ]; then
-  cargo build -p quadtex-capi
-fi
 out="$target/c-examples"
 mkdir -p "$out"
 # Link the archive by name (not -lquadtex_capi, which would pick the .so).
