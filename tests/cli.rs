@@ -1087,14 +1087,11 @@ fn tiff_packs_as_png_and_tiled_tiff_as_its_tiles() {
         .collect();
     let cog = d.join("cog.tif");
     let cog_spec = Spec {
-        compression: 8,
-        ..Spec::rgb8(w as u32, h as u32, cropped)
-    };
-    let cog_spec = Spec {
         samples_per_pixel: 4,
         extra_samples: vec![2],
         tile: Some((16, 16)),
-        ..cog_spec
+        compression: 8,
+        ..Spec::rgb8(w as u32, h as u32, cropped)
     };
     std::fs::write(&cog, cog_spec.write()).unwrap();
     let (whole_cog, _) = pack("pack", &cog, "cog-whole.qtx");
