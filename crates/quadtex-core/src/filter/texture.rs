@@ -241,6 +241,21 @@ impl Texture {
         region::uniform_colour_over(&self.tree, self.wrap, projection, span, pixel, options)
     }
 
+    /// The colour of the texture over the whole texture-space box
+    /// `[lo, hi]` (closed), when one terminal square of the tree (under the
+    /// wrap) holds all of it; `None` when none does. When `Some(c)`, the
+    /// integral over any region whose image lies in the box is `c` times
+    /// its weight, exactly: a renderer whose map to texture space is only
+    /// known to within a margin can still answer exactly where the box of
+    /// every candidate image is uniform.
+    pub fn uniform_colour_in_box(&self, lo: [f64; 2], hi: [f64; 2]) -> Option<Rgba> {
+        let finite = lo.iter().chain(&hi).all(|v| v.is_finite());
+        if !(finite && lo[0] <= hi[0] && lo[1] <= hi[1]) {
+            return None;
+        }
+        super::wrap::uniform_colour_in(&self.tree, lo, hi, self.wrap)
+    }
+
     /// [`Texture::filter`] over a slice, on every core; `out[i]` is the
     /// colour of `footprints[i]`, bit for bit what [`Texture::filter`]
     /// gives it. [`Texture::filter_batch_with_bounds`] chooses the threads.

@@ -10,7 +10,7 @@ use quadtex_core::ConvexPolygon;
 
 use crate::caster::{Seen, seen_id};
 use crate::scene::{Geometry, Scene};
-use crate::view::{Placement, View, placement};
+use crate::view::{Placement, placement};
 
 use super::views::{SurfaceViews, ViewMemo, ViewRef, candidate_view};
 use super::{GAP_AREA, MAX_GAP_PRIMITIVES};
@@ -77,8 +77,8 @@ pub(super) fn boxes_apart((alo, ahi): Bounds, (blo, bhi): Bounds) -> bool {
 }
 
 /// Appends `view`'s region of `support` to `regions`, written in its place
-/// ([`View::region_into`]).
-pub(super) fn push_region(regions: &mut Regions, view: &View, support: &ConvexPolygon) {
+/// ([`ViewRef::region_into`]).
+pub(super) fn push_region(regions: &mut Regions, view: &ViewRef<'_>, support: &ConvexPolygon) {
     view.region_into(support, regions.next_slot());
     regions.keep_slot();
 }
@@ -552,13 +552,13 @@ impl<'a> Flood<'_, 'a> {
                     continue;
                 }
             };
-            let Some(triangle) = triangle else {
+            let (Some(triangle), Some(planar)) = (triangle, view.planar()) else {
                 i += 1;
                 continue;
             };
             // `lines()`: in front, then the edges in `Mesh::neighbour`'s order.
             let mut edges = [[0.0; 3]; 3];
-            for (e, l) in edges.iter_mut().zip(view.lines().skip(1)) {
+            for (e, l) in edges.iter_mut().zip(planar.lines().skip(1)) {
                 *e = l;
             }
             for (edge, [a, b, c]) in edges.into_iter().enumerate() {

@@ -75,6 +75,7 @@ mod cutting;
 mod lighting;
 mod pixel;
 mod sky;
+mod sphere;
 mod views;
 
 #[cfg(test)]

@@ -55,8 +55,9 @@ pub(crate) fn exact_pixel<'a>(
     if let [id] = candidates
         && !near.sky
         && let Some(view) = candidate_view(scene, cache, &mut scratch.memo, *id)?
+        && let Some(view) = view.planar()
         && let Some(colour) =
-            pixel.one_primitive(*id, &view, near.run, &mut scratch.uniform_span, stats)
+            pixel.one_primitive(*id, view, near.run, &mut scratch.uniform_span, stats)
     {
         return Some(colour);
     }
@@ -66,6 +67,7 @@ pub(crate) fn exact_pixel<'a>(
     if candidates.is_empty()
         && near.sky
         && views_miss(cache, &mut scratch.sky_span, filter, (x, y), support)
+        && cache.spheres_miss(support.bounds())
         && !cache.meshes_in(scene, support, &mut scratch.planes, |_| true)
     {
         let (c, w) = sky_integral(
@@ -216,6 +218,7 @@ impl<'a> ExactPixel<'_, 'a> {
         // the support (a quad's corner, a triangle's tip near a vertex): every
         // plane and quad of the scene is a candidate here, and every triangle
         // of a (small) mesh one of the centres sees.
+        let (lo, hi) = self.support.bounds();
         for (surface, s) in scene.surfaces.iter().enumerate() {
             let seen_here = |t: u32| candidates.contains(&seen_id(surface, t));
             match &s.geometry {
@@ -240,6 +243,14 @@ impl<'a> ExactPixel<'_, 'a> {
                             .and_then(|p| View::new(scene, surface, &p));
                         tried.push((seen_id(surface, t), view.is_some().then_some(views.len())));
                         views.extend(view.map(|v| ViewRef::Built(Rc::new(v))));
+                    }
+                }
+                Geometry::Sphere { .. } if !seen_here(0) => {
+                    if let Some(sphere) = cache.spheres.get(surface).and_then(Option::as_ref)
+                        && !sphere.misses_box(lo, hi)
+                    {
+                        tried.push((seen_id(surface, 0), Some(views.len())));
+                        views.push(ViewRef::Sphere(sphere));
                     }
                 }
                 _ => {}
@@ -455,7 +466,7 @@ impl<'a> ExactPixel<'_, 'a> {
         // at most the larger of full contrast and the sky's range off.
         sums.add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
         for (i, region) in cut.visible(regions) {
-            let (c, w, b) = shade_region(&self.shading, &views[i], region, None, &mut parts);
+            let (c, w, b) = shade_view(&self.shading, &views[i], region, &mut parts);
             sums.add(c, w, b);
         }
         for r in &cut.slivers {
@@ -504,7 +515,14 @@ impl<'a> ExactPixel<'_, 'a> {
                         None => candidate_view(scene, cache, memo, id)?,
                     };
                     if let Some(view) = view {
-                        let (c, w, b) = shade_region(&self.shading, &view, r, None, &mut parts);
+                        let (c, w, b) = match &view {
+                            ViewRef::Sphere(sphere) => {
+                                let mut part = ConvexPolygon::empty();
+                                sphere.region_into(r, &mut part);
+                                sphere.shade(&self.shading, &part, &mut parts)
+                            }
+                            _ => shade_view(&self.shading, &view, r, &mut parts),
+                        };
                         let beyond = (filter.integral(r, centre) - w).abs();
                         sums.add(c, w, b + w.abs() + beyond);
                     } else {
@@ -521,6 +539,29 @@ impl<'a> ExactPixel<'_, 'a> {
             self.shading.options.target_bound(),
         );
         Some(mean(sums.colour, sums.weight))
+    }
+}
+
+/// `(Σ colour·k, Σ k, bound)` of the primitive of `view` over screen
+/// `region` (a part of its region of the support): a planar one's
+/// ([`shade_region`]), or a sphere's ([`SphereView::shade`](super::sphere::SphereView::shade)) with the
+/// area its outline's chords leave out of the support as full contrast.
+fn shade_view(
+    shading: &Shading<'_>,
+    view: &ViewRef<'_>,
+    region: &ConvexPolygon,
+    stats: &mut PixelStats,
+) -> ([f64; 4], f64, f64) {
+    match view {
+        ViewRef::Sphere(sphere) => {
+            let (c, w, b) = sphere.shade(shading, region, stats);
+            let support = shading.filter.support(shading.centre);
+            (c, w, b + sphere.sliver_area(&support))
+        }
+        _ => match view.planar() {
+            Some(planar) => shade_region(shading, planar, region, None, stats),
+            None => ([0.0; 4], 0.0, 0.0),
+        },
     }
 }
 

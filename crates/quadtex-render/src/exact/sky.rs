@@ -42,7 +42,8 @@ impl SkySpan {
                 row: Some(y),
                 until: x.saturating_add(SKY_SPAN),
                 clear: (cache.views.iter().flatten())
-                    .all(|v| matches!(v.placement(&wide), Placement::Outside)),
+                    .all(|v| matches!(v.placement(&wide), Placement::Outside))
+                    && cache.spheres_miss(wide.bounds()),
                 wide: Some(wide),
                 meshes_clear: None,
             };

@@ -4,7 +4,6 @@
 //! ([`Flood`]), and the search of the meshes' hierarchies for what
 //! reaches into a screen polygon ([`SurfaceViews::meshes_in`]).
 
-use std::ops::Deref;
 use std::rc::Rc;
 
 use quadtex_core::ConvexPolygon;
@@ -17,9 +16,11 @@ use crate::scene::{Geometry, Hit, Scene};
 use crate::screen_bins::ScreenBins;
 use crate::view::View;
 
-/// The view of candidate `id`: `None` when it is not planar (a sphere: the
-/// pixel takes the tangent-plane path), `Some(None)` when it is seen
-/// edge-on. A mesh triangle's view comes from `memo` when a neighbouring
+use super::sphere::SphereView;
+
+/// The view of candidate `id`: `None` when it has none (a sphere that
+/// reaches behind the camera's plane: the pixel takes the tangent-plane
+/// path), `Some(None)` when it is seen edge-on. A mesh triangle's view comes from `memo` when a neighbouring
 /// pixel built it.
 pub(super) fn candidate_view<'a>(
     scene: &Scene,
@@ -30,6 +31,9 @@ pub(super) fn candidate_view<'a>(
     let (surface, triangle) = surface_and_triangle(id);
     if let Some(Some(view)) = cache.views.get(surface) {
         return Some(Some(ViewRef::Frame(view)));
+    }
+    if let Some(sphere) = cache.spheres.get(surface).and_then(Option::as_ref) {
+        return Some(Some(ViewRef::Sphere(sphere)));
     }
     if memo.slots.is_empty() {
         memo.slots.resize(ViewMemo::SLOTS, (0, None));
@@ -42,23 +46,59 @@ pub(super) fn candidate_view<'a>(
     Some(slot.1.clone().map(ViewRef::Built))
 }
 
-/// A view in a pixel's list: one of the frame's (a plane's or a quad's),
-/// or one built for a mesh triangle and shared with the memo. A view is
-/// about 330 bytes; a copy per use cost the terrain at 1920×1080 about
-/// 0.4 G instructions of `memcpy`, a shared one costs a count.
+/// A view in a pixel's list: one of the frame's (a plane's or a quad's,
+/// or a sphere's), or one built for a mesh triangle and shared with the
+/// memo. A view is about 330 bytes; a copy per use cost the terrain at
+/// 1920×1080 about 0.4 G instructions of `memcpy`, a shared one costs a
+/// count.
 #[derive(Clone, Debug)]
 pub(crate) enum ViewRef<'a> {
     Frame(&'a View),
     Built(Rc<View>),
+    Sphere(&'a SphereView),
 }
 
-impl Deref for ViewRef<'_> {
-    type Target = View;
-
-    fn deref(&self) -> &View {
+impl ViewRef<'_> {
+    /// The planar view, unless this is a sphere's.
+    pub(crate) fn planar(&self) -> Option<&View> {
         match self {
-            ViewRef::Frame(v) => v,
-            ViewRef::Built(v) => v,
+            ViewRef::Frame(v) => Some(v),
+            ViewRef::Built(v) => Some(v),
+            ViewRef::Sphere(_) => None,
+        }
+    }
+
+    /// The surface this is a view of.
+    pub(crate) fn surface(&self) -> usize {
+        match self {
+            ViewRef::Sphere(s) => s.surface(),
+            v => v.planar().map_or(0, View::surface),
+        }
+    }
+
+    /// The mesh triangle this is the view of, if it is one.
+    pub(crate) fn triangle(&self) -> Option<u32> {
+        self.planar().and_then(View::triangle)
+    }
+
+    /// Ray parameter of the camera's unnormalised ray through `s` where it
+    /// meets this primitive ([`View::depth_at`], [`SphereView::depth_at`]).
+    pub(crate) fn depth_at(&self, s: [f64; 2]) -> f64 {
+        match self {
+            ViewRef::Sphere(v) => v.depth_at(s),
+            v => v.planar().map_or(f64::INFINITY, |p| p.depth_at(s)),
+        }
+    }
+
+    /// This primitive's part of `support` (occlusion ignored), into `out`.
+    pub(crate) fn region_into(&self, support: &ConvexPolygon, out: &mut ConvexPolygon) {
+        match self {
+            ViewRef::Sphere(v) => v.region_into(support, out),
+            v => {
+                if let Some(p) = v.planar() {
+                    p.region_into(support, out);
+                }
+            }
         }
     }
 }
@@ -163,6 +203,9 @@ pub(crate) struct SurfaceViews {
     /// kept views ([`ViewMemo`]) of this frame from another's.
     pub(super) frame: u64,
     pub(super) views: Vec<Option<View>>,
+    /// The views of the spheres, by surface (`None`: another shape, or a
+    /// sphere reaching behind the camera's plane).
+    pub(super) spheres: Vec<Option<SphereView>>,
     /// The surfaces that are meshes.
     meshes: Vec<usize>,
     /// Where the frame's mesh triangles may reach on the screen, once the
@@ -186,6 +229,9 @@ impl SurfaceViews {
                 _ => None,
             })
             .collect();
+        let spheres = (0..scene.surfaces.len())
+            .map(|i| SphereView::new(scene, i))
+            .collect();
         let meshes = (scene.surfaces.iter().enumerate())
             .filter(|(_, s)| matches!(s.geometry, Geometry::Mesh(_)))
             .map(|(i, _)| i)
@@ -194,6 +240,7 @@ impl SurfaceViews {
         SurfaceViews {
             frame: FRAMES.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             views,
+            spheres,
             meshes,
             reach: MeshReach::everywhere(),
             bins: None,
@@ -329,6 +376,12 @@ impl SurfaceViews {
             return (found.iter()).any(|&(surface, _, t)| visit(seen_id(surface as usize, t)));
         }
         self.search_hierarchies(scene, polygon, (lo, hi), planes, visit)
+    }
+
+    /// Whether every sphere's outline misses the screen box `(lo, hi)`
+    /// (by its box; a sphere with no view does not count).
+    pub(super) fn spheres_miss(&self, (lo, hi): ([f64; 2], [f64; 2])) -> bool {
+        (self.spheres.iter().flatten()).all(|s| s.misses_box(lo, hi))
     }
 
     /// The views of the planes and quads, by surface (`None`: another
