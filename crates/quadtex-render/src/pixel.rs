@@ -1,8 +1,9 @@
 //! Pixel strategies: the exact pixel ([`crate::exact`]), stratified
-//! supersampling, and the tangent-plane path for pixels that involve a
-//! sphere.
+//! supersampling, and the tangent-plane path for the contenders' texture
+//! filters and for the quadtree's pixels that involve a sphere reaching
+//! behind the camera's plane.
 //!
-//! **Spheres.** A sphere is not planar, so its pixels use the tangent plane
+//! **Tangent plane.** A sphere is not planar, so these pixels use the tangent plane
 //! at the centre ray's hit (first order in the footprint's size over the
 //! radius). With the box filter a pixel whose neighbourhood sees something
 //! else is checked at its corners; if they disagree with its centre, it is

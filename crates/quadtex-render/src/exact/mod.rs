@@ -41,8 +41,12 @@
 //! list too; a pixel whose centres in reach all see the sky is searched
 //! the same way (planes and quads are always tried). Limit, stated:
 //! primitives that intersect inside the pixel are ordered at one point.
-//! Spheres are not planar: pixels that involve one are left to the
-//! tangent-plane path ([`crate::pixel`]).
+//! A sphere wholly in front of the camera's plane is listed like a planar
+//! primitive (every sphere whose outline's box meets the support is
+//! tried): its region is the support clipped by chords of its outline, its
+//! depth is its near side's, and it is shaded piece by piece
+//! ([`sphere`]); one reaching behind the camera's plane leaves its pixels
+//! to the tangent-plane path ([`crate::pixel`]).
 //!
 //! **Spans.** Consecutive pixels of a row inside one primitive share one
 //! texture lookup and one shadow test where the rectangle their supports

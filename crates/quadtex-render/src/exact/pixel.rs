@@ -21,13 +21,14 @@ use super::sky::{
     SkySpan, Whole, sky_at_centre, sky_clear_above, sky_integral, sky_range, sky_step,
     sky_tolerance, views_miss,
 };
+use super::sphere::SphereView;
 use super::views::{Confirmed, SurfaceViews, ViewMemo, ViewRef, candidate_view};
 use super::{GAP_AREA, MAX_GAP_PRIMITIVES, MAX_MESH_SCAN};
 
 /// The filtered colour of pixel `(x, y)` whose neighbourhood's centres see
 /// `near.primitives` (and the sky if `near.sky`), or `None` when a
-/// candidate is not planar (a sphere): the caller then takes the
-/// tangent-plane path. `scratch`: the calling thread's buffers.
+/// candidate has no view (a sphere reaching behind the camera's plane):
+/// the caller then takes the tangent-plane path. `scratch`: the calling thread's buffers.
 pub(crate) fn exact_pixel<'a>(
     frame: &Frame<'_>,
     options: &FilterOptions,
@@ -55,11 +56,16 @@ pub(crate) fn exact_pixel<'a>(
     if let [id] = candidates
         && !near.sky
         && let Some(view) = candidate_view(scene, cache, &mut scratch.memo, *id)?
-        && let Some(view) = view.planar()
-        && let Some(colour) =
-            pixel.one_primitive(*id, view, near.run, &mut scratch.uniform_span, stats)
     {
-        return Some(colour);
+        let colour = match &view {
+            ViewRef::Sphere(sphere) => pixel.one_sphere(sphere, stats),
+            _ => view.planar().and_then(|view| {
+                pixel.one_primitive(*id, view, near.run, &mut scratch.uniform_span, stats)
+            }),
+        };
+        if colour.is_some() {
+            return colour;
+        }
     }
     // Only the sky in reach: the sky over the whole support unless a plane,
     // quad or mesh triangle no centre sees reaches into it (the case the
@@ -193,10 +199,27 @@ impl<'a> ExactPixel<'_, 'a> {
         Some(mean(sums.colour, sums.weight))
     }
 
+    /// The pixel when the one sphere its centres see holds its whole
+    /// support inside its outline's chords: one call to the sphere's
+    /// shading. `None` otherwise (the general path takes the pixel).
+    fn one_sphere(&self, sphere: &SphereView, stats: &mut PixelStats) -> Option<Rgba> {
+        if !sphere.holds(&self.support) {
+            return None;
+        }
+        let mut parts = PixelStats::default();
+        let (c, w, b) = sphere.shade(&self.shading, &self.support, &mut parts);
+        parts.weight_error = weight_error(w);
+        stats.merge_parts(&parts);
+        stats
+            .filter
+            .record_bound_against(b / w.abs().max(1e-300), self.shading.options.target_bound());
+        Some(mean(c, w))
+    }
+
     /// Lists the views of the primitives the centres see (`candidates`)
     /// and of every other plane, quad and triangle of a small mesh a
     /// centre sees, which may reach into the support unseen, with their
-    /// regions of the support. `None` when a candidate is not planar.
+    /// regions of the support. `None` when a candidate has no view.
     fn list_candidates(&self, candidates: &[Seen], scratch: &mut Scratch<'a>) -> Option<()> {
         let (scene, cache) = (self.shading.frame.scene, self.cache);
         let Scratch {
@@ -268,7 +291,7 @@ impl<'a> ExactPixel<'_, 'a> {
     /// ([`Flood::spread`]), each confirmed by a camera ray; an occluder a
     /// ray meets instead undoes the spread and joins the list. Returns how
     /// many primitives joined from the gaps (the occluder, if any); `None`
-    /// when the occluder is not planar.
+    /// when the occluder has no view.
     fn spread_to_neighbours(&self, scratch: &mut Scratch<'a>) -> Option<usize> {
         let Shading { frame, .. } = self.shading;
         let (scene, cache, support, x) = (frame.scene, self.cache, &self.support, self.at.0);
@@ -341,7 +364,7 @@ impl<'a> ExactPixel<'_, 'a> {
     /// the list (after `found` joined before, up to
     /// [`MAX_GAP_PRIMITIVES`]) and the cut takes them, until no gap adds
     /// one; the gaps left go to `scratch.gaps`. `None` when a primitive
-    /// found is not planar.
+    /// found has no view.
     fn search_gaps(&self, mut found: usize, scratch: &mut Scratch<'a>) -> Option<()> {
         let Shading { frame, .. } = self.shading;
         let (scene, cache, support) = (frame.scene, self.cache, &self.support);
@@ -442,8 +465,8 @@ impl<'a> ExactPixel<'_, 'a> {
 
     /// The pixel's colour from its cut: each visible region shaded, the
     /// slivers and the gaps as [`Gap`] says, and the weight the cut left
-    /// unaccounted in the bound. `None` when a gap's primitive is not
-    /// planar.
+    /// unaccounted in the bound. `None` when a gap's primitive has no
+    /// view.
     fn shade_cut(&self, scratch: &mut Scratch<'a>, stats: &mut PixelStats) -> Option<Rgba> {
         let Shading {
             frame,

@@ -29,10 +29,17 @@
 //! same texture point lies within `ε` pixels (`ε` the filter's error
 //! bound; `|J⁻¹·(H(s) − uv(s))|` with `J` the fitted map's Jacobian): a
 //! texture edge then moves by at most `ε` pixels, and a pixel it crosses
-//! by at most `ε` times its length times the contrast. Otherwise the
-//! square is split in four. Pieces still off at the deepest split (the
-//! poles, where longitude turns around a point) are integrated on their
-//! fitted map with their whole weight in the bound. Each kept piece is
+//! by at most `ε` times its length times the contrast. A piece whose
+//! every candidate image (the fit's, widened by twice its largest UV error
+//! at the check points) lies in one texture square is that square's colour
+//! times its weight, exactly, whatever the map's error. Otherwise the
+//! square is split in four. Near the outline the map's square root keeps
+//! the fit's error near `0.2·h` for a square of side `h` touching it, so the
+//! splits follow texture edges into the outline: a piece still off whose
+//! weight is at most an eighth of what is left of a budget of `ε/2` a call,
+//! or one at the deepest split (the poles, where longitude turns around a
+//! point), is integrated on its fitted map with its whole weight in the
+//! bound. Each kept piece is
 //! integrated exactly over the tree ([`quadtex_core::Texture::integrate_region`]),
 //! cut at the longitude seam (`u` a whole number) so that each side is read
 //! in `[0, 1)`, whatever the texture's wrap. Lambert light is taken at each
@@ -91,6 +98,14 @@ pub(crate) struct SphereView {
     /// The outline's screen box.
     lo: [f64; 2],
     hi: [f64; 2],
+}
+
+/// The chords that clip a support ([`SphereView::chords`]): half-planes
+/// `a·x + b·y + c ≥ 0`, the first `count` of `lines`.
+#[derive(Default)]
+struct Chords {
+    lines: [[f64; 3]; MAX_CHORDS_AROUND],
+    count: usize,
 }
 
 /// A point's place on the sphere: its UV (longitude, latitude), the point
@@ -258,18 +273,22 @@ impl SphereView {
         ]
     }
 
-    /// The chords that clip `support` (half-planes `a·x + b·y + c ≥ 0`
-    /// holding the outline's centre, into `lines`) and the area they leave
+    /// The chords that clip `support` (half-planes holding the outline's
+    /// centre, into `lines`) and the area they leave
     /// out of the outline's part near the support (screen pixels², the
     /// region's bound at full contrast). `None`: the support lies wholly
     /// outside the outline. No chords: it lies inside every one.
-    fn chords(&self, support: &ConvexPolygon, lines: &mut Vec<[f64; 3]>) -> Option<f64> {
-        lines.clear();
-        let q: Vec<[f64; 2]> = support.vertices().iter().map(|&s| self.circle(s)).collect();
+    fn chords(&self, support: &ConvexPolygon, lines: &mut Chords) -> Option<f64> {
+        lines.count = 0;
+        let mut corners = [[0.0; 2]; quadtex_core::MAX_VERTICES];
+        let n = support.vertices().len();
+        for (q, &s) in corners.iter_mut().zip(support.vertices()) {
+            *q = self.circle(s);
+        }
+        let q = &corners[..n];
         if q.is_empty() {
             return None;
         }
-        let n = q.len();
         // Is the circle's centre inside the (convex) polygon, and how near
         // does the polygon come to it?
         let orientation = support.signed_area().signum();
@@ -328,7 +347,8 @@ impl SphereView {
             } else {
                 -1.0
             };
-            lines.push([sign * la, sign * lb, sign * lc]);
+            lines.lines[lines.count] = [sign * la, sign * lb, sign * lc];
+            lines.count += 1;
             a = b;
         }
         let ab = (self.ea[0] * self.eb[1] - self.ea[1] * self.eb[0]).abs();
@@ -338,19 +358,26 @@ impl SphereView {
     /// The sphere's part of `support` (occlusion ignored): the support
     /// clipped by the chords of its outline ([`SphereView::chords`]).
     pub(crate) fn region_into(&self, support: &ConvexPolygon, out: &mut ConvexPolygon) {
-        let mut lines = Vec::new();
+        let mut lines = Chords::default();
         match self.chords(support, &mut lines) {
             None => *out = ConvexPolygon::empty(),
-            Some(_) if lines.is_empty() => out.clone_from(support),
-            Some(_) => support.clip_lines_into(&lines, out),
+            Some(_) if lines.count == 0 => out.clone_from(support),
+            Some(_) => support.clip_lines_into(&lines.lines[..lines.count], out),
         }
+    }
+
+    /// Whether `support` lies inside every chord of the outline (its
+    /// region is the whole support; no sliver is left out).
+    pub(crate) fn holds(&self, support: &ConvexPolygon) -> bool {
+        let mut lines = Chords::default();
+        self.chords(support, &mut lines) == Some(0.0) && lines.count == 0
     }
 
     /// The area the chords leave out of the outline near `support`
     /// ([`SphereView::chords`]): at most this much of the support's weight
     /// is the sphere's but taken as what lies behind it.
     pub(crate) fn sliver_area(&self, support: &ConvexPolygon) -> f64 {
-        self.chords(support, &mut Vec::new()).unwrap_or(0.0)
+        self.chords(support, &mut Chords::default()).unwrap_or(0.0)
     }
 
     /// `(Σ colour·k, Σ k, bound)` of the sphere over screen `region` (a
@@ -377,16 +404,20 @@ impl SphereView {
             return sums;
         }
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        // Weight that pieces still off the map's tolerance may take whole
+        // into the bound (each at most an eighth of what is left).
+        let mut spare = 0.5 * tolerance;
         let texture = shading.frame.texture(self.surface);
-        let mut cells = vec![(lo[0], lo[1], side, 0u32)];
-        while let Some((x0, y0, h, depth)) = cells.pop() {
+        let mut squares = vec![Square::new(lo, side)];
+        while let Some(mut square) = squares.pop() {
+            let Square { x0, y0, h, .. } = square;
             let piece = region.clip_rect(x0, y0, x0 + h, y0 + h);
             if piece.is_empty() {
                 continue;
             }
-            let fit = self.fit(x0, y0, h);
+            let fit = self.fit(&mut square);
             let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
-                self.map_error(&f, &piece, (x0, y0, h))
+                self.map_error(&f, &piece, &mut square)
             });
             // Exact whatever the map's error: one texture square holds
             // every image the piece may have (or there is no texture).
@@ -398,8 +429,8 @@ impl SphereView {
                     .map(Some),
                 _ => None,
             };
+            let w = shading.filter.integral(&piece, shading.centre);
             if let Some(colour) = uniform {
-                let w = shading.filter.integral(&piece, shading.centre);
                 let c = colour.map_or([w; 4], |c| c.to_array().map(|v| f64::from(v) * w));
                 if texture.is_some() {
                     stats.textured = 1;
@@ -409,12 +440,16 @@ impl SphereView {
                 add(&mut sums, self.finish(shading, &piece, c), w, 0.0);
                 continue;
             }
-            if error > tolerance && depth < MAX_SPLITS {
-                let g = 0.5 * h;
-                for (dx, dy) in [(0.0, 0.0), (g, 0.0), (0.0, g), (g, g)] {
-                    cells.push((x0 + dx, y0 + dy, g, depth + 1));
+            let off = error > tolerance;
+            let spent = off && w.abs() <= 0.125 * spare;
+            if off && !spent && square.depth < MAX_SPLITS {
+                for child in square.children(self) {
+                    squares.push(child);
                 }
                 continue;
+            }
+            if spent {
+                spare -= w.abs();
             }
             let fit = match fit {
                 Some(f) => f,
@@ -424,7 +459,7 @@ impl SphereView {
                 },
             };
             let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
-            let off = if error > tolerance { w.abs() } else { 0.0 };
+            let off = if off { w.abs() } else { 0.0 };
             add(&mut sums, self.finish(shading, &piece, c), w, b + off);
         }
         sums
@@ -435,18 +470,14 @@ impl SphereView {
     /// unwrapped around the first corner's), rows acting on
     /// `(px, py, 1)` with `w > 0` over the square; `None` when the corners'
     /// quadrilateral has no such map (it folds).
-    fn fit(&self, x0: f64, y0: f64, h: f64) -> Option<[[f64; 3]; 3]> {
-        let first = self.on_sphere([x0, y0]).uv;
-        let corner = |s: [f64; 2]| {
-            let [u, v] = self.on_sphere(s).uv;
+    fn fit(&self, square: &mut Square) -> Option<[[f64; 3]; 3]> {
+        let Square { x0, y0, h, .. } = *square;
+        let first = square.uv(self, 0, 0);
+        let mut corner = |i: usize, j: usize| {
+            let [u, v] = square.uv(self, i, j);
             [u + (first[0] - u).round(), v]
         };
-        let p = [
-            first,
-            corner([x0 + h, y0]),
-            corner([x0 + h, y0 + h]),
-            corner([x0, y0 + h]),
-        ];
+        let p = [first, corner(2, 0), corner(2, 2), corner(0, 2)];
         let quad = square_to_quad(p)?;
         // Screen to the unit square: (s − (x0, y0)) / h.
         let unit = [
@@ -497,18 +528,19 @@ impl SphereView {
         &self,
         fit: &[[f64; 3]; 3],
         piece: &ConvexPolygon,
-        (x0, y0, h): (f64, f64, f64),
+        square: &mut Square,
     ) -> (f64, f64) {
+        let Square { x0, y0, h, .. } = *square;
         let v = piece.vertices();
         let c = piece.centroid();
         let n = v.len();
         let mut worst = 0f64;
         let mut worst_uv = 0f64;
-        let mut check = |s: [f64; 2]| {
+        let mut check = |s: [f64; 2], square: &mut Square| {
             let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
             let hu = (fit[0][0] * s[0] + fit[0][1] * s[1] + fit[0][2]) / w;
             let hv = (fit[1][0] * s[0] + fit[1][1] * s[1] + fit[1][2]) / w;
-            let [u, uv_v] = self.on_sphere(s).uv;
+            let [u, uv_v] = square.uv_at(self, s);
             let e = [u + (hu - u).round() - hu, uv_v - hv];
             worst_uv = worst_uv.max(e[0].abs().max(e[1].abs()));
             // Jacobian of (a·s̃ / w·s̃): (a_xy − value·w_xy) / w.
@@ -532,15 +564,24 @@ impl SphereView {
             };
             worst = worst.max(if d.is_nan() { f64::INFINITY } else { d });
         };
-        check(c);
         // The fit is exact at the square's corners.
         let corner = |p: [f64; 2]| (p[0] == x0 || p[0] == x0 + h) && (p[1] == y0 || p[1] == y0 + h);
-        for i in 0..n {
-            let (a, b) = (v[i], v[(i + 1) % n]);
-            if !corner(a) {
-                check(a);
+        if n == 4 && v.iter().all(|&p| corner(p)) {
+            // The whole square: its centre and edges' midpoints, which
+            // are its children's corners.
+            for (i, j) in [(1, 1), (1, 0), (2, 1), (1, 2), (0, 1)] {
+                let s = square.point(i, j);
+                check(s, square);
             }
-            check([0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]);
+        } else {
+            check(c, square);
+            for i in 0..n {
+                let (a, b) = (v[i], v[(i + 1) % n]);
+                if !corner(a) {
+                    check(a, square);
+                }
+                check([0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])], square);
+            }
         }
         if worst_uv.is_nan() {
             worst_uv = f64::INFINITY;
@@ -727,6 +768,94 @@ impl SphereView {
     }
 }
 
+/// A square of a region's split, `[x0, x0 + h]²`, with the sphere's UV
+/// at the points of its 3 × 3 grid (corners, edges' midpoints, centre)
+/// as far as they have been computed: a whole square's checks are its
+/// children's corners, and its corners its parent's grid points.
+#[derive(Clone, Copy)]
+struct Square {
+    x0: f64,
+    y0: f64,
+    h: f64,
+    depth: u32,
+    /// `uv[j][i]` at [`Square::point`]`(i, j)`.
+    uv: [[Option<[f64; 2]>; 3]; 3],
+}
+
+impl Square {
+    fn new(lo: [f64; 2], h: f64) -> Square {
+        Square {
+            x0: lo[0],
+            y0: lo[1],
+            h,
+            depth: 0,
+            uv: [[None; 3]; 3],
+        }
+    }
+
+    /// Grid point `(i, j)`, `i, j ∈ 0..3` (the midpoints by the same
+    /// expression as an edge's midpoint).
+    fn point(&self, i: usize, j: usize) -> [f64; 2] {
+        let at = |lo: f64, k: usize| match k {
+            0 => lo,
+            1 => 0.5 * (lo + (lo + self.h)),
+            _ => lo + self.h,
+        };
+        [at(self.x0, i), at(self.y0, j)]
+    }
+
+    /// The sphere's UV at grid point `(i, j)`.
+    fn uv(&mut self, view: &SphereView, i: usize, j: usize) -> [f64; 2] {
+        if let Some(uv) = self.uv[j][i] {
+            return uv;
+        }
+        let uv = view.on_sphere(self.point(i, j)).uv;
+        self.uv[j][i] = Some(uv);
+        uv
+    }
+
+    /// The sphere's UV at `s`, kept when `s` is a grid point.
+    fn uv_at(&mut self, view: &SphereView, s: [f64; 2]) -> [f64; 2] {
+        let (xs, ys) = (
+            [0, 1, 2].map(|k| self.point(k, k)[0]),
+            [0, 1, 2].map(|k| self.point(k, k)[1]),
+        );
+        match (
+            xs.iter().position(|&x| x == s[0]),
+            ys.iter().position(|&y| y == s[1]),
+        ) {
+            (Some(i), Some(j)) => self.uv(view, i, j),
+            _ => view.on_sphere(s).uv,
+        }
+    }
+
+    /// The four quarters, their corners' UV taken from this grid.
+    fn children(&mut self, view: &SphereView) -> [Square; 4] {
+        for j in 0..3 {
+            for i in 0..3 {
+                self.uv(view, i, j);
+            }
+        }
+        let g = 0.5 * self.h;
+        [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(a, b)| {
+            let lo = self.point(a, b);
+            let mut uv = [[None; 3]; 3];
+            for (cj, pj) in [(0, b), (2, b + 1)] {
+                for (ci, pi) in [(0, a), (2, a + 1)] {
+                    uv[cj][ci] = self.uv[pj][pi];
+                }
+            }
+            Square {
+                x0: lo[0],
+                y0: lo[1],
+                h: g,
+                depth: self.depth + 1,
+                uv,
+            }
+        })
+    }
+}
+
 /// Heckbert's square-to-quad map: rows acting on `(x, y, 1)` of the unit
 /// square that send its corners `(0,0), (1,0), (1,1), (0,1)` to `p`;
 /// `None` when `p` is degenerate.
@@ -892,9 +1021,10 @@ mod outline_and_pixels {
         for c in [[128.0, 96.0], [150.0, 96.0], [128.0, 140.0], [170.0, 60.0]] {
             let error = |h: f64| {
                 let (x0, y0) = (c[0] - 0.5 * h, c[1] - 0.5 * h);
-                let fit = view.fit(x0, y0, h).unwrap();
+                let mut square = Square::new([x0, y0], h);
+                let fit = view.fit(&mut square).unwrap();
                 let piece = ConvexPolygon::rect(x0, y0, x0 + h, y0 + h);
-                view.map_error(&fit, &piece, (x0, y0, h)).0
+                view.map_error(&fit, &piece, &mut square).0
             };
             let (coarse, fine) = (error(1.0), error(0.25));
             assert!(
@@ -949,5 +1079,81 @@ mod outline_and_pixels {
             e < 2.0 * noise && e < s / 3.0,
             "exact {e}, 64 samples {s}, noise {noise}"
         );
+    }
+
+    /// The ball between a checkered wall behind it and a quad in front
+    /// of part of it, under each pixel filter: its outline against both,
+    /// and the quad's edges across it, against 64 × 64 stratified samples
+    /// weighted by the same filter.
+    #[test]
+    fn the_ball_among_planar_primitives_matches_a_converged_reference() {
+        use crate::math::Vec3;
+        use crate::scene::{Geometry, Surface, UvTransform};
+        let mut scene = checkered_ball();
+        let checker = scene.surfaces[0].texture.clone();
+        let surface = |geometry, scale: f64| Surface {
+            geometry,
+            texture: checker.clone(),
+            colour: quadtex_core::Rgba::opaque(0.8, 0.9, 1.0),
+            uv_transform: UvTransform {
+                scale: [scale, scale],
+                ..UvTransform::default()
+            },
+            wrap: quadtex_core::Wrap::REPEAT,
+        };
+        scene.surfaces.push(surface(
+            Geometry::Plane {
+                point: Vec3::new(0.0, 0.0, 2.0),
+                normal: Vec3::new(0.0, 0.0, -1.0),
+                u_axis: Vec3::new(1.0, 0.0, 0.0),
+                v_axis: Vec3::new(0.0, 1.0, 0.0),
+            },
+            0.7,
+        ));
+        scene.surfaces.push(surface(
+            Geometry::Quad {
+                origin: Vec3::new(0.3, -1.4, -1.5),
+                edge_u: Vec3::new(1.2, 0.3, 0.0),
+                edge_v: Vec3::new(0.0, 1.5, 0.4),
+            },
+            2.0,
+        ));
+        for pixel_filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
+            let render = |filter, seed| {
+                let options = RenderOptions {
+                    width: Some(48),
+                    height: Some(36),
+                    filter,
+                    pixel_filter,
+                    seed,
+                };
+                crate::render(&scene, &options, &|_, _| ())
+                    .unwrap()
+                    .0
+                    .pixels
+            };
+            let reference = render(TextureFilter::Supersample(64), 21);
+            let again = render(TextureFilter::Supersample(64), 22);
+            let exact = render(
+                TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
+                0,
+            );
+            let sampled = render(TextureFilter::Supersample(8), 23);
+            let rmse = |a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]| {
+                let sum: f64 = (a.iter().zip(b))
+                    .map(|(p, q)| {
+                        let d = f64::from(p.g - q.g);
+                        d * d
+                    })
+                    .sum();
+                (sum / a.len() as f64).sqrt()
+            };
+            let noise = rmse(&reference, &again) / std::f64::consts::SQRT_2;
+            let (e, s) = (rmse(&exact, &reference), rmse(&sampled, &reference));
+            assert!(
+                e < 2.0 * noise && e < s / 3.0,
+                "{pixel_filter:?}: exact {e}, 64 samples {s}, noise {noise}"
+            );
+        }
     }
 }
