@@ -68,6 +68,11 @@ const MAX_CHORDS_AROUND: usize = 12;
 /// angle aimed for, unless [`MAX_CHORDS`] caps it.
 const SLIVER_PER_PIXEL: f64 = 1e-6;
 
+/// The map's tolerance the rings along the outline are spaced for (the
+/// default error bound, pixels): with another bound the rings are the
+/// same and the pieces are checked against it.
+const RING_TOLERANCE: f64 = 1.0 / 512.0 / 4.0;
+
 /// Deepest split of a sphere's region below its bounding square.
 pub(super) const MAX_SPLITS: u32 = 10;
 
@@ -106,6 +111,19 @@ pub(crate) struct SphereView {
 struct Chords {
     lines: [[f64; 3]; MAX_CHORDS_AROUND],
     count: usize,
+    /// Chord `j` joins the outline's points at angles `from + j·delta` and
+    /// `from + (j + 1)·delta`.
+    from: f64,
+    delta: f64,
+}
+
+/// One chord's sector of the rings along the outline
+/// ([`SphereView::shade_ring`]).
+#[derive(Clone, Copy)]
+struct Ring<'a> {
+    chords: &'a Chords,
+    radii: &'a [f64],
+    chord: usize,
 }
 
 /// A point's place on the sphere: its UV (longitude, latitude), the point
@@ -336,6 +354,8 @@ impl SphereView {
         };
         let count = ((span / self.step).ceil() as usize).clamp(if inside { 8 } else { 1 }, most);
         let delta = span / count as f64;
+        lines.from = from;
+        lines.delta = delta;
         let mut a = self.outline(from);
         for j in 1..=count {
             let b = self.outline(from + delta * j as f64);
@@ -391,22 +411,215 @@ impl SphereView {
         stats: &mut PixelStats,
     ) -> ([f64; 4], f64, f64) {
         let mut sums = ([0.0; 4], 0.0, 0.0);
-        let add = |sums: &mut ([f64; 4], f64, f64), c: [f64; 4], w: f64, b: f64| {
-            for (a, v) in sums.0.iter_mut().zip(c) {
-                *a += v;
-            }
-            sums.1 += w;
-            sums.2 += b;
-        };
-        let (lo, hi) = region.bounds();
-        let side = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-        if region.is_empty() || !(side > 0.0 && side.is_finite()) {
+        if region.is_empty() {
             return sums;
         }
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         // Weight that pieces still off the map's tolerance may take whole
         // into the bound (each at most an eighth of what is left).
         let mut spare = 0.5 * tolerance;
+        let support = shading.filter.support(shading.centre);
+        let mut chords = Chords::default();
+        if self.chords(&support, &mut chords).is_none() || chords.count == 0 {
+            self.shade_squares(shading, region, &mut spare, &mut sums, stats);
+            return sums;
+        }
+        // Along the outline: rings of trapezoids between the chords'
+        // polygon and ones like it further in, each thin where the map's
+        // square root bends most; inside them, squares.
+        let radii = self.ring_radii(&chords);
+        if radii.len() < 2 {
+            self.shade_squares(shading, region, &mut spare, &mut sums, stats);
+            return sums;
+        }
+        // One texture square may hold all of it.
+        let (lo, hi) = region.bounds();
+        let mut whole = Square::new(lo, (hi[0] - lo[0]).max(hi[1] - lo[1]));
+        if let Some(fit) = self.fit(&mut whole)
+            && let Some(colour) = self.uniform(shading, &fit, region, &mut whole)
+        {
+            self.add_uniform(shading, region, colour, &mut sums, stats);
+            return sums;
+        }
+        for j in 0..chords.count {
+            let ring = Ring {
+                chords: &chords,
+                radii: &radii,
+                chord: j,
+            };
+            self.shade_ring(
+                shading,
+                region,
+                ring,
+                (0, radii.len() - 1),
+                &mut spare,
+                &mut sums,
+                stats,
+            );
+        }
+        let inner = radii[radii.len() - 1];
+        let lines: Vec<[f64; 3]> = (0..chords.count)
+            .map(|j| {
+                let l = chords.lines[j];
+                // The chord's line moved in, about the outline's centre.
+                let c = l[0] * self.e0[0] + l[1] * self.e0[1];
+                [l[0], l[1], inner * (l[2] + c) - c]
+            })
+            .collect();
+        let inside = region.clip_lines(lines);
+        if !inside.is_empty() {
+            self.shade_squares(shading, &inside, &mut spare, &mut sums, stats);
+        }
+        sums
+    }
+
+    /// The q-radii of the rings along the outline, from 1 inward: the
+    /// `k`-th about `4·ε·k²` pixels in (a fit across a ring of width `w`
+    /// at `δ` from the outline is off by about `w²/(16·δ)`, the first by
+    /// about `w/5`), to a pixel.
+    fn ring_radii(&self, chords: &Chords) -> Vec<f64> {
+        let theta = chords.from + 0.5 * chords.delta * chords.count as f64;
+        let (sn, cs) = theta.sin_cos();
+        let scale = (self.ea[0] * cs + self.eb[0] * sn).hypot(self.ea[1] * cs + self.eb[1] * sn);
+        let tolerance = RING_TOLERANCE;
+        let mut radii = vec![1.0];
+        for k in 1.. {
+            let depth = 4.0 * tolerance * f64::from(k) * f64::from(k);
+            let r = 1.0 - depth / scale;
+            if r.is_nan() || r <= 0.5 || depth > 1.0 {
+                break;
+            }
+            radii.push(r);
+        }
+        radii
+    }
+
+    /// The colour of the texture over all of `piece` when one texture
+    /// square holds every image it may have under `fit` (off by at most its
+    /// error at the check points, twice over) or under the sphere's map;
+    /// `Some(None)` when the surface has no texture.
+    fn uniform(
+        &self,
+        shading: &Shading<'_>,
+        fit: &[[f64; 3]; 3],
+        piece: &ConvexPolygon,
+        square: &mut Square,
+    ) -> Option<Option<quadtex_core::Rgba>> {
+        let Some(texture) = shading.frame.texture(self.surface) else {
+            return Some(None);
+        };
+        let (_, uv_error) = self.map_error(fit, piece, square);
+        let (lo, hi) = self.texture_box(fit, piece, uv_error)?;
+        texture.uniform_colour_in_box(lo, hi).map(Some)
+    }
+
+    /// Adds `piece` in one colour (`None`: the surface's own) to `sums`.
+    fn add_uniform(
+        &self,
+        shading: &Shading<'_>,
+        piece: &ConvexPolygon,
+        colour: Option<quadtex_core::Rgba>,
+        sums: &mut ([f64; 4], f64, f64),
+        stats: &mut PixelStats,
+    ) {
+        let w = shading.filter.integral(piece, shading.centre);
+        let c = colour.map_or([w; 4], |c| c.to_array().map(|v| f64::from(v) * w));
+        if colour.is_some() {
+            stats.textured = 1;
+            stats.filter.footprints += 1;
+            stats.filter.fragments += 1;
+        }
+        add(sums, self.finish(shading, piece, c), w, 0.0);
+    }
+
+    /// [`SphereView::shade`] of `region`'s part between rings `a` and `b`
+    /// of one chord's sector: one colour where one texture square holds
+    /// it; else, across several rings, each half in turn; across one, on
+    /// the projective map through the sphere's UV at its corners where
+    /// that is within the tolerance, else by squares.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_ring(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        ring: Ring<'_>,
+        (a, b): (usize, usize),
+        spare: &mut f64,
+        sums: &mut ([f64; 4], f64, f64),
+        stats: &mut PixelStats,
+    ) {
+        let Ring {
+            chords,
+            radii,
+            chord,
+        } = ring;
+        let (t0, t1) = (
+            chords.from + chords.delta * chord as f64,
+            chords.from + chords.delta * (chord + 1) as f64,
+        );
+        let at = |theta: f64, r: f64| {
+            let (sn, cs) = theta.sin_cos();
+            [
+                self.e0[0] + r * (self.ea[0] * cs + self.eb[0] * sn),
+                self.e0[1] + r * (self.ea[1] * cs + self.eb[1] * sn),
+            ]
+        };
+        let (r0, r1) = (radii[a], radii[b]);
+        let corners = [at(t0, r0), at(t1, r0), at(t1, r1), at(t0, r1)];
+        let Ok(trapezoid) = ConvexPolygon::new(&corners) else {
+            return;
+        };
+        let piece = region.intersect(&trapezoid);
+        if piece.is_empty() {
+            return;
+        }
+        let first = self.on_sphere(corners[0]).uv;
+        let mut uv = [first; 4];
+        for (t, &c) in uv.iter_mut().zip(&corners).skip(1) {
+            let [u, v] = self.on_sphere(c).uv;
+            *t = [u + (first[0] - u).round(), v];
+        }
+        let fit = quad_to_quad(corners, uv);
+        let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN);
+        if let Some(fit) = &fit
+            && let Some(colour) = self.uniform(shading, fit, &piece, &mut nowhere)
+        {
+            self.add_uniform(shading, &piece, colour, sums, stats);
+            return;
+        }
+        if b - a > 1 {
+            let middle = (a + b) / 2;
+            for half in [(a, middle), (middle, b)] {
+                self.shade_ring(shading, region, ring, half, spare, sums, stats);
+            }
+            return;
+        }
+        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        match fit {
+            Some(fit) if self.map_error(&fit, &piece, &mut nowhere).0 <= tolerance => {
+                let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
+                add(sums, self.finish(shading, &piece, c), w, b);
+            }
+            _ => self.shade_squares(shading, &piece, spare, sums, stats),
+        }
+    }
+
+    /// [`SphereView::shade`] of `region` by squares, from its bounding
+    /// square down, into `sums`.
+    fn shade_squares(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        spare: &mut f64,
+        sums: &mut ([f64; 4], f64, f64),
+        stats: &mut PixelStats,
+    ) {
+        let (lo, hi) = region.bounds();
+        let side = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        if region.is_empty() || !(side > 0.0 && side.is_finite()) {
+            return;
+        }
+        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         let texture = shading.frame.texture(self.surface);
         let mut squares = vec![Square::new(lo, side)];
         while let Some(mut square) = squares.pop() {
@@ -437,11 +650,11 @@ impl SphereView {
                     stats.filter.footprints += 1;
                     stats.filter.fragments += 1;
                 }
-                add(&mut sums, self.finish(shading, &piece, c), w, 0.0);
+                add(sums, self.finish(shading, &piece, c), w, 0.0);
                 continue;
             }
             let off = error > tolerance;
-            let spent = off && w.abs() <= 0.125 * spare;
+            let spent = off && w.abs() <= 0.125 * *spare;
             if off && !spent && square.depth < MAX_SPLITS {
                 for child in square.children(self) {
                     squares.push(child);
@@ -449,7 +662,7 @@ impl SphereView {
                 continue;
             }
             if spent {
-                spare -= w.abs();
+                *spare -= w.abs();
             }
             let fit = match fit {
                 Some(f) => f,
@@ -460,9 +673,8 @@ impl SphereView {
             };
             let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
             let off = if off { w.abs() } else { 0.0 };
-            add(&mut sums, self.finish(shading, &piece, c), w, b + off);
+            add(sums, self.finish(shading, &piece, c), w, b + off);
         }
-        sums
     }
 
     /// The projective map from the screen to the sphere's `(u, v)` through
@@ -853,6 +1065,51 @@ impl Square {
                 uv,
             }
         })
+    }
+}
+
+/// Adds a piece's `(Σ colour·k, Σ k, bound)` to `sums`.
+fn add(sums: &mut ([f64; 4], f64, f64), c: [f64; 4], w: f64, b: f64) {
+    for (a, v) in sums.0.iter_mut().zip(c) {
+        *a += v;
+    }
+    sums.1 += w;
+    sums.2 += b;
+}
+
+/// The projective map sending quadrilateral `from` to `to` corner by
+/// corner (rows acting on `(x, y, 1)`, `w > 0` at `from`'s corners);
+/// `None` when either is degenerate or the map folds.
+fn quad_to_quad(from: [[f64; 2]; 4], to: [[f64; 2]; 4]) -> Option<[[f64; 3]; 3]> {
+    let a = square_to_quad(from)?;
+    let b = square_to_quad(to)?;
+    // a⁻¹ up to a factor: its adjugate.
+    let adj = [
+        [
+            a[1][1] * a[2][2] - a[1][2] * a[2][1],
+            a[0][2] * a[2][1] - a[0][1] * a[2][2],
+            a[0][1] * a[1][2] - a[0][2] * a[1][1],
+        ],
+        [
+            a[1][2] * a[2][0] - a[1][0] * a[2][2],
+            a[0][0] * a[2][2] - a[0][2] * a[2][0],
+            a[0][2] * a[1][0] - a[0][0] * a[1][2],
+        ],
+        [
+            a[1][0] * a[2][1] - a[1][1] * a[2][0],
+            a[0][1] * a[2][0] - a[0][0] * a[2][1],
+            a[0][0] * a[1][1] - a[0][1] * a[1][0],
+        ],
+    ];
+    let m = mul(&b, &adj);
+    let w = |s: [f64; 2]| m[2][0] * s[0] + m[2][1] * s[1] + m[2][2];
+    let signs = from.map(w);
+    if signs.iter().all(|&v| v > 0.0) {
+        Some(m)
+    } else if signs.iter().all(|&v| v < 0.0) {
+        Some(m.map(|row| row.map(|v| -v)))
+    } else {
+        None
     }
 }
 
