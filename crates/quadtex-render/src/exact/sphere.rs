@@ -63,10 +63,10 @@ const MAX_CHORDS: usize = 10;
 /// small sphere): again within the polygon's capacity.
 const MAX_CHORDS_AROUND: usize = 12;
 
-/// Area the chords may leave out per pixel of outline (`a·δ²/12` for a
-/// chord of angle `δ` on an ellipse of major semi-axis `a`): the chord
-/// angle aimed for, unless [`MAX_CHORDS`] caps it.
-const SLIVER_PER_PIXEL: f64 = 1e-6;
+/// Area the chords may leave out of one support (pixels², at full
+/// contrast: a sixteenth of the default error bound): as few chords as
+/// keep the segments they leave out within it, up to [`MAX_CHORDS`].
+const SLIVER_BUDGET: f64 = 1.0 / 512.0 / 16.0;
 
 /// The map's tolerance the rings along the outline are spaced for (the
 /// default error bound, pixels): with another bound the rings are the
@@ -95,8 +95,6 @@ pub(crate) struct SphereView {
     eb: [f64; 2],
     /// Rows of the map from `s − e0` to the unit circle's coordinates `q`.
     to_circle: [[f64; 2]; 2],
-    /// Chord angle aimed for ([`SLIVER_PER_PIXEL`]).
-    step: f64,
     /// Texture point from the sphere's `(u, v, 1)`: the surface's UV
     /// transform, two affine rows.
     texture_from_uv: [[f64; 3]; 2],
@@ -187,8 +185,6 @@ impl SphereView {
         let (sa, sb) = (l1.sqrt(), l2.sqrt());
         let ea = [e1[0] / sa, e1[1] / sa];
         let eb = [e2[0] / sb, e2[1] / sb];
-        let major = 1.0 / sa;
-        let step = (12.0 * SLIVER_PER_PIXEL / major).sqrt().min(0.5);
         let extent = [ea[0].hypot(eb[0]), ea[1].hypot(eb[1])];
         let transform = s.uv_transform;
         let o = transform.apply([0.0, 0.0]);
@@ -205,7 +201,6 @@ impl SphereView {
             ea,
             eb,
             to_circle: [[e1[0] * sa, e1[1] * sa], [e2[0] * sb, e2[1] * sb]],
-            step,
             texture_from_uv: [
                 [ex[0] - o[0], ez[0] - o[0], o[0]],
                 [ex[1] - o[1], ez[1] - o[1], o[1]],
@@ -332,7 +327,8 @@ impl SphereView {
             return None;
         }
         let farthest = q.iter().fold(0f64, |m, p| m.max(p[0].hypot(p[1])));
-        if farthest <= (0.5 * self.step).cos() {
+        // Every corner inside the outline: so is the (convex) support.
+        if farthest <= 1.0 {
             return Some(0.0);
         }
         let (from, span, most) = if inside {
@@ -352,7 +348,15 @@ impl SphereView {
             }
             (reference + lo, hi - lo, MAX_CHORDS)
         };
-        let count = ((span / self.step).ceil() as usize).clamp(if inside { 8 } else { 1 }, most);
+        let ab = (self.ea[0] * self.eb[1] - self.ea[1] * self.eb[0]).abs();
+        let left_out = |count: usize| {
+            let delta = span / count as f64;
+            ab * count as f64 * 0.5 * (delta - delta.sin())
+        };
+        let fewest = if inside { 3 } else { 1 };
+        let count = (fewest..=most)
+            .find(|&c| left_out(c) <= SLIVER_BUDGET)
+            .unwrap_or(most);
         let delta = span / count as f64;
         lines.from = from;
         lines.delta = delta;
@@ -371,8 +375,7 @@ impl SphereView {
             lines.count += 1;
             a = b;
         }
-        let ab = (self.ea[0] * self.eb[1] - self.ea[1] * self.eb[0]).abs();
-        Some(ab * count as f64 * 0.5 * (delta - delta.sin()))
+        Some(left_out(count))
     }
 
     /// The sphere's part of `support` (occlusion ignored): the support
