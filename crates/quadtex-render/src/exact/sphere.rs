@@ -76,10 +76,21 @@ const RING_TOLERANCE: f64 = 1.0 / 512.0 / 4.0;
 /// Deepest split of a sphere's region below its bounding square.
 pub(super) const MAX_SPLITS: u32 = 10;
 
+thread_local! {
+    /// The sphere's UV at half-pixel grid points a thread computed lately:
+    /// four rows of the grid (row `2y` in slot `2y mod 4`), each tagged with
+    /// the view's stamp and its row, by column `2x`.
+    static HALF_PIXEL_UV: std::cell::RefCell<[((u64, u32), Vec<Option<[f64; 2]>>); 4]> =
+        std::cell::RefCell::default();
+}
+
 /// A sphere seen from the camera: its outline on the screen and what
 /// mapping a screen point to the sphere's UV takes. Built once per frame.
 #[derive(Debug, Clone)]
 pub(crate) struct SphereView {
+    /// Unique in the process: what tells this view's points in a thread's
+    /// [`HALF_PIXEL_UV`] from another's (0 is none's).
+    stamp: u64,
     surface: usize,
     centre: Vec3,
     radius: f64,
@@ -190,7 +201,9 @@ impl SphereView {
         let o = transform.apply([0.0, 0.0]);
         let ex = transform.apply([1.0, 0.0]);
         let ez = transform.apply([0.0, 1.0]);
+        static STAMPS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         let view = SphereView {
+            stamp: STAMPS.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             surface,
             centre,
             radius,
@@ -270,6 +283,34 @@ impl SphereView {
         }
     }
 
+    /// The sphere's UV at `s` ([`SphereView::on_sphere`]), kept in the
+    /// thread's [`HALF_PIXEL_UV`] when `s` lies on the half-pixel grid
+    /// (a pixel's corners, edges' midpoints and centre, shared with the
+    /// pixels beside, above and below it): the same bits either way.
+    fn uv_at_grid_point(&self, s: [f64; 2]) -> [f64; 2] {
+        let (x2, y2) = (2.0 * s[0], 2.0 * s[1]);
+        let on_grid = x2 == x2.floor() && y2 == y2.floor() && x2 >= 0.0 && y2 >= 0.0;
+        if !(on_grid && x2 < 65536.0 && y2 < 65536.0) {
+            return self.on_sphere(s).uv;
+        }
+        let (column, row) = (x2 as usize, y2 as u32);
+        let tag = (self.stamp, row);
+        HALF_PIXEL_UV
+            .try_with(|rows| {
+                let mut rows = rows.borrow_mut();
+                let slot = &mut rows[(row % 4) as usize];
+                if slot.0 != tag {
+                    slot.0 = tag;
+                    slot.1.clear();
+                }
+                if slot.1.len() <= column {
+                    slot.1.resize(column + 1, None);
+                }
+                *slot.1[column].get_or_insert_with(|| self.on_sphere(s).uv)
+            })
+            .unwrap_or_else(|_| self.on_sphere(s).uv)
+    }
+
     /// `s` in the coordinates that make the outline the unit circle.
     fn circle(&self, s: [f64; 2]) -> [f64; 2] {
         let (x, y) = (s[0] - self.e0[0], s[1] - self.e0[1]);
@@ -302,8 +343,13 @@ impl SphereView {
         if q.is_empty() {
             return None;
         }
+        // Every corner inside the outline: so is the (convex) support.
+        let farthest = q.iter().fold(0f64, |m, p| m.max(p[0] * p[0] + p[1] * p[1]));
+        if farthest <= 1.0 {
+            return Some(0.0);
+        }
         // Is the circle's centre inside the (convex) polygon, and how near
-        // does the polygon come to it?
+        // does the polygon come to it (squared)?
         let orientation = support.signed_area().signum();
         let mut inside = true;
         let mut nearest = f64::INFINITY;
@@ -321,15 +367,10 @@ impl SphereView {
                 0.0
             };
             let p = [a[0] + e[0] * t, a[1] + e[1] * t];
-            nearest = nearest.min(p[0].hypot(p[1]));
+            nearest = nearest.min(p[0] * p[0] + p[1] * p[1]);
         }
         if !inside && nearest >= 1.0 {
             return None;
-        }
-        let farthest = q.iter().fold(0f64, |m, p| m.max(p[0].hypot(p[1])));
-        // Every corner inside the outline: so is the (convex) support.
-        if farthest <= 1.0 {
-            return Some(0.0);
         }
         let (from, span, most) = if inside {
             (0.0, std::f64::consts::TAU, MAX_CHORDS_AROUND)
@@ -1024,7 +1065,7 @@ impl Square {
         if let Some(uv) = self.uv[j][i] {
             return uv;
         }
-        let uv = view.on_sphere(self.point(i, j)).uv;
+        let uv = view.uv_at_grid_point(self.point(i, j));
         self.uv[j][i] = Some(uv);
         uv
     }
