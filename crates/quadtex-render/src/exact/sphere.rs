@@ -76,12 +76,15 @@ const RING_TOLERANCE: f64 = 1.0 / 512.0 / 4.0;
 /// Deepest split of a sphere's region below its bounding square.
 pub(super) const MAX_SPLITS: u32 = 10;
 
+/// One row of [`HALF_PIXEL_UV`]: its tag `(view stamp, 2y)` and the UV
+/// by column `2x`, where computed.
+type GridRow = ((u64, u32), Vec<Option<[f64; 2]>>);
+
 thread_local! {
     /// The sphere's UV at half-pixel grid points a thread computed lately:
     /// four rows of the grid (row `2y` in slot `2y mod 4`), each tagged with
     /// the view's stamp and its row, by column `2x`.
-    static HALF_PIXEL_UV: std::cell::RefCell<[((u64, u32), Vec<Option<[f64; 2]>>); 4]> =
-        std::cell::RefCell::default();
+    static HALF_PIXEL_UV: std::cell::RefCell<[GridRow; 4]> = std::cell::RefCell::default();
 }
 
 /// A sphere seen from the camera: its outline on the screen and what
