@@ -131,11 +131,33 @@ struct Chords {
 
 /// One chord's sector of the rings along the outline
 /// ([`SphereView::shade_ring`]).
-#[derive(Clone, Copy)]
 struct Ring<'a> {
     chords: &'a Chords,
     radii: &'a [f64],
     chord: usize,
+    /// The screen point and the sphere's UV at ring `k`'s chord end `e`,
+    /// at `k·(chords + 1) + e`, where computed.
+    corners: &'a mut Vec<Option<([f64; 2], [f64; 2])>>,
+}
+
+impl Ring<'_> {
+    /// The screen point and UV at ring `k` on the chords' end `e`.
+    fn corner(&mut self, view: &SphereView, k: usize, e: usize) -> ([f64; 2], [f64; 2]) {
+        let index = k * (self.chords.count + 1) + e;
+        if let Some(found) = self.corners[index] {
+            return found;
+        }
+        let theta = self.chords.from + self.chords.delta * e as f64;
+        let (sn, cs) = theta.sin_cos();
+        let r = self.radii[k];
+        let s = [
+            view.e0[0] + r * (view.ea[0] * cs + view.eb[0] * sn),
+            view.e0[1] + r * (view.ea[1] * cs + view.eb[1] * sn),
+        ];
+        let found = (s, view.on_sphere(s).uv);
+        self.corners[index] = Some(found);
+        found
+    }
 }
 
 /// A point's place on the sphere: its UV (longitude, latitude), the point
@@ -483,21 +505,24 @@ impl SphereView {
         let (lo, hi) = region.bounds();
         let mut whole = Square::new(lo, (hi[0] - lo[0]).max(hi[1] - lo[1]));
         if let Some(fit) = self.fit(&mut whole)
-            && let Some(colour) = self.uniform(shading, &fit, region, &mut whole)
+            && let uv_error = self.map_error(&fit, region, &mut whole, &[]).1
+            && let Some(colour) = self.uniform(shading, &fit, region, uv_error)
         {
             self.add_uniform(shading, region, colour, &mut sums, stats);
             return sums;
         }
+        let mut corners = vec![None; radii.len() * (chords.count + 1)];
         for j in 0..chords.count {
-            let ring = Ring {
+            let mut ring = Ring {
                 chords: &chords,
                 radii: &radii,
                 chord: j,
+                corners: &mut corners,
             };
             self.shade_ring(
                 shading,
                 region,
-                ring,
+                &mut ring,
                 (0, radii.len() - 1),
                 &mut spare,
                 &mut sums,
@@ -542,20 +567,20 @@ impl SphereView {
     }
 
     /// The colour of the texture over all of `piece` when one texture
-    /// square holds every image it may have under `fit` (off by at most its
-    /// error at the check points, twice over) or under the sphere's map;
+    /// square holds every image it may have under `fit` or, off by at most
+    /// twice `uv_error` (the fit's at the check points), under the
+    /// sphere's map;
     /// `Some(None)` when the surface has no texture.
     fn uniform(
         &self,
         shading: &Shading<'_>,
         fit: &[[f64; 3]; 3],
         piece: &ConvexPolygon,
-        square: &mut Square,
+        uv_error: f64,
     ) -> Option<Option<quadtex_core::Rgba>> {
         let Some(texture) = shading.frame.texture(self.surface) else {
             return Some(None);
         };
-        let (_, uv_error) = self.map_error(fit, piece, square);
         let (lo, hi) = self.texture_box(fit, piece, uv_error)?;
         texture.uniform_colour_in_box(lo, hi).map(Some)
     }
@@ -589,30 +614,15 @@ impl SphereView {
         &self,
         shading: &Shading<'_>,
         region: &ConvexPolygon,
-        ring: Ring<'_>,
+        ring: &mut Ring<'_>,
         (a, b): (usize, usize),
         spare: &mut f64,
         sums: &mut ([f64; 4], f64, f64),
         stats: &mut PixelStats,
     ) {
-        let Ring {
-            chords,
-            radii,
-            chord,
-        } = ring;
-        let (t0, t1) = (
-            chords.from + chords.delta * chord as f64,
-            chords.from + chords.delta * (chord + 1) as f64,
-        );
-        let at = |theta: f64, r: f64| {
-            let (sn, cs) = theta.sin_cos();
-            [
-                self.e0[0] + r * (self.ea[0] * cs + self.eb[0] * sn),
-                self.e0[1] + r * (self.ea[1] * cs + self.eb[1] * sn),
-            ]
-        };
-        let (r0, r1) = (radii[a], radii[b]);
-        let corners = [at(t0, r0), at(t1, r0), at(t1, r1), at(t0, r1)];
+        let j = ring.chord;
+        let ends = [(a, j), (a, j + 1), (b, j + 1), (b, j)].map(|(k, e)| ring.corner(self, k, e));
+        let corners = ends.map(|(s, _)| s);
         let Ok(trapezoid) = ConvexPolygon::new(&corners) else {
             return;
         };
@@ -620,16 +630,15 @@ impl SphereView {
         if piece.is_empty() {
             return;
         }
-        let first = self.on_sphere(corners[0]).uv;
-        let mut uv = [first; 4];
-        for (t, &c) in uv.iter_mut().zip(&corners).skip(1) {
-            let [u, v] = self.on_sphere(c).uv;
-            *t = [u + (first[0] - u).round(), v];
-        }
+        let first = ends[0].1;
+        let uv = ends.map(|(_, [u, v])| [u + (first[0] - u).round(), v]);
         let fit = quad_to_quad(corners, uv);
         let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN);
+        let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
+            self.map_error(&f, &piece, &mut nowhere, &corners)
+        });
         if let Some(fit) = &fit
-            && let Some(colour) = self.uniform(shading, fit, &piece, &mut nowhere)
+            && let Some(colour) = self.uniform(shading, fit, &piece, uv_error)
         {
             self.add_uniform(shading, &piece, colour, sums, stats);
             return;
@@ -643,7 +652,7 @@ impl SphereView {
         }
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         match fit {
-            Some(fit) if self.map_error(&fit, &piece, &mut nowhere).0 <= tolerance => {
+            Some(fit) if error <= tolerance => {
                 let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
                 add(sums, self.finish(shading, &piece, c), w, b);
             }
@@ -677,7 +686,7 @@ impl SphereView {
             }
             let fit = self.fit(&mut square);
             let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
-                self.map_error(&f, &piece, &mut square)
+                self.map_error(&f, &piece, &mut square, &[])
             });
             // Exact whatever the map's error: one texture square holds
             // every image the piece may have (or there is no texture).
@@ -782,12 +791,17 @@ impl SphereView {
 
     /// The largest screen distance, at `piece`'s check points, between a
     /// point and the one the sphere's map sends where `fit` sends it
-    /// (first order: `|J⁻¹·(H(s) − uv(s))|`, `J` the fit's Jacobian).
+    /// (first order: `|J⁻¹·(H(s) − uv(s))|`, `J` the fit's Jacobian), and
+    /// the largest UV difference there. The check points: a whole
+    /// `square`'s centre and edges' midpoints; else the piece's centroid,
+    /// edges' midpoints and vertices but the square's corners and `exact`
+    /// (where the fit passes through the sphere's UV).
     fn map_error(
         &self,
         fit: &[[f64; 3]; 3],
         piece: &ConvexPolygon,
         square: &mut Square,
+        exact: &[[f64; 2]],
     ) -> (f64, f64) {
         let Square { x0, y0, h, .. } = *square;
         let v = piece.vertices();
@@ -836,7 +850,7 @@ impl SphereView {
             check(c, square);
             for i in 0..n {
                 let (a, b) = (v[i], v[(i + 1) % n]);
-                if !corner(a) {
+                if !corner(a) && !exact.contains(&a) {
                     check(a, square);
                 }
                 check([0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])], square);
@@ -1328,7 +1342,7 @@ mod outline_and_pixels {
                 let mut square = Square::new([x0, y0], h);
                 let fit = view.fit(&mut square).unwrap();
                 let piece = ConvexPolygon::rect(x0, y0, x0 + h, y0 + h);
-                view.map_error(&fit, &piece, &mut square).0
+                view.map_error(&fit, &piece, &mut square, &[]).0
             };
             let (coarse, fine) = (error(1.0), error(0.25));
             assert!(
