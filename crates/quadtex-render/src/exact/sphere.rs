@@ -140,6 +140,13 @@ struct Ring<'a> {
     corners: &'a mut Vec<Option<([f64; 2], [f64; 2])>>,
 }
 
+impl Chords {
+    /// The angle where chord (or sector) `j` starts.
+    fn angle(&self, j: usize) -> f64 {
+        self.from + self.delta * j as f64
+    }
+}
+
 impl Ring<'_> {
     /// The screen point and UV at ring `k` on the chords' end `e`.
     fn corner(&mut self, view: &SphereView, k: usize, e: usize) -> ([f64; 2], [f64; 2]) {
@@ -489,7 +496,8 @@ impl SphereView {
         let mut spare = 0.5 * tolerance;
         let support = shading.filter.support(shading.centre);
         let mut chords = Chords::default();
-        if self.chords(&support, &mut chords).is_none() || chords.count == 0 {
+        let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
+        if !crossing && !self.sectors_near_outline(&support, &mut chords) {
             self.shade_squares(shading, region, &mut spare, &mut sums, stats);
             return sums;
         }
@@ -531,18 +539,87 @@ impl SphereView {
         }
         let inner = radii[radii.len() - 1];
         let lines: Vec<[f64; 3]> = (0..chords.count)
-            .map(|j| {
-                let l = chords.lines[j];
-                // The chord's line moved in, about the outline's centre.
-                let c = l[0] * self.e0[0] + l[1] * self.e0[1];
-                [l[0], l[1], inner * (l[2] + c) - c]
-            })
+            .map(|j| self.chord_line(chords.angle(j), chords.angle(j + 1), inner))
             .collect();
         let inside = region.clip_lines(lines);
         if !inside.is_empty() {
             self.shade_squares(shading, &inside, &mut spare, &mut sums, stats);
         }
         sums
+    }
+
+    /// The line through the points at angles `t0` and `t1` on the
+    /// outline scaled by `r` about its centre, as `a·x + b·y + c ≥ 0` on
+    /// the centre's side.
+    fn chord_line(&self, t0: f64, t1: f64, r: f64) -> [f64; 3] {
+        let point = |t: f64| {
+            let (sn, cs) = t.sin_cos();
+            [
+                self.e0[0] + r * (self.ea[0] * cs + self.eb[0] * sn),
+                self.e0[1] + r * (self.ea[1] * cs + self.eb[1] * sn),
+            ]
+        };
+        let (a, b) = (point(t0), point(t1));
+        let (la, lb) = (a[1] - b[1], b[0] - a[0]);
+        let lc = -(la * a[0] + lb * a[1]);
+        let sign = if la * self.e0[0] + lb * self.e0[1] + lc >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        [sign * la, sign * lb, sign * lc]
+    }
+
+    /// The half-plane left of the ray from the outline's centre at angle
+    /// `t` (counter-clockwise of it, as angles grow).
+    fn left_of_ray(&self, t: f64) -> [f64; 3] {
+        let (sn, cs) = t.sin_cos();
+        let d = [
+            self.ea[0] * cs + self.eb[0] * sn,
+            self.ea[1] * cs + self.eb[1] * sn,
+        ];
+        [-d[1], d[0], d[1] * self.e0[0] - d[0] * self.e0[1]]
+    }
+
+    /// Sectors for a support wholly inside the outline but within about
+    /// a pixel and a half of it (the rings reach it): its angles seen from
+    /// the centre cut into pieces of about half a pixel along the outline,
+    /// into `sectors` (no chord lines: the support needs no clip). False
+    /// when the support lies further in, or holds the centre.
+    fn sectors_near_outline(&self, support: &ConvexPolygon, sectors: &mut Chords) -> bool {
+        sectors.count = 0;
+        let minor = self.eb[0]
+            .hypot(self.eb[1])
+            .min(self.ea[0].hypot(self.ea[1]));
+        let major = self.eb[0]
+            .hypot(self.eb[1])
+            .max(self.ea[0].hypot(self.ea[1]));
+        let near = 1.0 - 1.5 / minor;
+        let q: Vec<[f64; 2]> = support.vertices().iter().map(|&s| self.circle(s)).collect();
+        let farthest = q.iter().fold(0f64, |m, p| m.max(p[0] * p[0] + p[1] * p[1]));
+        if q.is_empty() || near <= 0.0 || farthest < near * near {
+            return false;
+        }
+        let reference = q[0][1].atan2(q[0][0]);
+        let (mut lo, mut hi) = (0f64, 0f64);
+        for p in &q[1..] {
+            let mut a = p[1].atan2(p[0]) - reference;
+            if a > std::f64::consts::PI {
+                a -= std::f64::consts::TAU;
+            } else if a <= -std::f64::consts::PI {
+                a += std::f64::consts::TAU;
+            }
+            lo = lo.min(a);
+            hi = hi.max(a);
+        }
+        let span = hi - lo;
+        if !(span > 0.0 && span < 3.0) {
+            return false;
+        }
+        sectors.from = reference + lo;
+        sectors.count = ((span * major / 0.5).ceil() as usize).clamp(1, MAX_CHORDS);
+        sectors.delta = span / sectors.count as f64;
+        true
     }
 
     /// The q-radii of the rings along the outline, from 1 inward: the
@@ -623,10 +700,20 @@ impl SphereView {
         let j = ring.chord;
         let ends = [(a, j), (a, j + 1), (b, j + 1), (b, j)].map(|(k, e)| ring.corner(self, k, e));
         let corners = ends.map(|(s, _)| s);
-        let Ok(trapezoid) = ConvexPolygon::new(&corners) else {
-            return;
-        };
-        let piece = region.intersect(&trapezoid);
+        // The sector's wedge, beyond ring b's chord and (past the first
+        // ring) within ring a's; the first ring reaches the outline, so
+        // that a support inside it but beyond its chord loses nothing.
+        let (t0, t1) = (ring.chords.angle(j), ring.chords.angle(j + 1));
+        let beyond = self.chord_line(t0, t1, ring.radii[b]).map(|v| -v);
+        let mut lines = vec![
+            self.left_of_ray(t0),
+            self.left_of_ray(t1).map(|v| -v),
+            beyond,
+        ];
+        if a > 0 {
+            lines.push(self.chord_line(t0, t1, ring.radii[a]));
+        }
+        let piece = region.clip_lines(lines);
         if piece.is_empty() {
             return;
         }
