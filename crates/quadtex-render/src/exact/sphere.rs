@@ -12,37 +12,54 @@
 //! sphere is left to the tangent-plane path). In the coordinates that
 //! make the ellipse the unit circle (`q`), the support's part inside it is
 //! approximated from inside by chords between points of the circle at
-//! angles `θⱼ`; each chord leaves out a segment of area
-//! `a·b·(δ − sin δ)/2` (`δ` its angle, `a`, `b` the semi-axes): their sum
-//! over the chords that reach the support is the region's area bound, in
-//! screen pixels, times full contrast ([`SphereView::region_into`]).
+//! angles `θⱼ` spanning the support's angles; each chord leaves out a
+//! segment of area `a·b·(δ − sin δ)/2` (`δ` its angle, `a`, `b` the
+//! semi-axes), and as few chords are taken as keep their sum within
+//! [`SLIVER_BUDGET`] (up to [`MAX_CHORDS`]): the sum is the region's area
+//! bound, in screen pixels, times full contrast
+//! ([`SphereView::region_into`]). A support whose corners all lie inside
+//! the outline is its own region.
 //!
 //! **Texture map.** The sphere's map from the screen to its UV square
 //! (`u`: longitude, `v`: latitude) is smooth inside the outline but not
-//! projective. The region is split in screen space into squares (from its
-//! bounding square down, at most [`MAX_SPLITS`] times); on each, the
-//! projective map through the sphere's UV at the square's four corners
-//! (Heckbert's square-to-quad; beyond the outline, a corner takes the
-//! point of the sphere nearest its ray) is kept when, at the piece's
-//! vertices, its edges' midpoints, its centroid and the points halfway
-//! from it to each vertex, the screen point the exact map sends to the
-//! same texture point lies within `ε` pixels (`ε` the filter's error
-//! bound; `|J⁻¹·(H(s) − uv(s))|` with `J` the fitted map's Jacobian): a
-//! texture edge then moves by at most `ε` pixels, and a pixel it crosses
-//! by at most `ε` times its length times the contrast. A piece whose
-//! every candidate image (the fit's, widened by twice its largest UV error
-//! at the check points) lies in one texture square is that square's colour
-//! times its weight, exactly, whatever the map's error. Otherwise the
-//! square is split in four. Near the outline the map's square root keeps
-//! the fit's error near `0.2·h` for a square of side `h` touching it, so the
-//! splits follow texture edges into the outline: a piece still off whose
-//! weight is at most an eighth of what is left of a budget of `ε/2` a call,
-//! or one at the deepest split (the poles, where longitude turns around a
-//! point), is integrated on its fitted map with its whole weight in the
-//! bound. Each kept piece is
-//! integrated exactly over the tree ([`quadtex_core::Texture::integrate_region`]),
-//! cut at the longitude seam (`u` a whole number) so that each side is read
-//! in `[0, 1)`, whatever the texture's wrap. Lambert light is taken at each
+//! projective. A piece of the region is integrated on a projective map
+//! `H` through the sphere's UV at four points (where `H` is exact) when,
+//! at the piece's centroid, vertices and edges' midpoints, the screen
+//! point the exact map sends to the same texture point lies within `ε`
+//! pixels (`ε` the filter's error bound; `|J⁻¹·(H(s) − uv(s))|` with `J`
+//! the fit's Jacobian, [`SphereView::map_error`]): a texture edge then
+//! moves by at most `ε` pixels, and a pixel it crosses is off by at most
+//! `ε` times its length times the contrast. A piece whose every candidate
+//! image (the fit's, widened by twice its largest UV error at the check
+//! points) lies in one texture square is that square's colour times its
+//! weight, exactly, whatever the map's error. The pieces:
+//!
+//! - **Squares** (most of the disc): the region's bounding square, split
+//!   in four while its map is off, at most [`MAX_SPLITS`] times; `H` goes
+//!   through the sphere's UV at the square's corners (Heckbert's
+//!   square-to-quad; beyond the outline, a corner takes the point of the
+//!   sphere nearest its ray). A whole square's checks are its children's
+//!   corners ([`Square`]), and points on the half-pixel grid are kept by
+//!   the thread for the pixels beside and below.
+//! - **Rings** along the outline, where the map has a square root
+//!   (`√disc` in the ray's parameter) and a square of side `h` touching
+//!   the outline is off by about `0.2·h`: the support's sectors (its
+//!   chords' angles, or pieces of about half a pixel when it lies inside
+//!   within a pixel and a half) are cut by the chords scaled about the
+//!   centre at q-radii whose `k`-th lies `k²/512` pixels in, to a pixel (a
+//!   fit across a ring of width `w` at `δ` from the outline is off by
+//!   about `w²/(8·δ)`, measured; the first by about `w/5`): trapezoids, each on the map through the sphere's UV at
+//!   its four corners, tried whole across several rings first and halved
+//!   while no texture square holds them ([`SphereView::shade_ring`]);
+//!   within the innermost ring, squares.
+//!
+//! A piece still off whose weight is at most an eighth of what is left of
+//! a budget of `ε/2` a call, or one at the deepest split (the poles, where
+//! longitude turns around a point), is integrated on its fitted map with
+//! its whole weight in the bound. Each kept piece is integrated exactly
+//! over the tree ([`quadtex_core::Texture::integrate_region`]), cut at the
+//! longitude seam (`u` a whole number) so that each side is read in
+//! `[0, 1)`, whatever the texture's wrap. Lambert light is taken at each
 //! piece's centroid (its own normal and shadow ray).
 
 use quadtex_core::{ConvexPolygon, Projection};
@@ -68,9 +85,10 @@ const MAX_CHORDS_AROUND: usize = 12;
 /// keep the segments they leave out within it, up to [`MAX_CHORDS`].
 const SLIVER_BUDGET: f64 = 1.0 / 512.0 / 16.0;
 
-/// The map's tolerance the rings along the outline are spaced for (the
-/// default error bound, pixels): with another bound the rings are the
-/// same and the pieces are checked against it.
+/// The rings along the outline are spaced for a quarter of the default
+/// error bound (pixels), the model's error being an estimate: with another
+/// bound the rings are the same and the pieces are checked against it
+/// (none of the checkered ball's failed at 1/512).
 const RING_TOLERANCE: f64 = 1.0 / 512.0 / 4.0;
 
 /// Deepest split of a sphere's region below its bounding square.
@@ -127,6 +145,26 @@ struct Chords {
     /// `from + (j + 1)·delta`.
     from: f64,
     delta: f64,
+}
+
+/// Pieces a sphere's pixel may look at per square of the filter options'
+/// budget (the renderer's 64: 1024 pieces). The checkered ball needs at
+/// most that many at every pixel; the runway's beacon, a ball of a few
+/// pixels whose pole is in view (where longitude turns around a point and
+/// squares shrink towards it as they do towards the outline), spends it
+/// in a few.
+const PIECES_PER_SQUARE: u64 = 16;
+
+/// What a sphere's pixel may still spend ([`SphereView::shade`]): weight
+/// that pieces still off the map's tolerance may take whole into the
+/// bound (each at most an eighth of what is left), and pieces to look at
+/// ([`PIECES_PER_SQUARE`] times the filter options' square budget; none
+/// without one): once they are spent, each piece left is integrated on its
+/// fit as it stands, its weight in the bound where the fit is off (the
+/// pixel then counts as above the target, as where squares run out).
+struct Budget {
+    weight: f64,
+    pieces: u64,
 }
 
 /// One chord's sector of the rings along the outline
@@ -491,9 +529,11 @@ impl SphereView {
             return sums;
         }
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
-        // Weight that pieces still off the map's tolerance may take whole
-        // into the bound (each at most an eighth of what is left).
-        let mut spare = 0.5 * tolerance;
+        let mut spare = Budget {
+            weight: 0.5 * tolerance,
+            pieces: (shading.options.budget())
+                .map_or(u64::MAX, |b| b.saturating_mul(PIECES_PER_SQUARE)),
+        };
         let support = shading.filter.support(shading.centre);
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
@@ -623,9 +663,10 @@ impl SphereView {
     }
 
     /// The q-radii of the rings along the outline, from 1 inward: the
-    /// `k`-th about `4·ε·k²` pixels in (a fit across a ring of width `w`
-    /// at `δ` from the outline is off by about `w²/(16·δ)`, the first by
-    /// about `w/5`), to a pixel.
+    /// `k`-th `4·RING_TOLERANCE·k²` pixels in (along the middle of the
+    /// chords' span), to a pixel: so that a fit across each, off by about
+    /// `w²/(8·δ)` for width `w` at `δ` from the outline (the first by about
+    /// `w/5`), stays within the default bound.
     fn ring_radii(&self, chords: &Chords) -> Vec<f64> {
         let theta = chords.from + 0.5 * chords.delta * chords.count as f64;
         let (sn, cs) = theta.sin_cos();
@@ -693,7 +734,7 @@ impl SphereView {
         region: &ConvexPolygon,
         ring: &mut Ring<'_>,
         (a, b): (usize, usize),
-        spare: &mut f64,
+        spare: &mut Budget,
         sums: &mut ([f64; 4], f64, f64),
         stats: &mut PixelStats,
     ) {
@@ -730,6 +771,18 @@ impl SphereView {
             self.add_uniform(shading, &piece, colour, sums, stats);
             return;
         }
+        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        spare.pieces = spare.pieces.saturating_sub(1);
+        if spare.pieces == 0
+            && let Some(fit) = fit
+        {
+            // The budget is spent: this piece on its fit, its weight in
+            // the bound unless the fit is within the tolerance.
+            let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
+            let off = if error > tolerance { w.abs() } else { 0.0 };
+            add(sums, self.finish(shading, &piece, c), w, b + off);
+            return;
+        }
         if b - a > 1 {
             let middle = (a + b) / 2;
             for half in [(a, middle), (middle, b)] {
@@ -737,7 +790,6 @@ impl SphereView {
             }
             return;
         }
-        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         match fit {
             Some(fit) if error <= tolerance => {
                 let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
@@ -753,7 +805,7 @@ impl SphereView {
         &self,
         shading: &Shading<'_>,
         region: &ConvexPolygon,
-        spare: &mut f64,
+        spare: &mut Budget,
         sums: &mut ([f64; 4], f64, f64),
         stats: &mut PixelStats,
     ) {
@@ -797,15 +849,16 @@ impl SphereView {
                 continue;
             }
             let off = error > tolerance;
-            let spent = off && w.abs() <= 0.125 * *spare;
-            if off && !spent && square.depth < MAX_SPLITS {
+            let spent = off && w.abs() <= 0.125 * spare.weight;
+            spare.pieces = spare.pieces.saturating_sub(1);
+            if off && !spent && square.depth < MAX_SPLITS && spare.pieces > 0 {
                 for child in square.children(self) {
                     squares.push(child);
                 }
                 continue;
             }
             if spent {
-                *spare -= w.abs();
+                spare.weight -= w.abs();
             }
             let fit = match fit {
                 Some(f) => f,
