@@ -158,8 +158,8 @@ const PIECES_PER_SQUARE: u64 = 16;
 /// What a sphere's pixel may still spend ([`SphereView::shade`]): weight
 /// that pieces still off the map's tolerance may take whole into the
 /// bound (each at most an eighth of what is left), and pieces to look at
-/// ([`PIECES_PER_SQUARE`] times the filter options' square budget; none
-/// without one): once they are spent, each piece left is integrated on its
+/// ([`PIECES_PER_SQUARE`] times the filter options' square budget per
+/// pixel of the support; none without one): once they are spent, each piece left is integrated on its
 /// fit as it stands, its weight in the bound where the fit is off (the
 /// pixel then counts as above the target, as where squares run out).
 struct Budget {
@@ -529,12 +529,15 @@ impl SphereView {
             return sums;
         }
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        let support = shading.filter.support(shading.centre);
         let mut spare = Budget {
             weight: 0.5 * tolerance,
-            pieces: (shading.options.budget())
-                .map_or(u64::MAX, |b| b.saturating_mul(PIECES_PER_SQUARE)),
+            pieces: (shading.options.budget()).map_or(u64::MAX, |b| {
+                // Per pixel of the support: a tent's is 4, a Mitchell's 16.
+                let pixels = support.area().round().max(1.0) as u64;
+                b.saturating_mul(PIECES_PER_SQUARE).saturating_mul(pixels)
+            }),
         };
-        let support = shading.filter.support(shading.centre);
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
         if !crossing && !self.sectors_near_outline(&support, &mut chords) {
