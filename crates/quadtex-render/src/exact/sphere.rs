@@ -1617,4 +1617,67 @@ mod outline_and_pixels {
             );
         }
     }
+
+    /// The ball seen from above, its north pole in view (where longitude
+    /// turns around a point and the squares shrink towards it): the image
+    /// within the reference's noise, and only the pixels at the pole above
+    /// the target (they spend their budget of pieces; a known limit).
+    #[test]
+    fn a_pole_in_view_keeps_the_bound() {
+        let mut scene = checkered_ball();
+        scene.camera = crate::scene::Camera::new(
+            crate::math::Vec3::new(0.0, 3.0, -4.0),
+            crate::math::Vec3::new(0.0, 0.0, 0.0),
+            crate::math::Vec3::new(0.0, 1.0, 0.0),
+            30.0,
+            64,
+            48,
+        )
+        .unwrap();
+        let render = |filter, seed| {
+            let options = RenderOptions {
+                width: Some(64),
+                height: Some(48),
+                filter,
+                pixel_filter: PixelFilter::Box,
+                seed,
+            };
+            crate::render(&scene, &options, &|_, _| ()).unwrap()
+        };
+        let (exact, summary) = render(
+            TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
+            0,
+        );
+        let pole = scene
+            .camera
+            .project(crate::math::Vec3::new(0.0, 1.0, 0.0))
+            .unwrap();
+        assert!(
+            pole[0] > 1.0 && pole[1] > 1.0,
+            "the pole is in the frame: {pole:?}"
+        );
+        assert!(
+            summary.filter.over_target <= 4,
+            "{}",
+            summary.filter.over_target
+        );
+        let reference = render(TextureFilter::Supersample(64), 31).0.pixels;
+        let again = render(TextureFilter::Supersample(64), 32).0.pixels;
+        let sampled = render(TextureFilter::Supersample(8), 33).0.pixels;
+        let rmse = |a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]| {
+            let sum: f64 = (a.iter().zip(b))
+                .map(|(p, q)| {
+                    let d = f64::from(p.r - q.r);
+                    d * d
+                })
+                .sum();
+            (sum / a.len() as f64).sqrt()
+        };
+        let noise = rmse(&reference, &again) / std::f64::consts::SQRT_2;
+        let (e, s) = (rmse(&exact.pixels, &reference), rmse(&sampled, &reference));
+        assert!(
+            e < 2.0 * noise && e < s / 3.0,
+            "exact {e}, 64 samples {s}, noise {noise}"
+        );
+    }
 }
