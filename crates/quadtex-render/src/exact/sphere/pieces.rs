@@ -1,0 +1,877 @@
+//! The pieces a sphere's region is integrated over ([`SphereView::shade`]):
+//! squares over most of the disc ([`Square`]), rings of trapezoids along
+//! the outline ([`Ring`]), each on a projective map fitted to the sphere's
+//! UV and checked against it (the method: [`super`]'s doc).
+
+use quadtex_core::{ConvexPolygon, Projection};
+
+use crate::frame::lambert;
+use crate::scene::Lighting;
+use crate::stats::PixelStats;
+
+use super::super::lighting::{Shading, apply_light};
+use super::{Chords, SphereView};
+
+/// The rings along the outline are spaced for a quarter of the default
+/// error bound (pixels), the model's error being an estimate: with another
+/// bound the rings are the same and the pieces are checked against it
+/// (none of the checkered ball's failed at 1/512).
+const RING_TOLERANCE: f64 = 1.0 / 512.0 / 4.0;
+
+/// Deepest split of a sphere's region below its bounding square.
+pub(super) const MAX_SPLITS: u32 = 10;
+
+/// One row of [`HALF_PIXEL_UV`]: its tag `(view stamp, 2y)` and the UV
+/// by column `2x`, where computed.
+type GridRow = ((u64, u32), Vec<Option<[f64; 2]>>);
+
+thread_local! {
+    /// The sphere's UV at half-pixel grid points a thread computed lately:
+    /// four rows of the grid (row `2y` in slot `2y mod 4`), each tagged with
+    /// the view's stamp and its row, by column `2x`.
+    static HALF_PIXEL_UV: std::cell::RefCell<[GridRow; 4]> = std::cell::RefCell::default();
+}
+
+/// Pieces a sphere's pixel may look at per square of the filter options'
+/// budget (the renderer's 64: 1024 pieces). The checkered ball needs at
+/// most that many at every pixel; the runway's beacon, a ball of a few
+/// pixels whose pole is in view (where longitude turns around a point and
+/// squares shrink towards it as they do towards the outline), spends it
+/// in a few.
+const PIECES_PER_SQUARE: u64 = 16;
+
+/// What a sphere's pixel may still spend ([`SphereView::shade`]): weight
+/// that pieces still off the map's tolerance may take whole into the
+/// bound (each at most an eighth of what is left), and pieces to look at
+/// ([`PIECES_PER_SQUARE`] times the filter options' square budget per
+/// pixel of the support; none without one): once they are spent, each piece left is integrated on its
+/// fit as it stands, its weight in the bound where the fit is off (the
+/// pixel then counts as above the target, as where squares run out).
+struct Budget {
+    weight: f64,
+    pieces: u64,
+}
+
+/// One chord's sector of the rings along the outline
+/// ([`SphereView::shade_ring`]).
+struct Ring<'a> {
+    chords: &'a Chords,
+    radii: &'a [f64],
+    chord: usize,
+    /// The screen point and the sphere's UV at ring `k`'s chord end `e`,
+    /// at `k·(chords + 1) + e`, where computed.
+    corners: &'a mut Vec<Option<([f64; 2], [f64; 2])>>,
+}
+
+impl Ring<'_> {
+    /// The screen point and UV at ring `k` on the chords' end `e`.
+    fn corner(&mut self, view: &SphereView, k: usize, e: usize) -> ([f64; 2], [f64; 2]) {
+        let index = k * (self.chords.count + 1) + e;
+        if let Some(found) = self.corners[index] {
+            return found;
+        }
+        let theta = self.chords.from + self.chords.delta * e as f64;
+        let (sn, cs) = theta.sin_cos();
+        let r = self.radii[k];
+        let s = [
+            view.e0[0] + r * (view.ea[0] * cs + view.eb[0] * sn),
+            view.e0[1] + r * (view.ea[1] * cs + view.eb[1] * sn),
+        ];
+        let found = (s, view.on_sphere(s).uv);
+        self.corners[index] = Some(found);
+        found
+    }
+}
+
+/// A square of a region's split, `[x0, x0 + h]²`, with the sphere's UV
+/// at the points of its 3 × 3 grid (corners, edges' midpoints, centre)
+/// as far as they have been computed: a whole square's checks are its
+/// children's corners, and its corners its parent's grid points.
+#[derive(Clone, Copy)]
+pub(super) struct Square {
+    x0: f64,
+    y0: f64,
+    h: f64,
+    depth: u32,
+    /// `uv[j][i]` at [`Square::point`]`(i, j)`.
+    uv: [[Option<[f64; 2]>; 3]; 3],
+}
+
+impl Square {
+    pub(super) fn new(lo: [f64; 2], h: f64) -> Square {
+        Square {
+            x0: lo[0],
+            y0: lo[1],
+            h,
+            depth: 0,
+            uv: [[None; 3]; 3],
+        }
+    }
+
+    /// Grid point `(i, j)`, `i, j ∈ 0..3` (the midpoints by the same
+    /// expression as an edge's midpoint).
+    fn point(&self, i: usize, j: usize) -> [f64; 2] {
+        let at = |lo: f64, k: usize| match k {
+            0 => lo,
+            1 => 0.5 * (lo + (lo + self.h)),
+            _ => lo + self.h,
+        };
+        [at(self.x0, i), at(self.y0, j)]
+    }
+
+    /// The sphere's UV at grid point `(i, j)`.
+    fn uv(&mut self, view: &SphereView, i: usize, j: usize) -> [f64; 2] {
+        if let Some(uv) = self.uv[j][i] {
+            return uv;
+        }
+        let uv = view.uv_at_grid_point(self.point(i, j));
+        self.uv[j][i] = Some(uv);
+        uv
+    }
+
+    /// The sphere's UV at `s`, kept when `s` is a grid point.
+    fn uv_at(&mut self, view: &SphereView, s: [f64; 2]) -> [f64; 2] {
+        let (xs, ys) = (
+            [0, 1, 2].map(|k| self.point(k, k)[0]),
+            [0, 1, 2].map(|k| self.point(k, k)[1]),
+        );
+        match (
+            xs.iter().position(|&x| x == s[0]),
+            ys.iter().position(|&y| y == s[1]),
+        ) {
+            (Some(i), Some(j)) => self.uv(view, i, j),
+            _ => view.on_sphere(s).uv,
+        }
+    }
+
+    /// The four quarters, their corners' UV taken from this grid.
+    fn children(&mut self, view: &SphereView) -> [Square; 4] {
+        for j in 0..3 {
+            for i in 0..3 {
+                self.uv(view, i, j);
+            }
+        }
+        let g = 0.5 * self.h;
+        [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(a, b)| {
+            let lo = self.point(a, b);
+            let mut uv = [[None; 3]; 3];
+            for (cj, pj) in [(0, b), (2, b + 1)] {
+                for (ci, pi) in [(0, a), (2, a + 1)] {
+                    uv[cj][ci] = self.uv[pj][pi];
+                }
+            }
+            Square {
+                x0: lo[0],
+                y0: lo[1],
+                h: g,
+                depth: self.depth + 1,
+                uv,
+            }
+        })
+    }
+}
+
+/// Adds a piece's `(Σ colour·k, Σ k, bound)` to `sums`.
+fn add(sums: &mut ([f64; 4], f64, f64), c: [f64; 4], w: f64, b: f64) {
+    for (a, v) in sums.0.iter_mut().zip(c) {
+        *a += v;
+    }
+    sums.1 += w;
+    sums.2 += b;
+}
+
+/// The projective map sending quadrilateral `from` to `to` corner by
+/// corner (rows acting on `(x, y, 1)`, `w > 0` at `from`'s corners);
+/// `None` when either is degenerate or the map folds.
+fn quad_to_quad(from: [[f64; 2]; 4], to: [[f64; 2]; 4]) -> Option<[[f64; 3]; 3]> {
+    let a = square_to_quad(from)?;
+    let b = square_to_quad(to)?;
+    // a⁻¹ up to a factor: its adjugate.
+    let adj = [
+        [
+            a[1][1] * a[2][2] - a[1][2] * a[2][1],
+            a[0][2] * a[2][1] - a[0][1] * a[2][2],
+            a[0][1] * a[1][2] - a[0][2] * a[1][1],
+        ],
+        [
+            a[1][2] * a[2][0] - a[1][0] * a[2][2],
+            a[0][0] * a[2][2] - a[0][2] * a[2][0],
+            a[0][2] * a[1][0] - a[0][0] * a[1][2],
+        ],
+        [
+            a[1][0] * a[2][1] - a[1][1] * a[2][0],
+            a[0][1] * a[2][0] - a[0][0] * a[2][1],
+            a[0][0] * a[1][1] - a[0][1] * a[1][0],
+        ],
+    ];
+    let m = mul(&b, &adj);
+    let w = |s: [f64; 2]| m[2][0] * s[0] + m[2][1] * s[1] + m[2][2];
+    let signs = from.map(w);
+    if signs.iter().all(|&v| v > 0.0) {
+        Some(m)
+    } else if signs.iter().all(|&v| v < 0.0) {
+        Some(m.map(|row| row.map(|v| -v)))
+    } else {
+        None
+    }
+}
+
+/// Heckbert's square-to-quad map: rows acting on `(x, y, 1)` of the unit
+/// square that send its corners `(0,0), (1,0), (1,1), (0,1)` to `p`;
+/// `None` when `p` is degenerate.
+pub(super) fn square_to_quad(p: [[f64; 2]; 4]) -> Option<[[f64; 3]; 3]> {
+    let [[x0, y0], [x1, y1], [x2, y2], [x3, y3]] = p;
+    let (sx, sy) = (x0 - x1 + x2 - x3, y0 - y1 + y2 - y3);
+    let (g, h) = if sx == 0.0 && sy == 0.0 {
+        (0.0, 0.0)
+    } else {
+        let (dx1, dx2, dy1, dy2) = (x1 - x2, x3 - x2, y1 - y2, y3 - y2);
+        let det = dx1 * dy2 - dx2 * dy1;
+        if det.is_nan() || det.abs() <= 1e-300 {
+            return None;
+        }
+        ((sx * dy2 - dx2 * sy) / det, (dx1 * sy - sx * dy1) / det)
+    };
+    let m = [
+        [x1 - x0 + g * x1, x3 - x0 + h * x3, x0],
+        [y1 - y0 + g * y1, y3 - y0 + h * y3, y0],
+        [g, h, 1.0],
+    ];
+    m.iter().flatten().all(|v| v.is_finite()).then_some(m)
+}
+
+/// The product `a·b` of two 3×3 matrices.
+fn mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for (i, row) in m.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    m
+}
+
+impl SphereView {
+    /// `(Σ colour·k, Σ k, bound)` of the sphere over screen `region` (a
+    /// part of its [`SphereView::region_into`]), split into pieces each
+    /// integrated on a projective map within the error bound of the
+    /// sphere's (module doc).
+    pub(crate) fn shade(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        stats: &mut PixelStats,
+    ) -> ([f64; 4], f64, f64) {
+        let mut sums = ([0.0; 4], 0.0, 0.0);
+        if region.is_empty() {
+            return sums;
+        }
+        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        let support = shading.filter.support(shading.centre);
+        let mut spare = Budget {
+            weight: 0.5 * tolerance,
+            pieces: (shading.options.budget()).map_or(u64::MAX, |b| {
+                // Per pixel of the support: a tent's is 4, a Mitchell's 16.
+                let pixels = support.area().round().max(1.0) as u64;
+                b.saturating_mul(PIECES_PER_SQUARE).saturating_mul(pixels)
+            }),
+        };
+        let mut chords = Chords::default();
+        let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
+        if !crossing && !self.sectors_near_outline(&support, &mut chords) {
+            self.shade_squares(shading, region, &mut spare, &mut sums, stats);
+            return sums;
+        }
+        // Along the outline: rings of trapezoids between the chords'
+        // polygon and ones like it further in, each thin where the map's
+        // square root bends most; inside them, squares.
+        let radii = self.ring_radii(&chords);
+        if radii.len() < 2 {
+            self.shade_squares(shading, region, &mut spare, &mut sums, stats);
+            return sums;
+        }
+        // One texture square may hold all of it.
+        let (lo, hi) = region.bounds();
+        let mut whole = Square::new(lo, (hi[0] - lo[0]).max(hi[1] - lo[1]));
+        if let Some(fit) = self.fit(&mut whole)
+            && let uv_error = self.map_error(&fit, region, &mut whole, &[]).1
+            && let Some(colour) = self.uniform(shading, &fit, region, uv_error)
+        {
+            self.add_uniform(shading, region, colour, &mut sums, stats);
+            return sums;
+        }
+        let mut corners = vec![None; radii.len() * (chords.count + 1)];
+        for j in 0..chords.count {
+            let mut ring = Ring {
+                chords: &chords,
+                radii: &radii,
+                chord: j,
+                corners: &mut corners,
+            };
+            self.shade_ring(
+                shading,
+                region,
+                &mut ring,
+                (0, radii.len() - 1),
+                &mut spare,
+                &mut sums,
+                stats,
+            );
+        }
+        let inner = radii[radii.len() - 1];
+        let lines: Vec<[f64; 3]> = (0..chords.count)
+            .map(|j| self.chord_line(chords.angle(j), chords.angle(j + 1), inner))
+            .collect();
+        let inside = region.clip_lines(lines);
+        if !inside.is_empty() {
+            self.shade_squares(shading, &inside, &mut spare, &mut sums, stats);
+        }
+        sums
+    }
+
+    /// The q-radii of the rings along the outline, from 1 inward: the
+    /// `k`-th `4·RING_TOLERANCE·k²` pixels in (along the middle of the
+    /// chords' span), to a pixel: so that a fit across each, off by about
+    /// `w²/(8·δ)` for width `w` at `δ` from the outline (the first by about
+    /// `w/5`), stays within the default bound.
+    fn ring_radii(&self, chords: &Chords) -> Vec<f64> {
+        let theta = chords.from + 0.5 * chords.delta * chords.count as f64;
+        let (sn, cs) = theta.sin_cos();
+        let scale = (self.ea[0] * cs + self.eb[0] * sn).hypot(self.ea[1] * cs + self.eb[1] * sn);
+        let tolerance = RING_TOLERANCE;
+        let mut radii = vec![1.0];
+        for k in 1.. {
+            let depth = 4.0 * tolerance * f64::from(k) * f64::from(k);
+            let r = 1.0 - depth / scale;
+            if r.is_nan() || r <= 0.5 || depth > 1.0 {
+                break;
+            }
+            radii.push(r);
+        }
+        radii
+    }
+
+    /// The colour of the texture over all of `piece` when one texture
+    /// square holds every image it may have under `fit` or, off by at most
+    /// twice `uv_error` (the fit's at the check points), under the
+    /// sphere's map;
+    /// `Some(None)` when the surface has no texture.
+    fn uniform(
+        &self,
+        shading: &Shading<'_>,
+        fit: &[[f64; 3]; 3],
+        piece: &ConvexPolygon,
+        uv_error: f64,
+    ) -> Option<Option<quadtex_core::Rgba>> {
+        let Some(texture) = shading.frame.texture(self.surface) else {
+            return Some(None);
+        };
+        let (lo, hi) = self.texture_box(fit, piece, uv_error)?;
+        texture.uniform_colour_in_box(lo, hi).map(Some)
+    }
+
+    /// Adds `piece` in one colour (`None`: the surface's own) to `sums`.
+    fn add_uniform(
+        &self,
+        shading: &Shading<'_>,
+        piece: &ConvexPolygon,
+        colour: Option<quadtex_core::Rgba>,
+        sums: &mut ([f64; 4], f64, f64),
+        stats: &mut PixelStats,
+    ) {
+        let w = shading.filter.integral(piece, shading.centre);
+        let c = colour.map_or([w; 4], |c| c.to_array().map(|v| f64::from(v) * w));
+        if colour.is_some() {
+            stats.textured = 1;
+            stats.filter.footprints += 1;
+            stats.filter.fragments += 1;
+        }
+        add(sums, self.finish(shading, piece, c), w, 0.0);
+    }
+
+    /// [`SphereView::shade`] of `region`'s part between rings `a` and `b`
+    /// of one chord's sector: one colour where one texture square holds
+    /// it; else, across several rings, each half in turn; across one, on
+    /// the projective map through the sphere's UV at its corners where
+    /// that is within the tolerance, else by squares.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_ring(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        ring: &mut Ring<'_>,
+        (a, b): (usize, usize),
+        spare: &mut Budget,
+        sums: &mut ([f64; 4], f64, f64),
+        stats: &mut PixelStats,
+    ) {
+        let j = ring.chord;
+        let ends = [(a, j), (a, j + 1), (b, j + 1), (b, j)].map(|(k, e)| ring.corner(self, k, e));
+        let corners = ends.map(|(s, _)| s);
+        // The sector's wedge, beyond ring b's chord and (past the first
+        // ring) within ring a's; the first ring reaches the outline, so
+        // that a support inside it but beyond its chord loses nothing.
+        let (t0, t1) = (ring.chords.angle(j), ring.chords.angle(j + 1));
+        let beyond = self.chord_line(t0, t1, ring.radii[b]).map(|v| -v);
+        let mut lines = vec![
+            self.left_of_ray(t0),
+            self.left_of_ray(t1).map(|v| -v),
+            beyond,
+        ];
+        if a > 0 {
+            lines.push(self.chord_line(t0, t1, ring.radii[a]));
+        }
+        let piece = region.clip_lines(lines);
+        if piece.is_empty() {
+            return;
+        }
+        let first = ends[0].1;
+        let uv = ends.map(|(_, [u, v])| [u + (first[0] - u).round(), v]);
+        let fit = quad_to_quad(corners, uv);
+        let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN);
+        let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
+            self.map_error(&f, &piece, &mut nowhere, &corners)
+        });
+        if let Some(fit) = &fit
+            && let Some(colour) = self.uniform(shading, fit, &piece, uv_error)
+        {
+            self.add_uniform(shading, &piece, colour, sums, stats);
+            return;
+        }
+        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        spare.pieces = spare.pieces.saturating_sub(1);
+        if spare.pieces == 0
+            && let Some(fit) = fit
+        {
+            // The budget is spent: this piece on its fit, its weight in
+            // the bound unless the fit is within the tolerance.
+            let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
+            let off = if error > tolerance { w.abs() } else { 0.0 };
+            add(sums, self.finish(shading, &piece, c), w, b + off);
+            return;
+        }
+        if b - a > 1 {
+            let middle = (a + b) / 2;
+            for half in [(a, middle), (middle, b)] {
+                self.shade_ring(shading, region, ring, half, spare, sums, stats);
+            }
+            return;
+        }
+        match fit {
+            Some(fit) if error <= tolerance => {
+                let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
+                add(sums, self.finish(shading, &piece, c), w, b);
+            }
+            _ => self.shade_squares(shading, &piece, spare, sums, stats),
+        }
+    }
+
+    /// [`SphereView::shade`] of `region` by squares, from its bounding
+    /// square down, into `sums`.
+    fn shade_squares(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        spare: &mut Budget,
+        sums: &mut ([f64; 4], f64, f64),
+        stats: &mut PixelStats,
+    ) {
+        let (lo, hi) = region.bounds();
+        let side = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        if region.is_empty() || !(side > 0.0 && side.is_finite()) {
+            return;
+        }
+        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        let texture = shading.frame.texture(self.surface);
+        let mut squares = vec![Square::new(lo, side)];
+        while let Some(mut square) = squares.pop() {
+            let Square { x0, y0, h, .. } = square;
+            let piece = region.clip_rect(x0, y0, x0 + h, y0 + h);
+            if piece.is_empty() {
+                continue;
+            }
+            let fit = self.fit(&mut square);
+            let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
+                self.map_error(&f, &piece, &mut square, &[])
+            });
+            // Exact whatever the map's error: one texture square holds
+            // every image the piece may have (or there is no texture).
+            let uniform = match (texture, &fit) {
+                (None, _) => Some(None),
+                (Some(texture), Some(f)) => self
+                    .texture_box(f, &piece, uv_error)
+                    .and_then(|(lo, hi)| texture.uniform_colour_in_box(lo, hi))
+                    .map(Some),
+                _ => None,
+            };
+            let w = shading.filter.integral(&piece, shading.centre);
+            if let Some(colour) = uniform {
+                let c = colour.map_or([w; 4], |c| c.to_array().map(|v| f64::from(v) * w));
+                if texture.is_some() {
+                    stats.textured = 1;
+                    stats.filter.footprints += 1;
+                    stats.filter.fragments += 1;
+                }
+                add(sums, self.finish(shading, &piece, c), w, 0.0);
+                continue;
+            }
+            let off = error > tolerance;
+            let spent = off && w.abs() <= 0.125 * spare.weight;
+            spare.pieces = spare.pieces.saturating_sub(1);
+            if off && !spent && square.depth < MAX_SPLITS && spare.pieces > 0 {
+                for child in square.children(self) {
+                    squares.push(child);
+                }
+                continue;
+            }
+            if spent {
+                spare.weight -= w.abs();
+            }
+            let fit = match fit {
+                Some(f) => f,
+                None => match self.tangent_fit(piece.centroid(), h) {
+                    Some(f) => f,
+                    None => continue,
+                },
+            };
+            let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
+            let off = if off { w.abs() } else { 0.0 };
+            add(sums, self.finish(shading, &piece, c), w, b + off);
+        }
+    }
+
+    /// The projective map from the screen to the sphere's `(u, v)` through
+    /// its UV at the corners of the square `[x0, x0 + h]²` (longitude
+    /// unwrapped around the first corner's), rows acting on
+    /// `(px, py, 1)` with `w > 0` over the square; `None` when the corners'
+    /// quadrilateral has no such map (it folds).
+    pub(super) fn fit(&self, square: &mut Square) -> Option<[[f64; 3]; 3]> {
+        let Square { x0, y0, h, .. } = *square;
+        let first = square.uv(self, 0, 0);
+        let mut corner = |i: usize, j: usize| {
+            let [u, v] = square.uv(self, i, j);
+            [u + (first[0] - u).round(), v]
+        };
+        let p = [first, corner(2, 0), corner(2, 2), corner(0, 2)];
+        let quad = square_to_quad(p)?;
+        // Screen to the unit square: (s − (x0, y0)) / h.
+        let unit = [
+            [1.0 / h, 0.0, -x0 / h],
+            [0.0, 1.0 / h, -y0 / h],
+            [0.0, 0.0, 1.0],
+        ];
+        let m = mul(&quad, &unit);
+        let w = |s: [f64; 2]| m[2][0] * s[0] + m[2][1] * s[1] + m[2][2];
+        let corners = [[x0, y0], [x0 + h, y0], [x0 + h, y0 + h], [x0, y0 + h]];
+        let signs: Vec<f64> = corners.iter().map(|&s| w(s)).collect();
+        if signs.iter().all(|&v| v > 0.0) {
+            Some(m)
+        } else if signs.iter().all(|&v| v < 0.0) {
+            Some(m.map(|row| row.map(|v| -v)))
+        } else {
+            None
+        }
+    }
+
+    /// The affine map through the sphere's UV at `c` with its derivatives
+    /// there (central differences over `h / 64`): the fallback where the
+    /// corners' map folds.
+    fn tangent_fit(&self, c: [f64; 2], h: f64) -> Option<[[f64; 3]; 3]> {
+        let e = (h / 64.0).max(1e-9);
+        let at = self.on_sphere(c).uv;
+        let near = |s: [f64; 2]| {
+            let [u, v] = self.on_sphere(s).uv;
+            [u + (at[0] - u).round(), v]
+        };
+        let (xp, xm) = (near([c[0] + e, c[1]]), near([c[0] - e, c[1]]));
+        let (yp, ym) = (near([c[0], c[1] + e]), near([c[0], c[1] - e]));
+        let du = [(xp[0] - xm[0]) / (2.0 * e), (yp[0] - ym[0]) / (2.0 * e)];
+        let dv = [(xp[1] - xm[1]) / (2.0 * e), (yp[1] - ym[1]) / (2.0 * e)];
+        let m = [
+            [du[0], du[1], at[0] - du[0] * c[0] - du[1] * c[1]],
+            [dv[0], dv[1], at[1] - dv[0] * c[0] - dv[1] * c[1]],
+            [0.0, 0.0, 1.0],
+        ];
+        let det = du[0] * dv[1] - du[1] * dv[0];
+        (det.is_finite() && det.abs() > 1e-300).then_some(m)
+    }
+
+    /// The largest screen distance, at `piece`'s check points, between a
+    /// point and the one the sphere's map sends where `fit` sends it
+    /// (first order: `|J⁻¹·(H(s) − uv(s))|`, `J` the fit's Jacobian), and
+    /// the largest UV difference there. The check points: a whole
+    /// `square`'s centre and edges' midpoints; else the piece's centroid,
+    /// edges' midpoints and vertices but the square's corners and `exact`
+    /// (where the fit passes through the sphere's UV).
+    pub(super) fn map_error(
+        &self,
+        fit: &[[f64; 3]; 3],
+        piece: &ConvexPolygon,
+        square: &mut Square,
+        exact: &[[f64; 2]],
+    ) -> (f64, f64) {
+        let Square { x0, y0, h, .. } = *square;
+        let v = piece.vertices();
+        let c = piece.centroid();
+        let n = v.len();
+        let mut worst = 0f64;
+        let mut worst_uv = 0f64;
+        let mut check = |s: [f64; 2], square: &mut Square| {
+            let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
+            let hu = (fit[0][0] * s[0] + fit[0][1] * s[1] + fit[0][2]) / w;
+            let hv = (fit[1][0] * s[0] + fit[1][1] * s[1] + fit[1][2]) / w;
+            let [u, uv_v] = square.uv_at(self, s);
+            let e = [u + (hu - u).round() - hu, uv_v - hv];
+            worst_uv = worst_uv.max(e[0].abs().max(e[1].abs()));
+            // Jacobian of (a·s̃ / w·s̃): (a_xy − value·w_xy) / w.
+            let j = [
+                [
+                    (fit[0][0] - hu * fit[2][0]) / w,
+                    (fit[0][1] - hu * fit[2][1]) / w,
+                ],
+                [
+                    (fit[1][0] - hv * fit[2][0]) / w,
+                    (fit[1][1] - hv * fit[2][1]) / w,
+                ],
+            ];
+            let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+            let d = if w > 0.0 && det.abs() > 1e-300 {
+                let dx = (j[1][1] * e[0] - j[0][1] * e[1]) / det;
+                let dy = (-j[1][0] * e[0] + j[0][0] * e[1]) / det;
+                (dx * dx + dy * dy).sqrt()
+            } else {
+                f64::INFINITY
+            };
+            worst = worst.max(if d.is_nan() { f64::INFINITY } else { d });
+        };
+        // The fit is exact at the square's corners.
+        let corner = |p: [f64; 2]| (p[0] == x0 || p[0] == x0 + h) && (p[1] == y0 || p[1] == y0 + h);
+        if n == 4 && v.iter().all(|&p| corner(p)) {
+            // The whole square: its centre and edges' midpoints, which
+            // are its children's corners.
+            for (i, j) in [(1, 1), (1, 0), (2, 1), (1, 2), (0, 1)] {
+                let s = square.point(i, j);
+                check(s, square);
+            }
+        } else {
+            check(c, square);
+            for i in 0..n {
+                let (a, b) = (v[i], v[(i + 1) % n]);
+                if !corner(a) && !exact.contains(&a) {
+                    check(a, square);
+                }
+                check([0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])], square);
+            }
+        }
+        if worst_uv.is_nan() {
+            worst_uv = f64::INFINITY;
+        }
+        (worst, worst_uv)
+    }
+
+    /// A texture-space box holding the image of `piece` under the fitted
+    /// map `fit` and, by its error at the check points (`uv_error`, doubled
+    /// for margin), under the sphere's own; `None` where the piece reaches
+    /// across the longitude seam or the box is not finite.
+    fn texture_box(
+        &self,
+        fit: &[[f64; 3]; 3],
+        piece: &ConvexPolygon,
+        uv_error: f64,
+    ) -> Option<([f64; 2], [f64; 2])> {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for &s in piece.vertices() {
+            let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
+            if w.is_nan() || w <= 0.0 {
+                return None;
+            }
+            for a in 0..2 {
+                let t = (fit[a][0] * s[0] + fit[a][1] * s[1] + fit[a][2]) / w;
+                lo[a] = lo[a].min(t);
+                hi[a] = hi[a].max(t);
+            }
+        }
+        let margin = 2.0 * uv_error + 1e-12;
+        let (lo, hi) = (lo.map(|v| v - margin), hi.map(|v| v + margin));
+        let turn = lo[0].floor();
+        if !(turn.is_finite() && hi[0].floor() == turn) {
+            return None;
+        }
+        let t = &self.texture_from_uv;
+        let (mut tlo, mut thi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for (u, v) in [
+            (lo[0], lo[1]),
+            (hi[0], lo[1]),
+            (hi[0], hi[1]),
+            (lo[0], hi[1]),
+        ] {
+            let u = u - turn;
+            for a in 0..2 {
+                let x = t[a][0] * u + t[a][1] * v + t[a][2];
+                tlo[a] = tlo[a].min(x);
+                thi[a] = thi[a].max(x);
+            }
+        }
+        Some((tlo, thi))
+    }
+
+    /// `(Σ colour·k, Σ k, bound)` of one piece on map `fit` (to the
+    /// sphere's UV), cut at the seams `u ∈ ℤ` and each side read in
+    /// `[0, 1)`; tinted and lit at the piece's centroid.
+    fn shade_piece(
+        &self,
+        shading: &Shading<'_>,
+        piece: &ConvexPolygon,
+        fit: &[[f64; 3]; 3],
+        stats: &mut PixelStats,
+    ) -> ([f64; 4], f64, f64) {
+        let Shading {
+            frame,
+            filter,
+            centre,
+            options,
+        } = *shading;
+        let value = |row: &[f64; 3], s: [f64; 2]| row[0] * s[0] + row[1] * s[1] + row[2];
+        let u_at = |s: [f64; 2]| value(&fit[0], s) / value(&fit[2], s);
+        let (mut u_lo, mut u_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &s in piece.vertices() {
+            let u = u_at(s);
+            u_lo = u_lo.min(u);
+            u_hi = u_hi.max(u);
+        }
+        let mut colour = [0.0; 4];
+        let (mut weight, mut bound) = (0.0, 0.0);
+        let texture = frame.texture(self.surface);
+        if !(u_lo.is_finite() && u_hi.is_finite()) {
+            return (colour, 0.0, 0.0);
+        }
+        let first = u_lo.floor() as i64;
+        let last = (u_hi.floor() as i64).max(first);
+        for turn in first..=last {
+            let k = turn as f64;
+            // The piece's part with u in [k, k + 1), its u moved by −k.
+            let shifted = [
+                [
+                    fit[0][0] - k * fit[2][0],
+                    fit[0][1] - k * fit[2][1],
+                    fit[0][2] - k * fit[2][2],
+                ],
+                fit[1],
+                fit[2],
+            ];
+            let part = if first == last {
+                piece.clone()
+            } else {
+                let upper = [
+                    fit[2][0] - shifted[0][0],
+                    fit[2][1] - shifted[0][1],
+                    fit[2][2] - shifted[0][2],
+                ];
+                let mut lines = Vec::with_capacity(2);
+                if turn > first {
+                    lines.push(shifted[0]);
+                }
+                if turn < last {
+                    lines.push(upper);
+                }
+                piece.clip_lines(lines)
+            };
+            if part.is_empty() {
+                continue;
+            }
+            let (c, w, b) = match texture {
+                Some(texture) => {
+                    stats.textured = 1;
+                    let t = &self.texture_from_uv;
+                    let rows = [0, 1].map(|r| {
+                        [0, 1, 2].map(|col| {
+                            t[r][0] * shifted[0][col]
+                                + t[r][1] * shifted[1][col]
+                                + t[r][2] * shifted[2][col]
+                        })
+                    });
+                    let Ok(projection) = Projection::new([rows[0], rows[1], shifted[2]]) else {
+                        let w = filter.integral(&part, centre);
+                        weight += w;
+                        bound += w.abs();
+                        continue;
+                    };
+                    let r = texture.integrate_region(
+                        &projection,
+                        &part,
+                        filter,
+                        centre,
+                        options,
+                        &mut stats.filter,
+                    );
+                    (r.colour.0, r.weight, r.error_bound)
+                }
+                None => {
+                    let w = filter.integral(&part, centre);
+                    ([w; 4], w, 0.0)
+                }
+            };
+            for (a, v) in colour.iter_mut().zip(c) {
+                *a += v;
+            }
+            weight += w;
+            bound += b;
+        }
+        (colour, weight, bound)
+    }
+
+    /// A piece's texture integral `c` tinted by the surface's colour and
+    /// lit at the piece's centroid (its normal and shadow ray there).
+    fn finish(&self, shading: &Shading<'_>, piece: &ConvexPolygon, mut c: [f64; 4]) -> [f64; 4] {
+        let scene = shading.frame.scene;
+        let tint = scene.surfaces[self.surface]
+            .colour
+            .to_array()
+            .map(f64::from);
+        for (v, t) in c.iter_mut().zip(tint) {
+            *v *= t;
+        }
+        if let Lighting::Lambert { .. } = scene.lighting {
+            let s = piece.centroid();
+            let at = self.on_sphere(s);
+            let ray = scene.camera.ray(s[0], s[1]);
+            let k = lambert(
+                &shading.frame.rays,
+                (self.surface, 0),
+                at.normal,
+                at.point,
+                &ray,
+            );
+            apply_light(&mut c, k);
+        }
+        c
+    }
+
+    /// The sphere's UV at `s` ([`SphereView::on_sphere`]), kept in the
+    /// thread's [`HALF_PIXEL_UV`] when `s` lies on the half-pixel grid
+    /// (a pixel's corners, edges' midpoints and centre, shared with the
+    /// pixels beside, above and below it): the same bits either way.
+    fn uv_at_grid_point(&self, s: [f64; 2]) -> [f64; 2] {
+        let (x2, y2) = (2.0 * s[0], 2.0 * s[1]);
+        let on_grid = x2 == x2.floor() && y2 == y2.floor() && x2 >= 0.0 && y2 >= 0.0;
+        if !(on_grid && x2 < 65536.0 && y2 < 65536.0) {
+            return self.on_sphere(s).uv;
+        }
+        let (column, row) = (x2 as usize, y2 as u32);
+        let tag = (self.stamp, row);
+        HALF_PIXEL_UV
+            .try_with(|rows| {
+                let mut rows = rows.borrow_mut();
+                let slot = &mut rows[(row % 4) as usize];
+                if slot.0 != tag {
+                    slot.0 = tag;
+                    slot.1.clear();
+                }
+                if slot.1.len() <= column {
+                    slot.1.resize(column + 1, None);
+                }
+                *slot.1[column].get_or_insert_with(|| self.on_sphere(s).uv)
+            })
+            .unwrap_or_else(|_| self.on_sphere(s).uv)
+    }
+}

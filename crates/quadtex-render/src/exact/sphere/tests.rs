@@ -1,0 +1,327 @@
+//! Tests of [`super`]: the square-to-quad map, the outline's chords
+//! against the closed-form area inside it, the fitted maps' order, and
+//! rendered balls against converged references.
+
+use super::pieces::{Square, square_to_quad};
+use super::*;
+
+#[test]
+fn square_to_quad_sends_the_corners_where_asked() {
+    let p = [[0.2, 0.1], [1.3, 0.0], [1.1, 0.9], [0.0, 1.2]];
+    let m = square_to_quad(p).unwrap();
+    for (corner, want) in [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+        .iter()
+        .zip(p)
+    {
+        let w = m[2][0] * corner[0] + m[2][1] * corner[1] + m[2][2];
+        let x = (m[0][0] * corner[0] + m[0][1] * corner[1] + m[0][2]) / w;
+        let y = (m[1][0] * corner[0] + m[1][1] * corner[1] + m[1][2]) / w;
+        assert!((x - want[0]).abs() < 1e-12 && (y - want[1]).abs() < 1e-12);
+    }
+}
+
+use crate::options::{PixelFilter, RenderOptions, TextureFilter};
+
+fn checkered_ball() -> Scene {
+    let text = include_str!("../../../../../scenes/sphere.toml");
+    crate::parse::parse_scene(
+        text,
+        std::path::Path::new("scenes/sphere.toml"),
+        &Default::default(),
+    )
+    .unwrap()
+}
+
+/// The support's part inside the outline, in closed form: in the
+/// coordinates that make the outline the unit circle, the signed areas
+/// of each edge's triangle with the centre clipped to the circle
+/// (straight where inside, a sector where outside), scaled back.
+fn inside_area(view: &SphereView, support: &ConvexPolygon) -> f64 {
+    let cross = |p: [f64; 2], q: [f64; 2]| p[0] * q[1] - p[1] * q[0];
+    let dot = |p: [f64; 2], q: [f64; 2]| p[0] * q[0] + p[1] * q[1];
+    let v: Vec<[f64; 2]> = support.vertices().iter().map(|&s| view.circle(s)).collect();
+    let mut area = 0.0;
+    for i in 0..v.len() {
+        let (a, b) = (v[i], v[(i + 1) % v.len()]);
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let (qa, qb, qc) = (dot(d, d), 2.0 * dot(a, d), dot(a, a) - 1.0);
+        let disc = qb * qb - 4.0 * qa * qc;
+        let mut points = vec![a];
+        if disc > 0.0 {
+            for t in [
+                (-qb - disc.sqrt()) / (2.0 * qa),
+                (-qb + disc.sqrt()) / (2.0 * qa),
+            ] {
+                if t > 0.0 && t < 1.0 {
+                    points.push([a[0] + d[0] * t, a[1] + d[1] * t]);
+                }
+            }
+        }
+        points.push(b);
+        for w in points.windows(2) {
+            let (p, q) = (w[0], w[1]);
+            let m = [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])];
+            area += if dot(m, m) < 1.0 {
+                0.5 * cross(p, q)
+            } else {
+                0.5 * cross(p, q).atan2(dot(p, q))
+            };
+        }
+    }
+    let ab = (view.ea[0] * view.eb[1] - view.ea[1] * view.eb[0]).abs();
+    area.abs() * ab
+}
+
+/// The outline is the sphere's: the screen points the chords' region
+/// holds are ones whose rays meet the sphere, and the region misses
+/// at most its stated sliver of the support's true part, for supports
+/// of the three filters' sizes across the outline (and inside it,
+/// outside it, around a small ball's whole outline).
+#[test]
+fn chords_hold_the_outline_within_their_stated_area() {
+    let scene = checkered_ball();
+    let view = SphereView::new(&scene, 0).unwrap();
+    let mut state = 65;
+    let mut rnd = |lo: f64, hi: f64| crate::math::test_uniform(&mut state, lo, hi);
+    let mut straddling = 0;
+    for i in 0..400 {
+        let r = [0.5, 1.0, 2.0][i % 3];
+        let angle = rnd(0.0, std::f64::consts::TAU);
+        // Most across the outline, some well inside or outside.
+        let along = if i % 10 == 0 {
+            rnd(0.5, 1.5)
+        } else {
+            rnd(0.97, 1.03)
+        };
+        let p = view.outline(angle);
+        let c = [
+            view.e0[0] + (p[0] - view.e0[0]) * along,
+            view.e0[1] + (p[1] - view.e0[1]) * along,
+        ];
+        let support = ConvexPolygon::rect(c[0] - r, c[1] - r, c[0] + r, c[1] + r);
+        let mut region = ConvexPolygon::empty();
+        view.region_into(&support, &mut region);
+        let sliver = view.sliver_area(&support);
+        let truth = inside_area(&view, &support);
+        assert!(region.area() <= truth + 1e-9, "{c:?} r {r}");
+        let missed = truth - region.area();
+        assert!(missed <= sliver + 1e-9, "{c:?} r {r}: {missed} > {sliver}");
+        for &s in region.vertices() {
+            assert!(view.circle(s)[0].hypot(view.circle(s)[1]) <= 1.0 + 1e-12);
+        }
+        if region.area() > 0.0 && region.area() < support.area() {
+            straddling += 1;
+            // Where the cap of chords sets it (a Mitchell support across
+            // a 73-pixel ball), about 10⁻⁴ of the support.
+            assert!(sliver < 2e-4 * support.area(), "{sliver}");
+        }
+    }
+    assert!(straddling > 200, "{straddling}");
+}
+
+/// The fitted map's error falls as the square's side squared (a
+/// second-order fit) where the sphere's map is smooth.
+#[test]
+fn fitted_maps_are_second_order_inside_the_outline() {
+    let view = SphereView::new(&checkered_ball(), 0).unwrap();
+    for c in [[128.0, 96.0], [150.0, 96.0], [128.0, 140.0], [170.0, 60.0]] {
+        let error = |h: f64| {
+            let (x0, y0) = (c[0] - 0.5 * h, c[1] - 0.5 * h);
+            let mut square = Square::new([x0, y0], h);
+            let fit = view.fit(&mut square).unwrap();
+            let piece = ConvexPolygon::rect(x0, y0, x0 + h, y0 + h);
+            view.map_error(&fit, &piece, &mut square, &[]).0
+        };
+        let (coarse, fine) = (error(1.0), error(0.25));
+        assert!(
+            fine < coarse / 10.0 && coarse < 1e-2,
+            "{c:?}: {coarse} {fine}"
+        );
+    }
+}
+
+/// The checkered ball at 64 × 48 against 64 × 64 stratified samples
+/// a pixel (an independent reference: it never calls the sphere's
+/// exact path): the exact pixels come within the reference's own
+/// noise and below 8 × 8 supersampling, where the tangent plane they
+/// replace was above it.
+#[test]
+fn the_checkered_ball_matches_a_converged_reference() {
+    let scene = checkered_ball();
+    let render = |filter, seed| {
+        let options = RenderOptions {
+            width: Some(64),
+            height: Some(48),
+            filter,
+            pixel_filter: PixelFilter::Box,
+            seed,
+        };
+        crate::render(&scene, &options, &|_, _| ())
+            .unwrap()
+            .0
+            .pixels
+    };
+    let rmse = |a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]| {
+        let sum: f64 = a
+            .iter()
+            .zip(b)
+            .map(|(p, q)| {
+                let d = f64::from(p.r - q.r);
+                d * d
+            })
+            .sum();
+        (sum / a.len() as f64).sqrt()
+    };
+    let reference = render(TextureFilter::Supersample(64), 11);
+    let again = render(TextureFilter::Supersample(64), 12);
+    let exact = render(
+        TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
+        0,
+    );
+    let sampled = render(TextureFilter::Supersample(8), 13);
+    let noise = rmse(&reference, &again) / std::f64::consts::SQRT_2;
+    let (e, s) = (rmse(&exact, &reference), rmse(&sampled, &reference));
+    assert!(
+        e < 2.0 * noise && e < s / 3.0,
+        "exact {e}, 64 samples {s}, noise {noise}"
+    );
+}
+
+/// The ball between a checkered wall behind it and a quad in front
+/// of part of it, under each pixel filter: its outline against both,
+/// and the quad's edges across it, against 64 × 64 stratified samples
+/// weighted by the same filter.
+#[test]
+fn the_ball_among_planar_primitives_matches_a_converged_reference() {
+    use crate::math::Vec3;
+    use crate::scene::{Geometry, Surface, UvTransform};
+    let mut scene = checkered_ball();
+    let checker = scene.surfaces[0].texture.clone();
+    let surface = |geometry, scale: f64| Surface {
+        geometry,
+        texture: checker.clone(),
+        colour: quadtex_core::Rgba::opaque(0.8, 0.9, 1.0),
+        uv_transform: UvTransform {
+            scale: [scale, scale],
+            ..UvTransform::default()
+        },
+        wrap: quadtex_core::Wrap::REPEAT,
+    };
+    scene.surfaces.push(surface(
+        Geometry::Plane {
+            point: Vec3::new(0.0, 0.0, 2.0),
+            normal: Vec3::new(0.0, 0.0, -1.0),
+            u_axis: Vec3::new(1.0, 0.0, 0.0),
+            v_axis: Vec3::new(0.0, 1.0, 0.0),
+        },
+        0.7,
+    ));
+    scene.surfaces.push(surface(
+        Geometry::Quad {
+            origin: Vec3::new(0.3, -1.4, -1.5),
+            edge_u: Vec3::new(1.2, 0.3, 0.0),
+            edge_v: Vec3::new(0.0, 1.5, 0.4),
+        },
+        2.0,
+    ));
+    for pixel_filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
+        let render = |filter, seed| {
+            let options = RenderOptions {
+                width: Some(48),
+                height: Some(36),
+                filter,
+                pixel_filter,
+                seed,
+            };
+            crate::render(&scene, &options, &|_, _| ())
+                .unwrap()
+                .0
+                .pixels
+        };
+        let reference = render(TextureFilter::Supersample(64), 21);
+        let again = render(TextureFilter::Supersample(64), 22);
+        let exact = render(
+            TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
+            0,
+        );
+        let sampled = render(TextureFilter::Supersample(8), 23);
+        let rmse = |a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]| {
+            let sum: f64 = (a.iter().zip(b))
+                .map(|(p, q)| {
+                    let d = f64::from(p.g - q.g);
+                    d * d
+                })
+                .sum();
+            (sum / a.len() as f64).sqrt()
+        };
+        let noise = rmse(&reference, &again) / std::f64::consts::SQRT_2;
+        let (e, s) = (rmse(&exact, &reference), rmse(&sampled, &reference));
+        assert!(
+            e < 2.0 * noise && e < s / 3.0,
+            "{pixel_filter:?}: exact {e}, 64 samples {s}, noise {noise}"
+        );
+    }
+}
+
+/// The ball seen from above, its north pole in view (where longitude
+/// turns around a point and the squares shrink towards it): the image
+/// within the reference's noise, and only the pixels at the pole above
+/// the target (they spend their budget of pieces; a known limit).
+#[test]
+fn a_pole_in_view_keeps_the_bound() {
+    let mut scene = checkered_ball();
+    scene.camera = crate::scene::Camera::new(
+        crate::math::Vec3::new(0.0, 3.0, -4.0),
+        crate::math::Vec3::new(0.0, 0.0, 0.0),
+        crate::math::Vec3::new(0.0, 1.0, 0.0),
+        30.0,
+        64,
+        48,
+    )
+    .unwrap();
+    let render = |filter, seed| {
+        let options = RenderOptions {
+            width: Some(64),
+            height: Some(48),
+            filter,
+            pixel_filter: PixelFilter::Box,
+            seed,
+        };
+        crate::render(&scene, &options, &|_, _| ()).unwrap()
+    };
+    let (exact, summary) = render(
+        TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
+        0,
+    );
+    let pole = scene
+        .camera
+        .project(crate::math::Vec3::new(0.0, 1.0, 0.0))
+        .unwrap();
+    assert!(
+        pole[0] > 1.0 && pole[1] > 1.0,
+        "the pole is in the frame: {pole:?}"
+    );
+    assert!(
+        summary.filter.over_target <= 4,
+        "{}",
+        summary.filter.over_target
+    );
+    let reference = render(TextureFilter::Supersample(64), 31).0.pixels;
+    let again = render(TextureFilter::Supersample(64), 32).0.pixels;
+    let sampled = render(TextureFilter::Supersample(8), 33).0.pixels;
+    let rmse = |a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]| {
+        let sum: f64 = (a.iter().zip(b))
+            .map(|(p, q)| {
+                let d = f64::from(p.r - q.r);
+                d * d
+            })
+            .sum();
+        (sum / a.len() as f64).sqrt()
+    };
+    let noise = rmse(&reference, &again) / std::f64::consts::SQRT_2;
+    let (e, s) = (rmse(&exact.pixels, &reference), rmse(&sampled, &reference));
+    assert!(
+        e < 2.0 * noise && e < s / 3.0,
+        "exact {e}, 64 samples {s}, noise {noise}"
+    );
+}
