@@ -2,7 +2,7 @@
 //! and the 3×3 matrix helpers it is built from.
 
 use crate::Error;
-use crate::filter::footprint::Footprint;
+use crate::filter::footprint::{Footprint, SquareToQuad};
 
 pub(super) type Mat3 = [[f64; 3]; 3];
 
@@ -77,6 +77,24 @@ impl Projection {
         Projection::new(mul(&m, &t)).ok()
     }
 
+    /// The map sending screen quadrilateral `screen` onto texture
+    /// quadrilateral `texture`, corner `i` to corner `i` (corners in order
+    /// around each, as [`Footprint`]'s), with `w > 0` inside `screen`;
+    /// `None` unless each quad is convex and not degenerate (Heckbert's
+    /// square-to-quad map of each, the screen's inverted). For a renderer
+    /// whose own map is not projective: a projective map through four of
+    /// its points.
+    pub fn between_quads(screen: &[[f64; 2]; 4], texture: &[[f64; 2]; 4]) -> Option<Projection> {
+        let to_screen = SquareToQuad::new(screen)?.matrix();
+        let to_texture = SquareToQuad::new(texture)?.matrix();
+        // adj(M) = det·M⁻¹; the square's w is positive, so sign(det)·adj
+        // keeps it positive inside the screen quad.
+        let (adj, det) = adjugate(&to_screen);
+        let sign = det.signum();
+        let square_from_screen = adj.map(|row| row.map(|v| sign * v));
+        Projection::new(mul(&to_texture, &square_from_screen)).ok()
+    }
+
     /// The matrix taking screen points to texture points.
     pub fn texture_from_screen(&self) -> [[f64; 3]; 3] {
         self.texture_from_screen
@@ -129,4 +147,30 @@ pub(super) fn adjugate(m: &Mat3) -> (Mat3, f64) {
     ];
     let det = a * adj[0][0] + b * adj[1][0] + c * adj[2][0];
     (adj, det)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each corner of the screen quad lands on the texture quad's, `w` is
+    /// positive inside, and folded or degenerate quads are refused.
+    #[test]
+    fn between_quads_sends_corners_to_corners() {
+        let screen = [[10.0, 5.0], [12.5, 5.2], [12.0, 7.9], [9.8, 7.0]];
+        let texture = [[0.2, 0.1], [1.3, 0.0], [1.1, 0.9], [0.0, 1.2]];
+        for (screen, texture) in [(screen, texture), (texture, screen)] {
+            let p = Projection::between_quads(&screen, &texture).unwrap();
+            for (s, t) in screen.iter().zip(texture) {
+                let got = p.texture_point(*s).unwrap();
+                assert!((got[0] - t[0]).abs() < 1e-12 && (got[1] - t[1]).abs() < 1e-12);
+            }
+            let centre = [0, 1].map(|a| screen.iter().map(|c| c[a]).sum::<f64>() / 4.0);
+            assert!(p.w(centre) > 0.0);
+        }
+        let folded = [[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]];
+        assert!(Projection::between_quads(&folded, &texture).is_none());
+        let flat = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]];
+        assert!(Projection::between_quads(&screen, &flat).is_none());
+    }
 }

@@ -342,19 +342,8 @@ impl SphereView {
         let (from, span, most) = if inside {
             (0.0, std::f64::consts::TAU, MAX_CHORDS_AROUND)
         } else {
-            let reference = q[0][1].atan2(q[0][0]);
-            let (mut lo, mut hi) = (0f64, 0f64);
-            for p in &q[1..] {
-                let mut a = p[1].atan2(p[0]) - reference;
-                if a > std::f64::consts::PI {
-                    a -= std::f64::consts::TAU;
-                } else if a <= -std::f64::consts::PI {
-                    a += std::f64::consts::TAU;
-                }
-                lo = lo.min(a);
-                hi = hi.max(a);
-            }
-            (reference + lo, hi - lo, MAX_CHORDS)
+            let (from, span) = angles_seen(q);
+            (from, span, MAX_CHORDS)
         };
         let ab = (self.ea[0] * self.eb[1] - self.ea[1] * self.eb[0]).abs();
         let left_out = |count: usize| {
@@ -463,27 +452,34 @@ impl SphereView {
         if q.is_empty() || near <= 0.0 || farthest < near * near {
             return false;
         }
-        let reference = q[0][1].atan2(q[0][0]);
-        let (mut lo, mut hi) = (0f64, 0f64);
-        for p in &q[1..] {
-            let mut a = p[1].atan2(p[0]) - reference;
-            if a > std::f64::consts::PI {
-                a -= std::f64::consts::TAU;
-            } else if a <= -std::f64::consts::PI {
-                a += std::f64::consts::TAU;
-            }
-            lo = lo.min(a);
-            hi = hi.max(a);
-        }
-        let span = hi - lo;
+        let (from, span) = angles_seen(&q);
         if !(span > 0.0 && span < 3.0) {
             return false;
         }
-        sectors.from = reference + lo;
+        sectors.from = from;
         sectors.count = ((span * major / 0.5).ceil() as usize).clamp(1, MAX_CHORDS);
         sectors.delta = span / sectors.count as f64;
         true
     }
+}
+
+/// The angles `points` (in the outline's unit-circle coordinates, not
+/// around the centre) are seen at from the centre: `(from, span)`, the
+/// smallest arc holding them all, measured from the first point's angle.
+fn angles_seen(points: &[[f64; 2]]) -> (f64, f64) {
+    let reference = points[0][1].atan2(points[0][0]);
+    let (mut lo, mut hi) = (0f64, 0f64);
+    for p in &points[1..] {
+        let mut a = p[1].atan2(p[0]) - reference;
+        if a > std::f64::consts::PI {
+            a -= std::f64::consts::TAU;
+        } else if a <= -std::f64::consts::PI {
+            a += std::f64::consts::TAU;
+        }
+        lo = lo.min(a);
+        hi = hi.max(a);
+    }
+    (reference + lo, hi - lo)
 }
 
 mod pieces;

@@ -180,75 +180,12 @@ fn add(sums: &mut ([f64; 4], f64, f64), c: [f64; 4], w: f64, b: f64) {
     sums.2 += b;
 }
 
-/// The projective map sending quadrilateral `from` to `to` corner by
-/// corner (rows acting on `(x, y, 1)`, `w > 0` at `from`'s corners);
-/// `None` when either is degenerate or the map folds.
+/// The projective map sending screen quadrilateral `from` to UV
+/// quadrilateral `to` corner by corner, as rows acting on `(x, y, 1)` with
+/// `w > 0` inside `from` ([`Projection::between_quads`]); `None` when
+/// either is folded or degenerate.
 fn quad_to_quad(from: [[f64; 2]; 4], to: [[f64; 2]; 4]) -> Option<[[f64; 3]; 3]> {
-    let a = square_to_quad(from)?;
-    let b = square_to_quad(to)?;
-    // a⁻¹ up to a factor: its adjugate.
-    let adj = [
-        [
-            a[1][1] * a[2][2] - a[1][2] * a[2][1],
-            a[0][2] * a[2][1] - a[0][1] * a[2][2],
-            a[0][1] * a[1][2] - a[0][2] * a[1][1],
-        ],
-        [
-            a[1][2] * a[2][0] - a[1][0] * a[2][2],
-            a[0][0] * a[2][2] - a[0][2] * a[2][0],
-            a[0][2] * a[1][0] - a[0][0] * a[1][2],
-        ],
-        [
-            a[1][0] * a[2][1] - a[1][1] * a[2][0],
-            a[0][1] * a[2][0] - a[0][0] * a[2][1],
-            a[0][0] * a[1][1] - a[0][1] * a[1][0],
-        ],
-    ];
-    let m = mul(&b, &adj);
-    let w = |s: [f64; 2]| m[2][0] * s[0] + m[2][1] * s[1] + m[2][2];
-    let signs = from.map(w);
-    if signs.iter().all(|&v| v > 0.0) {
-        Some(m)
-    } else if signs.iter().all(|&v| v < 0.0) {
-        Some(m.map(|row| row.map(|v| -v)))
-    } else {
-        None
-    }
-}
-
-/// Heckbert's square-to-quad map: rows acting on `(x, y, 1)` of the unit
-/// square that send its corners `(0,0), (1,0), (1,1), (0,1)` to `p`;
-/// `None` when `p` is degenerate.
-pub(super) fn square_to_quad(p: [[f64; 2]; 4]) -> Option<[[f64; 3]; 3]> {
-    let [[x0, y0], [x1, y1], [x2, y2], [x3, y3]] = p;
-    let (sx, sy) = (x0 - x1 + x2 - x3, y0 - y1 + y2 - y3);
-    let (g, h) = if sx == 0.0 && sy == 0.0 {
-        (0.0, 0.0)
-    } else {
-        let (dx1, dx2, dy1, dy2) = (x1 - x2, x3 - x2, y1 - y2, y3 - y2);
-        let det = dx1 * dy2 - dx2 * dy1;
-        if det.is_nan() || det.abs() <= 1e-300 {
-            return None;
-        }
-        ((sx * dy2 - dx2 * sy) / det, (dx1 * sy - sx * dy1) / det)
-    };
-    let m = [
-        [x1 - x0 + g * x1, x3 - x0 + h * x3, x0],
-        [y1 - y0 + g * y1, y3 - y0 + h * y3, y0],
-        [g, h, 1.0],
-    ];
-    m.iter().flatten().all(|v| v.is_finite()).then_some(m)
-}
-
-/// The product `a·b` of two 3×3 matrices.
-fn mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut m = [[0.0; 3]; 3];
-    for (i, row) in m.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = (0..3).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    m
+    Projection::between_quads(&from, &to).map(|p| p.texture_from_screen())
 }
 
 impl SphereView {
@@ -552,25 +489,9 @@ impl SphereView {
             let [u, v] = square.uv(self, i, j);
             [u + (first[0] - u).round(), v]
         };
-        let p = [first, corner(2, 0), corner(2, 2), corner(0, 2)];
-        let quad = square_to_quad(p)?;
-        // Screen to the unit square: (s − (x0, y0)) / h.
-        let unit = [
-            [1.0 / h, 0.0, -x0 / h],
-            [0.0, 1.0 / h, -y0 / h],
-            [0.0, 0.0, 1.0],
-        ];
-        let m = mul(&quad, &unit);
-        let w = |s: [f64; 2]| m[2][0] * s[0] + m[2][1] * s[1] + m[2][2];
+        let uv = [first, corner(2, 0), corner(2, 2), corner(0, 2)];
         let corners = [[x0, y0], [x0 + h, y0], [x0 + h, y0 + h], [x0, y0 + h]];
-        let signs: Vec<f64> = corners.iter().map(|&s| w(s)).collect();
-        if signs.iter().all(|&v| v > 0.0) {
-            Some(m)
-        } else if signs.iter().all(|&v| v < 0.0) {
-            Some(m.map(|row| row.map(|v| -v)))
-        } else {
-            None
-        }
+        quad_to_quad(corners, uv)
     }
 
     /// The affine map through the sphere's UV at `c` with its derivatives

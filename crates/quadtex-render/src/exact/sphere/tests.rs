@@ -1,24 +1,9 @@
-//! Tests of [`super`]: the square-to-quad map, the outline's chords
+//! Tests of [`super`]: the outline's chords
 //! against the closed-form area inside it, the fitted maps' order, and
 //! rendered balls against converged references.
 
-use super::pieces::{Square, square_to_quad};
+use super::pieces::Square;
 use super::*;
-
-#[test]
-fn square_to_quad_sends_the_corners_where_asked() {
-    let p = [[0.2, 0.1], [1.3, 0.0], [1.1, 0.9], [0.0, 1.2]];
-    let m = square_to_quad(p).unwrap();
-    for (corner, want) in [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
-        .iter()
-        .zip(p)
-    {
-        let w = m[2][0] * corner[0] + m[2][1] * corner[1] + m[2][2];
-        let x = (m[0][0] * corner[0] + m[0][1] * corner[1] + m[0][2]) / w;
-        let y = (m[1][0] * corner[0] + m[1][1] * corner[1] + m[1][2]) / w;
-        assert!((x - want[0]).abs() < 1e-12 && (y - want[1]).abs() < 1e-12);
-    }
-}
 
 use crate::options::{PixelFilter, RenderOptions, TextureFilter};
 
@@ -140,47 +125,64 @@ fn fitted_maps_are_second_order_inside_the_outline() {
     }
 }
 
-/// The checkered ball at 64 × 48 against 64 × 64 stratified samples
-/// a pixel (an independent reference: it never calls the sphere's
-/// exact path): the exact pixels come within the reference's own
-/// noise and below 8 × 8 supersampling, where the tangent plane they
-/// replace was above it.
-#[test]
-fn the_checkered_ball_matches_a_converged_reference() {
-    let scene = checkered_ball();
+/// How the exact pixels of `scene` at `size` under `pixel_filter` compare
+/// with 64 × 64 stratified samples a pixel weighted by the same filter (an
+/// independent reference: it never calls the sphere's exact path), on
+/// colour channel `channel`: `(exact, sampled, noise)`, the RMSE of the
+/// exact pixels and of 8 × 8 samples against the reference, and the
+/// reference's own noise (two seeds' RMSE over √2); with the exact
+/// render's count of pixels above the target. Seeds from `seed`.
+fn against_converged_reference(
+    scene: &Scene,
+    pixel_filter: PixelFilter,
+    size: (u32, u32),
+    channel: usize,
+    seed: u64,
+) -> ((f64, f64, f64), u64) {
     let render = |filter, seed| {
         let options = RenderOptions {
-            width: Some(64),
-            height: Some(48),
+            width: Some(size.0),
+            height: Some(size.1),
             filter,
-            pixel_filter: PixelFilter::Box,
+            pixel_filter,
             seed,
         };
-        crate::render(&scene, &options, &|_, _| ())
-            .unwrap()
-            .0
-            .pixels
+        crate::render(scene, &options, &|_, _| ()).unwrap()
     };
     let rmse = |a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]| {
-        let sum: f64 = a
-            .iter()
-            .zip(b)
+        let sum: f64 = (a.iter().zip(b))
             .map(|(p, q)| {
-                let d = f64::from(p.r - q.r);
+                let d = f64::from(p.to_array()[channel] - q.to_array()[channel]);
                 d * d
             })
             .sum();
         (sum / a.len() as f64).sqrt()
     };
-    let reference = render(TextureFilter::Supersample(64), 11);
-    let again = render(TextureFilter::Supersample(64), 12);
-    let exact = render(
+    let reference = render(TextureFilter::Supersample(64), seed + 1).0.pixels;
+    let again = render(TextureFilter::Supersample(64), seed + 2).0.pixels;
+    let (exact, summary) = render(
         TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
         0,
     );
-    let sampled = render(TextureFilter::Supersample(8), 13);
+    let sampled = render(TextureFilter::Supersample(8), seed + 3).0.pixels;
     let noise = rmse(&reference, &again) / std::f64::consts::SQRT_2;
-    let (e, s) = (rmse(&exact, &reference), rmse(&sampled, &reference));
+    (
+        (
+            rmse(&exact.pixels, &reference),
+            rmse(&sampled, &reference),
+            noise,
+        ),
+        summary.filter.over_target,
+    )
+}
+
+/// The checkered ball at 64 × 48: the exact pixels come within the
+/// reference's own noise and below 8 × 8 supersampling, where the
+/// tangent plane they replace was above it.
+#[test]
+fn the_checkered_ball_matches_a_converged_reference() {
+    let ((e, s, noise), _) =
+        against_converged_reference(&checkered_ball(), PixelFilter::Box, (64, 48), 0, 10);
     assert!(
         e < 2.0 * noise && e < s / 3.0,
         "exact {e}, 64 samples {s}, noise {noise}"
@@ -189,8 +191,7 @@ fn the_checkered_ball_matches_a_converged_reference() {
 
 /// The ball between a checkered wall behind it and a quad in front
 /// of part of it, under each pixel filter: its outline against both,
-/// and the quad's edges across it, against 64 × 64 stratified samples
-/// weighted by the same filter.
+/// and the quad's edges across it.
 #[test]
 fn the_ball_among_planar_primitives_matches_a_converged_reference() {
     use crate::math::Vec3;
@@ -225,37 +226,7 @@ fn the_ball_among_planar_primitives_matches_a_converged_reference() {
         2.0,
     ));
     for pixel_filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
-        let render = |filter, seed| {
-            let options = RenderOptions {
-                width: Some(48),
-                height: Some(36),
-                filter,
-                pixel_filter,
-                seed,
-            };
-            crate::render(&scene, &options, &|_, _| ())
-                .unwrap()
-                .0
-                .pixels
-        };
-        let reference = render(TextureFilter::Supersample(64), 21);
-        let again = render(TextureFilter::Supersample(64), 22);
-        let exact = render(
-            TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
-            0,
-        );
-        let sampled = render(TextureFilter::Supersample(8), 23);
-        let rmse = |a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]| {
-            let sum: f64 = (a.iter().zip(b))
-                .map(|(p, q)| {
-                    let d = f64::from(p.g - q.g);
-                    d * d
-                })
-                .sum();
-            (sum / a.len() as f64).sqrt()
-        };
-        let noise = rmse(&reference, &again) / std::f64::consts::SQRT_2;
-        let (e, s) = (rmse(&exact, &reference), rmse(&sampled, &reference));
+        let ((e, s, noise), _) = against_converged_reference(&scene, pixel_filter, (48, 36), 1, 20);
         assert!(
             e < 2.0 * noise && e < s / 3.0,
             "{pixel_filter:?}: exact {e}, 64 samples {s}, noise {noise}"
@@ -279,20 +250,6 @@ fn a_pole_in_view_keeps_the_bound() {
         48,
     )
     .unwrap();
-    let render = |filter, seed| {
-        let options = RenderOptions {
-            width: Some(64),
-            height: Some(48),
-            filter,
-            pixel_filter: PixelFilter::Box,
-            seed,
-        };
-        crate::render(&scene, &options, &|_, _| ()).unwrap()
-    };
-    let (exact, summary) = render(
-        TextureFilter::Quadtree(quadtex_core::FilterOptions::RENDER),
-        0,
-    );
     let pole = scene
         .camera
         .project(crate::math::Vec3::new(0.0, 1.0, 0.0))
@@ -301,25 +258,9 @@ fn a_pole_in_view_keeps_the_bound() {
         pole[0] > 1.0 && pole[1] > 1.0,
         "the pole is in the frame: {pole:?}"
     );
-    assert!(
-        summary.filter.over_target <= 4,
-        "{}",
-        summary.filter.over_target
-    );
-    let reference = render(TextureFilter::Supersample(64), 31).0.pixels;
-    let again = render(TextureFilter::Supersample(64), 32).0.pixels;
-    let sampled = render(TextureFilter::Supersample(8), 33).0.pixels;
-    let rmse = |a: &[quadtex_core::Rgba], b: &[quadtex_core::Rgba]| {
-        let sum: f64 = (a.iter().zip(b))
-            .map(|(p, q)| {
-                let d = f64::from(p.r - q.r);
-                d * d
-            })
-            .sum();
-        (sum / a.len() as f64).sqrt()
-    };
-    let noise = rmse(&reference, &again) / std::f64::consts::SQRT_2;
-    let (e, s) = (rmse(&exact.pixels, &reference), rmse(&sampled, &reference));
+    let ((e, s, noise), over_target) =
+        against_converged_reference(&scene, PixelFilter::Box, (64, 48), 0, 30);
+    assert!(over_target <= 4, "{over_target}");
     assert!(
         e < 2.0 * noise && e < s / 3.0,
         "exact {e}, 64 samples {s}, noise {noise}"
