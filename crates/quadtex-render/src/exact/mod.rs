@@ -1,6 +1,8 @@
 //! Exact pixels: the pixel filter's support resolved in screen space into
-//! the regions each planar primitive shows, each integrated over the texture
-//! exactly ([`quadtex_core::Texture::integrate_region`]).
+//! the regions each primitive shows (planar ones and spheres), each
+//! integrated over the texture exactly
+//! ([`quadtex_core::Texture::integrate_region`]; a sphere piece by piece,
+//! [`sphere`]).
 //!
 //! **Primitives.** Planes, quads and each mesh triangle are planar: the map
 //! from screen to texture over one of them is a single projective map
