@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
-# Builds the C API's static library (cargo's debug profile), compiles
+# Builds the C API's static library (cargo's debug profile; or takes the one
+# QUADTEX_CAPI_LIB names, as scripts/test does with the one `cargo test`
+# built), compiles
 # examples/c/filter.c against include/quadtex.h with strict warnings, and runs
 # it from the repository root (it packs samples/threshold.svg and checks the
 # colours it filters). Extra arguments are passed to the program.
@@ -14,9 +16,12 @@ if ! command -v "$cc" >/dev/null 2>&1; then
   cc=gcc
 fi
 
-cargo build -p quadtex-capi
 target="${CARGO_TARGET_DIR:-target}"
-lib="$target/debug/libquadtex_capi.a"
+lib="${QUADTEX_CAPI_LIB:-}"
+if [ -z "$lib" ]; then
+  cargo build -p quadtex-capi
+  lib="$target/debug/libquadtex_capi.a"
+fi
 out="$target/c-examples"
 mkdir -p "$out"
 # Link the archive by name (not -lquadtex_capi, which would pick the .so).
