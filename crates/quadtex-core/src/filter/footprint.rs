@@ -195,8 +195,16 @@ impl SquareToQuad {
             [p3[0] - p1[0], p3[1] - p1[1]],
         );
         let cross = d1[0] * d2[1] - d1[1] * d2[0];
-        let longer = d1[0].hypot(d1[1]).max(d2[0].hypot(d2[1]));
-        if cross.abs() <= 1e-12 * longer * longer {
+        // Squared lengths (no square roots: this runs per piece of a
+        // sphere); where they overflow, the lengths themselves.
+        let longer_squared = (d1[0] * d1[0] + d1[1] * d1[1]).max(d2[0] * d2[0] + d2[1] * d2[1]);
+        let longer_squared = if longer_squared.is_finite() {
+            longer_squared
+        } else {
+            let longer = d1[0].hypot(d1[1]).max(d2[0].hypot(d2[1]));
+            longer * longer
+        };
+        if cross.abs() <= 1e-12 * longer_squared {
             return None;
         }
         let sx = p0[0] - p1[0] + p2[0] - p3[0];

@@ -47,7 +47,8 @@ impl Projection {
         Ok(Projection {
             texture_from_screen: m,
             screen_from_texture: inv,
-            w_gradient: m[2][0].hypot(m[2][1]),
+            // m's entries are at most 1 in size: no overflow without hypot.
+            w_gradient: (m[2][0] * m[2][0] + m[2][1] * m[2][1]).sqrt(),
         })
     }
 

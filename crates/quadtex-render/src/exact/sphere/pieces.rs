@@ -61,6 +61,17 @@ struct Ring<'a> {
     /// The screen point and the sphere's UV at ring `k`'s chord end `e`,
     /// at `k·(chords + 1) + e`, where computed.
     corners: &'a mut Vec<Option<([f64; 2], [f64; 2])>>,
+    /// The sphere's UV at the midpoint of ring `k`'s chord `j`, at
+    /// `k·chords + j`, where computed.
+    chord_middles: &'a mut Vec<Option<[f64; 2]>>,
+    /// The sphere's UV at the midpoint of ray `e` between rings `a` and
+    /// `b`, by `(a, b, e)`, where computed (shared by the sectors on
+    /// either side).
+    ray_middles: &'a mut Vec<((usize, usize, usize), [f64; 2])>,
+    /// Whether the region lies within the chords the sectors span (the
+    /// support was clipped by them): then the first ring's pieces lie
+    /// within their trapezoids, not between a chord and the outline.
+    within_chords: bool,
 }
 
 impl Ring<'_> {
@@ -80,6 +91,51 @@ impl Ring<'_> {
         let found = (s, view.on_sphere(s).uv);
         self.corners[index] = Some(found);
         found
+    }
+
+    /// The largest error of `fit` (through the four corners of the
+    /// trapezoid between rings `a` and `b` of this sector) at the
+    /// trapezoid's check points, as [`SphereView::map_error`] measures it:
+    /// its centre (the corners' mean) and its sides' midpoints, those on
+    /// the rays and chords shared with the neighbouring trapezoids.
+    fn trapezoid_error(
+        &mut self,
+        view: &SphereView,
+        fit: &[[f64; 3]; 3],
+        (a, b): (usize, usize),
+    ) -> (f64, f64) {
+        let j = self.chord;
+        let [p, q, r, t] =
+            [(a, j), (a, j + 1), (b, j + 1), (b, j)].map(|(k, e)| self.corner(view, k, e).0);
+        let middle = |x: [f64; 2], y: [f64; 2]| [0.5 * (x[0] + y[0]), 0.5 * (x[1] + y[1])];
+        let mut worst = (0f64, 0f64);
+        let mut check = |s: [f64; 2], uv: [f64; 2]| {
+            let (d, e) = view.fit_error_at(fit, s, uv);
+            worst = (worst.0.max(d), worst.1.max(e));
+        };
+        let centre = middle(middle(p, r), middle(q, t));
+        check(centre, view.on_sphere(centre).uv);
+        let chords = self.chords.count;
+        for (k, x, y) in [(a, p, q), (b, t, r)] {
+            let s = middle(x, y);
+            let uv =
+                *self.chord_middles[k * chords + j].get_or_insert_with(|| view.on_sphere(s).uv);
+            check(s, uv);
+        }
+        for (e, x, y) in [(j, p, t), (j + 1, q, r)] {
+            let s = middle(x, y);
+            let key = (a, b, e);
+            let uv = match self.ray_middles.iter().find(|(k, _)| *k == key) {
+                Some(&(_, uv)) => uv,
+                None => {
+                    let uv = view.on_sphere(s).uv;
+                    self.ray_middles.push((key, uv));
+                    uv
+                }
+            };
+            check(s, uv);
+        }
+        worst
     }
 }
 
@@ -238,12 +294,17 @@ impl SphereView {
             return sums;
         }
         let mut corners = vec![None; radii.len() * (chords.count + 1)];
+        let mut chord_middles = vec![None; radii.len() * chords.count];
+        let mut ray_middles = Vec::new();
         for j in 0..chords.count {
             let mut ring = Ring {
                 chords: &chords,
                 radii: &radii,
                 chord: j,
                 corners: &mut corners,
+                chord_middles: &mut chord_middles,
+                ray_middles: &mut ray_middles,
+                within_chords: crossing,
             };
             self.shade_ring(
                 shading,
@@ -365,10 +426,16 @@ impl SphereView {
         let first = ends[0].1;
         let uv = ends.map(|(_, [u, v])| [u + (first[0] - u).round(), v]);
         let fit = quad_to_quad(corners, uv);
-        let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN);
-        let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
-            self.map_error(&f, &piece, &mut nowhere, &corners)
-        });
+        let (error, uv_error) = match &fit {
+            None => (f64::INFINITY, f64::INFINITY),
+            // The piece lies within the trapezoid: its checks hold for it,
+            // and neighbouring trapezoids share them.
+            Some(f) if a > 0 || ring.within_chords => ring.trapezoid_error(self, f, (a, b)),
+            Some(f) => {
+                let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN);
+                self.map_error(f, &piece, &mut nowhere, &corners)
+            }
+        };
         if let Some(fit) = &fit
             && let Some(colour) = self.uniform(shading, fit, &piece, uv_error)
         {
@@ -520,10 +587,12 @@ impl SphereView {
     /// The largest screen distance, at `piece`'s check points, between a
     /// point and the one the sphere's map sends where `fit` sends it
     /// (first order: `|J⁻¹·(H(s) − uv(s))|`, `J` the fit's Jacobian), and
-    /// the largest UV difference there. The check points: a whole
-    /// `square`'s centre and edges' midpoints; else the piece's centroid,
-    /// edges' midpoints and vertices but the square's corners and `exact`
-    /// (where the fit passes through the sphere's UV).
+    /// the largest UV difference there. The check points: the centre and
+    /// edges' midpoints of `square` when the piece is all of it, or when
+    /// the square lies inside the outline (its fit's error bounds the
+    /// part's); else the piece's centroid, edges' midpoints and vertices
+    /// but the square's corners and `exact` (where the fit passes through
+    /// the sphere's UV).
     pub(super) fn map_error(
         &self,
         fit: &[[f64; 3]; 3],
@@ -538,38 +607,28 @@ impl SphereView {
         let mut worst = 0f64;
         let mut worst_uv = 0f64;
         let mut check = |s: [f64; 2], square: &mut Square| {
-            let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
-            let hu = (fit[0][0] * s[0] + fit[0][1] * s[1] + fit[0][2]) / w;
-            let hv = (fit[1][0] * s[0] + fit[1][1] * s[1] + fit[1][2]) / w;
-            let [u, uv_v] = square.uv_at(self, s);
-            let e = [u + (hu - u).round() - hu, uv_v - hv];
-            worst_uv = worst_uv.max(e[0].abs().max(e[1].abs()));
-            // Jacobian of (a·s̃ / w·s̃): (a_xy − value·w_xy) / w.
-            let j = [
-                [
-                    (fit[0][0] - hu * fit[2][0]) / w,
-                    (fit[0][1] - hu * fit[2][1]) / w,
-                ],
-                [
-                    (fit[1][0] - hv * fit[2][0]) / w,
-                    (fit[1][1] - hv * fit[2][1]) / w,
-                ],
-            ];
-            let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
-            let d = if w > 0.0 && det.abs() > 1e-300 {
-                let dx = (j[1][1] * e[0] - j[0][1] * e[1]) / det;
-                let dy = (-j[1][0] * e[0] + j[0][0] * e[1]) / det;
-                (dx * dx + dy * dy).sqrt()
-            } else {
-                f64::INFINITY
-            };
-            worst = worst.max(if d.is_nan() { f64::INFINITY } else { d });
+            let (d, e) = self.fit_error_at(fit, s, square.uv_at(self, s));
+            worst = worst.max(d);
+            worst_uv = worst_uv.max(e);
         };
         // The fit is exact at the square's corners.
         let corner = |p: [f64; 2]| (p[0] == x0 || p[0] == x0 + h) && (p[1] == y0 || p[1] == y0 + h);
-        if n == 4 && v.iter().all(|&p| corner(p)) {
-            // The whole square: its centre and edges' midpoints, which
-            // are its children's corners.
+        let whole = n == 4 && v.iter().all(|&p| corner(p));
+        // A part of a square lying inside the outline is checked as the
+        // whole square (the fit's error over the square bounds it over
+        // the part as well as the part's own points do), at points its
+        // neighbours and children share; beyond the outline the sphere's
+        // map is the limb's, not the square's.
+        if whole
+            || (h.is_finite()
+                && [0, 1, 2].iter().all(|&j| {
+                    [0, 1, 2]
+                        .iter()
+                        .all(|&i| self.inside_outline(square.point(i, j)))
+                }))
+        {
+            // The square's centre and edges' midpoints, which are its
+            // children's corners.
             for (i, j) in [(1, 1), (1, 0), (2, 1), (1, 2), (0, 1)] {
                 let s = square.point(i, j);
                 check(s, square);
@@ -588,6 +647,52 @@ impl SphereView {
             worst_uv = f64::INFINITY;
         }
         (worst, worst_uv)
+    }
+
+    /// Whether screen point `s` lies strictly inside the outline.
+    fn inside_outline(&self, s: [f64; 2]) -> bool {
+        let q = self.circle(s);
+        q[0] * q[0] + q[1] * q[1] < 1.0
+    }
+
+    /// The error of `fit` at screen point `s`, where the sphere's UV is
+    /// `uv`: the screen distance from `s` to the point the sphere's map
+    /// sends where `fit` sends `s` (first order: `|J⁻¹·(H(s) − uv)|`, `J`
+    /// the fit's Jacobian; infinite where the fit folds or NaN), and the
+    /// larger of the UV differences.
+    fn fit_error_at(&self, fit: &[[f64; 3]; 3], s: [f64; 2], uv: [f64; 2]) -> (f64, f64) {
+        let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
+        let hu = (fit[0][0] * s[0] + fit[0][1] * s[1] + fit[0][2]) / w;
+        let hv = (fit[1][0] * s[0] + fit[1][1] * s[1] + fit[1][2]) / w;
+        let e = [uv[0] + (hu - uv[0]).round() - hu, uv[1] - hv];
+        let uv_error = e[0].abs().max(e[1].abs());
+        // Jacobian of (a·s̃ / w·s̃): (a_xy − value·w_xy) / w.
+        let j = [
+            [
+                (fit[0][0] - hu * fit[2][0]) / w,
+                (fit[0][1] - hu * fit[2][1]) / w,
+            ],
+            [
+                (fit[1][0] - hv * fit[2][0]) / w,
+                (fit[1][1] - hv * fit[2][1]) / w,
+            ],
+        ];
+        let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+        let d = if w > 0.0 && det.abs() > 1e-300 {
+            let dx = (j[1][1] * e[0] - j[0][1] * e[1]) / det;
+            let dy = (-j[1][0] * e[0] + j[0][0] * e[1]) / det;
+            (dx * dx + dy * dy).sqrt()
+        } else {
+            f64::INFINITY
+        };
+        (
+            if d.is_nan() { f64::INFINITY } else { d },
+            if uv_error.is_nan() {
+                f64::INFINITY
+            } else {
+                uv_error
+            },
+        )
     }
 
     /// A texture-space box holding the image of `piece` under the fitted
