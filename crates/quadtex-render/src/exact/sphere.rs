@@ -24,9 +24,11 @@
 //! (`u`: longitude, `v`: latitude) is smooth inside the outline but not
 //! projective. A piece of the region is integrated on a projective map
 //! `H` through the sphere's UV at four points (where `H` is exact) when,
-//! at the piece's centroid, vertices and edges' midpoints, the screen
-//! point the exact map sends to the same texture point lies within `ε`
-//! pixels (`ε` the filter's error bound; `|J⁻¹·(H(s) − uv(s))|` with `J`
+//! at its check points (the centre and sides' midpoints of the square or
+//! trapezoid whose corners those are, when the piece lies within it and
+//! inside the outline; else the piece's centroid, vertices and edges'
+//! midpoints), the screen point the exact map sends to the same texture
+//! point lies within `ε` pixels (`ε` the filter's error bound; `|J⁻¹·(H(s) − uv(s))|` with `J`
 //! the fit's Jacobian, [`SphereView::map_error`]): a texture edge then
 //! moves by at most `ε` pixels, and a pixel it crosses is off by at most
 //! `ε` times its length times the contrast. A piece whose every candidate

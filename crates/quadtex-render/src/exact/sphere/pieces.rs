@@ -52,6 +52,10 @@ struct Budget {
     pieces: u64,
 }
 
+/// The sphere's UV at the midpoint of ray `e` between rings `a` and `b`,
+/// by `(a, b, e)` ([`Ring::trapezoid_error`]).
+type RayMiddle = ((usize, usize, usize), [f64; 2]);
+
 /// One chord's sector of the rings along the outline
 /// ([`SphereView::shade_ring`]).
 struct Ring<'a> {
@@ -67,7 +71,7 @@ struct Ring<'a> {
     /// The sphere's UV at the midpoint of ray `e` between rings `a` and
     /// `b`, by `(a, b, e)`, where computed (shared by the sectors on
     /// either side).
-    ray_middles: &'a mut Vec<((usize, usize, usize), [f64; 2])>,
+    ray_middles: &'a mut Vec<RayMiddle>,
     /// Whether the region lies within the chords the sectors span (the
     /// support was clipped by them): then the first ring's pieces lie
     /// within their trapezoids, not between a chord and the outline.
