@@ -10,9 +10,14 @@ import pytest
 
 SCRIPT = textwrap.dedent(
     """
-    import sys, time
+    import signal, sys, time
     import numpy as np
     import quadtex
+
+    # A child of a background job starts with SIGINT ignored, and Python
+    # then installs no KeyboardInterrupt handler: install it whatever the
+    # test runner's own disposition.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
     rng = np.random.default_rng(1)
     tex = quadtex.pack(rng.random((256, 256, 3)))
