@@ -415,15 +415,12 @@ impl SphereView {
         // that a support inside it but beyond its chord loses nothing.
         let (t0, t1) = (ring.chords.angle(j), ring.chords.angle(j + 1));
         let beyond = self.chord_line(t0, t1, ring.radii[b]).map(|v| -v);
-        let mut lines = vec![
-            self.left_of_ray(t0),
-            self.left_of_ray(t1).map(|v| -v),
-            beyond,
-        ];
-        if a > 0 {
-            lines.push(self.chord_line(t0, t1, ring.radii[a]));
-        }
-        let piece = region.clip_lines(lines);
+        let within = (a > 0).then(|| self.chord_line(t0, t1, ring.radii[a]));
+        let piece = region.clip_lines(
+            [self.left_of_ray(t0), self.left_of_ray(t1).map(|v| -v), beyond]
+                .into_iter()
+                .chain(within),
+        );
         if piece.is_empty() {
             return;
         }
