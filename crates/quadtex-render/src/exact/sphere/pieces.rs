@@ -417,9 +417,13 @@ impl SphereView {
         let beyond = self.chord_line(t0, t1, ring.radii[b]).map(|v| -v);
         let within = (a > 0).then(|| self.chord_line(t0, t1, ring.radii[a]));
         let piece = region.clip_lines(
-            [self.left_of_ray(t0), self.left_of_ray(t1).map(|v| -v), beyond]
-                .into_iter()
-                .chain(within),
+            [
+                self.left_of_ray(t0),
+                self.left_of_ray(t1).map(|v| -v),
+                beyond,
+            ]
+            .into_iter()
+            .chain(within),
         );
         if piece.is_empty() {
             return;
