@@ -57,9 +57,9 @@
 //!
 //! **Shading.** Lambert lighting is constant over a region of a planar
 //! primitive except for shadows, taken at the region's centroid. The sky's gradient over a whole
-//! box-filtered pixel is its value at the centre where a bound on that
+//! support (box, tent or Mitchell) is its value at the centre where a bound on that
 //! rule's error is within a quarter of the filter's error bound (everywhere
-//! but near the level line, [`sky_at_centre`](sky::sky_at_centre)), else 2 × 2 Gauss points;
+//! but near the level line, [`sky_at_centre_under`](sky::sky_at_centre_under)), else 2 × 2 Gauss points;
 //! over part of a pixel, the midpoint rule on quarter-pixel cells clipped to
 //! the sky's part.
 

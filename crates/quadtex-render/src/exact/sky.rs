@@ -132,21 +132,48 @@ pub(super) fn sky_tolerance(options: &FilterOptions) -> f64 {
 /// `T·∫|δ|²/2 = T/12` in `t`, times the sky's contrast in colour. Where the
 /// whole pixel looks below level the sky is the horizon colour: exact.
 pub(super) fn sky_at_centre(scene: &Scene, centre: [f64; 2]) -> Option<([f64; 4], f64)> {
+    sky_at_centre_under(scene, centre, PixelFilter::Box)
+}
+
+/// [`sky_at_centre`] for the support of `filter` (its weight integrating
+/// to 1 over the support): the centre's value, and a bound on how far it
+/// is from the sky's `k`-weighted mean there. A symmetric `k` makes the
+/// rule exact for linear functions; the rest is at most
+/// `T·M₂/2` in `t` ([`second_moment`]), with `y` least over the support
+/// (the centre's less `√2·r·g`, `r` the filter's radius).
+pub(super) fn sky_at_centre_under(
+    scene: &Scene,
+    centre: [f64; 2],
+    filter: PixelFilter,
+) -> Option<([f64; 4], f64)> {
     let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
         return None;
     };
     let ray = scene.camera.ray(centre[0], centre[1]);
     let g = sky_step(scene);
-    let y_min = ray.direction.y - std::f64::consts::FRAC_1_SQRT_2 * g;
-    let bound = if y_min + std::f64::consts::SQRT_2 * g < 0.0 {
+    let reach = std::f64::consts::SQRT_2 * filter.radius() * g;
+    let y_min = ray.direction.y - reach;
+    let bound = if y_min + 2.0 * reach < 0.0 {
         0.0
     } else if y_min > 0.0 {
         let contrast = sky_contrast(horizon, zenith);
-        sky_bound(g, contrast, y_min)
+        sky_bound_under(g, contrast, y_min, second_moment(filter))
     } else {
         return None;
     };
     Some((sky(scene, &ray).to_array().map(f64::from), bound))
+}
+
+/// `M₂ = ∫∫ |δ|²·|k(δ)| dδ` over the filter's support, rounded up: the
+/// box's `1/6`, the tent's `1/3` (`2·∫x²·(1 − |x|)`), Mitchell's
+/// `2·∫x²|k₁|·∫|k₁|` (0.57268…, its negative lobes counted as positive;
+/// checked against a dense sum in the tests).
+pub(super) fn second_moment(filter: PixelFilter) -> f64 {
+    match filter {
+        PixelFilter::Box => 1.0 / 6.0,
+        PixelFilter::Tent => 1.0 / 3.0,
+        PixelFilter::Mitchell => 0.5727,
+    }
 }
 
 /// The gradient sky's largest change in a channel, horizon to zenith.
@@ -171,6 +198,17 @@ pub(super) fn sky_bound(g: f64, contrast: f64, y_min: f64) -> f64 {
     // 1.5/√y + 0.25/y^{3/2} over one division (one a sky pixel).
     let second = g * g * (1.5 * y_min + 0.25) / (y_min * y_min.sqrt());
     second / 12.0 * contrast
+}
+
+/// [`sky_bound`] for a filter of second moment `m2`: `T·M₂/2` times the
+/// contrast (the box's `M₂ = 1/6` gives `T/12`).
+#[inline]
+fn sky_bound_under(g: f64, contrast: f64, y_min: f64, m2: f64) -> f64 {
+    if m2 == 1.0 / 6.0 {
+        return sky_bound(g, contrast, y_min);
+    }
+    let second = g * g * (1.5 * y_min + 0.25) / (y_min * y_min.sqrt());
+    0.5 * second * m2 * contrast
 }
 
 /// A height above which [`sky_at_centre`]'s bound is within `tolerance`
@@ -208,9 +246,9 @@ pub(super) enum Whole {
     Unknown,
 }
 
-/// `(Σ sky·k, Σ k)` over screen region `region`, where the sky shows. A whole box-filtered pixel
-/// is taken at its centre where [`sky_at_centre`]'s bound is within
-/// `tolerance`.
+/// `(Σ sky·k, Σ k)` over screen region `region`, where the sky shows. A
+/// whole support is taken at its centre where
+/// [`sky_at_centre_under`]'s bound is within `tolerance`.
 pub(super) fn sky_integral(
     scene: &Scene,
     region: &ConvexPolygon,
@@ -232,11 +270,10 @@ pub(super) fn sky_integral(
         Whole::Unknown => region.area() >= filter.support(centre).area() * (1.0 - 1e-12),
     };
     if whole
-        && filter == PixelFilter::Box
-        && let Some((c, bound)) = sky_at_centre(scene, centre)
+        && let Some((c, bound)) = sky_at_centre_under(scene, centre, filter)
         && bound <= tolerance
     {
-        let w = region.area();
+        let w = filter.integral(region, centre);
         return (c.map(|v| v * w), w);
     }
     let (lo, hi) = region.bounds();

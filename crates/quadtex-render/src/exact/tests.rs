@@ -11,8 +11,8 @@ use super::GAP_AREA;
 use super::cutting::{Cut, Order, overlap_bound};
 use super::lighting::{apply_light, light_region, uniform_light};
 use super::sky::{
-    SkySpan, Whole, level_line, sky_at_centre, sky_bound, sky_clear_above, sky_contrast,
-    sky_integral, sky_step, sky_tolerance, views_miss,
+    SkySpan, Whole, level_line, second_moment, sky_at_centre, sky_at_centre_under, sky_bound,
+    sky_clear_above, sky_contrast, sky_integral, sky_step, sky_tolerance, views_miss,
 };
 use super::views::{ViewMemo, ViewRef};
 
@@ -621,6 +621,86 @@ fn the_sky_at_a_pixels_centre_is_within_its_bound() {
         closest > 0.05,
         "the bound is vacuous: at most {closest} of it"
     );
+}
+
+/// Each filter's second moment `∫∫ |δ|²·|k(δ)|` is at least a dense sum's
+/// (and within 10⁻³ of it: the bounds using it are not loose).
+#[test]
+fn second_moments_hold_the_filters() {
+    for filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
+        let r = filter.radius();
+        let n = 200_000;
+        let h = 2.0 * r / f64::from(n);
+        let (mut a0, mut a2) = (0.0, 0.0);
+        for i in 0..n {
+            let x = -r + (f64::from(i) + 0.5) * h;
+            let k = filter.k1(x).abs();
+            a0 += k * h;
+            a2 += x * x * k * h;
+        }
+        let dense = 2.0 * a0 * a2;
+        let m2 = second_moment(filter);
+        assert!(
+            m2 >= dense - 1e-9 && m2 - dense < 1e-3,
+            "{filter:?}: {m2} against {dense}"
+        );
+    }
+}
+
+/// Over a whole tent or Mitchell support clear of the level line, the
+/// sky's centre value is within its bound of a dense `k`-weighted sum,
+/// and the bound is not vacuous.
+#[test]
+fn the_sky_at_a_supports_centre_is_within_its_bound() {
+    let scene = demo_at(96, 54);
+    for filter in [PixelFilter::Tent, PixelFilter::Mitchell] {
+        let (mut accepted, mut closest) = (0, 0.0f64);
+        let r = filter.radius();
+        for y in 0..54 {
+            for x in (0..96).step_by(17) {
+                let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+                let Some((c, bound)) = sky_at_centre_under(&scene, centre, filter) else {
+                    continue;
+                };
+                accepted += 1;
+                let n = 96;
+                let (mut dense, mut total) = ([0.0; 4], 0.0);
+                for j in 0..n {
+                    for i in 0..n {
+                        let d = [
+                            -r + 2.0 * r * (f64::from(i) + 0.5) / f64::from(n),
+                            -r + 2.0 * r * (f64::from(j) + 0.5) / f64::from(n),
+                        ];
+                        let w = filter.weight(d[0], d[1]);
+                        let s = [centre[0] + d[0], centre[1] + d[1]];
+                        let v = sky(&scene, &scene.camera.ray(s[0], s[1])).to_array();
+                        for (a, v) in dense.iter_mut().zip(v) {
+                            *a += f64::from(v) * w;
+                        }
+                        total += w;
+                    }
+                }
+                let error = c
+                    .iter()
+                    .zip(dense)
+                    .map(|(a, b)| (a - b / total).abs())
+                    .fold(0.0, f64::max);
+                assert!(
+                    error <= bound * 1.001 + 1e-6,
+                    "{filter:?} at {centre:?}: off by {error}, bound {bound}"
+                );
+                if bound > 1e-4 {
+                    closest = closest.max(error / bound);
+                }
+            }
+        }
+        assert!(accepted > 0, "{filter:?}: no support accepted");
+        eprintln!("{filter:?}: closest approach to the bound {closest}");
+        assert!(
+            closest > 0.02,
+            "{filter:?}: the bound is vacuous: at most {closest} of it"
+        );
+    }
 }
 
 /// The corner decisions agree with the clip they stand in for: over
