@@ -581,7 +581,7 @@ pub(crate) type Cubic = [f64; 4];
 
 /// 4-point Gauss–Legendre nodes and weights on `[0, 1]`: exact for
 /// polynomials of degree ≤ 7.
-const GAUSS4: [(f64, f64); 4] = [
+pub(crate) const GAUSS4: [(f64, f64); 4] = [
     (0.069_431_844_202_973_71, 0.173_927_422_568_726_93),
     (0.330_009_478_207_571_87, 0.326_072_577_431_273_07),
     (0.669_990_521_792_428_1, 0.326_072_577_431_273_07),
