@@ -1,7 +1,7 @@
 //! Pixel reconstruction filters ([`PixelFilter`]): weights, supports and
 //! their exact integrals over convex polygons.
 
-use crate::geometry::polygon::{ConvexPolygon, Cubic, GAUSS4, separable_integral};
+use crate::geometry::polygon::{ConvexPolygon, Cubic, GAUSS4};
 
 /// A pixel reconstruction filter, separable, `k(dx, dy) = k₁(dx)·k₁(dy)`
 /// with `(dx, dy)` in pixels from the pixel's centre; each integrates to 1.
@@ -209,7 +209,8 @@ impl PixelFilter {
     /// `∫∫ k(s − centre) ds` over `p` as [`PixelFilter::integral`] gives
     /// it, computed by clipping `p` to each unit cell of the filter and
     /// integrating the cell's bicubic there: the reference for the tests.
-    pub fn integral_by_cells(self, p: &ConvexPolygon, centre: [f64; 2]) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn integral_by_cells(self, p: &ConvexPolygon, centre: [f64; 2]) -> f64 {
         if self == PixelFilter::Box {
             return p.area();
         }
@@ -225,7 +226,11 @@ impl PixelFilter {
                 let (x, y) = (f64::from(i), f64::from(j));
                 let cell = rel.clip_rect(x, y, x + 1.0, y + 1.0);
                 if !cell.is_empty() {
-                    total += separable_integral(cell.vertices(), &self.cubic(i), &self.cubic(j));
+                    total += crate::geometry::polygon::separable_integral(
+                        cell.vertices(),
+                        &self.cubic(i),
+                        &self.cubic(j),
+                    );
                 }
             }
         }

@@ -591,7 +591,9 @@ pub(crate) const GAUSS4: [(f64, f64); 4] = [
 /// `∫∫_P f(x)·g(y) dx dy` over polygon `P`, for cubics `f` and `g`, by
 /// Green's theorem: `∮ F(x)·g(y) dy` with `F' = f`, each edge integrated by
 /// 4-point Gauss–Legendre (degree 4 + 3 = 7: exact up to rounding). Positive
-/// for a counter-clockwise polygon.
+/// for a counter-clockwise polygon. The tests' reference for
+/// [`crate::PixelFilter::integral`], cell by cell.
+#[cfg(test)]
 pub(crate) fn separable_integral(p: &[[f64; 2]], f: &Cubic, g: &Cubic) -> f64 {
     let n = p.len();
     if n < 3 {
