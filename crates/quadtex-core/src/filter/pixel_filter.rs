@@ -127,23 +127,40 @@ impl PixelFilter {
             &GAUSS4
         };
         // K₁(x)·k₁(y) on the cells holding (x, y) (relative to the centre).
-        let f = |x: f64, y: f64| -> f64 {
-            if y <= -r || y >= r {
+        // `∫ K₁(x)·k₁(y) dt` over one part of an edge, `x` and `y` affine
+        // in `t`, the part inside one cell (its cubics fetched once, from
+        // the part's middle).
+        let part_integral = |a: [f64; 2], d: [f64; 2], t0: f64, span: f64| -> f64 {
+            let middle = t0 + 0.5 * span;
+            let (xm, ym) = (a[0] + middle * d[0], a[1] + middle * d[1]);
+            if ym <= -r || ym >= r {
                 return 0.0;
             }
-            let big = if x <= -r {
-                0.0
-            } else if x >= r {
-                1.0
+            // K₁(x) = base + (anti(x) when inside the support).
+            let (inside, base, cx) = if xm <= -r {
+                (false, 0.0, [0.0; 4])
+            } else if xm >= r {
+                (false, 1.0, [0.0; 4])
             } else {
-                let i = x.floor();
+                let i = xm.floor();
                 let c = self.cubic(i as i32);
-                let anti =
-                    |t: f64| t * (c[0] + t * (c[1] / 2.0 + t * (c[2] / 3.0 + t * c[3] / 4.0)));
-                running[(i + r) as usize] + anti(x) - anti(i)
+                let cx = [c[0], c[1] / 2.0, c[2] / 3.0, c[3] / 4.0];
+                let anti_i = i * (cx[0] + i * (cx[1] + i * (cx[2] + i * cx[3])));
+                (true, running[(i + r) as usize] - anti_i, cx)
             };
-            let c = self.cubic(y.floor() as i32);
-            big * (c[0] + y * (c[1] + y * (c[2] + y * c[3])))
+            let cy = self.cubic(ym.floor() as i32);
+            let mut sum = 0.0;
+            for &(g, w) in points {
+                let t = t0 + g * span;
+                let (x, y) = (a[0] + t * d[0], a[1] + t * d[1]);
+                let big = if inside {
+                    base + x * (cx[0] + x * (cx[1] + x * (cx[2] + x * cx[3])))
+                } else {
+                    base
+                };
+                sum += w * big * (cy[0] + y * (cy[1] + y * (cy[2] + y * cy[3])));
+            }
+            sum * span
         };
         let mut total = 0.0;
         let mut a = v[n - 1];
@@ -180,12 +197,7 @@ impl PixelFilter {
                 for t1 in cuts.iter().copied().chain([1.0]) {
                     let span = t1 - t0;
                     if span > 0.0 {
-                        let mut part = 0.0;
-                        for &(g, w) in points {
-                            let t = t0 + g * span;
-                            part += w * f(a[0] + t * dx, a[1] + t * dy);
-                        }
-                        total += part * span * dy;
+                        total += part_integral(a, [dx, dy], t0, span) * dy;
                     }
                     t0 = t1;
                 }
