@@ -127,6 +127,19 @@ impl PixelFilter {
             &GAUSS4
         };
         // K₁(x)·k₁(y) on the cells holding (x, y) (relative to the centre).
+        // K₁ at `x`, 0 left of the support and 1 right of it.
+        let running_at = |x: f64| -> f64 {
+            if x <= -r {
+                return 0.0;
+            }
+            if x >= r {
+                return 1.0;
+            }
+            let i = x.floor();
+            let c = self.cubic(i as i32);
+            let anti = |t: f64| t * (c[0] + t * (c[1] / 2.0 + t * (c[2] / 3.0 + t * c[3] / 4.0)));
+            running[(i + r) as usize] + anti(x) - anti(i)
+        };
         // `∫ K₁(x)·k₁(y) dt` over one part of an edge, `x` and `y` affine
         // in `t`, the part inside one cell (its cubics fetched once, from
         // the part's middle).
@@ -169,8 +182,13 @@ impl PixelFilter {
             let b = [b[0] - centre[0], b[1] - centre[1]];
             let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
             // Horizontal edges add nothing; so do edges wholly above or
-            // below the support.
-            if dy != 0.0 && !(a[1].max(b[1]) <= -r || a[1].min(b[1]) >= r) {
+            // below the support, or left of it (`K₁ = 0`). Right of it
+            // `K₁ = 1`: the edge adds `K₁(y_b) − K₁(y_a)`, in closed form.
+            let outside =
+                dy == 0.0 || a[1].max(b[1]) <= -r || a[1].min(b[1]) >= r || a[0].max(b[0]) <= -r;
+            if !outside && a[0].min(b[0]) >= r {
+                total += running_at(b[1]) - running_at(a[1]);
+            } else if !outside {
                 // Where the edge crosses the cells' sides, as parameters in (0, 1).
                 let mut cuts = [0.0f64; 12];
                 let mut count = 0;
