@@ -136,9 +136,8 @@ impl PixelFilter {
                 return 1.0;
             }
             let i = x.floor();
-            let c = self.cubic(i as i32);
-            let anti = |t: f64| t * (c[0] + t * (c[1] / 2.0 + t * (c[2] / 3.0 + t * c[3] / 4.0)));
-            running[(i + r) as usize] + anti(x) - anti(i)
+            let a = integrated(self.cubic(i as i32));
+            running[(i + r) as usize] + at(&a, x) - at(&a, i)
         };
         // `∫ K₁(x)·k₁(y) dt` over one part of an edge, `x` and `y` affine
         // in `t`, the part inside one cell (its cubics fetched once, from
@@ -156,28 +155,21 @@ impl PixelFilter {
                 (false, 1.0, [0.0; 4])
             } else {
                 let i = xm.floor();
-                let c = self.cubic(i as i32);
-                let cx = [c[0], c[1] / 2.0, c[2] / 3.0, c[3] / 4.0];
-                let anti_i = i * (cx[0] + i * (cx[1] + i * (cx[2] + i * cx[3])));
-                (true, running[(i + r) as usize] - anti_i, cx)
+                let cx = integrated(self.cubic(i as i32));
+                (true, running[(i + r) as usize] - at(&cx, i), cx)
             };
             let cy = self.cubic(ym.floor() as i32);
             let mut sum = 0.0;
             for &(g, w) in points {
                 let t = t0 + g * span;
                 let (x, y) = (a[0] + t * d[0], a[1] + t * d[1]);
-                let big = if inside {
-                    base + x * (cx[0] + x * (cx[1] + x * (cx[2] + x * cx[3])))
-                } else {
-                    base
-                };
+                let big = if inside { base + at(&cx, x) } else { base };
                 sum += w * big * (cy[0] + y * (cy[1] + y * (cy[2] + y * cy[3])));
             }
             sum * span
         };
         let mut total = 0.0;
-        let mut a = v[n - 1];
-        a = [a[0] - centre[0], a[1] - centre[1]];
+        let mut a = [v[n - 1][0] - centre[0], v[n - 1][1] - centre[1]];
         for &b in v {
             let b = [b[0] - centre[0], b[1] - centre[1]];
             let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
@@ -268,6 +260,19 @@ impl PixelFilter {
     }
 }
 
+/// The coefficients of cubic `c`'s antiderivative vanishing at 0, as
+/// [`at`] reads them: `x·(a₀ + a₁x + a₂x² + a₃x³)`.
+#[inline]
+fn integrated(c: Cubic) -> Cubic {
+    [c[0], c[1] / 2.0, c[2] / 3.0, c[3] / 4.0]
+}
+
+/// `x·(a₀ + a₁x + a₂x² + a₃x³)`: an [`integrated`] cubic at `x`.
+#[inline]
+fn at(a: &Cubic, x: f64) -> f64 {
+    x * (a[0] + x * (a[1] + x * (a[2] + x * a[3])))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -335,10 +340,8 @@ mod tests {
                 );
                 let i = k as f64 - r;
                 if i < r {
-                    let c = filter.cubic(i as i32);
-                    let anti =
-                        |t: f64| t * (c[0] + t * (c[1] / 2.0 + t * (c[2] / 3.0 + t * c[3] / 4.0)));
-                    sum += anti(i + 1.0) - anti(i);
+                    let a = integrated(filter.cubic(i as i32));
+                    sum += at(&a, i + 1.0) - at(&a, i);
                 }
             }
         }

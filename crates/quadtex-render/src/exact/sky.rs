@@ -157,7 +157,7 @@ pub(super) fn sky_at_centre_under(
         0.0
     } else if y_min > 0.0 {
         let contrast = sky_contrast(horizon, zenith);
-        sky_bound_under(g, contrast, y_min, second_moment(filter))
+        sky_bound_under(g, contrast, y_min, filter)
     } else {
         return None;
     };
@@ -195,20 +195,27 @@ pub(super) fn sky_step(scene: &Scene) -> f64 {
 /// `y_min > 0`: `T/12` times the contrast.
 #[inline]
 pub(super) fn sky_bound(g: f64, contrast: f64, y_min: f64) -> f64 {
-    // 1.5/√y + 0.25/y^{3/2} over one division (one a sky pixel).
-    let second = g * g * (1.5 * y_min + 0.25) / (y_min * y_min.sqrt());
-    second / 12.0 * contrast
+    sky_curvature(g, y_min) / 12.0 * contrast
 }
 
-/// [`sky_bound`] for a filter of second moment `m2`: `T·M₂/2` times the
-/// contrast (the box's `M₂ = 1/6` gives `T/12`).
+/// [`sky_at_centre`]'s `T`: a bound on `t = √y`'s second derivatives
+/// along any screen direction where `y ≥ y_min > 0`.
 #[inline]
-fn sky_bound_under(g: f64, contrast: f64, y_min: f64, m2: f64) -> f64 {
-    if m2 == 1.0 / 6.0 {
-        return sky_bound(g, contrast, y_min);
+fn sky_curvature(g: f64, y_min: f64) -> f64 {
+    // 1.5/√y + 0.25/y^{3/2} over one division (one a sky pixel).
+    g * g * (1.5 * y_min + 0.25) / (y_min * y_min.sqrt())
+}
+
+/// [`sky_bound`] for the support of `filter`: `T·M₂/2` times the
+/// contrast ([`second_moment`]; the box's `M₂ = 1/6` gives `T/12`, by
+/// [`sky_bound`] itself, whose bisection in [`sky_clear_above`] the box's
+/// shortcut relies on).
+#[inline]
+fn sky_bound_under(g: f64, contrast: f64, y_min: f64, filter: PixelFilter) -> f64 {
+    match filter {
+        PixelFilter::Box => sky_bound(g, contrast, y_min),
+        _ => 0.5 * sky_curvature(g, y_min) * second_moment(filter) * contrast,
     }
-    let second = g * g * (1.5 * y_min + 0.25) / (y_min * y_min.sqrt());
-    0.5 * second * m2 * contrast
 }
 
 /// A height above which [`sky_at_centre`]'s bound is within `tolerance`
