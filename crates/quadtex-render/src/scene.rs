@@ -13,6 +13,7 @@ use std::sync::Arc;
 use quadtex_core::{QuadTree, Rgba, Wrap};
 
 use crate::bvh::{Aabb, Bvh};
+use crate::exact::PolarCaps;
 use crate::math::{Ray, Vec3};
 
 /// A pinhole camera.
@@ -894,7 +895,17 @@ pub struct SceneTexture {
     same_memory: Arc<std::sync::OnceLock<Result<quadtex_core::baseline::MipPyramid, String>>>,
     /// Bytes the baselines may take ([`baseline_bytes`]), `None`: no budget.
     memory_budget: Option<u64>,
+    /// Spheres' polar caps, by the UV transform and wrap they were drawn
+    /// for, each built on first use.
+    polar_caps: Arc<std::sync::Mutex<CapCache>>,
 }
+
+/// What a texture's polar caps are drawn for: the UV transform's bits
+/// (scale, offset, rotation) and the wrap's modes.
+type CapKey = ([u64; 5], quadtex_core::WrapMode, quadtex_core::WrapMode);
+
+/// A texture's polar caps drawn so far, by what they were drawn for.
+type CapCache = Vec<(CapKey, Arc<PolarCaps>)>;
 
 /// The raster forms a baseline filter needs, made from the tree's cells.
 pub(crate) struct Baselines {
@@ -944,6 +955,7 @@ impl SceneTexture {
             baselines: Arc::default(),
             same_memory: Arc::default(),
             memory_budget: None,
+            polar_caps: Arc::default(),
         }
     }
 
@@ -958,6 +970,32 @@ impl SceneTexture {
     /// The filtering view of this texture under `wrap` (shares the tree).
     pub fn texture(&self, wrap: Wrap) -> quadtex_core::Texture {
         quadtex_core::Texture::new(Arc::clone(&self.tree), wrap)
+    }
+
+    /// The polar caps of this texture on a sphere whose UV goes to texture
+    /// space by `uv`, read under `wrap`: drawn once for each.
+    pub(crate) fn polar_caps(&self, uv: &UvTransform, wrap: Wrap) -> Arc<PolarCaps> {
+        let bits = [uv.scale[0], uv.scale[1], uv.offset[0], uv.offset[1]].map(f64::to_bits);
+        let key = (
+            [
+                bits[0],
+                bits[1],
+                bits[2],
+                bits[3],
+                uv.rotation_degrees.to_bits(),
+            ],
+            wrap.x,
+            wrap.z,
+        );
+        // A poisoned lock only means another thread panicked mid-insert;
+        // the list itself is still a valid cache.
+        let mut caps = (self.polar_caps.lock()).unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((_, found)) = caps.iter().find(|(k, _)| *k == key) {
+            return Arc::clone(found);
+        }
+        let drawn = Arc::new(PolarCaps::new(&self.tree, uv, wrap));
+        caps.push((key, Arc::clone(&drawn)));
+        drawn
     }
 
     /// The raster baselines, built once (see [`baseline_level`]).

@@ -111,6 +111,8 @@ pub(crate) struct SphereView {
     /// The outline's screen box.
     lo: [f64; 2],
     hi: [f64; 2],
+    /// The texture redrawn around the poles ([`PolarCaps`]).
+    caps: std::sync::Arc<PolarCaps>,
 }
 
 /// The chords that clip a support ([`SphereView::chords`]): half-planes
@@ -217,6 +219,9 @@ impl SphereView {
             ],
             lo: [e0[0] - extent[0], e0[1] - extent[1]],
             hi: [e0[0] + extent[0], e0[1] + extent[1]],
+            caps: (s.texture.as_ref())
+                .map(|t| t.polar_caps(&s.uv_transform, s.wrap))
+                .unwrap_or_default(),
         };
         [e0, ea, eb, view.lo, view.hi]
             .iter()
@@ -256,18 +261,24 @@ impl SphereView {
         }
     }
 
-    /// Where the ray through `s` meets the sphere (beyond the outline:
-    /// the point of the sphere nearest the ray), and its UV there.
-    fn on_sphere(&self, s: [f64; 2]) -> OnSphere {
+    /// The sphere's outward unit normal where the ray through `s` meets
+    /// it (beyond the outline: at the point of the sphere nearest the ray).
+    fn normal(&self, s: [f64; 2]) -> Vec3 {
         let d = self.direction(s);
         let m = self.centre - self.camera;
         let (md, dd) = (m.dot(d), d.dot(d));
         let disc = md * md - dd * self.k;
         let t = (md - disc.max(0.0).sqrt()) / dd;
         let p = self.camera + d * t;
-        let n = (p - self.centre)
+        (p - self.centre)
             .normalized()
-            .unwrap_or(Vec3::new(0.0, 1.0, 0.0));
+            .unwrap_or(Vec3::new(0.0, 1.0, 0.0))
+    }
+
+    /// Where the ray through `s` meets the sphere (beyond the outline:
+    /// the point of the sphere nearest the ray), and its UV there.
+    fn on_sphere(&self, s: [f64; 2]) -> OnSphere {
+        let n = self.normal(s);
         let phi = n.z.atan2(n.x);
         let theta = n.y.clamp(-1.0, 1.0).acos();
         OnSphere {
@@ -484,7 +495,10 @@ fn angles_seen(points: &[[f64; 2]]) -> (f64, f64) {
     (reference + lo, hi - lo)
 }
 
+mod cap;
 mod pieces;
+
+pub(crate) use cap::PolarCaps;
 
 #[cfg(test)]
 mod tests;

@@ -10,6 +10,8 @@ use crate::scene::Lighting;
 use crate::stats::PixelStats;
 
 use super::super::lighting::{Shading, apply_light};
+use super::cap::PolarCap;
+
 use super::{Chords, SphereView};
 
 /// The rings along the outline are spaced for a quarter of the default
@@ -114,7 +116,7 @@ impl Ring<'_> {
         let middle = |x: [f64; 2], y: [f64; 2]| [0.5 * (x[0] + y[0]), 0.5 * (x[1] + y[1])];
         let mut worst = (0f64, 0f64);
         let mut check = |s: [f64; 2], uv: [f64; 2]| {
-            let (d, e) = view.fit_error_at(fit, s, uv);
+            let (d, e) = view.fit_error_at(fit, s, uv, true);
             worst = (worst.0.max(d), worst.1.max(e));
         };
         let centre = middle(middle(p, r), middle(q, t));
@@ -291,7 +293,7 @@ impl SphereView {
         let (lo, hi) = region.bounds();
         let mut whole = Square::new(lo, (hi[0] - lo[0]).max(hi[1] - lo[1]));
         if let Some(fit) = self.fit(&mut whole)
-            && let uv_error = self.map_error(&fit, region, &mut whole, &[]).1
+            && let uv_error = self.map_error(&fit, region, &mut whole, &[], None).1
             && let Some(colour) = self.uniform(shading, &fit, region, uv_error)
         {
             self.add_uniform(shading, region, colour, &mut sums, stats);
@@ -428,6 +430,21 @@ impl SphereView {
         if piece.is_empty() {
             return;
         }
+        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        // Around a pole: the fan, where its coordinates' fit holds.
+        let caps = [self.caps.north.as_ref(), self.caps.south.as_ref()];
+        if let Some(cap) = (caps.into_iter().flatten()).find(|c| ends.iter().all(|e| c.holds(e.1)))
+            && let Some(fit) = quad_to_quad(corners, corners.map(|s| cap.point(self.normal(s))))
+            && let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN)
+            && let (error, cap_error) =
+                self.map_error(&fit, &piece, &mut nowhere, &corners, Some(cap))
+            && error <= tolerance
+            && (self.cap_box(&fit, &piece, cap_error)).is_some_and(|b| cap.holds_box(b))
+        {
+            let (c, w, b) = self.shade_fan(shading, &piece, &fit, cap, stats);
+            add(sums, self.finish(shading, &piece, c), w, b);
+            return;
+        }
         let first = ends[0].1;
         let uv = ends.map(|(_, [u, v])| [u + (first[0] - u).round(), v]);
         let fit = quad_to_quad(corners, uv);
@@ -438,7 +455,7 @@ impl SphereView {
             Some(f) if a > 0 || ring.within_chords => ring.trapezoid_error(self, f, (a, b)),
             Some(f) => {
                 let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN);
-                self.map_error(f, &piece, &mut nowhere, &corners)
+                self.map_error(f, &piece, &mut nowhere, &corners, None)
             }
         };
         if let Some(fit) = &fit
@@ -447,7 +464,6 @@ impl SphereView {
             self.add_uniform(shading, &piece, colour, sums, stats);
             return;
         }
-        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         spare.pieces = spare.pieces.saturating_sub(1);
         if spare.pieces == 0
             && let Some(fit) = fit
@@ -499,15 +515,20 @@ impl SphereView {
             if piece.is_empty() {
                 continue;
             }
-            let fit = self.fit(&mut square);
+            // Around a pole, the cap's coordinates, where the map is smooth.
+            let cap = self.cap_holding(&mut square);
+            let fit = match cap {
+                Some(cap) => self.cap_fit(cap, &square),
+                None => self.fit(&mut square),
+            };
             let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
-                self.map_error(&f, &piece, &mut square, &[])
+                self.map_error(&f, &piece, &mut square, &[], cap)
             });
             // Exact whatever the map's error: one texture square holds
             // every image the piece may have (or there is no texture).
-            let uniform = match (texture, &fit) {
-                (None, _) => Some(None),
-                (Some(texture), Some(f)) => self
+            let uniform = match (texture, &fit, cap) {
+                (None, _, _) => Some(None),
+                (Some(texture), Some(f), None) => self
                     .texture_box(f, &piece, uv_error)
                     .and_then(|(lo, hi)| texture.uniform_colour_in_box(lo, hi))
                     .map(Some),
@@ -524,7 +545,14 @@ impl SphereView {
                 add(sums, self.finish(shading, &piece, c), w, 0.0);
                 continue;
             }
-            let off = error > tolerance;
+            // The fan's wedges hold every image the piece may have.
+            let fan = match (&fit, cap) {
+                (Some(f), Some(cap)) => (self.cap_box(f, &piece, uv_error))
+                    .is_some_and(|b| cap.holds_box(b))
+                    .then_some((f, cap)),
+                _ => None,
+            };
+            let off = error > tolerance || (cap.is_some() && fan.is_none());
             let spent = off && w.abs() <= 0.125 * spare.weight;
             spare.pieces = spare.pieces.saturating_sub(1);
             if off && !spent && square.depth < MAX_SPLITS && spare.pieces > 0 {
@@ -536,17 +564,121 @@ impl SphereView {
             if spent {
                 spare.weight -= w.abs();
             }
-            let fit = match fit {
-                Some(f) => f,
-                None => match self.tangent_fit(piece.centroid(), h) {
-                    Some(f) => f,
+            let fit = match (fan, cap) {
+                (Some(_), _) => fit,
+                // Beyond the fan: the sphere's UV after all.
+                (None, Some(_)) => self.fit(&mut square),
+                (None, None) => fit,
+            };
+            let (c, w, b) = match (fan, fit) {
+                (Some((f, cap)), _) => self.shade_fan(shading, &piece, f, cap, stats),
+                (None, Some(fit)) => self.shade_piece(shading, &piece, &fit, stats),
+                (None, None) => match self.tangent_fit(piece.centroid(), h) {
+                    Some(fit) => self.shade_piece(shading, &piece, &fit, stats),
                     None => continue,
                 },
             };
-            let (c, w, b) = self.shade_piece(shading, &piece, &fit, stats);
             let off = if off { w.abs() } else { 0.0 };
             add(sums, self.finish(shading, &piece, c), w, b + off);
         }
+    }
+
+    /// The polar cap whose used part holds the square's 3 × 3 grid points
+    /// ([`PolarCap::holds`]), if any.
+    fn cap_holding(&self, square: &mut Square) -> Option<&PolarCap> {
+        let caps = [self.caps.north.as_ref(), self.caps.south.as_ref()];
+        let first = square.uv(self, 0, 0);
+        let cap = caps.into_iter().flatten().find(|c| c.holds(first))?;
+        for j in 0..3 {
+            for i in 0..3 {
+                if !cap.holds(square.uv(self, i, j)) {
+                    return None;
+                }
+            }
+        }
+        Some(cap)
+    }
+
+    /// The projective map from the screen to `cap`'s coordinates through
+    /// the sphere's cap points at the square's corners.
+    fn cap_fit(&self, cap: &PolarCap, square: &Square) -> Option<[[f64; 3]; 3]> {
+        let Square { x0, y0, h, .. } = *square;
+        let corners = [[x0, y0], [x0 + h, y0], [x0 + h, y0 + h], [x0, y0 + h]];
+        quad_to_quad(corners, corners.map(|s| cap.point(self.normal(s))))
+    }
+
+    /// A box of `cap`'s coordinates holding the image of `piece` under
+    /// `fit` and, by its error at the check points (`error`, doubled for
+    /// margin), under the sphere's own map.
+    fn cap_box(
+        &self,
+        fit: &[[f64; 3]; 3],
+        piece: &ConvexPolygon,
+        error: f64,
+    ) -> Option<([f64; 2], [f64; 2])> {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for &s in piece.vertices() {
+            let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
+            if w.is_nan() || w <= 0.0 {
+                return None;
+            }
+            for a in 0..2 {
+                let t = (fit[a][0] * s[0] + fit[a][1] * s[1] + fit[a][2]) / w;
+                lo[a] = lo[a].min(t);
+                hi[a] = hi[a].max(t);
+            }
+        }
+        let margin = 2.0 * error + 1e-12;
+        let (lo, hi) = (lo.map(|v| v - margin), hi.map(|v| v + margin));
+        lo.iter()
+            .chain(&hi)
+            .all(|v| v.is_finite())
+            .then_some((lo, hi))
+    }
+
+    /// `(Σ colour·k, Σ k, bound)` of one piece on map `fit` to `cap`'s
+    /// coordinates, its image within the fan: each wedge's colour over
+    /// the piece clipped to the wedge's sides (lines through the pole on
+    /// the screen too), exactly.
+    fn shade_fan(
+        &self,
+        shading: &Shading<'_>,
+        piece: &ConvexPolygon,
+        fit: &[[f64; 3]; 3],
+        cap: &PolarCap,
+        stats: &mut PixelStats,
+    ) -> ([f64; 4], f64, f64) {
+        let Shading { filter, centre, .. } = *shading;
+        stats.textured = 1;
+        stats.filter.footprints += 1;
+        let image: Vec<[f64; 2]> = (piece.vertices().iter())
+            .map(|s| {
+                let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
+                [0, 1].map(|a| (fit[a][0] * s[0] + fit[a][1] * s[1] + fit[a][2]) / w)
+            })
+            .collect();
+        // The half-plane left of the ray from the pole at `angle`, in cap
+        // coordinates, pulled back to the screen through `fit` (w > 0 over
+        // the piece).
+        let left_of = |angle: f64| {
+            let (sn, cs) = angle.sin_cos();
+            let l = [-sn, cs, 0.5 * (sn - cs)];
+            [0, 1, 2].map(|c| l[0] * fit[0][c] + l[1] * fit[1][c] + l[2] * fit[2][c])
+        };
+        let (mut colour, mut weight) = ([0.0; 4], 0.0);
+        for &(from, to, c) in cap.wedges_meeting(&image) {
+            let part = piece.clip_lines([left_of(from), left_of(to).map(|v| -v)]);
+            if part.is_empty() {
+                continue;
+            }
+            let w = filter.integral(&part, centre);
+            for (a, v) in colour.iter_mut().zip(c.to_array()) {
+                *a += f64::from(v) * w;
+            }
+            weight += w;
+            stats.filter.fragments += 1;
+        }
+        (colour, weight, 0.0)
     }
 
     /// The projective map from the screen to the sphere's `(u, v)` through
@@ -604,6 +736,7 @@ impl SphereView {
         piece: &ConvexPolygon,
         square: &mut Square,
         exact: &[[f64; 2]],
+        cap: Option<&PolarCap>,
     ) -> (f64, f64) {
         let Square { x0, y0, h, .. } = *square;
         let v = piece.vertices();
@@ -612,7 +745,10 @@ impl SphereView {
         let mut worst = 0f64;
         let mut worst_uv = 0f64;
         let mut check = |s: [f64; 2], square: &mut Square| {
-            let (d, e) = self.fit_error_at(fit, s, square.uv_at(self, s));
+            let (d, e) = match cap {
+                Some(cap) => self.fit_error_at(fit, s, cap.point(self.normal(s)), false),
+                None => self.fit_error_at(fit, s, square.uv_at(self, s), true),
+            };
             worst = worst.max(d);
             worst_uv = worst_uv.max(e);
         };
@@ -665,11 +801,18 @@ impl SphereView {
     /// sends where `fit` sends `s` (first order: `|J⁻¹·(H(s) − uv)|`, `J`
     /// the fit's Jacobian; infinite where the fit folds or NaN), and the
     /// larger of the UV differences.
-    fn fit_error_at(&self, fit: &[[f64; 3]; 3], s: [f64; 2], uv: [f64; 2]) -> (f64, f64) {
+    fn fit_error_at(
+        &self,
+        fit: &[[f64; 3]; 3],
+        s: [f64; 2],
+        uv: [f64; 2],
+        longitude: bool,
+    ) -> (f64, f64) {
         let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
         let hu = (fit[0][0] * s[0] + fit[0][1] * s[1] + fit[0][2]) / w;
         let hv = (fit[1][0] * s[0] + fit[1][1] * s[1] + fit[1][2]) / w;
-        let e = [uv[0] + (hu - uv[0]).round() - hu, uv[1] - hv];
+        let turns = if longitude { (hu - uv[0]).round() } else { 0.0 };
+        let e = [uv[0] + turns - hu, uv[1] - hv];
         let uv_error = e[0].abs().max(e[1].abs());
         // Jacobian of (a·s̃ / w·s̃): (a_xy − value·w_xy) / w.
         let j = [

@@ -1,0 +1,264 @@
+//! Polar fans ([`PolarCaps`]): a sphere's texture squares that touch a
+//! pole, seen in the coordinates of the pole's tangent plane, where they
+//! are wedges with straight sides through the pole.
+//!
+//! **Cap coordinates.** For the sphere's outward unit normal `n` (its UV is
+//! `u = (atan2(n.z, n.x) + π)/2π`, `v = 1 − acos(n.y)/π`), a cap reads the
+//! point at `(x, z) = (½ + n.x/2R, ½ + n.z/2R)`: the normal's orthographic
+//! image on the pole's tangent plane, scaled so that the fan, the
+//! latitudes within `reach` of the pole (colatitude `π·reach`, radius
+//! `R = sin(π·reach)`), is the disc of radius ½ about `(½, ½)`. The map
+//! from the screen to these coordinates is smooth at the pole (the UV
+//! map's longitude turns around the pole's image, and no straight-edged
+//! piece fits it; algorithm.md §8), and a texture square `[u0, u1] × [v, 1]`
+//! touching the (north) pole is there the wedge between the rays at angles
+//! `2πu0 − π` and `2πu1 − π`, out to its other latitude.
+//!
+//! **The fan.** The squares touching the pole (terminal nodes and texels,
+//! their exact means, through the surface's UV transform and wrap), out to
+//! the nearest latitude where one ends (`reach`): a piece whose image lies
+//! within it is integrated exactly as the wedges' flat colours over the
+//! piece clipped to each wedge's two sides (straight lines on the screen
+//! too, under the piece's projective map). Fans are drawn where that is
+//! exact and small: no rotation in the UV transform, no gradient or
+//! contour leaves in the texture, at most [`MAX_FAN_WEDGES`] wedges, of a
+//! texture of at most [`MAX_TEXTURE_CELLS`] cells.
+
+use std::sync::Arc;
+
+use quadtex_core::{QuadTree, Rgba, Wrap, WrapMode};
+
+use crate::math::Vec3;
+use crate::scene::UvTransform;
+
+/// The widest reach of a fan (of `v`'s unit range, from the pole).
+const WIDEST_REACH: f64 = 1.0 / 8.0;
+
+/// Wedges a fan holds at most.
+const MAX_FAN_WEDGES: usize = 4096;
+
+/// Cells of the texture's finest grid at most for its fans to be drawn
+/// (every square of the texture is looked at once).
+const MAX_TEXTURE_CELLS: u64 = 1 << 24;
+
+/// Tiles of the texture the widest reach may cross along each axis.
+const MAX_TILES: i64 = 64;
+
+/// One pole's fan (module doc).
+#[derive(Debug)]
+pub(crate) struct PolarCap {
+    /// `v` at the pole: 1 (north, `+y`) or 0 (south).
+    pole_v: f64,
+    /// How far from the pole (in `v`) every wedge reaches.
+    reach: f64,
+    /// `R = sin(π·reach)`: cap coordinates are `½ + (n.x, n.z)/2R`.
+    extent: f64,
+    /// The wedges `(from, to, colour)`, angles about `(½, ½)` in cap
+    /// coordinates, `from < to ≤ from + π/2`, in order, covering `[−π, π]`.
+    wedges: Vec<(f64, f64, Rgba)>,
+}
+
+impl PolarCap {
+    /// Whether UV point `uv` lies within the fan's reach.
+    pub(crate) fn holds(&self, uv: [f64; 2]) -> bool {
+        (uv[1] - self.pole_v).abs() < self.reach
+    }
+
+    /// The cap point of the sphere's outward unit normal `n`.
+    pub(crate) fn point(&self, n: Vec3) -> [f64; 2] {
+        let scale = 0.5 / self.extent;
+        [0.5 + n.x * scale, 0.5 + n.z * scale]
+    }
+
+    /// Whether the fan holds every point of the box `(lo, hi)` of cap
+    /// coordinates (the disc of radius ½ about `(½, ½)`).
+    pub(crate) fn holds_box(&self, (lo, hi): ([f64; 2], [f64; 2])) -> bool {
+        let far = |a: f64, b: f64| (a - 0.5).abs().max((b - 0.5).abs());
+        let (dx, dz) = (far(lo[0], hi[0]), far(lo[1], hi[1]));
+        dx * dx + dz * dz < 0.25
+    }
+
+    /// The wedges that may meet a polygon of cap coordinates with
+    /// `vertices` (all of them when it holds the pole).
+    pub(crate) fn wedges_meeting(&self, vertices: &[[f64; 2]]) -> &[(f64, f64, Rgba)] {
+        use std::f64::consts::PI;
+        let n = vertices.len();
+        if n < 3 {
+            return &[];
+        }
+        let cross = |i: usize| {
+            let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+            (b[0] - a[0]) * (0.5 - a[1]) - (b[1] - a[1]) * (0.5 - a[0])
+        };
+        let first = cross(0);
+        let holds_pole = (0..n).all(|i| cross(i) * first >= 0.0 && cross(i) != 0.0);
+        if holds_pole || vertices.iter().any(|p| p[0] == 0.5 && p[1] == 0.5) {
+            return &self.wedges;
+        }
+        let angles: Vec<[f64; 2]> = vertices.iter().map(|p| [p[0] - 0.5, p[1] - 0.5]).collect();
+        let (from, span) = super::angles_seen(&angles);
+        if span.is_nan() || span >= PI {
+            return &self.wedges;
+        }
+        // The wedges over [from, from + span], which may wrap past π.
+        let (lo, hi) = (from, from + span);
+        let (lo, hi) = if lo < -PI {
+            (lo + 2.0 * PI, hi + 2.0 * PI)
+        } else {
+            (lo, hi)
+        };
+        if hi > PI {
+            return &self.wedges;
+        }
+        let start = self.wedges.partition_point(|w| w.1 <= lo);
+        let end = self.wedges.partition_point(|w| w.0 < hi);
+        &self.wedges[start..end.max(start)]
+    }
+}
+
+/// A sphere's fans, for one texture under one UV transform and wrap
+/// ([`crate::scene::SceneTexture`] keeps them); `None` where a fan is not
+/// drawn (module doc).
+#[derive(Debug, Default)]
+pub(crate) struct PolarCaps {
+    pub(crate) north: Option<PolarCap>,
+    pub(crate) south: Option<PolarCap>,
+}
+
+impl PolarCaps {
+    /// The fans of `tree` on a sphere whose UV goes to texture space by
+    /// `uv` and reads it under `wrap`.
+    pub(crate) fn new(tree: &Arc<QuadTree>, uv: &UvTransform, wrap: Wrap) -> PolarCaps {
+        let drawable = uv.rotation_degrees == 0.0
+            && uv.scale.iter().chain(&uv.offset).all(|v| v.is_finite())
+            && uv.scale.iter().all(|&s| s != 0.0)
+            && tree.contour_leaves().is_none()
+            && tree.gradient_leaves().is_none();
+        let [columns, rows] = tree.finest_grid();
+        if !drawable || columns.saturating_mul(rows) > MAX_TEXTURE_CELLS {
+            return PolarCaps::default();
+        }
+        let scale = tree.aspect().scale();
+        let mut squares = Vec::new();
+        tree.for_each_leaf(tree.depth(), |level, ix, iz, colour| {
+            let side = (-f64::from(level)).exp2();
+            let x = [ix, ix + 1].map(|i| (f64::from(i) * side / scale[0]).min(1.0));
+            let z = [iz, iz + 1].map(|i| (f64::from(i) * side / scale[1]).min(1.0));
+            if x[0] < x[1] && z[0] < z[1] {
+                squares.push(([x[0], x[1], z[0], z[1]], colour));
+            }
+        });
+        PolarCaps {
+            north: fan(&squares, uv, wrap, 1.0),
+            south: fan(&squares, uv, wrap, 0.0),
+        }
+    }
+}
+
+/// Where tile `tile` along an axis under `mode` puts `[a, b)` of the unit
+/// texture; `None` where the axis has no such tile (clamp and border
+/// beyond the unit square, where a fan is not drawn).
+fn in_tile(mode: WrapMode, tile: i64, [a, b]: [f64; 2]) -> Option<[f64; 2]> {
+    let t = tile as f64;
+    match mode {
+        WrapMode::Repeat => Some([t + a, t + b]),
+        WrapMode::Mirror if tile.rem_euclid(2) == 1 => Some([t + 1.0 - b, t + 1.0 - a]),
+        WrapMode::Mirror => Some([t + a, t + b]),
+        WrapMode::Clamp | WrapMode::Border => (tile == 0).then_some([a, b]),
+    }
+}
+
+/// The fan of the pole at `pole_v` from the texture's `squares`
+/// (`[x0, x1, z0, z1]` in texture space, exact mean colour).
+fn fan(
+    squares: &[([f64; 4], [f64; 4])],
+    uv: &UvTransform,
+    wrap: Wrap,
+    pole_v: f64,
+) -> Option<PolarCap> {
+    use std::f64::consts::{FRAC_PI_2, PI, TAU};
+    // The widest reach's texture box, and the tiles it crosses.
+    let to_texture = |u: f64, v: f64| {
+        [
+            uv.scale[0] * u + uv.offset[0],
+            uv.scale[1] * v + uv.offset[1],
+        ]
+    };
+    let far_v = if pole_v == 1.0 {
+        1.0 - WIDEST_REACH
+    } else {
+        WIDEST_REACH
+    };
+    let (p, q) = (to_texture(0.0, pole_v), to_texture(1.0, far_v));
+    let tiles = |a: f64, b: f64| {
+        let lo = a.min(b).floor() as i64;
+        let hi = (a.max(b).ceil() as i64 - 1).max(lo);
+        (hi - lo < MAX_TILES).then_some(lo..=hi)
+    };
+    let (columns, rows) = (tiles(p[0], q[0])?, tiles(p[1], q[1])?);
+    // The squares touching the pole: their longitudes and how far from
+    // the pole they reach.
+    let mut touching = Vec::new();
+    let mut reach = WIDEST_REACH;
+    for i in columns {
+        for j in rows.clone() {
+            for &([x0, x1, z0, z1], colour) in squares {
+                let (Some(x), Some(z)) =
+                    (in_tile(wrap.x, i, [x0, x1]), in_tile(wrap.z, j, [z0, z1]))
+                else {
+                    // The reach crosses a clamped or bordered edge.
+                    return None;
+                };
+                let us = x.map(|x| (x - uv.offset[0]) / uv.scale[0]);
+                let vs = z.map(|z| (z - uv.offset[1]) / uv.scale[1]);
+                let (u0, u1) = (us[0].min(us[1]).max(0.0), us[0].max(us[1]).min(1.0));
+                let (v0, v1) = (vs[0].min(vs[1]), vs[0].max(vs[1]));
+                let (from, to) = if pole_v == 1.0 {
+                    (1.0 - v1, 1.0 - v0)
+                } else {
+                    (v0, v1)
+                };
+                if u0 < u1 && from <= 0.0 && to > 0.0 {
+                    reach = reach.min(to);
+                    touching.push((u0, u1, colour));
+                }
+            }
+        }
+    }
+    touching.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // They must cover every longitude once.
+    let mut at = 0.0;
+    for &(u0, u1, _) in &touching {
+        if u0 != at {
+            return None;
+        }
+        at = u1;
+    }
+    if at != 1.0 || touching.len() > MAX_FAN_WEDGES {
+        return None;
+    }
+    let mut wedges = Vec::with_capacity(touching.len());
+    for &(u0, u1, colour) in &touching {
+        let c = colour.map(|v| v as f32);
+        let colour = Rgba::new(c[0], c[1], c[2], c[3]);
+        let (a0, a1) = (TAU * u0 - PI, TAU * u1 - PI);
+        // Wedges of at most a quarter turn: each is then the meet of two
+        // half-planes.
+        let parts = ((a1 - a0) / FRAC_PI_2).ceil().max(1.0);
+        for k in 0..parts as usize {
+            let from = a0 + (a1 - a0) * k as f64 / parts;
+            let to = if k + 1 == parts as usize {
+                a1
+            } else {
+                a0 + (a1 - a0) * (k + 1) as f64 / parts
+            };
+            wedges.push((from, to, colour));
+        }
+    }
+    Some(PolarCap {
+        pole_v,
+        reach,
+        extent: (PI * reach).sin(),
+        wedges,
+    })
+}
