@@ -13,7 +13,7 @@ use std::sync::Arc;
 use quadtex_core::{QuadTree, Rgba, Wrap};
 
 use crate::bvh::{Aabb, Bvh};
-use crate::exact::PolarCaps;
+use crate::exact::PolarFans;
 use crate::math::{Ray, Vec3};
 
 /// A pinhole camera.
@@ -895,17 +895,17 @@ pub struct SceneTexture {
     same_memory: Arc<std::sync::OnceLock<Result<quadtex_core::baseline::MipPyramid, String>>>,
     /// Bytes the baselines may take ([`baseline_bytes`]), `None`: no budget.
     memory_budget: Option<u64>,
-    /// Spheres' polar caps, by the UV transform and wrap they were drawn
+    /// Spheres' pole fans, by the UV transform and wrap they were drawn
     /// for, each built on first use.
-    polar_caps: Arc<std::sync::Mutex<CapCache>>,
+    polar_fans: Arc<std::sync::Mutex<FanCache>>,
 }
 
-/// What a texture's polar caps are drawn for: the UV transform's bits
+/// What a texture's pole fans are drawn for: the UV transform's bits
 /// (scale, offset, rotation) and the wrap's modes.
-type CapKey = ([u64; 5], quadtex_core::WrapMode, quadtex_core::WrapMode);
+type FanKey = ([u64; 5], quadtex_core::WrapMode, quadtex_core::WrapMode);
 
-/// A texture's polar caps drawn so far, by what they were drawn for.
-type CapCache = Vec<(CapKey, Arc<PolarCaps>)>;
+/// A texture's pole fans drawn so far, by what they were drawn for.
+type FanCache = Vec<(FanKey, Arc<PolarFans>)>;
 
 /// The raster forms a baseline filter needs, made from the tree's cells.
 pub(crate) struct Baselines {
@@ -955,7 +955,7 @@ impl SceneTexture {
             baselines: Arc::default(),
             same_memory: Arc::default(),
             memory_budget: None,
-            polar_caps: Arc::default(),
+            polar_fans: Arc::default(),
         }
     }
 
@@ -972,9 +972,9 @@ impl SceneTexture {
         quadtex_core::Texture::new(Arc::clone(&self.tree), wrap)
     }
 
-    /// The polar caps of this texture on a sphere whose UV goes to texture
+    /// The pole fans of this texture on a sphere whose UV goes to texture
     /// space by `uv`, read under `wrap`: drawn once for each.
-    pub(crate) fn polar_caps(&self, uv: &UvTransform, wrap: Wrap) -> Arc<PolarCaps> {
+    pub(crate) fn polar_fans(&self, uv: &UvTransform, wrap: Wrap) -> Arc<PolarFans> {
         let bits = [uv.scale[0], uv.scale[1], uv.offset[0], uv.offset[1]].map(f64::to_bits);
         let key = (
             [
@@ -989,11 +989,11 @@ impl SceneTexture {
         );
         // A poisoned lock only means another thread panicked mid-insert;
         // the list itself is still a valid cache.
-        let mut caps = (self.polar_caps.lock()).unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut caps = (self.polar_fans.lock()).unwrap_or_else(std::sync::PoisonError::into_inner);
         if let Some((_, found)) = caps.iter().find(|(k, _)| *k == key) {
             return Arc::clone(found);
         }
-        let drawn = Arc::new(PolarCaps::new(&self.tree, uv, wrap));
+        let drawn = Arc::new(PolarFans::new(&self.tree, uv, wrap));
         caps.push((key, Arc::clone(&drawn)));
         drawn
     }

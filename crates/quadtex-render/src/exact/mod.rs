@@ -88,5 +88,5 @@ mod views;
 mod tests;
 
 pub(crate) use pixel::{Scratch, exact_pixel};
-pub(crate) use sphere::PolarCaps;
+pub(crate) use sphere::PolarFans;
 pub(crate) use views::SurfaceViews;

@@ -55,10 +55,14 @@
 //!   while no texture square holds them ([`SphereView::shade_ring`]);
 //!   within the innermost ring, squares.
 //!
+//! Around a pole, where longitude turns around a point and no piece fits
+//! the UV, squares and ring pieces are fitted in the pole's tangent-plane
+//! coordinates instead and integrated exactly on its **fan**, the texture
+//! squares touching the pole as wedges with straight sides ([`fan`]).
+//!
 //! A piece still off whose weight is at most an eighth of what is left of
-//! a budget of `ε/2` a call, or one at the deepest split (the poles, where
-//! longitude turns around a point), is integrated on its fitted map with
-//! its whole weight in the bound. Each kept piece is integrated exactly
+//! a budget of `ε/2` a call, or one at the deepest split, is integrated on
+//! its fitted map with its whole weight in the bound. Each kept piece is integrated exactly
 //! over the tree ([`quadtex_core::Texture::integrate_region`]), cut at the
 //! longitude seam (`u` a whole number) so that each side is read in
 //! `[0, 1)`, whatever the texture's wrap. Lambert light is taken at each
@@ -111,8 +115,8 @@ pub(crate) struct SphereView {
     /// The outline's screen box.
     lo: [f64; 2],
     hi: [f64; 2],
-    /// The texture redrawn around the poles ([`PolarCaps`]).
-    caps: std::sync::Arc<PolarCaps>,
+    /// The texture redrawn around the poles ([`PolarFans`]).
+    fans: std::sync::Arc<PolarFans>,
 }
 
 /// The chords that clip a support ([`SphereView::chords`]): half-planes
@@ -219,8 +223,8 @@ impl SphereView {
             ],
             lo: [e0[0] - extent[0], e0[1] - extent[1]],
             hi: [e0[0] + extent[0], e0[1] + extent[1]],
-            caps: (s.texture.as_ref())
-                .map(|t| t.polar_caps(&s.uv_transform, s.wrap))
+            fans: (s.texture.as_ref())
+                .map(|t| t.polar_fans(&s.uv_transform, s.wrap))
                 .unwrap_or_default(),
         };
         [e0, ea, eb, view.lo, view.hi]
@@ -495,10 +499,10 @@ fn angles_seen(points: &[[f64; 2]]) -> (f64, f64) {
     (reference + lo, hi - lo)
 }
 
-mod cap;
+mod fan;
 mod pieces;
 
-pub(crate) use cap::PolarCaps;
+pub(crate) use fan::PolarFans;
 
 #[cfg(test)]
 mod tests;

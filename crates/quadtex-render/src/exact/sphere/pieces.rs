@@ -10,7 +10,7 @@ use crate::scene::Lighting;
 use crate::stats::PixelStats;
 
 use super::super::lighting::{Shading, apply_light};
-use super::cap::PolarCap;
+use super::fan::PolarFan;
 
 use super::{Chords, SphereView};
 
@@ -36,10 +36,10 @@ thread_local! {
 
 /// Pieces a sphere's pixel may look at per square of the filter options'
 /// budget (the renderer's 64: 1024 pieces). The checkered ball needs at
-/// most that many at every pixel; the runway's beacon, a ball of a few
-/// pixels whose pole is in view (where longitude turns around a point and
-/// squares shrink towards it as they do towards the outline), spends it
-/// in a few.
+/// most that many at every pixel, and so does the runway's beacon, whose
+/// pole is in view, since the poles have fans ([`super::fan`]); a pixel
+/// where a pole lies within about a pixel of the outline may still spend
+/// it.
 const PIECES_PER_SQUARE: u64 = 16;
 
 /// What a sphere's pixel may still spend ([`SphereView::shade`]): weight
@@ -432,14 +432,14 @@ impl SphereView {
         }
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         // Around a pole: the fan, where its coordinates' fit holds.
-        let caps = [self.caps.north.as_ref(), self.caps.south.as_ref()];
-        if let Some(cap) = (caps.into_iter().flatten()).find(|c| ends.iter().all(|e| c.holds(e.1)))
+        let fans = [self.fans.north.as_ref(), self.fans.south.as_ref()];
+        if let Some(cap) = (fans.into_iter().flatten()).find(|c| ends.iter().all(|e| c.holds(e.1)))
             && let Some(fit) = quad_to_quad(corners, corners.map(|s| cap.point(self.normal(s))))
             && let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN)
             && let (error, cap_error) =
                 self.map_error(&fit, &piece, &mut nowhere, &corners, Some(cap))
             && error <= tolerance
-            && (self.cap_box(&fit, &piece, cap_error)).is_some_and(|b| cap.holds_box(b))
+            && (self.fan_box(&fit, &piece, cap_error)).is_some_and(|b| cap.holds_box(b))
         {
             let (c, w, b) = self.shade_fan(shading, &piece, &fit, cap, stats);
             add(sums, self.finish(shading, &piece, c), w, b);
@@ -515,10 +515,10 @@ impl SphereView {
             if piece.is_empty() {
                 continue;
             }
-            // Around a pole, the cap's coordinates, where the map is smooth.
-            let cap = self.cap_holding(&mut square);
+            // Around a pole, its coordinates, where the map is smooth.
+            let cap = self.fan_holding(&mut square);
             let fit = match cap {
-                Some(cap) => self.cap_fit(cap, &square),
+                Some(cap) => self.fan_fit(cap, &square),
                 None => self.fit(&mut square),
             };
             let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
@@ -547,7 +547,7 @@ impl SphereView {
             }
             // The fan's wedges hold every image the piece may have.
             let fan = match (&fit, cap) {
-                (Some(f), Some(cap)) => (self.cap_box(f, &piece, uv_error))
+                (Some(f), Some(cap)) => (self.fan_box(f, &piece, uv_error))
                     .is_some_and(|b| cap.holds_box(b))
                     .then_some((f, cap)),
                 _ => None,
@@ -583,12 +583,12 @@ impl SphereView {
         }
     }
 
-    /// The polar cap whose used part holds the square's 3 × 3 grid points
-    /// ([`PolarCap::holds`]), if any.
-    fn cap_holding(&self, square: &mut Square) -> Option<&PolarCap> {
-        let caps = [self.caps.north.as_ref(), self.caps.south.as_ref()];
+    /// The pole fan whose reach holds the square's 3 × 3 grid points
+    /// ([`PolarFan::holds`]), if any.
+    fn fan_holding(&self, square: &mut Square) -> Option<&PolarFan> {
+        let fans = [self.fans.north.as_ref(), self.fans.south.as_ref()];
         let first = square.uv(self, 0, 0);
-        let cap = caps.into_iter().flatten().find(|c| c.holds(first))?;
+        let cap = fans.into_iter().flatten().find(|c| c.holds(first))?;
         for j in 0..3 {
             for i in 0..3 {
                 if !cap.holds(square.uv(self, i, j)) {
@@ -599,18 +599,18 @@ impl SphereView {
         Some(cap)
     }
 
-    /// The projective map from the screen to `cap`'s coordinates through
+    /// The projective map from the screen to the fan's coordinates through
     /// the sphere's cap points at the square's corners.
-    fn cap_fit(&self, cap: &PolarCap, square: &Square) -> Option<[[f64; 3]; 3]> {
+    fn fan_fit(&self, cap: &PolarFan, square: &Square) -> Option<[[f64; 3]; 3]> {
         let Square { x0, y0, h, .. } = *square;
         let corners = [[x0, y0], [x0 + h, y0], [x0 + h, y0 + h], [x0, y0 + h]];
         quad_to_quad(corners, corners.map(|s| cap.point(self.normal(s))))
     }
 
-    /// A box of `cap`'s coordinates holding the image of `piece` under
+    /// A box of the fan's coordinates holding the image of `piece` under
     /// `fit` and, by its error at the check points (`error`, doubled for
     /// margin), under the sphere's own map.
-    fn cap_box(
+    fn fan_box(
         &self,
         fit: &[[f64; 3]; 3],
         piece: &ConvexPolygon,
@@ -636,7 +636,7 @@ impl SphereView {
             .then_some((lo, hi))
     }
 
-    /// `(Σ colour·k, Σ k, bound)` of one piece on map `fit` to `cap`'s
+    /// `(Σ colour·k, Σ k, bound)` of one piece on map `fit` to the fan's
     /// coordinates, its image within the fan: each wedge's colour over
     /// the piece clipped to the wedge's sides (lines through the pole on
     /// the screen too), exactly.
@@ -645,7 +645,7 @@ impl SphereView {
         shading: &Shading<'_>,
         piece: &ConvexPolygon,
         fit: &[[f64; 3]; 3],
-        cap: &PolarCap,
+        cap: &PolarFan,
         stats: &mut PixelStats,
     ) -> ([f64; 4], f64, f64) {
         let Shading { filter, centre, .. } = *shading;
@@ -736,7 +736,7 @@ impl SphereView {
         piece: &ConvexPolygon,
         square: &mut Square,
         exact: &[[f64; 2]],
-        cap: Option<&PolarCap>,
+        cap: Option<&PolarFan>,
     ) -> (f64, f64) {
         let Square { x0, y0, h, .. } = *square;
         let v = piece.vertices();

@@ -262,10 +262,41 @@ fn a_pole_in_view_keeps_the_bound() {
     for pixel_filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
         let ((e, s, noise), over_target) =
             against_converged_reference(&scene, pixel_filter, (64, 48), 0, 30);
-        eprintln!("{pixel_filter:?} over {over_target}");
+        // Mitchell's pixels above the target here (576, the same before
+        // the fans) are not the pole's: see docs/limits.md.
+        if pixel_filter != PixelFilter::Mitchell {
+            assert_eq!(over_target, 0, "{pixel_filter:?}");
+        }
         assert!(
             e < 2.0 * noise && e < s / 3.0,
             "{pixel_filter:?}: exact {e}, 64 samples {s}, noise {noise}"
         );
     }
+}
+
+/// A ball of a dozen pixels seen from just above (the runway's beacon),
+/// its north pole half a pixel inside the outline and its south pole as
+/// far behind it: pixels along the outline by a pole are the known limit
+/// (the outline's square root and the pole's turn in one pixel). With the
+/// fans, five are above the target (eight without), their bounds stated;
+/// the image stays closer to the reference than 64-sample supersampling.
+#[test]
+fn a_pole_at_the_outline_is_the_known_limit() {
+    let mut scene = checkered_ball();
+    if let Some(surface) = scene.surfaces.first_mut() {
+        surface.uv_transform.scale = [8.0, 4.0];
+    }
+    scene.camera = crate::scene::Camera::new(
+        crate::math::Vec3::new(0.0, 1.5, -20.0),
+        crate::math::Vec3::new(0.0, 0.0, 0.0),
+        crate::math::Vec3::new(0.0, 1.0, 0.0),
+        30.0,
+        64,
+        48,
+    )
+    .unwrap();
+    let ((e, s, noise), over_target) =
+        against_converged_reference(&scene, PixelFilter::Box, (64, 48), 1, 40);
+    assert!(over_target <= 5, "{over_target}");
+    assert!(e < s / 2.0, "exact {e}, 64 samples {s}, noise {noise}");
 }

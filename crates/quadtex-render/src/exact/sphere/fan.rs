@@ -1,9 +1,9 @@
-//! Polar fans ([`PolarCaps`]): a sphere's texture squares that touch a
+//! Polar fans ([`PolarFans`]): a sphere's texture squares that touch a
 //! pole, seen in the coordinates of the pole's tangent plane, where they
 //! are wedges with straight sides through the pole.
 //!
-//! **Cap coordinates.** For the sphere's outward unit normal `n` (its UV is
-//! `u = (atan2(n.z, n.x) + π)/2π`, `v = 1 − acos(n.y)/π`), a cap reads the
+//! **Pole coordinates.** For the sphere's outward unit normal `n` (its UV is
+//! `u = (atan2(n.z, n.x) + π)/2π`, `v = 1 − acos(n.y)/π`), a fan reads the
 //! point at `(x, z) = (½ + n.x/2R, ½ + n.z/2R)`: the normal's orthographic
 //! image on the pole's tangent plane, scaled so that the fan, the
 //! latitudes within `reach` of the pole (colatitude `π·reach`, radius
@@ -46,31 +46,31 @@ const MAX_TILES: i64 = 64;
 
 /// One pole's fan (module doc).
 #[derive(Debug)]
-pub(crate) struct PolarCap {
+pub(crate) struct PolarFan {
     /// `v` at the pole: 1 (north, `+y`) or 0 (south).
     pole_v: f64,
     /// How far from the pole (in `v`) every wedge reaches.
     reach: f64,
-    /// `R = sin(π·reach)`: cap coordinates are `½ + (n.x, n.z)/2R`.
+    /// `R = sin(π·reach)`: pole coordinates are `½ + (n.x, n.z)/2R`.
     extent: f64,
-    /// The wedges `(from, to, colour)`, angles about `(½, ½)` in cap
+    /// The wedges `(from, to, colour)`, angles about `(½, ½)` in pole
     /// coordinates, `from < to ≤ from + π/2`, in order, covering `[−π, π]`.
     wedges: Vec<(f64, f64, Rgba)>,
 }
 
-impl PolarCap {
+impl PolarFan {
     /// Whether UV point `uv` lies within the fan's reach.
     pub(crate) fn holds(&self, uv: [f64; 2]) -> bool {
         (uv[1] - self.pole_v).abs() < self.reach
     }
 
-    /// The cap point of the sphere's outward unit normal `n`.
+    /// The point in pole coordinates of the sphere's outward unit normal `n`.
     pub(crate) fn point(&self, n: Vec3) -> [f64; 2] {
         let scale = 0.5 / self.extent;
         [0.5 + n.x * scale, 0.5 + n.z * scale]
     }
 
-    /// Whether the fan holds every point of the box `(lo, hi)` of cap
+    /// Whether the fan holds every point of the box `(lo, hi)` of pole
     /// coordinates (the disc of radius ½ about `(½, ½)`).
     pub(crate) fn holds_box(&self, (lo, hi): ([f64; 2], [f64; 2])) -> bool {
         let far = |a: f64, b: f64| (a - 0.5).abs().max((b - 0.5).abs());
@@ -78,7 +78,7 @@ impl PolarCap {
         dx * dx + dz * dz < 0.25
     }
 
-    /// The wedges that may meet a polygon of cap coordinates with
+    /// The wedges that may meet a polygon of pole coordinates with
     /// `vertices` (all of them when it holds the pole).
     pub(crate) fn wedges_meeting(&self, vertices: &[[f64; 2]]) -> &[(f64, f64, Rgba)] {
         use std::f64::consts::PI;
@@ -120,15 +120,15 @@ impl PolarCap {
 /// ([`crate::scene::SceneTexture`] keeps them); `None` where a fan is not
 /// drawn (module doc).
 #[derive(Debug, Default)]
-pub(crate) struct PolarCaps {
-    pub(crate) north: Option<PolarCap>,
-    pub(crate) south: Option<PolarCap>,
+pub(crate) struct PolarFans {
+    pub(crate) north: Option<PolarFan>,
+    pub(crate) south: Option<PolarFan>,
 }
 
-impl PolarCaps {
+impl PolarFans {
     /// The fans of `tree` on a sphere whose UV goes to texture space by
     /// `uv` and reads it under `wrap`.
-    pub(crate) fn new(tree: &Arc<QuadTree>, uv: &UvTransform, wrap: Wrap) -> PolarCaps {
+    pub(crate) fn new(tree: &Arc<QuadTree>, uv: &UvTransform, wrap: Wrap) -> PolarFans {
         let drawable = uv.rotation_degrees == 0.0
             && uv.scale.iter().chain(&uv.offset).all(|v| v.is_finite())
             && uv.scale.iter().all(|&s| s != 0.0)
@@ -136,7 +136,7 @@ impl PolarCaps {
             && tree.gradient_leaves().is_none();
         let [columns, rows] = tree.finest_grid();
         if !drawable || columns.saturating_mul(rows) > MAX_TEXTURE_CELLS {
-            return PolarCaps::default();
+            return PolarFans::default();
         }
         let scale = tree.aspect().scale();
         let mut squares = Vec::new();
@@ -148,7 +148,7 @@ impl PolarCaps {
                 squares.push(([x[0], x[1], z[0], z[1]], colour));
             }
         });
-        PolarCaps {
+        PolarFans {
             north: fan(&squares, uv, wrap, 1.0),
             south: fan(&squares, uv, wrap, 0.0),
         }
@@ -175,7 +175,7 @@ fn fan(
     uv: &UvTransform,
     wrap: Wrap,
     pole_v: f64,
-) -> Option<PolarCap> {
+) -> Option<PolarFan> {
     use std::f64::consts::{FRAC_PI_2, PI, TAU};
     // The widest reach's texture box, and the tiles it crosses.
     let to_texture = |u: f64, v: f64| {
@@ -255,10 +255,145 @@ fn fan(
             wedges.push((from, to, colour));
         }
     }
-    Some(PolarCap {
+    Some(PolarFan {
         pole_v,
         reach,
         extent: (PI * reach).sin(),
         wedges,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use quadtex_core::{BuildOptions, ConvexPolygon, synth};
+
+    /// The built-in 2 × 2 checker's tree.
+    fn checker() -> Arc<QuadTree> {
+        let grid = synth::checkerboard(2, 2).unwrap();
+        Arc::new(
+            QuadTree::from_texels(&grid, &BuildOptions::default())
+                .unwrap()
+                .0,
+        )
+    }
+
+    fn scaled(u: f64, v: f64) -> UvTransform {
+        UvTransform {
+            scale: [u, v],
+            ..UvTransform::default()
+        }
+    }
+
+    /// The checker 8 × 8 around and along: each pole touches 16 cells,
+    /// alternating, out to a sixteenth of the latitudes; the wedges tile
+    /// the turn in order.
+    #[test]
+    fn the_checkered_ball_has_a_fan_of_sixteen_wedges_at_each_pole() {
+        let caps = PolarFans::new(&checker(), &scaled(8.0, 8.0), Wrap::REPEAT);
+        for cap in [caps.north.unwrap(), caps.south.unwrap()] {
+            assert_eq!(cap.wedges.len(), 16);
+            assert_eq!(cap.reach, 1.0 / 16.0);
+            let mut at = -std::f64::consts::PI;
+            for (i, &(from, to, c)) in cap.wedges.iter().enumerate() {
+                assert!((from - at).abs() < 1e-12 && to > from, "{i}: {from} {to}");
+                at = to;
+                let next = cap.wedges[(i + 1) % 16].2;
+                assert_ne!(c, next, "neighbours alternate");
+            }
+            assert!((at - std::f64::consts::PI).abs() < 1e-12);
+        }
+        // Halves at the pole (u scale 1): each wedge at most a quarter turn.
+        let caps = PolarFans::new(&checker(), &scaled(1.0, 8.0), Wrap::REPEAT);
+        let north = caps.north.unwrap();
+        assert_eq!(north.wedges.len(), 4);
+        assert!(
+            north
+                .wedges
+                .iter()
+                .all(|w| w.1 - w.0 <= std::f64::consts::FRAC_PI_2 + 1e-12)
+        );
+    }
+
+    /// Where a fan would not be exact, there is none: a rotated UV, a
+    /// reach beyond a clamped edge. Within the unit square clamp is fine,
+    /// and mirrored tiles are fans too.
+    #[test]
+    fn fans_are_drawn_only_where_exact() {
+        let tree = checker();
+        let rotated = UvTransform {
+            rotation_degrees: 30.0,
+            ..scaled(8.0, 8.0)
+        };
+        assert!(
+            PolarFans::new(&tree, &rotated, Wrap::REPEAT)
+                .north
+                .is_none()
+        );
+        assert!(
+            PolarFans::new(&tree, &scaled(8.0, 8.0), Wrap::CLAMP)
+                .north
+                .is_none()
+        );
+        assert!(
+            PolarFans::new(&tree, &scaled(1.0, 1.0), Wrap::CLAMP)
+                .north
+                .is_some()
+        );
+        let mirrored = PolarFans::new(&tree, &scaled(3.0, 8.0), Wrap::MIRROR);
+        assert_eq!(mirrored.south.unwrap().wedges.len(), 6);
+    }
+
+    /// The wedges a polygon may meet hold every wedge it does meet: for
+    /// random polygons near and around the pole, the wedges left out clip
+    /// it to nothing.
+    #[test]
+    fn wedges_meeting_a_polygon_leave_none_out() {
+        let caps = PolarFans::new(&checker(), &scaled(8.0, 8.0), Wrap::REPEAT);
+        let cap = caps.north.unwrap();
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let left_of = |angle: f64| {
+            let (sn, cs) = f64::sin_cos(angle);
+            [-sn, cs, 0.5 * (sn - cs)]
+        };
+        let mut held = 0;
+        for _ in 0..2000 {
+            let (cx, cz, r) = (
+                0.5 + 0.4 * (next() - 0.5),
+                0.5 + 0.4 * (next() - 0.5),
+                0.2 * next(),
+            );
+            let turn = next() * std::f64::consts::TAU;
+            let corners: Vec<[f64; 2]> = (0..5)
+                .map(|k| {
+                    let a = turn + std::f64::consts::TAU * f64::from(k) / 5.0;
+                    [cx + r * a.cos(), cz + r * a.sin()]
+                })
+                .collect();
+            let Ok(polygon) = ConvexPolygon::new(&corners) else {
+                continue;
+            };
+            let meeting = cap.wedges_meeting(polygon.vertices());
+            if meeting.len() == cap.wedges.len() {
+                held += 1;
+            }
+            for w in &cap.wedges {
+                if meeting.iter().any(|m| m.0 == w.0) {
+                    continue;
+                }
+                let part = polygon.clip_lines([left_of(w.0), left_of(w.1).map(|v| -v)]);
+                assert!(
+                    part.area().abs() < 1e-15,
+                    "{corners:?}: wedge {w:?} left out"
+                );
+            }
+        }
+        assert!(held > 0 && held < 2000, "{held}");
+    }
 }
