@@ -144,21 +144,38 @@ pub fn run(args: Args) -> Result<()> {
     }
     let progress = Progress::new();
     let start = Instant::now();
-    progress.stage(&format!("decoding {}", input.display()));
-    let (grid, georeference) = quadtex_io::load_texels_with_georeference(&input, &limits)?;
-    progress.stage(&format!(
-        "packing {}x{} texels",
-        grid.width(),
-        grid.height()
-    ));
-    let (tree, report) =
-        QuadTree::from_texels(&grid, &options).map_err(|e| format!("{}: {e}", input.display()))?;
+    // With more than one core, an 8-bit PNG is packed tile by tile while
+    // it decodes; anything else (and on one core, where the tiles' splice
+    // costs more than it saves) is read whole, then packed. The same tree
+    // either way.
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let streamed = if threads > 1 {
+        progress.stage(&format!("decoding and packing {}", input.display()));
+        quadtex_io::pack_png_on_threads(&input, &options, &limits, threads)?
+    } else {
+        None
+    };
+    let (tree, report, (width, height), georeference) = match streamed {
+        Some((tree, report, size)) => (tree, report, size, None),
+        None => {
+            progress.stage(&format!("decoding {}", input.display()));
+            let (grid, georeference) = quadtex_io::load_texels_with_georeference(&input, &limits)?;
+            progress.stage(&format!(
+                "packing {}x{} texels",
+                grid.width(),
+                grid.height()
+            ));
+            let (tree, report) = QuadTree::from_texels(&grid, &options)
+                .map_err(|e| format!("{}: {e}", input.display()))?;
+            (tree, report, (grid.width(), grid.height()), georeference)
+        }
+    };
     progress.stage(&format!("writing {output}"));
-    output.write_qtx(&tree, Some((grid.width(), grid.height())))?;
+    output.write_qtx(&tree, Some((width, height)))?;
     progress.finish();
     let terminals: u64 = tree.level_stats().iter().map(|l| l.terminals).sum();
     let bytes = tree.memory_bytes();
-    let (raster, mips) = raster_bytes(grid.width(), grid.height());
+    let (raster, mips) = raster_bytes(width, height);
     let error = if report.max_error == 0.0 {
         "lossless".to_string()
     } else {
@@ -175,7 +192,7 @@ pub fn run(args: Args) -> Result<()> {
         blocks_summary(&tree),
         tree.depth(),
         human_bytes(bytes),
-        bytes as f64 / (f64::from(grid.width()) * f64::from(grid.height())),
+        bytes as f64 / (f64::from(width) * f64::from(height)),
         raster as f64 / bytes as f64,
         mips as f64 / bytes as f64,
         error,

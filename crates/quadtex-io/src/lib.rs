@@ -23,6 +23,7 @@ mod error;
 mod footprints;
 mod image_io;
 mod limits;
+mod png_on_threads;
 mod qtx;
 mod query;
 mod svg;
@@ -45,6 +46,7 @@ pub use limits::{
     ExternalResources, FALLBACK_MEMORY_BUDGET, Limits, QTX_READ_BYTES_PER_NODE,
     default_memory_budget,
 };
+pub use png_on_threads::{PackedPng, pack_png_on_threads};
 pub use qtx::{
     FORMAT_VERSION, MAGIC, QtxInfo, map_qtx, map_qtx_unverified, parse_qtx, parse_qtx_structure,
     read_qtx, write_qtx, write_qtx_to,
