@@ -263,7 +263,8 @@ fn a_pole_in_view_keeps_the_bound() {
         let ((e, s, noise), over_target) =
             against_converged_reference(&scene, pixel_filter, (64, 48), 0, 30);
         // Mitchell's pixels above the target here (576, the same before
-        // the fans) are not the pole's: see docs/limits.md.
+        // the fans) are not the pole's but the outline's: its chords leave
+        // out more of a 4 × 4 support than the target allows (limits.md).
         if pixel_filter != PixelFilter::Mitchell {
             assert_eq!(over_target, 0, "{pixel_filter:?}");
         }
