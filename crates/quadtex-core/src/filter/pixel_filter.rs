@@ -55,6 +55,33 @@ impl PixelFilter {
         c[0] + x * (c[1] + x * (c[2] + x * c[3]))
     }
 
+    /// The largest `|k(s − centre)|` over the screen box `(lo, hi)`: the
+    /// largest `|k₁|` over each axis's interval, multiplied (0 where the
+    /// box misses the support). `|k₁|` is monotone between `0`, the
+    /// Mitchell lobes' extremes at `±10/7` and the support's edges, so
+    /// those points and the interval's ends are where it peaks.
+    pub fn largest_weight_in(self, (lo, hi): ([f64; 2], [f64; 2]), centre: [f64; 2]) -> f64 {
+        let r = self.radius();
+        let largest = |a: f64, b: f64| {
+            let (a, b) = (a.max(-r), b.min(r));
+            if !(a <= b) {
+                return 0.0;
+            }
+            [a, b, 0.0, 10.0 / 7.0, -10.0 / 7.0]
+                .into_iter()
+                .filter(|&x| a <= x && x <= b)
+                .map(|x| {
+                    // At the support's edge the box's own k₁ is 0 but a
+                    // point just inside takes the limit.
+                    let inside = x.clamp(-r * (1.0 - 1e-12), r * (1.0 - 1e-12));
+                    self.k1(inside).abs()
+                })
+                .fold(0.0, f64::max)
+        };
+        largest(lo[0] - centre[0], hi[0] - centre[0])
+            * largest(lo[1] - centre[1], hi[1] - centre[1])
+    }
+
     /// The filter's support around `centre`.
     #[inline]
     pub fn support(self, centre: [f64; 2]) -> ConvexPolygon {
@@ -328,6 +355,44 @@ mod tests {
     }
 
     /// The running integrals at the cells' left sides are the cubics'.
+    #[test]
+    fn the_largest_weight_in_a_box_bounds_every_point_in_it() {
+        let mut seed = 0x1234_5678_9abc_def1_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
+            assert_eq!(
+                filter.largest_weight_in(([-0.1, -0.1], [0.1, 0.1]), [0.0; 2]),
+                filter.k_max()
+            );
+            for _ in 0..2000 {
+                let (x, y) = (5.0 * next() - 2.5, 5.0 * next() - 2.5);
+                let (w, h) = (next(), next());
+                let bound = filter.largest_weight_in(([x, y], [x + w, y + h]), [0.0; 2]);
+                let mut seen = 0f64;
+                for i in 0..=20 {
+                    for j in 0..=20 {
+                        let (px, py) = (x + w * f64::from(i) / 20.0, y + h * f64::from(j) / 20.0);
+                        seen = seen.max(filter.weight(px, py).abs());
+                    }
+                }
+                assert!(
+                    seen <= bound + 1e-12,
+                    "{filter:?} at {x} {y} {w} {h}: {seen} > {bound}"
+                );
+                // Tight: within what the 21 × 21 grid may miss.
+                assert!(
+                    bound <= seen + 0.15 * filter.k_max() * (w + h),
+                    "{filter:?}: {bound} vs {seen}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn running_integrals_are_the_cubics() {
         for filter in [PixelFilter::Tent, PixelFilter::Mitchell] {

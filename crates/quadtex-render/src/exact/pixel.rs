@@ -568,7 +568,7 @@ impl<'a> ExactPixel<'_, 'a> {
 /// `(Σ colour·k, Σ k, bound)` of the primitive of `view` over screen
 /// `region` (a part of its region of the support): a planar one's
 /// ([`shade_region`]), or a sphere's ([`SphereView::shade`](super::sphere::SphereView::shade)) with the
-/// area its outline's chords leave out of the support as full contrast.
+/// weight its outline's chords leave out of the support as full contrast.
 fn shade_view(
     shading: &Shading<'_>,
     view: &ViewRef<'_>,
@@ -579,7 +579,11 @@ fn shade_view(
         ViewRef::Sphere(sphere) => {
             let (c, w, b) = sphere.shade(shading, region, stats);
             let support = shading.filter.support(shading.centre);
-            (c, w, b + sphere.sliver_area(&support))
+            (
+                c,
+                w,
+                b + sphere.sliver_bound(&support, shading.filter, shading.centre),
+            )
         }
         _ => match view.planar() {
             Some(planar) => shade_region(shading, planar, region, None, stats),

@@ -411,10 +411,52 @@ impl SphereView {
     }
 
     /// The area the chords leave out of the outline near `support`
-    /// ([`SphereView::chords`]): at most this much of the support's weight
-    /// is the sphere's but taken as what lies behind it.
+    /// ([`SphereView::chords`]).
+    #[cfg(test)]
     pub(crate) fn sliver_area(&self, support: &ConvexPolygon) -> f64 {
         self.chords(support, &mut Chords::default()).unwrap_or(0.0)
+    }
+
+    /// A bound on the weight, under `filter` about `centre`, of what the
+    /// chords leave out of the outline near `support` (the sphere's, but
+    /// taken as what lies behind it): each chord's segment of the outline,
+    /// `a·b·(δ − sin δ)/2`, times the filter's largest `|k|` over the box
+    /// of its arc (its ends and the outline's points of extreme `x` or `y`
+    /// between them), which holds the segment.
+    pub(crate) fn sliver_bound(
+        &self,
+        support: &ConvexPolygon,
+        filter: quadtex_core::PixelFilter,
+        centre: [f64; 2],
+    ) -> f64 {
+        let mut lines = Chords::default();
+        if self.chords(support, &mut lines).is_none() || lines.count == 0 {
+            return 0.0;
+        }
+        let ab = (self.ea[0] * self.eb[1] - self.ea[1] * self.eb[0]).abs();
+        let delta = lines.delta;
+        let segment = ab * 0.5 * (delta - delta.sin());
+        let pi = std::f64::consts::PI;
+        let x_extreme = self.eb[0].atan2(self.ea[0]);
+        let y_extreme = self.eb[1].atan2(self.ea[1]);
+        let extremes = [x_extreme, x_extreme + pi, y_extreme, y_extreme + pi];
+        (0..lines.count)
+            .map(|j| {
+                let (t0, t1) = (lines.angle(j), lines.angle(j + 1));
+                let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+                let inside = extremes
+                    .iter()
+                    .filter(|&&t| (t - t0).rem_euclid(2.0 * pi) < delta);
+                for t in [t0, t1].iter().chain(inside) {
+                    let p = self.outline(*t);
+                    for a in 0..2 {
+                        lo[a] = lo[a].min(p[a]);
+                        hi[a] = hi[a].max(p[a]);
+                    }
+                }
+                segment * filter.largest_weight_in((lo, hi), centre)
+            })
+            .sum()
     }
 
     /// The line through the points at angles `t0` and `t1` on the
