@@ -64,7 +64,7 @@ impl PixelFilter {
         let r = self.radius();
         let largest = |a: f64, b: f64| {
             let (a, b) = (a.max(-r), b.min(r));
-            if !(a <= b) {
+            if a.is_nan() || b.is_nan() || a > b {
                 return 0.0;
             }
             [a, b, 0.0, 10.0 / 7.0, -10.0 / 7.0]
