@@ -140,7 +140,29 @@ impl PixelFilter {
         if n < 3 {
             return 0.0;
         }
+        let mut total = 0.0;
+        let mut a = [v[n - 1][0] - centre[0], v[n - 1][1] - centre[1]];
+        for &b in v {
+            let b = [b[0] - centre[0], b[1] - centre[1]];
+            total += self.edge_integral(a, b);
+            a = b;
+        }
+        p.signed_area().signum() * total
+    }
+
+    /// One edge's term of [`PixelFilter::integral`]'s Green's theorem,
+    /// `∫ K₁(x)·k₁(y) dy` from `a` to `b` (screen points relative to the
+    /// filter's centre): over a closed polygon the terms sum to its weight
+    /// times its orientation's sign. The box's is `x dy` (the shoelace's
+    /// half), so that every filter shares it.
+    pub(crate) fn edge_integral(self, a: [f64; 2], b: [f64; 2]) -> f64 {
         let r = self.radius();
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        if self == PixelFilter::Box {
+            // K₁(x) = x + ½ and k₁(y) = 1 inside the support: the
+            // polygon's area, clipped by no support (as `integral`'s box).
+            return 0.5 * (a[0] + b[0]) * dy;
+        }
         let running = self.running_integrals();
         // Gauss–Legendre points enough for `K₁·k₁` along a line: the
         // tent's is a cubic (2 points), Mitchell's of degree 7 (4 points).
@@ -196,52 +218,46 @@ impl PixelFilter {
             sum * span
         };
         let mut total = 0.0;
-        let mut a = [v[n - 1][0] - centre[0], v[n - 1][1] - centre[1]];
-        for &b in v {
-            let b = [b[0] - centre[0], b[1] - centre[1]];
-            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-            // Horizontal edges add nothing; so do edges wholly above or
-            // below the support, or left of it (`K₁ = 0`). Right of it
-            // `K₁ = 1`: the edge adds `K₁(y_b) − K₁(y_a)`, in closed form.
-            let outside =
-                dy == 0.0 || a[1].max(b[1]) <= -r || a[1].min(b[1]) >= r || a[0].max(b[0]) <= -r;
-            if !outside && a[0].min(b[0]) >= r {
-                total += running_at(b[1]) - running_at(a[1]);
-            } else if !outside {
-                // Where the edge crosses the cells' sides, as parameters in (0, 1).
-                let mut cuts = [0.0f64; 12];
-                let mut count = 0;
-                let mut cross = |from: f64, d: f64| {
-                    if d == 0.0 {
-                        return;
-                    }
-                    let (lo, hi) = (from.min(from + d), from.max(from + d));
-                    let mut k = (lo.max(-r)).floor();
-                    while k <= hi.min(r) && count < cuts.len() {
-                        let t = (k - from) / d;
-                        if t > 0.0 && t < 1.0 {
-                            cuts[count] = t;
-                            count += 1;
-                        }
-                        k += 1.0;
-                    }
-                };
-                cross(a[0], dx);
-                cross(a[1], dy);
-                let cuts = &mut cuts[..count];
-                cuts.sort_unstable_by(f64::total_cmp);
-                let mut t0 = 0.0;
-                for t1 in cuts.iter().copied().chain([1.0]) {
-                    let span = t1 - t0;
-                    if span > 0.0 {
-                        total += part_integral(a, [dx, dy], t0, span) * dy;
-                    }
-                    t0 = t1;
+        // Horizontal edges add nothing; so do edges wholly above or
+        // below the support, or left of it (`K₁ = 0`). Right of it
+        // `K₁ = 1`: the edge adds `K₁(y_b) − K₁(y_a)`, in closed form.
+        let outside =
+            dy == 0.0 || a[1].max(b[1]) <= -r || a[1].min(b[1]) >= r || a[0].max(b[0]) <= -r;
+        if !outside && a[0].min(b[0]) >= r {
+            total += running_at(b[1]) - running_at(a[1]);
+        } else if !outside {
+            // Where the edge crosses the cells' sides, as parameters in (0, 1).
+            let mut cuts = [0.0f64; 12];
+            let mut count = 0;
+            let mut cross = |from: f64, d: f64| {
+                if d == 0.0 {
+                    return;
                 }
+                let (lo, hi) = (from.min(from + d), from.max(from + d));
+                let mut k = (lo.max(-r)).floor();
+                while k <= hi.min(r) && count < cuts.len() {
+                    let t = (k - from) / d;
+                    if t > 0.0 && t < 1.0 {
+                        cuts[count] = t;
+                        count += 1;
+                    }
+                    k += 1.0;
+                }
+            };
+            cross(a[0], dx);
+            cross(a[1], dy);
+            let cuts = &mut cuts[..count];
+            cuts.sort_unstable_by(f64::total_cmp);
+            let mut t0 = 0.0;
+            for t1 in cuts.iter().copied().chain([1.0]) {
+                let span = t1 - t0;
+                if span > 0.0 {
+                    total += part_integral(a, [dx, dy], t0, span) * dy;
+                }
+                t0 = t1;
             }
-            a = b;
         }
-        p.signed_area().signum() * total
+        total
     }
 
     /// `K₁` at the left side of each of the filter's cells, from the

@@ -94,10 +94,6 @@ pub(super) fn scan_grid(
     }
     let (k0, k1) = if transpose { (c0, c1) } else { (k0, k1) };
     let (k0, k1) = (k0 as i64, k1 as i64);
-    let columns = |p: &ConvexPolygon| {
-        let (a, b) = p.bounds();
-        ((a[0] / h).floor() as i64, (b[0] / h).ceil() as i64)
-    };
     let mut m = *m;
     if transpose {
         for row in &mut m {
@@ -169,20 +165,68 @@ pub(super) fn scan_grid(
             }
             continue;
         }
-        let p = ConvexPolygon::from_trusted(texture);
-        let (m0, m1) = columns(&p);
+        // Other filters likewise, by Green's theorem: a cell's piece
+        // weighs what the band left of its right side does, less what
+        // the band left of its left side does; that is the band's edges
+        // left of the side (each edge's term once a band), the two edges
+        // the side cuts, up to it, and the side's own chord between them.
+        let n = texture.len();
+        let (x_min, x_max) = texture
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
+                (a.min(t[0]), b.max(t[0]))
+            });
+        let (m0, m1) = ((x_min / h).floor() as i64, (x_max / h).ceil() as i64);
         cells += (m1 - m0) as f64;
         if cells > max_cells {
             return None;
         }
-        for col in m0..m1 {
-            let x = col as f64 * h;
-            let piece = p.clip_rect(x, f64::NEG_INFINITY, x + h, f64::INFINITY);
-            if piece.is_empty() {
-                continue;
+        let terms: ArrayVec<f64, BAND_VERTICES> = (0..n)
+            .map(|i| filter.edge_integral(screen[i], screen[(i + 1) % n]))
+            .collect();
+        let total: f64 = terms.iter().sum();
+        let orientation = shoelace(screen).signum();
+        let to_screen = |t: [f64; 2]| {
+            let q = apply(&m, t);
+            [q[0] - centre[0], q[1] - centre[1]]
+        };
+        let left_of = |c: f64| -> f64 {
+            let (mut sum, mut exit, mut entry) = (0.0, None, None);
+            for i in 0..n {
+                let (a, b) = (texture[i], texture[(i + 1) % n]);
+                let crossing = || {
+                    let u = (c - a[0]) / (b[0] - a[0]);
+                    to_screen([c, a[1] + u * (b[1] - a[1])])
+                };
+                match (a[0] < c, b[0] < c) {
+                    (true, true) => sum += terms[i],
+                    (true, false) => {
+                        let x = crossing();
+                        sum += filter.edge_integral(screen[i], x);
+                        exit = Some(x);
+                    }
+                    (false, true) => {
+                        let x = crossing();
+                        sum += filter.edge_integral(x, screen[(i + 1) % n]);
+                        entry = Some(x);
+                    }
+                    (false, false) => {}
+                }
             }
-            let w = filter.integral(&piece.map(|t| apply(&m, t)), centre);
-            add(colour(k, col)?, w);
+            if let (Some(from), Some(to)) = (exit, entry) {
+                sum += filter.edge_integral(from, to);
+            }
+            sum
+        };
+        let mut left = 0.0;
+        for col in m0..m1 {
+            let upto = if col + 1 == m1 {
+                total
+            } else {
+                left_of((col + 1) as f64 * h)
+            };
+            add(colour(k, col)?, orientation * (upto - left));
+            left = upto;
         }
     }
     Some((colour_sum, weight_sum, cells))
