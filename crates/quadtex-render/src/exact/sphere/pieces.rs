@@ -439,7 +439,7 @@ impl SphereView {
             && let (error, cap_error) =
                 self.map_error(&fit, &piece, &mut nowhere, &corners, Some(cap))
             && error <= tolerance
-            && (self.fan_box(&fit, &piece, cap_error)).is_some_and(|b| cap.holds_box(b))
+            && (self.image_box(&fit, &piece, cap_error)).is_some_and(|b| cap.holds_box(b))
         {
             let (c, w, b) = self.shade_fan(shading, &piece, &fit, cap, stats);
             add(sums, self.finish(shading, &piece, c), w, b);
@@ -547,7 +547,7 @@ impl SphereView {
             }
             // The fan's wedges hold every image the piece may have.
             let fan = match (&fit, cap) {
-                (Some(f), Some(cap)) => (self.fan_box(f, &piece, uv_error))
+                (Some(f), Some(cap)) => (self.image_box(f, &piece, uv_error))
                     .is_some_and(|b| cap.holds_box(b))
                     .then_some((f, cap)),
                 _ => None,
@@ -607,10 +607,12 @@ impl SphereView {
         quad_to_quad(corners, corners.map(|s| cap.point(self.normal(s))))
     }
 
-    /// A box of the fan's coordinates holding the image of `piece` under
-    /// `fit` and, by its error at the check points (`error`, doubled for
-    /// margin), under the sphere's own map.
-    fn fan_box(
+    /// A box holding the image of `piece` under the fitted map `fit` and,
+    /// by its error at the check points (`error`, doubled for margin),
+    /// under the sphere's own: in the sphere's UV or the fan's
+    /// coordinates, as `fit` maps to. `None` where the fit folds over the
+    /// piece or the box is not finite.
+    fn image_box(
         &self,
         fit: &[[f64; 3]; 3],
         piece: &ConvexPolygon,
@@ -853,20 +855,7 @@ impl SphereView {
         piece: &ConvexPolygon,
         uv_error: f64,
     ) -> Option<([f64; 2], [f64; 2])> {
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for &s in piece.vertices() {
-            let w = fit[2][0] * s[0] + fit[2][1] * s[1] + fit[2][2];
-            if w.is_nan() || w <= 0.0 {
-                return None;
-            }
-            for a in 0..2 {
-                let t = (fit[a][0] * s[0] + fit[a][1] * s[1] + fit[a][2]) / w;
-                lo[a] = lo[a].min(t);
-                hi[a] = hi[a].max(t);
-            }
-        }
-        let margin = 2.0 * uv_error + 1e-12;
-        let (lo, hi) = (lo.map(|v| v - margin), hi.map(|v| v + margin));
+        let (lo, hi) = self.image_box(fit, piece, uv_error)?;
         let turn = lo[0].floor();
         if !(turn.is_finite() && hi[0].floor() == turn) {
             return None;

@@ -17,6 +17,22 @@ fn checkered_ball() -> Scene {
     .unwrap()
 }
 
+/// The checkered ball seen from `position` at 64 × 48, looking at its
+/// centre.
+fn checkered_ball_from(position: crate::math::Vec3) -> Scene {
+    let mut scene = checkered_ball();
+    scene.camera = crate::scene::Camera::new(
+        position,
+        crate::math::Vec3::new(0.0, 0.0, 0.0),
+        crate::math::Vec3::new(0.0, 1.0, 0.0),
+        30.0,
+        64,
+        48,
+    )
+    .unwrap();
+    scene
+}
+
 /// The support's part inside the outline, in closed form: in the
 /// coordinates that make the outline the unit circle, the signed areas
 /// of each edge's triangle with the centre clipped to the circle
@@ -308,16 +324,7 @@ fn the_ball_among_planar_primitives_matches_a_converged_reference() {
 /// noise, under box, tent and Mitchell.
 #[test]
 fn a_pole_in_view_keeps_the_bound() {
-    let mut scene = checkered_ball();
-    scene.camera = crate::scene::Camera::new(
-        crate::math::Vec3::new(0.0, 3.0, -4.0),
-        crate::math::Vec3::new(0.0, 0.0, 0.0),
-        crate::math::Vec3::new(0.0, 1.0, 0.0),
-        30.0,
-        64,
-        48,
-    )
-    .unwrap();
+    let scene = checkered_ball_from(crate::math::Vec3::new(0.0, 3.0, -4.0));
     let pole = scene
         .camera
         .project(crate::math::Vec3::new(0.0, 1.0, 0.0))
@@ -351,19 +358,10 @@ fn a_pole_in_view_keeps_the_bound() {
 /// the image stays closer to the reference than 64-sample supersampling.
 #[test]
 fn a_pole_at_the_outline_is_the_known_limit() {
-    let mut scene = checkered_ball();
+    let mut scene = checkered_ball_from(crate::math::Vec3::new(0.0, 1.5, -20.0));
     if let Some(surface) = scene.surfaces.first_mut() {
         surface.uv_transform.scale = [8.0, 4.0];
     }
-    scene.camera = crate::scene::Camera::new(
-        crate::math::Vec3::new(0.0, 1.5, -20.0),
-        crate::math::Vec3::new(0.0, 0.0, 0.0),
-        crate::math::Vec3::new(0.0, 1.0, 0.0),
-        30.0,
-        64,
-        48,
-    )
-    .unwrap();
     let ((e, s, noise), over_target) =
         against_converged_reference(&scene, PixelFilter::Box, (64, 48), 1, 40);
     assert!(over_target <= 5, "{over_target}");
