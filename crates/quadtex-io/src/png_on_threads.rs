@@ -46,8 +46,10 @@ struct Shared {
 /// one) packing tiles while this one decodes: the tree and report are
 /// byte for byte the same. `Ok(None)` when this path does not apply and
 /// the caller reads the image whole: not a PNG, an interlaced or 16-bit
-/// one, a `max_level`, an image of at most half a tile, or any decoding
-/// error (the whole read then reports it as it always does).
+/// one, a `max_level`, an image of at most half a tile or mostly the
+/// mosaic's pad (long and thin), a memory budget the texels held leave
+/// too little of, or any error decoding or packing (the whole read then
+/// reports it as it always does).
 pub fn pack_png_on_threads(
     path: &Path,
     options: &BuildOptions,
@@ -105,6 +107,23 @@ pub fn pack_png_on_threads(
         .filter_map(|tile| mosaic.tile_rect(tile.0, tile.1).map(|rect| (tile, rect)))
         .collect();
     tiles.sort_by_key(|&(_, (_, y0, _, h))| y0 + h);
+    // A long thin image leaves nearly all of the mosaic's tiles in the
+    // pad, which the splice still walks: read it whole.
+    let grid_tiles = u64::from(mosaic.tiles()) * u64::from(mosaic.tiles());
+    if 16 * (tiles.len() as u64) < grid_tiles {
+        return Ok(None);
+    }
+    // The texels stay held while the tiles pack (the decoded rows and each
+    // tile's copy, 8 bytes a texel, as the whole read's decoding counts
+    // them): the tiles' own budget is what is left of the caller's.
+    let held = 8 * texels;
+    let options = &match options.max_bytes.map(|b| b.checked_sub(held)) {
+        Some(None) => return Ok(None),
+        left => BuildOptions {
+            max_bytes: left.flatten(),
+            ..*options
+        },
+    };
     let shared = Mutex::new(Shared::default());
     let changed = Condvar::new();
     let lock = || shared.lock().unwrap_or_else(PoisonError::into_inner);
@@ -178,9 +197,15 @@ pub fn pack_png_on_threads(
             }
             _ => Ok(tile),
         }
-    })
-    .map_err(crate::error::core(path))?;
-    Ok(Some((spliced.0, spliced.1, (width, height))))
+    });
+    // Any refusal (a tile's budget, say) is left to the whole read, which
+    // reports it as it always has.
+    if let Err(e) = &spliced {
+        eprintln!("SPLICE {e}");
+    }
+    Ok(spliced
+        .ok()
+        .map(|(tree, report)| (tree, report, (width, height))))
 }
 
 /// Decodes the image's rows as RGBA8 (grey spread to RGB, opaque where
@@ -379,7 +404,8 @@ mod tests {
     }
 
     /// Where it does not apply, it says so and the whole read takes over:
-    /// 16 bits, a level asked for, small, not a PNG, a truncated PNG
+    /// 16 bits, a level asked for, small, long and thin, a memory budget
+    /// the held texels leave too little of, not a PNG, a truncated PNG
     /// (whose error the whole read reports). (Interlaced PNGs are left to
     /// it too; the `png` crate writes none to test with.)
     #[test]
@@ -427,6 +453,15 @@ mod tests {
             &write("small.png", (100, 90), png::BitDepth::Eight),
             &options
         ));
+        assert!(!streamed(
+            &write("tall.png", (8, 5000), png::BitDepth::Eight),
+            &options
+        ));
+        let tight = BuildOptions {
+            max_bytes: Some(1 << 20),
+            ..BuildOptions::default()
+        };
+        assert!(!streamed(&plain, &tight));
         let text = dir.join("text.png");
         std::fs::write(&text, b"not a png at all").unwrap();
         assert!(!streamed(&text, &options));

@@ -336,6 +336,9 @@ impl SunGrid {
                 in_front_len += 1;
             }
             let seen = other.map(project);
+            if across_shared_edge((&c, &own), (&other, &seen), tolerance) {
+                return false;
+            }
             // Boxes apart by more than the tolerance: the projections are
             // too (the outline test below would find an edge that shows it).
             let their_box = bounds(&seen);
@@ -456,6 +459,42 @@ impl SunGrid {
 
 /// Triangle `t`'s box projected on `axes` (across the sun), widened by a
 /// relative `10⁻⁹` against rounding; `None` when not finite.
+/// Whether two triangles (corners and their projections along the sun)
+/// share an edge, corner for corner, with their third corners' projections
+/// on either side of its line by more than `tolerance` (times the edge's
+/// length): their projections then meet only along that edge, so neither
+/// lies between the other's inside and the sun. On a terrain this settles
+/// most of a triangle's neighbours without building their outlines.
+fn across_shared_edge(
+    (mine, own): (&[Vec3; 3], &[[f64; 2]; 3]),
+    (theirs, seen): (&[Vec3; 3], &[[f64; 2]; 3]),
+    tolerance: f64,
+) -> bool {
+    let shared = |p: Vec3| theirs.iter().position(|&q| q == p);
+    let found: [Option<usize>; 3] = mine.map(shared);
+    // My corner off the edge (`k`), and the edge's ends `i`, `j`.
+    let (k, i, j) = match found {
+        [None, Some(_), Some(_)] => (0, 1, 2),
+        [Some(_), None, Some(_)] => (1, 2, 0),
+        [Some(_), Some(_), None] => (2, 0, 1),
+        _ => return false,
+    };
+    let (Some(a), Some(b)) = (found[i], found[j]) else {
+        return false;
+    };
+    // Their corner off the edge.
+    let r = 3 - a - b;
+    if r > 2 || a == b {
+        return false;
+    }
+    let (p, q) = (own[i], own[j]);
+    let edge = [q[0] - p[0], q[1] - p[1]];
+    let side = |x: [f64; 2]| edge[0] * (x[1] - p[1]) - edge[1] * (x[0] - p[0]);
+    let margin = tolerance * edge[0].hypot(edge[1]);
+    let (s_mine, s_theirs) = (side(own[k]), side(seen[r]));
+    (s_mine > margin && s_theirs < -margin) || (s_mine < -margin && s_theirs > margin)
+}
+
 fn projected_box(mesh: &Mesh, axes: [Vec3; 2], t: usize) -> Option<[f64; 4]> {
     let corners = mesh.corners(t)?;
     padded(bounds(&corners.map(|p| [p.dot(axes[0]), p.dot(axes[1])])))
