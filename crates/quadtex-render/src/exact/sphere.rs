@@ -58,7 +58,8 @@
 //! Around a pole, where longitude turns around a point and no piece fits
 //! the UV, squares and ring pieces are fitted in the pole's tangent-plane
 //! coordinates instead and integrated exactly on its **fan**, the texture
-//! squares touching the pole as wedges with straight sides ([`fan`]).
+//! squares touching the pole as wedges with straight sides, or beyond it
+//! on a **band** of squares between two latitudes ([`fan`]).
 //!
 //! A piece still off whose weight is at most an eighth of what is left of
 //! a budget of `ε/2` a call, or one at the deepest split, is integrated on

@@ -19,7 +19,14 @@
 //! the nearest latitude where one ends (`reach`): a piece whose image lies
 //! within it is integrated exactly as the wedges' flat colours over the
 //! piece clipped to each wedge's two sides (straight lines on the screen
-//! too, under the piece's projective map). Fans are drawn where that is
+//! too, under the piece's projective map).
+//!
+//! **Bands.** Beyond the fan, out to a colatitude of 45°, the squares
+//! between consecutive latitudes where squares end are annular sectors
+//! whose sides are the same lines through the pole: a piece the sphere's
+//! UV cannot fit there (its outline near the pole) but the pole's
+//! coordinates can, whose image lies within one band, is integrated on
+//! that band's wedges the same way. Fans are drawn where that is
 //! exact and small: no rotation in the UV transform, no gradient or
 //! contour leaves in the texture, at most [`MAX_FAN_WEDGES`] wedges, of a
 //! texture of at most [`MAX_TEXTURE_CELLS`] cells.
@@ -33,6 +40,15 @@ use crate::scene::UvTransform;
 
 /// The widest reach of a fan (of `v`'s unit range, from the pole).
 const WIDEST_REACH: f64 = 1.0 / 8.0;
+
+/// How far from a pole (in `v`) its coordinates serve beyond the fan:
+/// pieces there whose image lies within one band of texture squares are
+/// integrated on that band's wedges (a colatitude of 45°).
+const CHART_REACH: f64 = 0.25;
+
+/// Texture squares within [`CHART_REACH`] of a pole, at most, for its
+/// bands beyond the fan to be drawn.
+const MAX_BAND_SQUARES: usize = 8192;
 
 /// Wedges a fan holds at most.
 const MAX_FAN_WEDGES: usize = 4096;
@@ -57,7 +73,23 @@ pub(crate) struct PolarFan {
     extent: f64,
     /// The wedges `(from, to, colour)`, angles about `(½, ½)` in pole
     /// coordinates, `from < to ≤ from + π/2`, in order, covering `[−π, π]`.
-    wedges: Vec<(f64, f64, Rgba)>,
+    wedges: Vec<Wedge>,
+    /// Beyond the fan, out to [`CHART_REACH`]: bands `[near, far)` of
+    /// distance from the pole (in `v`) within which every longitude has
+    /// one texture square, with their wedges as the fan's (annular sectors
+    /// there, whose sides are the same straight lines through the pole).
+    bands: Vec<Band>,
+}
+
+/// A wedge `(from, to, colour)`: angles about `(½, ½)` in pole coordinates.
+pub(crate) type Wedge = (f64, f64, Rgba);
+
+/// A band of texture squares around a pole beyond its fan.
+#[derive(Debug)]
+struct Band {
+    near: f64,
+    far: f64,
+    wedges: Vec<Wedge>,
 }
 
 impl PolarFan {
@@ -80,42 +112,90 @@ impl PolarFan {
         dx * dx + dz * dz < 0.25
     }
 
+    /// The fan's wedges.
+    pub(crate) fn wedges(&self) -> &[Wedge] {
+        &self.wedges
+    }
+
     /// The wedges that may meet a polygon of pole coordinates with
     /// `vertices` (all of them when it holds the pole).
-    pub(crate) fn wedges_meeting(&self, vertices: &[[f64; 2]]) -> &[(f64, f64, Rgba)] {
-        use std::f64::consts::PI;
-        let n = vertices.len();
-        if n < 3 {
-            return &[];
-        }
-        let cross = |i: usize| {
-            let (a, b) = (vertices[i], vertices[(i + 1) % n]);
-            (b[0] - a[0]) * (0.5 - a[1]) - (b[1] - a[1]) * (0.5 - a[0])
-        };
-        let first = cross(0);
-        let holds_pole = (0..n).all(|i| cross(i) * first >= 0.0 && cross(i) != 0.0);
-        if holds_pole || vertices.iter().any(|p| p[0] == 0.5 && p[1] == 0.5) {
-            return &self.wedges;
-        }
-        let angles: Vec<[f64; 2]> = vertices.iter().map(|p| [p[0] - 0.5, p[1] - 0.5]).collect();
-        let (from, span) = super::angles_seen(&angles);
-        if span.is_nan() || span >= PI {
-            return &self.wedges;
-        }
-        // The wedges over [from, from + span], which may wrap past π.
-        let (lo, hi) = (from, from + span);
-        let (lo, hi) = if lo < -PI {
-            (lo + 2.0 * PI, hi + 2.0 * PI)
-        } else {
-            (lo, hi)
-        };
-        if hi > PI {
-            return &self.wedges;
-        }
-        let start = self.wedges.partition_point(|w| w.1 <= lo);
-        let end = self.wedges.partition_point(|w| w.0 < hi);
-        &self.wedges[start..end.max(start)]
+    #[cfg(test)]
+    pub(crate) fn wedges_meeting(&self, vertices: &[[f64; 2]]) -> &[Wedge] {
+        meeting(&self.wedges, vertices)
     }
+
+    /// Whether UV point `uv` lies within [`CHART_REACH`] of the pole.
+    pub(crate) fn near(&self, uv: [f64; 2]) -> bool {
+        (uv[1] - self.pole_v).abs() < CHART_REACH
+    }
+
+    /// The wedges of the band beyond the fan that holds every point of
+    /// the box `(lo, hi)` of pole coordinates, if one does: the box's
+    /// radii (its nearest point to the pole and its farthest corner) read
+    /// as distances from the pole in `v`. `None` also where the box holds
+    /// the pole or reaches past a colatitude of about 64° (`r = 0.9`,
+    /// where `sin` nears its turn).
+    pub(crate) fn band_holding(&self, (lo, hi): ([f64; 2], [f64; 2])) -> Option<&[Wedge]> {
+        let normal = |c: f64| (c - 0.5) * 2.0 * self.extent;
+        let (x, z) = (
+            [normal(lo[0]), normal(hi[0])],
+            [normal(lo[1]), normal(hi[1])],
+        );
+        let nearest = |a: [f64; 2]| {
+            if a[0] <= 0.0 && 0.0 <= a[1] {
+                0.0
+            } else {
+                a[0].abs().min(a[1].abs())
+            }
+        };
+        let farthest = |a: [f64; 2]| a[0].abs().max(a[1].abs());
+        let (r_min, r_max) = (nearest(x).hypot(nearest(z)), farthest(x).hypot(farthest(z)));
+        if r_min == 0.0 || r_max.is_nan() || r_max >= 0.9 {
+            return None;
+        }
+        let pi = std::f64::consts::PI;
+        let (near, far) = (r_min.asin() / pi, r_max.asin() / pi);
+        let band = self.bands.iter().find(|b| b.near <= near && far <= b.far)?;
+        Some(&band.wedges)
+    }
+}
+
+/// The wedges of `wedges` (in order, covering the turn) that may meet a
+/// polygon of pole coordinates with `vertices` (all of them when it holds
+/// the pole).
+pub(crate) fn meeting<'w>(wedges: &'w [Wedge], vertices: &[[f64; 2]]) -> &'w [Wedge] {
+    use std::f64::consts::PI;
+    let n = vertices.len();
+    if n < 3 {
+        return &[];
+    }
+    let cross = |i: usize| {
+        let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+        (b[0] - a[0]) * (0.5 - a[1]) - (b[1] - a[1]) * (0.5 - a[0])
+    };
+    let first = cross(0);
+    let holds_pole = (0..n).all(|i| cross(i) * first >= 0.0 && cross(i) != 0.0);
+    if holds_pole || vertices.iter().any(|p| p[0] == 0.5 && p[1] == 0.5) {
+        return wedges;
+    }
+    let angles: Vec<[f64; 2]> = vertices.iter().map(|p| [p[0] - 0.5, p[1] - 0.5]).collect();
+    let (from, span) = super::angles_seen(&angles);
+    if span.is_nan() || span >= PI {
+        return wedges;
+    }
+    // The wedges over [from, from + span], which may wrap past π.
+    let (lo, hi) = (from, from + span);
+    let (lo, hi) = if lo < -PI {
+        (lo + 2.0 * PI, hi + 2.0 * PI)
+    } else {
+        (lo, hi)
+    };
+    if hi > PI {
+        return wedges;
+    }
+    let start = wedges.partition_point(|w| w.1 <= lo);
+    let end = wedges.partition_point(|w| w.0 < hi);
+    &wedges[start..end.max(start)]
 }
 
 /// A sphere's fans, for one texture under one UV transform and wrap
@@ -140,23 +220,26 @@ impl PolarFans {
         if !drawable || columns.saturating_mul(rows) > MAX_TEXTURE_CELLS {
             return PolarFans::default();
         }
-        // Only the squares on the poles' rows of the texture are kept: where
-        // each pole's `z` falls in the unit texture (both edges when it
-        // falls on one, which the tiles beside share).
-        let folded = |z: f64| match wrap.z {
-            WrapMode::Repeat => z - z.floor(),
-            WrapMode::Mirror => {
-                let t = z.rem_euclid(2.0);
-                if t > 1.0 { 2.0 - t } else { t }
+        // Only the squares within the charts' reach of a pole are kept:
+        // the rows of the unit texture each pole's strip `v ∈ [0, ¼]` or
+        // `[¾, 1]` falls on when tiles repeat (all rows otherwise, or when
+        // the strip spans a whole tile).
+        let mut rows: Vec<[f64; 2]> = Vec::new();
+        for (a, b) in [(0.0, CHART_REACH), (1.0 - CHART_REACH, 1.0)] {
+            let (za, zb) = (
+                uv.scale[1] * a + uv.offset[1],
+                uv.scale[1] * b + uv.offset[1],
+            );
+            let (lo, hi) = (za.min(zb), za.max(zb));
+            if wrap.z != WrapMode::Repeat || hi - lo >= 1.0 {
+                rows.push([0.0, 1.0]);
+                continue;
             }
-            WrapMode::Clamp | WrapMode::Border => z.clamp(0.0, 1.0),
-        };
-        let mut rows = Vec::new();
-        for pole_v in [0.0, 1.0] {
-            let z = folded(uv.scale[1] * pole_v + uv.offset[1]);
-            rows.push(z);
-            if z == 0.0 || z == 1.0 {
-                rows.extend([0.0, 1.0]);
+            let (flo, fhi) = (lo - lo.floor(), hi - lo.floor());
+            if fhi <= 1.0 {
+                rows.push([flo, fhi]);
+            } else {
+                rows.extend([[flo, 1.0], [0.0, fhi - 1.0]]);
             }
         }
         let scale = tree.aspect().scale();
@@ -165,7 +248,7 @@ impl PolarFans {
             let side = (-f64::from(level)).exp2();
             let x = [ix, ix + 1].map(|i| (f64::from(i) * side / scale[0]).min(1.0));
             let z = [iz, iz + 1].map(|i| (f64::from(i) * side / scale[1]).min(1.0));
-            let on_a_pole_row = rows.iter().any(|&r| z[0] <= r && r <= z[1]);
+            let on_a_pole_row = rows.iter().any(|r| z[0] <= r[1] && r[0] <= z[1]);
             if x[0] < x[1] && z[0] < z[1] && on_a_pole_row {
                 squares.push(([x[0], x[1], z[0], z[1]], colour));
             }
@@ -198,7 +281,7 @@ fn fan(
     wrap: Wrap,
     pole_v: f64,
 ) -> Option<PolarFan> {
-    use std::f64::consts::{FRAC_PI_2, PI, TAU};
+    use std::f64::consts::PI;
     // The widest reach's texture box, and the tiles it crosses.
     let to_texture = |u: f64, v: f64| {
         [
@@ -207,9 +290,9 @@ fn fan(
         ]
     };
     let far_v = if pole_v == 1.0 {
-        1.0 - WIDEST_REACH
+        1.0 - CHART_REACH
     } else {
-        WIDEST_REACH
+        CHART_REACH
     };
     let (p, q) = (to_texture(0.0, pole_v), to_texture(1.0, far_v));
     let tiles = |a: f64, b: f64| {
@@ -221,6 +304,7 @@ fn fan(
     // The squares touching the pole: their longitudes and how far from
     // the pole they reach.
     let mut touching = Vec::new();
+    let mut beyond = Vec::new();
     let mut reach = WIDEST_REACH;
     for i in columns {
         for j in rows.clone() {
@@ -243,6 +327,8 @@ fn fan(
                 if u0 < u1 && from <= 0.0 && to > 0.0 {
                     reach = reach.min(to);
                     touching.push((u0, u1, colour));
+                } else if u0 < u1 && from > 0.0 && from < CHART_REACH {
+                    beyond.push((from, to, [u0, u1], colour));
                 }
             }
         }
@@ -259,13 +345,30 @@ fn fan(
     if at != 1.0 || touching.len() > MAX_FAN_WEDGES {
         return None;
     }
-    let mut wedges = Vec::with_capacity(touching.len());
-    for &(u0, u1, colour) in &touching {
+    let wedges = as_wedges(&touching);
+    let bands = if beyond.len() <= MAX_BAND_SQUARES {
+        bands_beyond(&beyond, reach)
+    } else {
+        Vec::new()
+    };
+    Some(PolarFan {
+        pole_v,
+        reach,
+        extent: (PI * reach).sin(),
+        wedges,
+        bands,
+    })
+}
+
+/// Wedges of at most a quarter turn (each then the meet of two
+/// half-planes) from squares `(u0, u1, colour)` in order of `u0`.
+fn as_wedges(squares: &[(f64, f64, [f64; 4])]) -> Vec<Wedge> {
+    use std::f64::consts::{FRAC_PI_2, PI, TAU};
+    let mut wedges = Vec::with_capacity(squares.len());
+    for &(u0, u1, colour) in squares {
         let c = colour.map(|v| v as f32);
         let colour = Rgba::new(c[0], c[1], c[2], c[3]);
         let (a0, a1) = (TAU * u0 - PI, TAU * u1 - PI);
-        // Wedges of at most a quarter turn: each is then the meet of two
-        // half-planes.
         let parts = ((a1 - a0) / FRAC_PI_2).ceil().max(1.0);
         for k in 0..parts as usize {
             let from = a0 + (a1 - a0) * k as f64 / parts;
@@ -277,12 +380,48 @@ fn fan(
             wedges.push((from, to, colour));
         }
     }
-    Some(PolarFan {
-        pole_v,
-        reach,
-        extent: (PI * reach).sin(),
-        wedges,
-    })
+    wedges
+}
+
+/// The bands beyond the fan (which ends at `reach`) out to
+/// [`CHART_REACH`], from the squares `(from, to, [u0, u1], colour)` there
+/// (distances from the pole in `v`): between consecutive ends of squares,
+/// each longitude's square, as long as they cover the turn once (the
+/// bands stop at the first that does not).
+fn bands_beyond(squares: &[(f64, f64, [f64; 2], [f64; 4])], reach: f64) -> Vec<Band> {
+    let mut ends: Vec<f64> = squares
+        .iter()
+        .flat_map(|s| [s.0, s.1])
+        .chain([reach])
+        .filter(|&d| d >= reach && d <= CHART_REACH)
+        .collect();
+    ends.sort_by(f64::total_cmp);
+    ends.dedup();
+    let mut bands = Vec::new();
+    for pair in ends.windows(2) {
+        let (near, far) = (pair[0], pair[1]);
+        let mut row: Vec<(f64, f64, [f64; 4])> = squares
+            .iter()
+            .filter(|s| s.0 <= near && s.1 >= far)
+            .map(|s| (s.2[0], s.2[1], s.3))
+            .collect();
+        row.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut at = 0.0;
+        let covered = row.iter().all(|&(u0, u1, _)| {
+            let next = u0 == at;
+            at = u1;
+            next
+        }) && at == 1.0;
+        if !covered || row.len() > MAX_FAN_WEDGES {
+            break;
+        }
+        bands.push(Band {
+            near,
+            far,
+            wedges: as_wedges(&row),
+        });
+    }
+    bands
 }
 
 #[cfg(test)]
@@ -335,6 +474,44 @@ mod tests {
                 .iter()
                 .all(|w| w.1 - w.0 <= std::f64::consts::FRAC_PI_2 + 1e-12)
         );
+    }
+
+    /// Beyond the fan, bands: the checker 8 × 4 has its fan out to an
+    /// eighth of the latitudes and one band from there to a quarter, its
+    /// 16 wedges alternating and each the colour of the fan's wedge
+    /// across the band's boundary's opposite (the checker flips there);
+    /// a box of pole coordinates within the band finds it, one reaching
+    /// into the fan or over the pole does not.
+    #[test]
+    fn bands_beyond_the_fan_hold_the_next_squares() {
+        let fans = PolarFans::new(&checker(), &scaled(8.0, 4.0), Wrap::REPEAT);
+        let north = fans.north.unwrap();
+        assert_eq!(north.reach, 1.0 / 8.0);
+        assert_eq!(north.bands.len(), 1);
+        let band = &north.bands[0];
+        assert_eq!((band.near, band.far), (1.0 / 8.0, 1.0 / 4.0));
+        assert_eq!(band.wedges.len(), 16);
+        for (fan_wedge, band_wedge) in north.wedges.iter().zip(&band.wedges) {
+            assert_eq!((fan_wedge.0, fan_wedge.1), (band_wedge.0, band_wedge.1));
+            assert_ne!(
+                fan_wedge.2, band_wedge.2,
+                "the checker flips across the band's edge"
+            );
+        }
+        // Pole coordinates of the point at colatitude `c` (in v) and angle 0.3.
+        let at = |c: f64| {
+            let r = (std::f64::consts::PI * c).sin();
+            north.point(Vec3::new(r * 0.3f64.cos(), 0.0, r * 0.3f64.sin()))
+        };
+        let boxed = |a: [f64; 2], b: [f64; 2]| {
+            (
+                [a[0].min(b[0]), a[1].min(b[1])],
+                [a[0].max(b[0]), a[1].max(b[1])],
+            )
+        };
+        assert!(north.band_holding(boxed(at(0.15), at(0.2))).is_some());
+        assert!(north.band_holding(boxed(at(0.1), at(0.2))).is_none());
+        assert!(north.band_holding(([0.4, 0.4], [0.6, 0.6])).is_none());
     }
 
     /// Where a fan would not be exact, there is none: a rotated UV, a

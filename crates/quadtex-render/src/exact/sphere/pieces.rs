@@ -10,7 +10,7 @@ use crate::scene::Lighting;
 use crate::stats::PixelStats;
 
 use super::super::lighting::{Shading, apply_light};
-use super::fan::PolarFan;
+use super::fan::{PolarFan, Wedge, meeting};
 
 use super::{Chords, SphereView};
 
@@ -37,9 +37,8 @@ thread_local! {
 /// Pieces a sphere's pixel may look at per square of the filter options'
 /// budget (the renderer's 64: 1024 pieces). The checkered ball needs at
 /// most that many at every pixel, and so does the runway's beacon, whose
-/// pole is in view, since the poles have fans ([`super::fan`]); a pixel
-/// where a pole lies within about a pixel of the outline may still spend
-/// it.
+/// pole is in view, since the poles have fans and bands
+/// ([`super::fan`]).
 const PIECES_PER_SQUARE: u64 = 16;
 
 /// What a sphere's pixel may still spend ([`SphereView::shade`]): weight
@@ -441,7 +440,7 @@ impl SphereView {
             && error <= tolerance
             && (self.image_box(&fit, &piece, cap_error)).is_some_and(|b| cap.holds_box(b))
         {
-            let (c, w, b) = self.shade_fan(shading, &piece, &fit, cap, stats);
+            let (c, w, b) = self.shade_fan(shading, &piece, &fit, cap.wedges(), stats);
             add(sums, self.finish(shading, &piece, c), w, b);
             return;
         }
@@ -462,6 +461,26 @@ impl SphereView {
             && let Some(colour) = self.uniform(shading, fit, &piece, uv_error)
         {
             self.add_uniform(shading, &piece, colour, sums, stats);
+            return;
+        }
+        // Near a pole, where the UV's fit is off: a band of texture squares
+        // beyond the fan may hold it, as the pole's coordinates see it
+        // (tried on single rings: across several, the fit is off anyway).
+        if error > tolerance
+            && b - a == 1
+            && let Some(fan) =
+                (fans.into_iter().flatten()).find(|f| ends.iter().all(|e| f.near(e.1)))
+            && let Some(pole_fit) =
+                quad_to_quad(corners, corners.map(|s| fan.point(self.normal(s))))
+            && let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN)
+            && let (pole_error, image_error) =
+                self.map_error(&pole_fit, &piece, &mut nowhere, &corners, Some(fan))
+            && pole_error <= tolerance
+            && let Some(wedges) =
+                (self.image_box(&pole_fit, &piece, image_error)).and_then(|b| fan.band_holding(b))
+        {
+            let (c, w, b) = self.shade_fan(shading, &piece, &pole_fit, wedges, stats);
+            add(sums, self.finish(shading, &piece, c), w, b);
             return;
         }
         spare.pieces = spare.pieces.saturating_sub(1);
@@ -534,6 +553,17 @@ impl SphereView {
                     .map(Some),
                 _ => None,
             };
+            // Near a pole, where the UV's fit is off: a band of texture
+            // squares beyond the fan may hold it, as the pole sees it.
+            if cap.is_none()
+                && error > tolerance
+                && texture.is_some()
+                && let Some((pole_fit, wedges)) = self.band_holding(&mut square, &piece, tolerance)
+            {
+                let (c, w, b) = self.shade_fan(shading, &piece, &pole_fit, wedges, stats);
+                add(sums, self.finish(shading, &piece, c), w, b);
+                continue;
+            }
             let w = shading.filter.integral(&piece, shading.centre);
             if let Some(colour) = uniform {
                 let c = colour.map_or([w; 4], |c| c.to_array().map(|v| f64::from(v) * w));
@@ -571,7 +601,7 @@ impl SphereView {
                 (None, None) => fit,
             };
             let (c, w, b) = match (fan, fit) {
-                (Some((f, cap)), _) => self.shade_fan(shading, &piece, f, cap, stats),
+                (Some((f, cap)), _) => self.shade_fan(shading, &piece, f, cap.wedges(), stats),
                 (None, Some(fit)) => self.shade_piece(shading, &piece, &fit, stats),
                 (None, None) => match self.tangent_fit(piece.centroid(), h) {
                     Some(fit) => self.shade_piece(shading, &piece, &fit, stats),
@@ -597,6 +627,32 @@ impl SphereView {
             }
         }
         Some(cap)
+    }
+
+    /// The fit of `square` in a pole's coordinates, within `tolerance`,
+    /// and the wedges of the band beyond the pole's fan that holds every
+    /// image `piece` may have, if a pole is near and one does.
+    fn band_holding(
+        &self,
+        square: &mut Square,
+        piece: &ConvexPolygon,
+        tolerance: f64,
+    ) -> Option<([[f64; 3]; 3], &[Wedge])> {
+        let fans = [self.fans.north.as_ref(), self.fans.south.as_ref()];
+        let first = square.uv(self, 0, 0);
+        let fan = fans.into_iter().flatten().find(|f| f.near(first))?;
+        for (i, j) in [(2, 0), (2, 2), (0, 2)] {
+            if !fan.near(square.uv(self, i, j)) {
+                return None;
+            }
+        }
+        let fit = self.fan_fit(fan, square)?;
+        let (error, image_error) = self.map_error(&fit, piece, square, &[], Some(fan));
+        if error > tolerance {
+            return None;
+        }
+        let wedges = fan.band_holding(self.image_box(&fit, piece, image_error)?)?;
+        Some((fit, wedges))
     }
 
     /// The projective map from the screen to the fan's coordinates through
@@ -647,7 +703,7 @@ impl SphereView {
         shading: &Shading<'_>,
         piece: &ConvexPolygon,
         fit: &[[f64; 3]; 3],
-        cap: &PolarFan,
+        wedges: &[Wedge],
         stats: &mut PixelStats,
     ) -> ([f64; 4], f64, f64) {
         let Shading { filter, centre, .. } = *shading;
@@ -668,7 +724,7 @@ impl SphereView {
             [0, 1, 2].map(|c| l[0] * fit[0][c] + l[1] * fit[1][c] + l[2] * fit[2][c])
         };
         let (mut colour, mut weight) = ([0.0; 4], 0.0);
-        for &(from, to, c) in cap.wedges_meeting(&image) {
+        for &(from, to, c) in meeting(wedges, &image) {
             let part = piece.clip_lines([left_of(from), left_of(to).map(|v| -v)]);
             if part.is_empty() {
                 continue;

@@ -352,18 +352,27 @@ fn a_pole_in_view_keeps_the_bound() {
 
 /// A ball of a dozen pixels seen from just above (the runway's beacon),
 /// its north pole half a pixel inside the outline and its south pole as
-/// far behind it: pixels along the outline by a pole are the known limit
-/// (the outline's square root and the pole's turn in one pixel). With the
-/// fans, five are above the target (eight without), their bounds stated;
-/// the image stays closer to the reference than 64-sample supersampling.
+/// far behind it: along the outline by a pole, the outline's square root
+/// and the pole's turn meet in one pixel. The pieces there are fitted in
+/// the pole's coordinates and integrated on the band of texture squares
+/// that holds them. Box: no pixel above the target (8 before the fans and
+/// bands, 5 with the fan alone, at 6× the reference's noise), the image
+/// within twice its noise. Tent: within its noise, 15 pixels above the
+/// target (56 before), where the 2 × 2 support across so small an
+/// outline still spends its budget (limits.md).
 #[test]
-fn a_pole_at_the_outline_is_the_known_limit() {
+fn a_pole_at_the_outline_keeps_the_bound() {
     let mut scene = checkered_ball_from(crate::math::Vec3::new(0.0, 1.5, -20.0));
     if let Some(surface) = scene.surfaces.first_mut() {
         surface.uv_transform.scale = [8.0, 4.0];
     }
-    let ((e, s, noise), over_target) =
-        against_converged_reference(&scene, PixelFilter::Box, (64, 48), 1, 40);
-    assert!(over_target <= 5, "{over_target}");
-    assert!(e < s / 2.0, "exact {e}, 64 samples {s}, noise {noise}");
+    for (pixel_filter, most_over) in [(PixelFilter::Box, 0), (PixelFilter::Tent, 15)] {
+        let ((e, s, noise), over_target) =
+            against_converged_reference(&scene, pixel_filter, (64, 48), 1, 40);
+        assert!(over_target <= most_over, "{pixel_filter:?}: {over_target}");
+        assert!(
+            e < 2.0 * noise && e < s / 3.0,
+            "{pixel_filter:?}: exact {e}, 64 samples {s}, noise {noise}"
+        );
+    }
 }
