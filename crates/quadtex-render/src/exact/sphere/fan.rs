@@ -224,7 +224,7 @@ impl PolarFans {
         // the rows of the unit texture each pole's strip `v ∈ [0, ¼]` or
         // `[¾, 1]` falls on when tiles repeat (all rows otherwise, or when
         // the strip spans a whole tile).
-        let mut rows: Vec<[f64; 2]> = Vec::new();
+        let mut pole_rows: Vec<[f64; 2]> = Vec::new();
         for (a, b) in [(0.0, CHART_REACH), (1.0 - CHART_REACH, 1.0)] {
             let (za, zb) = (
                 uv.scale[1] * a + uv.offset[1],
@@ -232,14 +232,14 @@ impl PolarFans {
             );
             let (lo, hi) = (za.min(zb), za.max(zb));
             if wrap.z != WrapMode::Repeat || hi - lo >= 1.0 {
-                rows.push([0.0, 1.0]);
+                pole_rows.push([0.0, 1.0]);
                 continue;
             }
             let (flo, fhi) = (lo - lo.floor(), hi - lo.floor());
             if fhi <= 1.0 {
-                rows.push([flo, fhi]);
+                pole_rows.push([flo, fhi]);
             } else {
-                rows.extend([[flo, 1.0], [0.0, fhi - 1.0]]);
+                pole_rows.extend([[flo, 1.0], [0.0, fhi - 1.0]]);
             }
         }
         let scale = tree.aspect().scale();
@@ -248,7 +248,7 @@ impl PolarFans {
             let side = (-f64::from(level)).exp2();
             let x = [ix, ix + 1].map(|i| (f64::from(i) * side / scale[0]).min(1.0));
             let z = [iz, iz + 1].map(|i| (f64::from(i) * side / scale[1]).min(1.0));
-            let on_a_pole_row = rows.iter().any(|r| z[0] <= r[1] && r[0] <= z[1]);
+            let on_a_pole_row = pole_rows.iter().any(|r| z[0] <= r[1] && r[0] <= z[1]);
             if x[0] < x[1] && z[0] < z[1] && on_a_pole_row {
                 squares.push(([x[0], x[1], z[0], z[1]], colour));
             }
@@ -451,22 +451,22 @@ mod tests {
     /// the turn in order.
     #[test]
     fn the_checkered_ball_has_a_fan_of_sixteen_wedges_at_each_pole() {
-        let caps = PolarFans::new(&checker(), &scaled(8.0, 8.0), Wrap::REPEAT);
-        for cap in [caps.north.unwrap(), caps.south.unwrap()] {
-            assert_eq!(cap.wedges.len(), 16);
-            assert_eq!(cap.reach, 1.0 / 16.0);
+        let fans = PolarFans::new(&checker(), &scaled(8.0, 8.0), Wrap::REPEAT);
+        for fan in [fans.north.unwrap(), fans.south.unwrap()] {
+            assert_eq!(fan.wedges.len(), 16);
+            assert_eq!(fan.reach, 1.0 / 16.0);
             let mut at = -std::f64::consts::PI;
-            for (i, &(from, to, c)) in cap.wedges.iter().enumerate() {
+            for (i, &(from, to, c)) in fan.wedges.iter().enumerate() {
                 assert!((from - at).abs() < 1e-12 && to > from, "{i}: {from} {to}");
                 at = to;
-                let next = cap.wedges[(i + 1) % 16].2;
+                let next = fan.wedges[(i + 1) % 16].2;
                 assert_ne!(c, next, "neighbours alternate");
             }
             assert!((at - std::f64::consts::PI).abs() < 1e-12);
         }
         // Halves at the pole (u scale 1): each wedge at most a quarter turn.
-        let caps = PolarFans::new(&checker(), &scaled(1.0, 8.0), Wrap::REPEAT);
-        let north = caps.north.unwrap();
+        let fans = PolarFans::new(&checker(), &scaled(1.0, 8.0), Wrap::REPEAT);
+        let north = fans.north.unwrap();
         assert_eq!(north.wedges.len(), 4);
         assert!(
             north
@@ -548,8 +548,8 @@ mod tests {
     /// it to nothing.
     #[test]
     fn wedges_meeting_a_polygon_leave_none_out() {
-        let caps = PolarFans::new(&checker(), &scaled(8.0, 8.0), Wrap::REPEAT);
-        let cap = caps.north.unwrap();
+        let fans = PolarFans::new(&checker(), &scaled(8.0, 8.0), Wrap::REPEAT);
+        let fan = fans.north.unwrap();
         let mut seed = 0x2545_f491_4f6c_dd1d_u64;
         let mut next = || {
             seed ^= seed << 13;
@@ -578,11 +578,11 @@ mod tests {
             let Ok(polygon) = ConvexPolygon::new(&corners) else {
                 continue;
             };
-            let meeting = cap.wedges_meeting(polygon.vertices());
-            if meeting.len() == cap.wedges.len() {
+            let meeting = fan.wedges_meeting(polygon.vertices());
+            if meeting.len() == fan.wedges.len() {
                 held += 1;
             }
-            for w in &cap.wedges {
+            for w in &fan.wedges {
                 if meeting.iter().any(|m| m.0 == w.0) {
                     continue;
                 }

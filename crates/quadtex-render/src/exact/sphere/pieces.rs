@@ -53,6 +53,10 @@ struct Budget {
     pieces: u64,
 }
 
+/// A box `(lo, hi)` of the coordinates a fit maps to
+/// ([`SphereView::image_box`]).
+type ImageBox = ([f64; 2], [f64; 2]);
+
 /// The sphere's UV at the midpoint of ray `e` between rings `a` and `b`,
 /// by `(a, b, e)` ([`Ring::trapezoid_error`]).
 type RayMiddle = ((usize, usize, usize), [f64; 2]);
@@ -178,6 +182,12 @@ impl Square {
             _ => lo + self.h,
         };
         [at(self.x0, i), at(self.y0, j)]
+    }
+
+    /// The square's corners, counter-clockwise from `(x0, y0)`.
+    fn corners(&self) -> [[f64; 2]; 4] {
+        let (x0, y0, h) = (self.x0, self.y0, self.h);
+        [[x0, y0], [x0 + h, y0], [x0 + h, y0 + h], [x0, y0 + h]]
     }
 
     /// The sphere's UV at grid point `(i, j)`.
@@ -431,16 +441,13 @@ impl SphereView {
         }
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         // Around a pole: the fan, where its coordinates' fit holds.
-        let fans = [self.fans.north.as_ref(), self.fans.south.as_ref()];
-        if let Some(cap) = (fans.into_iter().flatten()).find(|c| ends.iter().all(|e| c.holds(e.1)))
-            && let Some(fit) = quad_to_quad(corners, corners.map(|s| cap.point(self.normal(s))))
-            && let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN)
-            && let (error, cap_error) =
-                self.map_error(&fit, &piece, &mut nowhere, &corners, Some(cap))
-            && error <= tolerance
-            && (self.image_box(&fit, &piece, cap_error)).is_some_and(|b| cap.holds_box(b))
+        let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN);
+        if let Some(fan) = self.pole_fan(|f| ends.iter().all(|e| f.holds(e.1)))
+            && let Some((fit, image)) =
+                self.pole_fit(fan, corners, &piece, &mut nowhere, &corners, tolerance)
+            && fan.holds_box(image)
         {
-            let (c, w, b) = self.shade_fan(shading, &piece, &fit, cap.wedges(), stats);
+            let (c, w, b) = self.shade_fan(shading, &piece, &fit, fan.wedges(), stats);
             add(sums, self.finish(shading, &piece, c), w, b);
             return;
         }
@@ -468,16 +475,10 @@ impl SphereView {
         // (tried on single rings: across several, the fit is off anyway).
         if error > tolerance
             && b - a == 1
-            && let Some(fan) =
-                (fans.into_iter().flatten()).find(|f| ends.iter().all(|e| f.near(e.1)))
-            && let Some(pole_fit) =
-                quad_to_quad(corners, corners.map(|s| fan.point(self.normal(s))))
-            && let mut nowhere = Square::new([f64::NAN, f64::NAN], f64::NAN)
-            && let (pole_error, image_error) =
-                self.map_error(&pole_fit, &piece, &mut nowhere, &corners, Some(fan))
-            && pole_error <= tolerance
-            && let Some(wedges) =
-                (self.image_box(&pole_fit, &piece, image_error)).and_then(|b| fan.band_holding(b))
+            && let Some(fan) = self.pole_fan(|f| ends.iter().all(|e| f.near(e.1)))
+            && let Some((pole_fit, image)) =
+                self.pole_fit(fan, corners, &piece, &mut nowhere, &corners, tolerance)
+            && let Some(wedges) = fan.band_holding(image)
         {
             let (c, w, b) = self.shade_fan(shading, &piece, &pole_fit, wedges, stats);
             add(sums, self.finish(shading, &piece, c), w, b);
@@ -535,17 +536,17 @@ impl SphereView {
                 continue;
             }
             // Around a pole, its coordinates, where the map is smooth.
-            let cap = self.fan_holding(&mut square);
-            let fit = match cap {
-                Some(cap) => self.fan_fit(cap, &square),
+            let fan = self.fan_holding(&mut square);
+            let fit = match fan {
+                Some(fan) => self.fan_fit(fan, &square),
                 None => self.fit(&mut square),
             };
             let (error, uv_error) = fit.map_or((f64::INFINITY, f64::INFINITY), |f| {
-                self.map_error(&f, &piece, &mut square, &[], cap)
+                self.map_error(&f, &piece, &mut square, &[], fan)
             });
             // Exact whatever the map's error: one texture square holds
             // every image the piece may have (or there is no texture).
-            let uniform = match (texture, &fit, cap) {
+            let uniform = match (texture, &fit, fan) {
                 (None, _, _) => Some(None),
                 (Some(texture), Some(f), None) => self
                     .texture_box(f, &piece, uv_error)
@@ -555,7 +556,7 @@ impl SphereView {
             };
             // Near a pole, where the UV's fit is off: a band of texture
             // squares beyond the fan may hold it, as the pole sees it.
-            if cap.is_none()
+            if fan.is_none()
                 && error > tolerance
                 && texture.is_some()
                 && let Some((pole_fit, wedges)) = self.band_holding(&mut square, &piece, tolerance)
@@ -576,13 +577,13 @@ impl SphereView {
                 continue;
             }
             // The fan's wedges hold every image the piece may have.
-            let fan = match (&fit, cap) {
-                (Some(f), Some(cap)) => (self.image_box(f, &piece, uv_error))
-                    .is_some_and(|b| cap.holds_box(b))
-                    .then_some((f, cap)),
+            let on_fan = match (&fit, fan) {
+                (Some(f), Some(fan)) => (self.image_box(f, &piece, uv_error))
+                    .is_some_and(|b| fan.holds_box(b))
+                    .then_some((f, fan)),
                 _ => None,
             };
-            let off = error > tolerance || (cap.is_some() && fan.is_none());
+            let off = error > tolerance || (fan.is_some() && on_fan.is_none());
             let spent = off && w.abs() <= 0.125 * spare.weight;
             spare.pieces = spare.pieces.saturating_sub(1);
             if off && !spent && square.depth < MAX_SPLITS && spare.pieces > 0 {
@@ -594,14 +595,14 @@ impl SphereView {
             if spent {
                 spare.weight -= w.abs();
             }
-            let fit = match (fan, cap) {
+            let fit = match (on_fan, fan) {
                 (Some(_), _) => fit,
                 // Beyond the fan: the sphere's UV after all.
                 (None, Some(_)) => self.fit(&mut square),
                 (None, None) => fit,
             };
-            let (c, w, b) = match (fan, fit) {
-                (Some((f, cap)), _) => self.shade_fan(shading, &piece, f, cap.wedges(), stats),
+            let (c, w, b) = match (on_fan, fit) {
+                (Some((f, fan)), _) => self.shade_fan(shading, &piece, f, fan.wedges(), stats),
                 (None, Some(fit)) => self.shade_piece(shading, &piece, &fit, stats),
                 (None, None) => match self.tangent_fit(piece.centroid(), h) {
                     Some(fit) => self.shade_piece(shading, &piece, &fit, stats),
@@ -613,20 +614,50 @@ impl SphereView {
         }
     }
 
+    /// The pole whose fan `accepts` (north first).
+    fn pole_fan(&self, accepts: impl Fn(&PolarFan) -> bool) -> Option<&PolarFan> {
+        [self.fans.north.as_ref(), self.fans.south.as_ref()]
+            .into_iter()
+            .flatten()
+            .find(|f| accepts(f))
+    }
+
     /// The pole fan whose reach holds the square's 3 × 3 grid points
     /// ([`PolarFan::holds`]), if any.
     fn fan_holding(&self, square: &mut Square) -> Option<&PolarFan> {
-        let fans = [self.fans.north.as_ref(), self.fans.south.as_ref()];
         let first = square.uv(self, 0, 0);
-        let cap = fans.into_iter().flatten().find(|c| c.holds(first))?;
+        let fan = self.pole_fan(|f| f.holds(first))?;
         for j in 0..3 {
             for i in 0..3 {
-                if !cap.holds(square.uv(self, i, j)) {
+                if !fan.holds(square.uv(self, i, j)) {
                     return None;
                 }
             }
         }
-        Some(cap)
+        Some(fan)
+    }
+
+    /// The projective map from screen quadrilateral `corners` to `fan`'s
+    /// coordinates through the sphere's points there, and the box holding
+    /// every image `piece` may have ([`SphereView::image_box`]), when the
+    /// map is within `tolerance` at the piece's check points
+    /// ([`SphereView::map_error`], with `square` and `exact` as it takes
+    /// them).
+    fn pole_fit(
+        &self,
+        fan: &PolarFan,
+        corners: [[f64; 2]; 4],
+        piece: &ConvexPolygon,
+        square: &mut Square,
+        exact: &[[f64; 2]],
+        tolerance: f64,
+    ) -> Option<([[f64; 3]; 3], ImageBox)> {
+        let fit = quad_to_quad(corners, corners.map(|s| fan.point(self.normal(s))))?;
+        let (error, image_error) = self.map_error(&fit, piece, square, exact, Some(fan));
+        if error > tolerance {
+            return None;
+        }
+        Some((fit, self.image_box(&fit, piece, image_error)?))
     }
 
     /// The fit of `square` in a pole's coordinates, within `tolerance`,
@@ -638,29 +669,22 @@ impl SphereView {
         piece: &ConvexPolygon,
         tolerance: f64,
     ) -> Option<([[f64; 3]; 3], &[Wedge])> {
-        let fans = [self.fans.north.as_ref(), self.fans.south.as_ref()];
         let first = square.uv(self, 0, 0);
-        let fan = fans.into_iter().flatten().find(|f| f.near(first))?;
+        let fan = self.pole_fan(|f| f.near(first))?;
         for (i, j) in [(2, 0), (2, 2), (0, 2)] {
             if !fan.near(square.uv(self, i, j)) {
                 return None;
             }
         }
-        let fit = self.fan_fit(fan, square)?;
-        let (error, image_error) = self.map_error(&fit, piece, square, &[], Some(fan));
-        if error > tolerance {
-            return None;
-        }
-        let wedges = fan.band_holding(self.image_box(&fit, piece, image_error)?)?;
-        Some((fit, wedges))
+        let (fit, image) = self.pole_fit(fan, square.corners(), piece, square, &[], tolerance)?;
+        Some((fit, fan.band_holding(image)?))
     }
 
     /// The projective map from the screen to the fan's coordinates through
-    /// the sphere's cap points at the square's corners.
-    fn fan_fit(&self, cap: &PolarFan, square: &Square) -> Option<[[f64; 3]; 3]> {
-        let Square { x0, y0, h, .. } = *square;
-        let corners = [[x0, y0], [x0 + h, y0], [x0 + h, y0 + h], [x0, y0 + h]];
-        quad_to_quad(corners, corners.map(|s| cap.point(self.normal(s))))
+    /// the sphere's points there at the square's corners.
+    fn fan_fit(&self, fan: &PolarFan, square: &Square) -> Option<[[f64; 3]; 3]> {
+        let corners = square.corners();
+        quad_to_quad(corners, corners.map(|s| fan.point(self.normal(s))))
     }
 
     /// A box holding the image of `piece` under the fitted map `fit` and,
@@ -715,7 +739,7 @@ impl SphereView {
                 [0, 1].map(|a| (fit[a][0] * s[0] + fit[a][1] * s[1] + fit[a][2]) / w)
             })
             .collect();
-        // The half-plane left of the ray from the pole at `angle`, in cap
+        // The half-plane left of the ray from the pole at `angle`, in pole
         // coordinates, pulled back to the screen through `fit` (w > 0 over
         // the piece).
         let left_of = |angle: f64| {
@@ -745,14 +769,13 @@ impl SphereView {
     /// `(px, py, 1)` with `w > 0` over the square; `None` when the corners'
     /// quadrilateral has no such map (it folds).
     pub(super) fn fit(&self, square: &mut Square) -> Option<[[f64; 3]; 3]> {
-        let Square { x0, y0, h, .. } = *square;
+        let corners = square.corners();
         let first = square.uv(self, 0, 0);
         let mut corner = |i: usize, j: usize| {
             let [u, v] = square.uv(self, i, j);
             [u + (first[0] - u).round(), v]
         };
         let uv = [first, corner(2, 0), corner(2, 2), corner(0, 2)];
-        let corners = [[x0, y0], [x0 + h, y0], [x0 + h, y0 + h], [x0, y0 + h]];
         quad_to_quad(corners, uv)
     }
 
@@ -794,7 +817,7 @@ impl SphereView {
         piece: &ConvexPolygon,
         square: &mut Square,
         exact: &[[f64; 2]],
-        cap: Option<&PolarFan>,
+        fan: Option<&PolarFan>,
     ) -> (f64, f64) {
         let Square { x0, y0, h, .. } = *square;
         let v = piece.vertices();
@@ -803,8 +826,8 @@ impl SphereView {
         let mut worst = 0f64;
         let mut worst_uv = 0f64;
         let mut check = |s: [f64; 2], square: &mut Square| {
-            let (d, e) = match cap {
-                Some(cap) => self.fit_error_at(fit, s, cap.point(self.normal(s)), false),
+            let (d, e) = match fan {
+                Some(fan) => self.fit_error_at(fit, s, fan.point(self.normal(s)), false),
                 None => self.fit_error_at(fit, s, square.uv_at(self, s), true),
             };
             worst = worst.max(d);
