@@ -3,6 +3,16 @@
 
 use crate::geometry::polygon::{ConvexPolygon, Cubic, GAUSS4};
 
+/// How near the side of a tent's or Mitchell's support an edge is taken
+/// as on it, in pixels: a region's vertices on the support's sides come
+/// back from texture space a rounding off them, and an edge along a side
+/// then adds (by [`PixelFilter::edge_integral`]'s terms) at most
+/// `ON_SIDE²` times its length (`k₁` vanishes at `±r`, the tent's
+/// linearly, Mitchell's quadratically; `K₁` is within `ON_SIDE²` of 0 and
+/// 1 there): 10⁻¹⁸, below the rounding of the weight, against a search
+/// of the filter's cells for such an edge.
+const ON_SIDE: f64 = 1e-9;
+
 /// A pixel reconstruction filter, separable, `k(dx, dy) = k₁(dx)·k₁(dy)`
 /// with `(dx, dy)` in pixels from the pixel's centre; each integrates to 1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -188,43 +198,24 @@ impl PixelFilter {
             let a = integrated(self.cubic(i as i32));
             running[(i + r) as usize] + at(&a, x) - at(&a, i)
         };
-        // `∫ K₁(x)·k₁(y) dt` over one part of an edge, `x` and `y` affine
-        // in `t`, the part inside one cell (its cubics fetched once, from
-        // the part's middle).
-        let part_integral = |a: [f64; 2], d: [f64; 2], t0: f64, span: f64| -> f64 {
-            let middle = t0 + 0.5 * span;
-            let (xm, ym) = (a[0] + middle * d[0], a[1] + middle * d[1]);
-            if ym <= -r || ym >= r {
-                return 0.0;
-            }
-            // K₁(x) = base + (anti(x) when inside the support).
-            let (inside, base, cx) = if xm <= -r {
-                (false, 0.0, [0.0; 4])
-            } else if xm >= r {
-                (false, 1.0, [0.0; 4])
-            } else {
-                let i = xm.floor();
-                let cx = integrated(self.cubic(i as i32));
-                (true, running[(i + r) as usize] - at(&cx, i), cx)
-            };
-            let cy = self.cubic(ym.floor() as i32);
-            let mut sum = 0.0;
-            for &(g, w) in points {
-                let t = t0 + g * span;
-                let (x, y) = (a[0] + t * d[0], a[1] + t * d[1]);
-                let big = if inside { base + at(&cx, x) } else { base };
-                sum += w * big * (cy[0] + y * (cy[1] + y * (cy[2] + y * cy[3])));
-            }
-            sum * span
+        let part_integral = |a: [f64; 2], d: [f64; 2], t0: f64, span: f64| {
+            self.part_integral(&running, points, (a, d), t0, span)
         };
         let mut total = 0.0;
         // Horizontal edges add nothing; so do edges wholly above or
         // below the support, or left of it (`K₁ = 0`). Right of it
         // `K₁ = 1`: the edge adds `K₁(y_b) − K₁(y_a)`, in closed form.
-        let outside =
-            dy == 0.0 || a[1].max(b[1]) <= -r || a[1].min(b[1]) >= r || a[0].max(b[0]) <= -r;
-        if !outside && a[0].min(b[0]) >= r {
+        let (inner, outer) = (r - ON_SIDE, -r + ON_SIDE);
+        let outside = dy == 0.0
+            || a[1].max(b[1]) <= outer
+            || a[1].min(b[1]) >= inner
+            || a[0].max(b[0]) <= outer;
+        if !outside && a[0].min(b[0]) >= inner {
             total += running_at(b[1]) - running_at(a[1]);
+        } else if !outside && a[0].floor() == b[0].floor() && a[1].floor() == b[1].floor() {
+            // Within one cell: no side to cut at (what the search below
+            // would find), one part.
+            total += part_integral(a, [dx, dy], 0.0, 1.0) * dy;
         } else if !outside {
             // Where the edge crosses the cells' sides, as parameters in (0, 1).
             let mut cuts = [0.0f64; 12];
@@ -258,6 +249,47 @@ impl PixelFilter {
             }
         }
         total
+    }
+
+    /// `∫ K₁(x)·k₁(y) dt` over one part of an edge, `x` and `y` affine in
+    /// `t` (`a + t·d`, relative to the centre), the part inside one cell
+    /// (its cubics fetched once, from the part's middle), by the
+    /// Gauss–Legendre `points`; `running` is
+    /// [`PixelFilter::running_integrals`].
+    #[inline(always)]
+    fn part_integral(
+        self,
+        running: &[f64; 4],
+        points: &[(f64, f64)],
+        (a, d): ([f64; 2], [f64; 2]),
+        t0: f64,
+        span: f64,
+    ) -> f64 {
+        let r = self.radius();
+        let middle = t0 + 0.5 * span;
+        let (xm, ym) = (a[0] + middle * d[0], a[1] + middle * d[1]);
+        if ym <= -r || ym >= r {
+            return 0.0;
+        }
+        // K₁(x) = base + (anti(x) when inside the support).
+        let (inside, base, cx) = if xm <= -r {
+            (false, 0.0, [0.0; 4])
+        } else if xm >= r {
+            (false, 1.0, [0.0; 4])
+        } else {
+            let i = xm.floor();
+            let cx = integrated(self.cubic(i as i32));
+            (true, running[(i + r) as usize] - at(&cx, i), cx)
+        };
+        let cy = self.cubic(ym.floor() as i32);
+        let mut sum = 0.0;
+        for &(g, w) in points {
+            let t = t0 + g * span;
+            let (x, y) = (a[0] + t * d[0], a[1] + t * d[1]);
+            let big = if inside { base + at(&cx, x) } else { base };
+            sum += w * big * (cy[0] + y * (cy[1] + y * (cy[2] + y * cy[3])));
+        }
+        sum * span
     }
 
     /// `K₁` at the left side of each of the filter's cells, from the

@@ -186,44 +186,13 @@ pub(super) fn scan_grid(
             .collect();
         let total: f64 = terms.iter().sum();
         let orientation = shoelace(screen).signum();
-        let to_screen = |t: [f64; 2]| {
-            let q = apply(&m, t);
-            [q[0] - centre[0], q[1] - centre[1]]
-        };
-        let left_of = |c: f64| -> f64 {
-            let (mut sum, mut exit, mut entry) = (0.0, None, None);
-            for i in 0..n {
-                let (a, b) = (texture[i], texture[(i + 1) % n]);
-                let crossing = || {
-                    let u = (c - a[0]) / (b[0] - a[0]);
-                    to_screen([c, a[1] + u * (b[1] - a[1])])
-                };
-                match (a[0] < c, b[0] < c) {
-                    (true, true) => sum += terms[i],
-                    (true, false) => {
-                        let x = crossing();
-                        sum += filter.edge_integral(screen[i], x);
-                        exit = Some(x);
-                    }
-                    (false, true) => {
-                        let x = crossing();
-                        sum += filter.edge_integral(x, screen[(i + 1) % n]);
-                        entry = Some(x);
-                    }
-                    (false, false) => {}
-                }
-            }
-            if let (Some(from), Some(to)) = (exit, entry) {
-                sum += filter.edge_integral(from, to);
-            }
-            sum
-        };
+        let mut sweep = WeightLeftOf::new(texture, screen, &terms, total, filter);
         let mut left = 0.0;
         for col in m0..m1 {
             let upto = if col + 1 == m1 {
                 total
             } else {
-                left_of((col + 1) as f64 * h)
+                sweep.weight((col + 1) as f64 * h, &m, centre)
             };
             add(colour(k, col)?, orientation * (upto - left));
             left = upto;
@@ -555,6 +524,123 @@ impl<'a> LeftOf<'a> {
             + cross(self.screen[self.at[0]], forward)
             + cross(forward, backward)
             + cross(backward, self.screen[self.at[1]])
+            + self.sum[1]
+    }
+}
+
+/// [`LeftOf`]'s sweep for a pixel filter's weight: the Green's-theorem
+/// terms ([`PixelFilter::edge_integral`]) of the part of a band left of a
+/// cut `x = c`, for cuts taken in increasing order, so that a cell's
+/// piece weighs what is left of its right side less what is left of its
+/// left side. The part's boundary is [`LeftOf`]'s: each chain up to its
+/// crossing of the cut, and the cut's chord between the two crossings.
+/// An edge wholly left of the cut adds its whole term (`terms`, the
+/// band's, edge `i` from vertex `i` to `i + 1`) once, as the cut passes
+/// its far end; the edge a chain crosses adds its part left of the cut,
+/// grown from the previous cut's crossing by the piece between the two
+/// (short, so within few of the filter's cells: the edge is not
+/// integrated again from its start at each cut); the chord is
+/// integrated whole.
+pub(super) struct WeightLeftOf<'a> {
+    texture: &'a [[f64; 2]],
+    screen: &'a [[f64; 2]],
+    terms: &'a [f64],
+    /// The whole band's weight, for cuts past it.
+    total: f64,
+    filter: PixelFilter,
+    x_min: f64,
+    x_max: f64,
+    /// Per chain (0 forward, 1 backward from the leftmost vertex): the
+    /// index of its last vertex left of the cut, the terms of its edges
+    /// wholly left, its crossing of the previous cut on the edge it now
+    /// crosses (`None` when that edge was not crossed before), and that
+    /// edge's term up to the crossing.
+    at: [usize; 2],
+    sum: [f64; 2],
+    crossed: [Option<[f64; 2]>; 2],
+    part: [f64; 2],
+}
+
+impl<'a> WeightLeftOf<'a> {
+    pub(super) fn new(
+        texture: &'a [[f64; 2]],
+        screen: &'a [[f64; 2]],
+        terms: &'a [f64],
+        total: f64,
+        filter: PixelFilter,
+    ) -> WeightLeftOf<'a> {
+        let (mut first, mut x_min, mut x_max) = (0, f64::INFINITY, f64::NEG_INFINITY);
+        for (i, t) in texture.iter().enumerate() {
+            if t[0] < x_min {
+                (first, x_min) = (i, t[0]);
+            }
+            x_max = x_max.max(t[0]);
+        }
+        WeightLeftOf {
+            texture,
+            screen,
+            terms,
+            total,
+            filter,
+            x_min,
+            x_max,
+            at: [first; 2],
+            sum: [0.0; 2],
+            crossed: [None; 2],
+            part: [0.0; 2],
+        }
+    }
+
+    /// The weight of the band's part left of `x = cut`, times the band's
+    /// orientation's sign (see the type); `cut` no less than at the
+    /// previous call.
+    #[inline(always)]
+    pub(super) fn weight(&mut self, cut: f64, m: &Mat3, centre: [f64; 2]) -> f64 {
+        if cut.is_nan() || cut <= self.x_min {
+            return 0.0;
+        }
+        if cut >= self.x_max {
+            return self.total;
+        }
+        let n = self.texture.len();
+        let mut crossing = [[0.0; 2]; 2];
+        for (chain, point) in crossing.iter_mut().enumerate() {
+            let step = |i: usize| {
+                if chain == 0 {
+                    if i + 1 == n { 0 } else { i + 1 }
+                } else if i == 0 {
+                    n - 1
+                } else {
+                    i - 1
+                }
+            };
+            let (mut i, mut next) = (self.at[chain], step(self.at[chain]));
+            // The rightmost vertex lies past the cut: the loop stops there
+            // at the latest.
+            while self.texture[next][0] <= cut {
+                // The backward chain's edge runs from `next` to `i`.
+                self.sum[chain] += self.terms[if chain == 0 { i } else { next }];
+                (self.crossed[chain], self.part[chain]) = (None, 0.0);
+                (i, next) = (next, step(next));
+            }
+            self.at[chain] = i;
+            let (a, b) = (self.texture[i], self.texture[next]);
+            let u = (cut - a[0]) / (b[0] - a[0]);
+            let q = apply(m, [cut, a[1] + u * (b[1] - a[1])]);
+            *point = [q[0] - centre[0], q[1] - centre[1]];
+            let from = self.crossed[chain].unwrap_or(self.screen[i]);
+            self.part[chain] += if chain == 0 {
+                self.filter.edge_integral(from, *point)
+            } else {
+                self.filter.edge_integral(*point, from)
+            };
+            self.crossed[chain] = Some(*point);
+        }
+        let [forward, backward] = crossing;
+        self.sum[0]
+            + self.part[0]
+            + self.filter.edge_integral(forward, backward)
+            + self.part[1]
             + self.sum[1]
     }
 }
