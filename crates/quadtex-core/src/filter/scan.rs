@@ -126,6 +126,8 @@ pub(super) fn scan_grid(
     let screen = band_to_screen(texture, &m, centre);
     let mut bands = Bands::new(texture, &screen);
     let mut band = BandBuffer::default();
+    // The top edge's term of the band before (tent and Mitchell).
+    let mut previous_top: Option<f64> = None;
     for k in k0..k1 {
         let top = if k + 1 < k1 {
             (k + 1) as f64 * h
@@ -135,6 +137,7 @@ pub(super) fn scan_grid(
         bands.next_band(top, &m, centre, &mut band);
         let (texture, screen) = (band.texture(), band.screen());
         if texture.len() < 3 {
+            previous_top = None;
             continue;
         }
         if filter == PixelFilter::Box {
@@ -181,9 +184,16 @@ pub(super) fn scan_grid(
         if cells > max_cells {
             return None;
         }
+        // The bottom edge's term is the previous band's top edge's,
+        // negated: the same two points, reversed.
+        let shared = previous_top.filter(|_| band.bottom_edge);
         let terms: ArrayVec<f64, BAND_VERTICES> = (0..n)
-            .map(|i| filter.edge_integral(screen[i], screen[(i + 1) % n]))
+            .map(|i| match shared {
+                Some(top) if i == n - 1 => -top,
+                _ => filter.edge_integral(screen[i], screen[(i + 1) % n]),
+            })
             .collect();
+        previous_top = band.top_edge.map(|i| terms[i]);
         let total: f64 = terms.iter().sum();
         let orientation = shoelace(screen).signum();
         let mut sweep = WeightLeftOf::new(texture, screen, &terms, total, filter);
@@ -243,6 +253,13 @@ pub(super) struct BandBuffer {
     // clearing 640 bytes per region cost more than most bands' cuts.
     texture: ArrayVec<[f64; 2], BAND_VERTICES>,
     screen: ArrayVec<[f64; 2], BAND_VERTICES>,
+    /// The index of the band's top edge, along the upper cut (from the
+    /// first chain's crossing to the second's), when it has one.
+    top_edge: Option<usize>,
+    /// Whether the band's last edge (back to its first vertex) is its
+    /// bottom, along the lower cut: the previous band's top edge, from
+    /// the same two points, reversed.
+    bottom_edge: bool,
 }
 
 /// Most vertices of a band: the region's and four crossings.
@@ -253,6 +270,8 @@ impl Default for BandBuffer {
         BandBuffer {
             texture: ArrayVec::new(),
             screen: ArrayVec::new(),
+            top_edge: None,
+            bottom_edge: false,
         }
     }
 }
@@ -274,6 +293,8 @@ impl BandBuffer {
     fn clear(&mut self) {
         self.texture.clear();
         self.screen.clear();
+        self.top_edge = None;
+        self.bottom_edge = false;
     }
 
     /// Drops the last vertex.
@@ -368,7 +389,9 @@ impl<'a> Bands<'a> {
                 i = forward(i);
             }
             if let Some([_, second]) = self.low {
+                let before = band.texture.len();
                 band.push(second);
+                band.bottom_edge = band.texture.len() == before + 1;
             }
             return;
         }
@@ -398,6 +421,7 @@ impl<'a> Bands<'a> {
         }
         self.at[0] = i;
         let first = crossing(i, next);
+        let top_edge = band.texture.len();
         band.push(first);
         let (mut i, mut next) = (self.at[1], backward(self.at[1]));
         // The second chain's vertices between the cuts, in the order it
@@ -419,11 +443,16 @@ impl<'a> Bands<'a> {
         self.at[1] = i;
         let second = crossing(i, next);
         band.push(second);
+        if band.texture.len() == top_edge + 2 {
+            band.top_edge = Some(top_edge);
+        }
         for &i in between[..count].iter().rev() {
             band.push(vertex(i));
         }
         if let Some([_, low]) = self.low {
+            let before = band.texture.len();
             band.push(low);
+            band.bottom_edge = band.texture.len() == before + 1;
         }
         self.low = Some([first, second]);
     }
