@@ -166,25 +166,35 @@ impl PixelFilter {
     /// times its orientation's sign. The box's is `x dy` (the shoelace's
     /// half), so that every filter shares it.
     pub(crate) fn edge_integral(self, a: [f64; 2], b: [f64; 2]) -> f64 {
-        let r = self.radius();
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        if self == PixelFilter::Box {
+        match self {
             // K₁(x) = x + ½ and k₁(y) = 1 inside the support: the
             // polygon's area, clipped by no support (as `integral`'s box).
-            return 0.5 * (a[0] + b[0]) * dy;
+            PixelFilter::Box => 0.5 * (a[0] + b[0]) * (b[1] - a[1]),
+            PixelFilter::Tent => Self::edge_integral_of::<false>(a, b),
+            PixelFilter::Mitchell => Self::edge_integral_of::<true>(a, b),
         }
-        let running = self.running_integrals();
+    }
+
+    /// [`PixelFilter::edge_integral`] of the tent (`MITCHELL` false) or
+    /// Mitchell's filter, compiled for each so that its cubics, radius
+    /// and Gauss points are constants.
+    #[inline(always)]
+    fn edge_integral_of<const MITCHELL: bool>(a: [f64; 2], b: [f64; 2]) -> f64 {
+        let this = if MITCHELL {
+            PixelFilter::Mitchell
+        } else {
+            PixelFilter::Tent
+        };
+        let r = this.radius();
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let running = this.running_integrals();
         // Gauss–Legendre points enough for `K₁·k₁` along a line: the
         // tent's is a cubic (2 points), Mitchell's of degree 7 (4 points).
         const GAUSS2: [(f64, f64); 2] = [
             (0.211_324_865_405_187_1, 0.5),
             (0.788_675_134_594_812_9, 0.5),
         ];
-        let points: &[(f64, f64)] = if self == PixelFilter::Tent {
-            &GAUSS2
-        } else {
-            &GAUSS4
-        };
+        let points: &[(f64, f64)] = if !MITCHELL { &GAUSS2 } else { &GAUSS4 };
         // K₁(x)·k₁(y) on the cells holding (x, y) (relative to the centre).
         // K₁ at `x`, 0 left of the support and 1 right of it.
         let running_at = |x: f64| -> f64 {
@@ -195,11 +205,11 @@ impl PixelFilter {
                 return 1.0;
             }
             let i = x.floor();
-            let a = integrated(self.cubic(i as i32));
+            let a = integrated(this.cubic(i as i32));
             running[(i + r) as usize] + at(&a, x) - at(&a, i)
         };
         let part_integral = |a: [f64; 2], d: [f64; 2], t0: f64, span: f64| {
-            self.part_integral(&running, points, (a, d), t0, span)
+            this.part_integral(&running, points, (a, d), t0, span)
         };
         let mut total = 0.0;
         // Horizontal edges add nothing; so do edges wholly above or
