@@ -72,29 +72,71 @@ pub(super) fn scan_grid(
     max_cells: f64,
     mut colour: impl FnMut(i64, i64) -> Option<[f64; 4]>,
 ) -> Option<([f64; 4], f64, f64)> {
+    let (mut colour_sum, mut weight_sum) = ([0.0; 4], 0.0);
+    let mut add = |colour: [f64; 4], w: f64| {
+        for (a, c) in colour_sum.iter_mut().zip(colour) {
+            *a += c * w;
+        }
+        weight_sum += w;
+    };
+    let grid = Grid { m, h, centre };
+    let cells = if filter == PixelFilter::Box {
+        scan_box(region, &grid, max_cells, &mut colour, &mut add)?
+    } else {
+        scan_bands(region, &grid, filter, max_cells, &mut colour, &mut add)?
+    };
+    Some((colour_sum, weight_sum, cells))
+}
+
+/// The grid a scan cuts a region by: its cells' side `h` (texture units),
+/// the map `m` from texture to screen, and the point the screen
+/// coordinates are taken relative to (the filter's centre).
+pub(super) struct Grid<'m> {
+    pub(super) m: &'m Mat3,
+    pub(super) h: f64,
+    pub(super) centre: [f64; 2],
+}
+
+/// The first and last band (`k0..k1`) and column (`c0..c1`) of cells of
+/// side `h` that `region` may cross, or `None` when the least number of
+/// cells it must cross is past `max_cells` (the bands' cells number at
+/// least the bands, the columns it spans, and its area in cells, less
+/// rounding: past `max_cells` by any of these, the scan would stop there,
+/// its work thrown away; the regions at a horizon, millions of cells,
+/// spent 24 µs each so).
+fn grid_span(region: &ConvexPolygon, h: f64, max_cells: f64) -> Option<([f64; 2], [f64; 2])> {
     let (lo, hi) = region.bounds();
     let (k0, k1) = ((lo[1] / h).floor(), (hi[1] / h).ceil());
     let (c0, c1) = ((lo[0] / h).floor(), (hi[0] / h).ceil());
-    // Bands run across the axis the region spans fewer cells of: a
-    // needle along z is cut into a few long columns, not many short
-    // rows (a band costs a split and the projection of its vertices,
-    // a box-filtered cell within it one cut). The region is transposed
-    // for it, `(x, z) → (z, x)`, with the screen map's columns swapped;
-    // the orientation this reverses does not matter to the box's
-    // areas, taken as absolute values. Other filters clip each cell by
-    // rows.
-    let transpose = filter == PixelFilter::Box && c1 - c0 < k1 - k0;
-    // The bands' cells number at least the bands, the columns the region
-    // spans, and its area in cells (less rounding): past `max_cells` by
-    // any of these, the scan would stop there, its work thrown away (the
-    // regions at a horizon, millions of cells, spent 24 µs each so).
     let least = (k1 - k0).max(c1 - c0).max(region.area() / (h * h) - 1.0);
     if least.is_nan() || least > max_cells {
         return None;
     }
+    Some(([k0, k1], [c0, c1]))
+}
+
+/// [`scan_grid`] under the box filter: `cells`, each cell's piece weighed
+/// by its screen area, into `add`.
+fn scan_box(
+    region: &ConvexPolygon,
+    grid: &Grid<'_>,
+    max_cells: f64,
+    colour: &mut impl FnMut(i64, i64) -> Option<[f64; 4]>,
+    add: &mut impl FnMut([f64; 4], f64),
+) -> Option<f64> {
+    let (h, centre) = (grid.h, grid.centre);
+    let ([k0, k1], [c0, c1]) = grid_span(region, h, max_cells)?;
+    // Bands run across the axis the region spans fewer cells of: a
+    // needle along z is cut into a few long columns, not many short
+    // rows (a band costs a split and the projection of its vertices,
+    // a cell within it one cut). The region is transposed for it,
+    // `(x, z) → (z, x)`, with the screen map's columns swapped; the
+    // orientation this reverses does not matter to the areas, taken as
+    // absolute values.
+    let transpose = c1 - c0 < k1 - k0;
     let (k0, k1) = if transpose { (c0, c1) } else { (k0, k1) };
     let (k0, k1) = (k0 as i64, k1 as i64);
-    let mut m = *m;
+    let mut m = *grid.m;
     if transpose {
         for row in &mut m {
             row.swap(0, 1);
@@ -108,13 +150,6 @@ pub(super) fn scan_grid(
             colour(col, k)
         }
     };
-    let (mut colour_sum, mut weight_sum, mut cells) = ([0.0; 4], 0.0, 0.0);
-    let mut add = |colour: [f64; 4], w: f64| {
-        for (a, c) in colour_sum.iter_mut().zip(colour) {
-            *a += c * w;
-        }
-        weight_sum += w;
-    };
     let transposed;
     let region = if transpose {
         transposed = region.map(|[x, z]| [z, x]);
@@ -126,8 +161,7 @@ pub(super) fn scan_grid(
     let screen = band_to_screen(texture, &m, centre);
     let mut bands = Bands::new(texture, &screen);
     let mut band = BandBuffer::default();
-    // The top edge's term of the band before (tent and Mitchell).
-    let mut previous_top: Option<f64> = None;
+    let mut cells = 0.0;
     for k in k0..k1 {
         let top = if k + 1 < k1 {
             (k + 1) as f64 * h
@@ -137,42 +171,100 @@ pub(super) fn scan_grid(
         bands.next_band(top, &m, centre, &mut band);
         let (texture, screen) = (band.texture(), band.screen());
         if texture.len() < 3 {
+            continue;
+        }
+        // The box weight of a cell's piece is its screen area: the
+        // screen area of the band left of the cell's right side, less
+        // that left of its left side. One sweep along the band's two
+        // chains, no polygon built.
+        let total = shoelace(screen);
+        let mut sweep = LeftOf::new(texture, screen, total);
+        let (m0, m1) = (
+            (sweep.x_min / h).floor() as i64,
+            (sweep.x_max / h).ceil() as i64,
+        );
+        cells += (m1 - m0) as f64;
+        if cells > max_cells {
+            return None;
+        }
+        let mut left = 0.0;
+        for col in m0..m1 {
+            let upto = if col + 1 == m1 {
+                total
+            } else {
+                sweep.area((col + 1) as f64 * h, &m, centre)
+            };
+            let w = 0.5 * (upto - left).abs();
+            left = upto;
+            add(colour(k, col)?, w);
+        }
+    }
+    Some(cells)
+}
+
+/// What a band scan weighs a cell's piece by: a term for each directed
+/// screen edge (relative to the scan's centre) whose sum around a closed
+/// polygon is the polygon's weight times its orientation's sign, by
+/// Green's theorem. One number a piece for a pixel filter
+/// ([`PixelFilter::edge_integral`]), or one for each pixel sharing a
+/// screen cell ([`crate::filter::screen_cell`]).
+pub(super) trait EdgeTerms: Copy {
+    /// A piece's weight (or weights).
+    type Weight: Copy
+        + Default
+        + std::ops::Add<Output = Self::Weight>
+        + std::ops::Sub<Output = Self::Weight>
+        + std::ops::Neg<Output = Self::Weight>
+        + std::ops::Mul<f64, Output = Self::Weight>;
+
+    /// The term of the directed edge from `a` to `b`.
+    fn edge(self, a: [f64; 2], b: [f64; 2]) -> Self::Weight;
+}
+
+impl EdgeTerms for PixelFilter {
+    type Weight = f64;
+
+    #[inline(always)]
+    fn edge(self, a: [f64; 2], b: [f64; 2]) -> f64 {
+        self.edge_integral(a, b)
+    }
+}
+
+/// [`scan_grid`] under weights other than the box's areas, by Green's
+/// theorem: each cell's piece weighs what the band left of its right side
+/// does, less what the band left of its left side does ([`WeightLeftOf`]),
+/// into `add`; the number of cells, or `None` past `max_cells` or where
+/// `colour` gives none.
+pub(super) fn scan_bands<E: EdgeTerms>(
+    region: &ConvexPolygon,
+    grid: &Grid<'_>,
+    edges: E,
+    max_cells: f64,
+    colour: &mut impl FnMut(i64, i64) -> Option<[f64; 4]>,
+    add: &mut impl FnMut([f64; 4], E::Weight),
+) -> Option<f64> {
+    let (m, h, centre) = (grid.m, grid.h, grid.centre);
+    let ([k0, k1], _) = grid_span(region, h, max_cells)?;
+    let (k0, k1) = (k0 as i64, k1 as i64);
+    let texture = region.vertices();
+    let screen = band_to_screen(texture, m, centre);
+    let mut bands = Bands::new(texture, &screen);
+    let mut band = BandBuffer::default();
+    let mut cells = 0.0;
+    // The top edge's term of the band before.
+    let mut previous_top: Option<E::Weight> = None;
+    for k in k0..k1 {
+        let top = if k + 1 < k1 {
+            (k + 1) as f64 * h
+        } else {
+            f64::INFINITY
+        };
+        bands.next_band(top, m, centre, &mut band);
+        let (texture, screen) = (band.texture(), band.screen());
+        if texture.len() < 3 {
             previous_top = None;
             continue;
         }
-        if filter == PixelFilter::Box {
-            // The box weight of a cell's piece is its screen area: the
-            // screen area of the band left of the cell's right side,
-            // less that left of its left side. One sweep along the band's
-            // two chains, no polygon built.
-            let total = shoelace(screen);
-            let mut sweep = LeftOf::new(texture, screen, total);
-            let (m0, m1) = (
-                (sweep.x_min / h).floor() as i64,
-                (sweep.x_max / h).ceil() as i64,
-            );
-            cells += (m1 - m0) as f64;
-            if cells > max_cells {
-                return None;
-            }
-            let mut left = 0.0;
-            for col in m0..m1 {
-                let upto = if col + 1 == m1 {
-                    total
-                } else {
-                    sweep.area((col + 1) as f64 * h, &m, centre)
-                };
-                let w = 0.5 * (upto - left).abs();
-                left = upto;
-                add(colour(k, col)?, w);
-            }
-            continue;
-        }
-        // Other filters likewise, by Green's theorem: a cell's piece
-        // weighs what the band left of its right side does, less what
-        // the band left of its left side does; that is the band's edges
-        // left of the side (each edge's term once a band), the two edges
-        // the side cuts, up to it, and the side's own chord between them.
         let n = texture.len();
         let (x_min, x_max) = texture
             .iter()
@@ -187,28 +279,28 @@ pub(super) fn scan_grid(
         // The bottom edge's term is the previous band's top edge's,
         // negated: the same two points, reversed.
         let shared = previous_top.filter(|_| band.bottom_edge);
-        let terms: ArrayVec<f64, BAND_VERTICES> = (0..n)
+        let terms: ArrayVec<E::Weight, BAND_VERTICES> = (0..n)
             .map(|i| match shared {
                 Some(top) if i == n - 1 => -top,
-                _ => filter.edge_integral(screen[i], screen[(i + 1) % n]),
+                _ => edges.edge(screen[i], screen[(i + 1) % n]),
             })
             .collect();
         previous_top = band.top_edge.map(|i| terms[i]);
-        let total: f64 = terms.iter().sum();
+        let total = terms.iter().fold(E::Weight::default(), |a, &t| a + t);
         let orientation = shoelace(screen).signum();
-        let mut sweep = WeightLeftOf::new(texture, screen, &terms, total, filter);
-        let mut left = 0.0;
+        let mut sweep = WeightLeftOf::new(texture, screen, &terms, total, edges);
+        let mut left = E::Weight::default();
         for col in m0..m1 {
             let upto = if col + 1 == m1 {
                 total
             } else {
-                sweep.weight((col + 1) as f64 * h, &m, centre)
+                sweep.weight((col + 1) as f64 * h, m, centre)
             };
-            add(colour(k, col)?, orientation * (upto - left));
+            add(colour(col, k)?, (upto - left) * orientation);
             left = upto;
         }
     }
-    Some((colour_sum, weight_sum, cells))
+    Some(cells)
 }
 
 /// The texture-space `texture` vertices (at most
@@ -570,13 +662,13 @@ impl<'a> LeftOf<'a> {
 /// (short, so within few of the filter's cells: the edge is not
 /// integrated again from its start at each cut); the chord is
 /// integrated whole.
-pub(super) struct WeightLeftOf<'a> {
+pub(super) struct WeightLeftOf<'a, E: EdgeTerms> {
     texture: &'a [[f64; 2]],
     screen: &'a [[f64; 2]],
-    terms: &'a [f64],
+    terms: &'a [E::Weight],
     /// The whole band's weight, for cuts past it.
-    total: f64,
-    filter: PixelFilter,
+    total: E::Weight,
+    edges: E,
     x_min: f64,
     x_max: f64,
     /// Per chain (0 forward, 1 backward from the leftmost vertex): the
@@ -585,19 +677,19 @@ pub(super) struct WeightLeftOf<'a> {
     /// crosses (`None` when that edge was not crossed before), and that
     /// edge's term up to the crossing.
     at: [usize; 2],
-    sum: [f64; 2],
+    sum: [E::Weight; 2],
     crossed: [Option<[f64; 2]>; 2],
-    part: [f64; 2],
+    part: [E::Weight; 2],
 }
 
-impl<'a> WeightLeftOf<'a> {
+impl<'a, E: EdgeTerms> WeightLeftOf<'a, E> {
     pub(super) fn new(
         texture: &'a [[f64; 2]],
         screen: &'a [[f64; 2]],
-        terms: &'a [f64],
-        total: f64,
-        filter: PixelFilter,
-    ) -> WeightLeftOf<'a> {
+        terms: &'a [E::Weight],
+        total: E::Weight,
+        edges: E,
+    ) -> WeightLeftOf<'a, E> {
         let (mut first, mut x_min, mut x_max) = (0, f64::INFINITY, f64::NEG_INFINITY);
         for (i, t) in texture.iter().enumerate() {
             if t[0] < x_min {
@@ -610,13 +702,13 @@ impl<'a> WeightLeftOf<'a> {
             screen,
             terms,
             total,
-            filter,
+            edges,
             x_min,
             x_max,
             at: [first; 2],
-            sum: [0.0; 2],
+            sum: [E::Weight::default(); 2],
             crossed: [None; 2],
-            part: [0.0; 2],
+            part: [E::Weight::default(); 2],
         }
     }
 
@@ -624,9 +716,9 @@ impl<'a> WeightLeftOf<'a> {
     /// orientation's sign (see the type); `cut` no less than at the
     /// previous call.
     #[inline(always)]
-    pub(super) fn weight(&mut self, cut: f64, m: &Mat3, centre: [f64; 2]) -> f64 {
+    pub(super) fn weight(&mut self, cut: f64, m: &Mat3, centre: [f64; 2]) -> E::Weight {
         if cut.is_nan() || cut <= self.x_min {
-            return 0.0;
+            return E::Weight::default();
         }
         if cut >= self.x_max {
             return self.total;
@@ -648,8 +740,8 @@ impl<'a> WeightLeftOf<'a> {
             // at the latest.
             while self.texture[next][0] <= cut {
                 // The backward chain's edge runs from `next` to `i`.
-                self.sum[chain] += self.terms[if chain == 0 { i } else { next }];
-                (self.crossed[chain], self.part[chain]) = (None, 0.0);
+                self.sum[chain] = self.sum[chain] + self.terms[if chain == 0 { i } else { next }];
+                (self.crossed[chain], self.part[chain]) = (None, E::Weight::default());
                 (i, next) = (next, step(next));
             }
             self.at[chain] = i;
@@ -658,19 +750,16 @@ impl<'a> WeightLeftOf<'a> {
             let q = apply(m, [cut, a[1] + u * (b[1] - a[1])]);
             *point = [q[0] - centre[0], q[1] - centre[1]];
             let from = self.crossed[chain].unwrap_or(self.screen[i]);
-            self.part[chain] += if chain == 0 {
-                self.filter.edge_integral(from, *point)
-            } else {
-                self.filter.edge_integral(*point, from)
-            };
+            self.part[chain] = self.part[chain]
+                + if chain == 0 {
+                    self.edges.edge(from, *point)
+                } else {
+                    self.edges.edge(*point, from)
+                };
             self.crossed[chain] = Some(*point);
         }
         let [forward, backward] = crossing;
-        self.sum[0]
-            + self.part[0]
-            + self.filter.edge_integral(forward, backward)
-            + self.part[1]
-            + self.sum[1]
+        self.sum[0] + self.part[0] + self.edges.edge(forward, backward) + self.part[1] + self.sum[1]
     }
 }
 
