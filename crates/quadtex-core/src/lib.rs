@@ -76,6 +76,7 @@ pub use filter::pixel_filter::PixelFilter;
 pub use filter::projection::Projection;
 pub use filter::query::RegionIntegral;
 pub use filter::region::MAX_SCREEN_COORDINATE;
+pub use filter::screen_cell::CellIntegral;
 pub use filter::texture::Texture;
 pub use filter::walk::FIXED_LEVEL_CAP;
 pub use filter::wrap::{BoxIntegral, Wrap, WrapMode, integrate_wrapped};

@@ -16,6 +16,7 @@ pub(crate) mod projection;
 pub(crate) mod query;
 pub(crate) mod region;
 pub(crate) mod scan;
+pub(crate) mod screen_cell;
 pub(crate) mod texture;
 pub(crate) mod tiles;
 pub(crate) mod walk;

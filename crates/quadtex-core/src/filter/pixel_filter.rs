@@ -13,6 +13,13 @@ use crate::geometry::polygon::{ConvexPolygon, Cubic, GAUSS4};
 /// of the filter's cells for such an edge.
 const ON_SIDE: f64 = 1e-9;
 
+/// 2-point Gauss–Legendre nodes and weights on `[0, 1]`: exact for
+/// polynomials of degree ≤ 3 (the tent's `K₁·k₁` along a line).
+pub(super) const GAUSS2: [(f64, f64); 2] = [
+    (0.211_324_865_405_187_1, 0.5),
+    (0.788_675_134_594_812_9, 0.5),
+];
+
 /// A pixel reconstruction filter, separable, `k(dx, dy) = k₁(dx)·k₁(dy)`
 /// with `(dx, dy)` in pixels from the pixel's centre; each integrates to 1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -118,7 +125,7 @@ impl PixelFilter {
     }
 
     /// `k₁` on the unit cell `[i, i+1)` as a cubic in `x`.
-    fn cubic(self, i: i32) -> Cubic {
+    pub(super) fn cubic(self, i: i32) -> Cubic {
         const S: f64 = 1.0 / 6.0;
         match (self, i) {
             (PixelFilter::Box, _) => [1.0, 0.0, 0.0, 0.0],
@@ -190,10 +197,6 @@ impl PixelFilter {
         let running = this.running_integrals();
         // Gauss–Legendre points enough for `K₁·k₁` along a line: the
         // tent's is a cubic (2 points), Mitchell's of degree 7 (4 points).
-        const GAUSS2: [(f64, f64); 2] = [
-            (0.211_324_865_405_187_1, 0.5),
-            (0.788_675_134_594_812_9, 0.5),
-        ];
         let points: &[(f64, f64)] = if !MITCHELL { &GAUSS2 } else { &GAUSS4 };
         // K₁(x)·k₁(y) on the cells holding (x, y) (relative to the centre).
         // K₁ at `x`, 0 left of the support and 1 right of it.
@@ -348,13 +351,13 @@ impl PixelFilter {
 /// The coefficients of cubic `c`'s antiderivative vanishing at 0, as
 /// [`at`] reads them: `x·(a₀ + a₁x + a₂x² + a₃x³)`.
 #[inline]
-fn integrated(c: Cubic) -> Cubic {
+pub(super) fn integrated(c: Cubic) -> Cubic {
     [c[0], c[1] / 2.0, c[2] / 3.0, c[3] / 4.0]
 }
 
 /// `x·(a₀ + a₁x + a₂x² + a₃x³)`: an [`integrated`] cubic at `x`.
 #[inline]
-fn at(a: &Cubic, x: f64) -> f64 {
+pub(super) fn at(a: &Cubic, x: f64) -> f64 {
     x * (a[0] + x * (a[1] + x * (a[2] + x * a[3])))
 }
 

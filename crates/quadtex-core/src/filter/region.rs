@@ -89,7 +89,11 @@ pub const MAX_SCREEN_COORDINATE: f64 = (1u64 << 50) as f64;
 /// region's diameter (`1e-9` pixel under a fixed level). `region`'s
 /// coordinates are within [`MAX_SCREEN_COORDINATE`] (the squares cannot
 /// overflow).
-fn horizon_floor(projection: &Projection, region: &ConvexPolygon, options: &FilterOptions) -> f64 {
+pub(super) fn horizon_floor(
+    projection: &Projection,
+    region: &ConvexPolygon,
+    options: &FilterOptions,
+) -> f64 {
     horizon_floor_of(projection, region.bounds(), region.area(), options)
 }
 

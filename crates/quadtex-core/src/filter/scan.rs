@@ -7,8 +7,9 @@ use crate::filter::pixel_filter::PixelFilter;
 use crate::filter::projection::{Mat3, apply};
 use crate::filter::query::RegionQuery;
 use crate::filter::tiles::{one_run_of_tiles, segments};
-use crate::filter::wrap::fold_cell;
+use crate::filter::wrap::{Wrap, fold_cell};
 use crate::geometry::polygon::ConvexPolygon;
+use crate::tree::QuadTree;
 
 /// Most grid cells [`scan_flat_grid`] clips for one region: about the
 /// time the walk spends on its default budget of squares.
@@ -32,29 +33,63 @@ pub(super) fn scan_flat_grid(
     (lo, hi): ([f64; 2], [f64; 2]),
     region: &ConvexPolygon,
 ) -> Option<([f64; 4], f64, f64)> {
-    let (tree, wrap) = (query.tree, query.wrap);
-    let grid = tree.flat_grid()?;
-    let depth = tree.depth();
-    if depth == 0
-        || one_run_of_tiles(&segments(wrap.x, lo[0], hi[0])).is_none()
-        || one_run_of_tiles(&segments(wrap.z, lo[1], hi[1])).is_none()
-    {
-        return None;
-    }
-    let n = 1usize << depth;
-    let (wrap_x, wrap_z) = (wrap.x, wrap.z);
-    let colour = |x: i64, z: i64| {
-        Some(grid[fold_cell(wrap_z, z, depth)? * n + fold_cell(wrap_x, x, depth)?])
-    };
+    let grid = FlatGrid::over(query.tree, query.wrap, (lo, hi))?;
     scan_grid(
         region,
         &query.projection.screen_from_texture,
-        1.0 / n as f64,
+        grid.side(),
         query.filter,
         query.centre,
         SCAN_CELLS,
-        colour,
+        |x, z| grid.colour(x, z),
     )
+}
+
+/// A shallow repeated tree's grid of cells at its depth
+/// ([`QuadTree::flat_grid`](crate::tree::QuadTree::flat_grid)), as the
+/// scans read it over a texture-space box within one run of tiles a side.
+pub(super) struct FlatGrid<'t> {
+    cells: &'t [[f64; 4]],
+    depth: u8,
+    wrap: Wrap,
+}
+
+impl<'t> FlatGrid<'t> {
+    /// The grid of `tree` under `wrap` over the texture-space box
+    /// `lo..hi`; `None` when the tree has none (deeper than
+    /// [`crate::tree::FLAT_GRID_MAX_DEPTH`], not repeated or mirrored on
+    /// both axes, or of depth 0) or the box spans more than one run of
+    /// tiles a side.
+    pub(super) fn over(
+        tree: &'t QuadTree,
+        wrap: Wrap,
+        (lo, hi): ([f64; 2], [f64; 2]),
+    ) -> Option<FlatGrid<'t>> {
+        let cells = tree.flat_grid()?;
+        let depth = tree.depth();
+        if depth == 0
+            || one_run_of_tiles(&segments(wrap.x, lo[0], hi[0])).is_none()
+            || one_run_of_tiles(&segments(wrap.z, lo[1], hi[1])).is_none()
+        {
+            return None;
+        }
+        Some(FlatGrid { cells, depth, wrap })
+    }
+
+    /// A cell's side in texture units.
+    pub(super) fn side(&self) -> f64 {
+        1.0 / (1u64 << self.depth) as f64
+    }
+
+    /// The colour of cell `(x, z)` (folded into the tile).
+    #[inline(always)]
+    pub(super) fn colour(&self, x: i64, z: i64) -> Option<[f64; 4]> {
+        let n = 1usize << self.depth;
+        Some(
+            self.cells[fold_cell(self.wrap.z, z, self.depth)? * n
+                + fold_cell(self.wrap.x, x, self.depth)?],
+        )
+    }
 }
 
 /// The integral under `filter` centred at `centre` over `region` (grid
@@ -83,7 +118,7 @@ pub(super) fn scan_grid(
     let cells = if filter == PixelFilter::Box {
         scan_box(region, &grid, max_cells, &mut colour, &mut add)?
     } else {
-        scan_bands(region, &grid, filter, max_cells, &mut colour, &mut add)?
+        scan_bands(region, &grid, &filter, max_cells, &mut colour, &mut add)?
     };
     Some((colour_sum, weight_sum, cells))
 }
@@ -208,7 +243,7 @@ fn scan_box(
 /// Green's theorem. One number a piece for a pixel filter
 /// ([`PixelFilter::edge_integral`]), or one for each pixel sharing a
 /// screen cell ([`crate::filter::screen_cell`]).
-pub(super) trait EdgeTerms: Copy {
+pub(super) trait EdgeTerms {
     /// A piece's weight (or weights).
     type Weight: Copy
         + Default
@@ -218,14 +253,14 @@ pub(super) trait EdgeTerms: Copy {
         + std::ops::Mul<f64, Output = Self::Weight>;
 
     /// The term of the directed edge from `a` to `b`.
-    fn edge(self, a: [f64; 2], b: [f64; 2]) -> Self::Weight;
+    fn edge(&self, a: [f64; 2], b: [f64; 2]) -> Self::Weight;
 }
 
 impl EdgeTerms for PixelFilter {
     type Weight = f64;
 
     #[inline(always)]
-    fn edge(self, a: [f64; 2], b: [f64; 2]) -> f64 {
+    fn edge(&self, a: [f64; 2], b: [f64; 2]) -> f64 {
         self.edge_integral(a, b)
     }
 }
@@ -238,7 +273,7 @@ impl EdgeTerms for PixelFilter {
 pub(super) fn scan_bands<E: EdgeTerms>(
     region: &ConvexPolygon,
     grid: &Grid<'_>,
-    edges: E,
+    edges: &E,
     max_cells: f64,
     colour: &mut impl FnMut(i64, i64) -> Option<[f64; 4]>,
     add: &mut impl FnMut([f64; 4], E::Weight),
@@ -668,7 +703,7 @@ pub(super) struct WeightLeftOf<'a, E: EdgeTerms> {
     terms: &'a [E::Weight],
     /// The whole band's weight, for cuts past it.
     total: E::Weight,
-    edges: E,
+    edges: &'a E,
     x_min: f64,
     x_max: f64,
     /// Per chain (0 forward, 1 backward from the leftmost vertex): the
@@ -688,7 +723,7 @@ impl<'a, E: EdgeTerms> WeightLeftOf<'a, E> {
         screen: &'a [[f64; 2]],
         terms: &'a [E::Weight],
         total: E::Weight,
-        edges: E,
+        edges: &'a E,
     ) -> WeightLeftOf<'a, E> {
         let (mut first, mut x_min, mut x_max) = (0, f64::INFINITY, f64::NEG_INFINITY);
         for (i, t) in texture.iter().enumerate() {

@@ -31,6 +31,7 @@ use crate::filter::pixel_filter::PixelFilter;
 use crate::filter::projection::Projection;
 use crate::filter::query::{RegionIntegral, RegionQuery};
 use crate::filter::region;
+use crate::filter::screen_cell::CellIntegral;
 use crate::filter::wrap::{Wrap, integrate_wrapped};
 use crate::geometry::fragment::Fragment;
 use crate::geometry::polygon::ConvexPolygon;
@@ -219,6 +220,42 @@ impl Texture {
             options,
         };
         region::integrate_region(&query, region, stats)
+    }
+
+    /// Whether [`Texture::integrate_screen_cell`] takes every cell under
+    /// `filter` in front of the horizon (within the scan's cell limit):
+    /// the tent or Mitchell filter over a shallow repeated texture, whose
+    /// cells are scanned exactly. Over other textures it takes only the
+    /// cells whose image is one colour, and a renderer is better served
+    /// by each pixel's whole support.
+    pub fn scans_screen_cells(&self, filter: PixelFilter) -> bool {
+        filter != PixelFilter::Box && self.tree.flat_grid().is_some()
+    }
+
+    /// The integrals over screen cell `cell` (the unit square between
+    /// four pixel centres: [`CellIntegral`]'s module documents the
+    /// convention) of the texture seen through `projection` under
+    /// `filter`, for each pixel whose support covers the cell, exactly:
+    /// summed over the cells of a pixel's support, each pixel's part is
+    /// what [`Texture::integrate_region`] gives over that whole support,
+    /// up to rounding, with a zero bound. `None` (nothing to add) under
+    /// the box filter (no pixels share a cell), under a fixed level of
+    /// detail, where a corner of the cell is nearer the horizon than
+    /// [`Texture::integrate_region`] takes a support as it is, and where
+    /// the cell's image is neither one colour nor within a shallow
+    /// repeated texture's scan ([`Texture::scans_screen_cells`]): the
+    /// caller then integrates each pixel's support.
+    pub fn integrate_screen_cell(
+        &self,
+        projection: &Projection,
+        cell: [i64; 2],
+        filter: PixelFilter,
+        options: &FilterOptions,
+        stats: &mut FilterStats,
+    ) -> Option<CellIntegral> {
+        super::screen_cell::integrate_screen_cell(
+            &self.tree, self.wrap, projection, cell, filter, options, stats,
+        )
     }
 
     /// The colour of the texture over the whole of screen region `span`

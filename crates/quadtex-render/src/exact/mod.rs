@@ -80,6 +80,8 @@ const MAX_GAP_PRIMITIVES: usize = 16;
 mod cutting;
 mod lighting;
 mod pixel;
+mod screen_cells;
+
 mod sky;
 mod sphere;
 mod views;

@@ -16,7 +16,8 @@ use crate::view::View;
 
 use super::cutting::Flood;
 use super::cutting::{Cut, Order, Regions, overlap, push_region};
-use super::lighting::{Shading, shade_region, shade_span_pixel};
+use super::lighting::{Shading, shade_region, shade_span_pixel, tint_and_light};
+use super::screen_cells::ScreenCells;
 use super::sky::{
     SkySpan, Whole, sky_at_centre, sky_clear_above, sky_integral, sky_range, sky_step,
     sky_tolerance, views_miss,
@@ -60,7 +61,13 @@ pub(crate) fn exact_pixel<'a>(
         let colour = match &view {
             ViewRef::Sphere(sphere) => pixel.one_sphere(sphere, stats),
             _ => view.planar().and_then(|view| {
-                pixel.one_primitive(*id, view, near.run, &mut scratch.uniform_span, stats)
+                pixel.one_primitive(
+                    *id,
+                    view,
+                    near.run,
+                    (&mut scratch.uniform_span, &mut scratch.screen_cells),
+                    stats,
+                )
             }),
         };
         if colour.is_some() {
@@ -139,7 +146,7 @@ impl<'a> ExactPixel<'_, 'a> {
         id: Seen,
         view: &View,
         run: u32,
-        uniform_span: &mut UniformSpan,
+        (uniform_span, screen_cells): (&mut UniformSpan, &mut ScreenCells),
         stats: &mut PixelStats,
     ) -> Option<Rgba> {
         let Shading {
@@ -189,7 +196,31 @@ impl<'a> ExactPixel<'_, 'a> {
         // all of the run (the span that failed was refused for its
         // texture), else the pixel's own shadow ray.
         let light = uniform_span.run_light((x, y), id);
-        let (c, w, b) = shade_region(&self.shading, view, &region, light, &mut parts);
+        // The tent's and Mitchell's supports over a shallow repeated
+        // texture: from the thread's screen cells, each integrated once
+        // for the pixels sharing it.
+        let by_cells = frame
+            .texture(view.surface())
+            .filter(|texture| texture.scans_screen_cells(filter))
+            .and_then(|texture| {
+                screen_cells.pixel(
+                    texture,
+                    view,
+                    id,
+                    filter,
+                    (x, y),
+                    options,
+                    &mut parts.filter,
+                )
+            });
+        let (c, w, b) = match by_cells {
+            Some((texture_colour, w)) => {
+                parts.textured = 1;
+                let c = tint_and_light(frame, view, &region, Some(texture_colour), w, light);
+                (c, w, 0.0)
+            }
+            None => shade_region(&self.shading, view, &region, light, &mut parts),
+        };
         sums.add(c, w, b);
         parts.weight_error = weight_error(w);
         stats.merge_parts(&parts);
@@ -633,6 +664,8 @@ pub(crate) struct Scratch<'a> {
     confirmed: Confirmed,
     sky_span: SkySpan,
     uniform_span: UniformSpan,
+    /// The thread's screen cells (tent and Mitchell pixels share them).
+    screen_cells: ScreenCells,
     /// Where [`sky_at_centre`]'s bound is surely within the tolerance
     /// (once per row: the scene and options are the frame's).
     sky_clear_above: Option<f64>,
@@ -645,6 +678,7 @@ impl<'a> Scratch<'a> {
     pub(crate) fn for_row(cache: &SurfaceViews) -> Scratch<'a> {
         Scratch {
             memo: ViewMemo::take_for(cache.frame),
+            screen_cells: ScreenCells::take_for(cache.frame),
             ..Scratch::default()
         }
     }
@@ -652,6 +686,7 @@ impl<'a> Scratch<'a> {
     /// Ends a row: the thread keeps its views for its next row.
     pub(crate) fn end_row(self) {
         self.memo.keep();
+        self.screen_cells.keep();
     }
 
     /// The colour of box-filtered pixel `(x, y)` whose centres in reach all
