@@ -103,6 +103,19 @@ fn the_sweep_gives_each_cut_what_clipping_gives() {
     assert!(checked > 30_000);
 }
 
+/// A random map from texture to screen under which `w` stays within
+/// `[0.8, 1.2]` over `region`: a rotation-shear of about unit scale, a
+/// shift of up to 10 and a mild perspective.
+fn mild_perspective(next: &mut impl FnMut() -> f64, region: &ConvexPolygon) -> Mat3 {
+    let (lo, hi) = region.bounds();
+    let g = 0.2 / (1.0 + lo[0].abs().max(hi[0].abs()) + lo[1].abs().max(hi[1].abs()));
+    [
+        [1.0 + next(), next() - 0.5, next() * 10.0],
+        [next() - 0.5, 1.0 + next(), next() * 10.0],
+        [g * (next() - 0.5), g * (next() - 0.5), 1.0],
+    ]
+}
+
 /// `(Σ colour·area, Σ area, cells)` over the cells of size `h` that
 /// `region` crosses: each cell's piece clipped, mapped by `m` and
 /// weighted by its screen area (relative to `centre`).
@@ -443,13 +456,7 @@ fn the_box_scan_gives_what_clipping_every_cell_gives() {
             continue;
         }
         let (lo, hi) = region.bounds();
-        // Perspective: w stays within [0.8, 1.2] over the polygon.
-        let g = 0.2 / (1.0 + lo[0].abs().max(hi[0].abs()) + lo[1].abs().max(hi[1].abs()));
-        let m: Mat3 = [
-            [1.0 + next(), next() - 0.5, next() * 10.0],
-            [next() - 0.5, 1.0 + next(), next() * 10.0],
-            [g * (next() - 0.5), g * (next() - 0.5), 1.0],
-        ];
+        let m = mild_perspective(&mut next, &region);
         let centre = [next() * 10.0, next() * 10.0];
         let salt = (next() * 1e6) as i64;
         let colour = |x: i64, z: i64| {
@@ -516,13 +523,7 @@ fn the_tent_and_mitchell_scans_give_what_clipping_every_cell_gives() {
         if region.is_empty() {
             continue;
         }
-        let (lo, hi) = region.bounds();
-        let g = 0.2 / (1.0 + lo[0].abs().max(hi[0].abs()) + lo[1].abs().max(hi[1].abs()));
-        let m: Mat3 = [
-            [1.0 + next(), next() - 0.5, next() * 10.0],
-            [next() - 0.5, 1.0 + next(), next() * 10.0],
-            [g * (next() - 0.5), g * (next() - 0.5), 1.0],
-        ];
+        let m = mild_perspective(&mut next, &region);
         // The filter's centre near a vertex's image: supports inside the
         // region, across its edges and off it.
         let v = apply(&m, texture[case % n]);

@@ -585,6 +585,21 @@ impl<'a> Bands<'a> {
     }
 }
 
+/// The neighbour of vertex `i` of an `n`-gon along chain `chain`: the
+/// next (chain 0) or the previous (chain 1) in the polygon's order. By a
+/// compare, not `% n`: `n` is not known when compiled, so `%` is an
+/// integer division each step.
+#[inline(always)]
+fn chain_step(chain: usize, i: usize, n: usize) -> usize {
+    if chain == 0 {
+        if i + 1 == n { 0 } else { i + 1 }
+    } else if i == 0 {
+        n - 1
+    } else {
+        i - 1
+    }
+}
+
 /// The doubled signed screen area of the part of a texture-space convex
 /// polygon left of a cut `x = c`, for cuts taken in increasing order: a
 /// sweep along the polygon's two chains from its leftmost vertex to its
@@ -649,17 +664,7 @@ impl<'a> LeftOf<'a> {
         let cross = |a: [f64; 2], b: [f64; 2]| a[0] * b[1] - a[1] * b[0];
         let mut crossing = [[0.0; 2]; 2];
         for (chain, point) in crossing.iter_mut().enumerate() {
-            // The neighbour by a compare, not `% n`: `n` is not known
-            // when compiled, so `%` is an integer division each step.
-            let step = |i: usize| {
-                if chain == 0 {
-                    if i + 1 == n { 0 } else { i + 1 }
-                } else if i == 0 {
-                    n - 1
-                } else {
-                    i - 1
-                }
-            };
+            let step = |i: usize| chain_step(chain, i, n);
             let (mut i, mut next) = (self.at[chain], step(self.at[chain]));
             // The rightmost vertex lies past the cut: the loop stops there
             // at the latest.
@@ -761,15 +766,7 @@ impl<'a, E: EdgeTerms> WeightLeftOf<'a, E> {
         let n = self.texture.len();
         let mut crossing = [[0.0; 2]; 2];
         for (chain, point) in crossing.iter_mut().enumerate() {
-            let step = |i: usize| {
-                if chain == 0 {
-                    if i + 1 == n { 0 } else { i + 1 }
-                } else if i == 0 {
-                    n - 1
-                } else {
-                    i - 1
-                }
-            };
+            let step = |i: usize| chain_step(chain, i, n);
             let (mut i, mut next) = (self.at[chain], step(self.at[chain]));
             // The rightmost vertex lies past the cut: the loop stops there
             // at the latest.
