@@ -11,9 +11,10 @@ use quadtex_core::{CellIntegral, FilterOptions, FilterStats, PixelFilter, Textur
 use crate::caster::Seen;
 use crate::view::View;
 
-/// Cell rows kept: at least a Mitchell support's 4, and a power of two
-/// (a cell row's slot is its index modulo this).
-const ROWS: usize = 8;
+/// Cell rows kept: a Mitchell support's 4 (a thread moving down a row
+/// keeps three of them), a power of two (a cell row's slot is its index
+/// modulo this). A row of cells is about 1.3 MB at 1920 pixels.
+const ROWS: usize = 4;
 
 /// Cells left of the image a support reaches: Mitchell's 2.
 const LEFT: i64 = 2;
