@@ -3,16 +3,12 @@
 //! support covers it, so a cell's integrals, computed once, give each of
 //! those pixels its part ([`CellIntegral`]): a tent pixel's support is
 //! 2 × 2 cells and each cell serves 4 pixels, a Mitchell pixel's 4 × 4
-//! and 16. A renderer that integrates each pixel's whole support weighs
-//! every texture cell 4 or 16 times; one that shares the screen cells of a
-//! row weighs it 2 or 4 times.
+//! and 16. The weights are not fewer so (each piece of the texture needs
+//! one for each pixel whose support it lies in); what the pixels share is
+//! the cutting of the texture's cells by the screen cell, and their
+//! mapping to the screen, done once instead of 4 or 16 times.
 //!
-//! Convention: pixel `(x, y)` has its centre at `(x + ½, y + ½)`; screen
-//! cell `(i, j)` is `[i + ½, i + 3⁄2] × [j + ½, j + 3⁄2]`. Under a filter of
-//! radius `r` (1 for the tent, 2 for Mitchell), pixel `x` covers cells
-//! `x − r ..= x + r − 1`, and cell `i` lies in the supports of pixels
-//! `i − r + 1 ..= i + r`: pixel `i − r + 1 + p` is the cell's `p`-th
-//! (`p < 2r`), on each axis alike.
+//! The convention (which cell, which pixel) is [`CellIntegral`]'s.
 
 use std::ops::{Add, Mul, Neg, Sub};
 
@@ -28,10 +24,18 @@ use crate::tree::QuadTree;
 /// Most pixels sharing a screen cell, `(2r)²` for Mitchell's `r = 2`.
 const MOST_SHARING: usize = 16;
 
-/// The integrals over one screen cell (module documentation) of the
-/// texture weighted by the filter of each pixel sharing the cell, and of
-/// the filter alone: each pixel's part of its [`Texture::integrate_region`]
-/// over its whole support, exactly as that computes it up to rounding.
+/// The integrals over one screen cell of the texture weighted by the
+/// filter of each pixel sharing the cell, and of the filter alone: each
+/// pixel's part of its [`Texture::integrate_region`] over its whole
+/// support, exactly as that computes it up to rounding.
+///
+/// A screen cell is a unit square between four pixel centres. Pixel
+/// `(x, y)` has its centre at `(x + ½, y + ½)`; screen cell `(i, j)` is
+/// `[i + ½, i + 3⁄2] × [j + ½, j + 3⁄2]`. Under a filter of radius `r` (1
+/// for the tent, 2 for Mitchell), pixel `x` covers cells `x − r ..= x + r
+/// − 1`, and cell `i` lies in the supports of pixels `i − r + 1 ..= i +
+/// r`: pixel `i − r + 1 + p` is the cell's `p`-th (`p < 2r`), on each
+/// axis alike. On a cell each pixel's filter is one polynomial piece.
 ///
 /// [`Texture::integrate_region`]: crate::Texture::integrate_region
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,8 +50,8 @@ pub struct CellIntegral {
 
 impl CellIntegral {
     /// The `(∫ colour·k, ∫ k)` of the cell's `p`-th pixel across and
-    /// `q`-th down (module documentation: pixel `(i − r + 1 + p, j − r + 1
-    /// + q)` of cell `(i, j)`); `None` past the pixels sharing the cell.
+    /// `q`-th down (pixel `(i − r + 1 + p, j − r + 1 + q)` of cell `(i,
+    /// j)`); `None` past the pixels sharing the cell.
     pub fn part(&self, p: usize, q: usize) -> Option<([f64; 4], f64)> {
         if p >= self.side || q >= self.side {
             return None;

@@ -233,8 +233,8 @@ impl Texture {
     }
 
     /// The integrals over screen cell `cell` (the unit square between
-    /// four pixel centres: [`CellIntegral`]'s module documents the
-    /// convention) of the texture seen through `projection` under
+    /// four pixel centres: [`CellIntegral`] documents the convention) of
+    /// the texture seen through `projection` under
     /// `filter`, for each pixel whose support covers the cell, exactly:
     /// summed over the cells of a pixel's support, each pixel's part is
     /// what [`Texture::integrate_region`] gives over that whole support,
