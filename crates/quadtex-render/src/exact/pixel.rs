@@ -19,7 +19,7 @@ use super::cutting::{Cut, Order, Regions, overlap, push_region};
 use super::lighting::{Shading, shade_region, shade_span_pixel, tint_and_light};
 use super::screen_cells::ScreenCells;
 use super::sky::{
-    SkySpan, Whole, sky_at_centre, sky_clear_above, sky_integral, sky_range, sky_step,
+    SkySpan, Whole, sky_at_centre_under, sky_clear_above, sky_integral, sky_range, sky_step,
     sky_tolerance, views_miss,
 };
 use super::sphere::SphereView;
@@ -689,13 +689,14 @@ impl<'a> Scratch<'a> {
         self.screen_cells.keep();
     }
 
-    /// The colour of box-filtered pixel `(x, y)` whose centres in reach all
-    /// see the sky, when the rectangle of its sky span ([`SkySpan`]) is
-    /// clear of every plane, quad and mesh triangle and the sky's value at
-    /// its centre is within the tolerance ([`sky_at_centre`]): what the
-    /// sky-only branch of [`exact_pixel`] gives it (the support's area is
-    /// 1, so the mean is that value), without building the support or
-    /// testing it. `None` leaves the pixel to [`exact_pixel`]. A triangle
+    /// The colour of pixel `(x, y)` under `filter` whose centres in reach
+    /// all see the sky, when the rectangle of its sky span ([`SkySpan`])
+    /// is clear of every plane, quad and mesh triangle and the sky's value
+    /// at its centre is within the tolerance ([`sky_at_centre_under`]):
+    /// what the sky-only branch of [`exact_pixel`] gives it (the filter
+    /// integrates to 1 over the support, so the mean is that value, up to
+    /// the rounding of the support's integral), without building the
+    /// support or testing it. `None` leaves the pixel to [`exact_pixel`]. A triangle
     /// that reaches into no part of the rectangle reaches into none of the
     /// pixel's support, which lies inside it.
     pub(crate) fn sky_pixel(
@@ -706,7 +707,7 @@ impl<'a> Scratch<'a> {
         filter: PixelFilter,
         (x, y): (u32, u32),
     ) -> Option<Rgba> {
-        if filter != PixelFilter::Box || !self.sky_span.views_clear(cache, filter, (x, y)) {
+        if !self.sky_span.views_clear(cache, filter, (x, y)) {
             return None;
         }
         let span = &mut self.sky_span;
@@ -726,13 +727,15 @@ impl<'a> Scratch<'a> {
         let tolerance = sky_tolerance(options);
         let clear_above = *self
             .sky_clear_above
-            .get_or_insert_with(|| sky_clear_above(scene, tolerance));
+            .get_or_insert_with(|| sky_clear_above(scene, tolerance, filter));
         let ray = scene.camera.ray(centre[0], centre[1]);
-        if ray.direction.y - std::f64::consts::FRAC_1_SQRT_2 * sky_step(scene) >= clear_above {
-            // What `sky_at_centre` gives, its bound not computed.
+        // The support's lowest ray, as `sky_at_centre_under` takes it.
+        let reach = std::f64::consts::SQRT_2 * filter.radius() * sky_step(scene);
+        if ray.direction.y - reach >= clear_above {
+            // What `sky_at_centre_under` gives, its bound not computed.
             return Some(mean(sky(scene, &ray).to_array().map(f64::from), 1.0));
         }
-        let (c, bound) = sky_at_centre(scene, centre)?;
+        let (c, bound) = sky_at_centre_under(scene, centre, filter)?;
         (bound <= tolerance).then(|| mean(c, 1.0))
     }
 

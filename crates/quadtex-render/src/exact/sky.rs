@@ -131,6 +131,9 @@ pub(super) fn sky_tolerance(options: &FilterOptions) -> f64 {
 /// `g/√2`). The midpoint rule over a unit square is then off by at most
 /// `T·∫|δ|²/2 = T/12` in `t`, times the sky's contrast in colour. Where the
 /// whole pixel looks below level the sky is the horizon colour: exact.
+/// (The box's case of [`sky_at_centre_under`], which the renderer calls;
+/// the tests call this.)
+#[cfg(test)]
 pub(super) fn sky_at_centre(scene: &Scene, centre: [f64; 2]) -> Option<([f64; 4], f64)> {
     sky_at_centre_under(scene, centre, PixelFilter::Box)
 }
@@ -211,26 +214,27 @@ fn sky_curvature(g: f64, y_min: f64) -> f64 {
 /// [`sky_bound`] itself, whose bisection in [`sky_clear_above`] the box's
 /// shortcut relies on).
 #[inline]
-fn sky_bound_under(g: f64, contrast: f64, y_min: f64, filter: PixelFilter) -> f64 {
+pub(super) fn sky_bound_under(g: f64, contrast: f64, y_min: f64, filter: PixelFilter) -> f64 {
     match filter {
         PixelFilter::Box => sky_bound(g, contrast, y_min),
         _ => 0.5 * sky_curvature(g, y_min) * second_moment(filter) * contrast,
     }
 }
 
-/// A height above which [`sky_at_centre`]'s bound is within `tolerance`
-/// (`∞` where none is, or the sky is solid): the bound falls as `y_min`
+/// A height above which [`sky_at_centre_under`]'s bound for `filter` is
+/// within `tolerance` (`∞` where none is, or the sky is solid): the
+/// bound falls as `y_min`
 /// grows, and this is where it is half the tolerance (bisected), so that
 /// the bound computed in floats above it is within the tolerance too. A
 /// sky pixel whose `y_min` is past it takes the centre's value without
 /// the bound's square root and divisions, the same answer.
-pub(super) fn sky_clear_above(scene: &Scene, tolerance: f64) -> f64 {
+pub(super) fn sky_clear_above(scene: &Scene, tolerance: f64, filter: PixelFilter) -> f64 {
     let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
         return f64::INFINITY;
     };
     let contrast = sky_contrast(horizon, zenith);
     let g = sky_step(scene);
-    let within = |y: f64| sky_bound(g, contrast, y) <= 0.5 * tolerance;
+    let within = |y: f64| sky_bound_under(g, contrast, y, filter) <= 0.5 * tolerance;
     if !within(1.0) {
         return f64::INFINITY;
     }

@@ -11,7 +11,7 @@ use super::GAP_AREA;
 use super::cutting::{Cut, Order, overlap_bound};
 use super::lighting::{apply_light, light_region, uniform_light};
 use super::sky::{
-    SkySpan, Whole, level_line, second_moment, sky_at_centre, sky_at_centre_under, sky_bound,
+    SkySpan, Whole, level_line, second_moment, sky_at_centre, sky_at_centre_under, sky_bound_under,
     sky_clear_above, sky_contrast, sky_integral, sky_step, sky_tolerance, views_miss,
 };
 use super::views::{ViewMemo, ViewRef};
@@ -528,49 +528,53 @@ fn the_sky_at_the_level_line_matches_a_dense_sum() {
     }
 }
 
-/// Above [`sky_clear_above`], [`sky_at_centre`] always accepts its
+/// Above [`sky_clear_above`], [`sky_at_centre_under`] always accepts its
 /// value (bound within the tolerance), so the sky pixel's shortcut
 /// gives what it would: every pixel of two frames, the default and a
-/// tight tolerance. Most sky pixels take the shortcut, and the height
-/// is not far above where the bound reaches the tolerance.
+/// tight tolerance, under each pixel filter (the support's lowest ray
+/// `√2·r·g` below the centre's). Most sky pixels take the shortcut, and
+/// the height is not far above where the bound reaches the tolerance.
 #[test]
 fn the_sky_shortcut_takes_only_pixels_the_bound_accepts() {
-    for (width, height) in [(192, 108), (1920, 1080)] {
-        let scene = demo_at(width, height);
-        for tolerance in [sky_tolerance(&FilterOptions::RENDER), 1e-7] {
-            let clear = sky_clear_above(&scene, tolerance);
-            let g = sky_step(&scene);
-            let (mut shortcut, mut sky_rows) = (0, 0);
-            for y in (0..height).step_by(height as usize / 54) {
-                for x in (0..width).step_by(width as usize / 24) {
-                    let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
-                    let ray = scene.camera.ray(centre[0], centre[1]);
-                    let y_min = ray.direction.y - std::f64::consts::FRAC_1_SQRT_2 * g;
-                    if y_min > 0.0 {
-                        sky_rows += 1;
-                    }
-                    if y_min >= clear {
-                        shortcut += 1;
-                        let (c, bound) = sky_at_centre(&scene, centre).unwrap();
-                        assert!(bound <= tolerance, "{bound} > {tolerance} at {centre:?}");
-                        assert_eq!(c, sky(&scene, &ray).to_array().map(f64::from));
+    for filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
+        for (width, height) in [(192, 108), (1920, 1080)] {
+            let scene = demo_at(width, height);
+            for tolerance in [sky_tolerance(&FilterOptions::RENDER), 1e-7] {
+                let clear = sky_clear_above(&scene, tolerance, filter);
+                let g = sky_step(&scene);
+                let reach = std::f64::consts::SQRT_2 * filter.radius() * g;
+                let (mut shortcut, mut sky_rows) = (0, 0);
+                for y in (0..height).step_by(height as usize / 54) {
+                    for x in (0..width).step_by(width as usize / 24) {
+                        let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+                        let ray = scene.camera.ray(centre[0], centre[1]);
+                        let y_min = ray.direction.y - reach;
+                        if y_min > 0.0 {
+                            sky_rows += 1;
+                        }
+                        if y_min >= clear {
+                            shortcut += 1;
+                            let (c, bound) = sky_at_centre_under(&scene, centre, filter).unwrap();
+                            assert!(
+                                bound <= tolerance,
+                                "{filter:?}: {bound} > {tolerance} at {centre:?}"
+                            );
+                            assert_eq!(c, sky(&scene, &ray).to_array().map(f64::from));
+                        }
                     }
                 }
-            }
-            assert!(
-                tolerance < 1e-6 || (clear.is_finite() && 2 * shortcut > sky_rows),
-                "{width}x{height}: {shortcut} of {sky_rows} sky samples"
-            );
-            // A percent below the height the bound is past half the
-            // tolerance: the bisection found the height, not a loose one.
-            let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
-                panic!("the demo's sky is a gradient");
-            };
-            let contrast = sky_contrast(horizon, zenith);
-            if clear.is_finite() {
-                assert!(sky_bound(g, contrast, clear * 0.99) > 0.5 * tolerance);
-            } else {
-                assert!(sky_bound(g, contrast, 1.0) > 0.5 * tolerance);
+                assert!(
+                    tolerance < 1e-6 || (clear.is_finite() && 2 * shortcut > sky_rows),
+                    "{filter:?}, {width}x{height}: {shortcut} of {sky_rows} sky samples"
+                );
+                // A percent below the height the bound is past half the
+                // tolerance: the bisection found the height, not a loose one.
+                let crate::scene::Sky::Gradient { horizon, zenith } = scene.sky else {
+                    panic!("the demo's sky is a gradient");
+                };
+                let contrast = sky_contrast(horizon, zenith);
+                let at = if clear.is_finite() { clear * 0.99 } else { 1.0 };
+                assert!(sky_bound_under(g, contrast, at, filter) > 0.5 * tolerance);
             }
         }
     }
