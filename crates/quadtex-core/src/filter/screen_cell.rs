@@ -111,21 +111,22 @@ impl<const N: usize> Mul<f64> for Weights<N> {
 }
 
 /// The filter of each of the `SIDE × SIDE` pixels sharing a screen cell
-/// (`N = SIDE²`), as Green's-theorem edge terms in the cell's own
-/// coordinates `(u, v) = s − (i + ½, j + ½)`, `u, v ∈ [0, 1]`: the
-/// `(p, q)`-th term of an edge is `∫ F_p(u)·g_q(v) dv`, with `g_q` the
-/// piece of `k₁` the cell is of pixel row `q`'s filter and `F_p(u)` the
-/// integral from the cell's left side of pixel column `p`'s piece. One
-/// piece each over the whole cell, so no edge is split.
+/// (`N = SIDE²`), in the cell's own coordinates `(u, v) = s − (i + ½, j +
+/// ½)`, `u, v ∈ [0, 1]`: pixel column `p`'s filter is one piece `k_p(u)`
+/// over the whole cell, `F_p(u) = ∫₀ᵘ k_p` (a polynomial in `u` of degree
+/// `SIDE`, no constant term), and likewise `k_q(v)` for pixel row `q` (of
+/// degree `SIDE − 1`). The pair `(p, q)`'s Green's-theorem term of an
+/// edge is `∫ F_p(u)·k_q(v) dv`. A scan adds up, instead, the edge terms
+/// of the monomials, the moments `∫ u^(a+1)·v^b dv` for `a, b < SIDE`
+/// (cheaper at each Gauss point than the pixels' polynomials), and
+/// [`CellKernel::pixel_weights`] turns their sums into the pixels' weights
+/// once a cell: the terms are linear in the monomials. No edge is split.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct CellKernel<const N: usize, const SIDE: usize> {
-    /// Per pixel `p`: its filter cell `i = r − 1 − p`, that cell's
-    /// antiderivative of `k₁` and its value at `i` (so that `F_p(u) =
-    /// A(u + i) − A(i)`), and `k₁` there.
-    cell: [f64; SIDE],
-    running: [[f64; 4]; SIDE],
-    start: [f64; SIDE],
-    piece: [[f64; 4]; SIDE],
+    /// `F_p(u) = Σ_a big[p][a]·u^(a+1)`.
+    big: [[f64; SIDE]; SIDE],
+    /// `k_q(v) = Σ_b small[q][b]·v^b`.
+    small: [[f64; SIDE]; SIDE],
     /// Per pixel: `F_p(1)`, its filter's integral across the cell.
     across: [f64; SIDE],
 }
@@ -139,22 +140,34 @@ impl<const N: usize, const SIDE: usize> CellKernel<N, SIDE> {
             PixelFilter::Mitchell
         };
         let r = filter.radius() as i32;
+        let binomial = |n: usize, k: usize| -> f64 {
+            (0..k).fold(1.0, |c, j| c * (n - j) as f64 / (j + 1) as f64)
+        };
         let mut kernel = CellKernel {
-            cell: [0.0; SIDE],
-            running: [[0.0; 4]; SIDE],
-            start: [0.0; SIDE],
-            piece: [[0.0; 4]; SIDE],
+            big: [[0.0; SIDE]; SIDE],
+            small: [[0.0; SIDE]; SIDE],
             across: [0.0; SIDE],
         };
         for p in 0..SIDE {
+            // Pixel `p`'s filter cell: `k_p(u) = k₁(u + i)`.
             let i = r - 1 - p as i32;
+            let shift = f64::from(i);
             let piece = filter.cubic(i);
+            // `A(x) = Σ_k a_k·x^(k+1)`, `F_p(u) = A(u + i) − A(i)`: the
+            // binomial expansion's terms in `u^m`, `m ≥ 1`.
             let running = integrated(piece);
-            kernel.cell[p] = f64::from(i);
-            kernel.running[p] = running;
-            kernel.start[p] = at(&running, f64::from(i));
-            kernel.piece[p] = piece;
-            kernel.across[p] = at(&running, f64::from(i) + 1.0) - kernel.start[p];
+            for m in 1..=SIDE {
+                kernel.big[p][m - 1] = (0..4)
+                    .filter(|&k| k + 1 >= m)
+                    .map(|k| running[k] * binomial(k + 1, m) * shift.powi((k + 1 - m) as i32))
+                    .sum();
+            }
+            for m in 0..SIDE {
+                kernel.small[p][m] = (m..4)
+                    .map(|k| piece[k] * binomial(k, m) * shift.powi((k - m) as i32))
+                    .sum();
+            }
+            kernel.across[p] = at(&running, shift + 1.0) - at(&running, shift);
         }
         kernel
     }
@@ -170,11 +183,33 @@ impl<const N: usize, const SIDE: usize> CellKernel<N, SIDE> {
         }
         Weights(out)
     }
+
+    /// The pixels' weights (`q·SIDE + p`) from the monomials' moments
+    /// (`b·SIDE + a`, see the type): `Σ_(a,b) big[p][a]·small[q][b]·m[b][a]`.
+    fn pixel_weights(&self, moments: &[f64; N]) -> [f64; N] {
+        // `t[q][a] = Σ_b small[q][b]·m[b][a]`, then against `big[p]`.
+        let mut t = [[0.0; SIDE]; SIDE];
+        for (q, row) in t.iter_mut().enumerate() {
+            for (a, v) in row.iter_mut().enumerate() {
+                *v = (0..SIDE)
+                    .map(|b| self.small[q][b] * moments[b * SIDE + a])
+                    .sum();
+            }
+        }
+        let mut out = [0.0; N];
+        for q in 0..SIDE {
+            for p in 0..SIDE {
+                out[q * SIDE + p] = (0..SIDE).map(|a| self.big[p][a] * t[q][a]).sum();
+            }
+        }
+        out
+    }
 }
 
 impl<const N: usize, const SIDE: usize> EdgeTerms for CellKernel<N, SIDE> {
     type Weight = Weights<N>;
 
+    /// The monomials' terms (see the type), `(b, a)` at `b·SIDE + a`.
     #[inline(always)]
     fn edge(&self, a: [f64; 2], b: [f64; 2]) -> Weights<N> {
         let dy = b[1] - a[1];
@@ -182,21 +217,22 @@ impl<const N: usize, const SIDE: usize> EdgeTerms for CellKernel<N, SIDE> {
         if dy == 0.0 {
             return Weights(out);
         }
-        // `F_p·g_q` along a line: degree 2 + 1 for the tent (2 points),
-        // 4 + 3 for Mitchell (4 points).
+        // `u^(a+1)·v^b` along a line: degree at most 2 + 1 for the tent
+        // (2 points), 4 + 3 for Mitchell (4 points).
         let points: &[(f64, f64)] = if SIDE == 2 { &GAUSS2 } else { &GAUSS4 };
         for &(t, w) in points {
             let (u, v) = (a[0] + t * (b[0] - a[0]), a[1] + t * dy);
-            let mut big = [0.0; SIDE];
-            let mut small = [0.0; SIDE];
-            for p in 0..SIDE {
-                big[p] = at(&self.running[p], u + self.cell[p]) - self.start[p];
-                let (c, y) = (&self.piece[p], v + self.cell[p]);
-                small[p] = w * (c[0] + y * (c[1] + y * (c[2] + y * c[3])));
+            let (mut big, mut small) = ([0.0; SIDE], [0.0; SIDE]);
+            let (mut up, mut vp) = (u, w);
+            for k in 0..SIDE {
+                big[k] = up;
+                small[k] = vp;
+                up *= u;
+                vp *= v;
             }
-            for q in 0..SIDE {
-                for p in 0..SIDE {
-                    out[q * SIDE + p] += small[q] * big[p];
+            for (b, s) in small.iter().enumerate() {
+                for (a, g) in big.iter().enumerate() {
+                    out[b * SIDE + a] += s * g;
                 }
             }
         }
@@ -319,15 +355,31 @@ fn cell_integral<const N: usize, const SIDE: usize>(
             h: grid.side(),
             centre: origin,
         };
+        // The scan's sums are the monomials' moments: turned into the
+        // pixels' weights once, at the end.
+        let (mut colour_moments, mut weight_moments) = ([[0.0; N]; 4], [0.0; N]);
         let cells = scan_bands(
             &region,
             &grid_of_cells,
             &kernel,
             SCAN_CELLS,
             &mut |x, z| grid.colour(x, z),
-            &mut add,
+            &mut |colour: [f64; 4], w: Weights<N>| {
+                for (sum, c) in colour_moments.iter_mut().zip(colour) {
+                    for (s, w) in sum.iter_mut().zip(w.0) {
+                        *s += c * w;
+                    }
+                }
+                for (s, w) in weight_moments.iter_mut().zip(w.0) {
+                    *s += w;
+                }
+            },
         )?;
         stats.traversal.nodes_visited += cells as u64;
+        for (sum, moments) in out.colour.iter_mut().zip(&colour_moments) {
+            sum[..N].copy_from_slice(&kernel.pixel_weights(moments));
+        }
+        out.weight[..N].copy_from_slice(&kernel.pixel_weights(&weight_moments));
     } else {
         // The whole cell at one colour: the cell's weights, its four
         // sides' terms.
@@ -439,6 +491,52 @@ mod tests {
             checked == [300, 300] && one_cell > 500 && scanned > 2000,
             "{checked:?}, {one_cell} in one texture cell, {scanned} across more"
         );
+    }
+
+    /// The kernel's polynomials in the cell's coordinates are the
+    /// filter's: `k_q(v)` is `k₁` at the pixel's offset, `F_p(u)` its
+    /// integral from the cell's side (a dense midpoint sum), and the
+    /// whole cell's weights are the products of the integrals across.
+    #[test]
+    fn the_cells_polynomials_are_the_filters() {
+        fn check<const N: usize, const SIDE: usize>(filter: PixelFilter) {
+            let kernel = CellKernel::<N, SIDE>::new();
+            let r = filter.radius();
+            for p in 0..SIDE {
+                let offset = r - 1.0 - p as f64;
+                for step in 0..=20 {
+                    let u = f64::from(step) / 20.0;
+                    let small: f64 = (0..SIDE)
+                        .map(|b| kernel.small[p][b] * u.powi(b as i32))
+                        .sum();
+                    let k = filter.k1(u + offset);
+                    assert!(
+                        (small - k).abs() < 1e-12,
+                        "{filter:?} k_{p}({u}): {small} against {k}"
+                    );
+                    let big: f64 = (0..SIDE)
+                        .map(|a| kernel.big[p][a] * u.powi(a as i32 + 1))
+                        .sum();
+                    let n = 2000;
+                    let dense: f64 = (0..n)
+                        .map(|i| filter.k1((f64::from(i) + 0.5) / f64::from(n) * u + offset))
+                        .sum::<f64>()
+                        * u
+                        / f64::from(n);
+                    assert!(
+                        (big - dense).abs() < 1e-6,
+                        "{filter:?} F_{p}({u}): {big} against {dense}"
+                    );
+                }
+            }
+            let whole = kernel.whole();
+            assert!(
+                (whole.0.iter().sum::<f64>() - 1.0).abs() < 1e-12,
+                "{filter:?}: {whole:?}"
+            );
+        }
+        check::<4, 2>(PixelFilter::Tent);
+        check::<16, 4>(PixelFilter::Mitchell);
     }
 
     /// No cell under the box, under a fixed level, or nearer the horizon
