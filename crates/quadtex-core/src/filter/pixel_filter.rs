@@ -72,6 +72,27 @@ impl PixelFilter {
         c[0] + x * (c[1] + x * (c[2] + x * c[3]))
     }
 
+    /// `K₁(x) = ∫ k₁` from the support's left side to `x` (pixels from
+    /// the centre): 0 left of the support, 1 right of it. The filter's
+    /// integral over an axis-aligned rectangle is the product of two
+    /// differences of it.
+    #[inline]
+    pub fn cumulative(self, x: f64) -> f64 {
+        let r = self.radius();
+        if x <= -r {
+            return 0.0;
+        }
+        if x >= r {
+            return 1.0;
+        }
+        if self == PixelFilter::Box {
+            return x + 0.5;
+        }
+        let i = x.floor();
+        let a = integrated(self.cubic(i as i32));
+        self.running_integrals()[(i + r) as usize] + at(&a, x) - at(&a, i)
+    }
+
     /// The largest `|k(s − centre)|` over the screen box `(lo, hi)`: the
     /// largest `|k₁|` over each axis's interval, multiplied (0 where the
     /// box misses the support). `|k₁|` is monotone between `0`, the
@@ -200,17 +221,7 @@ impl PixelFilter {
         let points: &[(f64, f64)] = if !MITCHELL { &GAUSS2 } else { &GAUSS4 };
         // K₁(x)·k₁(y) on the cells holding (x, y) (relative to the centre).
         // K₁ at `x`, 0 left of the support and 1 right of it.
-        let running_at = |x: f64| -> f64 {
-            if x <= -r {
-                return 0.0;
-            }
-            if x >= r {
-                return 1.0;
-            }
-            let i = x.floor();
-            let a = integrated(this.cubic(i as i32));
-            running[(i + r) as usize] + at(&a, x) - at(&a, i)
-        };
+        let running_at = |x: f64| this.cumulative(x);
         let part_integral = |a: [f64; 2], d: [f64; 2], t0: f64, span: f64| {
             this.part_integral(&running, points, (a, d), t0, span)
         };
@@ -449,6 +460,38 @@ mod tests {
                 assert!(
                     bound <= seen + 0.15 * filter.k_max() * (w + h),
                     "{filter:?}: {bound} vs {seen}"
+                );
+            }
+        }
+    }
+
+    /// The filter's integral over a rectangle is the product of the
+    /// differences of `K₁` across it, for rectangles in, across and
+    /// outside the support (the box's inside it).
+    #[test]
+    fn rectangles_weigh_the_product_of_cumulatives() {
+        let mut next = crate::test_rng::uniform(59);
+        for filter in [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell] {
+            // The box's `integral` is the area (its callers clip to the
+            // support first): its rectangles inside the support.
+            let (reach, size) = if filter == PixelFilter::Box {
+                (0.5, 0.5)
+            } else {
+                (3.0, 3.0)
+            };
+            for _ in 0..2000 {
+                let (x0, y0) = (next() * 2.0 * reach - reach, next() * 2.0 * reach - reach);
+                let (x1, y1) = (
+                    (x0 + next() * size).min(reach),
+                    (y0 + next() * size).min(reach),
+                );
+                let rect = ConvexPolygon::new(&[[x0, y0], [x1, y0], [x1, y1], [x0, y1]]).unwrap();
+                let by_green = filter.integral(&rect, [0.0; 2]);
+                let product = (filter.cumulative(x1) - filter.cumulative(x0))
+                    * (filter.cumulative(y1) - filter.cumulative(y0));
+                assert!(
+                    (by_green - product).abs() < 1e-12,
+                    "{filter:?} [{x0}, {x1}] × [{y0}, {y1}]: {by_green} against {product}"
                 );
             }
         }

@@ -354,17 +354,44 @@ pub(super) fn sky_integral(
     // A whole box-filtered pixel is its bounding box: each cell is a
     // rectangle whose weight is its area, no clipping needed.
     let rectangle = whole && filter == PixelFilter::Box;
+    // A cell whose corners lie inside the (convex) region is whole, and
+    // the filter's integral over a rectangle is the product of its
+    // running integral's differences: only the cells the region's edges
+    // cross are clipped.
+    let vertices = region.vertices();
+    let orientation = region.signed_area().signum();
+    let inside = |p: [f64; 2]| {
+        (0..vertices.len()).all(|i| {
+            let (a, b) = (vertices[i], vertices[(i + 1) % vertices.len()]);
+            orientation * ((b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])) >= 0.0
+        })
+    };
+    // (The box's weight is the area, as its `integral` takes it: the
+    // region is inside its support.)
+    let across = |a: f64, b: f64, c: f64| match filter {
+        PixelFilter::Box => b - a,
+        _ => filter.cumulative(b - c) - filter.cumulative(a - c),
+    };
     for pair in rows.windows(2) {
         let (y0, y1) = (pair[0], pair[1]);
+        let down = across(y0, y1, centre[1]);
         let mut x0 = (lo[0] * SKY_CELLS).floor() * step;
         while x0 < hi[0] {
+            let x1 = x0 + step;
             // The cell's sample point and weight.
             let sample = if rectangle {
-                let (a, b) = (x0.max(lo[0]), (x0 + step).min(hi[0]));
+                let (a, b) = (x0.max(lo[0]), x1.min(hi[0]));
                 let w = (b - a) * (y1 - y0);
                 (w > 0.0).then_some(([0.5 * (a + b), 0.5 * (y0 + y1)], w))
+            } else if y1 > y0
+                && [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
+                    .into_iter()
+                    .all(inside)
+            {
+                let w = across(x0, x1, centre[0]) * down;
+                Some(([0.5 * (x0 + x1), 0.5 * (y0 + y1)], w))
             } else {
-                let cell = region.clip_rect(x0, y0, x0 + step, y1);
+                let cell = region.clip_rect(x0, y0, x1, y1);
                 (cell.area() > 0.0).then(|| (cell.centroid(), filter.integral(&cell, centre)))
             };
             if let Some((s, w)) = sample {
@@ -373,7 +400,7 @@ pub(super) fn sky_integral(
                 }
                 weight += w;
             }
-            x0 += step;
+            x0 = x1;
         }
     }
     (acc, weight)
