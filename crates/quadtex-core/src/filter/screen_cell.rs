@@ -72,25 +72,30 @@ impl<const N: usize> Default for Weights<N> {
     }
 }
 
+impl<const N: usize> Weights<N> {
+    /// `f` of the two weights of each pixel.
+    #[inline(always)]
+    fn zip_with(mut self, other: Self, f: impl Fn(f64, f64) -> f64) -> Self {
+        for (a, b) in self.0.iter_mut().zip(other.0) {
+            *a = f(*a, b);
+        }
+        self
+    }
+}
+
 impl<const N: usize> Add for Weights<N> {
     type Output = Self;
     #[inline(always)]
-    fn add(mut self, other: Self) -> Self {
-        for (a, b) in self.0.iter_mut().zip(other.0) {
-            *a += b;
-        }
-        self
+    fn add(self, other: Self) -> Self {
+        self.zip_with(other, |a, b| a + b)
     }
 }
 
 impl<const N: usize> Sub for Weights<N> {
     type Output = Self;
     #[inline(always)]
-    fn sub(mut self, other: Self) -> Self {
-        for (a, b) in self.0.iter_mut().zip(other.0) {
-            *a -= b;
-        }
-        self
+    fn sub(self, other: Self) -> Self {
+        self.zip_with(other, |a, b| a - b)
     }
 }
 
@@ -240,52 +245,43 @@ impl<const N: usize, const SIDE: usize> EdgeTerms for CellKernel<N, SIDE> {
     }
 }
 
+/// What one screen cell's integral is asked: the texture (its tree and
+/// wrap), the map from the screen, the pixel filter and the options.
+pub(crate) struct CellQuery<'a> {
+    pub(crate) tree: &'a QuadTree,
+    pub(crate) wrap: Wrap,
+    pub(crate) projection: &'a Projection,
+    pub(crate) filter: PixelFilter,
+    pub(crate) options: &'a FilterOptions,
+}
+
 /// [`crate::Texture::integrate_screen_cell`].
 pub(crate) fn integrate_screen_cell(
-    tree: &QuadTree,
-    wrap: Wrap,
-    projection: &Projection,
+    query: &CellQuery<'_>,
     cell: [i64; 2],
-    filter: PixelFilter,
-    options: &FilterOptions,
     stats: &mut FilterStats,
 ) -> Option<CellIntegral> {
-    match filter {
+    match query.filter {
         PixelFilter::Box => None,
-        PixelFilter::Tent => cell_integral(
-            tree,
-            wrap,
-            projection,
-            cell,
-            filter,
-            options,
-            stats,
-            CellKernel::<4, 2>::new(),
-        ),
-        PixelFilter::Mitchell => cell_integral(
-            tree,
-            wrap,
-            projection,
-            cell,
-            filter,
-            options,
-            stats,
-            CellKernel::<16, 4>::new(),
-        ),
+        PixelFilter::Tent => cell_integral(query, cell, &CellKernel::<4, 2>::new(), stats),
+        PixelFilter::Mitchell => cell_integral(query, cell, &CellKernel::<16, 4>::new(), stats),
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The cell's integral under `kernel` (the query's filter's).
 fn cell_integral<const N: usize, const SIDE: usize>(
-    tree: &QuadTree,
-    wrap: Wrap,
-    projection: &Projection,
+    query: &CellQuery<'_>,
     cell: [i64; 2],
-    filter: PixelFilter,
-    options: &FilterOptions,
+    kernel: &CellKernel<N, SIDE>,
     stats: &mut FilterStats,
-    kernel: CellKernel<N, SIDE>,
 ) -> Option<CellIntegral> {
+    let CellQuery {
+        tree,
+        wrap,
+        projection,
+        filter,
+        options,
+    } = *query;
     // The walk's adaptive bound and a fixed level are per region: the
     // cells take only what they integrate exactly.
     if matches!(options.level_of_detail(), LevelOfDetail::Fixed(_)) {
@@ -361,7 +357,7 @@ fn cell_integral<const N: usize, const SIDE: usize>(
         let cells = scan_bands(
             &region,
             &grid_of_cells,
-            &kernel,
+            kernel,
             SCAN_CELLS,
             &mut |x, z| grid.colour(x, z),
             &mut |colour: [f64; 4], w: Weights<N>| {

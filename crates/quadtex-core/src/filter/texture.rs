@@ -253,9 +253,14 @@ impl Texture {
         options: &FilterOptions,
         stats: &mut FilterStats,
     ) -> Option<CellIntegral> {
-        super::screen_cell::integrate_screen_cell(
-            &self.tree, self.wrap, projection, cell, filter, options, stats,
-        )
+        let query = super::screen_cell::CellQuery {
+            tree: &self.tree,
+            wrap: self.wrap,
+            projection,
+            filter,
+            options,
+        };
+        super::screen_cell::integrate_screen_cell(&query, cell, stats)
     }
 
     /// The colour of the texture over the whole of screen region `span`
