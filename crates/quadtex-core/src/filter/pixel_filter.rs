@@ -20,6 +20,46 @@ pub(super) const GAUSS2: [(f64, f64); 2] = [
     (0.788_675_134_594_812_9, 0.5),
 ];
 
+/// The tent's or Mitchell's pieces, cell by cell of its support (index
+/// `i + r` for the cell `[i, i + 1)`): `k₁`'s cubic, its antiderivative
+/// ([`integrated`]) and the constant that makes that `K₁` there, `K₁(x) =
+/// base + at(anti, x)`. Computed when compiled, by the same float steps
+/// as at run time.
+struct FilterCells {
+    piece: [Cubic; 4],
+    anti: [Cubic; 4],
+    base: [f64; 4],
+}
+
+impl FilterCells {
+    const fn of(filter: PixelFilter) -> FilterCells {
+        let r = match filter {
+            PixelFilter::Mitchell => 2,
+            _ => 1,
+        };
+        let running = filter.running_integrals();
+        let mut cells = FilterCells {
+            piece: [[0.0; 4]; 4],
+            anti: [[0.0; 4]; 4],
+            base: [0.0; 4],
+        };
+        let mut k = 0;
+        while k < 2 * r {
+            let i = k as i32 - r as i32;
+            let piece = filter.cubic(i);
+            let anti = integrated(piece);
+            cells.piece[k] = piece;
+            cells.anti[k] = anti;
+            cells.base[k] = running[k] - at(&anti, i as f64);
+            k += 1;
+        }
+        cells
+    }
+}
+
+const TENT_CELLS: FilterCells = FilterCells::of(PixelFilter::Tent);
+const MITCHELL_CELLS: FilterCells = FilterCells::of(PixelFilter::Mitchell);
+
 /// A pixel reconstruction filter, separable, `k(dx, dy) = k₁(dx)·k₁(dy)`
 /// with `(dx, dy)` in pixels from the pixel's centre; each integrates to 1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -146,7 +186,7 @@ impl PixelFilter {
     }
 
     /// `k₁` on the unit cell `[i, i+1)` as a cubic in `x`.
-    pub(super) fn cubic(self, i: i32) -> Cubic {
+    pub(super) const fn cubic(self, i: i32) -> Cubic {
         const S: f64 = 1.0 / 6.0;
         match (self, i) {
             (PixelFilter::Box, _) => [1.0, 0.0, 0.0, 0.0],
@@ -215,7 +255,6 @@ impl PixelFilter {
         };
         let r = this.radius();
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let running = this.running_integrals();
         // Gauss–Legendre points enough for `K₁·k₁` along a line: the
         // tent's is a cubic (2 points), Mitchell's of degree 7 (4 points).
         let points: &[(f64, f64)] = if !MITCHELL { &GAUSS2 } else { &GAUSS4 };
@@ -223,7 +262,7 @@ impl PixelFilter {
         // K₁ at `x`, 0 left of the support and 1 right of it.
         let running_at = |x: f64| this.cumulative(x);
         let part_integral = |a: [f64; 2], d: [f64; 2], t0: f64, span: f64| {
-            this.part_integral(&running, points, (a, d), t0, span)
+            this.part_integral(points, (a, d), t0, span)
         };
         let mut total = 0.0;
         // Horizontal edges add nothing; so do edges wholly above or
@@ -278,12 +317,10 @@ impl PixelFilter {
     /// `∫ K₁(x)·k₁(y) dt` over one part of an edge, `x` and `y` affine in
     /// `t` (`a + t·d`, relative to the centre), the part inside one cell
     /// (its cubics fetched once, from the part's middle), by the
-    /// Gauss–Legendre `points`; `running` is
-    /// [`PixelFilter::running_integrals`].
+    /// Gauss–Legendre `points`, the cell's pieces from [`FilterCells`].
     #[inline(always)]
     fn part_integral(
         self,
-        running: &[f64; 4],
         points: &[(f64, f64)],
         (a, d): ([f64; 2], [f64; 2]),
         t0: f64,
@@ -295,17 +332,21 @@ impl PixelFilter {
         if ym <= -r || ym >= r {
             return 0.0;
         }
+        let cells = if self == PixelFilter::Mitchell {
+            &MITCHELL_CELLS
+        } else {
+            &TENT_CELLS
+        };
         // K₁(x) = base + (anti(x) when inside the support).
         let (inside, base, cx) = if xm <= -r {
             (false, 0.0, [0.0; 4])
         } else if xm >= r {
             (false, 1.0, [0.0; 4])
         } else {
-            let i = xm.floor();
-            let cx = integrated(self.cubic(i as i32));
-            (true, running[(i + r) as usize] - at(&cx, i), cx)
+            let k = (xm.floor() + r) as usize;
+            (true, cells.base[k], cells.anti[k])
         };
-        let cy = self.cubic(ym.floor() as i32);
+        let cy = cells.piece[(ym.floor() + r) as usize];
         let mut sum = 0.0;
         for &(g, w) in points {
             let t = t0 + g * span;
@@ -320,7 +361,7 @@ impl PixelFilter {
     /// support's left edge (`[k]` at `x = k − r`): the tent's halves;
     /// Mitchell's outer cells each integrate to `−1/72`, so its inner ones
     /// to `1/2 + 1/72` (checked against the cubics in the tests).
-    fn running_integrals(self) -> [f64; 4] {
+    const fn running_integrals(self) -> [f64; 4] {
         match self {
             PixelFilter::Mitchell => [0.0, -1.0 / 72.0, 0.5, 1.0 + 1.0 / 72.0],
             _ => [0.0, 0.5, 1.0, 1.0],
@@ -362,13 +403,13 @@ impl PixelFilter {
 /// The coefficients of cubic `c`'s antiderivative vanishing at 0, as
 /// [`at`] reads them: `x·(a₀ + a₁x + a₂x² + a₃x³)`.
 #[inline]
-pub(super) fn integrated(c: Cubic) -> Cubic {
+pub(super) const fn integrated(c: Cubic) -> Cubic {
     [c[0], c[1] / 2.0, c[2] / 3.0, c[3] / 4.0]
 }
 
 /// `x·(a₀ + a₁x + a₂x² + a₃x³)`: an [`integrated`] cubic at `x`.
 #[inline]
-pub(super) fn at(a: &Cubic, x: f64) -> f64 {
+pub(super) const fn at(a: &Cubic, x: f64) -> f64 {
     x * (a[0] + x * (a[1] + x * (a[2] + x * a[3])))
 }
 
