@@ -301,12 +301,11 @@ pub(super) fn scan_bands<E: EdgeTerms>(
             continue;
         }
         let n = texture.len();
-        let (x_min, x_max) = texture
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
-                (a.min(t[0]), b.max(t[0]))
-            });
-        let (m0, m1) = ((x_min / h).floor() as i64, (x_max / h).ceil() as i64);
+        let extent = Extent::of(texture);
+        let (m0, m1) = (
+            (extent.x_min / h).floor() as i64,
+            (extent.x_max / h).ceil() as i64,
+        );
         cells += (m1 - m0) as f64;
         if cells > max_cells {
             return None;
@@ -323,7 +322,7 @@ pub(super) fn scan_bands<E: EdgeTerms>(
         previous_top = band.top_edge.map(|i| terms[i]);
         let total = terms.iter().fold(E::Weight::default(), |a, &t| a + t);
         let orientation = shoelace(screen).signum();
-        let mut sweep = WeightLeftOf::new(texture, screen, &terms, total, edges);
+        let mut sweep = WeightLeftOf::new((texture, screen), extent, &terms, total, edges);
         let mut left = E::Weight::default();
         for col in m0..m1 {
             let upto = if col + 1 == m1 {
@@ -585,6 +584,32 @@ impl<'a> Bands<'a> {
     }
 }
 
+/// A texture-space polygon's leftmost vertex (the first of least `x`)
+/// and its least and greatest `x`: where the sweeps' chains start and end.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Extent {
+    first: usize,
+    x_min: f64,
+    x_max: f64,
+}
+
+impl Extent {
+    pub(super) fn of(texture: &[[f64; 2]]) -> Extent {
+        let (mut first, mut x_min, mut x_max) = (0, f64::INFINITY, f64::NEG_INFINITY);
+        for (i, t) in texture.iter().enumerate() {
+            if t[0] < x_min {
+                (first, x_min) = (i, t[0]);
+            }
+            x_max = x_max.max(t[0]);
+        }
+        Extent {
+            first,
+            x_min,
+            x_max,
+        }
+    }
+}
+
 /// The neighbour of vertex `i` of an `n`-gon along chain `chain`: the
 /// next (chain 0) or the previous (chain 1) in the polygon's order. By a
 /// compare, not `% n`: `n` is not known when compiled, so `%` is an
@@ -632,13 +657,11 @@ pub(super) struct LeftOf<'a> {
 
 impl<'a> LeftOf<'a> {
     pub(super) fn new(texture: &'a [[f64; 2]], screen: &'a [[f64; 2]], total: f64) -> LeftOf<'a> {
-        let (mut first, mut x_min, mut x_max) = (0, f64::INFINITY, f64::NEG_INFINITY);
-        for (i, t) in texture.iter().enumerate() {
-            if t[0] < x_min {
-                (first, x_min) = (i, t[0]);
-            }
-            x_max = x_max.max(t[0]);
-        }
+        let Extent {
+            first,
+            x_min,
+            x_max,
+        } = Extent::of(texture);
         LeftOf {
             texture,
             screen,
@@ -724,19 +747,16 @@ pub(super) struct WeightLeftOf<'a, E: EdgeTerms> {
 
 impl<'a, E: EdgeTerms> WeightLeftOf<'a, E> {
     pub(super) fn new(
-        texture: &'a [[f64; 2]],
-        screen: &'a [[f64; 2]],
+        (texture, screen): (&'a [[f64; 2]], &'a [[f64; 2]]),
+        Extent {
+            first,
+            x_min,
+            x_max,
+        }: Extent,
         terms: &'a [E::Weight],
         total: E::Weight,
         edges: &'a E,
     ) -> WeightLeftOf<'a, E> {
-        let (mut first, mut x_min, mut x_max) = (0, f64::INFINITY, f64::NEG_INFINITY);
-        for (i, t) in texture.iter().enumerate() {
-            if t[0] < x_min {
-                (first, x_min) = (i, t[0]);
-            }
-            x_max = x_max.max(t[0]);
-        }
         WeightLeftOf {
             texture,
             screen,

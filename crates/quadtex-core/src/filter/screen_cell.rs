@@ -11,6 +11,7 @@
 //! The convention (which cell, which pixel) is [`CellIntegral`]'s.
 
 use std::ops::{Add, Mul, Neg, Sub};
+use std::sync::OnceLock;
 
 use crate::filter::options::{FilterOptions, FilterStats, LevelOfDetail};
 use crate::filter::pixel_filter::{GAUSS2, PixelFilter, at, integrated};
@@ -255,6 +256,10 @@ pub(crate) struct CellQuery<'a> {
     pub(crate) options: &'a FilterOptions,
 }
 
+/// The tent's and Mitchell's cell kernels, expanded once (not per cell).
+static TENT: OnceLock<CellKernel<4, 2>> = OnceLock::new();
+static MITCHELL: OnceLock<CellKernel<16, 4>> = OnceLock::new();
+
 /// [`crate::Texture::integrate_screen_cell`].
 pub(crate) fn integrate_screen_cell(
     query: &CellQuery<'_>,
@@ -263,8 +268,10 @@ pub(crate) fn integrate_screen_cell(
 ) -> Option<CellIntegral> {
     match query.filter {
         PixelFilter::Box => None,
-        PixelFilter::Tent => cell_integral(query, cell, &CellKernel::<4, 2>::new(), stats),
-        PixelFilter::Mitchell => cell_integral(query, cell, &CellKernel::<16, 4>::new(), stats),
+        PixelFilter::Tent => cell_integral(query, cell, TENT.get_or_init(CellKernel::new), stats),
+        PixelFilter::Mitchell => {
+            cell_integral(query, cell, MITCHELL.get_or_init(CellKernel::new), stats)
+        }
     }
 }
 
