@@ -172,14 +172,22 @@ impl Texture {
             ),
             // Texture weighting, or corners no projective map of the square
             // reaches (a concave or degenerate quad): uniform over the hull.
-            None => self.integrate_region(
-                &Projection::identity(),
-                &ConvexPolygon::hull(&footprint.corners()),
-                PixelFilter::Box,
-                [0.0, 0.0],
-                options,
-                stats,
-            ),
+            None => {
+                let hull = ConvexPolygon::hull(&footprint.corners());
+                if is_segment(&hull) {
+                    stats.record_bound(0.0);
+                    let centre = self.nearest_counted(footprint.centre(), &mut stats.traversal);
+                    return (centre, 0.0);
+                }
+                self.integrate_region(
+                    &Projection::identity(),
+                    &hull,
+                    PixelFilter::Box,
+                    [0.0, 0.0],
+                    options,
+                    stats,
+                )
+            }
         };
         match result.mean() {
             Some(c) if result.weight > 0.0 => {
@@ -376,4 +384,15 @@ impl Texture {
         let (c, d) = (at(u0, v0 + 1.0), at(u0 + 1.0, v0 + 1.0));
         a.lerp(b, fu).lerp(c.lerp(d, fu), fv)
     }
+}
+
+/// Whether a footprint's hull is a segment (or a point) up to rounding:
+/// its area at most `10⁻¹²` of its bounding box's squared diagonal. Equal
+/// differentials leave such a hull a sliver whose area is rounding alone
+/// (its sign and size depend on how the shoelace is summed); its mean is
+/// then the point lookup at the centre, under either weighting.
+fn is_segment(hull: &ConvexPolygon) -> bool {
+    let (lo, hi) = hull.bounds();
+    let diagonal = (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2);
+    !(hull.area() > 1e-12 * diagonal)
 }

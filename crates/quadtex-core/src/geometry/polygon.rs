@@ -567,9 +567,14 @@ pub(crate) fn signed_area(v: &[[f64; 2]]) -> f64 {
     if n < 3 {
         return 0.0;
     }
+    // Relative to the first vertex: the products stay at the polygon's
+    // own scale, not its distance from the origin (a one-pixel square
+    // near x = 900 summed over absolute coordinates is off by about 1e-11).
+    let o = v[0];
     let mut a = 0.0;
-    let mut prev = v[n - 1];
-    for &p in v {
+    let mut prev = [v[1][0] - o[0], v[1][1] - o[1]];
+    for p in &v[2..] {
+        let p = [p[0] - o[0], p[1] - o[1]];
         a += prev[0] * p[1] - p[0] * prev[1];
         prev = p;
     }
