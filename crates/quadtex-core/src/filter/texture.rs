@@ -394,5 +394,6 @@ impl Texture {
 fn is_segment(hull: &ConvexPolygon) -> bool {
     let (lo, hi) = hull.bounds();
     let diagonal = (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2);
-    !(hull.area() > 1e-12 * diagonal)
+    let area = hull.area();
+    area.is_nan() || area <= 1e-12 * diagonal
 }
