@@ -408,6 +408,59 @@ fn tent_and_mitchell_match_weighted_sampling() {
     .budget_ms(4_000);
 }
 
+/// A tent's or Mitchell's whole support under the default level of
+/// detail keeps the pixel's colour within the bound asked for, relative
+/// to the support's weight (1), as the box's pixel does: the walk aims at
+/// `ε` times the region's weight, not at `ε` times its area at the
+/// filter's peak (4 and 12.6 for a whole support, which left pixels up to
+/// that many times the target); the reported bound holds against the
+/// full-depth integral.
+#[test]
+fn tent_and_mitchell_supports_keep_the_bound_asked_for() {
+    arbtest::arbtest(|u| {
+        let texture = Texture::new(blocky_tree(u)?, wrap(u)?);
+        let fp = footprint(u)?;
+        let Some(projection) = Projection::for_pixel(&fp, [10.0, 20.0]) else {
+            return Ok(());
+        };
+        let centre = [10.5, 20.5];
+        let epsilon = 1.0 / 512.0;
+        for filter in [PixelFilter::Tent, PixelFilter::Mitchell] {
+            let support = filter.support(centre);
+            if support
+                .vertices()
+                .iter()
+                .any(|&s| projection.w(s) <= 1e-6 * projection.w(centre))
+            {
+                continue; // the support reaches the horizon: not this test
+            }
+            let integral = |options: &FilterOptions, stats: &mut FilterStats| {
+                texture.integrate_region(&projection, &support, filter, centre, options, stats)
+            };
+            let mut stats = FilterStats::default();
+            let fast = integral(&FilterOptions::default(), &mut stats);
+            let relative = fast.error_bound / fast.weight.abs() / texture.tree().bound_scale();
+            // No budget by default: only the hard cap stops short.
+            assert!(
+                relative <= epsilon * (1.0 + 1e-9) || stats.over_target > 0,
+                "{filter:?}: bound {relative:e} above the target {epsilon:e}"
+            );
+            let exact = integral(
+                &FilterOptions::default().with_level(30),
+                &mut FilterStats::default(),
+            );
+            let (fast, exact) = (fast.mean().unwrap(), exact.mean().unwrap());
+            let tol = 2e-6 * texture.tree().bound_scale();
+            assert!(
+                max_diff(fast, exact) <= relative * texture.tree().bound_scale() + tol,
+                "{filter:?}: {fast:?} vs {exact:?}, bound {relative:e}"
+            );
+        }
+        Ok(())
+    })
+    .budget_ms(3_000);
+}
+
 /// The filters' one-dimensional kernels integrate to 1 and have the stated
 /// values: the tent peaks at 1, Mitchell at 8/9 and is negative near ±1.5.
 #[test]

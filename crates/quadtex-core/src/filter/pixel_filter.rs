@@ -175,6 +175,26 @@ impl PixelFilter {
         }
     }
 
+    /// What a region's error bound is relative to, so that a pixel's
+    /// regions together keep its colour within the bound asked for: the
+    /// box's is the region's area (its weight); a tent's or Mitchell's
+    /// region weighs `|∫k|` over it, less than its area times the peak
+    /// (a whole Mitchell support weighs 1 where 16 pixels at the peak
+    /// are 12.6), divided by `(∫|k|)²`'s excess over the support (1 for
+    /// the tent, `(1 + 1/18)²` for Mitchell's negative lobes) so that
+    /// the regions' shares add up to at most the support's weight.
+    /// `area` is the region's.
+    pub(super) fn weight_scale(self, region: &ConvexPolygon, area: f64, centre: [f64; 2]) -> f64 {
+        match self {
+            PixelFilter::Box => area,
+            PixelFilter::Tent => self.integral(region, centre).abs(),
+            PixelFilter::Mitchell => {
+                const LOBES: f64 = (1.0 + 1.0 / 18.0) * (1.0 + 1.0 / 18.0);
+                self.integral(region, centre).abs() / LOBES
+            }
+        }
+    }
+
     /// A bound on `|∇k|` (0 for the box, constant on its support).
     pub(super) fn lipschitz(self) -> f64 {
         match self {

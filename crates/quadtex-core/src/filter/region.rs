@@ -23,12 +23,17 @@
 //! square would be exact and slow. Two kinds of square are taken at their
 //! stored mean instead, each adding a bound on its error (colour channels
 //! in `[0,1]`, so a square's colour range `Δc ≤ 1`; `ρ = |det J(P⁻¹)|` is
-//! the screen area per texture area, `|k| ≤ k_max`, `|∇k| ≤ L_k`):
+//! the screen area per texture area, `|k| ≤ k_S` over the box of the
+//! square's screen image (`PixelFilter::largest_weight_in`), `|∇k| ≤ L_k`):
 //! * a square inside `Q`: the error is a covariance of colour and weight,
-//!   at most `½·Δc·a_S·(k_max·(ρ_max − ρ_min) + ρ_max·L_k·diam(S))`, with
+//!   at most `½·Δc·a_S·(k_S·(ρ_max − ρ_min) + ρ_max·L_k·diam(S))`, with
 //!   `ρ`'s extremes at the square's corners (`ρ ∝ w⁻³`, `w` affine);
 //! * a square on `Q`'s boundary, taken whole over its clipped part `P`: at
-//!   most `Δc · k_max · area(P⁻¹(P))`.
+//!   most `Δc · k_P · area(P⁻¹(P))`.
+//!
+//! The walk aims the sum at `ε` times the region's weight
+//! (`PixelFilter::weight_scale`: the box's area, a tent's or Mitchell's
+//! `|∫k|`), so that a pixel's regions keep its colour within `ε`.
 //!
 //! The bound `ε` of [`LevelOfDetail::ErrorBound`] is shared half and half:
 //! inner squares are taken whole when their bound is `≤ ε/2` of their own
@@ -57,7 +62,7 @@
 //!
 //! **Wrap.** Repeat and mirror tiles are grouped in blocks of tiles; a block
 //! inside `Q` has the tree's root mean, with the covariance bound above
-//! summed over its tiles (`Δc·(k_max·(ρ_max−ρ_min)·(n_x+n_z) + …)`: it shrinks
+//! summed over its tiles (`Δc·(k_S·(ρ_max−ρ_min)·(n_x+n_z) + …)`: it shrinks
 //! as the block grows, so far, many-tile regions cost `O(log)` blocks). Clamp
 //! stretches the outermost cells outwards, border shows the border colour.
 //!
@@ -260,7 +265,8 @@ fn take_horizon_sliver(
         out.colour += WeightedColour::from_colour(c, wgt);
         out.weight += wgt;
         // Unit-contrast bounds scale with an HDR tree's colour range.
-        out.error_bound += filter.k_max() * sliver.area() * tree.bound_scale();
+        out.error_bound +=
+            filter.largest_weight_in(sliver.bounds(), centre) * sliver.area() * tree.bound_scale();
     }
     kept
 }
@@ -402,6 +408,7 @@ fn integrate_in_front(
         perimeter: region.perimeter(),
         fixed,
         epsilon,
+        weight_scale: filter.weight_scale(region, area, centre),
         texel_scan: walk_scans,
     };
     finite_or_nothing(walk_region(query, plan, out, stats))

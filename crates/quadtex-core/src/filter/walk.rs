@@ -116,6 +116,9 @@ pub(super) struct WalkPlan {
     pub(super) fixed: Option<u8>,
     /// The error bound aimed at (0 under a fixed level).
     pub(super) epsilon: f64,
+    /// What `epsilon` is relative to: the region's share of its pixel's
+    /// weight (`PixelFilter::weight_scale`).
+    pub(super) weight_scale: f64,
     /// Whether [`Walk::scan_texels`] may take tiles texel by texel.
     pub(super) texel_scan: bool,
 }
@@ -136,6 +139,7 @@ pub(super) fn walk_region(
         perimeter,
         fixed,
         epsilon,
+        weight_scale,
         texel_scan,
     } = plan;
     let buffers = WalkBuffers::lend();
@@ -144,7 +148,7 @@ pub(super) fn walk_region(
         pending: buffers.pending,
         queue: buffers.queue,
         queued_bound: 0.0,
-        target: epsilon * filter.k_max() * area,
+        target: epsilon * weight_scale,
         area,
         budget: query.options.budget().unwrap_or(FIXED_LEVEL_CAP),
         tree,
@@ -156,7 +160,7 @@ pub(super) fn walk_region(
         edges: edges_of(&texture_region),
         region: texture_region,
         fixed,
-        boundary_coef: 0.5 * epsilon * area / perimeter.max(f64::MIN_POSITIVE),
+        boundary_coef: 0.5 * epsilon * weight_scale / perimeter.max(f64::MIN_POSITIVE),
         k_max: filter.k_max(),
         lipschitz: filter.lipschitz(),
         out,
@@ -404,8 +408,31 @@ impl Walk<'_> {
         }
         self.out.weight += w;
         if approximate {
-            self.out.error_bound += self.k_max * piece.area();
+            self.out.error_bound += self.k_over(piece.vertices()) * piece.area();
         }
+    }
+
+    /// The largest `|k|` over the screen points' box: where a square's
+    /// colour can be off, the filter weighs it by at most this (the box's
+    /// is 1 everywhere in its support; a tent's or Mitchell's falls
+    /// towards its edges, and a square there is bounded by what it weighs
+    /// there, not by the peak at the centre).
+    #[inline]
+    fn k_over(&self, points: &[[f64; 2]]) -> f64 {
+        if self.filter == PixelFilter::Box {
+            return self.k_max;
+        }
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        if !(lo[0].is_finite() && lo[1].is_finite() && hi[0].is_finite() && hi[1].is_finite()) {
+            return self.k_max;
+        }
+        self.filter.largest_weight_in((lo, hi), self.centre)
     }
 
     fn to_screen_poly(&self, p: &ConvexPolygon, m: &Mat3) -> ConvexPolygon {
@@ -573,14 +600,23 @@ impl Walk<'_> {
                 let (linear, curved) = self.block_bound(&corners, nx, nz);
                 let (rmin, rmax) = density_range_det(&m, self.screen_det, &corners);
                 let tile = tile_diameter(&corners.map(|t| apply(&m, t)), nx, nz, rmin, rmax);
-                let bound = (self.k_max * (linear + curved)
-                    + 0.5 * self.lipschitz * tile * quad.area())
-                .min(self.k_max * quad.area());
+                let k = self.k_over(quad.vertices());
+                let within_tiles = 0.5 * self.lipschitz * tile * quad.area();
+                let bound = (k * (linear + curved) + within_tiles).min(k * quad.area());
                 let c = self.contribution(root, &quad, bound);
                 // In the linear regime, splitting a block does not shrink its
                 // bound (module documentation); only descending into tiles
-                // does, worth it for a few tiles, not for many.
-                if self.fixed.is_none() && nx * nz > MAX_TILES_DESCENDED && curved <= linear {
+                // does, worth it for a few tiles, not for many. The filter's
+                // variation within each tile (a tent's or Mitchell's) shrinks
+                // only by descending too, and is the larger part where tiles
+                // are large on the screen: those blocks are refined.
+                if self.fixed.is_none()
+                    && nx * nz > MAX_TILES_DESCENDED
+                    && curved <= linear
+                    && within_tiles <= k * linear
+                    && (self.filter == PixelFilter::Box
+                        || bound <= self.target * quad.area() / self.area)
+                {
                     Outcome::Final(c)
                 } else {
                     Outcome::Refinable(c, Item::Block { i0, i1, j0, j1 })
@@ -610,7 +646,12 @@ impl Walk<'_> {
                     f64::INFINITY
                 };
                 let (linear, curved) = self.block_bound(&corners, nx, nz);
-                let bound = self.k_max * (band + linear + curved).min(piece.area());
+                let k = if in_front {
+                    self.k_over(piece.vertices())
+                } else {
+                    self.k_max
+                };
+                let bound = k * (band + linear + curved).min(piece.area());
                 Outcome::Refinable(
                     self.contribution(root, &piece, bound),
                     Item::Block { i0, i1, j0, j1 },
@@ -781,7 +822,7 @@ impl Walk<'_> {
                     0.5 * contrast
                         * side
                         * side
-                        * (self.k_max * (rmax - rmin) + rmax * self.lipschitz * diam)
+                        * (self.k_over(&mapped) * (rmax - rmin) + rmax * self.lipschitz * diam)
                 } else {
                     0.0
                 };
@@ -813,7 +854,7 @@ impl Walk<'_> {
                 .map(|t| apply(&m, t)),
             Class::Outside => return Outcome::Outside,
         };
-        let bound = contrast * self.k_max * piece.area();
+        let bound = contrast * self.k_over(piece.vertices()) * piece.area();
         let c = self.contribution(colour, &piece, bound);
         if refinable {
             Outcome::Refinable(c, here)
