@@ -140,21 +140,27 @@ impl PixelFilter {
     /// those points and the interval's ends are where it peaks.
     pub fn largest_weight_in(self, (lo, hi): ([f64; 2], [f64; 2]), centre: [f64; 2]) -> f64 {
         let r = self.radius();
+        // Mitchell's negative lobes peak at ±10/7.
+        const LOBE: f64 = 10.0 / 7.0;
         let largest = |a: f64, b: f64| {
             let (a, b) = (a.max(-r), b.min(r));
-            if a.is_nan() || b.is_nan() || a > b {
+            if !(a <= b) {
                 return 0.0;
             }
-            [a, b, 0.0, 10.0 / 7.0, -10.0 / 7.0]
-                .into_iter()
-                .filter(|&x| a <= x && x <= b)
-                .map(|x| {
-                    // At the support's edge the box's own k₁ is 0 but a
-                    // point just inside takes the limit.
-                    let inside = x.clamp(-r * (1.0 - 1e-12), r * (1.0 - 1e-12));
-                    self.k1(inside).abs()
-                })
-                .fold(0.0, f64::max)
+            if a <= 0.0 && 0.0 <= b {
+                return self.k1(0.0).abs();
+            }
+            // `k₁` is even: the interval's side, from its end nearer the
+            // centre to the farther. At the support's edge the box's own
+            // k₁ is 0 but a point just inside takes the limit.
+            let (near, far) = if b < 0.0 { (-b, -a) } else { (a, b) };
+            let at = |x: f64| self.k1(x.min(r * (1.0 - 1e-12))).abs();
+            let ends = at(near).max(at(far));
+            if self == PixelFilter::Mitchell && near <= LOBE && LOBE <= far {
+                ends.max(at(LOBE))
+            } else {
+                ends
+            }
         };
         largest(lo[0] - centre[0], hi[0] - centre[0])
             * largest(lo[1] - centre[1], hi[1] - centre[1])
