@@ -144,7 +144,7 @@ impl PixelFilter {
         const LOBE: f64 = 10.0 / 7.0;
         let largest = |a: f64, b: f64| {
             let (a, b) = (a.max(-r), b.min(r));
-            if !(a <= b) {
+            if a.is_nan() || b.is_nan() || a > b {
                 return 0.0;
             }
             if a <= 0.0 && 0.0 <= b {
