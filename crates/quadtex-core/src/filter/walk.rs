@@ -314,7 +314,9 @@ impl Walk<'_> {
         let unresolvable = self.fixed.is_none()
             && n_tiles > MAX_TILES_DESCENDED
             && self.region.perimeter() > BOUNDARY_TILES_PER_SQUARE * self.budget as f64
-            && before.error_bound + self.queued_bound >= self.k_max * self.area;
+            // The whole weight up to rounding: the pieces' areas and the
+            // region's are summed over different vertices.
+            && before.error_bound + self.queued_bound >= self.k_max * self.area * (1.0 - 1e-9);
         let cut_short = !unresolvable && self.refine();
         if unresolvable
             || n_tiles > MAX_TILES_DESCENDED
