@@ -444,7 +444,13 @@ impl Walk<'_> {
     /// Offers `item`: a part taken exactly is added now, one that could be
     /// refined waits in the queue with what taking it whole contributes.
     fn offer(&mut self, item: Item) {
-        match self.evaluate(item) {
+        let outcome = self.evaluate(item);
+        self.take_outcome(outcome);
+    }
+
+    /// Adds a final part, or queues a refinable one.
+    fn take_outcome(&mut self, outcome: Outcome) {
+        match outcome {
             Outcome::Outside => {}
             Outcome::Final(c) => self.add_contribution(&c),
             Outcome::Refinable(c, item) => {
@@ -529,14 +535,36 @@ impl Walk<'_> {
                     ix,
                     iz,
                 } => {
+                    let weights = self.children_weights(frame as usize, level, ix, iz);
                     for c in 0..4u32 {
-                        self.offer(Item::Node {
+                        let child = Item::Node {
                             frame,
                             node: self.tree.child_ref(node, c as usize),
                             level: level + 1,
                             ix: 2 * ix + (c & 1),
                             iz: 2 * iz + (c >> 1),
-                        });
+                        };
+                        let outcome = match (weights, child) {
+                            (
+                                Some(w),
+                                Item::Node {
+                                    node,
+                                    level,
+                                    ix,
+                                    iz,
+                                    ..
+                                },
+                            ) => self.evaluate_node_weighed(
+                                frame as usize,
+                                node,
+                                level,
+                                ix,
+                                iz,
+                                Some(w[c as usize]),
+                            ),
+                            _ => self.evaluate(child),
+                        };
+                        self.take_outcome(outcome);
                     }
                 }
             }
@@ -789,6 +817,68 @@ impl Walk<'_> {
     }
 
     fn evaluate_node(&mut self, frame: usize, p: NodeRef, level: u8, ix: u32, iz: u32) -> Outcome {
+        self.evaluate_node_weighed(frame, p, level, ix, iz, None)
+    }
+
+    /// The four children's weights of square `(ix, iz)` at `level` of tile
+    /// frame `frame`, when the square lies inside the region (so do they)
+    /// under a tent or Mitchell filter: Green's theorem over the 3 × 3
+    /// grid of their mapped corners, each of the 12 half-sides integrated
+    /// once and shared by the two children beside it (16 sides otherwise).
+    /// Children `c = hx + 2·hz`, as [`QuadTree::child_ref`] numbers them.
+    fn children_weights(&self, frame: usize, level: u8, ix: u32, iz: u32) -> Option<[f64; 4]> {
+        if self.filter == PixelFilter::Box || self.fixed.is_some_and(|k| level >= k) {
+            return None;
+        }
+        let f = &self.frames[frame];
+        let side = unit_side(level);
+        let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
+        if classify(&f.edges, x0, z0, x0 + side, z0 + side) != Class::Inside {
+            return None;
+        }
+        let half = 0.5 * side;
+        let c = self.centre;
+        // `grid[j][i]`: the corner at (x0 + i·half, z0 + j·half), relative
+        // to the filter's centre.
+        let grid: [[[f64; 2]; 3]; 3] = std::array::from_fn(|j| {
+            std::array::from_fn(|i| {
+                let s = apply(&f.to_screen, [x0 + i as f64 * half, z0 + j as f64 * half]);
+                [s[0] - c[0], s[1] - c[1]]
+            })
+        });
+        let edge = |a: [f64; 2], b: [f64; 2]| self.filter.edge_integral(a, b);
+        // Along x (`along[j][i]`: from corner i to i + 1 of row j) and
+        // along z (`up[j][i]`: from row j to j + 1 of column i).
+        let along: [[f64; 2]; 3] =
+            std::array::from_fn(|j| std::array::from_fn(|i| edge(grid[j][i], grid[j][i + 1])));
+        let up: [[f64; 3]; 2] =
+            std::array::from_fn(|j| std::array::from_fn(|i| edge(grid[j][i], grid[j + 1][i])));
+        // The corners' order (x0, z0), (x1, z0), (x1, z1), (x0, z1) turns
+        // the way the whole square's does on the screen: its sign makes
+        // each sum the counter-clockwise one `PixelFilter::integral` takes.
+        let corners = [grid[0][0], grid[0][2], grid[2][2], grid[2][0]];
+        let sign = crate::geometry::polygon::signed_area(&corners).signum();
+        if sign == 0.0 || sign.is_nan() {
+            return None;
+        }
+        let weights: [f64; 4] = std::array::from_fn(|c| {
+            let (i, j) = (c & 1, c >> 1);
+            sign * (along[j][i] + up[j][i + 1] - along[j + 1][i] - up[j][i])
+        });
+        weights.iter().all(|w| w.is_finite()).then_some(weights)
+    }
+
+    /// [`Walk::evaluate_node`], with the square's weight given where it is
+    /// inside the region and already known (`weight`).
+    fn evaluate_node_weighed(
+        &mut self,
+        frame: usize,
+        p: NodeRef,
+        level: u8,
+        ix: u32,
+        iz: u32,
+        weight: Option<f64>,
+    ) -> Outcome {
         let f = &self.frames[frame];
         let side = unit_side(level);
         let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
@@ -829,15 +919,21 @@ impl Walk<'_> {
                     0.0
                 };
                 // The box's weight is the quad's area: no polygon needed.
-                let c = if self.filter == PixelFilter::Box {
-                    let weight = crate::geometry::polygon::signed_area(&mapped).abs();
-                    Contribution {
+                let c = match weight {
+                    Some(weight) => Contribution {
                         colour: colour.map(|v| v * weight),
                         weight,
                         bound,
+                    },
+                    None if self.filter == PixelFilter::Box => {
+                        let weight = crate::geometry::polygon::signed_area(&mapped).abs();
+                        Contribution {
+                            colour: colour.map(|v| v * weight),
+                            weight,
+                            bound,
+                        }
                     }
-                } else {
-                    self.contribution(colour, &ConvexPolygon::from_trusted(&mapped), bound)
+                    None => self.contribution(colour, &ConvexPolygon::from_trusted(&mapped), bound),
                 };
                 return if refinable && bound > 0.0 {
                     Outcome::Refinable(c, here)
