@@ -313,6 +313,19 @@ fn small_footprints_anywhere_over_rasters_are_exact() {
     .budget_ms(3_000);
 }
 
+/// `filter`'s support around `centre`, unless it reaches the horizon
+/// (a vertex's `w` under a millionth of the centre's).
+fn support_in_front(
+    filter: PixelFilter,
+    projection: &Projection,
+    centre: [f64; 2],
+) -> Option<ConvexPolygon> {
+    let support = filter.support(centre);
+    let in_front =
+        (support.vertices().iter()).all(|&s| projection.w(s) > 1e-6 * projection.w(centre));
+    in_front.then_some(support)
+}
+
 /// The tent and Mitchell integrals over a projected support match dense
 /// sampling of the support weighted by the filter; a fully visible support
 /// weighs exactly 1.
@@ -330,14 +343,9 @@ fn tent_and_mitchell_match_weighted_sampling() {
         };
         let centre = [10.5, 20.5];
         for filter in [PixelFilter::Tent, PixelFilter::Mitchell] {
-            let support = filter.support(centre);
-            if support
-                .vertices()
-                .iter()
-                .any(|&s| projection.w(s) <= 1e-6 * projection.w(centre))
-            {
+            let Some(support) = support_in_front(filter, &projection, centre) else {
                 continue; // the support reaches the horizon: not this test
-            }
+            };
             let options = FilterOptions::default().with_level(30);
             let r = texture.integrate_region(
                 &projection,
@@ -426,14 +434,9 @@ fn tent_and_mitchell_supports_keep_the_bound_asked_for() {
         let centre = [10.5, 20.5];
         let epsilon = 1.0 / 512.0;
         for filter in [PixelFilter::Tent, PixelFilter::Mitchell] {
-            let support = filter.support(centre);
-            if support
-                .vertices()
-                .iter()
-                .any(|&s| projection.w(s) <= 1e-6 * projection.w(centre))
-            {
+            let Some(support) = support_in_front(filter, &projection, centre) else {
                 continue; // the support reaches the horizon: not this test
-            }
+            };
             let integral = |options: &FilterOptions, stats: &mut FilterStats| {
                 texture.integrate_region(&projection, &support, filter, centre, options, stats)
             };
