@@ -537,33 +537,13 @@ impl Walk<'_> {
                 } => {
                     let weights = self.children_weights(frame as usize, level, ix, iz);
                     for c in 0..4u32 {
-                        let child = Item::Node {
-                            frame,
-                            node: self.tree.child_ref(node, c as usize),
-                            level: level + 1,
-                            ix: 2 * ix + (c & 1),
-                            iz: 2 * iz + (c >> 1),
-                        };
-                        let outcome = match (weights, child) {
-                            (
-                                Some(w),
-                                Item::Node {
-                                    node,
-                                    level,
-                                    ix,
-                                    iz,
-                                    ..
-                                },
-                            ) => self.evaluate_node_weighed(
-                                frame as usize,
-                                node,
-                                level,
-                                ix,
-                                iz,
-                                Some(w[c as usize]),
-                            ),
-                            _ => self.evaluate(child),
-                        };
+                        let outcome = self.evaluate_node_weighed(
+                            frame as usize,
+                            self.tree.child_ref(node, c as usize),
+                            level + 1,
+                            (2 * ix + (c & 1), 2 * iz + (c >> 1)),
+                            weights.map(|w| w[c as usize]),
+                        );
                         self.take_outcome(outcome);
                     }
                 }
@@ -817,7 +797,7 @@ impl Walk<'_> {
     }
 
     fn evaluate_node(&mut self, frame: usize, p: NodeRef, level: u8, ix: u32, iz: u32) -> Outcome {
-        self.evaluate_node_weighed(frame, p, level, ix, iz, None)
+        self.evaluate_node_weighed(frame, p, level, (ix, iz), None)
     }
 
     /// The four children's weights of square `(ix, iz)` at `level` of tile
@@ -875,8 +855,7 @@ impl Walk<'_> {
         frame: usize,
         p: NodeRef,
         level: u8,
-        ix: u32,
-        iz: u32,
+        (ix, iz): (u32, u32),
         weight: Option<f64>,
     ) -> Outcome {
         let f = &self.frames[frame];
