@@ -183,13 +183,13 @@ impl PixelFilter {
 
     /// What a region's error bound is relative to, so that a pixel's
     /// regions together keep its colour within the bound asked for: the
-    /// box's is the region's area (its weight); a tent's or Mitchell's
-    /// region weighs `|∫k|` over it, less than its area times the peak
-    /// (a whole Mitchell support weighs 1 where 16 pixels at the peak
-    /// are 12.6), divided by `(∫|k|)²`'s excess over the support (1 for
-    /// the tent, `(1 + 1/18)²` for Mitchell's negative lobes) so that
-    /// the regions' shares add up to at most the support's weight.
-    /// `area` is the region's.
+    /// box's is the region's area (its weight); a tent's or Mitchell's is
+    /// `|∫k|` over the region, far less than its area times the peak (a
+    /// whole Mitchell support weighs 1 where 16 pixels at the peak make
+    /// 12.6). Mitchell's is divided by its `∫|k|` over the support,
+    /// `(1 + 1/18)²` (each negative lobe adds `1/36` to `∫|k₁|`), so that
+    /// the regions' shares add up to at most the support's weight however
+    /// its lobes are split among them. `area` is the region's.
     pub(super) fn weight_scale(self, region: &ConvexPolygon, area: f64, centre: [f64; 2]) -> f64 {
         match self {
             PixelFilter::Box => area,
