@@ -7,9 +7,10 @@ use crate::filter::scan::{
     BAND_VERTICES, BandBuffer, Bands, LeftOf, band_left_of, band_to_screen, scan_grid, shoelace,
 };
 use crate::filter::tiles::tile_map;
-use crate::filter::walk::bbox_diagonal;
+use crate::filter::walk::box_diagonal;
 use crate::filter::wrap::WrapMode;
 use crate::geometry::polygon::ConvexPolygon;
+use crate::geometry::polygon::bounds_of;
 use crate::tree::unit_side;
 
 /// A convex polygon of `n` vertices on an ellipse, counter-clockwise
@@ -471,7 +472,7 @@ fn the_box_scan_gives_what_clipping_every_cell_gives() {
         let swept = scan_grid(&region, &m, h, PixelFilter::Box, centre, max_cells, colour)
             .unwrap_or_else(|| panic!("case {case}: no box scan of {texture:?}"));
         let screen = region.map(|t| apply(&m, t));
-        let d = bbox_diagonal(screen.vertices());
+        let d = box_diagonal(bounds_of(screen.vertices()));
         let scale = d * (d + 1.0);
         let tolerance = 1e-12 * scale * (1.0 + clipped.2);
         assert!(

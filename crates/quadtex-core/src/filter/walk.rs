@@ -12,7 +12,7 @@ use crate::filter::tiles::{
     tile_map,
 };
 use crate::filter::wrap::{Wrap, WrapMode};
-use crate::geometry::polygon::ConvexPolygon;
+use crate::geometry::polygon::{ConvexPolygon, bounds_of};
 use crate::tree::{NodeRef, QuadTree, unit_side};
 
 /// Whole-tile blocks of more tiles than this are taken at the tile mean
@@ -424,14 +424,14 @@ impl Walk<'_> {
         if self.filter == PixelFilter::Box {
             return self.k_max;
         }
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in points {
-            for a in 0..2 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
-        if !(lo[0].is_finite() && lo[1].is_finite() && hi[0].is_finite() && hi[1].is_finite()) {
+        self.k_in(bounds_of(points))
+    }
+
+    /// [`Walk::k_over`] a screen box (the filter's peak where the box is
+    /// not finite).
+    #[inline]
+    fn k_in(&self, (lo, hi): ([f64; 2], [f64; 2])) -> f64 {
+        if self.filter == PixelFilter::Box || !lo.iter().chain(&hi).all(|v| v.is_finite()) {
             return self.k_max;
         }
         self.filter.largest_weight_in((lo, hi), self.centre)
@@ -885,34 +885,36 @@ impl Walk<'_> {
                 let mapped = corners.map(|t| apply(&m, t));
                 let bound = if contrast > 0.0 {
                     let (rmin, rmax) = density_range_det(&m, f.det, &corners);
+                    // One box of the mapped corners for both the filter's
+                    // largest weight and the square's screen diameter.
+                    let screen_box = bounds_of(&mapped);
                     let diam = if self.lipschitz > 0.0 {
-                        bbox_diagonal(&mapped)
+                        box_diagonal(screen_box)
                     } else {
                         0.0
                     };
                     0.5 * contrast
                         * side
                         * side
-                        * (self.k_over(&mapped) * (rmax - rmin) + rmax * self.lipschitz * diam)
+                        * (self.k_in(screen_box) * (rmax - rmin) + rmax * self.lipschitz * diam)
                 } else {
                     0.0
                 };
-                // The box's weight is the quad's area: no polygon needed.
-                let c = match weight {
-                    Some(weight) => Contribution {
-                        colour: colour.map(|v| v * weight),
-                        weight,
-                        bound,
-                    },
+                // Given by the parent (shared half-sides), or the box's
+                // quad's area (no polygon needed), or the filter's integral.
+                let weight = match weight {
+                    Some(weight) => weight,
                     None if self.filter == PixelFilter::Box => {
-                        let weight = crate::geometry::polygon::signed_area(&mapped).abs();
-                        Contribution {
-                            colour: colour.map(|v| v * weight),
-                            weight,
-                            bound,
-                        }
+                        crate::geometry::polygon::signed_area(&mapped).abs()
                     }
-                    None => self.contribution(colour, &ConvexPolygon::from_trusted(&mapped), bound),
+                    None => self
+                        .filter
+                        .integral(&ConvexPolygon::from_trusted(&mapped), self.centre),
+                };
+                let c = Contribution {
+                    colour: colour.map(|v| v * weight),
+                    weight,
+                    bound,
                 };
                 return if refinable && bound > 0.0 {
                     Outcome::Refinable(c, here)
@@ -1230,16 +1232,10 @@ pub(super) fn length(dx: f64, dy: f64) -> f64 {
     }
 }
 
-/// The diagonal of the bounding box of `points`.
+/// The diagonal of the box `(lo, hi)` (of a square's mapped corners,
+/// [`bounds_of`]: its screen diameter, at most).
 #[inline]
-pub(super) fn bbox_diagonal(points: &[[f64; 2]]) -> f64 {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in points {
-        for a in 0..2 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
+pub(super) fn box_diagonal((lo, hi): ([f64; 2], [f64; 2])) -> f64 {
     let (dx, dy) = (hi[0] - lo[0], hi[1] - lo[1]);
     (dx * dx + dy * dy).sqrt()
 }

@@ -252,13 +252,7 @@ impl ConvexPolygon {
     /// coordinates skipped; empty: `([∞, ∞], [−∞, −∞])`).
     #[inline]
     pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in self.vertices() {
-            for a in 0..2 {
-                widen(&mut lo[a], &mut hi[a], p[a]);
-            }
-        }
-        (lo, hi)
+        bounds_of(self.vertices())
     }
 
     /// The part where `a·x + b·y + c ≥ 0`.
@@ -642,6 +636,18 @@ fn crossing(prev: [f64; 2], p: [f64; 2], s_prev: f64, s: f64) -> [f64; 2] {
 /// handle a NaN on either side, which costs x86 several instructions
 /// each, and boxes of polygons are taken millions of times a frame (a
 /// twentieth of the terrain's instructions went to them).
+/// The bounding box of `points`, as [`ConvexPolygon::bounds`] takes it.
+#[inline]
+pub(crate) fn bounds_of(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in points {
+        for a in 0..2 {
+            widen(&mut lo[a], &mut hi[a], p[a]);
+        }
+    }
+    (lo, hi)
+}
+
 #[inline]
 pub(crate) fn widen(lo: &mut f64, hi: &mut f64, v: f64) {
     if v < *lo {

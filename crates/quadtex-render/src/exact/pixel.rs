@@ -19,7 +19,7 @@ use super::cutting::{Cut, Order, Regions, overlap, push_region};
 use super::lighting::{Shading, shade_region, shade_span_pixel, tint_and_light};
 use super::screen_cells::ScreenCells;
 use super::sky::{
-    SkySpan, Whole, sky_at_centre_under, sky_clear_above, sky_integral, sky_range, sky_step,
+    SkySpan, Whole, sky_at_centre, sky_clear_above, sky_integral, sky_range, sky_step,
     sky_tolerance, views_miss,
 };
 use super::sphere::SphereView;
@@ -692,7 +692,7 @@ impl<'a> Scratch<'a> {
     /// The colour of pixel `(x, y)` under `filter` whose centres in reach
     /// all see the sky, when the rectangle of its sky span ([`SkySpan`])
     /// is clear of every plane, quad and mesh triangle and the sky's value
-    /// at its centre is within the tolerance ([`sky_at_centre_under`]):
+    /// at its centre is within the tolerance ([`sky_at_centre`]):
     /// what the sky-only branch of [`exact_pixel`] gives it (the filter
     /// integrates to 1 over the support, so the mean is that value, up to
     /// the rounding of the support's integral), without building the
@@ -729,13 +729,13 @@ impl<'a> Scratch<'a> {
             .sky_clear_above
             .get_or_insert_with(|| sky_clear_above(scene, tolerance, filter));
         let ray = scene.camera.ray(centre[0], centre[1]);
-        // The support's lowest ray, as `sky_at_centre_under` takes it.
+        // The support's lowest ray, as `sky_at_centre` takes it.
         let reach = std::f64::consts::SQRT_2 * filter.radius() * sky_step(scene);
         if ray.direction.y - reach >= clear_above {
-            // What `sky_at_centre_under` gives, its bound not computed.
+            // What `sky_at_centre` gives, its bound not computed.
             return Some(mean(sky(scene, &ray).to_array().map(f64::from), 1.0));
         }
-        let (c, bound) = sky_at_centre_under(scene, centre, filter)?;
+        let (c, bound) = sky_at_centre(scene, centre, filter)?;
         (bound <= tolerance).then(|| mean(c, 1.0))
     }
 

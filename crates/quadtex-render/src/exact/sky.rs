@@ -117,34 +117,25 @@ pub(super) fn sky_tolerance(options: &FilterOptions) -> f64 {
     }
 }
 
-/// The gradient sky at the centre of the unit pixel centred at `centre`,
-/// and a bound (per channel) on how far that is from the sky's mean over
-/// the pixel; `None` for a solid sky or where the pixel may reach the level
-/// line (where the gradient's square root has an unbounded derivative).
+/// The gradient sky at the centre of the pixel centred at `centre`, and
+/// a bound (per channel) on how far that is from the sky's mean over the
+/// support of `filter` (its weight integrating to 1 there); `None` for a
+/// solid sky or where the support may reach the level line (where the
+/// gradient's square root has an unbounded derivative).
 ///
 /// The bound: with `g = 2·tan(fov/2)/height` the change of the unnormalised
 /// ray direction per pixel (the same along both axes), the unit direction's
 /// height `y` changes by at most `g` and bends by at most `3g²` per pixel
 /// (differentiating `D/|D|` twice with `|D| ≥ 1`), so `t = √y` has second
 /// derivatives at most `T = 3g²/(2√y) + g²/(4y^{3/2})` along any screen
-/// direction, `y` its least over the pixel (at least the centre's less
-/// `g/√2`). The midpoint rule over a unit square is then off by at most
-/// `T·∫|δ|²/2 = T/12` in `t`, times the sky's contrast in colour. Where the
-/// whole pixel looks below level the sky is the horizon colour: exact.
-/// (The box's case of [`sky_at_centre_under`], which the renderer calls;
-/// the tests call this.)
-#[cfg(test)]
-pub(super) fn sky_at_centre(scene: &Scene, centre: [f64; 2]) -> Option<([f64; 4], f64)> {
-    sky_at_centre_under(scene, centre, PixelFilter::Box)
-}
-
-/// [`sky_at_centre`] for the support of `filter` (its weight integrating
-/// to 1 over the support): the centre's value, and a bound on how far it
-/// is from the sky's `k`-weighted mean there. A symmetric `k` makes the
-/// rule exact for linear functions; the rest is at most
-/// `T·M₂/2` in `t` ([`second_moment`]), with `y` least over the support
-/// (the centre's less `√2·r·g`, `r` the filter's radius).
-pub(super) fn sky_at_centre_under(
+/// direction, `y` its least over the support (the centre's less `√2·r·g`,
+/// `r` the filter's radius). The midpoint rule over the box's unit square
+/// is then off by at most `T·∫|δ|²/2 = T/12` in `t`, times the sky's
+/// contrast in colour; a symmetric `k` makes the rule exact for linear
+/// functions, and the rest is at most `T·M₂/2` ([`second_moment`]).
+/// Where the whole support looks below level the sky is the horizon
+/// colour: exact.
+pub(super) fn sky_at_centre(
     scene: &Scene,
     centre: [f64; 2],
     filter: PixelFilter,
@@ -221,7 +212,7 @@ pub(super) fn sky_bound_under(g: f64, contrast: f64, y_min: f64, filter: PixelFi
     }
 }
 
-/// A height above which [`sky_at_centre_under`]'s bound for `filter` is
+/// A height above which [`sky_at_centre`]'s bound for `filter` is
 /// within `tolerance` (`∞` where none is, or the sky is solid): the
 /// bound falls as `y_min`
 /// grows, and this is where it is half the tolerance (bisected), so that
@@ -259,7 +250,7 @@ pub(super) enum Whole {
 
 /// `(Σ sky·k, Σ k)` over screen region `region`, where the sky shows. A
 /// whole support is taken at its centre where
-/// [`sky_at_centre_under`]'s bound is within `tolerance`.
+/// [`sky_at_centre`]'s bound is within `tolerance`.
 pub(super) fn sky_integral(
     scene: &Scene,
     region: &ConvexPolygon,
@@ -281,7 +272,7 @@ pub(super) fn sky_integral(
         Whole::Unknown => region.area() >= filter.support(centre).area() * (1.0 - 1e-12),
     };
     if whole
-        && let Some((c, bound)) = sky_at_centre_under(scene, centre, filter)
+        && let Some((c, bound)) = sky_at_centre(scene, centre, filter)
         && bound <= tolerance
     {
         let w = filter.integral(region, centre);

@@ -11,8 +11,8 @@ use super::GAP_AREA;
 use super::cutting::{Cut, Order, overlap_bound};
 use super::lighting::{apply_light, light_region, uniform_light};
 use super::sky::{
-    SkySpan, Whole, level_line, second_moment, sky_at_centre, sky_at_centre_under, sky_bound_under,
-    sky_clear_above, sky_contrast, sky_integral, sky_step, sky_tolerance, views_miss,
+    SkySpan, Whole, level_line, second_moment, sky_at_centre, sky_bound_under, sky_clear_above,
+    sky_contrast, sky_integral, sky_step, sky_tolerance, views_miss,
 };
 use super::views::{ViewMemo, ViewRef};
 
@@ -526,7 +526,7 @@ fn the_sky_at_the_level_line_matches_a_dense_sum() {
     }
 }
 
-/// Above [`sky_clear_above`], [`sky_at_centre_under`] always accepts its
+/// Above [`sky_clear_above`], [`sky_at_centre`] always accepts its
 /// value (bound within the tolerance), so the sky pixel's shortcut
 /// gives what it would: every pixel of two frames, the default and a
 /// tight tolerance, under each pixel filter (the support's lowest ray
@@ -552,7 +552,7 @@ fn the_sky_shortcut_takes_only_pixels_the_bound_accepts() {
                         }
                         if y_min >= clear {
                             shortcut += 1;
-                            let (c, bound) = sky_at_centre_under(&scene, centre, filter).unwrap();
+                            let (c, bound) = sky_at_centre(&scene, centre, filter).unwrap();
                             assert!(
                                 bound <= tolerance,
                                 "{filter:?}: {bound} > {tolerance} at {centre:?}"
@@ -652,13 +652,10 @@ fn the_sky_at_a_supports_centre_is_within_its_bound() {
         for y in 0..54 {
             for x in (0..96).step_by(13) {
                 let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
-                let Some((c, bound)) = sky_at_centre_under(&scene, centre, filter) else {
+                let Some((c, bound)) = sky_at_centre(&scene, centre, filter) else {
                     refused += 1;
                     continue;
                 };
-                if filter == PixelFilter::Box {
-                    assert_eq!(sky_at_centre(&scene, centre), Some((c, bound)));
-                }
                 let error = off_from_dense_sky(&scene, centre, filter, c, n);
                 assert!(
                     error <= bound * 1.001 + 1e-6,
