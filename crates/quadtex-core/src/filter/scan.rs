@@ -285,6 +285,9 @@ pub(super) fn scan_bands<E: EdgeTerms>(
     let screen = band_to_screen(texture, m, centre);
     let mut bands = Bands::new(texture, &screen);
     let mut band = BandBuffer::default();
+    // Reused band to band: a Mitchell cell's terms are 16 weights an
+    // edge, and a buffer built per band was copied out whole.
+    let mut terms: ArrayVec<E::Weight, BAND_VERTICES> = ArrayVec::new();
     let mut cells = 0.0;
     // The top edge's term of the band before.
     let mut previous_top: Option<E::Weight> = None;
@@ -313,12 +316,13 @@ pub(super) fn scan_bands<E: EdgeTerms>(
         // The bottom edge's term is the previous band's top edge's,
         // negated: the same two points, reversed.
         let shared = previous_top.filter(|_| band.bottom_edge);
-        let terms: ArrayVec<E::Weight, BAND_VERTICES> = (0..n)
-            .map(|i| match shared {
+        terms.clear();
+        for i in 0..n.min(BAND_VERTICES) {
+            terms.push(match shared {
                 Some(top) if i == n - 1 => -top,
                 _ => edges.edge(screen[i], screen[(i + 1) % n]),
-            })
-            .collect();
+            });
+        }
         previous_top = band.top_edge.map(|i| terms[i]);
         let total = terms.iter().fold(E::Weight::default(), |a, &t| a + t);
         let orientation = shoelace(screen).signum();

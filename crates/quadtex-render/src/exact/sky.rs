@@ -345,10 +345,20 @@ pub(super) fn sky_integral(
     // A whole box-filtered pixel is its bounding box: each cell is a
     // rectangle whose weight is its area, no clipping needed.
     let rectangle = whole && filter == PixelFilter::Box;
+    // The cells' sides across, as the sweep below steps them.
+    let mut columns = Vec::with_capacity(24);
+    let mut x = (lo[0] * SKY_CELLS).floor() * step;
+    while x < hi[0] {
+        columns.push(x);
+        x += step;
+    }
+    columns.push(x);
     // A cell whose corners lie inside the (convex) region is whole, and
     // the filter's integral over a rectangle is the product of its
     // running integral's differences: only the cells the region's edges
-    // cross are clipped.
+    // cross are clipped. Along one row line the corners inside are a run
+    // (the region is convex), found from each end; the line between two
+    // rows is shared by both.
     let vertices = region.vertices();
     let orientation = region.signed_area().signum();
     let inside = |p: [f64; 2]| {
@@ -357,29 +367,45 @@ pub(super) fn sky_integral(
             orientation * ((b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])) >= 0.0
         })
     };
+    let run_inside = |y: f64| -> Option<(usize, usize)> {
+        let first = columns.iter().position(|&x| inside([x, y]))?;
+        let last = columns.iter().rposition(|&x| inside([x, y]))?;
+        Some((first, last))
+    };
     // (The box's weight is the area, as its `integral` takes it: the
     // region is inside its support.)
     let across = |a: f64, b: f64, c: f64| match filter {
         PixelFilter::Box => b - a,
         _ => filter.cumulative(b - c) - filter.cumulative(a - c),
     };
+    let widths: Vec<f64> = columns
+        .windows(2)
+        .map(|pair| across(pair[0], pair[0] + step, centre[0]))
+        .collect();
+    let mut below = if rectangle {
+        None
+    } else {
+        rows.first().and_then(|&y| run_inside(y))
+    };
     for pair in rows.windows(2) {
         let (y0, y1) = (pair[0], pair[1]);
         let down = across(y0, y1, centre[1]);
-        let mut x0 = (lo[0] * SKY_CELLS).floor() * step;
-        while x0 < hi[0] {
+        let above = if rectangle { None } else { run_inside(y1) };
+        // Cells `j` with both corners on both lines inside.
+        let whole_cells = match (below, above) {
+            (Some((a0, b0)), Some((a1, b1))) if y1 > y0 => a0.max(a1)..b0.min(b1),
+            _ => 0..0,
+        };
+        below = above;
+        for (j, &x0) in columns[..columns.len() - 1].iter().enumerate() {
             let x1 = x0 + step;
             // The cell's sample point and weight.
             let sample = if rectangle {
                 let (a, b) = (x0.max(lo[0]), x1.min(hi[0]));
                 let w = (b - a) * (y1 - y0);
                 (w > 0.0).then_some(([0.5 * (a + b), 0.5 * (y0 + y1)], w))
-            } else if y1 > y0
-                && [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
-                    .into_iter()
-                    .all(inside)
-            {
-                let w = across(x0, x1, centre[0]) * down;
+            } else if whole_cells.contains(&j) {
+                let w = widths[j] * down;
                 Some(([0.5 * (x0 + x1), 0.5 * (y0 + y1)], w))
             } else {
                 let cell = region.clip_rect(x0, y0, x1, y1);
@@ -391,7 +417,6 @@ pub(super) fn sky_integral(
                 }
                 weight += w;
             }
-            x0 = x1;
         }
     }
     (acc, weight)
