@@ -96,6 +96,25 @@ impl Projection {
         Projection::new(mul(&to_texture, &square_from_screen)).ok()
     }
 
+    /// The matrix of [`Projection::between_quads`] up to a positive
+    /// factor, unchecked beyond the quads' own checks and the product's
+    /// being finite and invertible: for a caller that only evaluates the
+    /// map (a fit it checks against its own), without the scaling and
+    /// inverse a [`Projection`] keeps.
+    pub fn matrix_between_quads(
+        screen: &[[f64; 2]; 4],
+        texture: &[[f64; 2]; 4],
+    ) -> Option<[[f64; 3]; 3]> {
+        let to_screen = SquareToQuad::new(screen)?.matrix();
+        let to_texture = SquareToQuad::new(texture)?.matrix();
+        let (adj, det) = adjugate(&to_screen);
+        let sign = det.signum();
+        let square_from_screen = adj.map(|row| row.map(|v| sign * v));
+        let m = mul(&to_texture, &square_from_screen);
+        let det = adjugate(&m).1;
+        (det.is_finite() && det != 0.0).then_some(m)
+    }
+
     /// The matrix taking screen points to texture points.
     pub fn texture_from_screen(&self) -> [[f64; 3]; 3] {
         self.texture_from_screen
@@ -173,5 +192,35 @@ mod tests {
         assert!(Projection::between_quads(&folded, &texture).is_none());
         let flat = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]];
         assert!(Projection::between_quads(&screen, &flat).is_none());
+    }
+
+    /// The bare matrix is the projection's up to a positive factor: the
+    /// same texture point and the same sign of `w` everywhere, and the
+    /// same refusals.
+    #[test]
+    fn matrix_between_quads_is_the_projections_up_to_scale() {
+        let screen = [[10.0, 5.0], [12.5, 5.2], [12.0, 7.9], [9.8, 7.0]];
+        let texture = [[0.2, 0.1], [1.3, 0.0], [1.1, 0.9], [0.0, 1.2]];
+        let p = Projection::between_quads(&screen, &texture).unwrap();
+        let m = Projection::matrix_between_quads(&screen, &texture).unwrap();
+        let w = |s: [f64; 2]| m[2][0] * s[0] + m[2][1] * s[1] + m[2][2];
+        for s in [
+            [10.0, 5.0],
+            [11.0, 6.0],
+            [12.4, 7.5],
+            [30.0, -4.0],
+            [0.0, 0.0],
+        ] {
+            let (a, b) = (apply(&m, s), apply(&p.texture_from_screen(), s));
+            assert!(
+                (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9,
+                "{s:?}"
+            );
+            assert_eq!(w(s) > 0.0, p.w(s) > 0.0, "{s:?}");
+        }
+        let folded = [[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]];
+        assert!(Projection::matrix_between_quads(&folded, &texture).is_none());
+        let flat = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]];
+        assert!(Projection::matrix_between_quads(&screen, &flat).is_none());
     }
 }

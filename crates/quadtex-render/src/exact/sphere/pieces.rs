@@ -253,10 +253,10 @@ fn add(sums: &mut ([f64; 4], f64, f64), c: [f64; 4], w: f64, b: f64) {
 
 /// The projective map sending screen quadrilateral `from` to UV
 /// quadrilateral `to` corner by corner, as rows acting on `(x, y, 1)` with
-/// `w > 0` inside `from` ([`Projection::between_quads`]); `None` when
+/// `w > 0` inside `from` ([`Projection::matrix_between_quads`]); `None` when
 /// either is folded or degenerate.
 fn quad_to_quad(from: [[f64; 2]; 4], to: [[f64; 2]; 4]) -> Option<[[f64; 3]; 3]> {
-    Projection::between_quads(&from, &to).map(|p| p.texture_from_screen())
+    Projection::matrix_between_quads(&from, &to)
 }
 
 impl SphereView {
