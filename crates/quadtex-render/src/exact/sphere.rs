@@ -139,14 +139,6 @@ impl Chords {
     }
 }
 
-/// A point's place on the sphere: its UV (longitude, latitude), the point
-/// and its outward normal.
-struct OnSphere {
-    uv: [f64; 2],
-    point: Vec3,
-    normal: Vec3,
-}
-
 impl SphereView {
     /// The view of surface `surface` when it is a sphere wholly in front of
     /// the camera's plane (its outline is then an ellipse); `None`
@@ -280,20 +272,16 @@ impl SphereView {
             .unwrap_or(Vec3::new(0.0, 1.0, 0.0))
     }
 
-    /// Where the ray through `s` meets the sphere (beyond the outline:
-    /// the point of the sphere nearest the ray), and its UV there.
-    fn on_sphere(&self, s: [f64; 2]) -> OnSphere {
+    /// The sphere's UV (longitude, latitude) where the ray through `s`
+    /// meets it (beyond the outline: at the point nearest the ray).
+    fn sphere_uv(&self, s: [f64; 2]) -> [f64; 2] {
         let n = self.normal(s);
         let phi = n.z.atan2(n.x);
         let theta = n.y.clamp(-1.0, 1.0).acos();
-        OnSphere {
-            uv: [
-                (phi + std::f64::consts::PI) / std::f64::consts::TAU,
-                1.0 - theta / std::f64::consts::PI,
-            ],
-            point: self.centre + n * self.radius,
-            normal: n,
-        }
+        [
+            (phi + std::f64::consts::PI) / std::f64::consts::TAU,
+            1.0 - theta / std::f64::consts::PI,
+        ]
     }
 
     /// `s` in the coordinates that make the outline the unit circle.

@@ -97,7 +97,7 @@ impl Ring<'_> {
             view.e0[0] + r * (view.ea[0] * cs + view.eb[0] * sn),
             view.e0[1] + r * (view.ea[1] * cs + view.eb[1] * sn),
         ];
-        let found = (s, view.on_sphere(s).uv);
+        let found = (s, view.sphere_uv(s));
         self.corners[index] = Some(found);
         found
     }
@@ -123,12 +123,11 @@ impl Ring<'_> {
             worst = (worst.0.max(d), worst.1.max(e));
         };
         let centre = middle(middle(p, r), middle(q, t));
-        check(centre, view.on_sphere(centre).uv);
+        check(centre, view.sphere_uv(centre));
         let chords = self.chords.count;
         for (k, x, y) in [(a, p, q), (b, t, r)] {
             let s = middle(x, y);
-            let uv =
-                *self.chord_middles[k * chords + j].get_or_insert_with(|| view.on_sphere(s).uv);
+            let uv = *self.chord_middles[k * chords + j].get_or_insert_with(|| view.sphere_uv(s));
             check(s, uv);
         }
         for (e, x, y) in [(j, p, t), (j + 1, q, r)] {
@@ -137,7 +136,7 @@ impl Ring<'_> {
             let uv = match self.ray_middles.iter().find(|(k, _)| *k == key) {
                 Some(&(_, uv)) => uv,
                 None => {
-                    let uv = view.on_sphere(s).uv;
+                    let uv = view.sphere_uv(s);
                     self.ray_middles.push((key, uv));
                     uv
                 }
@@ -211,7 +210,7 @@ impl Square {
             ys.iter().position(|&y| y == s[1]),
         ) {
             (Some(i), Some(j)) => self.uv(view, i, j),
-            _ => view.on_sphere(s).uv,
+            _ => view.sphere_uv(s),
         }
     }
 
@@ -784,9 +783,9 @@ impl SphereView {
     /// corners' map folds.
     fn tangent_fit(&self, c: [f64; 2], h: f64) -> Option<[[f64; 3]; 3]> {
         let e = (h / 64.0).max(1e-9);
-        let at = self.on_sphere(c).uv;
+        let at = self.sphere_uv(c);
         let near = |s: [f64; 2]| {
-            let [u, v] = self.on_sphere(s).uv;
+            let [u, v] = self.sphere_uv(s);
             [u + (at[0] - u).round(), v]
         };
         let (xp, xm) = (near([c[0] + e, c[1]]), near([c[0] - e, c[1]]));
@@ -1075,21 +1074,18 @@ impl SphereView {
         }
         if let Lighting::Lambert { .. } = scene.lighting {
             let s = piece.centroid();
-            let at = self.on_sphere(s);
+            // The normal and point only: the UV's atan2 and acos are not
+            // needed for the light.
+            let normal = self.normal(s);
+            let point = self.centre + normal * self.radius;
             let ray = scene.camera.ray(s[0], s[1]);
-            let k = lambert(
-                &shading.frame.rays,
-                (self.surface, 0),
-                at.normal,
-                at.point,
-                &ray,
-            );
+            let k = lambert(&shading.frame.rays, (self.surface, 0), normal, point, &ray);
             apply_light(&mut c, k);
         }
         c
     }
 
-    /// The sphere's UV at `s` ([`SphereView::on_sphere`]), kept in the
+    /// The sphere's UV at `s` ([`SphereView::sphere_uv`]), kept in the
     /// thread's [`HALF_PIXEL_UV`] when `s` lies on the half-pixel grid
     /// (a pixel's corners, edges' midpoints and centre, shared with the
     /// pixels beside, above and below it): the same bits either way.
@@ -1097,7 +1093,7 @@ impl SphereView {
         let (x2, y2) = (2.0 * s[0], 2.0 * s[1]);
         let on_grid = x2 == x2.floor() && y2 == y2.floor() && x2 >= 0.0 && y2 >= 0.0;
         if !(on_grid && x2 < 65536.0 && y2 < 65536.0) {
-            return self.on_sphere(s).uv;
+            return self.sphere_uv(s);
         }
         let (column, row) = (x2 as usize, y2 as u32);
         let tag = (self.stamp, row);
@@ -1112,8 +1108,8 @@ impl SphereView {
                 if slot.1.len() <= column {
                     slot.1.resize(column + 1, None);
                 }
-                *slot.1[column].get_or_insert_with(|| self.on_sphere(s).uv)
+                *slot.1[column].get_or_insert_with(|| self.sphere_uv(s))
             })
-            .unwrap_or_else(|_| self.on_sphere(s).uv)
+            .unwrap_or_else(|_| self.sphere_uv(s))
     }
 }
