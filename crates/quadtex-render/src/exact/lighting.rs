@@ -11,14 +11,18 @@ use crate::stats::PixelStats;
 use crate::view::View;
 
 /// What shading a region of one pixel's support takes besides the region:
-/// the frame, the pixel filter centred at `centre`, and the texture
-/// filter's options.
+/// the frame, the pixel filter centred at `centre`, the texture filter's
+/// options, and the share of the pixel's bound the region's support
+/// stands for (`1` for the whole support; a cell's weight when the
+/// support is taken cell by cell), which a sphere scales the weight it
+/// may leave off its map by.
 #[derive(Clone, Copy)]
 pub(super) struct Shading<'p> {
     pub(super) frame: &'p Frame<'p>,
     pub(super) filter: PixelFilter,
     pub(super) centre: [f64; 2],
     pub(super) options: &'p FilterOptions,
+    pub(super) share: f64,
 }
 
 /// `(Σ colour·k, Σ k, bound)` of surface `view` over screen `region`, lit
@@ -37,6 +41,7 @@ pub(super) fn shade_region(
         filter,
         centre,
         options,
+        ..
     } = *shading;
     let (c, w, b) = match frame.texture(view.surface()) {
         Some(texture) => {

@@ -47,6 +47,7 @@ pub(crate) fn exact_pixel<'a>(
             filter,
             centre,
             options,
+            share: 1.0,
         },
         at: (x, y),
         support: filter.support(centre),
@@ -94,18 +95,25 @@ pub(crate) fn exact_pixel<'a>(
         return Some(mean(c, w));
     }
     pixel.list_candidates(candidates, scratch)?;
-    let found = pixel.spread_to_neighbours(scratch)?;
-    let Scratch {
-        views,
-        regions,
-        cut,
-        order,
-        ..
-    } = scratch;
-    cut.among(views, regions, support, order);
-    pixel.search_gaps(found, scratch)?;
-    pixel.shade_cut(scratch, stats)
+    let mut parts = PixelStats::default();
+    let sums = if pixel.outline_needs_cells(scratch) {
+        pixel.cell_by_cell(candidates, scratch, &mut parts)?
+    } else {
+        pixel.cut_and_shade(scratch, &mut parts)?
+    };
+    Some(pixel.finish(sums, parts, stats))
 }
+
+/// Share of the error bound a sphere's outline may leave out of a
+/// support, as its chords do ([`SphereView::sliver_bound`]), before the
+/// support is taken quarter by quarter, each clipped by its own chords:
+/// where a small sphere's outline crosses a tent's or Mitchell's support,
+/// the ten chords one polygon holds leave out more than the bound.
+const OUTLINE_SHARE: f64 = 0.5;
+
+/// The smallest cell side (pixels) a support is split to for a sphere's
+/// outline ([`OUTLINE_SHARE`]).
+const SMALLEST_CELL: f64 = 0.5;
 
 /// One exact pixel's question, what its steps share: the shading of its
 /// regions (frame, filters, centre), where it is, its filter's support,
@@ -494,16 +502,110 @@ impl<'a> ExactPixel<'_, 'a> {
         }
     }
 
-    /// The pixel's colour from its cut: each visible region shaded, the
+    /// Whether a sphere listed (`scratch.views`) leaves more of the
+    /// support out by its chords than [`OUTLINE_SHARE`] of the support's
+    /// share of the bound, where the support is more than a half pixel
+    /// wide.
+    fn outline_needs_cells(&self, scratch: &Scratch<'a>) -> bool {
+        let Some(tolerance) = self.shading.options.target_bound() else {
+            return false;
+        };
+        let (lo, hi) = self.support.bounds();
+        if hi[0] - lo[0] <= SMALLEST_CELL {
+            return false;
+        }
+        let Shading {
+            filter,
+            centre,
+            share,
+            ..
+        } = self.shading;
+        scratch.views.iter().any(|v| {
+            matches!(v, ViewRef::Sphere(sphere)
+                if sphere.sliver_bound(&self.support, filter, centre)
+                    > OUTLINE_SHARE * tolerance * share)
+        })
+    }
+
+    /// The sums of the general path taken over each quarter of the
+    /// support in turn, each cut and shaded as a support of its own with
+    /// the same filter centre (its share of the bound its weight), and
+    /// split again while [`ExactPixel::outline_needs_cells`] says so: the
+    /// sums add up to the support's, and a sphere's outline is clipped by
+    /// chords over each quarter's angles only.
+    fn cell_by_cell(
+        &self,
+        candidates: &[Seen],
+        scratch: &mut Scratch<'a>,
+        parts: &mut PixelStats,
+    ) -> Option<Sums> {
+        let (lo, hi) = self.support.bounds();
+        // Halves of ½, 1, 2 or 4: every quarter's corners exact.
+        let side = 0.5 * (hi[0] - lo[0]);
+        let Shading { filter, centre, .. } = self.shading;
+        let mut sums = Sums::default();
+        for (i, j) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            let (x0, y0) = (lo[0] + side * i, lo[1] + side * j);
+            let support = ConvexPolygon::rect(x0, y0, x0 + side, y0 + side);
+            let cell = ExactPixel {
+                shading: Shading {
+                    share: filter.integral(&support, centre).abs().min(1.0),
+                    ..self.shading
+                },
+                at: self.at,
+                support,
+                cache: self.cache,
+            };
+            cell.list_candidates(candidates, scratch)?;
+            let part = if cell.outline_needs_cells(scratch) {
+                cell.cell_by_cell(candidates, scratch, parts)?
+            } else {
+                cell.cut_and_shade(scratch, parts)?
+            };
+            sums.add(part.colour, part.weight, part.bound);
+        }
+        Some(sums)
+    }
+
+    /// The general path after the candidates are listed: their
+    /// neighbours spread to, the support cut among them, the gaps searched
+    /// and the cut shaded.
+    fn cut_and_shade(&self, scratch: &mut Scratch<'a>, parts: &mut PixelStats) -> Option<Sums> {
+        let found = self.spread_to_neighbours(scratch)?;
+        let Scratch {
+            views,
+            regions,
+            cut,
+            order,
+            ..
+        } = scratch;
+        cut.among(views, regions, &self.support, order);
+        self.search_gaps(found, scratch)?;
+        self.shade_cut(scratch, parts)
+    }
+
+    /// The pixel's colour from its sums, its statistics recorded.
+    fn finish(&self, sums: Sums, mut parts: PixelStats, stats: &mut PixelStats) -> Rgba {
+        parts.weight_error = weight_error(sums.weight);
+        stats.merge_parts(&parts);
+        stats.filter.record_bound_against(
+            sums.bound / sums.weight.abs().max(1e-300),
+            self.shading.options.target_bound(),
+        );
+        mean(sums.colour, sums.weight)
+    }
+
+    /// The sums of the support's cut: each visible region shaded, the
     /// slivers and the gaps as [`Gap`] says, and the weight the cut left
     /// unaccounted in the bound. `None` when a gap's primitive has no
     /// view.
-    fn shade_cut(&self, scratch: &mut Scratch<'a>, stats: &mut PixelStats) -> Option<Rgba> {
+    fn shade_cut(&self, scratch: &mut Scratch<'a>, parts: &mut PixelStats) -> Option<Sums> {
         let Shading {
             frame,
             filter,
             centre,
             options,
+            ..
         } = self.shading;
         let (scene, cache) = (frame.scene, self.cache);
         let Scratch {
@@ -515,12 +617,11 @@ impl<'a> ExactPixel<'_, 'a> {
             ..
         } = scratch;
         let mut sums = Sums::default();
-        let mut parts = PixelStats::default();
         // Weight no region has, or two have (|k| ≤ 1 for every pixel filter):
         // at most the larger of full contrast and the sky's range off.
         sums.add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
         for (i, region) in cut.visible(regions) {
-            let (c, w, b) = shade_view(&self.shading, &views[i], region, &mut parts);
+            let (c, w, b) = shade_view(&self.shading, &views[i], region, &self.support, parts);
             sums.add(c, w, b);
         }
         for r in &cut.slivers {
@@ -573,9 +674,9 @@ impl<'a> ExactPixel<'_, 'a> {
                             ViewRef::Sphere(sphere) => {
                                 let mut part = ConvexPolygon::empty();
                                 sphere.region_into(r, &mut part);
-                                sphere.shade(&self.shading, &part, &mut parts)
+                                sphere.shade(&self.shading, &part, parts)
                             }
-                            _ => shade_view(&self.shading, &view, r, &mut parts),
+                            _ => shade_view(&self.shading, &view, r, &self.support, parts),
                         };
                         let beyond = (filter.integral(r, centre) - w).abs();
                         sums.add(c, w, b + w.abs() + beyond);
@@ -586,34 +687,28 @@ impl<'a> ExactPixel<'_, 'a> {
                 }
             }
         }
-        parts.weight_error = weight_error(sums.weight);
-        stats.merge_parts(&parts);
-        stats.filter.record_bound_against(
-            sums.bound / sums.weight.abs().max(1e-300),
-            self.shading.options.target_bound(),
-        );
-        Some(mean(sums.colour, sums.weight))
+        Some(sums)
     }
 }
 
 /// `(Σ colour·k, Σ k, bound)` of the primitive of `view` over screen
-/// `region` (a part of its region of the support): a planar one's
+/// `region` (a part of its region of `support`, the pixel's or one of its cells): a planar one's
 /// ([`shade_region`]), or a sphere's ([`SphereView::shade`](super::sphere::SphereView::shade)) with the
 /// weight its outline's chords leave out of the support as full contrast.
 fn shade_view(
     shading: &Shading<'_>,
     view: &ViewRef<'_>,
     region: &ConvexPolygon,
+    support: &ConvexPolygon,
     stats: &mut PixelStats,
 ) -> ([f64; 4], f64, f64) {
     match view {
         ViewRef::Sphere(sphere) => {
             let (c, w, b) = sphere.shade(shading, region, stats);
-            let support = shading.filter.support(shading.centre);
             (
                 c,
                 w,
-                b + sphere.sliver_bound(&support, shading.filter, shading.centre),
+                b + sphere.sliver_bound(support, shading.filter, shading.centre),
             )
         }
         _ => match view.planar() {

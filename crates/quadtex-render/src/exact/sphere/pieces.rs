@@ -276,7 +276,7 @@ impl SphereView {
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         let support = shading.filter.support(shading.centre);
         let mut spare = Budget {
-            weight: 0.5 * tolerance,
+            weight: 0.5 * tolerance * shading.share,
             pieces: (shading.options.budget()).map_or(u64::MAX, |b| {
                 // Per pixel of the support: a tent's is 4, a Mitchell's 16.
                 let pixels = support.area().round().max(1.0) as u64;
@@ -971,6 +971,7 @@ impl SphereView {
             filter,
             centre,
             options,
+            ..
         } = *shading;
         let value = |row: &[f64; 3], s: [f64; 2]| row[0] * s[0] + row[1] * s[1] + row[2];
         let u_at = |s: [f64; 2]| value(&fit[0], s) / value(&fit[2], s);
