@@ -130,14 +130,24 @@ impl Ring<'_> {
             let uv = *self.chord_middles[k * chords + j].get_or_insert_with(|| view.sphere_uv(s));
             check(s, uv);
         }
+        // Sectors run in order, each visiting a trapezoid once: its right
+        // ray's midpoint is new (kept for the next sector, whose left ray
+        // it is), its left ray's the previous sector's right one, if that
+        // sector went down to the same rings (the latest kept, searched
+        // from the end).
         for (e, x, y) in [(j, p, t), (j + 1, q, r)] {
             let s = middle(x, y);
             let key = (a, b, e);
-            let uv = match self.ray_middles.iter().find(|(k, _)| *k == key) {
+            let kept = (e == j)
+                .then(|| self.ray_middles.iter().rev().find(|(k, _)| *k == key))
+                .flatten();
+            let uv = match kept {
                 Some(&(_, uv)) => uv,
                 None => {
                     let uv = view.sphere_uv(s);
-                    self.ray_middles.push((key, uv));
+                    if e == j + 1 {
+                        self.ray_middles.push((key, uv));
+                    }
                     uv
                 }
             };
