@@ -526,6 +526,71 @@ fn the_sky_at_the_level_line_matches_a_dense_sum() {
     }
 }
 
+/// The sky's cells over a tent's or Mitchell's support cut by the ground
+/// (random half-planes, one or two) add up to the filter's exact weight
+/// over the region: a cell taken whole where it crosses the region's
+/// edge (the run of inside corners along a row line found from each end)
+/// would add its outside part, a sixteenth of a pixel times the filter's
+/// weight there. And the colour is a mean of the sky's.
+#[test]
+fn the_skys_cells_weigh_what_the_region_does() {
+    let scene = demo_at(960, 540);
+    let mut seed = 11u64;
+    let mut next = || {
+        seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut cases, mut crossed) = (0, 0);
+    for case in 0..400 {
+        let filter = [PixelFilter::Tent, PixelFilter::Mitchell][case % 2];
+        let centre = [
+            (100.0 + 700.0 * next()).floor() + 0.5,
+            (150.0 + 200.0 * next()).floor() + 0.5,
+        ];
+        let r = filter.radius();
+        let mut region = filter.support(centre);
+        for _ in 0..1 + case % 2 {
+            // A line through a point of the support, at any angle, keeping
+            // the side that holds the point above it.
+            let p = [
+                centre[0] + r * (2.0 * next() - 1.0),
+                centre[1] + r * (2.0 * next() - 1.0),
+            ];
+            let angle = std::f64::consts::TAU * next();
+            let (a, b) = (angle.cos(), angle.sin());
+            region = region.clip(a, b, -(a * p[0] + b * p[1]));
+        }
+        if region.area() < 1e-3 {
+            continue;
+        }
+        cases += 1;
+        crossed += usize::from(region.area() < filter.support(centre).area() - 1e-9);
+        let (c, w) = sky_integral(
+            &scene,
+            &region,
+            Whole::Unknown,
+            filter,
+            centre,
+            sky_tolerance(&FilterOptions::RENDER),
+        );
+        let exact = filter.integral(&region, centre);
+        assert!(
+            (w - exact).abs() <= 1e-9,
+            "case {case}, {filter:?}: weight {w} against {exact}"
+        );
+        if exact.abs() > 1e-3 {
+            for (k, v) in c.iter().enumerate() {
+                let mean = v / w;
+                assert!(
+                    mean.is_finite() && mean > -0.5 && mean < 2.0,
+                    "case {case}, channel {k}: mean {mean}"
+                );
+            }
+        }
+    }
+    assert!(cases > 300 && crossed > 300, "{cases} {crossed}");
+}
+
 /// Above [`sky_clear_above`], [`sky_at_centre`] always accepts its
 /// value (bound within the tolerance), so the sky pixel's shortcut
 /// gives what it would: every pixel of two frames, the default and a
