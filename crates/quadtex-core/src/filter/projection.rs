@@ -98,9 +98,11 @@ impl Projection {
 
     /// The matrix of [`Projection::between_quads`] up to a positive
     /// factor, unchecked beyond the quads' own checks and the product's
-    /// being finite and invertible: for a caller that only evaluates the
-    /// map (a fit it checks against its own), without the scaling and
-    /// inverse a [`Projection`] keeps.
+    /// being finite with a nonzero determinant (not scaled first, as
+    /// [`Projection::new`] scales it: at entries far from 1, below 10⁻¹⁰⁰
+    /// or above 10¹⁰⁰, the two may refuse differently): for a caller that
+    /// only evaluates the map (a fit it checks against its own), without
+    /// the scaling and inverse a [`Projection`] keeps.
     pub fn matrix_between_quads(
         screen: &[[f64; 2]; 4],
         texture: &[[f64; 2]; 4],
@@ -195,8 +197,8 @@ mod tests {
     }
 
     /// The bare matrix is the projection's up to a positive factor: the
-    /// same texture point and the same sign of `w` everywhere, and the
-    /// same refusals.
+    /// same texture point and the same sign of `w` everywhere, and folded
+    /// or flat quads refused.
     #[test]
     fn matrix_between_quads_is_the_projections_up_to_scale() {
         let screen = [[10.0, 5.0], [12.5, 5.2], [12.0, 7.9], [9.8, 7.0]];

@@ -317,7 +317,7 @@ pub(super) fn scan_bands<E: EdgeTerms>(
         // negated: the same two points, reversed.
         let shared = previous_top.filter(|_| band.bottom_edge);
         terms.clear();
-        for i in 0..n.min(BAND_VERTICES) {
+        for i in 0..n {
             terms.push(match shared {
                 Some(top) if i == n - 1 => -top,
                 _ => edges.edge(screen[i], screen[(i + 1) % n]),

@@ -12,16 +12,18 @@ use crate::view::View;
 
 /// What shading a region of one pixel's support takes besides the region:
 /// the frame, the pixel filter centred at `centre`, the texture filter's
-/// options, and the share of the pixel's bound the region's support
-/// stands for (`1` for the whole support; a cell's weight when the
-/// support is taken cell by cell), which a sphere scales the weight it
-/// may leave off its map by.
+/// options, the box `(lo, hi)` of the support the region was cut from
+/// (the pixel's, or one of its quarters when it is taken quarter by
+/// quarter), and that support's share of the pixel's bound (`1` for the
+/// whole support, `|∫k|` over a quarter), which a sphere scales the
+/// weight it may leave off its map by.
 #[derive(Clone, Copy)]
 pub(super) struct Shading<'p> {
     pub(super) frame: &'p Frame<'p>,
     pub(super) filter: PixelFilter,
     pub(super) centre: [f64; 2],
     pub(super) options: &'p FilterOptions,
+    pub(super) support: ([f64; 2], [f64; 2]),
     pub(super) share: f64,
 }
 

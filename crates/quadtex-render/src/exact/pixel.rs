@@ -47,6 +47,7 @@ pub(crate) fn exact_pixel<'a>(
             filter,
             centre,
             options,
+            support: filter.support(centre).bounds(),
             share: 1.0,
         },
         at: (x, y),
@@ -529,7 +530,8 @@ impl<'a> ExactPixel<'_, 'a> {
 
     /// The sums of the general path taken over each quarter of the
     /// support in turn, each cut and shaded as a support of its own with
-    /// the same filter centre (its share of the bound its weight), and
+    /// the same filter centre (its share of the bound its weight's
+    /// magnitude), and
     /// split again while [`ExactPixel::outline_needs_cells`] says so: the
     /// sums add up to the support's, and a sphere's outline is clipped by
     /// chords over each quarter's angles only.
@@ -548,7 +550,15 @@ impl<'a> ExactPixel<'_, 'a> {
             let (x0, y0) = (lo[0] + side * i, lo[1] + side * j);
             let support = ConvexPolygon::rect(x0, y0, x0 + side, y0 + side);
             let cell = ExactPixel {
+                // The quarter's weight's magnitude (the filter integrates
+                // to 1 over the pixel's support): where Mitchell's lobes
+                // change sign within a quarter the shares add up to a
+                // little more than 1 (about 1.1 at 1-pixel cells), and
+                // give less to the cells the filter barely weighs than
+                // their area would (measured: fewer pixels above the
+                // target than shares by area).
                 shading: Shading {
+                    support: support.bounds(),
                     share: filter.integral(&support, centre).abs().min(1.0),
                     ..self.shading
                 },
@@ -692,8 +702,9 @@ impl<'a> ExactPixel<'_, 'a> {
 }
 
 /// `(Σ colour·k, Σ k, bound)` of the primitive of `view` over screen
-/// `region` (a part of its region of `support`, the pixel's or one of its cells): a planar one's
-/// ([`shade_region`]), or a sphere's ([`SphereView::shade`](super::sphere::SphereView::shade)) with the
+/// `region` (a part of its region of `support`, the pixel's or one of
+/// its quarters): a planar one's ([`shade_region`]), or a sphere's
+/// ([`SphereView::shade`](super::sphere::SphereView::shade)) with the
 /// weight its outline's chords leave out of the support as full contrast.
 fn shade_view(
     shading: &Shading<'_>,

@@ -78,8 +78,9 @@ struct Ring<'a> {
     /// either side).
     ray_middles: &'a mut Vec<RayMiddle>,
     /// Whether the region lies within the chords the sectors span (the
-    /// support was clipped by them): then the first ring's pieces lie
-    /// within their trapezoids, not between a chord and the outline.
+    /// support the region was cut from, the pixel's or a quarter of it,
+    /// was clipped by them): then the first ring's pieces lie within their
+    /// trapezoids, not between a chord and the outline.
     within_chords: bool,
 }
 
@@ -284,7 +285,10 @@ impl SphereView {
             return sums;
         }
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
-        let support = shading.filter.support(shading.centre);
+        // The support the region was cut from (the pixel's, or a quarter
+        // of it): its chords are the ones that clipped the region.
+        let (lo, hi) = shading.support;
+        let support = ConvexPolygon::rect(lo[0], lo[1], hi[0], hi[1]);
         let mut spare = Budget {
             weight: 0.5 * tolerance * shading.share,
             pieces: (shading.options.budget()).map_or(u64::MAX, |b| {
