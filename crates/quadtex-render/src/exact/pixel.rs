@@ -41,17 +41,18 @@ pub(crate) fn exact_pixel<'a>(
 ) -> Option<Rgba> {
     let scene = frame.scene;
     let centre = [f64::from(x) + 0.5, f64::from(y) + 0.5];
+    let support = filter.support(centre);
     let pixel = ExactPixel {
         shading: Shading {
             frame,
             filter,
             centre,
             options,
-            support: filter.support(centre).bounds(),
+            support: support.bounds(),
             share: 1.0,
         },
         at: (x, y),
-        support: filter.support(centre),
+        support,
         cache: near.views,
     };
     let (cache, support, candidates) = (near.views, &pixel.support, near.primitives);
