@@ -205,7 +205,6 @@ fn default_calls_keep_their_bound_on_random_textures_and_footprints() {
         if name == "photo-like" {
             assert_eq!(tree.depth(), 6);
         }
-        let scale = tree.bound_scale();
         // Stored means are rounded to the colour encoding (a 16-bit step,
         // or a half float's 11 bits), and colours come back as f32.
         let rounding = match tree.encoding() {
@@ -214,6 +213,7 @@ fn default_calls_keep_their_bound_on_random_textures_and_footprints() {
         };
         let leaves = leaves(&tree);
         let texture = Texture::new(tree, wrap);
+        let scale = texture.bound_scale();
         let mirror = wrap == Wrap::MIRROR;
         let mut worst = 0.0f64;
         for case in 0..300 {

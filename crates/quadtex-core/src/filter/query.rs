@@ -15,6 +15,8 @@ use crate::tree::QuadTree;
 pub(crate) struct RegionQuery<'a> {
     pub(crate) tree: &'a QuadTree,
     pub(crate) wrap: Wrap,
+    /// [`crate::Texture::bound_scale`]: what unit-contrast bounds become.
+    pub(crate) bound_scale: f64,
     pub(crate) projection: &'a Projection,
     pub(crate) filter: PixelFilter,
     pub(crate) centre: [f64; 2],

@@ -266,7 +266,7 @@ fn take_horizon_sliver(
         out.weight += wgt;
         // Unit-contrast bounds scale with an HDR tree's colour range.
         out.error_bound +=
-            filter.largest_weight_in(sliver.bounds(), centre) * sliver.area() * tree.bound_scale();
+            filter.largest_weight_in(sliver.bounds(), centre) * sliver.area() * query.bound_scale;
     }
     kept
 }

@@ -82,6 +82,17 @@ impl Texture {
         self.wrap
     }
 
+    /// What the error bounds, derived for colour channels in `[0, 1]`, are
+    /// multiplied by for this texture: the widest channel range (at least 1)
+    /// of the colours it can show, the tree's ([`QuadTree::bound_scale`])
+    /// and, where an axis wraps to [`crate::WrapMode::Border`], the border
+    /// colour's. A bound "relative to the texture's contrast" is relative to
+    /// this.
+    pub fn bound_scale(&self) -> f64 {
+        let border = [self.wrap.x, self.wrap.z].contains(&crate::WrapMode::Border);
+        (self.tree.channel_ranges()).widest_with(border.then_some(self.wrap.border))
+    }
+
     /// The same tree with another wrap.
     pub fn with_wrap(&self, wrap: Wrap) -> Texture {
         Texture {
@@ -111,7 +122,7 @@ impl Texture {
 
     /// As [`Texture::filter_counted`], with the error bound the colour
     /// reached, relative to the texture's contrast (each channel is within
-    /// `bound × `[`QuadTree::bound_scale`] of the exact mean: the bound
+    /// `bound × `[`Texture::bound_scale`] of the exact mean: the bound
     /// itself for LDR textures; 0 when exact).
     /// It is at most the error bound asked for unless a square budget
     /// ([`FilterOptions::with_budget`]) or the hard cap
@@ -130,7 +141,7 @@ impl Texture {
         let (colour, absolute) = self.filter_unclamped(footprint, options, stats);
         // The pipeline's bound is in colour units; the target is relative to
         // the texture's contrast (the widest channel range for HDR).
-        let bound = absolute / self.tree.bound_scale();
+        let bound = absolute / self.bound_scale();
         let mut c = [colour.r, colour.g, colour.b, colour.a];
         let clamped = match self.tree.encoding() {
             ColourEncoding::Unorm16 => &mut c[..],
@@ -222,6 +233,7 @@ impl Texture {
         let query = RegionQuery {
             tree: &self.tree,
             wrap: self.wrap,
+            bound_scale: self.bound_scale(),
             projection,
             filter,
             centre,

@@ -171,8 +171,9 @@ pub(super) fn walk_region(
     let before = walk.out.error_bound;
     walk.run(lo, hi);
     stats.traversal.nodes_visited += walk.visited;
-    // The walk's bounds assume colour channels in [0, 1]; HDR colours span more.
-    walk.out.error_bound = before + (walk.out.error_bound - before) * tree.bound_scale();
+    // The walk's bounds assume colour channels in [0, 1]; HDR colours, and
+    // a border colour outside the tree's range, span more.
+    walk.out.error_bound = before + (walk.out.error_bound - before) * query.bound_scale;
     let out = walk.out;
     WalkBuffers {
         frames: walk.frames,

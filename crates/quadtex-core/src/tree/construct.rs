@@ -349,7 +349,7 @@ impl QuadTree {
         let mut tree = QuadTree {
             depth,
             encoding: ColourEncoding::Unorm16,
-            bound_scale: std::sync::OnceLock::new(),
+            channel_ranges: std::sync::OnceLock::new(),
             aspect,
             colours,
             blocks,

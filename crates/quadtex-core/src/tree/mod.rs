@@ -95,10 +95,10 @@ pub struct QuadTree {
     depth: u8,
     /// How node colours are stored.
     encoding: ColourEncoding,
-    /// What error bounds computed for unit contrast are multiplied by:
-    /// 1 for unorm16 colours (channels in `[0, 1]`), the largest channel
-    /// range (at least 1) for half floats, found when first needed.
-    bound_scale: std::sync::OnceLock<f64>,
+    /// Each channel's lowest and highest stored colour: `[0, 1]` for
+    /// unorm16 colours (no pass needed), found when first needed for half
+    /// floats. Error bounds computed for unit contrast scale with it.
+    channel_ranges: std::sync::OnceLock<ChannelRanges>,
     /// Where texture space lies in the tree's square.
     aspect: Aspect,
     /// Node colours, four little-endian `u16` each, unpadded: the node at
@@ -159,17 +159,26 @@ impl QuadTree {
     /// The tree with its colours read as `encoding`.
     pub(crate) fn with_encoding(mut self, encoding: ColourEncoding) -> QuadTree {
         self.encoding = encoding;
-        self.bound_scale = std::sync::OnceLock::new();
+        self.channel_ranges = std::sync::OnceLock::new();
         self
     }
 
     /// What the error bounds of [`crate::filter::region`], derived for colour
-    /// channels in `[0, 1]`, are multiplied by for this tree: 1 for unorm16
-    /// colours, the widest channel range (at least 1) for HDR colours (one
-    /// pass over the colours, the first time).
+    /// channels in `[0, 1]`, are multiplied by for this tree alone: 1 for
+    /// unorm16 colours, the widest channel range (at least 1) for HDR
+    /// colours (one pass over the colours, the first time). A texture whose
+    /// wrap shows a border colour widens it: [`crate::Texture::bound_scale`].
     pub fn bound_scale(&self) -> f64 {
-        *self.bound_scale.get_or_init(|| match self.encoding {
-            ColourEncoding::Unorm16 => 1.0,
+        self.channel_ranges().widest_with(None)
+    }
+
+    /// Each channel's range over the stored colours.
+    pub(crate) fn channel_ranges(&self) -> ChannelRanges {
+        *self.channel_ranges.get_or_init(|| match self.encoding {
+            ColourEncoding::Unorm16 => ChannelRanges {
+                lo: [0.0; 4],
+                hi: [1.0; 4],
+            },
             encoding => {
                 let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
                 for p in PAD..PAD + self.node_count() as usize {
@@ -182,7 +191,7 @@ impl QuadTree {
                         hi[ch] = hi[ch].max(v);
                     }
                 }
-                (0..4).map(|ch| hi[ch] - lo[ch]).fold(1.0, f64::max)
+                ChannelRanges { lo, hi }
             }
         })
     }
@@ -709,3 +718,30 @@ fn top_table_len(top_level: u8) -> usize {
 
 #[cfg(test)]
 mod tests;
+
+/// The lowest and highest value of each channel (linear, premultiplied) a
+/// tree's colours take: what its error bounds' unit contrast stands for.
+/// Unorm16 trees report `[0, 1]` without looking.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ChannelRanges {
+    lo: [f64; 4],
+    hi: [f64; 4],
+}
+
+impl ChannelRanges {
+    /// The widest channel range (at least 1), with `extra` (a border
+    /// colour a wrap shows beside the tree's) taken in.
+    pub(crate) fn widest_with(self, extra: Option<Rgba>) -> f64 {
+        let extra = extra.map(Rgba::to_array);
+        (0..4)
+            .map(|ch| {
+                let (mut lo, mut hi) = (self.lo[ch], self.hi[ch]);
+                if let Some(e) = extra {
+                    lo = lo.min(f64::from(e[ch]));
+                    hi = hi.max(f64::from(e[ch]));
+                }
+                hi - lo
+            })
+            .fold(1.0, f64::max)
+    }
+}
