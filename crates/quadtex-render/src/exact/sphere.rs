@@ -34,7 +34,11 @@
 //! `ε` times its length times the contrast. A piece whose every candidate
 //! image (the fit's, widened by twice its largest UV error at the check
 //! points) lies in one texture square is that square's colour times its
-//! weight, exactly, whatever the map's error. The pieces:
+//! weight, exactly, whatever the map's error. Along the outline, where
+//! fits are off most, the region is first tried whole against the
+//! sphere's own UV box over it, in closed form ([`arcs`]): where one
+//! texture square holds it (and the light varies over it by little),
+//! that is the region's colour, with no pieces. The pieces:
 //!
 //! - **Squares** (most of the disc): the region's bounding square, split
 //!   in four while its map is off, at most [`MAX_SPLITS`](pieces::MAX_SPLITS) times; `H` goes
@@ -530,6 +534,7 @@ fn angles_seen(points: &[[f64; 2]]) -> (f64, f64) {
     (reference + lo, hi - lo)
 }
 
+mod arcs;
 mod fan;
 mod pieces;
 

@@ -311,7 +311,12 @@ impl SphereView {
             self.shade_squares(shading, region, &mut spare, &mut sums, stats);
             return sums;
         }
-        // One texture square may hold all of it.
+        // One texture square may hold all of it: shown in closed form,
+        // or through a fit across it.
+        if let Some(colour) = self.uniform_exactly(shading, region) {
+            self.add_uniform(shading, region, colour, &mut sums, stats);
+            return sums;
+        }
         let (lo, hi) = region.bounds();
         let mut whole = Square::new(lo, (hi[0] - lo[0]).max(hi[1] - lo[1]));
         if let Some(fit) = self.fit(&mut whole)
@@ -948,6 +953,16 @@ impl SphereView {
         uv_error: f64,
     ) -> Option<([f64; 2], [f64; 2])> {
         let (lo, hi) = self.image_box(fit, piece, uv_error)?;
+        self.texture_box_of_uv(lo, hi)
+    }
+
+    /// The texture-space box of the UV box `(lo, hi)`, when it lies
+    /// between two seams (`u` in one turn); read in `[0, 1)`.
+    pub(super) fn texture_box_of_uv(
+        &self,
+        lo: [f64; 2],
+        hi: [f64; 2],
+    ) -> Option<([f64; 2], [f64; 2])> {
         let turn = lo[0].floor();
         if !(turn.is_finite() && hi[0].floor() == turn) {
             return None;

@@ -376,3 +376,99 @@ fn a_pole_at_the_outline_keeps_the_bound() {
         );
     }
 }
+
+/// The closed-form UV box ([`SphereView::uv_box`]) holds the sphere's UV,
+/// and its light range `n·L`, at every point of random polygons inside
+/// the outline (from a tenth of a pixel to a few pixels across, the
+/// poles in view from above and below), and is little wider than what
+/// dense sampling finds: it is the box of the sphere's own map, not of a
+/// fit.
+#[test]
+fn the_uv_box_holds_every_point_and_little_more() {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut random = move || {
+        // SplitMix64.
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let light = crate::math::Vec3::new(-0.48, 0.6, -0.64);
+    let (mut boxes, mut widest) = (0, 0.0f64);
+    for position in [
+        crate::math::Vec3::new(0.0, 0.0, -5.0),
+        crate::math::Vec3::new(0.5, 4.0, -3.0),
+        crate::math::Vec3::new(-1.0, -3.0, 2.5),
+    ] {
+        let scene = checkered_ball_from(position);
+        let view = SphereView::new(&scene, 0).unwrap();
+        for case in 0..400 {
+            let size = [0.1, 0.5, 2.0, 5.0][case % 4];
+            let (r, t) = (random().sqrt(), random() * std::f64::consts::TAU);
+            let at = |q: [f64; 2]| {
+                [
+                    view.e0[0] + view.ea[0] * q[0] + view.eb[0] * q[1],
+                    view.e0[1] + view.ea[1] * q[0] + view.eb[1] * q[1],
+                ]
+            };
+            let s = at([r * t.cos(), r * t.sin()]);
+            let points: Vec<[f64; 2]> = (0..3 + case % 3)
+                .map(|_| {
+                    [
+                        s[0] + size * (random() - 0.5),
+                        s[1] + size * (random() - 0.5),
+                    ]
+                })
+                .collect();
+            let inside = |p: [f64; 2]| {
+                let q = view.circle(p);
+                q[0] * q[0] + q[1] * q[1] < 1.0
+            };
+            if !points.iter().all(|&p| inside(p)) {
+                continue;
+            }
+            let piece = ConvexPolygon::hull(&points);
+            let Some(uv) = view.uv_box(&piece, Some(light), &scene.camera) else {
+                continue;
+            };
+            boxes += 1;
+            let v = piece.vertices();
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for _ in 0..2000 {
+                // A random convex combination of the vertices.
+                let weights: Vec<f64> = v.iter().map(|_| random().powi(3)).collect();
+                let total: f64 = weights.iter().sum();
+                let p = v.iter().zip(&weights).fold([0.0; 2], |acc, (q, w)| {
+                    [acc[0] + q[0] * w / total, acc[1] + q[1] * w / total]
+                });
+                let [mut u, w] = view.sphere_uv(p);
+                if u < uv.lo[0] {
+                    u += 1.0; // the box reaches across the seam
+                }
+                let n = view.normal(p);
+                assert!(
+                    u >= uv.lo[0] && u <= uv.hi[0] && w >= uv.lo[1] && w <= uv.hi[1],
+                    "{position:?}: {:?} at {p:?} outside {uv:?} of {v:?}",
+                    [u, w]
+                );
+                let cosine = n.dot(light);
+                assert!(
+                    cosine >= uv.cosine.lo - 1e-12 && cosine <= uv.cosine.hi + 1e-12,
+                    "{position:?}: n·L {cosine} outside {uv:?}"
+                );
+                for k in 0..2 {
+                    lo[k] = lo[k].min([u, w][k]);
+                    hi[k] = hi[k].max([u, w][k]);
+                }
+            }
+            for k in 0..2 {
+                let (boxed, sampled) = (uv.hi[k] - uv.lo[k], hi[k] - lo[k]);
+                widest = widest.max(boxed / sampled.max(1e-6));
+            }
+        }
+    }
+    assert!(boxes > 300, "{boxes} boxes");
+    // Dense sampling falls a little short of the true range.
+    assert!(widest < 1.25, "a box {widest}× the sampled range");
+}
