@@ -34,11 +34,11 @@
 //! `ε` times its length times the contrast. A piece whose every candidate
 //! image (the fit's, widened by twice its largest UV error at the check
 //! points) lies in one texture square is that square's colour times its
-//! weight, exactly, whatever the map's error. Along the outline, where
-//! fits are off most, the region is first tried whole against the
-//! sphere's own UV box over it, in closed form ([`arcs`]): where one
-//! texture square holds it (and the light varies over it by little),
-//! that is the region's colour, with no pieces. The pieces:
+//! weight, exactly, whatever the map's error. A pixel's region is first
+//! tried whole against the sphere's own UV box over it, in closed form
+//! ([`arcs`]): where one texture square holds it (and the light varies
+//! over it by little), that is the region's colour, with no fit and no
+//! pieces. The pieces:
 //!
 //! - **Squares** (most of the disc): the region's bounding square, split
 //!   in four while its map is off, at most [`MAX_SPLITS`](pieces::MAX_SPLITS) times; `H` goes

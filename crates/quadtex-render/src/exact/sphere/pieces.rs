@@ -300,6 +300,10 @@ impl SphereView {
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
         if !crossing && !self.sectors_near_outline(&support, &mut chords) {
+            if let Some(colour) = self.uniform_exactly(shading, region) {
+                self.add_uniform(shading, region, colour, &mut sums, stats);
+                return sums;
+            }
             self.shade_squares(shading, region, &mut spare, &mut sums, stats);
             return sums;
         }
