@@ -310,6 +310,7 @@ impl SunGrid {
         // Each candidate is tested against the same outline and depths of
         // `t`: built once, not per candidate.
         let mine_outline = ConvexPolygon::hull(&own);
+        let mine_lines = triangle_lines(&own);
         let depths = |p: &[Vec3; 3]| p.map(|v| v.dot(l));
         let mine = Affine::new(&own, depths(&c));
         let bottom = c.iter().map(|p| p.dot(l)).fold(f64::INFINITY, f64::min);
@@ -348,10 +349,12 @@ impl SunGrid {
             }) {
                 return false;
             }
-            let their_outline = ConvexPolygon::hull(&seen);
-            if apart(&mine_outline, &their_outline, -tolerance) {
+            if let (Some(mine), Some(theirs)) = (&mine_lines, triangle_lines(&seen))
+                && (beyond(mine, &seen, -tolerance) || beyond(&theirs, &own, -tolerance))
+            {
                 return false;
             }
+            let their_outline = ConvexPolygon::hull(&seen);
             // Where the projections overlap, is the other ever nearer the
             // sun? Both depths are affine there, so its corners decide.
             let (Some(mine), Some(theirs)) = (mine.as_ref(), Affine::new(&seen, depths(&other)))
@@ -562,17 +565,51 @@ impl Affine {
     }
 }
 
+/// A projected triangle's edge lines `[a, b, c, |(a, b)|]`, `a·x + b·y + c`
+/// positive inside, as [`ConvexPolygon::hull`] then
+/// [`ConvexPolygon::edge_lines`] give them but for the vertices' order
+/// (the shadow test takes millions a frame: no polygon built); `None`
+/// when its corners are collinear (the hull has no inside).
+fn triangle_lines(p: &[[f64; 2]; 3]) -> Option<[[f64; 4]; 3]> {
+    let turn =
+        (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]);
+    let [a, b, c] = if turn > 0.0 {
+        [p[0], p[1], p[2]]
+    } else if turn < 0.0 {
+        [p[0], p[2], p[1]]
+    } else {
+        return None;
+    };
+    Some([(a, b), (b, c), (c, a)].map(|(u, v)| {
+        let (nx, ny) = (-(v[1] - u[1]), v[0] - u[0]);
+        [nx, ny, -(nx * u[0] + ny * u[1]), (nx * nx + ny * ny).sqrt()]
+    }))
+}
+
+/// Whether one of a triangle's `lines` ([`triangle_lines`]) has every
+/// point of `q` beyond it by more than `margin`: [`apart`]'s test from
+/// one side.
+fn beyond(lines: &[[f64; 4]; 3], q: &[[f64; 2]; 3], margin: f64) -> bool {
+    lines.iter().any(|&[l0, l1, l2, norm]| {
+        let limit = -margin * norm;
+        norm > 0.0 && q.iter().all(|&[x, y]| l0 * x + l1 * y + l2 < limit)
+    })
+}
+
 /// Whether an edge line of one of two convex polygons has the other
 /// wholly beyond it by more than `margin` (unit-normalised lines; a
 /// negative margin counts what lies within `−margin` inside as beyond).
 pub(crate) fn apart(a: &ConvexPolygon, b: &ConvexPolygon, margin: f64) -> bool {
     let beyond = |p: &ConvexPolygon, q: &ConvexPolygon| {
         p.edge_lines().any(|[l0, l1, l2]| {
-            let norm = l0.hypot(l1);
+            // Not `hypot`: a shadow test's polygons are far from overflow,
+            // and it was a fifth of this test's cost.
+            let norm = (l0 * l0 + l1 * l1).sqrt();
+            let limit = -margin * norm;
             norm > 0.0
                 && q.vertices()
                     .iter()
-                    .all(|&[x, y]| (l0 * x + l1 * y + l2) / norm < -margin)
+                    .all(|&[x, y]| l0 * x + l1 * y + l2 < limit)
         })
     };
     !a.is_empty() && !b.is_empty() && (beyond(a, b) || beyond(b, a))
