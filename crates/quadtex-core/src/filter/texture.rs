@@ -159,8 +159,8 @@ impl Texture {
         (Rgba { r, g, b, a }, bound)
     }
 
-    /// The filtered colour and its relative bound, as the pipeline gives
-    /// them (no clamping).
+    /// The filtered colour and its bound (colour units), as the pipeline
+    /// gives them (no clamping).
     fn filter_unclamped(
         &self,
         footprint: &Footprint,
@@ -203,7 +203,8 @@ impl Texture {
         match result.mean() {
             Some(c) if result.weight > 0.0 => {
                 let bound = result.error_bound / result.weight;
-                stats.record_bound(bound);
+                // The statistics' bounds are relative to the contrast.
+                stats.record_bound(bound / self.bound_scale());
                 (c, bound)
             }
             _ => {

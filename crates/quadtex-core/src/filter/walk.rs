@@ -168,12 +168,15 @@ pub(super) fn walk_region(
         texel_scan,
         edge_means: [None; 4],
     };
-    let before = walk.out.error_bound;
+    // The walk's bounds assume colour channels in [0, 1]; HDR colours, and
+    // a border colour outside the tree's range, span more. What the
+    // horizon's sliver gave (in colour units) joins them in their units,
+    // so that the walk weighs it against the target as it does its own.
+    let scale = query.bound_scale;
+    walk.out.error_bound /= scale;
     walk.run(lo, hi);
     stats.traversal.nodes_visited += walk.visited;
-    // The walk's bounds assume colour channels in [0, 1]; HDR colours, and
-    // a border colour outside the tree's range, span more.
-    walk.out.error_bound = before + (walk.out.error_bound - before) * query.bound_scale;
+    walk.out.error_bound *= scale;
     let out = walk.out;
     WalkBuffers {
         frames: walk.frames,

@@ -300,8 +300,8 @@ impl SphereView {
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
         if !crossing && !self.sectors_near_outline(&support, &mut chords) {
-            if let Some(colour) = self.uniform_exactly(shading, region) {
-                self.add_uniform(shading, region, colour, &mut sums, stats);
+            if let Some((colour, light)) = self.uniform_exactly(shading, region) {
+                self.add_uniform(shading, region, (colour, light), &mut sums, stats);
                 return sums;
             }
             self.shade_squares(shading, region, &mut spare, &mut sums, stats);
@@ -317,8 +317,8 @@ impl SphereView {
         }
         // One texture square may hold all of it: shown in closed form,
         // or through a fit across it.
-        if let Some(colour) = self.uniform_exactly(shading, region) {
-            self.add_uniform(shading, region, colour, &mut sums, stats);
+        if let Some((colour, light)) = self.uniform_exactly(shading, region) {
+            self.add_uniform(shading, region, (colour, light), &mut sums, stats);
             return sums;
         }
         let (lo, hi) = region.bounds();
@@ -327,7 +327,7 @@ impl SphereView {
             && let uv_error = self.map_error(&fit, region, &mut whole, &[], None).1
             && let Some(colour) = self.uniform(shading, &fit, region, uv_error)
         {
-            self.add_uniform(shading, region, colour, &mut sums, stats);
+            self.add_uniform(shading, region, (colour, 0.0), &mut sums, stats);
             return sums;
         }
         let mut corners = vec![None; radii.len() * (chords.count + 1)];
@@ -405,12 +405,15 @@ impl SphereView {
         texture.uniform_colour_in_box(lo, hi).map(Some)
     }
 
-    /// Adds `piece` in one colour (`None`: the surface's own) to `sums`.
+    /// Adds `piece` in one colour (`None`: the surface's own) to `sums`,
+    /// lit at its centroid, with `light_bound` (a bound on how far the
+    /// light elsewhere in the piece takes its colour from the centroid's,
+    /// per unit weight) times its weight in the bound.
     fn add_uniform(
         &self,
         shading: &Shading<'_>,
         piece: &ConvexPolygon,
-        colour: Option<quadtex_core::Rgba>,
+        (colour, light_bound): (Option<quadtex_core::Rgba>, f64),
         sums: &mut ([f64; 4], f64, f64),
         stats: &mut PixelStats,
     ) {
@@ -421,7 +424,12 @@ impl SphereView {
             stats.filter.footprints += 1;
             stats.filter.fragments += 1;
         }
-        add(sums, self.finish(shading, piece, c), w, 0.0);
+        add(
+            sums,
+            self.finish(shading, piece, c),
+            w,
+            light_bound * w.abs(),
+        );
     }
 
     /// [`SphereView::shade`] of `region`'s part between rings `a` and `b`
@@ -489,7 +497,7 @@ impl SphereView {
         if let Some(fit) = &fit
             && let Some(colour) = self.uniform(shading, fit, &piece, uv_error)
         {
-            self.add_uniform(shading, &piece, colour, sums, stats);
+            self.add_uniform(shading, &piece, (colour, 0.0), sums, stats);
             return;
         }
         // Near a pole, where the UV's fit is off: a band of texture squares

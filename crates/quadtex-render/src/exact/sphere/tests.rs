@@ -380,9 +380,10 @@ fn a_pole_at_the_outline_keeps_the_bound() {
 /// The closed-form UV box ([`SphereView::uv_box`]) holds the sphere's UV,
 /// and its light range `n·L`, at every point of random polygons inside
 /// the outline (from a tenth of a pixel to a few pixels across, the
-/// poles in view from above and below), and is little wider than what
-/// dense sampling finds: it is the box of the sphere's own map, not of a
-/// fit.
+/// poles in view from above and below, a quarter of them around the
+/// light's own point, where `n·L` peaks inside), and is little wider than
+/// what dense sampling finds: it is the box of the sphere's own map, not
+/// of a fit.
 #[test]
 fn the_uv_box_holds_every_point_and_little_more() {
     let mut state = 0x2545_f491_4f6c_dd1du64;
@@ -395,7 +396,7 @@ fn the_uv_box_holds_every_point_and_little_more() {
         ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
     };
     let light = crate::math::Vec3::new(-0.48, 0.6, -0.64);
-    let (mut boxes, mut widest) = (0, 0.0f64);
+    let (mut boxes, mut widest, mut around_light) = (0, 0.0f64, 0);
     for position in [
         crate::math::Vec3::new(0.0, 0.0, -5.0),
         crate::math::Vec3::new(0.5, 4.0, -3.0),
@@ -412,7 +413,16 @@ fn the_uv_box_holds_every_point_and_little_more() {
                     view.e0[1] + view.ea[1] * q[0] + view.eb[1] * q[1],
                 ]
             };
-            let s = at([r * t.cos(), r * t.sin()]);
+            // One case in four around the light's own point, where the
+            // cosine peaks inside the polygon.
+            let lit = scene.camera.project(view.centre + light * view.radius);
+            let s = match lit {
+                Some(p) if case % 4 == 1 && (view.camera - light).dot(light) > 0.0 => [
+                    p[0] + 0.2 * size * (random() - 0.5),
+                    p[1] + 0.2 * size * (random() - 0.5),
+                ],
+                _ => at([r * t.cos(), r * t.sin()]),
+            };
             let points: Vec<[f64; 2]> = (0..3 + case % 3)
                 .map(|_| {
                     [
@@ -433,6 +443,9 @@ fn the_uv_box_holds_every_point_and_little_more() {
                 continue;
             };
             boxes += 1;
+            if uv.cosine.hi == 1.0 {
+                around_light += 1;
+            }
             let v = piece.vertices();
             let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
             for _ in 0..2000 {
@@ -469,6 +482,10 @@ fn the_uv_box_holds_every_point_and_little_more() {
         }
     }
     assert!(boxes > 300, "{boxes} boxes");
+    assert!(
+        around_light > 20,
+        "{around_light} boxes hold the light's point"
+    );
     // Dense sampling falls a little short of the true range.
     assert!(widest < 1.25, "a box {widest}× the sampled range");
 }
