@@ -716,6 +716,59 @@ fn regions_reaching_the_horizon_keep_the_bound_over_hdr() {
     assert!(stats.traversal.nodes_visited < 200_000, "{stats:?}");
 }
 
+/// Over many tiles of a repeated HDR texture (red up to 1000, a lean to
+/// one side so that whole tiles' bounds count the colour's moments), the
+/// reported bound holds against the full-depth integral, and stays near
+/// the target: the tiles' moments, in colour units, are weighed against
+/// unit-contrast bounds (counted in colour units and then scaled by the
+/// contrast again, one footprint's bound was 0.18, 90× the target).
+#[test]
+fn many_hdr_tiles_keep_the_reported_bound() {
+    let side = 8u32;
+    let texels: Vec<[f32; 4]> = (0..side * side)
+        .map(|k| {
+            let (c, r) = (k % side, k / side);
+            let lean = f32::from(u8::try_from(c).unwrap()) / 7.0;
+            let v = if (c * 7 + r * 3) % 5 < 2 {
+                1000.0 * lean
+            } else {
+                3.0
+            };
+            [v, 0.5, 0.25 * v, 1.0]
+        })
+        .collect();
+    let grid = quadtex_core::TexelGrid::from_linear_f32(side, side, &texels).unwrap();
+    let tree = QuadTree::from_texels(&grid, &BuildOptions::default())
+        .unwrap()
+        .0;
+    let texture = Texture::new(tree, Wrap::REPEAT);
+    let scale = texture.bound_scale();
+    assert!(scale > 900.0, "{scale}");
+    let mut worst = 0.0f64;
+    for (k, depth) in [0.3, 0.8, 1.5].into_iter().enumerate() {
+        for angle in [0.1, 0.7, 2.0] {
+            let fp = perspective_quad([0.3 + k as f64, 0.6], 6.0, 40.0, depth * 20.0, angle);
+            let mut stats = FilterStats::default();
+            let (fast, bound) =
+                texture.filter_with_bound(&fp, &FilterOptions::default(), &mut stats);
+            let exact = texture.filter(&fp, &FilterOptions::default().with_level(12));
+            let err = max_diff(fast, exact);
+            assert!(
+                err <= bound * scale + 1e-3,
+                "{fp:?}: {err} above {}",
+                bound * scale
+            );
+            // The target itself is missed by up to 17 % on one of these
+            // footprints, with the colours scaled into [0, 1] as well (the
+            // walk's limit, not the HDR's; docs/limits.md): held here to
+            // 1.5×, where the moments counted twice gave 90×.
+            assert!(bound <= 1.5 / 512.0, "{fp:?}: bound {bound:e} {stats:?}");
+            worst = worst.max(err / scale);
+        }
+    }
+    assert!(worst > 0.0, "every footprint exact: the test shows nothing");
+}
+
 /// A fixed level over a region reaching the horizon cannot refine
 /// everything: it stops at the cap with a finite colour and its bound.
 #[test]

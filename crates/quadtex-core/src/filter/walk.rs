@@ -163,6 +163,7 @@ pub(super) fn walk_region(
         boundary_coef: 0.5 * epsilon * weight_scale / perimeter.max(f64::MIN_POSITIVE),
         k_max: filter.k_max(),
         lipschitz: filter.lipschitz(),
+        bound_scale: query.bound_scale,
         out,
         visited: 0,
         texel_scan,
@@ -263,6 +264,9 @@ pub(super) struct Walk<'a> {
     boundary_coef: f64,
     k_max: f64,
     lipschitz: f64,
+    /// [`crate::Texture::bound_scale`]: what the tree's moments, in
+    /// colour units, are divided by to weigh against unit-contrast bounds.
+    bound_scale: f64,
     out: RegionIntegral,
     visited: u64,
     /// Whether [`Walk::scan_texels`] may take tiles texel by texel: a
@@ -693,7 +697,9 @@ impl Walk<'_> {
         let d = rmax - rmin;
         let g2 = m[2][0] * m[2][0] + m[2][1] * m[2][1];
         let hessian = 12.0 * rmax * g2 / (w_min * w_min);
-        let [mx, mz] = self.tree.first_moments();
+        // The moments are in colour units; the walk's bounds are for unit
+        // contrast (scaled back by the texture's contrast at its end).
+        let [mx, mz] = self.tree.first_moments().map(|m| m / self.bound_scale);
         // Per tile, the second-order term: the Hessian (each entry at most
         // `hessian`, as g_x², 2|g_x g_z|, g_z² ≤ |g|²) against the colour's
         // second moments, plus the third-order remainder (|∂³ρ| ≤
@@ -702,7 +708,8 @@ impl Walk<'_> {
         // spread (|δ|² ≤ ½). Plus the moments times the Hessian for the
         // error of the telescoped sum of gradients.
         let per_tile = match self.tree.second_moments() {
-            Some([xx, xz, zz]) => {
+            Some(moments) => {
+                let [xx, xz, zz] = moments.map(|m| m / self.bound_scale);
                 let third = 10.0 * rmax * g2 * g2.sqrt() / w_min.powi(3) * 0.5f64.powf(1.5);
                 0.5 * hessian * (xx + xz + zz) + third
             }
