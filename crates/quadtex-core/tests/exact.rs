@@ -651,24 +651,32 @@ fn white_and_clear_checker() -> Texture {
     Texture::new(tree, Wrap::REPEAT)
 }
 
+/// The box pixel `[0, 1] × [−½, ½]` over a ground plane whose horizon
+/// is screen `y = 0` (texture x = 3·s_x/s_y, z = 3/s_y: `w = s_y`), under
+/// `options`: its integral and what it cost.
+fn pixel_at_the_horizon(
+    texture: &Texture,
+    options: &FilterOptions,
+) -> (quadtex_core::RegionIntegral, FilterStats) {
+    let projection = Projection::new([[3.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.0, 1.0, 0.0]]).unwrap();
+    let mut stats = FilterStats::default();
+    let r = texture.integrate_region(
+        &projection,
+        &ConvexPolygon::rect(0.0, -0.5, 1.0, 0.5),
+        PixelFilter::Box,
+        [0.5, 0.0],
+        options,
+        &mut stats,
+    );
+    (r, stats)
+}
+
 /// A region reaching past the horizon (`w ≤ 0`) is clipped there; what lies
 /// a hair before it takes the texture's mean, within the bound.
 #[test]
 fn regions_reaching_the_horizon_stay_finite() {
     let texture = white_and_clear_checker();
-    // A ground plane: texture x = s_x / s_y·k, z = 1/s_y (w = s_y, the
-    // horizon at screen y = 0).
-    let projection = Projection::new([[3.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.0, 1.0, 0.0]]).unwrap();
-    let pixel = ConvexPolygon::rect(0.0, -0.5, 1.0, 0.5);
-    let mut stats = FilterStats::default();
-    let r = texture.integrate_region(
-        &projection,
-        &pixel,
-        PixelFilter::Box,
-        [0.5, 0.0],
-        &FilterOptions::default(),
-        &mut stats,
-    );
+    let (r, stats) = pixel_at_the_horizon(&texture, &FilterOptions::default());
     // Only the lower half sees the plane.
     assert!((r.weight - 0.5).abs() < 1e-6, "{r:?}");
     let mean = r.mean().unwrap();
@@ -701,16 +709,7 @@ fn regions_reaching_the_horizon_keep_the_bound_over_hdr() {
         .0;
     let texture = Texture::new(tree, Wrap::REPEAT);
     assert_eq!(texture.bound_scale(), 1000.0);
-    let projection = Projection::new([[3.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.0, 1.0, 0.0]]).unwrap();
-    let mut stats = FilterStats::default();
-    let r = texture.integrate_region(
-        &projection,
-        &ConvexPolygon::rect(0.0, -0.5, 1.0, 0.5),
-        PixelFilter::Box,
-        [0.5, 0.0],
-        &FilterOptions::default(),
-        &mut stats,
-    );
+    let (r, stats) = pixel_at_the_horizon(&texture, &FilterOptions::default());
     let relative = r.error_bound / r.weight / texture.bound_scale();
     assert!(relative <= 1.0 / 512.0, "{relative:e} {r:?} {stats:?}");
     assert!(stats.traversal.nodes_visited < 200_000, "{stats:?}");
@@ -774,16 +773,7 @@ fn many_hdr_tiles_keep_the_reported_bound() {
 #[test]
 fn a_fixed_level_at_the_horizon_stops_at_the_cap() {
     let texture = white_and_clear_checker();
-    let projection = Projection::new([[3.0, 0.0, 0.0], [0.0, 0.0, 3.0], [0.0, 1.0, 0.0]]).unwrap();
-    let mut stats = FilterStats::default();
-    let r = texture.integrate_region(
-        &projection,
-        &ConvexPolygon::rect(0.0, -0.5, 1.0, 0.5),
-        PixelFilter::Box,
-        [0.5, 0.0],
-        &FilterOptions::default().with_level(30),
-        &mut stats,
-    );
+    let (r, stats) = pixel_at_the_horizon(&texture, &FilterOptions::default().with_level(30));
     assert!(stats.traversal.nodes_visited <= quadtex_core::FIXED_LEVEL_CAP + 8);
     let mean = r.mean().unwrap();
     assert!(mean.a.is_finite() && r.error_bound.is_finite(), "{r:?}");
