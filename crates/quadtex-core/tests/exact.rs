@@ -758,9 +758,10 @@ fn many_hdr_tiles_keep_the_reported_bound() {
                 bound * scale
             );
             // The target itself is missed by up to 17 % on one of these
-            // footprints, with the colours scaled into [0, 1] as well (the
-            // walk's limit, not the HDR's; docs/limits.md): held here to
-            // 1.5×, where the moments counted twice gave 90×.
+            // footprints, with the colours scaled into [0, 1] as well: whole
+            // tiles' first-moment bounds the box filter does not descend
+            // into (docs/limits.md). Held here to 1.5×, where the moments
+            // counted twice gave 90×.
             assert!(bound <= 1.5 / 512.0, "{fp:?}: bound {bound:e} {stats:?}");
             worst = worst.max(err / scale);
         }
