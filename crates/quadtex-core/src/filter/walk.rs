@@ -628,11 +628,15 @@ impl Walk<'_> {
                 // variation within each tile (a tent's or Mitchell's) shrinks
                 // only by descending too, and is the larger part where tiles
                 // are large on the screen: those blocks are refined.
+                // With no square budget (library calls by default), the
+                // bound asked for is a promise: a block whose bound is above
+                // its share of the target is descended into after all.
+                let budgeted = self.budget < FIXED_LEVEL_CAP;
                 if self.fixed.is_none()
                     && nx * nz > MAX_TILES_DESCENDED
                     && curved <= linear
                     && within_tiles <= k * linear
-                    && (self.filter == PixelFilter::Box
+                    && ((self.filter == PixelFilter::Box && budgeted)
                         || bound <= self.target * quad.area() / self.area)
                 {
                     Outcome::Final(c)
