@@ -592,7 +592,9 @@ fn triangle_lines(p: &[[f64; 2]; 3]) -> Option<[[f64; 4]; 3]> {
 fn beyond(lines: &[[f64; 4]; 3], q: &[[f64; 2]; 3], margin: f64) -> bool {
     lines.iter().any(|&[l0, l1, l2, norm]| {
         let limit = -margin * norm;
-        norm > 0.0 && q.iter().all(|&[x, y]| l0 * x + l1 * y + l2 < limit)
+        // An overflowing norm (edges past 10¹⁵⁴) would make every point
+        // beyond a negative margin's line: never apart then.
+        norm > 0.0 && norm.is_finite() && q.iter().all(|&[x, y]| l0 * x + l1 * y + l2 < limit)
     })
 }
 
@@ -607,6 +609,7 @@ pub(crate) fn apart(a: &ConvexPolygon, b: &ConvexPolygon, margin: f64) -> bool {
             let norm = (l0 * l0 + l1 * l1).sqrt();
             let limit = -margin * norm;
             norm > 0.0
+                && norm.is_finite()
                 && q.vertices()
                     .iter()
                     .all(|&[x, y]| l0 * x + l1 * y + l2 < limit)

@@ -48,6 +48,10 @@ pub(super) const START_MARGIN: f64 = 1e-9;
 /// replaced by the coarse sum (see `Walk::run`).
 pub(super) const UNCONTROLLED: f64 = 0.05;
 
+/// Squares a whole tile is reckoned to cost when a block of them is
+/// descended into ([`Walk::evaluate_block`]'s promise under no budget).
+const SQUARES_PER_TILE: f64 = 4.0;
+
 /// A region over more than [`MAX_TILES_DESCENDED`] tiles whose perimeter
 /// (in tiles) is more than this many times the budget of squares, and
 /// whose coarse bound is its whole weight, takes the coarse sum without
@@ -628,15 +632,20 @@ impl Walk<'_> {
                 // variation within each tile (a tent's or Mitchell's) shrinks
                 // only by descending too, and is the larger part where tiles
                 // are large on the screen: those blocks are refined.
-                // With no square budget (library calls by default), the
-                // bound asked for is a promise: a block whose bound is above
-                // its share of the target is descended into after all.
-                let budgeted = self.budget < FIXED_LEVEL_CAP;
+                // With no square budget below the cap (library calls by
+                // default), the bound asked for is a promise: a block whose
+                // bound is above its share of the target is descended into
+                // after all, where what is left of the cap can pay for its
+                // tiles (a few squares each); else it is taken whole and
+                // reports its bound, as at the cap.
+                let promised = self.budget >= FIXED_LEVEL_CAP
+                    && nx * nz * SQUARES_PER_TILE
+                        <= self.budget.saturating_sub(self.visited) as f64;
                 if self.fixed.is_none()
                     && nx * nz > MAX_TILES_DESCENDED
                     && curved <= linear
                     && within_tiles <= k * linear
-                    && ((self.filter == PixelFilter::Box && budgeted)
+                    && ((self.filter == PixelFilter::Box && !promised)
                         || bound <= self.target * quad.area() / self.area)
                 {
                     Outcome::Final(c)
