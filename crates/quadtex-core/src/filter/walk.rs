@@ -154,7 +154,11 @@ pub(super) fn walk_region(
         queued_bound: 0.0,
         target: epsilon * weight_scale,
         area,
-        budget: query.options.budget().unwrap_or(FIXED_LEVEL_CAP),
+        // The cap is hard: a larger budget stops there too.
+        budget: query
+            .options
+            .budget()
+            .map_or(FIXED_LEVEL_CAP, |b| b.min(FIXED_LEVEL_CAP)),
         tree,
         wrap: query.wrap,
         filter,
