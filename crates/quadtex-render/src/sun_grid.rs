@@ -307,9 +307,9 @@ impl SunGrid {
             .iter()
             .fold(1f64, |m, p| m.max(p.x.abs()).max(p.y.abs()).max(p.z.abs()));
         let tolerance = 1e-9 * scale;
-        // Each candidate is tested against the same outline and depths of
-        // `t`: built once, not per candidate.
-        let mine_outline = ConvexPolygon::hull(&own);
+        // Each candidate is tested against the same edge lines and depths
+        // of `t`: built once, not per candidate (its outline polygon only
+        // for the few whose projections overlap it).
         let mine_lines = triangle_lines(&own);
         let depths = |p: &[Vec3; 3]| p.map(|v| v.dot(l));
         let mine = Affine::new(&own, depths(&c));
@@ -361,9 +361,11 @@ impl SunGrid {
             else {
                 return true;
             };
-            (mine_outline.intersect(&their_outline).vertices())
-                .iter()
-                .any(|&q| theirs.at(q) - mine.at(q) > tolerance)
+            (ConvexPolygon::hull(&own)
+                .intersect(&their_outline)
+                .vertices())
+            .iter()
+            .any(|&q| theirs.at(q) - mine.at(q) > tolerance)
         };
         if self.large.iter().any(|&a| may_shade(a)) {
             return false;
@@ -590,12 +592,17 @@ fn triangle_lines(p: &[[f64; 2]; 3]) -> Option<[[f64; 4]; 3]> {
 /// point of `q` beyond it by more than `margin`: [`apart`]'s test from
 /// one side.
 fn beyond(lines: &[[f64; 4]; 3], q: &[[f64; 2]; 3], margin: f64) -> bool {
-    lines.iter().any(|&[l0, l1, l2, norm]| {
-        let limit = -margin * norm;
-        // An overflowing norm (edges past 10¹⁵⁴) would make every point
-        // beyond a negative margin's line: never apart then.
-        norm > 0.0 && norm.is_finite() && q.iter().all(|&[x, y]| l0 * x + l1 * y + l2 < limit)
-    })
+    (lines.iter()).any(|&[l0, l1, l2, norm]| wholly_beyond([l0, l1, l2], norm, q, margin))
+}
+
+/// Whether every point of `q` lies beyond line `a·x + b·y + c = 0` (whose
+/// normal `(a, b)` has length `norm`, pointing inside) by more than
+/// `margin`.
+fn wholly_beyond([l0, l1, l2]: [f64; 3], norm: f64, q: &[[f64; 2]], margin: f64) -> bool {
+    let limit = -margin * norm;
+    // An overflowing norm (edges past 10¹⁵⁴) would make every point
+    // beyond a negative margin's line: never apart then.
+    norm > 0.0 && norm.is_finite() && q.iter().all(|&[x, y]| l0 * x + l1 * y + l2 < limit)
 }
 
 /// Whether an edge line of one of two convex polygons has the other
@@ -604,15 +611,10 @@ fn beyond(lines: &[[f64; 4]; 3], q: &[[f64; 2]; 3], margin: f64) -> bool {
 pub(crate) fn apart(a: &ConvexPolygon, b: &ConvexPolygon, margin: f64) -> bool {
     let beyond = |p: &ConvexPolygon, q: &ConvexPolygon| {
         p.edge_lines().any(|[l0, l1, l2]| {
-            // Not `hypot`: a shadow test's polygons are far from overflow,
-            // and it was a fifth of this test's cost.
+            // Not `hypot`: it was a fifth of this test's cost, and an
+            // overflow is refused.
             let norm = (l0 * l0 + l1 * l1).sqrt();
-            let limit = -margin * norm;
-            norm > 0.0
-                && norm.is_finite()
-                && q.vertices()
-                    .iter()
-                    .all(|&[x, y]| l0 * x + l1 * y + l2 < limit)
+            wholly_beyond([l0, l1, l2], norm, q.vertices(), margin)
         })
     };
     !a.is_empty() && !b.is_empty() && (beyond(a, b) || beyond(b, a))
