@@ -233,3 +233,59 @@ fn a_mesh_and_direction_share_one_grid() {
     let other = shared(&mesh, Vec3::new(1.0, 0.0, 0.0)).unwrap();
     assert!(!Arc::ptr_eq(&a, &other));
 }
+
+/// Two triangles sharing an edge are "across" it exactly where their
+/// third corners' projections lie on either side of its line, whichever
+/// corner each triangle lists first (so that every edge number of
+/// [`Mesh::neighbour`] is met on both sides).
+#[test]
+fn across_shared_edge_reads_the_edge_the_mesh_shares() {
+    let project = |p: Vec3| [p.x, p.z];
+    let rotate = |c: [Vec3; 3], k: usize| [c[k % 3], c[(k + 1) % 3], c[(k + 2) % 3]];
+    let (a, b, c) = (
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.2, 0.0, 1.0),
+    );
+    // Beyond the edge's line from `c` (flat), and folded back over it.
+    for (d, across) in [
+        (Vec3::new(0.7, 0.1, -1.0), true),
+        (Vec3::new(0.6, 1.0, 0.4), false),
+    ] {
+        for k in 0..3 {
+            for m in 0..3 {
+                let first = rotate([a, b, c], k);
+                let second = rotate([b, a, d], m);
+                let uv = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+                let mesh = Mesh::new(vec![
+                    Triangle::new(first, uv).unwrap(),
+                    Triangle::new(second, uv).unwrap(),
+                ])
+                .unwrap();
+                let own = mesh.corners(0).unwrap().map(project);
+                let seen = mesh.corners(1).unwrap().map(project);
+                assert_eq!(
+                    across_shared_edge(&mesh, (0, &own), (1, &seen), 1e-9),
+                    across,
+                    "d {d:?}, rotations {k} and {m}"
+                );
+                assert_eq!(
+                    across_shared_edge(&mesh, (1, &seen), (0, &own), 1e-9),
+                    across,
+                    "d {d:?}, rotations {k} and {m}, the other way"
+                );
+            }
+        }
+    }
+    // Triangles that share only a corner are never across an edge.
+    let uv = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+    let far = [b, Vec3::new(2.0, 0.0, 0.0), Vec3::new(1.5, 0.0, -1.0)];
+    let mesh = Mesh::new(vec![
+        Triangle::new([a, b, c], uv).unwrap(),
+        Triangle::new(far, uv).unwrap(),
+    ])
+    .unwrap();
+    let own = mesh.corners(0).unwrap().map(project);
+    let seen = mesh.corners(1).unwrap().map(project);
+    assert!(!across_shared_edge(&mesh, (0, &own), (1, &seen), 1e-9));
+}
