@@ -323,13 +323,14 @@ impl SunGrid {
         // fetched and tested once. The answer does not change: a repeat
         // would give the same `false` (a `true` ends the search).
         let mut seen_before = [u32::MAX; SEEN_SLOTS];
-        let mut may_shade = |a: u32| {
+        let mut first_meeting = |a: u32| {
             // Fibonacci hashing: neighbouring indices spread over the slots.
             let slot = (a.wrapping_mul(0x9E37_79B9) >> 26) as usize % SEEN_SLOTS;
-            if a as usize == t || seen_before[slot] == a {
-                return false;
-            }
+            let first = a as usize != t && seen_before[slot] != a;
             seen_before[slot] = a;
+            first
+        };
+        let may_shade = |a: u32| {
             let Some(other) = mesh.corners(a as usize) else {
                 return true;
             };
@@ -359,20 +360,16 @@ impl SunGrid {
             {
                 return false;
             }
-            let their_outline = ConvexPolygon::hull(&seen);
             // Where the projections overlap, is the other ever nearer the
             // sun? Both depths are affine there, so its corners decide.
-            let (Some(mine), Some(theirs)) = (mine.as_ref(), Affine::new(&seen, depths(&other)))
-            else {
-                return true;
-            };
-            (ConvexPolygon::hull(&own)
-                .intersect(&their_outline)
-                .vertices())
-            .iter()
-            .any(|&q| theirs.at(q) - mine.at(q) > tolerance)
+            match (mine.as_ref(), Affine::new(&seen, depths(&other))) {
+                (Some(mine), Some(theirs)) => {
+                    nearer_where_overlapping((&own, mine), (&seen, &theirs), tolerance)
+                }
+                _ => true,
+            }
         };
-        if self.large.iter().any(|&a| may_shade(a)) {
+        if self.large.iter().any(|&a| first_meeting(a) && may_shade(a)) {
             return false;
         }
         let [x0, y0] = self.cell([b[0], b[1]]);
@@ -386,7 +383,7 @@ impl SunGrid {
                     if f64::from(self.tops[a as usize]) < floor {
                         break;
                     }
-                    if may_shade(a) {
+                    if first_meeting(a) && may_shade(a) {
                         return false;
                     }
                 }
@@ -527,6 +524,24 @@ fn bounds(points: &[[f64; 2]; 3]) -> [[f64; 2]; 2] {
         }
     }
     [lo, hi]
+}
+
+/// Whether, where projected triangles `own` and `seen` overlap, the depth
+/// along the sun of the second (`theirs`) exceeds the first's (`mine`) by
+/// more than `tolerance` anywhere: both are affine there, so the overlap's
+/// corners decide. Apart from `SunGrid::clear_of_mesh`'s other tests, which
+/// settle most candidates without it (and keep its polygons off their
+/// stack).
+#[inline(never)]
+fn nearer_where_overlapping(
+    (own, mine): (&[[f64; 2]; 3], &Affine),
+    (seen, theirs): (&[[f64; 2]; 3], &Affine),
+    tolerance: f64,
+) -> bool {
+    (ConvexPolygon::hull(own).intersect(&ConvexPolygon::hull(seen)))
+        .vertices()
+        .iter()
+        .any(|&q| theirs.at(q) - mine.at(q) > tolerance)
 }
 
 /// A depth along the sun, affine over a projected triangle (from its
