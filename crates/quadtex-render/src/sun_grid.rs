@@ -64,6 +64,9 @@ const MAX_LARGE: usize = 64;
 /// box spans a few cells, and so do its neighbours': on the 1 M-triangle
 /// terrain a classification meets 47 candidates, 20 of them distinct.
 const SEEN_SLOTS: usize = 64;
+// The slot is the hash's top bits: a power of two, at most 2³².
+const _: () =
+    assert!(SEEN_SLOTS.is_power_of_two() && SEEN_SLOTS >= 2 && SEEN_SLOTS.trailing_zeros() < 32);
 
 /// The grid of `mesh` along `direction`, built once per process for each
 /// mesh and direction (a camera path renders the same scene many times,
@@ -325,7 +328,7 @@ impl SunGrid {
         let mut seen_before = [u32::MAX; SEEN_SLOTS];
         let mut first_meeting = |a: u32| {
             // Fibonacci hashing: neighbouring indices spread over the slots.
-            let slot = (a.wrapping_mul(0x9E37_79B9) >> 26) as usize % SEEN_SLOTS;
+            let slot = (a.wrapping_mul(0x9E37_79B9) >> (32 - SEEN_SLOTS.trailing_zeros())) as usize;
             let first = a as usize != t && seen_before[slot] != a;
             seen_before[slot] = a;
             first
@@ -465,15 +468,17 @@ impl SunGrid {
 }
 
 /// Whether triangles `t` and `a` of `mesh` share an edge (are neighbours
-/// across it, [`Mesh::neighbour`]) with their third corners' projections
-/// (`own`, `seen`) on either side of its line by more than `tolerance`
-/// (times the edge's length): their projections then meet only along that
-/// edge, so neither lies between the other's inside and the sun. On a
-/// terrain this settles most of a triangle's neighbours without building
-/// their outlines. The edge is found by the vertex ids the mesh was built
-/// with, not by comparing corners: corners rebuilt from a triangle's first
-/// corner and edges may round differently in the two triangles, far within
-/// `tolerance`.
+/// across it, [`Mesh::neighbour`], and their shared corners' projections
+/// `own` and `seen` agree within `tolerance`) with their third corners'
+/// projections on either side of its line by more than `tolerance` (times
+/// the edge's length): their projections then meet only along that edge,
+/// so neither lies between the other's inside and the sun. On a terrain
+/// this settles most of a triangle's neighbours without building their
+/// outlines. The edge is found by the vertex ids the mesh was built with;
+/// each triangle's corners are rebuilt from its own first corner and
+/// edges, which round with that corner's magnitude, so where the two
+/// rebuilt edges part by more than `tolerance` (a far first corner) this
+/// says no and the caller's full test decides.
 fn across_shared_edge(
     mesh: &Mesh,
     (t, own): (u32, &[[f64; 2]; 3]),
@@ -490,6 +495,11 @@ fn across_shared_edge(
     let k = FACING[mine];
     let (i, j) = ((k + 1) % 3, (k + 2) % 3);
     let r = FACING[theirs];
+    let near = |x: [f64; 2], y: [f64; 2]| (x[0] - y[0]).abs().max((x[1] - y[1]).abs()) <= tolerance;
+    let (ri, rj) = (seen[(r + 1) % 3], seen[(r + 2) % 3]);
+    if !((near(ri, own[i]) && near(rj, own[j])) || (near(ri, own[j]) && near(rj, own[i]))) {
+        return false;
+    }
     let (p, q) = (own[i], own[j]);
     let edge = [q[0] - p[0], q[1] - p[1]];
     let side = |x: [f64; 2]| edge[0] * (x[1] - p[1]) - edge[1] * (x[0] - p[0]);

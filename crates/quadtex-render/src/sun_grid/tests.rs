@@ -247,7 +247,7 @@ fn across_shared_edge_reads_the_edge_the_mesh_shares() {
         Vec3::new(1.0, 0.0, 0.0),
         Vec3::new(0.2, 0.0, 1.0),
     );
-    // Beyond the edge's line from `c` (flat), and folded back over it.
+    // Beyond the edge's line from `c`, and folded back over it.
     for (d, across) in [
         (Vec3::new(0.7, 0.1, -1.0), true),
         (Vec3::new(0.6, 1.0, 0.4), false),
@@ -276,6 +276,45 @@ fn across_shared_edge_reads_the_edge_the_mesh_shares() {
                 );
             }
         }
+    }
+    // Neighbours by their vertices whose corners, rebuilt from a far first
+    // corner, round off the shared edge by far more than the tolerance:
+    // not settled here (the full test decides), though the third corners
+    // lie on either side.
+    let (a2, b2, c2) = (
+        Vec3::new(0.0, 0.0, 0.3),
+        Vec3::new(1.0, 0.0, 0.3),
+        Vec3::new(0.3, 0.0, -0.7),
+    );
+    for far in [1e9, 1e12] {
+        let f = Vec3::new(0.5, far, far);
+        let uv = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        let mesh = Mesh::with_vertices(
+            vec![
+                Triangle::new([a2, b2, c2], uv).unwrap(),
+                Triangle::new([f, b2, a2], uv).unwrap(),
+            ],
+            vec![[0, 1, 2], [3, 1, 0]],
+        )
+        .unwrap();
+        let corners = [mesh.corners(0).unwrap(), mesh.corners(1).unwrap()];
+        // The far triangle's rebuilt shared corners are off the lit one's.
+        let off = corners.iter().flatten().any(|&p| {
+            [a2, b2].iter().any(|&q| {
+                let d = (p - q).length();
+                d > 1e-9 && d < 1e-3
+            })
+        });
+        assert!(off, "far {far}: the shared corners did not round apart");
+        let [own, seen] = corners.map(|c| c.map(project));
+        assert!(
+            !across_shared_edge(&mesh, (0, &own), (1, &seen), 1e-9),
+            "far {far}"
+        );
+        assert!(
+            !across_shared_edge(&mesh, (1, &seen), (0, &own), 1e-9),
+            "far {far}"
+        );
     }
     // Triangles that share only a corner are never across an edge.
     let uv = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
