@@ -127,7 +127,7 @@ pub fn run(args: Args) -> Result<()> {
         quadtex_io::save_image(&dir.join(&file), &image)?;
         textures.push(DumpTexture {
             file,
-            wrap: match (surface.wrap.x, surface.wrap.z, surface.wrap.border.a) {
+            wrap: match (surface.wrap.x(), surface.wrap.z(), surface.wrap.border_colour().a) {
                 (WrapMode::Repeat, WrapMode::Repeat, _) => DumpWrap::Repeat,
                 (WrapMode::Clamp, WrapMode::Clamp, _) => DumpWrap::Clamp,
                 (WrapMode::Border, WrapMode::Border, 0.0) => DumpWrap::Black,

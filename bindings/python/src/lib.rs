@@ -741,12 +741,9 @@ fn parse_wrap(wrap: Option<&Bound<'_, PyAny>>, border: [f64; 4]) -> PyResult<Wra
             border[i]
         )));
     }
+    // Finite as `f64`, a channel may still overflow `f32`.
     let [r, g, b, a] = border.map(|v| v as f32);
-    Ok(Wrap {
-        x,
-        z,
-        border: Rgba::new(r, g, b, a),
-    })
+    Wrap::new(x, z, Rgba::new(r, g, b, a)).map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
 fn filter_options(

@@ -73,6 +73,9 @@ def test_bad_options(tex):
             tex.integrate([[0, 0, 1, 1]], level=level)
     with pytest.raises(ValueError, match=r"border\[1\] is not finite"):
         tex.filter(q, wrap="border", border=(0, float("nan"), 0, 0))
+    # Finite as a double, infinite as the float the texture keeps.
+    with pytest.raises(ValueError, match=r"border\.r"):
+        tex.filter(q, wrap="border", border=(1e39, 0, 0, 1))
     with pytest.raises(ValueError, match=r"border must have shape \(4,\), got \(3,\)"):
         tex.filter(q, border=(0, 0, 0))
 

@@ -43,11 +43,12 @@ fn wrap(u: &mut Unstructured<'_>) -> ArbResult<Wrap> {
         WrapMode::Mirror,
         WrapMode::Border,
     ];
-    Ok(Wrap {
-        x: *u.choose(&modes)?,
-        z: *u.choose(&modes)?,
-        border: PALETTE[u.choose_index(PALETTE.len())?],
-    })
+    Ok(Wrap::new(
+        *u.choose(&modes)?,
+        *u.choose(&modes)?,
+        PALETTE[u.choose_index(PALETTE.len())?],
+    )
+    .unwrap())
 }
 
 fn unit(u: &mut Unstructured<'_>, lo: f64, hi: f64) -> ArbResult<f64> {
@@ -209,7 +210,7 @@ fn small_footprints_over_rasters_are_exact_at_the_default_level() {
         // mirrored axis; the texture's own beyond a clamp or border edge).
         let texel = 1.0 / f64::from(side);
         let mut origin = [0.0; 2];
-        for (axis, mode) in [wrap.x, wrap.z].into_iter().enumerate() {
+        for (axis, mode) in [wrap.x(), wrap.z()].into_iter().enumerate() {
             let tile = if matches!(mode, WrapMode::Repeat | WrapMode::Mirror) {
                 f64::from(u.int_in_range(-2..=2i32)?)
             } else {
@@ -258,7 +259,7 @@ fn small_footprints_anywhere_over_rasters_are_exact() {
         // The centre: on the tree's middle line, beside a tile's edge, or
         // anywhere, in any of five tiles on a repeated or mirrored axis.
         let mut centre = [0.0; 2];
-        for (axis, mode) in [wrap.x, wrap.z].into_iter().enumerate() {
+        for (axis, mode) in [wrap.x(), wrap.z()].into_iter().enumerate() {
             let tile = if matches!(mode, WrapMode::Repeat | WrapMode::Mirror) {
                 f64::from(u.int_in_range(-2..=2i32)?)
             } else {
@@ -288,7 +289,7 @@ fn small_footprints_anywhere_over_rasters_are_exact() {
         let fast = texture.filter_counted(&fp, &FilterOptions::default(), &mut stats);
         let (lo, hi) = fp.bounds();
         let one_tile = (0..2).all(|a| {
-            let mode = [wrap.x, wrap.z][a];
+            let mode = [wrap.x(), wrap.z()][a];
             let tiled = matches!(mode, WrapMode::Repeat | WrapMode::Mirror);
             let (t0, t1) = (lo[a].floor(), hi[a].floor());
             (tiled || (lo[a] >= 0.0 && hi[a] <= 1.0)) && (t0 == t1 || hi[a] == t1)
@@ -477,11 +478,7 @@ fn a_border_colour_counts_in_the_contrast() {
     let grey = Rgba::new(0.25, 0.25, 0.25, 1.0);
     let texture = Texture::new(
         tree,
-        Wrap {
-            x: WrapMode::Border,
-            z: WrapMode::Border,
-            border: grey,
-        },
+        Wrap::new(WrapMode::Border, WrapMode::Border, grey).unwrap(),
     );
     assert_eq!(texture.bound_scale(), 999.75);
     assert_eq!(texture.with_wrap(Wrap::REPEAT).bound_scale(), 1.0);
@@ -838,11 +835,7 @@ fn needles_over_many_tiles_are_exact() {
     let (mut scanned, mut boxes) = (0, 0);
     arbtest::arbtest(|u| {
         let modes = [WrapMode::Repeat, WrapMode::Mirror];
-        let wrap = Wrap {
-            x: *u.choose(&modes)?,
-            z: *u.choose(&modes)?,
-            border: PALETTE[0],
-        };
+        let wrap = Wrap::new(*u.choose(&modes)?, *u.choose(&modes)?, PALETTE[0]).unwrap();
         // Square trees: only those of depth ≤ 4 are scanned cell by cell.
         let grid = common::blocky_grid(u, 4)?;
         let tree = QuadTree::from_texels(&grid, &BuildOptions::default())

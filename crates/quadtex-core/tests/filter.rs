@@ -37,11 +37,12 @@ fn wrap(u: &mut Unstructured<'_>) -> ArbResult<Wrap> {
         WrapMode::Mirror,
         WrapMode::Border,
     ];
-    Ok(Wrap {
-        x: *u.choose(&modes)?,
-        z: *u.choose(&modes)?,
-        border: PALETTE[u.choose_index(PALETTE.len())?],
-    })
+    Ok(Wrap::new(
+        *u.choose(&modes)?,
+        *u.choose(&modes)?,
+        PALETTE[u.choose_index(PALETTE.len())?],
+    )
+    .expect("palette colours are finite"))
 }
 
 fn max_diff(a: Rgba, b: Rgba) -> f32 {
@@ -75,7 +76,7 @@ fn rectangles_filter_to_integral_over_area() {
             max_diff(got, want) <= 1e-5 + 1.0 / 65535.0,
             "{got:?} vs {want:?}"
         );
-        let query = Texture::new(tree, Wrap::border(Rgba::TRANSPARENT));
+        let query = Texture::new(tree, Wrap::border(Rgba::TRANSPARENT).unwrap());
         let got = query.filter(&fp, &options);
         let want = query.tree().weighted_colour(&f, 30).mean_over(area);
         assert!(

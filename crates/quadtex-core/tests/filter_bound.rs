@@ -270,7 +270,7 @@ fn far_reaching_footprints_keep_the_bound_under_every_wrap() {
     for (wrap, weighting, widest) in [
         (Wrap::CLAMP, Weighting::Screen, 1000.0f64),
         (
-            Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)),
+            Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)).unwrap(),
             Weighting::Screen,
             1000.0,
         ),
@@ -455,11 +455,7 @@ fn huge_footprints_are_right_or_refused() {
             (WrapMode::Mirror, mean),
             (WrapMode::Border, border.to_array().map(f64::from)),
         ] {
-            let wrap = Wrap {
-                x: mode,
-                z: mode,
-                border,
-            };
+            let wrap = Wrap::new(mode, mode, border).unwrap();
             let texture = Texture::new(tree.clone(), wrap);
             let mut stats = FilterStats::default();
             let (colour, bound) =

@@ -645,11 +645,9 @@ impl Context<'_> {
                 (m, m)
             }
         };
-        Ok(Wrap {
-            x,
-            z,
-            border: self.colour(t, key, "border")?.unwrap_or(Rgba::TRANSPARENT),
-        })
+        let border = self.colour(t, key, "border")?.unwrap_or(Rgba::TRANSPARENT);
+        // Channels finite in the file may overflow `f32`.
+        Wrap::new(x, z, border).map_err(|e| self.err(&format!("{key}.border"), &e.to_string()))
     }
 
     /// A surface's `uv_scale`, `uv_offset` and `uv_rotation`.
@@ -723,11 +721,7 @@ impl Context<'_> {
                     offset: [0.0, 0.0],
                     rotation_degrees: 0.0,
                 },
-                wrap: Wrap {
-                    x: part.wrap.0,
-                    z: part.wrap.1,
-                    border: Rgba::TRANSPARENT,
-                },
+                wrap: Wrap::per_axis(part.wrap.0, part.wrap.1),
             })
             .collect())
     }
@@ -1060,6 +1054,14 @@ uv_scale = [0.5, 0.5]
         expect(
             &GOOD.replace("uv_scale = [0.5, 0.5]", "uv_scale = [0.5]"),
             &["shape[0].uv_scale", "2 numbers"],
+        );
+        // A border colour past `f32`: refused, not an infinite colour.
+        expect(
+            &GOOD.replace(
+                "texture = \"builtin:checker\"",
+                "texture = \"builtin:checker\"\nwrap = \"border\"\nborder = [1e39, 0, 0]",
+            ),
+            &["shape[0].border"],
         );
         expect("[camera\n", &["test.toml:1:", "syntax"]);
         expect(

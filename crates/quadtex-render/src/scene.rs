@@ -984,8 +984,8 @@ impl SceneTexture {
                 bits[3],
                 uv.rotation_degrees.to_bits(),
             ],
-            wrap.x,
-            wrap.z,
+            wrap.x(),
+            wrap.z(),
         );
         // A poisoned lock only means another thread panicked mid-insert;
         // the list itself is still a valid cache.

@@ -98,9 +98,9 @@ impl MipPyramid {
         let l = &self.levels[level.min(self.levels.len() - 1)];
         let n = l.side as i64;
         // Rows run down from z = 1, so a row index folds like a column index.
-        match (wrap.x.fold_index(col, n), wrap.z.fold_index(row, n)) {
+        match (wrap.x().fold_index(col, n), wrap.z().fold_index(row, n)) {
             (Some(c), Some(r)) => l.texels[(r * n + c) as usize],
-            _ => wrap.border.to_array(),
+            _ => wrap.border_colour().to_array(),
         }
     }
 

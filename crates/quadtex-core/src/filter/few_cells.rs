@@ -171,12 +171,12 @@ pub(super) fn raster_box(tree: &QuadTree, wrap: Wrap, lo: [f64; 2], hi: [f64; 2]
         _ => None,
     };
     let (Some(i), Some(j)) = (
-        one_tile(wrap.x, lo[0], hi[0]),
-        one_tile(wrap.z, lo[1], hi[1]),
+        one_tile(wrap.x(), lo[0], hi[0]),
+        one_tile(wrap.z(), lo[1], hi[1]),
     ) else {
         return RasterBox::Other;
     };
-    let frame = [tile_map(wrap.x, i), tile_map(wrap.z, j)];
+    let frame = [tile_map(wrap.x(), i), tile_map(wrap.z(), j)];
     let local = |a: f64, b: f64, (sign, offset): (f64, f64)| {
         let (p, q) = ((a - offset) * sign, (b - offset) * sign);
         (p.min(q), p.max(q))

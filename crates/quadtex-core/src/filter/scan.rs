@@ -68,8 +68,8 @@ impl<'t> FlatGrid<'t> {
         let cells = tree.flat_grid()?;
         let depth = tree.depth();
         if depth == 0
-            || one_run_of_tiles(&segments(wrap.x, lo[0], hi[0])).is_none()
-            || one_run_of_tiles(&segments(wrap.z, lo[1], hi[1])).is_none()
+            || one_run_of_tiles(&segments(wrap.x(), lo[0], hi[0])).is_none()
+            || one_run_of_tiles(&segments(wrap.z(), lo[1], hi[1])).is_none()
         {
             return None;
         }
@@ -86,8 +86,8 @@ impl<'t> FlatGrid<'t> {
     pub(super) fn colour(&self, x: i64, z: i64) -> Option<[f64; 4]> {
         let n = 1usize << self.depth;
         Some(
-            self.cells[fold_cell(self.wrap.z, z, self.depth)? * n
-                + fold_cell(self.wrap.x, x, self.depth)?],
+            self.cells[fold_cell(self.wrap.z(), z, self.depth)? * n
+                + fold_cell(self.wrap.x(), x, self.depth)?],
         )
     }
 }

@@ -89,8 +89,8 @@ impl Texture {
     /// colour's. A bound "relative to the texture's contrast" is relative to
     /// this.
     pub fn bound_scale(&self) -> f64 {
-        let border = [self.wrap.x, self.wrap.z].contains(&crate::WrapMode::Border);
-        (self.tree.channel_ranges()).widest_with(border.then_some(self.wrap.border))
+        let border = [self.wrap.x(), self.wrap.z()].contains(&crate::WrapMode::Border);
+        (self.tree.channel_ranges()).widest_with(border.then_some(self.wrap.border_colour()))
     }
 
     /// The same tree with another wrap.

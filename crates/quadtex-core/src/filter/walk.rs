@@ -289,8 +289,8 @@ pub(super) struct Walk<'a> {
 
 impl Walk<'_> {
     fn run(&mut self, lo: [f64; 2], hi: [f64; 2]) {
-        let xs = segments(self.wrap.x, lo[0], hi[0]);
-        let zs = segments(self.wrap.z, lo[1], hi[1]);
+        let xs = segments(self.wrap.x(), lo[0], hi[0]);
+        let zs = segments(self.wrap.z(), lo[1], hi[1]);
         for zs in zs.into_iter().flatten() {
             for xs in xs.into_iter().flatten() {
                 match (xs, zs) {
@@ -381,8 +381,8 @@ impl Walk<'_> {
         }
         // Local (tree) coordinates of a square tree: texture = sign·local
         // + offset ([`Walk::tile_frame`]), sign ±1.
-        let (sx, ox) = tile_map(self.wrap.x, i);
-        let (sz, oz) = tile_map(self.wrap.z, j);
+        let (sx, ox) = tile_map(self.wrap.x(), i);
+        let (sz, oz) = tile_map(self.wrap.z(), j);
         let side = unit_side(level);
         let (x0, z0) = (f64::from(ix) * side, f64::from(iz) * side);
         let mut local = self
@@ -741,8 +741,8 @@ impl Walk<'_> {
     /// The frame of tile `(i, j)`: the region in the tile's local
     /// coordinates and the map from them to the screen.
     fn tile_frame(&mut self, i: i64, j: i64) -> usize {
-        let (sx, ox) = tile_map(self.wrap.x, i);
-        let (sz, oz) = tile_map(self.wrap.z, j);
+        let (sx, ox) = tile_map(self.wrap.x(), i);
+        let (sz, oz) = tile_map(self.wrap.z(), j);
         // Local coordinates are tree space: a texture of another aspect
         // spans [0, ex) × [0, ez) of it, exact powers of two.
         let aspect = self.tree.aspect();
@@ -804,7 +804,7 @@ impl Walk<'_> {
             let b = (hi[axis] - offset) * sign * extent[axis];
             (a.min(b), a.max(b))
         };
-        let (x, z) = (local(0, self.wrap.x, i), local(1, self.wrap.z, j));
+        let (x, z) = (local(0, self.wrap.x(), i), local(1, self.wrap.z(), j));
         loop {
             let (node, level, ix, iz) = at;
             if self.fixed.is_some_and(|k| level >= k) || !self.tree.splits_fully(node) {
@@ -987,9 +987,10 @@ impl Walk<'_> {
         let m = self.screen_from_texture;
         let x_out = !matches!(xs, Segment::Tiles(..));
         let z_out = !matches!(zs, Segment::Tiles(..));
-        if (x_out && self.wrap.x == WrapMode::Border) || (z_out && self.wrap.z == WrapMode::Border)
+        if (x_out && self.wrap.x() == WrapMode::Border)
+            || (z_out && self.wrap.z() == WrapMode::Border)
         {
-            let b = self.wrap.border.to_array().map(f64::from);
+            let b = self.wrap.border_colour().to_array().map(f64::from);
             self.add(b, &self.to_screen_poly(&piece, &m), false);
             return;
         }
@@ -1043,7 +1044,11 @@ impl Walk<'_> {
         let m = self.screen_from_texture;
         let screen = self.to_screen_poly(&part, &m);
         if j0 == j1 {
-            let mode = if axis == 0 { self.wrap.z } else { self.wrap.x };
+            let mode = if axis == 0 {
+                self.wrap.z()
+            } else {
+                self.wrap.x()
+            };
             let (sign, offset) = tile_map(mode, j0);
             let edge = EdgeStripe {
                 axis,

@@ -6,6 +6,7 @@
 //! Whole tiles are counted by multiplicity, not visited one by one, so the
 //! cost of a query does not depend on how many tiles it covers.
 
+use crate::Error;
 use crate::baseline::SummedAreaTable;
 use crate::colour::{Rgba, WeightedColour};
 use crate::geometry::fragment::Fragment;
@@ -83,15 +84,12 @@ impl WrapMode {
 
 /// How a texture continues beyond the unit square: a [`WrapMode`] for each
 /// axis (`x`, `z`) and the colour [`WrapMode::Border`] shows (linear,
-/// premultiplied; transparent unless set).
+/// premultiplied; transparent unless set, always finite: [`Wrap::new`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Wrap {
-    /// Along `x`.
-    pub x: WrapMode,
-    /// Along `z`.
-    pub z: WrapMode,
-    /// The colour outside the unit square on a [`WrapMode::Border`] axis.
-    pub border: Rgba,
+    x: WrapMode,
+    z: WrapMode,
+    border: Rgba,
 }
 
 impl Default for Wrap {
@@ -110,20 +108,56 @@ impl Wrap {
 
     /// The same mode on both axes, transparent border.
     pub const fn uniform(mode: WrapMode) -> Wrap {
+        Wrap::per_axis(mode, mode)
+    }
+
+    /// Mode `x` along `x` and `z` along `z`, transparent border.
+    pub const fn per_axis(x: WrapMode, z: WrapMode) -> Wrap {
         Wrap {
-            x: mode,
-            z: mode,
+            x,
+            z,
             border: Rgba::TRANSPARENT,
         }
     }
 
-    /// Outside the unit square, `colour` on both axes.
-    pub const fn border(colour: Rgba) -> Wrap {
-        Wrap {
-            x: WrapMode::Border,
-            z: WrapMode::Border,
-            border: colour,
+    /// Mode `x` along `x`, `z` along `z`, and the colour outside the unit
+    /// square on a [`WrapMode::Border`] axis; an error names a channel of
+    /// `border` that is not finite (it would make every filtered colour
+    /// and bound that meets it NaN).
+    pub fn new(x: WrapMode, z: WrapMode, border: Rgba) -> Result<Wrap, Error> {
+        const CHANNELS: [&str; 4] = ["border.r", "border.g", "border.b", "border.a"];
+        if let Some((name, value)) = CHANNELS
+            .into_iter()
+            .zip(border.to_array())
+            .find(|(_, v)| !v.is_finite())
+        {
+            return Err(Error::BadOption {
+                name,
+                value: f64::from(value),
+                expected: "a finite colour channel",
+            });
         }
+        Ok(Wrap { x, z, border })
+    }
+
+    /// Outside the unit square, `colour` on both axes ([`Wrap::new`]).
+    pub fn border(colour: Rgba) -> Result<Wrap, Error> {
+        Wrap::new(WrapMode::Border, WrapMode::Border, colour)
+    }
+
+    /// The mode along `x`.
+    pub const fn x(&self) -> WrapMode {
+        self.x
+    }
+
+    /// The mode along `z`.
+    pub const fn z(&self) -> WrapMode {
+        self.z
+    }
+
+    /// The colour outside the unit square on a [`WrapMode::Border`] axis.
+    pub const fn border_colour(&self) -> Rgba {
+        self.border
     }
 
     /// The texture point shown at `p`: `Some` point of `[0,1)²`, or `None`
@@ -245,8 +279,8 @@ pub fn integrate_wrapped<T: BoxIntegral + ?Sized>(
     stats: &mut TraversalStats,
 ) -> WeightedColour {
     let [edge_x, edge_z] = source.finest_cell();
-    let xs = AxisCut::new(wrap.x, f.x0(), f.x1(), edge_x);
-    let zs = AxisCut::new(wrap.z, f.z0(), f.z1(), edge_z);
+    let xs = AxisCut::new(wrap.x(), f.x0(), f.x1(), edge_x);
+    let zs = AxisCut::new(wrap.z(), f.z0(), f.z1(), edge_z);
     let mut acc = WeightedColour::ZERO;
     for &(xa, xb, wx) in xs.pieces.iter().flatten() {
         for &(za, zb, wz) in zs.pieces.iter().flatten() {
@@ -271,7 +305,7 @@ pub fn integrate_wrapped<T: BoxIntegral + ?Sized>(
         // Everything outside (texture length × texture length) is border.
         let x_texture = xs.texture_length();
         let border_area = xs.border_length * (f.z1() - f.z0()) + x_texture * zs.border_length;
-        acc += WeightedColour::from_colour(wrap.border, border_area);
+        acc += WeightedColour::from_colour(wrap.border_colour(), border_area);
     }
     acc
 }
@@ -337,8 +371,8 @@ pub(crate) fn uniform_colour_in(
         // neighbours of one colour.
         let depth = tree.depth();
         if let (Some(i), Some(j)) = (
-            flat_cell(wrap.x, lo[0], hi[0], depth),
-            flat_cell(wrap.z, lo[1], hi[1], depth),
+            flat_cell(wrap.x(), lo[0], hi[0], depth),
+            flat_cell(wrap.z(), lo[1], hi[1], depth),
         ) {
             let c = grid[(j << depth) + i];
             return Some(Rgba::new(
@@ -349,8 +383,8 @@ pub(crate) fn uniform_colour_in(
             ));
         }
     }
-    let (x0, x1) = fold_interval(wrap.x, lo[0], hi[0])?;
-    let (z0, z1) = fold_interval(wrap.z, lo[1], hi[1])?;
+    let (x0, x1) = fold_interval(wrap.x(), lo[0], hi[0])?;
+    let (z0, z1) = fold_interval(wrap.z(), lo[1], hi[1])?;
     let f = Fragment::new(x0, z0, x1, z1).ok()?;
     if f.area() <= 0.0 {
         return None;
@@ -520,7 +554,7 @@ mod tests {
                             || (0.0..1.0).contains(&v)
                     };
                     let got = uniform_colour_in(&tree, lo, hi, wrap);
-                    if one_cell && in_tile(wrap.x, lo[0]) && in_tile(wrap.z, lo[1]) {
+                    if one_cell && in_tile(wrap.x(), lo[0]) && in_tile(wrap.z(), lo[1]) {
                         inside += 1;
                         assert!(got.is_some(), "{lo:?} {hi:?} {wrap:?}: one cell, no colour");
                     }
@@ -675,6 +709,32 @@ mod tests {
         assert_eq!(WrapMode::Border.fold_index(8, 8), None);
     }
 
+    /// A border colour that is not finite is refused by name; a finite one,
+    /// however large, is kept.
+    #[test]
+    fn a_border_colour_must_be_finite() {
+        for (k, name) in ["border.r", "border.g", "border.b", "border.a"]
+            .into_iter()
+            .enumerate()
+        {
+            for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+                let mut c = [0.5f32; 4];
+                c[k] = bad;
+                let e = Wrap::border(Rgba::new(c[0], c[1], c[2], c[3])).unwrap_err();
+                assert!(
+                    matches!(e, Error::BadOption { name: n, .. } if n == name),
+                    "{name}: {e}"
+                );
+            }
+        }
+        let hdr = Rgba::new(1e30, 0.0, 0.0, 1.0);
+        let wrap = Wrap::new(WrapMode::Repeat, WrapMode::Border, hdr).unwrap();
+        assert_eq!(
+            (wrap.x(), wrap.z(), wrap.border_colour()),
+            (WrapMode::Repeat, WrapMode::Border, hdr)
+        );
+    }
+
     #[test]
     fn border_and_clamp_fill_the_outside() {
         let tree = checker_tree();
@@ -684,7 +744,7 @@ mod tests {
             &tree,
             &f,
             30,
-            Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)),
+            Wrap::border(Rgba::opaque(0.0, 1.0, 0.0)).unwrap(),
             &mut s,
         );
         assert!((b.0[1] - 1.0).abs() < 1e-9 && b.0[0].abs() < 1e-9);
@@ -698,11 +758,7 @@ mod tests {
         let tree = ramp_tree();
         let green = Rgba::opaque(0.0, 1.0, 0.0);
         // x repeats, z shows the border: a fragment half above the square.
-        let wrap = Wrap {
-            x: WrapMode::Repeat,
-            z: WrapMode::Border,
-            border: green,
-        };
+        let wrap = Wrap::new(WrapMode::Repeat, WrapMode::Border, green).unwrap();
         let f = Fragment::new(1.25, 0.5, 1.75, 1.5).unwrap();
         let got = integrate_wrapped(&tree, &f, 30, wrap, &mut TraversalStats::default());
         let inside = tree.weighted_colour(&Fragment::new(0.25, 0.5, 0.75, 1.0).unwrap(), 30);

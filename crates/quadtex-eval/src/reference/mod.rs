@@ -277,7 +277,7 @@ impl Setup {
         let (Some(texture), Lighting::Unlit, (WrapMode::Repeat, WrapMode::Repeat)) = (
             &surface.texture,
             scene.lighting,
-            (surface.wrap.x, surface.wrap.z),
+            (surface.wrap.x(), surface.wrap.z()),
         ) else {
             return None;
         };

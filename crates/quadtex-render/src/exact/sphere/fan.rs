@@ -231,7 +231,7 @@ impl PolarFans {
                 uv.scale[1] * b + uv.offset[1],
             );
             let (lo, hi) = (za.min(zb), za.max(zb));
-            if wrap.z != WrapMode::Repeat || hi - lo >= 1.0 {
+            if wrap.z() != WrapMode::Repeat || hi - lo >= 1.0 {
                 pole_rows.push([0.0, 1.0]);
                 continue;
             }
@@ -309,9 +309,10 @@ fn fan(
     for i in columns {
         for j in rows.clone() {
             for &([x0, x1, z0, z1], colour) in squares {
-                let (Some(x), Some(z)) =
-                    (in_tile(wrap.x, i, [x0, x1]), in_tile(wrap.z, j, [z0, z1]))
-                else {
+                let (Some(x), Some(z)) = (
+                    in_tile(wrap.x(), i, [x0, x1]),
+                    in_tile(wrap.z(), j, [z0, z1]),
+                ) else {
                     // The reach crosses a clamped or bordered edge.
                     return None;
                 };
