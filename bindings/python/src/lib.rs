@@ -741,7 +741,14 @@ fn parse_wrap(wrap: Option<&Bound<'_, PyAny>>, border: [f64; 4]) -> PyResult<Wra
             border[i]
         )));
     }
-    // Finite as `f64`, a channel may still overflow `f32`.
+    // Finite as a double, a channel may still overflow the float the
+    // texture keeps.
+    if let Some(i) = border.iter().position(|&v| !(v as f32).is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "border[{i}] is beyond float32 range ({:e})",
+            border[i]
+        )));
+    }
     let [r, g, b, a] = border.map(|v| v as f32);
     Wrap::new(x, z, Rgba::new(r, g, b, a)).map_err(|e| PyValueError::new_err(e.to_string()))
 }

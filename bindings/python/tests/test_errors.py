@@ -74,7 +74,7 @@ def test_bad_options(tex):
     with pytest.raises(ValueError, match=r"border\[1\] is not finite"):
         tex.filter(q, wrap="border", border=(0, float("nan"), 0, 0))
     # Finite as a double, infinite as the float the texture keeps.
-    with pytest.raises(ValueError, match=r"border\.r"):
+    with pytest.raises(ValueError, match=r"border\[0\] is beyond float32 range \(1e\+?39\)"):
         tex.filter(q, wrap="border", border=(1e39, 0, 0, 1))
     with pytest.raises(ValueError, match=r"border must have shape \(4,\), got \(3,\)"):
         tex.filter(q, border=(0, 0, 0))

@@ -285,8 +285,9 @@ pub(crate) fn convert_options(
         }
     }
     let [r, g, b, a] = o.border;
+    // Checked above; `Wrap::new`'s own error is kept in the options' form.
     let wrap = Wrap::new(x, z, Rgba::new(r, g, b, a))
-        .map_err(|e| Failure::invalid(format!("options: {e}")))?;
+        .map_err(|e| Failure::invalid(format!("options.{e}")))?;
     let weighting = match o.weighting {
         v if v == QtxWeighting::Screen as i32 => Weighting::Screen,
         v if v == QtxWeighting::Texture as i32 => Weighting::Texture,

@@ -645,8 +645,9 @@ impl Context<'_> {
                 (m, m)
             }
         };
+        // Finite and within ±10⁹ (`Context::colour`), so `Wrap::new`
+        // takes it; its error is kept should those limits change.
         let border = self.colour(t, key, "border")?.unwrap_or(Rgba::TRANSPARENT);
-        // Channels finite in the file may overflow `f32`.
         Wrap::new(x, z, border).map_err(|e| self.err(&format!("{key}.border"), &e.to_string()))
     }
 
@@ -1055,7 +1056,8 @@ uv_scale = [0.5, 0.5]
             &GOOD.replace("uv_scale = [0.5, 0.5]", "uv_scale = [0.5]"),
             &["shape[0].uv_scale", "2 numbers"],
         );
-        // A border colour past `f32`: refused, not an infinite colour.
+        // A border colour past the numbers' limit (and `f32`'s): refused by
+        // its key, never kept as an infinite colour.
         expect(
             &GOOD.replace(
                 "texture = \"builtin:checker\"",
