@@ -379,13 +379,16 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     )?;
     writeln!(
         out,
-        "Terrain written and loaded (glTF read, hierarchy build, sun's shadow grid, texture packing) in {terrain_load:.2} s; its first frame after load (quadtree; one run, which also classifies each triangle it lights for the sun's shadows, once) took {first_frame:.2} s.\n"
+        "Terrain written and loaded (glTF read, hierarchy build, sun's shadow grid, texture packing) in {terrain_load:.2} s; its first frame after load (quadtree; one run, which also classifies each triangle it lights for the sun's shadows, once) took {:.0} ms.\n",
+        first_frame * 1e3
     )?;
     writeln!(
         out,
         "| scene | nearest | quadtree | EWA (aniso 8) | quadtree / nearest | EWA / nearest | quadtree's filter share / nearest |"
     )?;
     writeln!(out, "|---|---:|---:|---:|---:|---:|---:|")?;
+    // The terrain's quadtree median, which its first frame is held to.
+    let mut later = f64::NAN;
     for (name, scene) in &scenes {
         let mut medians = Vec::new();
         for (_, filter) in &filters {
@@ -403,6 +406,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
             medians.push(times[times.len() / 2]);
         }
         let (n, q, e) = (medians[0], medians[1], medians[2]);
+        later = q;
         writeln!(
             out,
             "| {name} | {:.0} ms | {:.0} ms | {:.0} ms | {:.2} | {:.2} | {:.2} |",
@@ -414,6 +418,13 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
             (q - n) / n
         )?;
     }
+    writeln!(
+        out,
+        "\nThe terrain's first frame after load took {:.3}× its later frames' median ({:.0} ms against {:.0} ms).",
+        first_frame / later,
+        first_frame * 1e3,
+        later * 1e3
+    )?;
     out.flush()?;
     Ok(())
 }
