@@ -66,7 +66,8 @@ pub struct Args {
     /// and EWA, as medians and as ratios to `nearest` (same run). The runs
     /// of a scene and filter render into one frame buffer, as a real-time
     /// loop does; the first run allocates it. Also prints the terrain's
-    /// load time and its first frame after load (one run).
+    /// load time and its first frame after load (one run), also as a ratio
+    /// to its later frames' median.
     #[arg(long, conflicts_with_all = ["size", "queries", "texture"])]
     frames: bool,
     #[command(flatten)]
