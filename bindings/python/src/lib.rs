@@ -735,19 +735,15 @@ fn parse_wrap(wrap: Option<&Bound<'_, PyAny>>, border: [f64; 4]) -> PyResult<Wra
             }
         },
     };
-    if let Some(i) = border.iter().position(|v| !v.is_finite()) {
-        return Err(PyValueError::new_err(format!(
-            "border[{i}] is not finite ({})",
-            border[i]
-        )));
-    }
     // Finite as a double, a channel may still overflow the float the
     // texture keeps.
     if let Some(i) = border.iter().position(|&v| !(v as f32).is_finite()) {
-        return Err(PyValueError::new_err(format!(
-            "border[{i}] is beyond float32 range ({:e})",
-            border[i]
-        )));
+        let v = border[i];
+        return Err(PyValueError::new_err(if v.is_finite() {
+            format!("border[{i}] is beyond float32 range ({v:e})")
+        } else {
+            format!("border[{i}] is not finite ({v})")
+        }));
     }
     let [r, g, b, a] = border.map(|v| v as f32);
     Wrap::new(x, z, Rgba::new(r, g, b, a)).map_err(|e| PyValueError::new_err(e.to_string()))

@@ -61,14 +61,22 @@ use crate::tree::{QuadTree, TraversalStats};
 pub struct Texture {
     tree: Arc<QuadTree>,
     wrap: Wrap,
+    /// [`Texture::bound_scale`], fixed by the tree and wrap: found once,
+    /// not on every region a renderer integrates.
+    bound_scale: f64,
 }
 
 impl Texture {
     /// A texture from its tree and wrap.
     pub fn new(tree: impl Into<Arc<QuadTree>>, wrap: Wrap) -> Texture {
+        let tree = tree.into();
+        let border = [wrap.x(), wrap.z()].contains(&crate::WrapMode::Border);
+        let bound_scale =
+            (tree.channel_ranges()).widest_with(border.then_some(wrap.border_colour()));
         Texture {
-            tree: tree.into(),
+            tree,
             wrap,
+            bound_scale,
         }
     }
 
@@ -89,16 +97,12 @@ impl Texture {
     /// colour's. A bound "relative to the texture's contrast" is relative to
     /// this.
     pub fn bound_scale(&self) -> f64 {
-        let border = [self.wrap.x(), self.wrap.z()].contains(&crate::WrapMode::Border);
-        (self.tree.channel_ranges()).widest_with(border.then_some(self.wrap.border_colour()))
+        self.bound_scale
     }
 
     /// The same tree with another wrap.
     pub fn with_wrap(&self, wrap: Wrap) -> Texture {
-        Texture {
-            tree: Arc::clone(&self.tree),
-            wrap,
-        }
+        Texture::new(Arc::clone(&self.tree), wrap)
     }
 
     /// The mean colour (linear, premultiplied) over `footprint` under
