@@ -317,30 +317,31 @@ impl SphereView {
         })
     }
 
-    /// The colour of `piece` (inside the outline) when one texture
-    /// square holds the closed-form box of the sphere's UV over it
-    /// ([`SphereView::uv_box`]) (`None`: an untextured sphere), and the
-    /// light, if any, moves the piece's colour over it by at most
-    /// [`LIGHT_SHARE`] of the bound; with that bound on how far the
-    /// colour anywhere in the piece is from its centroid's light (per unit
-    /// weight: the cosine's spread times the light's brightest channel
-    /// times the tinted colour's). `None` when that is not shown.
-    pub(super) fn uniform_exactly(
+    /// [`SphereView::uv_box`] of `piece` (inside the outline), with the
+    /// range of the cosine for the scene's light, if any.
+    pub(super) fn region_uv_box(
         &self,
         shading: &Shading<'_>,
         piece: &ConvexPolygon,
-    ) -> Option<(Option<quadtex_core::Rgba>, f64)> {
+    ) -> Option<UvBox> {
         let scene = shading.frame.scene;
-        let (light, brightest) = match scene.lighting {
-            Lighting::Lambert {
-                direction, colour, ..
-            } => (
-                Some(direction),
-                colour.iter().fold(0f32, |m, &c| m.max(c.abs())),
-            ),
-            Lighting::Unlit => (None, 0.0),
+        let light = match scene.lighting {
+            Lighting::Lambert { direction, .. } => Some(direction),
+            Lighting::Unlit => None,
         };
-        let uv = self.uv_box(piece, light, &scene.camera)?;
+        self.uv_box(piece, light, &scene.camera)
+    }
+
+    /// The colour of a piece (inside the outline) whose closed-form UV box
+    /// ([`SphereView::uv_box`]) is `uv`, when one texture square holds that
+    /// box (`None`: an untextured sphere) and the light, if any, moves the
+    /// piece's colour over it by little ([`SphereView::light_bound`]); with
+    /// that bound. `None` when that is not shown.
+    pub(super) fn uniform_exactly(
+        &self,
+        shading: &Shading<'_>,
+        uv: &UvBox,
+    ) -> Option<(Option<quadtex_core::Rgba>, f64)> {
         let colour = match shading.frame.texture(self.surface) {
             Some(texture) => {
                 let (tlo, thi) = self.texture_box_of_uv(uv.lo, uv.hi)?;
@@ -348,19 +349,39 @@ impl SphereView {
             }
             None => None,
         };
-        if light.is_none() {
-            return Some((colour, 0.0));
-        }
+        Some((colour, self.light_bound(shading, uv, &[colour])?))
+    }
+
+    /// A bound on how far the light anywhere in a piece whose UV box is
+    /// `uv` takes its colour (in `texels`, `None` for the surface's own)
+    /// from the light at its centroid, per unit weight: the cosine's spread
+    /// times the light's brightest channel times the brightest tinted
+    /// colour's, `0` unlit. `None` when that is above [`LIGHT_SHARE`] of
+    /// the bound: the piece is then cut into pieces each lit at its own
+    /// centroid.
+    pub(super) fn light_bound(
+        &self,
+        shading: &Shading<'_>,
+        uv: &UvBox,
+        texels: &[Option<quadtex_core::Rgba>],
+    ) -> Option<f64> {
+        let scene = shading.frame.scene;
+        let Lighting::Lambert { colour, .. } = scene.lighting else {
+            return Some(0.0);
+        };
+        let brightest = colour.iter().fold(0f32, |m, &c| m.max(c.abs()));
         let tint = scene.surfaces[self.surface].colour.to_array();
-        let texel = colour.map_or([1.0; 4], |c| c.to_array());
-        let strongest = (0..3).fold(0f64, |m, k| m.max(f64::from((tint[k] * texel[k]).abs())));
+        let strongest = texels.iter().fold(0f64, |m, texel| {
+            let texel = texel.map_or([1.0; 4], |c| c.to_array());
+            (0..3).fold(m, |m, k| m.max(f64::from((tint[k] * texel[k]).abs())))
+        });
         let varies = uv.cosine.hi.max(0.0) - uv.cosine.lo.max(0.0);
         let bound = varies * f64::from(brightest) * strongest;
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         if bound.is_nan() || bound > LIGHT_SHARE * tolerance {
             return None;
         }
-        Some((colour, bound))
+        Some(bound)
     }
 }
 

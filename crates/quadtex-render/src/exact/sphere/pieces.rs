@@ -95,8 +95,8 @@ impl Ring<'_> {
         let (sn, cs) = theta.sin_cos();
         let r = self.radii[k];
         let s = [
-            view.e0[0] + r * (view.ea[0] * cs + view.eb[0] * sn),
-            view.e0[1] + r * (view.ea[1] * cs + view.eb[1] * sn),
+            view.outline.e0[0] + r * (view.outline.ea[0] * cs + view.outline.eb[0] * sn),
+            view.outline.e0[1] + r * (view.outline.ea[1] * cs + view.outline.eb[1] * sn),
         ];
         let found = (s, view.sphere_uv(s));
         self.corners[index] = Some(found);
@@ -300,9 +300,14 @@ impl SphereView {
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
         if !crossing && !self.sectors_near_outline(&support, &mut chords) {
-            if let Some((colour, light)) = self.uniform_exactly(shading, region) {
-                self.add_uniform(shading, region, (colour, light), &mut sums, stats);
-                return sums;
+            if let Some(uv) = self.region_uv_box(shading, region) {
+                if let Some((colour, light)) = self.uniform_exactly(shading, &uv) {
+                    self.add_uniform(shading, region, (colour, light), &mut sums, stats);
+                    return sums;
+                }
+                if let Some(parted) = self.two_colours(shading, region, &uv, stats) {
+                    return parted;
+                }
             }
             self.shade_squares(shading, region, &mut spare, &mut sums, stats);
             return sums;
@@ -317,9 +322,14 @@ impl SphereView {
         }
         // One texture square may hold all of it: shown in closed form,
         // or through a fit across it.
-        if let Some((colour, light)) = self.uniform_exactly(shading, region) {
-            self.add_uniform(shading, region, (colour, light), &mut sums, stats);
-            return sums;
+        if let Some(uv) = self.region_uv_box(shading, region) {
+            if let Some((colour, light)) = self.uniform_exactly(shading, &uv) {
+                self.add_uniform(shading, region, (colour, light), &mut sums, stats);
+                return sums;
+            }
+            if let Some(parted) = self.two_colours(shading, region, &uv, stats) {
+                return parted;
+            }
         }
         let (lo, hi) = region.bounds();
         let mut whole = Square::new(lo, (hi[0] - lo[0]).max(hi[1] - lo[1]));
@@ -372,7 +382,8 @@ impl SphereView {
     fn ring_radii(&self, chords: &Chords) -> Vec<f64> {
         let theta = chords.from + 0.5 * chords.delta * chords.count as f64;
         let (sn, cs) = theta.sin_cos();
-        let scale = (self.ea[0] * cs + self.eb[0] * sn).hypot(self.ea[1] * cs + self.eb[1] * sn);
+        let scale = (self.outline.ea[0] * cs + self.outline.eb[0] * sn)
+            .hypot(self.outline.ea[1] * cs + self.outline.eb[1] * sn);
         let tolerance = RING_TOLERANCE;
         let mut radii = vec![1.0];
         for k in 1.. {
@@ -1105,7 +1116,12 @@ impl SphereView {
 
     /// A piece's texture integral `c` tinted by the surface's colour and
     /// lit at the piece's centroid (its normal and shadow ray there).
-    fn finish(&self, shading: &Shading<'_>, piece: &ConvexPolygon, mut c: [f64; 4]) -> [f64; 4] {
+    pub(super) fn finish(
+        &self,
+        shading: &Shading<'_>,
+        piece: &ConvexPolygon,
+        mut c: [f64; 4],
+    ) -> [f64; 4] {
         let scene = shading.frame.scene;
         let tint = scene.surfaces[self.surface]
             .colour

@@ -69,7 +69,8 @@ fn inside_area(view: &SphereView, support: &ConvexPolygon) -> f64 {
             };
         }
     }
-    let ab = (view.ea[0] * view.eb[1] - view.ea[1] * view.eb[0]).abs();
+    let ab =
+        (view.outline.ea[0] * view.outline.eb[1] - view.outline.ea[1] * view.outline.eb[0]).abs();
     area.abs() * ab
 }
 
@@ -94,10 +95,10 @@ fn chords_hold_the_outline_within_their_stated_area() {
         } else {
             rnd(0.97, 1.03)
         };
-        let p = view.outline(angle);
+        let p = view.outline.point(angle);
         let c = [
-            view.e0[0] + (p[0] - view.e0[0]) * along,
-            view.e0[1] + (p[1] - view.e0[1]) * along,
+            view.outline.e0[0] + (p[0] - view.outline.e0[0]) * along,
+            view.outline.e0[1] + (p[1] - view.outline.e0[1]) * along,
         ];
         let support = ConvexPolygon::rect(c[0] - r, c[1] - r, c[0] + r, c[1] + r);
         let mut region = ConvexPolygon::empty();
@@ -135,11 +136,11 @@ fn chords_leave_out_at_most_their_stated_weight() {
     for i in 0..60 {
         let filter = [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell][i % 3];
         let r = filter.radius();
-        let p = view.outline(rnd(0.0, std::f64::consts::TAU));
+        let p = view.outline.point(rnd(0.0, std::f64::consts::TAU));
         let along = rnd(0.97, 1.03);
         let c = [
-            view.e0[0] + (p[0] - view.e0[0]) * along,
-            view.e0[1] + (p[1] - view.e0[1]) * along,
+            view.outline.e0[0] + (p[0] - view.outline.e0[0]) * along,
+            view.outline.e0[1] + (p[1] - view.outline.e0[1]) * along,
         ];
         let support = filter.support(c);
         let bound = view.sliver_bound(&support, filter, c);
@@ -154,7 +155,9 @@ fn chords_leave_out_at_most_their_stated_weight() {
         // weighed by |k|.
         let mut lines = Chords::default();
         view.chords(&support, &mut lines);
-        let det = (view.ea[0] * view.eb[1] - view.ea[1] * view.eb[0]).abs();
+        let det = (view.outline.ea[0] * view.outline.eb[1]
+            - view.outline.ea[1] * view.outline.eb[0])
+            .abs();
         let (n, m) = (400, 100);
         let mut left_out = 0.0;
         for k in 0..lines.count {
@@ -167,8 +170,8 @@ fn chords_leave_out_at_most_their_stated_weight() {
                     let rho = near + (1.0 - near) * (f64::from(b) + 0.5) / f64::from(m);
                     let (qx, qy) = (rho * t.cos(), rho * t.sin());
                     let s = [
-                        view.e0[0] + view.ea[0] * qx + view.eb[0] * qy,
-                        view.e0[1] + view.ea[1] * qx + view.eb[1] * qy,
+                        view.outline.e0[0] + view.outline.ea[0] * qx + view.outline.eb[0] * qy,
+                        view.outline.e0[1] + view.outline.ea[1] * qx + view.outline.eb[1] * qy,
                     ];
                     let inside = (s[0] - c[0]).abs() < r && (s[1] - c[1]).abs() < r;
                     if inside {
@@ -409,8 +412,8 @@ fn the_uv_box_holds_every_point_and_little_more() {
             let (r, t) = (random().sqrt(), random() * std::f64::consts::TAU);
             let at = |q: [f64; 2]| {
                 [
-                    view.e0[0] + view.ea[0] * q[0] + view.eb[0] * q[1],
-                    view.e0[1] + view.ea[1] * q[0] + view.eb[1] * q[1],
+                    view.outline.e0[0] + view.outline.ea[0] * q[0] + view.outline.eb[0] * q[1],
+                    view.outline.e0[1] + view.outline.ea[1] * q[0] + view.outline.eb[1] * q[1],
                 ]
             };
             // One case in four around the light's own point, where the
