@@ -119,12 +119,17 @@ impl SphereView {
         let light = self.light_bound(shading, uv, &[Some(inner), Some(outer)])?;
         // The region's part inside Γ, within its chords.
         let mut chords = Chords::default();
-        let part = match ellipse.chords(region, &mut chords) {
+        let mut part = match ellipse.chords(region, &mut chords) {
             None => ConvexPolygon::empty(),
-            Some(_) if chords.count == 0 => region.clone(),
-            Some(_) if vertices.len() + chords.count > quadtex_core::MAX_VERTICES => return None,
-            Some(_) => region.clip_lines(chords.lines[..chords.count].iter().copied()),
+            Some(_) => region.clone(),
         };
+        for &line in &chords.lines[..chords.count] {
+            // A clip adds at most one vertex: none is dropped.
+            if part.vertices().len() >= quadtex_core::MAX_VERTICES {
+                return None;
+            }
+            part = part.clip_lines([line]);
+        }
         let (filter, centre) = (shading.filter, shading.centre);
         let whole = filter.integral(region, centre);
         let within = filter.integral(&part, centre);

@@ -374,6 +374,26 @@ impl SphereView {
         sums
     }
 
+    /// `region` by squares alone ([`SphereView::shade_squares`]), with the
+    /// budget [`SphereView::shade`] gives a call: the slow path that the
+    /// closed forms are checked against.
+    #[cfg(test)]
+    pub(super) fn shade_by_squares(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        stats: &mut PixelStats,
+    ) -> ([f64; 4], f64, f64) {
+        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
+        let mut spare = Budget {
+            weight: 0.5 * tolerance * shading.share,
+            pieces: u64::MAX,
+        };
+        let mut sums = ([0.0; 4], 0.0, 0.0);
+        self.shade_squares(shading, region, &mut spare, &mut sums, stats);
+        sums
+    }
+
     /// The q-radii of the rings along the outline, from 1 inward: the
     /// `k`-th `4·RING_TOLERANCE·k²` pixels in (along the middle of the
     /// chords' span), to a pixel: so that a fit across each, off by about
