@@ -329,6 +329,7 @@ mod conic;
 mod edges;
 mod fan;
 mod pieces;
+mod runs;
 
 pub(crate) use fan::PolarFans;
 

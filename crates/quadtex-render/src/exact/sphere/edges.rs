@@ -58,13 +58,14 @@ struct EdgeCircle {
 impl SphereView {
     /// `(Σ colour·k, Σ k, bound)` of `region` (inside the outline, its
     /// closed-form UV box `uv`) when one texture edge parts it into two
-    /// colours and the edge's image is shown to part it (module doc);
-    /// `None` otherwise.
+    /// colours, the edge's image is shown to part it (module doc) and the
+    /// bound is at most `allowance`; `None` otherwise.
     pub(super) fn two_colours(
         &self,
         shading: &Shading<'_>,
         region: &ConvexPolygon,
         uv: &UvBox,
+        allowance: f64,
         stats: &mut PixelStats,
     ) -> Option<([f64; 4], f64, f64)> {
         let edge = self.edge_circle(shading, uv)?;
@@ -148,11 +149,8 @@ impl SphereView {
                 *a += v;
             }
         }
-        // Within what the pieces could spend instead (half the bound, the
-        // support's share of it), else they are cut as pieces.
         let bound = ellipse.slivers(&chords, filter, centre) * contrast + light * whole.abs();
-        let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
-        if bound.is_nan() || bound > 0.5 * tolerance * shading.share {
+        if bound.is_nan() || bound > allowance {
             return None;
         }
         stats.textured = 1;

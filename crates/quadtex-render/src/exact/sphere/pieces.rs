@@ -51,6 +51,10 @@ const PIECES_PER_SQUARE: u64 = 16;
 struct Budget {
     weight: f64,
     pieces: u64,
+    /// Whether a piece one texture edge crosses may be split along the
+    /// edge's image ([`SphereView::two_colours`]) instead of cut further
+    /// (not in the squares the tests check that against).
+    edges_parted: bool,
 }
 
 /// A box `(lo, hi)` of the coordinates a fit maps to
@@ -296,16 +300,21 @@ impl SphereView {
                 let pixels = support.area().round().max(1.0) as u64;
                 b.saturating_mul(PIECES_PER_SQUARE).saturating_mul(pixels)
             }),
+            edges_parted: true,
         };
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
         if !crossing && !self.sectors_near_outline(&support, &mut chords) {
+            if let Some(colour) = self.uniform_run(shading) {
+                self.add_uniform(shading, region, (Some(colour), 0.0), &mut sums, stats);
+                return sums;
+            }
             if let Some(uv) = self.region_uv_box(shading, region) {
                 if let Some((colour, light)) = self.uniform_exactly(shading, &uv) {
                     self.add_uniform(shading, region, (colour, light), &mut sums, stats);
                     return sums;
                 }
-                if let Some(parted) = self.two_colours(shading, region, &uv, stats) {
+                if let Some(parted) = self.two_colours(shading, region, &uv, spare.weight, stats) {
                     return parted;
                 }
             }
@@ -327,7 +336,7 @@ impl SphereView {
                 self.add_uniform(shading, region, (colour, light), &mut sums, stats);
                 return sums;
             }
-            if let Some(parted) = self.two_colours(shading, region, &uv, stats) {
+            if let Some(parted) = self.two_colours(shading, region, &uv, spare.weight, stats) {
                 return parted;
             }
         }
@@ -388,6 +397,7 @@ impl SphereView {
         let mut spare = Budget {
             weight: 0.5 * tolerance * shading.share,
             pieces: u64::MAX,
+            edges_parted: false,
         };
         let mut sums = ([0.0; 4], 0.0, 0.0);
         self.shade_squares(shading, region, &mut spare, &mut sums, stats);
@@ -531,6 +541,18 @@ impl SphereView {
             self.add_uniform(shading, &piece, (colour, 0.0), sums, stats);
             return;
         }
+        // One texture edge across it: split along the edge's image, the
+        // bound from what the pieces may still spend.
+        if b - a > 1
+            && spare.edges_parted
+            && let Some(uv) = self.region_uv_box(shading, &piece)
+            && let Some((c, w, bound)) =
+                self.two_colours(shading, &piece, &uv, 0.125 * spare.weight, stats)
+        {
+            spare.weight -= bound;
+            add(sums, c, w, bound);
+            return;
+        }
         // Near a pole, where the UV's fit is off: a band of texture squares
         // beyond the fan may hold it, as the pole's coordinates see it
         // (tried on single rings: across several, the fit is off anyway).
@@ -645,6 +667,18 @@ impl SphereView {
                 _ => None,
             };
             let off = error > tolerance || (fan.is_some() && on_fan.is_none());
+            // One texture edge across it: split along the edge's image.
+            if off
+                && fan.is_none()
+                && spare.edges_parted
+                && let Some(uv) = self.region_uv_box(shading, &piece)
+                && let Some((c, w, bound)) =
+                    self.two_colours(shading, &piece, &uv, 0.125 * spare.weight, stats)
+            {
+                spare.weight -= bound;
+                add(sums, c, w, bound);
+                continue;
+            }
             let spent = off && w.abs() <= 0.125 * spare.weight;
             spare.pieces = spare.pieces.saturating_sub(1);
             if off && !spent && square.depth < MAX_SPLITS && spare.pieces > 0 {

@@ -549,7 +549,10 @@ fn two_colours_agree_with_the_squares() {
                     continue;
                 }
                 let mut stats = crate::stats::PixelStats::default();
-                let Some((c, w, b)) = view.two_colours(&shading, &region, &uv, &mut stats) else {
+                let allowance = 0.5 * options.target_bound().unwrap();
+                let Some((c, w, b)) =
+                    view.two_colours(&shading, &region, &uv, allowance, &mut stats)
+                else {
                     continue;
                 };
                 let squares = Shading {
@@ -562,7 +565,8 @@ fn two_colours_agree_with_the_squares() {
                 let t = &view.texture_from_uv;
                 let (lo, hi) = view.texture_box_of_uv(uv.lo, uv.hi).unwrap();
                 // The checker's edges lie at halves of texture space.
-                let crosses = |a: usize| usize::from((2.0 * lo[a]).floor() != (2.0 * hi[a]).floor());
+                let crosses =
+                    |a: usize| usize::from((2.0 * lo[a]).floor() != (2.0 * hi[a]).floor());
                 by_axis[0] += crosses(0);
                 by_axis[1] += crosses(1);
                 assert!((w - pw).abs() < 1e-9, "weights {w} {pw}");
