@@ -328,6 +328,7 @@ mod arcs;
 mod conic;
 mod edges;
 mod fan;
+mod light;
 mod pieces;
 mod runs;
 

@@ -340,6 +340,7 @@ impl SphereView {
     pub(super) fn uniform_exactly(
         &self,
         shading: &Shading<'_>,
+        piece: &ConvexPolygon,
         uv: &UvBox,
     ) -> Option<(Option<quadtex_core::Rgba>, f64)> {
         let colour = match shading.frame.texture(self.surface) {
@@ -349,7 +350,7 @@ impl SphereView {
             }
             None => None,
         };
-        Some((colour, self.light_bound(shading, uv, &[colour])?))
+        Some((colour, self.light_bound(shading, piece, uv, &[colour])?))
     }
 
     /// A bound on how far the light anywhere in a piece whose UV box is
@@ -362,11 +363,15 @@ impl SphereView {
     pub(super) fn light_bound(
         &self,
         shading: &Shading<'_>,
+        piece: &ConvexPolygon,
         uv: &UvBox,
         texels: &[Option<quadtex_core::Rgba>],
     ) -> Option<f64> {
         let scene = shading.frame.scene;
-        let Lighting::Lambert { colour, .. } = scene.lighting else {
+        let Lighting::Lambert {
+            direction, colour, ..
+        } = scene.lighting
+        else {
             return Some(0.0);
         };
         let brightest = colour.iter().fold(0f32, |m, &c| m.max(c.abs()));
@@ -375,7 +380,16 @@ impl SphereView {
             let texel = texel.map_or([1.0; 4], |c| c.to_array());
             (0..3).fold(m, |m, k| m.max(f64::from((tint[k] * texel[k]).abs())))
         });
-        let varies = uv.cosine.hi.max(0.0) - uv.cosine.lo.max(0.0);
+        let mut varies = uv.cosine.hi.max(0.0) - uv.cosine.lo.max(0.0);
+        // Lit wholly (the cosine smooth over it) under the box: the
+        // midpoint's second-order bound, where it is the smaller.
+        if varies > 0.0
+            && uv.cosine.lo > 0.0
+            && shading.filter == quadtex_core::PixelFilter::Box
+            && let Some(midpoint) = self.midpoint_cosine_error(piece, direction)
+        {
+            varies = varies.min(midpoint);
+        }
         let bound = varies * f64::from(brightest) * strongest;
         let tolerance = shading.options.target_bound().unwrap_or(1.0 / 512.0);
         if bound.is_nan() || bound > LIGHT_SHARE * tolerance {

@@ -112,12 +112,12 @@ impl SphereView {
             }
         }
         let inside_ahead = inside_ahead?;
-        let (inner, outer) = if inside_ahead {
+        let (inner_texel, outer_texel) = if inside_ahead {
             (edge.colour_ahead, edge.colour_behind)
         } else {
             (edge.colour_behind, edge.colour_ahead)
         };
-        let light = self.light_bound(shading, uv, &[Some(inner), Some(outer)])?;
+
         // The region's part inside Γ, within its chords.
         let mut chords = Chords::default();
         let mut part = match ellipse.chords(region, &mut chords) {
@@ -135,8 +135,8 @@ impl SphereView {
         let whole = filter.integral(region, centre);
         let within = filter.integral(&part, centre);
         let (inner, outer) = (
-            inner.to_array().map(f64::from),
-            outer.to_array().map(f64::from),
+            inner_texel.to_array().map(f64::from),
+            outer_texel.to_array().map(f64::from),
         );
         let contrast = (0..4).fold(0f64, |m, k| m.max((inner[k] - outer[k]).abs()));
         let mut colour = self.finish(shading, region, outer.map(|c| c * whole));
@@ -149,7 +149,13 @@ impl SphereView {
                 *a += v;
             }
         }
-        let bound = ellipse.slivers(&chords, filter, centre) * contrast + light * whole.abs();
+        // Each term lit at its own polygon's centroid.
+        let texels = [Some(inner_texel), Some(outer_texel)];
+        let mut light = self.light_bound(shading, region, uv, &texels)? * whole.abs();
+        if !part.is_empty() {
+            light += self.light_bound(shading, &part, uv, &texels)? * within.abs();
+        }
+        let bound = ellipse.slivers(&chords, filter, centre) * contrast + light;
         if bound.is_nan() || bound > allowance {
             return None;
         }

@@ -310,7 +310,7 @@ impl SphereView {
                 return sums;
             }
             if let Some(uv) = self.region_uv_box(shading, region) {
-                if let Some((colour, light)) = self.uniform_exactly(shading, &uv) {
+                if let Some((colour, light)) = self.uniform_exactly(shading, region, &uv) {
                     self.add_uniform(shading, region, (colour, light), &mut sums, stats);
                     return sums;
                 }
@@ -332,7 +332,7 @@ impl SphereView {
         // One texture square may hold all of it: shown in closed form,
         // or through a fit across it.
         if let Some(uv) = self.region_uv_box(shading, region) {
-            if let Some((colour, light)) = self.uniform_exactly(shading, &uv) {
+            if let Some((colour, light)) = self.uniform_exactly(shading, region, &uv) {
                 self.add_uniform(shading, region, (colour, light), &mut sums, stats);
                 return sums;
             }
