@@ -15,7 +15,7 @@
 //! angles `θⱼ` spanning the support's angles; each chord leaves out a
 //! segment of area `a·b·(δ − sin δ)/2` (`δ` its angle, `a`, `b` the
 //! semi-axes), and as few chords are taken as keep their sum within
-//! [`SLIVER_BUDGET`] (up to [`MAX_CHORDS`]): the sum is the region's area
+//! [`SLIVER_BUDGET`](conic::SLIVER_BUDGET) (up to [`MAX_CHORDS`]): the sum is the region's area
 //! bound, in screen pixels, times full contrast
 //! ([`SphereView::region_into`]). A support whose corners all lie inside
 //! the outline is its own region.
@@ -37,8 +37,12 @@
 //! weight, exactly, whatever the map's error. A pixel's region is first
 //! tried whole against the sphere's own UV box over it, in closed form
 //! ([`arcs`]): where one texture square holds it (and the light varies
-//! over it by little), that is the region's colour, with no fit and no
-//! pieces. The pieces:
+//! over it by little, [`light`]), that is the region's colour, with no
+//! fit and no pieces; where one texture edge parts it into two colours,
+//! it is split along the edge's own image, an ellipse clipped by chords
+//! ([`edges`], [`conic`]). Inside the outline, an unlit sphere first
+//! tries the box of a run of pixels along the row ([`runs`]). The
+//! pieces:
 //!
 //! - **Squares** (most of the disc): the region's bounding square, split
 //!   in four while its map is off, at most [`MAX_SPLITS`](pieces::MAX_SPLITS) times; `H` goes
@@ -71,7 +75,8 @@
 //! over the tree ([`quadtex_core::Texture::integrate_region`]), cut at the
 //! longitude seam (`u` a whole number) so that each side is read in
 //! `[0, 1)`, whatever the texture's wrap. Lambert light is taken at each
-//! piece's centroid (its own normal and shadow ray).
+//! piece's centroid (its own normal and shadow ray); a region taken in
+//! closed form carries the light's error in its bound ([`light`]).
 
 use quadtex_core::ConvexPolygon;
 

@@ -21,7 +21,7 @@ const MAX_CHORDS_AROUND: usize = 12;
 /// Area the chords may leave out of one support (pixels², at full
 /// contrast: a sixteenth of the default error bound): as few chords as
 /// keep the segments they leave out within it, up to [`MAX_CHORDS`].
-const SLIVER_BUDGET: f64 = 1.0 / 512.0 / 16.0;
+pub(super) const SLIVER_BUDGET: f64 = 1.0 / 512.0 / 16.0;
 
 /// An ellipse on the screen, `e0 + ea·cos θ + eb·sin θ`.
 #[derive(Debug, Clone)]
