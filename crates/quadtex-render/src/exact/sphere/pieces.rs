@@ -305,8 +305,10 @@ impl SphereView {
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
         if !crossing && !self.sectors_near_outline(&support, &mut chords) {
-            if let Some(colour) = self.uniform_run(shading) {
-                self.add_uniform(shading, region, (Some(colour), 0.0), &mut sums, stats);
+            if let Some((colour, run)) = self.uniform_run(shading)
+                && let Some(light) = self.light_bound(shading, region, &run, &[Some(colour)])
+            {
+                self.add_uniform(shading, region, (Some(colour), light), &mut sums, stats);
                 return sums;
             }
             if let Some(uv) = self.region_uv_box(shading, region) {
