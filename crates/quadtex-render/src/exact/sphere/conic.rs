@@ -24,7 +24,7 @@ const MAX_CHORDS_AROUND: usize = 12;
 pub(super) const SLIVER_BUDGET: f64 = 1.0 / 512.0 / 16.0;
 
 /// An ellipse on the screen, `e0 + ea·cos θ + eb·sin θ`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Copy)]
 pub(super) struct Ellipse {
     pub(super) e0: [f64; 2],
     pub(super) ea: [f64; 2],

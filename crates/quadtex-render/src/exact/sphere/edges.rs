@@ -13,9 +13,13 @@
 //!
 //! `Γ`'s arc over the sphere's visible side is where the region's colour
 //! changes; its arc over the hidden side (which also crosses the disc)
-//! changes nothing. Both arcs end on the outline, so inside a region that
-//! lies within the outline each one that reaches the region crosses its
-//! boundary. So when
+//! changes nothing. For a circle partly hidden both arcs end on the
+//! outline, so inside a region that lies within the outline each one that
+//! reaches the region crosses its boundary. (A circle wholly in view
+//! surrounds a pole, and a region holding its image holds the pole, which
+//! the UV box refuses; one wholly hidden has no colour change in view, and
+//! its image could only reach a region whose UV box holds the line by the
+//! box's 10⁻⁷ margin.) So when
 //!
 //! - the region's closed-form UV box ([`super::arcs`]) maps into two
 //!   texture squares, each of one colour, on either side of one line,
@@ -45,6 +49,7 @@ use super::conic::{Chords, Ellipse};
 
 /// A circle on the sphere along which a texture edge runs, and which side
 /// of it has which colour.
+#[derive(Debug, Clone, Copy)]
 struct EdgeCircle {
     centre: Vec3,
     radius: f64,
@@ -53,6 +58,17 @@ struct EdgeCircle {
     normal: Vec3,
     colour_ahead: Rgba,
     colour_behind: Rgba,
+}
+
+/// The one texture edge across a UV box, as a circle on the sphere, with
+/// its image on the screen: the quadratic form negative inside it, and
+/// the ellipse where that is zero. What splitting any region whose UV
+/// lies in the box takes ([`SphereView::split_along`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct EdgeImage {
+    edge: EdgeCircle,
+    form: [[f64; 3]; 3],
+    ellipse: Ellipse,
 }
 
 impl SphereView {
@@ -68,6 +84,14 @@ impl SphereView {
         allowance: f64,
         stats: &mut PixelStats,
     ) -> Option<([f64; 4], f64, f64)> {
+        let image = self.edge_image(shading, uv)?;
+        self.split_along(shading, region, uv, &image, allowance, stats)
+    }
+
+    /// The one texture edge across the UV box `uv` and its image, when
+    /// there is one ([`SphereView::edge_circle`]) and its image is an
+    /// ellipse.
+    pub(super) fn edge_image(&self, shading: &Shading<'_>, uv: &UvBox) -> Option<EdgeImage> {
         let edge = self.edge_circle(shading, uv)?;
         let form = self.circle_form(&edge)?;
         let ellipse = Ellipse::from_form(
@@ -75,6 +99,29 @@ impl SphereView {
             [-form[0][2], -form[1][2]],
             -form[2][2],
         )?;
+        Some(EdgeImage {
+            edge,
+            form,
+            ellipse,
+        })
+    }
+
+    /// [`SphereView::two_colours`] of `region`, whose UV lies in the box
+    /// `uv` across which `image`'s edge is the one texture edge.
+    pub(super) fn split_along(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        uv: &UvBox,
+        image: &EdgeImage,
+        allowance: f64,
+        stats: &mut PixelStats,
+    ) -> Option<([f64; 4], f64, f64)> {
+        let EdgeImage {
+            edge,
+            form,
+            ref ellipse,
+        } = *image;
         let value = |s: [f64; 2]| {
             let p = [s[0], s[1], 1.0];
             (0..3)
@@ -167,9 +214,12 @@ impl SphereView {
 
     /// The circle on the sphere along which the one texture edge inside
     /// the UV box `uv` runs, with the colours on its two sides, when the
-    /// surface is textured, its UV transform axis-aligned, `uv` narrow
-    /// (less than a quarter turn, within one turn) and the texture over
-    /// it two colours parted by one line of texture space.
+    /// surface is textured (a power-of-two square or strip, whose cells'
+    /// sides are dyadic lines of texture space), its UV transform
+    /// axis-aligned, `uv` narrow (less than a quarter turn, within one
+    /// turn) and the texture over it two colours parted by one line of
+    /// texture space: the coarsest dyadic line inside the box, each side's
+    /// box one colour.
     fn edge_circle(&self, shading: &Shading<'_>, uv: &UvBox) -> Option<EdgeCircle> {
         let texture = shading.frame.texture(self.surface)?;
         let t = &self.texture_from_uv;
@@ -180,6 +230,10 @@ impl SphereView {
         if width.is_nan() || width >= 0.25 {
             return None;
         }
+        // The tree's cells lie on dyadic lines of texture space only where
+        // the texture is a power-of-two square or strip (a 640-texel-wide
+        // photograph's texel edges lie at k/640): elsewhere no split.
+        texture.tree().aspect().shrink()?;
         let turn = uv.lo[0].floor();
         let (lo, hi) = self.texture_box_of_uv(uv.lo, uv.hi)?;
         let depth = i32::from(texture.tree().depth());
