@@ -526,7 +526,8 @@ fn the_uv_box_holds_every_point_and_little_more() {
 /// within their two bounds and that: every pixel of the checkered ball at 64 × 48 seen from the
 /// side, from above and from below, its checker straight and mirrored,
 /// across meridians and parallels, in the disc and along the outline
-/// (the region clipped by the outline's chords). On a checker whose
+/// (the region clipped by the outline's chords), under the box and (every
+/// other pixel's 2 × 2 support) the tent. On a checker whose
 /// edges lie at thirds of texture space (a 6 × 6 raster, no dyadic line
 /// among them) nothing is split.
 #[test]
@@ -536,7 +537,7 @@ fn two_colours_agree_with_the_squares() {
     use crate::math::Vec3;
     let options = quadtex_core::FilterOptions::RENDER;
     let tight = options.with_error_bound(1e-5).unwrap();
-    let (mut parted, mut worst) = (0, 0f64);
+    let (mut parted, mut worst, mut tent) = (0, 0f64, 0);
     let mut by_axis = [0; 2];
     // A 6 × 6 texel checker of 3 × 3 squares: its edges lie at thirds of
     // texture space, on no dyadic line (no region may be split there).
@@ -570,62 +571,72 @@ fn two_colours_agree_with_the_squares() {
         };
         let frame = Frame::new(&scene);
         let view = SphereView::new(&scene, 0).unwrap();
-        for y in 0..48 {
-            for x in 0..64 {
-                let (x, y) = (f64::from(x), f64::from(y));
-                let support = ConvexPolygon::rect(x, y, x + 1.0, y + 1.0);
-                let mut region = ConvexPolygon::empty();
-                view.region_into(&support, &mut region);
-                if region.is_empty() {
-                    continue;
-                }
-                let shading = Shading {
-                    frame: &frame,
-                    filter: quadtex_core::PixelFilter::Box,
-                    centre: [x + 0.5, y + 0.5],
-                    options: &options,
-                    support: support.bounds(),
-                    share: 1.0,
-                };
-                let Some(uv) = view.region_uv_box(&shading, &region) else {
-                    continue;
-                };
-                if view.uniform_exactly(&shading, &region, &uv).is_some() {
-                    continue;
-                }
-                let mut stats = crate::stats::PixelStats::default();
-                let allowance = 0.5 * options.target_bound().unwrap();
-                let Some((c, w, b)) =
-                    view.two_colours(&shading, &region, &uv, allowance, &mut stats)
-                else {
-                    continue;
-                };
-                let squares = Shading {
-                    options: &tight,
-                    ..shading
-                };
-                let (pc, pw, pb) = view.shade_by_squares(&squares, &region, &mut stats);
-                let pb = pb + 2e-5 * pw.abs();
-                parted += 1;
-                let t = &view.texture_from_uv;
-                let (lo, hi) = view.texture_box_of_uv(uv.lo, uv.hi).unwrap();
-                // The checker's edges lie at halves of texture space.
-                let crosses =
-                    |a: usize| usize::from((2.0 * lo[a]).floor() != (2.0 * hi[a]).floor());
-                by_axis[0] += crosses(0);
-                by_axis[1] += crosses(1);
-                assert!((w - pw).abs() < 1e-9, "weights {w} {pw}");
-                assert!(t[0][1] == 0.0 && t[1][0] == 0.0);
-                for k in 0..4 {
-                    let off = (c[k] - pc[k]).abs();
-                    worst = worst.max(off / (b + pb));
-                    assert!(
-                        off <= b + pb + 1e-12,
-                        "{position:?} {scale:?} pixel ({x}, {y}) channel {k}: {} against the squares' {} (bounds {b:e}, {pb:e})",
-                        c[k],
-                        pc[k]
-                    );
-                }
+        let filters = [
+            quadtex_core::PixelFilter::Box,
+            quadtex_core::PixelFilter::Tent,
+        ];
+        for (y, x, filter) in
+            (0..48).flat_map(|y| (0..64).flat_map(move |x| filters.map(|f| (y, x, f))))
+        {
+            let (x, y) = (f64::from(x), f64::from(y));
+            // The tent's 2 × 2 supports at every other pixel.
+            if filter == quadtex_core::PixelFilter::Tent && (x + y) % 2.0 == 1.0 {
+                continue;
+            }
+            let centre = [x + 0.5, y + 0.5];
+            let support = filter.support(centre);
+            let mut region = ConvexPolygon::empty();
+            view.region_into(&support, &mut region);
+            if region.is_empty() {
+                continue;
+            }
+            let shading = Shading {
+                frame: &frame,
+                filter,
+                centre,
+                options: &options,
+                support: support.bounds(),
+                share: 1.0,
+            };
+            let Some(uv) = view.region_uv_box(&shading, &region) else {
+                continue;
+            };
+            if view.uniform_exactly(&shading, &region, &uv).is_some() {
+                continue;
+            }
+            let mut stats = crate::stats::PixelStats::default();
+            let allowance = 0.5 * options.target_bound().unwrap();
+            let Some((c, w, b)) = view.two_colours(&shading, &region, &uv, allowance, &mut stats)
+            else {
+                continue;
+            };
+            let squares = Shading {
+                options: &tight,
+                ..shading
+            };
+            let (pc, pw, pb) = view.shade_by_squares(&squares, &region, &mut stats);
+            let pb = pb + 2e-5 * pw.abs();
+            parted += 1;
+            if filter == quadtex_core::PixelFilter::Tent {
+                tent += 1;
+            }
+            let t = &view.texture_from_uv;
+            let (lo, hi) = view.texture_box_of_uv(uv.lo, uv.hi).unwrap();
+            // The checker's edges lie at halves of texture space.
+            let crosses = |a: usize| usize::from((2.0 * lo[a]).floor() != (2.0 * hi[a]).floor());
+            by_axis[0] += crosses(0);
+            by_axis[1] += crosses(1);
+            assert!((w - pw).abs() < 1e-9, "weights {w} {pw}");
+            assert!(t[0][1] == 0.0 && t[1][0] == 0.0);
+            for k in 0..4 {
+                let off = (c[k] - pc[k]).abs();
+                worst = worst.max(off / (b + pb));
+                assert!(
+                    off <= b + pb + 1e-12,
+                    "{position:?} {scale:?} pixel ({x}, {y}) channel {k}: {} against the squares' {} (bounds {b:e}, {pb:e})",
+                    c[k],
+                    pc[k]
+                );
             }
         }
         if texture.is_some() {
@@ -635,9 +646,14 @@ fn two_colours_agree_with_the_squares() {
             );
         }
     }
-    assert!(parted > 400, "{parted} regions parted");
+    assert!(
+        parted > 400 && tent > 100,
+        "{parted} regions parted, {tent} of tents"
+    );
     assert!(by_axis.iter().all(|&n| n > 50), "{by_axis:?}");
-    eprintln!("parted {parted}, by axis {by_axis:?}, worst share of the bounds {worst:.3}");
+    eprintln!(
+        "parted {parted} ({tent} of tents), by axis {by_axis:?}, worst share of the bounds {worst:.3}"
+    );
 }
 
 /// The light's midpoint bound ([`SphereView::midpoint_cosine_error`])
