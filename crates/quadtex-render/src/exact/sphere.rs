@@ -40,7 +40,7 @@
 //! over it by little, [`light`]), that is the region's colour, with no
 //! fit and no pieces; where one texture edge parts it into two colours,
 //! it is split along the edge's own image, an ellipse clipped by chords
-//! ([`edges`], [`conic`]). Inside the outline, an unlit sphere first
+//! ([`edges`], [`conic`]). Inside the outline, a textured sphere first
 //! tries the box of a run of pixels along the row ([`runs`]). The
 //! pieces:
 //!
