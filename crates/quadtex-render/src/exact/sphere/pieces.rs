@@ -311,14 +311,8 @@ impl SphereView {
                 self.add_uniform(shading, region, (Some(colour), light), &mut sums, stats);
                 return sums;
             }
-            if let Some(uv) = self.region_uv_box(shading, region) {
-                if let Some((colour, light)) = self.uniform_exactly(shading, region, &uv) {
-                    self.add_uniform(shading, region, (colour, light), &mut sums, stats);
-                    return sums;
-                }
-                if let Some(parted) = self.two_colours(shading, region, &uv, spare.weight, stats) {
-                    return parted;
-                }
+            if let Some(closed) = self.in_closed_form(shading, region, &spare, stats) {
+                return closed;
             }
             self.shade_squares(shading, region, &mut spare, &mut sums, stats);
             return sums;
@@ -333,14 +327,8 @@ impl SphereView {
         }
         // One texture square may hold all of it: shown in closed form,
         // or through a fit across it.
-        if let Some(uv) = self.region_uv_box(shading, region) {
-            if let Some((colour, light)) = self.uniform_exactly(shading, region, &uv) {
-                self.add_uniform(shading, region, (colour, light), &mut sums, stats);
-                return sums;
-            }
-            if let Some(parted) = self.two_colours(shading, region, &uv, spare.weight, stats) {
-                return parted;
-            }
+        if let Some(closed) = self.in_closed_form(shading, region, &spare, stats) {
+            return closed;
         }
         let (lo, hi) = region.bounds();
         let mut whole = Square::new(lo, (hi[0] - lo[0]).max(hi[1] - lo[1]));
@@ -543,16 +531,7 @@ impl SphereView {
             self.add_uniform(shading, &piece, (colour, 0.0), sums, stats);
             return;
         }
-        // One texture edge across it: split along the edge's image, the
-        // bound from what the pieces may still spend.
-        if b - a > 1
-            && spare.edges_parted
-            && let Some(uv) = self.region_uv_box(shading, &piece)
-            && let Some((c, w, bound)) =
-                self.two_colours(shading, &piece, &uv, 0.125 * spare.weight, stats)
-        {
-            spare.weight -= bound;
-            add(sums, c, w, bound);
+        if b - a > 1 && self.part_by_edge(shading, &piece, spare, sums, stats) {
             return;
         }
         // Near a pole, where the UV's fit is off: a band of texture squares
@@ -594,6 +573,55 @@ impl SphereView {
             }
             _ => self.shade_squares(shading, &piece, spare, sums, stats),
         }
+    }
+
+    /// `(Σ colour·k, Σ k, bound)` of a call's whole `region` from its
+    /// closed-form UV box: in one colour ([`SphereView::uniform_exactly`])
+    /// or two ([`SphereView::two_colours`], within the call's allowance);
+    /// `None` when neither is shown.
+    fn in_closed_form(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        spare: &Budget,
+        stats: &mut PixelStats,
+    ) -> Option<([f64; 4], f64, f64)> {
+        let uv = self.region_uv_box(shading, region)?;
+        if let Some((colour, light)) = self.uniform_exactly(shading, region, &uv) {
+            let mut sums = ([0.0; 4], 0.0, 0.0);
+            self.add_uniform(shading, region, (colour, light), &mut sums, stats);
+            return Some(sums);
+        }
+        self.two_colours(shading, region, &uv, spare.weight, stats)
+    }
+
+    /// Adds `piece` to `sums` split along the image of the one texture edge
+    /// across it ([`SphereView::two_colours`]), where there is one and its
+    /// bound is within an eighth of what is left of the call's allowance
+    /// (as a piece off its fit may spend), and spends the bound; false
+    /// (nothing added) otherwise.
+    fn part_by_edge(
+        &self,
+        shading: &Shading<'_>,
+        piece: &ConvexPolygon,
+        spare: &mut Budget,
+        sums: &mut ([f64; 4], f64, f64),
+        stats: &mut PixelStats,
+    ) -> bool {
+        if !spare.edges_parted {
+            return false;
+        }
+        let Some(uv) = self.region_uv_box(shading, piece) else {
+            return false;
+        };
+        let Some((c, w, bound)) =
+            self.two_colours(shading, piece, &uv, 0.125 * spare.weight, stats)
+        else {
+            return false;
+        };
+        spare.weight -= bound;
+        add(sums, c, w, bound);
+        true
     }
 
     /// [`SphereView::shade`] of `region` by squares, from its bounding
@@ -669,16 +697,7 @@ impl SphereView {
                 _ => None,
             };
             let off = error > tolerance || (fan.is_some() && on_fan.is_none());
-            // One texture edge across it: split along the edge's image.
-            if off
-                && fan.is_none()
-                && spare.edges_parted
-                && let Some(uv) = self.region_uv_box(shading, &piece)
-                && let Some((c, w, bound)) =
-                    self.two_colours(shading, &piece, &uv, 0.125 * spare.weight, stats)
-            {
-                spare.weight -= bound;
-                add(sums, c, w, bound);
+            if off && fan.is_none() && self.part_by_edge(shading, &piece, spare, sums, stats) {
                 continue;
             }
             let spent = off && w.abs() <= 0.125 * spare.weight;
