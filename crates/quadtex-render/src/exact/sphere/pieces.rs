@@ -12,6 +12,7 @@ use crate::stats::PixelStats;
 use super::super::lighting::{Shading, apply_light};
 use super::fan::{PolarFan, Wedge, meeting};
 
+use super::runs::RunTexture;
 use super::{Chords, SphereView};
 
 /// The rings along the outline are spaced for a quarter of the default
@@ -305,11 +306,21 @@ impl SphereView {
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
         if !crossing && !self.sectors_near_outline(&support, &mut chords) {
-            if let Some((colour, run)) = self.uniform_run(shading)
-                && let Some(light) = self.light_bound(shading, region, &run, &[Some(colour)])
-            {
-                self.add_uniform(shading, region, (Some(colour), light), &mut sums, stats);
-                return sums;
+            match self.uniform_run(shading) {
+                Some(RunTexture::One(colour, run)) => {
+                    if let Some(light) = self.light_bound(shading, region, &run, &[Some(colour)]) {
+                        self.add_uniform(shading, region, (Some(colour), light), &mut sums, stats);
+                        return sums;
+                    }
+                }
+                Some(RunTexture::Two(image, run)) => {
+                    if let Some(parted) =
+                        self.split_along(shading, region, &run, &image, spare.weight, stats)
+                    {
+                        return parted;
+                    }
+                }
+                _ => {}
             }
             if let Some(closed) = self.in_closed_form(shading, region, &spare, stats) {
                 return closed;
