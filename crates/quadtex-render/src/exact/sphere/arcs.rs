@@ -353,6 +353,28 @@ impl SphereView {
         Some((colour, self.light_bound(shading, piece, uv, &[colour])?))
     }
 
+    /// A bound on `∫|k|` over `piece`, whose filter integral is `w`: the
+    /// light's per-unit-weight bound ([`SphereView::light_bound`]) is
+    /// multiplied by it. `|w|` where `k ≥ 0` (box, tent); under Mitchell,
+    /// whose negative lobes can cancel part of `∫k`, the filter's largest
+    /// `|k|` over the piece's box times its area where that is more.
+    pub(super) fn absolute_weight(
+        &self,
+        shading: &Shading<'_>,
+        piece: &ConvexPolygon,
+        w: f64,
+    ) -> f64 {
+        match shading.filter {
+            quadtex_core::PixelFilter::Mitchell => w.abs().max(
+                shading
+                    .filter
+                    .largest_weight_in(piece.bounds(), shading.centre)
+                    * piece.area(),
+            ),
+            _ => w.abs(),
+        }
+    }
+
     /// A bound on how far the light anywhere in a piece whose UV box is
     /// `uv` takes its colour (in `texels`, `None` for the surface's own)
     /// from the light at its centroid, per unit weight: the cosine's spread

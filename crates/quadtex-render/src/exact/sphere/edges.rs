@@ -198,9 +198,11 @@ impl SphereView {
         }
         // Each term lit at its own polygon's centroid.
         let texels = [Some(inner_texel), Some(outer_texel)];
-        let mut light = self.light_bound(shading, region, uv, &texels)? * whole.abs();
+        let mut light = self.light_bound(shading, region, uv, &texels)?
+            * self.absolute_weight(shading, region, whole);
         if !part.is_empty() {
-            light += self.light_bound(shading, &part, uv, &texels)? * within.abs();
+            light += self.light_bound(shading, &part, uv, &texels)?
+                * self.absolute_weight(shading, &part, within);
         }
         let bound = ellipse.slivers(&chords, filter, centre) * contrast + light;
         if bound.is_nan() || bound > allowance {

@@ -470,7 +470,7 @@ impl SphereView {
             sums,
             self.finish(shading, piece, c),
             w,
-            light_bound * w.abs(),
+            light_bound * self.absolute_weight(shading, piece, w),
         );
     }
 

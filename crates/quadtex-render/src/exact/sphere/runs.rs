@@ -4,8 +4,9 @@
 //! wide uniform stretches cost one box for a run, not one a pixel (and
 //! where one texture edge crosses the run, one image of it for the run,
 //! [`super::edges`]). Under
-//! a light each pixel still carries its own light bound
-//! ([`SphereView::light_bound`]: the run's cosine range holds its own).
+//! a light each pixel carries a light bound from the run's cosine range,
+//! which holds its own ([`SphereView::light_bound`]; under the box, with
+//! its own midpoint bound).
 
 use quadtex_core::{ConvexPolygon, Rgba};
 
