@@ -12,7 +12,7 @@ use crate::stats::PixelStats;
 use super::super::lighting::{Shading, apply_light};
 use super::fan::{PolarFan, Wedge, meeting};
 
-use super::runs::RunTexture;
+use super::arcs::{BoxTexture, UvBox};
 use super::{Chords, SphereView};
 
 /// The rings along the outline are spaced for a quarter of the default
@@ -306,21 +306,11 @@ impl SphereView {
         let mut chords = Chords::default();
         let crossing = self.chords(&support, &mut chords).is_some() && chords.count > 0;
         if !crossing && !self.sectors_near_outline(&support, &mut chords) {
-            match self.uniform_run(shading) {
-                Some(RunTexture::One(colour, run)) => {
-                    if let Some(light) = self.light_bound(shading, region, &run, &[Some(colour)]) {
-                        self.add_uniform(shading, region, (Some(colour), light), &mut sums, stats);
-                        return sums;
-                    }
-                }
-                Some(RunTexture::Two(image, run)) => {
-                    if let Some(parted) =
-                        self.split_along(shading, region, &run, &image, spare.weight, stats)
-                    {
-                        return parted;
-                    }
-                }
-                _ => {}
+            if let Some((texture, run)) = self.run_texture(shading)
+                && let Some(closed) =
+                    self.shade_in_box(shading, region, &run, texture, spare.weight, stats)
+            {
+                return closed;
             }
             if let Some(closed) = self.in_closed_form(shading, region, &spare, stats) {
                 return closed;
@@ -587,9 +577,8 @@ impl SphereView {
     }
 
     /// `(Σ colour·k, Σ k, bound)` of a call's whole `region` from its
-    /// closed-form UV box: in one colour ([`SphereView::uniform_exactly`])
-    /// or two ([`SphereView::two_colours`], within the call's allowance);
-    /// `None` when neither is shown.
+    /// closed-form UV box ([`SphereView::shade_in_box`], within the call's
+    /// allowance); `None` when that does not show it.
     fn in_closed_form(
         &self,
         shading: &Shading<'_>,
@@ -598,12 +587,36 @@ impl SphereView {
         stats: &mut PixelStats,
     ) -> Option<([f64; 4], f64, f64)> {
         let uv = self.region_uv_box(shading, region)?;
-        if let Some((colour, light)) = self.uniform_exactly(shading, region, &uv) {
-            let mut sums = ([0.0; 4], 0.0, 0.0);
-            self.add_uniform(shading, region, (colour, light), &mut sums, stats);
-            return Some(sums);
+        let texture = self.box_texture(shading, &uv);
+        self.shade_in_box(shading, region, &uv, texture, spare.weight, stats)
+    }
+
+    /// `(Σ colour·k, Σ k, bound)` of `region`, whose sphere UV lies in the
+    /// box `uv` over which the texture is `texture`: in one colour, where
+    /// the light moves it by little ([`SphereView::light_bound`]), or split
+    /// along the one texture edge's image ([`SphereView::split_along`],
+    /// its bound within `allowance`); `None` otherwise.
+    fn shade_in_box(
+        &self,
+        shading: &Shading<'_>,
+        region: &ConvexPolygon,
+        uv: &UvBox,
+        texture: BoxTexture,
+        allowance: f64,
+        stats: &mut PixelStats,
+    ) -> Option<([f64; 4], f64, f64)> {
+        match texture {
+            BoxTexture::One(colour) => {
+                let light = self.light_bound(shading, region, uv, &[colour])?;
+                let mut sums = ([0.0; 4], 0.0, 0.0);
+                self.add_uniform(shading, region, (colour, light), &mut sums, stats);
+                Some(sums)
+            }
+            BoxTexture::Two(image) => {
+                self.split_along(shading, region, uv, &image, allowance, stats)
+            }
+            BoxTexture::Other => None,
         }
-        self.two_colours(shading, region, &uv, spare.weight, stats)
     }
 
     /// Adds `piece` to `sums` split along the image of the one texture edge
