@@ -17,9 +17,9 @@ use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
 use crate::caster::Seen;
-use crate::exact::{Scratch, SurfaceViews};
+use crate::exact::{STRIP_PIXELS, Scratch, SurfaceViews};
 use crate::frame::Frame;
-use crate::options::{RenderOptions, TextureFilter};
+use crate::options::{PixelFilter, RenderOptions, TextureFilter};
 use crate::pixel::{Neighbourhood, shade_pixel};
 use crate::scene::Scene;
 use crate::stats::{PixelStats, RenderSummary};
@@ -32,7 +32,7 @@ pub fn render(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(LinearImage, RenderSummary), crate::Error> {
     let mut image = LinearImage::default();
-    let summary = render_with(scene, options, progress, Spans::Shared, &mut image)?;
+    let summary = render_with(scene, options, progress, Spans::Shared, &mut image, None)?;
     Ok((image, summary))
 }
 
@@ -48,24 +48,32 @@ pub fn render_into(
     image: &mut LinearImage,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderSummary, crate::Error> {
-    render_with(scene, options, progress, Spans::Shared, image)
+    render_with(scene, options, progress, Spans::Shared, image, None)
 }
 
 /// Whether runs of pixels inside one primitive may share their answer
-/// ([`crate::span`]); the tests render both ways.
+/// ([`crate::span`]) and runs of box pixels whose centres see more than
+/// one thing be cut as one strip ([`STRIP_PIXELS`]); the tests render
+/// each way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Spans {
     Shared,
+    /// Spans shared, strips not.
+    #[cfg(test)]
+    NoStrips,
     #[cfg(test)]
     EachPixel,
 }
 
+/// Renders `scene` into `image`; with `bounds`, also each pixel's
+/// relative error bound (the largest its counters recorded), row by row.
 fn render_with(
     scene: &Scene,
     options: &RenderOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
     spans: Spans,
     image: &mut LinearImage,
+    bounds: Option<&mut Vec<f64>>,
 ) -> Result<RenderSummary, crate::Error> {
     let (w, h) = output_size(scene, options);
     let scene = sized_scene(scene, w, h)?;
@@ -98,22 +106,34 @@ fn render_with(
     // reused as it is.
     let mut pixels = std::mem::take(&mut image.pixels);
     pixels.resize(w as usize * h as usize, Rgba::TRANSPARENT);
-    let row_stats: Vec<PixelStats> = pixels
-        .par_chunks_mut(w as usize)
-        .enumerate()
-        // One task a row. Rows cost very different amounts (a row at a
-        // horizon costs a hundred sky rows or more), and rayon's adaptive
-        // split, left to itself, hands each thread long runs of rows: the
-        // demo at 1080p kept 1.6 of 2 cores busy; split to single rows,
-        // 1.9 (docs/performance.md, "One task a row").
-        .with_max_len(1)
-        .map(|(y, row)| {
-            let stats = rows.shade(y as u32, row);
-            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(n, u64::from(h));
-            stats
-        })
-        .collect();
+    let shade = |y: usize, row: &mut [Rgba], bounds: &mut [f64]| {
+        let stats = rows.shade(y as u32, row, bounds);
+        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress(n, u64::from(h));
+        stats
+    };
+    // One task a row. Rows cost very different amounts (a row at a
+    // horizon costs a hundred sky rows or more), and rayon's adaptive
+    // split, left to itself, hands each thread long runs of rows: the
+    // demo at 1080p kept 1.6 of 2 cores busy; split to single rows, 1.9
+    // (docs/performance.md, "One task a row").
+    let row_stats: Vec<PixelStats> = match bounds {
+        None => (pixels.par_chunks_mut(w as usize).enumerate())
+            .with_max_len(1)
+            .map(|(y, row)| shade(y, row, &mut []))
+            .collect(),
+        Some(bounds) => {
+            bounds.clear();
+            bounds.resize(pixels.len(), 0.0);
+            (pixels
+                .par_chunks_mut(w as usize)
+                .zip(bounds.par_chunks_mut(w as usize)))
+            .enumerate()
+            .with_max_len(1)
+            .map(|(y, (row, bounds))| shade(y, row, bounds))
+            .collect()
+        }
+    };
     // Merged in row order, so the summary's sums do not depend on the
     // threads' schedule.
     let mut total = PixelStats::default();
@@ -257,8 +277,9 @@ struct Rows<'r> {
 }
 
 impl Rows<'_> {
-    /// Shades row `y` into `row`; returns what it cost.
-    fn shade(&self, y: u32, row: &mut [Rgba]) -> PixelStats {
+    /// Shades row `y` into `row`, and each pixel's relative error bound
+    /// into `bounds` unless it is empty; returns what it cost.
+    fn shade(&self, y: u32, row: &mut [Rgba], bounds: &mut [f64]) -> PixelStats {
         let (options, spans, views, centres) = (self.options, self.spans, self.views, self.centres);
         let mut stats = PixelStats::default();
         let mut ids = Vec::new();
@@ -271,18 +292,36 @@ impl Rows<'_> {
             centres.reach as usize,
             self.width as usize,
         );
-        let runs = match (spans, options.filter) {
-            (Spans::Shared, TextureFilter::Quadtree(_)) => runs_of_primitives(&uniform),
+        let shared = match spans {
+            Spans::Shared => true,
+            #[cfg(test)]
+            Spans::NoStrips => true,
+            #[cfg(test)]
+            Spans::EachPixel => false,
+        };
+        let runs = match (shared, options.filter) {
+            (true, TextureFilter::Quadtree(_)) => runs_of_primitives(&uniform),
             _ => Vec::new(),
         };
+        let strips = match (spans, options.filter, options.pixel_filter) {
+            (Spans::Shared, TextureFilter::Quadtree(filter_options), PixelFilter::Box) => {
+                Some(filter_options)
+            }
+            _ => None,
+        };
+        let mut strip_ids = Vec::new();
         for (x, out) in (0..self.width).zip(row.iter_mut()) {
-            if let Some((colour, parts)) = scratch.span_fill((x, y)) {
+            if let Some((colour, parts)) = scratch
+                .span_fill((x, y))
+                .or_else(|| scratch.strip_fill((x, y)))
+            {
                 *out = *colour;
                 stats.merge_parts(parts);
+                record(bounds, x, parts);
                 continue;
             }
-            if let (Spans::Shared, TextureFilter::Quadtree(filter_options), Some(Some(0))) =
-                (spans, options.filter, uniform.get(x as usize))
+            if let (true, TextureFilter::Quadtree(filter_options), Some(Some(0))) =
+                (shared, options.filter, uniform.get(x as usize))
                 && let Some(colour) = scratch.sky_pixel(
                     self.scene,
                     views,
@@ -293,6 +332,34 @@ impl Rows<'_> {
             {
                 *out = colour;
                 continue;
+            }
+            // A run of pixels whose centres in reach see more than one thing
+            // (`uniform` holds `None` for each): one strip.
+            if let Some(filter_options) = &strips {
+                let mixed = |x: u32| uniform.get(x as usize) == Some(&None);
+                let end = (x..self.width.min(x + STRIP_PIXELS))
+                    .take_while(|&x| mixed(x))
+                    .last()
+                    .map_or(x, |last| last + 1);
+                if end >= x + 2 {
+                    strip_ids.clear();
+                    for x in x..end {
+                        centres.neighbourhood(x, y, None, &mut ids);
+                        for &id in &ids {
+                            if !strip_ids.contains(&id) {
+                                strip_ids.push(id);
+                            }
+                        }
+                    }
+                    if scratch.strip(self.frame, filter_options, (x, end, y), &strip_ids, views)
+                        && let Some((colour, parts)) = scratch.strip_fill((x, y))
+                    {
+                        *out = *colour;
+                        stats.merge_parts(parts);
+                        record(bounds, x, parts);
+                        continue;
+                    }
+                }
             }
             let mut pixel = PixelStats::default();
             let sky =
@@ -306,9 +373,18 @@ impl Rows<'_> {
             };
             *out = shade_pixel(self.frame, options, (x, y), &near, &mut scratch, &mut pixel);
             stats.merge_parts(&pixel);
+            record(bounds, x, &pixel);
         }
         scratch.end_row();
         stats
+    }
+}
+
+/// Writes pixel `x`'s relative error bound, the largest its counters
+/// `parts` recorded, into `bounds` (when they are kept).
+fn record(bounds: &mut [f64], x: u32, parts: &PixelStats) {
+    if let Some(b) = bounds.get_mut(x as usize) {
+        *b = parts.filter.max_error_bound;
     }
 }
 

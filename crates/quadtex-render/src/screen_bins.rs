@@ -334,6 +334,62 @@ impl ScreenBins {
         true
     }
 
+    /// Every binned triangle whose widened box meets the screen box
+    /// `lo..hi` and whose least depth (its bound, [`ScreenBox::near`]) is
+    /// below `depth`, as `(surface, triangle, least depth)` into `out`,
+    /// sorted and each once: a superset of the mesh triangles that reach into a polygon
+    /// within that box nearer than `depth` somewhere. Each tile's list is
+    /// read nearest first, up to `depth`. False (`out` cleared) when the
+    /// box is not wholly inside the tiles.
+    pub(crate) fn nearer_than(
+        &self,
+        lo: [f64; 2],
+        hi: [f64; 2],
+        depth: f64,
+        out: &mut Vec<(u32, u32, f32)>,
+    ) -> bool {
+        out.clear();
+        let tiles = &self.fine;
+        let end = |a: usize| tiles.origin + tiles.tiles[a] as f64 * tiles.side[a];
+        if !(0..2).all(|a| lo[a] >= tiles.origin && hi[a] < end(a) && lo[a] <= hi[a]) {
+            return false;
+        }
+        let (x0, y0, x1, y1) = (lo[0], lo[1], hi[0], hi[1]);
+        let query = [
+            (x0 as f32).next_down(),
+            (y0 as f32).next_down(),
+            (x1 as f32).next_up(),
+            (y1 as f32).next_up(),
+        ];
+        for tiles in [&self.fine, &self.coarse] {
+            let Some(((tx0, tx1), (ty0, ty1))) = tiles.range(&query) else {
+                continue;
+            };
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    for &i in tiles.at(ty * tiles.tiles[0] + tx) {
+                        let (surface, triangle, [a0, b0, a1, b1], near) =
+                            self.triangles[i as usize];
+                        // Not a number compares false: read on.
+                        if f64::from(near) >= depth {
+                            break;
+                        }
+                        let apart = f64::from(a1) < x0
+                            || f64::from(a0) > x1
+                            || f64::from(b1) < y0
+                            || f64::from(b0) > y1;
+                        if !apart {
+                            out.push((surface, triangle, near));
+                        }
+                    }
+                }
+            }
+        }
+        out.sort_unstable_by_key(|&(surface, triangle, _)| (surface, triangle));
+        out.dedup_by_key(|&mut (surface, triangle, _)| (surface, triangle));
+        true
+    }
+
     /// What [`Caster::nearest_index`] finds for `ray`, the camera's ray
     /// through screen point `c`: the nearest of the non-mesh surfaces
     /// (each tested) and of the mesh triangles in `c`'s tile whose boxes

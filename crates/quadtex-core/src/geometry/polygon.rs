@@ -371,7 +371,7 @@ impl ConvexPolygon {
     /// pass: the same polygons as [`ConvexPolygon::clip_into`] with
     /// `(a, b, c)` and with `(−a, −b, −c)` (negation is exact, so each
     /// side value and crossing point is too).
-    pub(crate) fn split_into(
+    pub fn split_into(
         &self,
         a: f64,
         b: f64,

@@ -12,8 +12,8 @@ use crate::caster::{Seen, seen_id};
 use crate::scene::{Geometry, Scene};
 use crate::view::{Placement, placement};
 
+use super::GAP_AREA;
 use super::views::{SurfaceViews, ViewMemo, ViewRef, candidate_view};
-use super::{GAP_AREA, MAX_GAP_PRIMITIVES};
 
 /// Relative size, against the terms of an edge line's value at a vertex,
 /// below which a vertex beyond the line counts as on it in
@@ -187,9 +187,55 @@ impl Cut {
         if self.taken_whole(regions, support) {
             return;
         }
+        let sliver_area = self.sliver_area;
+        order.front_to_back(views, regions, sliver_area);
+        self.unaccounted += 2.0 * order.hairs;
         self.remaining.push(support.clone());
-        for &i in order.front_to_back(views, regions) {
+        if order.cyclic {
+            self.each_behind_those_in_front(regions, order);
+            return;
+        }
+        for &i in &order.order {
             self.take(i, &regions[i]);
+        }
+    }
+
+    /// The cut when occlusion among the regions is cyclic (no view is in
+    /// front of every other it overlaps), so that no order front to back
+    /// holds: each view sees its region less the regions of the views in
+    /// front of it where they overlap, as [`Order::front_to_back`]
+    /// decided each pair. For planar primitives that do not cross, which
+    /// is nearer is the same over the whole of a pair's overlap, so this
+    /// is what each point shows, whatever the cycles (a pair's hair of an
+    /// overlap, which decides nothing, is in the bound). What no region
+    /// covers is left for the gaps.
+    pub(super) fn each_behind_those_in_front(&mut self, regions: &[ConvexPolygon], order: &Order) {
+        let sliver_area = self.sliver_area;
+        let drop = |_: ConvexPolygon, _: &mut Vec<ConvexPolygon>, _: usize| {};
+        for (a, &i) in order.left.iter().enumerate() {
+            let Cut {
+                visible_regions,
+                remaining,
+                spare,
+                inserted,
+                slivers,
+                ..
+            } = self;
+            inserted.clear();
+            inserted.push(regions[i].clone());
+            for (b, &j) in order.left.iter().enumerate() {
+                if order.in_front(a, b) {
+                    carve(inserted, &regions[j], spare, slivers, sliver_area, drop);
+                }
+            }
+            for visible in inserted.drain(..) {
+                if visible.area() > sliver_area {
+                    visible_regions.push((i, visible));
+                } else if visible.area() > 0.0 {
+                    slivers.push(visible);
+                }
+            }
+            carve(remaining, &regions[i], spare, slivers, sliver_area, drop);
         }
     }
 
@@ -445,30 +491,51 @@ pub(super) fn carve(
     }
 }
 
-/// The buffers of [`Order::front_to_back`].
+/// The order of a support's views front to back ([`Order::front_to_back`])
+/// and its buffers.
 #[derive(Default)]
 pub(super) struct Order {
-    left: Vec<usize>,
+    /// The views with a region, by index.
+    pub(super) left: Vec<usize>,
+    /// `behind[a·n + b]`: `left[b]` is in front of `left[a]` where their
+    /// regions overlap.
     behind: Vec<bool>,
     placed: Vec<bool>,
-    order: Vec<usize>,
+    /// How many views not yet placed are in front of each.
+    ahead: Vec<usize>,
+    /// The views front to back.
+    pub(super) order: Vec<usize>,
+    /// Whether occlusion was cyclic (the order then breaks a cycle at the
+    /// nearest view's centroid, which decides nothing exactly).
+    pub(super) cyclic: bool,
+    /// The area of the overlaps of at most `hair` area, which set no order.
+    pub(super) hairs: f64,
 }
 
 impl Order {
     /// Indices of `views` front to back: repeatedly the one no other
     /// remaining view is in front of where their regions overlap (the
-    /// nearest at its own centroid if occlusion is cyclic).
+    /// nearest at its own centroid if occlusion is cyclic, which
+    /// [`Order::cyclic`] then says). Overlaps of at most `hair` area
+    /// (rounding along shared edges) set no order; [`Order::hairs`] sums
+    /// their areas.
     pub(super) fn front_to_back(
         &mut self,
         views: &[ViewRef<'_>],
         regions: &[ConvexPolygon],
+        hair: f64,
     ) -> &[usize] {
         let Order {
             left,
             behind,
             placed,
+            ahead,
             order,
+            cyclic,
+            hairs,
         } = self;
+        *cyclic = false;
+        *hairs = 0.0;
         left.clear();
         left.extend((0..views.len()).filter(|&i| !regions[i].is_empty()));
         let n = left.len();
@@ -482,6 +549,11 @@ impl Order {
                 let Some(overlap) = overlap(&regions[i], &regions[j]) else {
                     continue;
                 };
+                let area = overlap.area();
+                if area <= hair {
+                    *hairs += area;
+                    continue;
+                }
                 let c = overlap.centroid();
                 let (di, dj) = (views[i].depth_at(c), views[j].depth_at(c));
                 behind[a * n + b] = dj < di;
@@ -490,28 +562,45 @@ impl Order {
         }
         placed.clear();
         placed.resize(n, false);
+        ahead.clear();
+        ahead.extend((0..n).map(|a| behind[a * n..(a + 1) * n].iter().filter(|&&b| b).count()));
         order.clear();
+        // Counts kept as views are placed, so that a pick costs a scan, not
+        // a scan per view: a strip's list runs to a hundred views.
         for _ in 0..n {
-            let free = |a: usize| !placed[a] && (0..n).all(|b| placed[b] || !behind[a * n + b]);
-            let pick = (0..n).find(|&a| free(a)).unwrap_or_else(|| {
-                // Cyclic occlusion: the nearest at its own centroid.
-                let depth = |a: usize| views[left[a]].depth_at(regions[left[a]].centroid());
-                (0..n)
-                    .filter(|&a| !placed[a])
-                    .fold((usize::MAX, f64::INFINITY), |best, a| {
-                        let d = depth(a);
-                        if d < best.1 || best.0 == usize::MAX {
-                            (a, d)
-                        } else {
-                            best
-                        }
-                    })
-                    .0
-            });
+            let pick = (0..n)
+                .find(|&a| !placed[a] && ahead[a] == 0)
+                .unwrap_or_else(|| {
+                    // Cyclic occlusion: the nearest at its own centroid.
+                    *cyclic = true;
+                    let depth = |a: usize| views[left[a]].depth_at(regions[left[a]].centroid());
+                    (0..n)
+                        .filter(|&a| !placed[a])
+                        .fold((usize::MAX, f64::INFINITY), |best, a| {
+                            let d = depth(a);
+                            if d < best.1 || best.0 == usize::MAX {
+                                (a, d)
+                            } else {
+                                best
+                            }
+                        })
+                        .0
+                });
             placed[pick] = true;
             order.push(left[pick]);
+            for a in 0..n {
+                if behind[a * n + pick] {
+                    ahead[a] -= 1;
+                }
+            }
         }
         order
+    }
+
+    /// Whether view `left[b]` is in front of view `left[a]` where their
+    /// regions overlap (as the last [`Order::front_to_back`] decided).
+    pub(super) fn in_front(&self, a: usize, b: usize) -> bool {
+        self.behind[a * self.left.len() + b]
     }
 }
 
@@ -521,13 +610,15 @@ pub(super) struct Flood<'s, 'a> {
     pub(super) scene: &'s Scene,
     pub(super) cache: &'a SurfaceViews,
     pub(super) support: &'s ConvexPolygon,
+    /// Most triangles a spread adds ([`MAX_GAP_PRIMITIVES`](super::MAX_GAP_PRIMITIVES) a pixel).
+    pub(super) cap: usize,
 }
 
 impl<'a> Flood<'_, 'a> {
     /// Adds to `views` (and `regions`, `tried`) each mesh triangle across
     /// an edge of a listed triangle whose region of the support is not
     /// empty, where the support reaches past that edge, and the same from
-    /// those it adds, breadth first, up to [`MAX_GAP_PRIMITIVES`]: the
+    /// those it adds, breadth first, up to its cap: the
     /// triangles of a mesh around those the centres see, which tile the
     /// support with them where the surface does not fold. Their indices go
     /// to `flooded`.
@@ -542,7 +633,7 @@ impl<'a> Flood<'_, 'a> {
         flooded.clear();
         let corners = self.support.vertices();
         let mut i = 0;
-        while i < views.len() && flooded.len() < MAX_GAP_PRIMITIVES {
+        while i < views.len() && flooded.len() < self.cap {
             let view = &views[i];
             let (surface, triangle) = (view.surface(), view.triangle());
             let mesh = match self.scene.surfaces.get(surface).map(|s| &s.geometry) {
@@ -569,7 +660,7 @@ impl<'a> Flood<'_, 'a> {
                     continue;
                 };
                 let id = seen_id(surface, next);
-                if tried.iter().any(|(t, _)| *t == id) || flooded.len() == MAX_GAP_PRIMITIVES {
+                if tried.iter().any(|(t, _)| *t == id) || flooded.len() == self.cap {
                     continue;
                 }
                 let Some(Some(next)) = candidate_view(self.scene, self.cache, memo, id) else {

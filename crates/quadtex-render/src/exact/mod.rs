@@ -84,6 +84,7 @@ mod screen_cells;
 
 mod sky;
 mod sphere;
+mod strip;
 mod views;
 
 #[cfg(test)]
@@ -91,4 +92,5 @@ mod tests;
 
 pub(crate) use pixel::{Scratch, exact_pixel};
 pub(crate) use sphere::PolarFans;
+pub(crate) use strip::STRIP_PIXELS;
 pub(crate) use views::SurfaceViews;

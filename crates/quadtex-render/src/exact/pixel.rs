@@ -15,7 +15,7 @@ use crate::stats::PixelStats;
 use crate::view::View;
 
 use super::cutting::Flood;
-use super::cutting::{Cut, Order, Regions, overlap, push_region};
+use super::cutting::{Bounds, Cut, Order, Regions, boxes_apart, overlap, push_region};
 use super::lighting::{Shading, shade_region, shade_span_pixel, tint_and_light};
 use super::screen_cells::ScreenCells;
 use super::sky::{
@@ -54,6 +54,7 @@ pub(crate) fn exact_pixel<'a>(
         at: (x, y),
         support,
         cache: near.views,
+        cap: MAX_GAP_PRIMITIVES,
     };
     let (cache, support, candidates) = (near.views, &pixel.support, near.primitives);
     // One primitive over the whole support: one integral.
@@ -120,17 +121,20 @@ const SMALLEST_CELL: f64 = 0.5;
 /// One exact pixel's question, what its steps share: the shading of its
 /// regions (frame, filters, centre), where it is, its filter's support,
 /// and the frame's views.
-struct ExactPixel<'p, 'a> {
-    shading: Shading<'p>,
-    at: (u32, u32),
-    support: ConvexPolygon,
-    cache: &'a SurfaceViews,
+pub(super) struct ExactPixel<'p, 'a> {
+    pub(super) shading: Shading<'p>,
+    pub(super) at: (u32, u32),
+    pub(super) support: ConvexPolygon,
+    pub(super) cache: &'a SurfaceViews,
+    /// Most primitives the flood and the gaps' search each add to the
+    /// list: [`MAX_GAP_PRIMITIVES`] a pixel.
+    pub(super) cap: usize,
 }
 
 /// The sums a pixel's colour is the mean of: `Σ colour·k`, `Σ k`, and the
 /// error bounds' sum, added region by region in a fixed order.
-#[derive(Default)]
-struct Sums {
+#[derive(Default, Clone)]
+pub(super) struct Sums {
     colour: [f64; 4],
     weight: f64,
     bound: f64,
@@ -261,7 +265,11 @@ impl<'a> ExactPixel<'_, 'a> {
     /// and of every other plane, quad and triangle of a small mesh a
     /// centre sees, which may reach into the support unseen, with their
     /// regions of the support. `None` when a candidate has no view.
-    fn list_candidates(&self, candidates: &[Seen], scratch: &mut Scratch<'a>) -> Option<()> {
+    pub(super) fn list_candidates(
+        &self,
+        candidates: &[Seen],
+        scratch: &mut Scratch<'a>,
+    ) -> Option<()> {
         let (scene, cache) = (self.shading.frame.scene, self.cache);
         let Scratch {
             views,
@@ -352,6 +360,7 @@ impl<'a> ExactPixel<'_, 'a> {
                 scene,
                 cache,
                 support,
+                cap: self.cap,
             };
             let (listed, tried_before) = (views.len(), tried.len());
             flood.spread(views, regions, tried, memo, flooded);
@@ -402,7 +411,7 @@ impl<'a> ExactPixel<'_, 'a> {
     /// Searches what no listed primitive covers, the cut's parts left:
     /// the primitive the ray through each gap's centroid meets, or the
     /// mesh triangles that reach into a gap whose ray meets nothing, join
-    /// the list (after `found` joined before, up to
+    /// the list (after `found` joined before, up to the pixel's cap,
     /// [`MAX_GAP_PRIMITIVES`]) and the cut takes them, until no gap adds
     /// one; the gaps left go to `scratch.gaps`. `None` when a primitive
     /// found has no view.
@@ -418,8 +427,10 @@ impl<'a> ExactPixel<'_, 'a> {
             planes,
             binned,
             memo,
+            occluders,
             ..
         } = scratch;
+        let mut occluder_passes = 0;
         loop {
             // What no primitive in the list covers is sky, or primitives
             // between the centres (a large mesh's triangles smaller than a
@@ -448,7 +459,7 @@ impl<'a> ExactPixel<'_, 'a> {
                         if overlap(region, &r).is_none() {
                             return false;
                         }
-                        if found == MAX_GAP_PRIMITIVES {
+                        if found == self.cap {
                             more = true;
                             return true;
                         }
@@ -467,7 +478,7 @@ impl<'a> ExactPixel<'_, 'a> {
                     gaps.push((r, Gap::Seen(id, view)));
                     continue;
                 }
-                let view = if found < MAX_GAP_PRIMITIVES {
+                let view = if found < self.cap {
                     found += 1;
                     let view = candidate_view(scene, cache, memo, id)?;
                     if let Some(v) = &view {
@@ -483,7 +494,30 @@ impl<'a> ExactPixel<'_, 'a> {
                 gaps.push((r, Gap::Seen(id, view)));
             }
             if !grew {
-                return Some(());
+                // The gaps are settled: what remains to find are triangles
+                // in front of what the cut shows that no centre saw (a far
+                // ridge's crest between two rows of centres). Once more
+                // after any joined, for the gaps they may leave.
+                if occluder_passes == 2 {
+                    return Some(());
+                }
+                occluder_passes += 1;
+                let listed = views.len();
+                let found = Occluders {
+                    scene,
+                    cache,
+                    support,
+                    cap: self.cap,
+                }
+                .search(views, tried, regions, cut, memo, (planes, occluders))?;
+                if found == 0 {
+                    return Some(());
+                }
+                cut.remaining.extend(gaps.drain(..).map(|(r, _)| r));
+                for v in listed..views.len() {
+                    cut.insert(v, views, regions);
+                }
+                continue;
             }
             // New primitives that overlap none listed (a mesh's triangles
             // around those the centres see) only fill gaps: the rest of the
@@ -566,6 +600,7 @@ impl<'a> ExactPixel<'_, 'a> {
                 at: self.at,
                 support,
                 cache: self.cache,
+                cap: self.cap,
             };
             cell.list_candidates(candidates, scratch)?;
             let part = if cell.outline_needs_cells(scratch) {
@@ -582,6 +617,23 @@ impl<'a> ExactPixel<'_, 'a> {
     /// neighbours spread to, the support cut among them, the gaps searched
     /// and the cut shaded.
     fn cut_and_shade(&self, scratch: &mut Scratch<'a>, parts: &mut PixelStats) -> Option<Sums> {
+        self.cut(scratch)?;
+        let mut sums = [Sums::default()];
+        self.shade_cut(
+            scratch,
+            std::slice::from_ref(self),
+            &mut sums,
+            std::slice::from_mut(parts),
+        )?;
+        let [sums] = sums;
+        Some(sums)
+    }
+
+    /// The support cut among the listed candidates: their neighbours
+    /// spread to, the support cut front to back, the gaps searched
+    /// (`scratch.cut`, `scratch.gaps`). `None` when a primitive found has
+    /// no view.
+    pub(super) fn cut(&self, scratch: &mut Scratch<'a>) -> Option<()> {
         let found = self.spread_to_neighbours(scratch)?;
         let Scratch {
             views,
@@ -591,12 +643,11 @@ impl<'a> ExactPixel<'_, 'a> {
             ..
         } = scratch;
         cut.among(views, regions, &self.support, order);
-        self.search_gaps(found, scratch)?;
-        self.shade_cut(scratch, parts)
+        self.search_gaps(found, scratch)
     }
 
     /// The pixel's colour from its sums, its statistics recorded.
-    fn finish(&self, sums: Sums, mut parts: PixelStats, stats: &mut PixelStats) -> Rgba {
+    pub(super) fn finish(&self, sums: Sums, mut parts: PixelStats, stats: &mut PixelStats) -> Rgba {
         parts.weight_error = weight_error(sums.weight);
         stats.merge_parts(&parts);
         stats.filter.record_bound_against(
@@ -606,18 +657,21 @@ impl<'a> ExactPixel<'_, 'a> {
         mean(sums.colour, sums.weight)
     }
 
-    /// The sums of the support's cut: each visible region shaded, the
-    /// slivers and the gaps as [`Gap`] says, and the weight the cut left
-    /// unaccounted in the bound. `None` when a gap's primitive has no
-    /// view.
-    fn shade_cut(&self, scratch: &mut Scratch<'a>, parts: &mut PixelStats) -> Option<Sums> {
-        let Shading {
-            frame,
-            filter,
-            centre,
-            options,
-            ..
-        } = self.shading;
+    /// The sums of the support's cut, added into `sums` of `pixels`: the
+    /// pixel itself, or the pixels of a strip side by side, each a column
+    /// one wide from the support's left side ([`by_column`]): each
+    /// visible region shaded, the slivers and the gaps as [`Gap`] says,
+    /// each piece by the pixel it lies in, and the weight the cut left
+    /// unaccounted in every pixel's bound (where in the support it lies is
+    /// not known). `None` when a gap's primitive has no view.
+    pub(super) fn shade_cut(
+        &self,
+        scratch: &mut Scratch<'a>,
+        pixels: &[ExactPixel<'_, 'a>],
+        sums: &mut [Sums],
+        parts: &mut [PixelStats],
+    ) -> Option<()> {
+        let Shading { frame, .. } = self.shading;
         let (scene, cache) = (frame.scene, self.cache);
         let Scratch {
             views,
@@ -625,80 +679,301 @@ impl<'a> ExactPixel<'_, 'a> {
             gaps,
             cut,
             memo,
+            columns,
             ..
         } = scratch;
-        let mut sums = Sums::default();
+        let left = self.support.bounds().0[0];
         // Weight no region has, or two have (|k| ≤ 1 for every pixel filter):
         // at most the larger of full contrast and the sky's range off.
-        sums.add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
+        for s in sums.iter_mut() {
+            s.add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
+        }
         for (i, region) in cut.visible(regions) {
-            let (c, w, b) = shade_view(&self.shading, &views[i], region, &self.support, parts);
-            sums.add(c, w, b);
-        }
-        for r in &cut.slivers {
-            // The sky at its centroid, whatever covers it: its whole weight
-            // times the larger of full contrast and the sky's range as the
-            // bound (at most 1e-9 of the support's).
-            let w = filter.integral(r, centre);
-            let c = r.centroid();
-            let colour = sky(scene, &scene.camera.ray(c[0], c[1])).to_array();
-            sums.add(
-                colour.map(|v| f64::from(v) * w),
-                w,
-                w.abs() * sky_range(scene).max(1.0),
-            );
-        }
-        let sky_over = |r: &ConvexPolygon| {
-            sky_integral(
-                scene,
-                r,
-                Whole::Unknown,
-                filter,
-                centre,
-                sky_tolerance(options),
-            )
-        };
-        for (r, gap) in gaps.iter() {
-            match *gap {
-                Gap::Sky => {
-                    let (c, w) = sky_over(r);
-                    sums.add(c, w, 0.0);
-                }
-                Gap::SkyAmong => {
-                    let (c, w) = sky_over(r);
-                    sums.add(c, w, w.abs());
-                }
-                Gap::Seen(id, view) => {
-                    // A gap the list leaves open (past the cap, or where a
-                    // listed primitive's edge and the ray disagree): the
-                    // primitive the ray through its centroid meets, as if it
-                    // covered the gap, with the gap's whole weight (full
-                    // contrast) as the bound, and the weight of any part of
-                    // the gap beyond that primitive's horizon (which it does
-                    // not cover: its colour is not known).
-                    let view = match view {
-                        Some(i) => Some(views[i].clone()),
-                        None => candidate_view(scene, cache, memo, id)?,
-                    };
-                    if let Some(view) = view {
-                        let (c, w, b) = match &view {
-                            ViewRef::Sphere(sphere) => {
-                                let mut part = ConvexPolygon::empty();
-                                sphere.region_into(r, &mut part);
-                                sphere.shade(&self.shading, &part, parts)
-                            }
-                            _ => shade_view(&self.shading, &view, r, &self.support, parts),
-                        };
-                        let beyond = (filter.integral(r, centre) - w).abs();
-                        sums.add(c, w, b + w.abs() + beyond);
-                    } else {
-                        let (c, w) = sky_over(r);
-                        sums.add(c, w, w.abs());
+            // Under the box filter a planar piece's weight is its area: where
+            // the walk's merge of close vertices (a long, thin piece) gives
+            // it less, the piece keeps its own colour density over its whole
+            // area and the difference goes to the bound (full contrast). A
+            // piece left with no weight at all takes the density of the
+            // region's heaviest part, its area as the bound.
+            let exact_weight = pixels[0].shading.filter == PixelFilter::Box
+                && !matches!(views[i], ViewRef::Sphere(_));
+            let mut heaviest: Option<([f64; 4], f64)> = None;
+            let mut lost = [(0, 0.0); 4];
+            let mut count = 0;
+            by_column(region, left, pixels.len(), columns, |c, piece| {
+                let p = &pixels[c];
+                let (mut colour, mut w, mut b) =
+                    shade_view(&p.shading, &views[i], piece, &p.support, &mut parts[c]);
+                if exact_weight {
+                    let area = piece.area();
+                    if w > 0.0 && w != area {
+                        colour = colour.map(|v| v * (area / w));
+                        b += (area - w).abs();
+                        w = area;
+                    } else if w <= 0.0 && area > 0.0 {
+                        if count < lost.len() {
+                            lost[count] = (c, area);
+                            count += 1;
+                        } else {
+                            b += area;
+                            w = area;
+                        }
                     }
                 }
+                sums[c].add(colour, w, b);
+                if heaviest.is_none_or(|(_, most)| w > most) {
+                    heaviest = Some((colour, w));
+                }
+            });
+            for &(c, area) in &lost[..count] {
+                let (colour, w) = heaviest.unwrap_or(([0.0; 4], 0.0));
+                let density = if w > 0.0 {
+                    colour.map(|v| v / w)
+                } else {
+                    [0.0; 4]
+                };
+                sums[c].add(density.map(|v| v * area), area, area);
             }
         }
-        Some(sums)
+        for r in &cut.slivers {
+            by_column(r, left, pixels.len(), columns, |c, piece| {
+                // The sky at its centroid, whatever covers it: its whole
+                // weight times the larger of full contrast and the sky's
+                // range as the bound (at most 1e-9 of the support's).
+                let Shading { filter, centre, .. } = pixels[c].shading;
+                let w = filter.integral(piece, centre);
+                let at = piece.centroid();
+                let colour = sky(scene, &scene.camera.ray(at[0], at[1])).to_array();
+                sums[c].add(
+                    colour.map(|v| f64::from(v) * w),
+                    w,
+                    w.abs() * sky_range(scene).max(1.0),
+                );
+            });
+        }
+        for (r, gap) in gaps.iter() {
+            // A gap the list leaves open (past the cap, or where a listed
+            // primitive's edge and the ray disagree) is shown by the
+            // primitive the ray through its centroid meets, as if it
+            // covered the gap: its view, once for all its pieces.
+            let seen = match *gap {
+                Gap::Seen(id, view) => match view {
+                    Some(i) => Some(views[i].clone()),
+                    None => candidate_view(scene, cache, memo, id)?,
+                },
+                Gap::Sky | Gap::SkyAmong => None,
+            };
+            by_column(r, left, pixels.len(), columns, |c, piece| {
+                let p = &pixels[c];
+                let Shading {
+                    filter,
+                    centre,
+                    options,
+                    ..
+                } = p.shading;
+                let sky_over = |r: &ConvexPolygon| {
+                    sky_integral(
+                        scene,
+                        r,
+                        Whole::Unknown,
+                        filter,
+                        centre,
+                        sky_tolerance(options),
+                    )
+                };
+                match (gap, &seen) {
+                    (Gap::Sky, _) => {
+                        let (colour, w) = sky_over(piece);
+                        sums[c].add(colour, w, 0.0);
+                    }
+                    (Gap::Seen(..), Some(view)) => {
+                        // The gap's whole weight (full contrast) as the
+                        // bound, and the weight of any part of it beyond
+                        // that primitive's horizon (which it does not
+                        // cover: its colour is not known).
+                        let (colour, w, b) = match view {
+                            ViewRef::Sphere(sphere) => {
+                                let mut part = ConvexPolygon::empty();
+                                sphere.region_into(piece, &mut part);
+                                sphere.shade(&p.shading, &part, &mut parts[c])
+                            }
+                            _ => shade_view(&p.shading, view, piece, &p.support, &mut parts[c]),
+                        };
+                        let beyond = (filter.integral(piece, centre) - w).abs();
+                        sums[c].add(colour, w, b + w.abs() + beyond);
+                    }
+                    // The sky, its whole weight as the bound: past the
+                    // cap, or where the primitive met has no view.
+                    (Gap::SkyAmong | Gap::Seen(..), _) => {
+                        let (colour, w) = sky_over(piece);
+                        sums[c].add(colour, w, w.abs());
+                    }
+                }
+            });
+        }
+        Some(())
+    }
+}
+
+/// Gives `shade(column, part)` the part of convex polygon `piece` in each
+/// column of a strip of `columns` pixels whose left side is at `left`
+/// (column `c` spans `[left + c, left + c + 1)`): `piece` itself, not
+/// clipped, when it lies in one column (always, for one column); else its
+/// parts between the vertical lines `x = left + c`, split off left to
+/// right ([`ConvexPolygon::split_into`]), those with no area skipped.
+/// Parts past the strip's ends (rounding) go to its end columns.
+/// `buffers`: the split's.
+pub(super) fn by_column(
+    piece: &ConvexPolygon,
+    left: f64,
+    columns: usize,
+    buffers: &mut [ConvexPolygon; 3],
+    mut shade: impl FnMut(usize, &ConvexPolygon),
+) {
+    let (lo, hi) = piece.bounds();
+    let last = columns.saturating_sub(1);
+    // Truncation of a non-negative float is its floor (NaN: 0).
+    let first = ((lo[0] - left).max(0.0) as usize).min(last);
+    let end = ((hi[0] - left).ceil().max(1.0) as usize)
+        .min(columns)
+        .max(first + 1);
+    if end - first == 1 {
+        shade(first, piece);
+        return;
+    }
+    let [rest, part, right] = buffers;
+    rest.clone_from(piece);
+    for c in first..end - 1 {
+        // `x ≤ left + c + 1` inside.
+        rest.split_into(-1.0, 0.0, left + (c + 1) as f64, part, right);
+        if part.area() > 0.0 {
+            shade(c, part);
+        }
+        std::mem::swap(rest, right);
+    }
+    if rest.area() > 0.0 {
+        shade(end - 1, rest);
+    }
+}
+
+/// The search for occluders no centre sees: mesh triangles in front of a
+/// visible region of a support's cut (within `cap` of them).
+struct Occluders<'s, 'a> {
+    scene: &'s Scene,
+    cache: &'a SurfaceViews,
+    support: &'s ConvexPolygon,
+    cap: usize,
+}
+
+/// The buffers of [`Occluders::search`].
+#[derive(Default)]
+struct OccluderBuffers {
+    /// The ids tried, sorted.
+    tried: Vec<Seen>,
+    /// Each visible region's view, box and farthest depth.
+    shown: Vec<(usize, Bounds, f64)>,
+    /// The triangles [`SurfaceViews::meshes_nearer`] lists.
+    nearer: Vec<(u32, u32, f32)>,
+}
+
+impl<'a> Occluders<'_, 'a> {
+    /// Adds to the list (`views`, `tried`, `regions`) every mesh triangle
+    /// not tried whose region of the support overlaps a visible region of
+    /// `cut` and lies in front of its view there (decided at the overlap's
+    /// centroid, as [`Order::front_to_back`] decides): the candidates are
+    /// the triangles nearer somewhere than the farthest point the cut
+    /// shows ([`SurfaceViews::meshes_nearer`]), and a candidate is tested
+    /// against a visible region only where its least depth is nearer than
+    /// that region's farthest point. Past the cap, an occluder's region's
+    /// area joins the cut's unaccounted weight (the bound's). Returns how
+    /// many joined; `None` when a candidate has no view.
+    fn search(
+        &self,
+        views: &mut Vec<ViewRef<'a>>,
+        tried: &mut Vec<(Seen, Option<usize>)>,
+        regions: &mut Regions,
+        cut: &mut Cut,
+        memo: &mut ViewMemo,
+        (planes, buffers): (&mut Vec<[f64; 4]>, &mut OccluderBuffers),
+    ) -> Option<usize> {
+        let (scene, cache, support) = (self.scene, self.cache, self.support);
+        // A view's depth over a convex region is largest at a vertex (its
+        // inverse is affine on the screen).
+        let OccluderBuffers {
+            tried: ids,
+            shown,
+            nearer,
+        } = buffers;
+        shown.clear();
+        let mut farthest = f64::NEG_INFINITY;
+        for (i, r) in cut.visible(regions) {
+            let far =
+                (r.vertices().iter()).fold(f64::NEG_INFINITY, |d, &v| d.max(views[i].depth_at(v)));
+            farthest = farthest.max(far);
+            shown.push((i, r.bounds(), far));
+        }
+        if farthest == f64::NEG_INFINITY {
+            return Some(0);
+        }
+        ids.clear();
+        ids.extend(tried.iter().map(|&(id, _)| id));
+        ids.sort_unstable();
+        let (mut added, mut missing) = (0, false);
+        let mut candidate = ConvexPolygon::empty();
+        let mut joined: Vec<(Seen, ViewRef<'a>, ConvexPolygon)> = Vec::new();
+        let mut left_out = 0.0;
+        let visible: Vec<&ConvexPolygon> = cut.visible(regions).map(|(_, r)| r).collect();
+        cache.meshes_nearer(scene, support, farthest, planes, nearer, |id, near| {
+            if ids.binary_search(&id).is_ok() {
+                return false;
+            }
+            // Nearer than some visible region's farthest point, or it hides
+            // nothing.
+            if shown.iter().all(|&(_, _, far)| near >= far) {
+                return false;
+            }
+            let view = match candidate_view(scene, cache, memo, id) {
+                Some(Some(view)) => view,
+                Some(None) => return false,
+                None => {
+                    missing = true;
+                    return true;
+                }
+            };
+            view.region_into(support, &mut candidate);
+            if candidate.is_empty() {
+                return false;
+            }
+            let bounds = candidate.bounds();
+            let in_front = (shown.iter().zip(&visible)).any(|(&(i, shown_box, far), r)| {
+                near < far
+                    && !boxes_apart(bounds, shown_box)
+                    && overlap(&candidate, r).is_some_and(|o| {
+                        let c = o.centroid();
+                        view.depth_at(c) < views[i].depth_at(c)
+                    })
+            });
+            if in_front {
+                if added < self.cap {
+                    added += 1;
+                    joined.push((id, view, candidate.clone()));
+                } else {
+                    left_out += candidate.area();
+                }
+            }
+            false
+        });
+        if missing {
+            return None;
+        }
+        cut.unaccounted += left_out;
+        for (id, view, region) in joined {
+            tried.push((id, Some(views.len())));
+            views.push(view);
+            regions.next_slot().clone_from(&region);
+            regions.keep_slot();
+        }
+        Some(added)
     }
 }
 
@@ -776,6 +1051,12 @@ pub(crate) struct Scratch<'a> {
     /// Where [`sky_at_centre`]'s bound is surely within the tolerance
     /// (once per row: the scene and options are the frame's).
     sky_clear_above: Option<f64>,
+    /// [`by_column`]'s buffers.
+    columns: [ConvexPolygon; 3],
+    /// [`Occluders::search`]'s buffers.
+    occluders: OccluderBuffers,
+    /// The pixels of the row's last strip ([`super::strip`]).
+    pub(super) strip: super::strip::StripFill,
 }
 
 impl<'a> Scratch<'a> {
@@ -844,6 +1125,11 @@ impl<'a> Scratch<'a> {
         }
         let (c, bound) = sky_at_centre(scene, centre, filter)?;
         (bound <= tolerance).then(|| mean(c, 1.0))
+    }
+
+    /// Whether a sphere is among the listed views.
+    pub(super) fn lists_a_sphere(&self) -> bool {
+        (self.views.iter()).any(|v| matches!(v, ViewRef::Sphere(_)))
     }
 
     /// The colour and counters of pixel `(x, y)` when a span set up by a

@@ -444,7 +444,7 @@ fn inserting_views_gives_what_cutting_again_gives() {
             sliver_area: sliver,
             ..Cut::default()
         };
-        for &v in order.front_to_back(&views[..listed], &regions[..listed]) {
+        for &v in order.front_to_back(&views[..listed], &regions[..listed], 0.0) {
             cut.take(v, &regions[v]);
         }
         for v in listed..n {
@@ -832,4 +832,103 @@ fn a_sky_span_answers_each_pixel_as_its_own_test() {
             "{clear} {missed} {hit}"
         );
     }
+}
+
+/// A piece split along a strip's pixel sides ([`pixel::by_column`]):
+/// the parts lie in their columns (to rounding), their areas add up to
+/// the piece's, a piece within one column is given whole, and parts past
+/// the strip's ends (rounding, or a piece that pokes out) go to the end
+/// columns.
+#[test]
+fn pieces_split_by_column_tile_the_piece() {
+    let mut seed = 5u64;
+    let mut next = || crate::math::unit_random(&mut seed);
+    let mut buffers = Default::default();
+    let (mut split, mut whole) = (0, 0);
+    for _ in 0..2000 {
+        let columns = 1 + (next() * 8.0) as usize;
+        let left = (next() * 100.0).floor();
+        let points: Vec<[f64; 2]> = (0..6)
+            .map(|_| [left - 0.3 + next() * (columns as f64 + 0.6), 3.0 + next()])
+            .collect();
+        let piece = ConvexPolygon::hull(&points);
+        let mut total = 0.0;
+        let mut parts = 0;
+        pixel::by_column(&piece, left, columns, &mut buffers, |c, part| {
+            assert!(c < columns);
+            let (lo, hi) = part.bounds();
+            let (x0, x1) = (left + c as f64, left + c as f64 + 1.0);
+            if c > 0 {
+                assert!(lo[0] >= x0 - 1e-9, "column {c}: {lo:?}");
+            }
+            if c + 1 < columns {
+                assert!(hi[0] <= x1 + 1e-9, "column {c}: {hi:?}");
+            }
+            total += part.area();
+            parts += 1;
+        });
+        assert!(
+            (total - piece.area()).abs() <= 1e-12 * piece.area().max(1.0),
+            "{total} against {}",
+            piece.area()
+        );
+        if parts == 1 { whole += 1 } else { split += 1 }
+    }
+    assert!(split > 1000 && whole > 100, "{split} split, {whole} whole");
+}
+
+/// Where an order front to back exists, cutting each view's region by
+/// the regions of the views in front of it
+/// ([`Cut::each_behind_those_in_front`], what a cyclic support takes)
+/// gives each view the area the cut front to back gives it, and leaves
+/// the same area uncovered: random triangles over a pixel, each a plane
+/// facing the camera at its own depth, overlapping and not.
+#[test]
+fn views_cut_by_those_in_front_match_the_order() {
+    let support = ConvexPolygon::rect(10.0, 20.0, 11.0, 21.0);
+    let sliver = GAP_AREA * support.area();
+    let mut seed = 9u64;
+    let mut next = || crate::math::unit_random(&mut seed);
+    let view_at = |depth: f64| ViewRef::Built(Rc::new(View::facing_at(depth)));
+    let mut overlapping = 0;
+    for round in 0..300 {
+        let (mut regions, mut views) = (Vec::new(), Vec::new());
+        for _ in 0..2 + round % 7 {
+            let v: Vec<[f64; 2]> = (0..3)
+                .map(|_| [9.7 + 1.6 * next(), 19.7 + 1.6 * next()])
+                .collect();
+            regions.push(ConvexPolygon::hull(&v).intersect(&support));
+            views.push(view_at(1.0 + 10.0 * next()));
+        }
+        let n = regions.len();
+        let mut ordered = Cut::default();
+        let mut order = Order::default();
+        ordered.among(&views, &regions, &support, &mut order);
+        assert!(!order.cyclic, "round {round}");
+        let mut pairwise = Cut {
+            remaining: vec![support.clone()],
+            sliver_area: sliver,
+            ..Cut::default()
+        };
+        order.front_to_back(&views, &regions, sliver);
+        pairwise.each_behind_those_in_front(&regions, &order);
+        let (a, b) = (
+            areas_by_view(&ordered, &regions, n),
+            areas_by_view(&pairwise, &regions, n),
+        );
+        for (v, (a, b)) in a.iter().zip(&b).enumerate() {
+            assert!((a - b).abs() < 1e-12, "round {round}, view {v}: {a} vs {b}");
+        }
+        let left = |c: &Cut| c.remaining.iter().map(ConvexPolygon::area).sum::<f64>();
+        assert!(
+            (left(&ordered) - left(&pairwise)).abs() < 1e-12,
+            "round {round}"
+        );
+        let total: f64 = regions.iter().map(ConvexPolygon::area).sum();
+        overlapping += usize::from(a.iter().sum::<f64>() < total - 1e-6);
+    }
+    assert!(
+        overlapping > 100,
+        "{overlapping} rounds with views hidden in part"
+    );
 }

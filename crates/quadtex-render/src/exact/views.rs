@@ -378,6 +378,35 @@ impl SurfaceViews {
         self.search_hierarchies(scene, polygon, (lo, hi), planes, visit)
     }
 
+    /// Calls `visit(id, near)` for every mesh triangle that may reach into
+    /// screen polygon `polygon` nearer than `depth` (the camera's forward
+    /// distance) somewhere, and for others, until `visit` returns true;
+    /// returns whether it did. `near` bounds the triangle's depth from
+    /// below. From the screen bins where they hold the polygon's box
+    /// ([`ScreenBins::nearer_than`]), else every triangle the hierarchies
+    /// find in its frustum (`near` 0). `found`: scratch.
+    pub(super) fn meshes_nearer(
+        &self,
+        scene: &Scene,
+        polygon: &ConvexPolygon,
+        depth: f64,
+        planes: &mut Vec<[f64; 4]>,
+        found: &mut Vec<(u32, u32, f32)>,
+        mut visit: impl FnMut(Seen, f64) -> bool,
+    ) -> bool {
+        let (lo, hi) = polygon.bounds();
+        if !self.may_reach((lo, hi)) {
+            return false;
+        }
+        if let Some(bins) = &self.bins
+            && bins.nearer_than(lo, hi, depth, found)
+        {
+            return (found.iter())
+                .any(|&(surface, t, near)| visit(seen_id(surface as usize, t), f64::from(near)));
+        }
+        self.search_hierarchies(scene, polygon, (lo, hi), planes, |id| visit(id, 0.0))
+    }
+
     /// Whether every sphere's outline misses the screen box `(lo, hi)`
     /// (by its box; a sphere with no view does not count).
     pub(super) fn spheres_miss(&self, (lo, hi): ([f64; 2], [f64; 2])) -> bool {

@@ -1,0 +1,130 @@
+//! Strips: a run of a row's pixels whose centres in reach see more than
+//! one thing, cut as one support under the box filter
+//! ([`Scratch::strip`]).
+//!
+//! Where a far hillside crowds a pixel with triangles, most of its cost is
+//! listing them, clipping each to the support, ordering and cutting them,
+//! not integrating the texture over the pieces; and a pixel's neighbours
+//! in its row list, clip and cut the same triangles again. The box
+//! filter's supports of a row's pixels tile the rectangle they span, so
+//! the rectangle is cut once among the primitives of all their centres
+//! (with the flood and the gaps' search of [`super::pixel`], their caps
+//! the pixels'), and each visible region, sliver and gap of that cut is
+//! then split along the pixels' sides and shaded by the pixel it lies in,
+//! with that pixel's own filter centre
+//! ([`by_column`](super::pixel::by_column)). Each pixel's colour is the
+//! sum of its pieces, as if its own support had been cut: the pieces are
+//! the same regions, split differently along their edges, so the two
+//! differ by rounding (and each pixel's bound takes the whole strip's
+//! unaccounted weight). A list that holds a sphere is left to the pixels
+//! one by one (its outline is clipped by chords over one support's
+//! angles).
+
+use quadtex_core::{ConvexPolygon, FilterOptions, PixelFilter, Rgba};
+
+use crate::caster::Seen;
+use crate::frame::Frame;
+use crate::stats::PixelStats;
+
+use super::MAX_GAP_PRIMITIVES;
+use super::lighting::Shading;
+use super::pixel::{ExactPixel, Scratch, Sums};
+use super::views::SurfaceViews;
+
+/// Most pixels a strip holds: a far hillside's triangle spans about this
+/// many (`quadtex bench --frames`' terrain: measured on its frame, 4 and
+/// 16 cost more).
+pub(crate) const STRIP_PIXELS: u32 = 8;
+
+/// The colours and counters of the pixels of a row's last strip.
+#[derive(Default)]
+pub(crate) struct StripFill {
+    y: u32,
+    left: u32,
+    pixels: Vec<(Rgba, PixelStats)>,
+}
+
+impl<'a> Scratch<'a> {
+    /// Cuts pixels `x0..x1` of row `y` as one strip among the primitives
+    /// `candidates` (what their centres in reach see) under the box
+    /// filter, keeping each pixel's colour and counters for
+    /// [`Scratch::strip_fill`]. Returns false, keeping nothing, when a
+    /// candidate or a primitive found has no view or one listed is a
+    /// sphere: the pixels are then taken one by one.
+    pub(crate) fn strip(
+        &mut self,
+        frame: &Frame<'_>,
+        options: &FilterOptions,
+        (x0, x1, y): (u32, u32, u32),
+        candidates: &[Seen],
+        cache: &'a SurfaceViews,
+    ) -> bool {
+        self.strip.pixels.clear();
+        let columns = x1.saturating_sub(x0) as usize;
+        if columns == 0 {
+            return false;
+        }
+        let (left, top) = (f64::from(x0), f64::from(y));
+        let cell = |support: ConvexPolygon, at: (u32, u32), cap: usize| {
+            let (lo, hi) = support.bounds();
+            ExactPixel {
+                shading: Shading {
+                    frame,
+                    filter: PixelFilter::Box,
+                    centre: [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])],
+                    options,
+                    support: (lo, hi),
+                    share: 1.0,
+                },
+                at,
+                support,
+                cache,
+                cap,
+            }
+        };
+        let strip = cell(
+            ConvexPolygon::rect(left, top, left + columns as f64, top + 1.0),
+            (x0, y),
+            MAX_GAP_PRIMITIVES * columns,
+        );
+        if strip.list_candidates(candidates, self).is_none()
+            || self.lists_a_sphere()
+            || strip.cut(self).is_none()
+        {
+            return false;
+        }
+        let pixels: Vec<ExactPixel<'_, 'a>> = (0..columns)
+            .map(|c| {
+                let x = left + c as f64;
+                let support = ConvexPolygon::rect(x, top, x + 1.0, top + 1.0);
+                cell(support, (x0 + c as u32, y), MAX_GAP_PRIMITIVES)
+            })
+            .collect();
+        let mut sums = vec![Sums::default(); columns];
+        let mut parts = vec![PixelStats::default(); columns];
+        if strip
+            .shade_cut(self, &pixels, &mut sums, &mut parts)
+            .is_none()
+        {
+            return false;
+        }
+        let fill = &mut self.strip;
+        (fill.y, fill.left) = (y, x0);
+        for ((pixel, sums), parts) in pixels.iter().zip(sums).zip(parts) {
+            let mut stats = PixelStats::default();
+            let colour = pixel.finish(sums, parts, &mut stats);
+            fill.pixels.push((colour, stats));
+        }
+        true
+    }
+
+    /// The colour and counters of pixel `(x, y)` when the row's last
+    /// strip holds it ([`Scratch::strip`]).
+    pub(crate) fn strip_fill(&self, (x, y): (u32, u32)) -> Option<&(Rgba, PixelStats)> {
+        let fill = &self.strip;
+        if fill.y != y || x < fill.left {
+            return None;
+        }
+        fill.pixels.get((x - fill.left) as usize)
+    }
+}
