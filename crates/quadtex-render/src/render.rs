@@ -17,7 +17,7 @@ use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
 use crate::caster::Seen;
-use crate::exact::{STRIP_PIXELS, Scratch, SurfaceViews};
+use crate::exact::{SHARED_CUT_PIXELS, Scratch, SurfaceViews};
 use crate::frame::Frame;
 use crate::options::{PixelFilter, RenderOptions, TextureFilter};
 use crate::pixel::{Neighbourhood, shade_pixel};
@@ -53,14 +53,14 @@ pub fn render_into(
 
 /// Whether runs of pixels inside one primitive may share their answer
 /// ([`crate::span`]) and runs of box pixels whose centres see more than
-/// one thing be cut as one strip ([`STRIP_PIXELS`]); the tests render
+/// one thing be cut as one support ([`SHARED_CUT_PIXELS`]); the tests render
 /// each way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Spans {
     Shared,
-    /// Spans shared, strips not.
+    /// Spans shared, cuts not.
     #[cfg(test)]
-    NoStrips,
+    NoSharedCuts,
     #[cfg(test)]
     EachPixel,
 }
@@ -295,7 +295,7 @@ impl Rows<'_> {
         let shared = match spans {
             Spans::Shared => true,
             #[cfg(test)]
-            Spans::NoStrips => true,
+            Spans::NoSharedCuts => true,
             #[cfg(test)]
             Spans::EachPixel => false,
         };
@@ -303,17 +303,20 @@ impl Rows<'_> {
             (true, TextureFilter::Quadtree(_)) => runs_of_primitives(&uniform),
             _ => Vec::new(),
         };
-        let strips = match (spans, options.filter, options.pixel_filter) {
+        let shared_cuts = match (spans, options.filter, options.pixel_filter) {
             (Spans::Shared, TextureFilter::Quadtree(filter_options), PixelFilter::Box) => {
                 Some(filter_options)
             }
             _ => None,
         };
-        let mut strip_ids = Vec::new();
+        let mut shared_ids = Vec::new();
+        // Where a shared cut failed (a sphere listed), its pixels go one by
+        // one: no other is tried before this pixel.
+        let mut no_shared_cut_until = 0;
         for (x, out) in (0..self.width).zip(row.iter_mut()) {
             if let Some((colour, parts)) = scratch
                 .span_fill((x, y))
-                .or_else(|| scratch.strip_fill((x, y)))
+                .or_else(|| scratch.shared_cut_fill((x, y)))
             {
                 *out = *colour;
                 stats.merge_parts(parts);
@@ -334,31 +337,37 @@ impl Rows<'_> {
                 continue;
             }
             // A run of pixels whose centres in reach see more than one thing
-            // (`uniform` holds `None` for each): one strip.
-            if let Some(filter_options) = &strips {
+            // (`uniform` holds `None` for each): one cut.
+            if let Some(filter_options) = &shared_cuts {
                 let mixed = |x: u32| uniform.get(x as usize) == Some(&None);
-                let end = (x..self.width.min(x + STRIP_PIXELS))
+                let end = (x..self.width.min(x + SHARED_CUT_PIXELS))
                     .take_while(|&x| mixed(x))
                     .last()
                     .map_or(x, |last| last + 1);
-                if end >= x + 2 {
-                    strip_ids.clear();
+                if end >= x + 2 && x >= no_shared_cut_until {
+                    shared_ids.clear();
                     for x in x..end {
                         centres.neighbourhood(x, y, None, &mut ids);
                         for &id in &ids {
-                            if !strip_ids.contains(&id) {
-                                strip_ids.push(id);
+                            if !shared_ids.contains(&id) {
+                                shared_ids.push(id);
                             }
                         }
                     }
-                    if scratch.strip(self.frame, filter_options, (x, end, y), &strip_ids, views)
-                        && let Some((colour, parts)) = scratch.strip_fill((x, y))
+                    if scratch.shared_cut(
+                        self.frame,
+                        filter_options,
+                        (x, end, y),
+                        &shared_ids,
+                        views,
+                    ) && let Some((colour, parts)) = scratch.shared_cut_fill((x, y))
                     {
                         *out = *colour;
                         stats.merge_parts(parts);
                         record(bounds, x, parts);
                         continue;
                     }
+                    no_shared_cut_until = end;
                 }
             }
             let mut pixel = PixelStats::default();

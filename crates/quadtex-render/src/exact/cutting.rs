@@ -192,7 +192,7 @@ impl Cut {
         self.unaccounted += 2.0 * order.hairs;
         self.remaining.push(support.clone());
         if order.cyclic {
-            self.each_behind_those_in_front(regions, order);
+            self.each_behind_those_in_front(regions, order, support.area());
             return;
         }
         for &i in &order.order {
@@ -208,8 +208,17 @@ impl Cut {
     /// is nearer is the same over the whole of a pair's overlap, so this
     /// is what each point shows, whatever the cycles (a pair's hair of an
     /// overlap, which decides nothing, is in the bound). What no region
-    /// covers is left for the gaps.
-    pub(super) fn each_behind_those_in_front(&mut self, regions: &[ConvexPolygon], order: &Order) {
+    /// covers is left for the gaps. Primitives that cross can make a cycle
+    /// whose common part every one of them loses to another: what the
+    /// pieces, the parts left and the slivers fall short of (or exceed)
+    /// the support's area (`support_area`) by goes to the unaccounted
+    /// weight.
+    pub(super) fn each_behind_those_in_front(
+        &mut self,
+        regions: &[ConvexPolygon],
+        order: &Order,
+        support_area: f64,
+    ) {
         let sliver_area = self.sliver_area;
         let drop = |_: ConvexPolygon, _: &mut Vec<ConvexPolygon>, _: usize| {};
         for (a, &i) in order.left.iter().enumerate() {
@@ -237,6 +246,10 @@ impl Cut {
             }
             carve(remaining, &regions[i], spare, slivers, sliver_area, drop);
         }
+        let area = |p: &[ConvexPolygon]| p.iter().map(ConvexPolygon::area).sum::<f64>();
+        let shown: f64 = self.visible_regions.iter().map(|(_, p)| p.area()).sum();
+        let total = shown + area(&self.remaining) + area(&self.slivers);
+        self.unaccounted += (support_area - total).abs();
     }
 
     /// The cut when no two `regions` overlap by more than a sliver: each
@@ -566,7 +579,7 @@ impl Order {
         ahead.extend((0..n).map(|a| behind[a * n..(a + 1) * n].iter().filter(|&&b| b).count()));
         order.clear();
         // Counts kept as views are placed, so that a pick costs a scan, not
-        // a scan per view: a strip's list runs to a hundred views.
+        // a scan per view: a shared cut's list runs to a hundred views.
         for _ in 0..n {
             let pick = (0..n)
                 .find(|&a| !placed[a] && ahead[a] == 0)

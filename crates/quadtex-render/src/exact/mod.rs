@@ -41,8 +41,24 @@
 //! reaches into it: the meshes' hierarchies are searched with the gap's
 //! frustum ([`SurfaceViews::meshes_in`]) and what overlaps it joins the
 //! list too; a pixel whose centres in reach all see the sky is searched
-//! the same way (planes and quads are always tried). Limit, stated:
-//! primitives that intersect inside the pixel are ordered at one point.
+//! the same way (planes and quads are always tried). Once the gaps are
+//! settled, what the cut shows is searched for occluders no centre saw (a
+//! far ridge's crest, thinner than a pixel, between two rows of centres):
+//! every mesh triangle nearer than the farthest point the cut shows, from
+//! the screen tiles over the support, that overlaps a visible region and
+//! lies in front of its primitive there joins the list, and the cut takes
+//! it. Overlaps of at most the sliver area (rounding along shared edges)
+//! set no order, their area in the bound; where occlusion is still cyclic,
+//! each primitive gets its region less those of the primitives in front of
+//! it, pair by pair. A pixel whose centres in reach all see one primitive
+//! is one integral only where no mesh triangle lies in front of that
+//! primitive's plane in its support (tested once for its run of pixels,
+//! [`Scratch::nothing_in_front`]). Limit, stated: primitives that
+//! intersect inside the pixel are ordered at one point.
+//!
+//! **Shared cuts.** Runs of up to [`SHARED_CUT_PIXELS`] box pixels of a row
+//! whose centres see more than one thing are cut as one support, then
+//! split along the pixels' sides ([`shared_cut`]).
 //! A sphere wholly in front of the camera's plane is listed like a planar
 //! primitive (every sphere whose outline's box meets the support is
 //! tried): its region is the support clipped by chords of its outline, its
@@ -82,15 +98,15 @@ mod lighting;
 mod pixel;
 mod screen_cells;
 
+mod shared_cut;
 mod sky;
 mod sphere;
-mod strip;
 mod views;
 
 #[cfg(test)]
 mod tests;
 
 pub(crate) use pixel::{Scratch, exact_pixel};
+pub(crate) use shared_cut::SHARED_CUT_PIXELS;
 pub(crate) use sphere::PolarFans;
-pub(crate) use strip::STRIP_PIXELS;
 pub(crate) use views::SurfaceViews;

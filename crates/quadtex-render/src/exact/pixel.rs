@@ -64,11 +64,16 @@ pub(crate) fn exact_pixel<'a>(
     {
         let colour = match &view {
             ViewRef::Sphere(sphere) => pixel.one_sphere(sphere, stats),
+            // Unless a mesh triangle no centre sees lies in front of it (the
+            // general path's occluders' search then takes the pixel).
             _ => view.planar().and_then(|view| {
+                // A span shares one answer among its pixels: only where the
+                // whole run is clear of such triangles.
+                let run = scratch.nothing_in_front(&pixel, *id, view, near.run)?;
                 pixel.one_primitive(
                     *id,
                     view,
-                    near.run,
+                    run,
                     (&mut scratch.uniform_span, &mut scratch.screen_cells),
                     stats,
                 )
@@ -126,8 +131,8 @@ pub(super) struct ExactPixel<'p, 'a> {
     pub(super) at: (u32, u32),
     pub(super) support: ConvexPolygon,
     pub(super) cache: &'a SurfaceViews,
-    /// Most primitives the flood and the gaps' search each add to the
-    /// list: [`MAX_GAP_PRIMITIVES`] a pixel.
+    /// Most primitives the flood, the gaps' search and each pass of the
+    /// occluders' search add to the list: [`MAX_GAP_PRIMITIVES`] a pixel.
     pub(super) cap: usize,
 }
 
@@ -343,7 +348,7 @@ impl<'a> ExactPixel<'_, 'a> {
     /// when the occluder has no view.
     fn spread_to_neighbours(&self, scratch: &mut Scratch<'a>) -> Option<usize> {
         let Shading { frame, .. } = self.shading;
-        let (scene, cache, support, x) = (frame.scene, self.cache, &self.support, self.at.0);
+        let (scene, cache, support) = (frame.scene, self.cache, &self.support);
         let Scratch {
             views,
             tried,
@@ -373,10 +378,13 @@ impl<'a> ExactPixel<'_, 'a> {
             let mut occluder = None;
             for &v in flooded.iter() {
                 let id = seen_id(views[v].surface(), views[v].triangle().unwrap_or(0));
+                // Keyed by the column the region lies in (a shared cut's
+                // regions span several).
+                let c = regions[v].centroid();
+                let x = c[0].floor() as u32;
                 if confirmed.recent(id, x) {
                     continue;
                 }
-                let c = regions[v].centroid();
                 let hit = cache.camera_hit(frame, c, Some(id));
                 match hit.map(|(surface, hit)| seen_id(surface, hit.triangle)) {
                     Some(seen) if seen == id => confirmed.insert(id, x),
@@ -658,7 +666,7 @@ impl<'a> ExactPixel<'_, 'a> {
     }
 
     /// The sums of the support's cut, added into `sums` of `pixels`: the
-    /// pixel itself, or the pixels of a strip side by side, each a column
+    /// pixel itself, or the pixels of a shared cut side by side, each a column
     /// one wide from the support's left side ([`by_column`]): each
     /// visible region shaded, the slivers and the gaps as [`Gap`] says,
     /// each piece by the pixel it lies in, and the weight the cut left
@@ -711,13 +719,15 @@ impl<'a> ExactPixel<'_, 'a> {
                         b += (area - w).abs();
                         w = area;
                     } else if w <= 0.0 && area > 0.0 {
+                        // Its colour after the other parts; past the few
+                        // kept, none (full contrast in the bound either way).
                         if count < lost.len() {
                             lost[count] = (c, area);
                             count += 1;
                         } else {
-                            b += area;
-                            w = area;
+                            sums[c].add([0.0; 4], area, b + area);
                         }
+                        return;
                     }
                 }
                 sums[c].add(colour, w, b);
@@ -726,11 +736,9 @@ impl<'a> ExactPixel<'_, 'a> {
                 }
             });
             for &(c, area) in &lost[..count] {
-                let (colour, w) = heaviest.unwrap_or(([0.0; 4], 0.0));
-                let density = if w > 0.0 {
-                    colour.map(|v| v / w)
-                } else {
-                    [0.0; 4]
+                let density = match heaviest {
+                    Some((colour, w)) if w > 0.0 => colour.map(|v| v / w),
+                    _ => [0.0; 4],
                 };
                 sums[c].add(density.map(|v| v * area), area, area);
             }
@@ -816,12 +824,12 @@ impl<'a> ExactPixel<'_, 'a> {
 }
 
 /// Gives `shade(column, part)` the part of convex polygon `piece` in each
-/// column of a strip of `columns` pixels whose left side is at `left`
+/// column of a row of `columns` pixels whose left side is at `left`
 /// (column `c` spans `[left + c, left + c + 1)`): `piece` itself, not
 /// clipped, when it lies in one column (always, for one column); else its
 /// parts between the vertical lines `x = left + c`, split off left to
 /// right ([`ConvexPolygon::split_into`]), those with no area skipped.
-/// Parts past the strip's ends (rounding) go to its end columns.
+/// Parts past the row's ends (rounding) go to its end columns.
 /// `buffers`: the split's.
 pub(super) fn by_column(
     piece: &ConvexPolygon,
@@ -865,15 +873,73 @@ struct Occluders<'s, 'a> {
     cap: usize,
 }
 
+/// A run of pixels whose rectangle [`Scratch::nothing_in_front`] tested:
+/// pixels `from..until` of row `row` whose centres in reach see `id`.
+#[derive(Default)]
+struct RunClear {
+    row: Option<u32>,
+    id: Seen,
+    from: u32,
+    until: u32,
+    /// No mesh triangle lies in front of `id`'s plane in the rectangle.
+    clear: bool,
+}
+
+/// Whether a mesh triangle other than `id` lies in front of the plane of
+/// `view` somewhere in screen polygon `area` (nearer by more than `10⁻⁹`
+/// of the depth, at a vertex of its part of `area`: the difference of two
+/// planar primitives' inverse depths is affine on the screen, so where it
+/// has a sign somewhere in a convex polygon, it has it at a vertex), from
+/// the triangles [`SurfaceViews::meshes_nearer`] lists under the plane's
+/// farthest point in `area`. A triangle with no view counts as in front.
+fn in_front_within<'a>(
+    pixel: &ExactPixel<'_, 'a>,
+    id: Seen,
+    view: &View,
+    area: &ConvexPolygon,
+    memo: &mut ViewMemo,
+    planes: &mut Vec<[f64; 4]>,
+    buffers: &mut OccluderBuffers<'a>,
+) -> bool {
+    let (scene, cache) = (pixel.shading.frame.scene, pixel.cache);
+    let far = (area.vertices().iter()).fold(f64::NEG_INFINITY, |d, &v| d.max(view.depth_at(v)));
+    let candidate = &mut buffers.candidate;
+    cache.meshes_nearer(
+        scene,
+        area,
+        far,
+        planes,
+        &mut buffers.nearer,
+        |other, near| {
+            if other == id || near >= far {
+                return false;
+            }
+            let Some(seen) = candidate_view(scene, cache, memo, other) else {
+                return true;
+            };
+            let Some(seen) = seen else {
+                return false;
+            };
+            seen.region_into(area, candidate);
+            (candidate.vertices().iter())
+                .any(|&v| seen.depth_at(v) < view.depth_at(v) * (1.0 - 1e-9))
+        },
+    )
+}
+
 /// The buffers of [`Occluders::search`].
 #[derive(Default)]
-struct OccluderBuffers {
+struct OccluderBuffers<'a> {
     /// The ids tried, sorted.
     tried: Vec<Seen>,
     /// Each visible region's view, box and farthest depth.
     shown: Vec<(usize, Bounds, f64)>,
     /// The triangles [`SurfaceViews::meshes_nearer`] lists.
     nearer: Vec<(u32, u32, f32)>,
+    /// A candidate's region.
+    candidate: ConvexPolygon,
+    /// The occluders found, to join the list.
+    joined: Vec<(Seen, ViewRef<'a>, ConvexPolygon)>,
 }
 
 impl<'a> Occluders<'_, 'a> {
@@ -894,7 +960,7 @@ impl<'a> Occluders<'_, 'a> {
         regions: &mut Regions,
         cut: &mut Cut,
         memo: &mut ViewMemo,
-        (planes, buffers): (&mut Vec<[f64; 4]>, &mut OccluderBuffers),
+        (planes, buffers): (&mut Vec<[f64; 4]>, &mut OccluderBuffers<'a>),
     ) -> Option<usize> {
         let (scene, cache, support) = (self.scene, self.cache, self.support);
         // A view's depth over a convex region is largest at a vertex (its
@@ -903,6 +969,8 @@ impl<'a> Occluders<'_, 'a> {
             tried: ids,
             shown,
             nearer,
+            candidate,
+            joined,
         } = buffers;
         shown.clear();
         let mut farthest = f64::NEG_INFINITY;
@@ -919,10 +987,9 @@ impl<'a> Occluders<'_, 'a> {
         ids.extend(tried.iter().map(|&(id, _)| id));
         ids.sort_unstable();
         let (mut added, mut missing) = (0, false);
-        let mut candidate = ConvexPolygon::empty();
-        let mut joined: Vec<(Seen, ViewRef<'a>, ConvexPolygon)> = Vec::new();
+        joined.clear();
         let mut left_out = 0.0;
-        let visible: Vec<&ConvexPolygon> = cut.visible(regions).map(|(_, r)| r).collect();
+        let sliver_area = cut.sliver_area;
         cache.meshes_nearer(scene, support, farthest, planes, nearer, |id, near| {
             if ids.binary_search(&id).is_ok() {
                 return false;
@@ -940,19 +1007,22 @@ impl<'a> Occluders<'_, 'a> {
                     return true;
                 }
             };
-            view.region_into(support, &mut candidate);
+            view.region_into(support, candidate);
             if candidate.is_empty() {
                 return false;
             }
             let bounds = candidate.bounds();
-            let in_front = (shown.iter().zip(&visible)).any(|(&(i, shown_box, far), r)| {
-                near < far
-                    && !boxes_apart(bounds, shown_box)
-                    && overlap(&candidate, r).is_some_and(|o| {
-                        let c = o.centroid();
-                        view.depth_at(c) < views[i].depth_at(c)
-                    })
-            });
+            // An overlap of a hair (rounding along an edge two triangles
+            // share) decides nothing, as in the order.
+            let in_front =
+                (shown.iter().zip(cut.visible(regions))).any(|(&(i, shown_box, far), (_, r))| {
+                    near < far
+                        && !boxes_apart(bounds, shown_box)
+                        && overlap(candidate, r).is_some_and(|o| {
+                            let c = o.centroid();
+                            o.area() > sliver_area && view.depth_at(c) < views[i].depth_at(c)
+                        })
+                });
             if in_front {
                 if added < self.cap {
                     added += 1;
@@ -967,7 +1037,7 @@ impl<'a> Occluders<'_, 'a> {
             return None;
         }
         cut.unaccounted += left_out;
-        for (id, view, region) in joined {
+        for (id, view, region) in joined.drain(..) {
             tried.push((id, Some(views.len())));
             views.push(view);
             regions.next_slot().clone_from(&region);
@@ -1054,9 +1124,11 @@ pub(crate) struct Scratch<'a> {
     /// [`by_column`]'s buffers.
     columns: [ConvexPolygon; 3],
     /// [`Occluders::search`]'s buffers.
-    occluders: OccluderBuffers,
-    /// The pixels of the row's last strip ([`super::strip`]).
-    pub(super) strip: super::strip::StripFill,
+    occluders: OccluderBuffers<'a>,
+    /// The row's last run tested by [`Scratch::nothing_in_front`].
+    run_clear: RunClear,
+    /// The pixels of the row's last shared cut ([`super::shared_cut`]).
+    pub(super) shared_cut: super::shared_cut::SharedCutFill,
 }
 
 impl<'a> Scratch<'a> {
@@ -1125,6 +1197,65 @@ impl<'a> Scratch<'a> {
         }
         let (c, bound) = sky_at_centre(scene, centre, filter)?;
         (bound <= tolerance).then(|| mean(c, 1.0))
+    }
+
+    /// Whether no mesh triangle but `id` (seen through `view`) lies in
+    /// front of `view`'s plane anywhere in `pixel`'s support: tested once
+    /// for the rectangle the supports of the pixel's run cover (`run`
+    /// pixels from it whose centres in reach all see `id`), and where that
+    /// fails (a triangle in front somewhere in it), for the support alone
+    /// ([`in_front_within`]). `Some(run)` when the run is clear, `Some(1)`
+    /// when only the pixel is (no span may share its answer), `None` when
+    /// a triangle lies in front.
+    pub(super) fn nothing_in_front(
+        &mut self,
+        pixel: &ExactPixel<'_, 'a>,
+        id: Seen,
+        view: &View,
+        run: u32,
+    ) -> Option<u32> {
+        if !pixel.cache.has_meshes() {
+            return Some(run);
+        }
+        let (x, y) = pixel.at;
+        let known = &self.run_clear;
+        let run_clear =
+            if known.row == Some(y) && known.id == id && (known.from..known.until).contains(&x) {
+                known.clear
+            } else {
+                let rect = crate::span::span_rect(pixel.shading.filter, (x, y), run);
+                let clear = !in_front_within(
+                    pixel,
+                    id,
+                    view,
+                    &rect,
+                    &mut self.memo,
+                    &mut self.planes,
+                    &mut self.occluders,
+                );
+                self.run_clear = RunClear {
+                    row: Some(y),
+                    id,
+                    from: x,
+                    until: x.saturating_add(run.max(1)),
+                    clear,
+                };
+                clear
+            };
+        if run_clear {
+            return Some(run);
+        }
+        let clear = run > 1
+            && !in_front_within(
+                pixel,
+                id,
+                view,
+                &pixel.support,
+                &mut self.memo,
+                &mut self.planes,
+                &mut self.occluders,
+            );
+        clear.then_some(1)
     }
 
     /// Whether a sphere is among the listed views.

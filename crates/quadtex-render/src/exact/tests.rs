@@ -834,10 +834,10 @@ fn a_sky_span_answers_each_pixel_as_its_own_test() {
     }
 }
 
-/// A piece split along a strip's pixel sides ([`pixel::by_column`]):
+/// A piece split along a row's pixel sides ([`pixel::by_column`]):
 /// the parts lie in their columns (to rounding), their areas add up to
 /// the piece's, a piece within one column is given whole, and parts past
-/// the strip's ends (rounding, or a piece that pokes out) go to the end
+/// the row's ends (rounding, or a piece that pokes out) go to the end
 /// columns.
 #[test]
 fn pieces_split_by_column_tile_the_piece() {
@@ -904,14 +904,21 @@ fn views_cut_by_those_in_front_match_the_order() {
         let mut ordered = Cut::default();
         let mut order = Order::default();
         ordered.among(&views, &regions, &support, &mut order);
-        assert!(!order.cyclic, "round {round}");
         let mut pairwise = Cut {
             remaining: vec![support.clone()],
             sliver_area: sliver,
             ..Cut::default()
         };
         order.front_to_back(&views, &regions, sliver);
-        pairwise.each_behind_those_in_front(&regions, &order);
+        assert!(!order.cyclic, "round {round}");
+        pairwise.each_behind_those_in_front(&regions, &order, support.area());
+        // Nothing lost: the pieces, the parts left and the slivers tile
+        // the support.
+        assert!(
+            pairwise.unaccounted < 1e-12,
+            "round {round}: {}",
+            pairwise.unaccounted
+        );
         let (a, b) = (
             areas_by_view(&ordered, &regions, n),
             areas_by_view(&pairwise, &regions, n),

@@ -296,6 +296,11 @@ impl SurfaceViews {
         self.may_reach(bounds) && self.search_hierarchies(scene, polygon, bounds, planes, visit)
     }
 
+    /// Whether the scene has meshes.
+    pub(super) fn has_meshes(&self) -> bool {
+        !self.meshes.is_empty()
+    }
+
     /// Whether a mesh triangle may reach into the screen box `(lo, hi)`:
     /// the scene has meshes, and the visibility pass's reach marks allow.
     pub(super) fn may_reach(&self, (lo, hi): ([f64; 2], [f64; 2])) -> bool {
@@ -383,8 +388,9 @@ impl SurfaceViews {
     /// distance) somewhere, and for others, until `visit` returns true;
     /// returns whether it did. `near` bounds the triangle's depth from
     /// below. From the screen bins where they hold the polygon's box
-    /// ([`ScreenBins::nearer_than`]), else every triangle the hierarchies
-    /// find in its frustum (`near` 0). `found`: scratch.
+    /// ([`ScreenBins::nearer_than`]), else the triangles the hierarchies
+    /// find in its frustum whose least corner depth is below `depth`.
+    /// `found`: scratch.
     pub(super) fn meshes_nearer(
         &self,
         scene: &Scene,
@@ -404,7 +410,20 @@ impl SurfaceViews {
             return (found.iter())
                 .any(|&(surface, t, near)| visit(seen_id(surface as usize, t), f64::from(near)));
         }
-        self.search_hierarchies(scene, polygon, (lo, hi), planes, |id| visit(id, 0.0))
+        let cam = &scene.camera;
+        self.search_hierarchies(scene, polygon, (lo, hi), planes, |id| {
+            let (surface, t) = surface_and_triangle(id);
+            let near = match scene.surfaces.get(surface).map(|s| &s.geometry) {
+                Some(Geometry::Mesh(mesh)) => mesh.corners(t as usize).map_or(0.0, |corners| {
+                    (corners.iter())
+                        .map(|&p| (p - cam.position).dot(cam.forward))
+                        .fold(f64::INFINITY, f64::min)
+                        .max(0.0)
+                }),
+                _ => 0.0,
+            };
+            near < depth && visit(id, near)
+        })
     }
 
     /// Whether every sphere's outline misses the screen box `(lo, hi)`

@@ -89,7 +89,7 @@ fn spans_give_each_pixel_what_it_gets_alone() {
                 render_with(scene, &options, &|_, _| (), spans, &mut image, None).unwrap();
             (image, summary)
         };
-        let (shared, alone) = (go(Spans::NoStrips), go(Spans::EachPixel));
+        let (shared, alone) = (go(Spans::NoSharedCuts), go(Spans::EachPixel));
         let mut worst = 0f32;
         for (a, b) in shared.0.pixels.iter().zip(&alone.0.pixels) {
             for (u, v) in a.to_array().iter().zip(b.to_array()) {
@@ -262,17 +262,18 @@ fn kept_views_do_not_cross_frames() {
     }
 }
 
-/// Strips give each pixel what it gets cut alone, within the two
+/// Shared cuts give each pixel what it gets cut alone, within the two
 /// renders' bounds: a generated terrain (its far hills crowd pixels
 /// with triangles, crests hiding slopes) and the runway's quad over it,
-/// lit and unlit, box filter. Each strip pixel's pieces tile it (its
-/// weight is 1 to rounding), and the strips must have answered many
+/// lit and unlit, and the demo (planes, quads, a sign's edges, shadows),
+/// box filter. Each shared pixel's pieces tile it (its
+/// weight is 1 to rounding), and the shared cuts must have answered many
 /// pixels (a path never taken would pass): pixels whose colour is not
 /// the same bits as alone.
 #[test]
-fn strips_give_each_pixel_what_it_gets_alone() {
+fn shared_cuts_give_each_pixel_what_it_gets_alone() {
     use crate::scene::Lighting;
-    let dir = std::env::temp_dir().join(format!("quadtex-strips-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("quadtex-shared-cuts-{}", std::process::id()));
     let file = crate::terrain::write_terrain(&dir, 300, 480, 270).unwrap();
     let lit = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
     std::fs::remove_dir_all(&dir).ok();
@@ -282,7 +283,8 @@ fn strips_give_each_pixel_what_it_gets_alone() {
     };
     // The bounds are in the texture's colour units: the sun and the
     // ambient light scale them by at most their sum's largest channel.
-    for (scene, scale) in [(&unlit, 1.0), (&lit, 1.5 + 0.5)] {
+    let demo = crate::demo_scene().unwrap();
+    for (scene, scale, least) in [(&unlit, 1.0, 100), (&lit, 1.5 + 0.5, 100), (&demo, 2.0, 10)] {
         let options = RenderOptions {
             width: Some(480),
             ..RenderOptions::default()
@@ -300,12 +302,12 @@ fn strips_give_each_pixel_what_it_gets_alone() {
             .unwrap();
             (image, bounds, summary)
         };
-        let (strips, alone) = (go(Spans::Shared), go(Spans::NoStrips));
+        let (shared, alone) = (go(Spans::Shared), go(Spans::NoSharedCuts));
         let (mut changed, mut worst) = (0, 0f64);
-        for (i, (a, b)) in strips.0.pixels.iter().zip(&alone.0.pixels).enumerate() {
+        for (i, (a, b)) in shared.0.pixels.iter().zip(&alone.0.pixels).enumerate() {
             // The walk's merge of close vertices moves a region's weight
             // by under 1e-5 of a pixel (limits.md), and the mean with it.
-            let allowed = scale * (strips.1[i] + alone.1[i]) + 1e-5;
+            let allowed = scale * (shared.1[i] + alone.1[i]) + 1e-5;
             for (u, v) in a.to_array().iter().zip(b.to_array()) {
                 let off = f64::from((u - v).abs());
                 worst = worst.max(off / allowed);
@@ -314,21 +316,21 @@ fn strips_give_each_pixel_what_it_gets_alone() {
                     "pixel ({}, {}): {u} against {v}, bounds {} and {}",
                     i % 480,
                     i / 480,
-                    strips.1[i],
+                    shared.1[i],
                     alone.1[i]
                 );
             }
             changed += usize::from(a != b);
         }
         eprintln!("{changed} pixels changed; worst {worst:.3} of the allowance");
-        // Measured: 196 unlit, 1 263 lit.
-        assert!(changed > 100, "strips answered {changed} pixels");
+        // Measured: 206 unlit, 227 lit, 60 on the demo.
+        assert!(changed > least, "shared cuts answered {changed} pixels");
         assert!(
-            strips.2.max_weight_error < 1e-6,
+            shared.2.max_weight_error < 1e-6,
             "weight off by {}",
-            strips.2.max_weight_error
+            shared.2.max_weight_error
         );
-        assert_eq!(strips.2.textured_pixels, alone.2.textured_pixels);
+        assert_eq!(shared.2.textured_pixels, alone.2.textured_pixels);
     }
 }
 
@@ -336,7 +338,7 @@ fn strips_give_each_pixel_what_it_gets_alone() {
 /// far ridges show as bands thinner than a pixel, between two rows of
 /// centres, no pixel is off a supersampled render (12 × 12 stratified
 /// samples a pixel, each the texel its ray meets) by more than that
-/// render's noise can be, strips or pixels one by one. Without the search
+/// render's noise can be, with shared cuts or pixels one by one. Without the search
 /// for occluders ([`crate::exact`]), 105 pixels were off by more than 0.04
 /// (up to 0.15) at this size, each with a bound near zero.
 #[test]
@@ -369,7 +371,7 @@ fn crests_no_centre_sees_are_found() {
         (image, bounds)
     };
     let (reference, _) = run(TextureFilter::Supersample(12), Spans::Shared);
-    for spans in [Spans::Shared, Spans::NoStrips] {
+    for spans in [Spans::Shared, Spans::NoSharedCuts] {
         let (image, bounds) = run(TextureFilter::default(), spans);
         let mut off: Vec<(usize, f32, f64)> = (image.pixels.iter().zip(&reference.pixels))
             .map(|(a, b)| {

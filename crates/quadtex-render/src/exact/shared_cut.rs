@@ -1,6 +1,6 @@
-//! Strips: a run of a row's pixels whose centres in reach see more than
-//! one thing, cut as one support under the box filter
-//! ([`Scratch::strip`]).
+//! Shared cuts: a run of a row's pixels whose centres in reach see more
+//! than one thing, cut as one support under the box filter
+//! ([`Scratch::shared_cut`]).
 //!
 //! Where a far hillside crowds a pixel with triangles, most of its cost is
 //! listing them, clipping each to the support, ordering and cutting them,
@@ -8,14 +8,14 @@
 //! in its row list, clip and cut the same triangles again. The box
 //! filter's supports of a row's pixels tile the rectangle they span, so
 //! the rectangle is cut once among the primitives of all their centres
-//! (with the flood and the gaps' search of [`super::pixel`], their caps
-//! the pixels'), and each visible region, sliver and gap of that cut is
-//! then split along the pixels' sides and shaded by the pixel it lies in,
-//! with that pixel's own filter centre
-//! ([`by_column`](super::pixel::by_column)). Each pixel's colour is the
-//! sum of its pieces, as if its own support had been cut: the pieces are
-//! the same regions, split differently along their edges, so the two
-//! differ by rounding (and each pixel's bound takes the whole strip's
+//! (with the flood, the gaps' search and the occluders' search of
+//! [`super::pixel`], their caps the pixels' added up), and each visible
+//! region, sliver and gap of that cut is then split along the pixels'
+//! sides and shaded by the pixel it lies in, with that pixel's own filter
+//! centre ([`by_column`](super::pixel::by_column)). Each pixel's colour is
+//! the sum of its pieces, as if its own support had been cut: the pieces
+//! are the same regions, split differently along their edges, so the two
+//! differ by rounding (and each pixel's bound takes the whole rectangle's
 //! unaccounted weight). A list that holds a sphere is left to the pixels
 //! one by one (its outline is clipped by chords over one support's
 //! angles).
@@ -31,27 +31,30 @@ use super::lighting::Shading;
 use super::pixel::{ExactPixel, Scratch, Sums};
 use super::views::SurfaceViews;
 
-/// Most pixels a strip holds: a far hillside's triangle spans about this
+/// Most pixels a shared cut holds: a far hillside's triangle spans about this
 /// many (`quadtex bench --frames`' terrain: measured on its frame, 4 and
 /// 16 cost more).
-pub(crate) const STRIP_PIXELS: u32 = 8;
+pub(crate) const SHARED_CUT_PIXELS: u32 = 8;
 
-/// The colours and counters of the pixels of a row's last strip.
+/// The colours and counters of the pixels of a row's last shared cut.
 #[derive(Default)]
-pub(crate) struct StripFill {
+pub(crate) struct SharedCutFill {
     y: u32,
     left: u32,
     pixels: Vec<(Rgba, PixelStats)>,
+    /// Each pixel's sums and counters while the cut is shaded.
+    sums: Vec<Sums>,
+    parts: Vec<PixelStats>,
 }
 
 impl<'a> Scratch<'a> {
-    /// Cuts pixels `x0..x1` of row `y` as one strip among the primitives
+    /// Cuts pixels `x0..x1` of row `y` as one support among the primitives
     /// `candidates` (what their centres in reach see) under the box
     /// filter, keeping each pixel's colour and counters for
-    /// [`Scratch::strip_fill`]. Returns false, keeping nothing, when a
+    /// [`Scratch::shared_cut_fill`]. Returns false, keeping nothing, when a
     /// candidate or a primitive found has no view or one listed is a
     /// sphere: the pixels are then taken one by one.
-    pub(crate) fn strip(
+    pub(crate) fn shared_cut(
         &mut self,
         frame: &Frame<'_>,
         options: &FilterOptions,
@@ -59,7 +62,7 @@ impl<'a> Scratch<'a> {
         candidates: &[Seen],
         cache: &'a SurfaceViews,
     ) -> bool {
-        self.strip.pixels.clear();
+        self.shared_cut.pixels.clear();
         let columns = x1.saturating_sub(x0) as usize;
         if columns == 0 {
             return false;
@@ -82,17 +85,19 @@ impl<'a> Scratch<'a> {
                 cap,
             }
         };
-        let strip = cell(
+        let rectangle = cell(
             ConvexPolygon::rect(left, top, left + columns as f64, top + 1.0),
             (x0, y),
             MAX_GAP_PRIMITIVES * columns,
         );
-        if strip.list_candidates(candidates, self).is_none()
+        if rectangle.list_candidates(candidates, self).is_none()
             || self.lists_a_sphere()
-            || strip.cut(self).is_none()
+            || rectangle.cut(self).is_none()
         {
             return false;
         }
+        // (The frame's lifetime keeps these out of the thread's buffers:
+        // one small allocation a cut.)
         let pixels: Vec<ExactPixel<'_, 'a>> = (0..columns)
             .map(|c| {
                 let x = left + c as f64;
@@ -100,28 +105,32 @@ impl<'a> Scratch<'a> {
                 cell(support, (x0 + c as u32, y), MAX_GAP_PRIMITIVES)
             })
             .collect();
-        let mut sums = vec![Sums::default(); columns];
-        let mut parts = vec![PixelStats::default(); columns];
-        if strip
-            .shade_cut(self, &pixels, &mut sums, &mut parts)
-            .is_none()
-        {
-            return false;
+        let (mut sums, mut parts) = (
+            std::mem::take(&mut self.shared_cut.sums),
+            std::mem::take(&mut self.shared_cut.parts),
+        );
+        sums.clear();
+        sums.resize(columns, Sums::default());
+        parts.clear();
+        parts.resize(columns, PixelStats::default());
+        let shaded = rectangle.shade_cut(self, &pixels, &mut sums, &mut parts);
+        let fill = &mut self.shared_cut;
+        if shaded.is_some() {
+            (fill.y, fill.left) = (y, x0);
+            for ((pixel, sums), parts) in pixels.iter().zip(sums.drain(..)).zip(&parts) {
+                let mut stats = PixelStats::default();
+                let colour = pixel.finish(sums, *parts, &mut stats);
+                fill.pixels.push((colour, stats));
+            }
         }
-        let fill = &mut self.strip;
-        (fill.y, fill.left) = (y, x0);
-        for ((pixel, sums), parts) in pixels.iter().zip(sums).zip(parts) {
-            let mut stats = PixelStats::default();
-            let colour = pixel.finish(sums, parts, &mut stats);
-            fill.pixels.push((colour, stats));
-        }
-        true
+        (fill.sums, fill.parts) = (sums, parts);
+        shaded.is_some()
     }
 
     /// The colour and counters of pixel `(x, y)` when the row's last
-    /// strip holds it ([`Scratch::strip`]).
-    pub(crate) fn strip_fill(&self, (x, y): (u32, u32)) -> Option<&(Rgba, PixelStats)> {
-        let fill = &self.strip;
+    /// shared cut holds it ([`Scratch::shared_cut`]).
+    pub(crate) fn shared_cut_fill(&self, (x, y): (u32, u32)) -> Option<&(Rgba, PixelStats)> {
+        let fill = &self.shared_cut;
         if fill.y != y || x < fill.left {
             return None;
         }
