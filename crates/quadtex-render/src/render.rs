@@ -17,7 +17,7 @@ use quadtex_io::LinearImage;
 use rayon::prelude::*;
 
 use crate::caster::Seen;
-use crate::exact::{SHARED_CUT_PIXELS, Scratch, SurfaceViews};
+use crate::exact::{SHARED_CUT_PIXELS, SHARED_CUT_PRIMITIVES, Scratch, SurfaceViews};
 use crate::frame::Frame;
 use crate::options::{PixelFilter, RenderOptions, TextureFilter};
 use crate::pixel::{Neighbourhood, shade_pixel};
@@ -344,10 +344,18 @@ impl Rows<'_> {
                     .take_while(|&x| mixed(x))
                     .last()
                     .map_or(x, |last| last + 1);
+                let mut end = end;
                 if end >= x + 2 && x >= no_shared_cut_until {
+                    // Pixels join while the primitives their centres see
+                    // number at most SHARED_CUT_PRIMITIVES (two at least).
                     shared_ids.clear();
-                    for x in x..end {
-                        centres.neighbourhood(x, y, None, &mut ids);
+                    for p in x..end {
+                        centres.neighbourhood(p, y, None, &mut ids);
+                        let new = ids.iter().filter(|&id| !shared_ids.contains(id)).count();
+                        if p >= x + 2 && shared_ids.len() + new > SHARED_CUT_PRIMITIVES {
+                            end = p;
+                            break;
+                        }
                         for &id in &ids {
                             if !shared_ids.contains(&id) {
                                 shared_ids.push(id);

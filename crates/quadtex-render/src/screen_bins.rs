@@ -336,8 +336,8 @@ impl ScreenBins {
 
     /// Every binned triangle whose widened box meets the screen box
     /// `lo..hi` and whose least depth (its bound, [`ScreenBox::near`]) is
-    /// below `depth`, as `(surface, triangle, least depth)` into `out`,
-    /// sorted and each once: a superset of the mesh triangles that reach into a polygon
+    /// below `depth`, as `(surface, triangle, least depth, widened box)`
+    /// into `out`, sorted and each once: a superset of the mesh triangles that reach into a polygon
     /// within that box nearer than `depth` somewhere. Each tile's list is
     /// read nearest first, up to `depth`. False (`out` cleared) when the
     /// box is not wholly inside the tiles.
@@ -346,7 +346,7 @@ impl ScreenBins {
         lo: [f64; 2],
         hi: [f64; 2],
         depth: f64,
-        out: &mut Vec<(u32, u32, f32)>,
+        out: &mut Vec<(u32, u32, f32, [f32; 4])>,
     ) -> bool {
         out.clear();
         let tiles = &self.fine;
@@ -368,8 +368,8 @@ impl ScreenBins {
             for ty in ty0..=ty1 {
                 for tx in tx0..=tx1 {
                     for &i in tiles.at(ty * tiles.tiles[0] + tx) {
-                        let (surface, triangle, [a0, b0, a1, b1], near) =
-                            self.triangles[i as usize];
+                        let (surface, triangle, b, near) = self.triangles[i as usize];
+                        let [a0, b0, a1, b1] = b;
                         // Not a number compares false: read on.
                         if f64::from(near) >= depth {
                             break;
@@ -379,14 +379,14 @@ impl ScreenBins {
                             || f64::from(b1) < y0
                             || f64::from(b0) > y1;
                         if !apart {
-                            out.push((surface, triangle, near));
+                            out.push((surface, triangle, near, b));
                         }
                     }
                 }
             }
         }
-        out.sort_unstable_by_key(|&(surface, triangle, _)| (surface, triangle));
-        out.dedup_by_key(|&mut (surface, triangle, _)| (surface, triangle));
+        out.sort_unstable_by_key(|&(surface, triangle, ..)| (surface, triangle));
+        out.dedup_by_key(|&mut (surface, triangle, ..)| (surface, triangle));
         true
     }
 

@@ -57,7 +57,8 @@
 //! intersect inside the pixel are ordered at one point.
 //!
 //! **Shared cuts.** Runs of up to [`SHARED_CUT_PIXELS`] box pixels of a row
-//! whose centres see more than one thing are cut as one support, then
+//! whose centres see more than one thing (and, past two, at most
+//! [`SHARED_CUT_PRIMITIVES`] primitives) are cut as one support, then
 //! split along the pixels' sides ([`shared_cut`]).
 //! A sphere wholly in front of the camera's plane is listed like a planar
 //! primitive (every sphere whose outline's box meets the support is
@@ -107,6 +108,6 @@ mod views;
 mod tests;
 
 pub(crate) use pixel::{Scratch, exact_pixel};
-pub(crate) use shared_cut::SHARED_CUT_PIXELS;
+pub(crate) use shared_cut::{SHARED_CUT_PIXELS, SHARED_CUT_PRIMITIVES};
 pub(crate) use sphere::PolarFans;
 pub(crate) use views::SurfaceViews;

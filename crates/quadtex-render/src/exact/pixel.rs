@@ -910,7 +910,7 @@ fn in_front_within<'a>(
         far,
         planes,
         &mut buffers.nearer,
-        |other, near| {
+        |other, near, _| {
             if other == id || near >= far {
                 return false;
             }
@@ -935,7 +935,7 @@ struct OccluderBuffers<'a> {
     /// Each visible region's view, box and farthest depth.
     shown: Vec<(usize, Bounds, f64)>,
     /// The triangles [`SurfaceViews::meshes_nearer`] lists.
-    nearer: Vec<(u32, u32, f32)>,
+    nearer: Vec<(u32, u32, f32, [f32; 4])>,
     /// A candidate's region.
     candidate: ConvexPolygon,
     /// The occluders found, to join the list.
@@ -990,49 +990,58 @@ impl<'a> Occluders<'_, 'a> {
         joined.clear();
         let mut left_out = 0.0;
         let sliver_area = cut.sliver_area;
-        cache.meshes_nearer(scene, support, farthest, planes, nearer, |id, near| {
-            if ids.binary_search(&id).is_ok() {
-                return false;
-            }
-            // Nearer than some visible region's farthest point, or it hides
-            // nothing.
-            if shown.iter().all(|&(_, _, far)| near >= far) {
-                return false;
-            }
-            let view = match candidate_view(scene, cache, memo, id) {
-                Some(Some(view)) => view,
-                Some(None) => return false,
-                None => {
-                    missing = true;
-                    return true;
+        cache.meshes_nearer(
+            scene,
+            support,
+            farthest,
+            planes,
+            nearer,
+            |id, near, reach| {
+                // Nearer than some visible region's farthest point where its
+                // box meets that region's, or it hides nothing.
+                if shown
+                    .iter()
+                    .all(|&(_, shown_box, far)| near >= far || boxes_apart(reach, shown_box))
+                    || ids.binary_search(&id).is_ok()
+                {
+                    return false;
                 }
-            };
-            view.region_into(support, candidate);
-            if candidate.is_empty() {
-                return false;
-            }
-            let bounds = candidate.bounds();
-            // An overlap of a hair (rounding along an edge two triangles
-            // share) decides nothing, as in the order.
-            let in_front =
-                (shown.iter().zip(cut.visible(regions))).any(|(&(i, shown_box, far), (_, r))| {
-                    near < far
-                        && !boxes_apart(bounds, shown_box)
-                        && overlap(candidate, r).is_some_and(|o| {
-                            let c = o.centroid();
-                            o.area() > sliver_area && view.depth_at(c) < views[i].depth_at(c)
-                        })
-                });
-            if in_front {
-                if added < self.cap {
-                    added += 1;
-                    joined.push((id, view, candidate.clone()));
-                } else {
-                    left_out += candidate.area();
+                let view = match candidate_view(scene, cache, memo, id) {
+                    Some(Some(view)) => view,
+                    Some(None) => return false,
+                    None => {
+                        missing = true;
+                        return true;
+                    }
+                };
+                view.region_into(support, candidate);
+                if candidate.is_empty() {
+                    return false;
                 }
-            }
-            false
-        });
+                let bounds = candidate.bounds();
+                // An overlap of a hair (rounding along an edge two triangles
+                // share) decides nothing, as in the order.
+                let in_front = (shown.iter().zip(cut.visible(regions))).any(
+                    |(&(i, shown_box, far), (_, r))| {
+                        near < far
+                            && !boxes_apart(bounds, shown_box)
+                            && overlap(candidate, r).is_some_and(|o| {
+                                let c = o.centroid();
+                                o.area() > sliver_area && view.depth_at(c) < views[i].depth_at(c)
+                            })
+                    },
+                );
+                if in_front {
+                    if added < self.cap {
+                        added += 1;
+                        joined.push((id, view, candidate.clone()));
+                    } else {
+                        left_out += candidate.area();
+                    }
+                }
+                false
+            },
+        );
         if missing {
             return None;
         }

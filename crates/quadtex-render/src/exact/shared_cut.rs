@@ -31,10 +31,16 @@ use super::lighting::Shading;
 use super::pixel::{ExactPixel, Scratch, Sums};
 use super::views::SurfaceViews;
 
-/// Most pixels a shared cut holds: a far hillside's triangle spans about this
-/// many (`quadtex bench --frames`' terrain: measured on its frame, 4 and
-/// 16 cost more).
-pub(crate) const SHARED_CUT_PIXELS: u32 = 8;
+/// Most pixels a shared cut holds.
+pub(crate) const SHARED_CUT_PIXELS: u32 = 16;
+
+/// Most primitives the centres of a shared cut's pixels see, past its
+/// first two pixels: a cut's cost grows faster than its list (pairs
+/// overlap, pieces multiply), so crowded rows take shorter runs. Measured
+/// on `quadtex bench --frames`' terrain, one thread (docs/performance.md):
+/// 9–12 with 16 pixels at most beat 8 pixels with no limit at 480 × 270
+/// and at 1920 × 1080, 24 and 48 lost at 480, 6 at 1920.
+pub(crate) const SHARED_CUT_PRIMITIVES: usize = 12;
 
 /// The colours and counters of the pixels of a row's last shared cut.
 #[derive(Default)]

@@ -383,11 +383,11 @@ impl SurfaceViews {
         self.search_hierarchies(scene, polygon, (lo, hi), planes, visit)
     }
 
-    /// Calls `visit(id, near)` for every mesh triangle that may reach into
-    /// screen polygon `polygon` nearer than `depth` (the camera's forward
-    /// distance) somewhere, and for others, until `visit` returns true;
-    /// returns whether it did. `near` bounds the triangle's depth from
-    /// below. From the screen bins where they hold the polygon's box
+    /// Calls `visit(id, near, bounds)` for every mesh triangle that may
+    /// reach into screen polygon `polygon` nearer than `depth` (the
+    /// camera's forward distance) somewhere, and for others, until `visit`
+    /// returns true; returns whether it did. `near` bounds the triangle's
+    /// depth from below, `bounds` holds its projection (or is infinite). From the screen bins where they hold the polygon's box
     /// ([`ScreenBins::nearer_than`]), else the triangles the hierarchies
     /// find in its frustum whose least corner depth is below `depth`.
     /// `found`: scratch.
@@ -397,8 +397,8 @@ impl SurfaceViews {
         polygon: &ConvexPolygon,
         depth: f64,
         planes: &mut Vec<[f64; 4]>,
-        found: &mut Vec<(u32, u32, f32)>,
-        mut visit: impl FnMut(Seen, f64) -> bool,
+        found: &mut Vec<(u32, u32, f32, [f32; 4])>,
+        mut visit: impl FnMut(Seen, f64, ([f64; 2], [f64; 2])) -> bool,
     ) -> bool {
         let (lo, hi) = polygon.bounds();
         if !self.may_reach((lo, hi)) {
@@ -407,8 +407,13 @@ impl SurfaceViews {
         if let Some(bins) = &self.bins
             && bins.nearer_than(lo, hi, depth, found)
         {
-            return (found.iter())
-                .any(|&(surface, t, near)| visit(seen_id(surface as usize, t), f64::from(near)));
+            return (found.iter()).any(|&(surface, t, near, [x0, y0, x1, y1])| {
+                let bounds = (
+                    [f64::from(x0), f64::from(y0)],
+                    [f64::from(x1), f64::from(y1)],
+                );
+                visit(seen_id(surface as usize, t), f64::from(near), bounds)
+            });
         }
         let cam = &scene.camera;
         self.search_hierarchies(scene, polygon, (lo, hi), planes, |id| {
@@ -422,7 +427,8 @@ impl SurfaceViews {
                 }),
                 _ => 0.0,
             };
-            near < depth && visit(id, near)
+            let everywhere = ([f64::NEG_INFINITY; 2], [f64::INFINITY; 2]);
+            near < depth && visit(id, near, everywhere)
         })
     }
 
