@@ -167,6 +167,25 @@ pub(crate) struct ScreenBins {
     triangles: Vec<(u32, u32, [f32; 4], f32)>,
 }
 
+/// A screen box `lo..hi` inside the tiles, and its `f32` box rounded
+/// outward ([`ScreenBins::query`]).
+struct BoxQuery {
+    lo: [f64; 2],
+    hi: [f64; 2],
+    rounded: [f32; 4],
+}
+
+impl BoxQuery {
+    /// Whether a binned (widened) box meets this one.
+    fn meets(&self, &[a0, b0, a1, b1]: &[f32; 4]) -> bool {
+        let (lo, hi) = (self.lo, self.hi);
+        !(f64::from(a1) < lo[0]
+            || f64::from(a0) > hi[0]
+            || f64::from(b1) < lo[1]
+            || f64::from(b0) > hi[1])
+    }
+}
+
 /// Relative margin by which a triangle's least depth is lowered before it
 /// bounds the rays' hits ([`ScreenBins::nearest_through`]): far above the
 /// rounding of the depths and of the crossings' `t`.
@@ -283,6 +302,55 @@ impl ScreenBins {
         })
     }
 
+    /// The screen box `lo..hi` as the tiles take it; `None` when it is not
+    /// wholly inside them.
+    fn query(&self, lo: [f64; 2], hi: [f64; 2]) -> Option<BoxQuery> {
+        let tiles = &self.fine;
+        let end = |a: usize| tiles.origin + tiles.tiles[a] as f64 * tiles.side[a];
+        if !(0..2).all(|a| lo[a] >= tiles.origin && hi[a] < end(a) && lo[a] <= hi[a]) {
+            return None;
+        }
+        // The box rounded outward to `f32`, as the tiles take boxes.
+        let rounded = [
+            (lo[0] as f32).next_down(),
+            (lo[1] as f32).next_down(),
+            (hi[0] as f32).next_up(),
+            (hi[1] as f32).next_up(),
+        ];
+        Some(BoxQuery { lo, hi, rounded })
+    }
+
+    /// Calls `found` with each binned triangle whose widened box meets
+    /// box `q`, in the lists of the tiles (fine, then coarse) `q` touches,
+    /// each list read nearest first up to least depth `depth` (a triangle
+    /// met in several tiles comes once a tile).
+    fn each_meeting(
+        &self,
+        q: &BoxQuery,
+        depth: f64,
+        mut found: impl FnMut(&(u32, u32, [f32; 4], f32)),
+    ) {
+        for tiles in [&self.fine, &self.coarse] {
+            let Some(((tx0, tx1), (ty0, ty1))) = tiles.range(&q.rounded) else {
+                continue;
+            };
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    for &i in tiles.at(ty * tiles.tiles[0] + tx) {
+                        let binned = &self.triangles[i as usize];
+                        // Not a number compares false: read on.
+                        if f64::from(binned.3) >= depth {
+                            break;
+                        }
+                        if q.meets(&binned.2) {
+                            found(binned);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Every binned triangle whose widened box meets the screen box
     /// `lo..hi`, as `(surface, rank(surface, triangle), triangle)` into
     /// `out`, sorted and each once: a superset of the mesh triangles whose
@@ -297,38 +365,12 @@ impl ScreenBins {
         out: &mut Vec<(u32, u32, u32)>,
     ) -> bool {
         out.clear();
-        let tiles = &self.fine;
-        let end = |a: usize| tiles.origin + tiles.tiles[a] as f64 * tiles.side[a];
-        if !(0..2).all(|a| lo[a] >= tiles.origin && hi[a] < end(a) && lo[a] <= hi[a]) {
+        let Some(q) = self.query(lo, hi) else {
             return false;
-        }
-        let (x0, y0, x1, y1) = (lo[0], lo[1], hi[0], hi[1]);
-        // The box rounded outward to `f32`, as the tiles take boxes.
-        let query = [
-            (x0 as f32).next_down(),
-            (y0 as f32).next_down(),
-            (x1 as f32).next_up(),
-            (y1 as f32).next_up(),
-        ];
-        for tiles in [&self.fine, &self.coarse] {
-            let Some(((tx0, tx1), (ty0, ty1))) = tiles.range(&query) else {
-                continue;
-            };
-            for ty in ty0..=ty1 {
-                for tx in tx0..=tx1 {
-                    for &i in tiles.at(ty * tiles.tiles[0] + tx) {
-                        let (surface, triangle, [a0, b0, a1, b1], _) = self.triangles[i as usize];
-                        let apart = f64::from(a1) < x0
-                            || f64::from(a0) > x1
-                            || f64::from(b1) < y0
-                            || f64::from(b0) > y1;
-                        if !apart {
-                            out.push((surface, rank(surface, triangle), triangle));
-                        }
-                    }
-                }
-            }
-        }
+        };
+        self.each_meeting(&q, f64::INFINITY, |&(surface, triangle, ..)| {
+            out.push((surface, rank(surface, triangle), triangle));
+        });
         out.sort_unstable();
         out.dedup();
         true
@@ -337,10 +379,10 @@ impl ScreenBins {
     /// Every binned triangle whose widened box meets the screen box
     /// `lo..hi` and whose least depth (its bound, [`ScreenBox::near`]) is
     /// below `depth`, as `(surface, triangle, least depth, widened box)`
-    /// into `out`, sorted and each once: a superset of the mesh triangles that reach into a polygon
-    /// within that box nearer than `depth` somewhere. Each tile's list is
-    /// read nearest first, up to `depth`. False (`out` cleared) when the
-    /// box is not wholly inside the tiles.
+    /// into `out`, sorted and each once: a superset of the mesh triangles
+    /// that reach into a polygon within that box nearer than `depth`
+    /// somewhere. Each tile's list is read nearest first, up to `depth`.
+    /// False (`out` cleared) when the box is not wholly inside the tiles.
     pub(crate) fn nearer_than(
         &self,
         lo: [f64; 2],
@@ -349,42 +391,12 @@ impl ScreenBins {
         out: &mut Vec<(u32, u32, f32, [f32; 4])>,
     ) -> bool {
         out.clear();
-        let tiles = &self.fine;
-        let end = |a: usize| tiles.origin + tiles.tiles[a] as f64 * tiles.side[a];
-        if !(0..2).all(|a| lo[a] >= tiles.origin && hi[a] < end(a) && lo[a] <= hi[a]) {
+        let Some(q) = self.query(lo, hi) else {
             return false;
-        }
-        let (x0, y0, x1, y1) = (lo[0], lo[1], hi[0], hi[1]);
-        let query = [
-            (x0 as f32).next_down(),
-            (y0 as f32).next_down(),
-            (x1 as f32).next_up(),
-            (y1 as f32).next_up(),
-        ];
-        for tiles in [&self.fine, &self.coarse] {
-            let Some(((tx0, tx1), (ty0, ty1))) = tiles.range(&query) else {
-                continue;
-            };
-            for ty in ty0..=ty1 {
-                for tx in tx0..=tx1 {
-                    for &i in tiles.at(ty * tiles.tiles[0] + tx) {
-                        let (surface, triangle, b, near) = self.triangles[i as usize];
-                        let [a0, b0, a1, b1] = b;
-                        // Not a number compares false: read on.
-                        if f64::from(near) >= depth {
-                            break;
-                        }
-                        let apart = f64::from(a1) < x0
-                            || f64::from(a0) > x1
-                            || f64::from(b1) < y0
-                            || f64::from(b0) > y1;
-                        if !apart {
-                            out.push((surface, triangle, near, b));
-                        }
-                    }
-                }
-            }
-        }
+        };
+        self.each_meeting(&q, depth, |&(surface, triangle, b, near)| {
+            out.push((surface, triangle, near, b));
+        });
         out.sort_unstable_by_key(|&(surface, triangle, ..)| (surface, triangle));
         out.dedup_by_key(|&mut (surface, triangle, ..)| (surface, triangle));
         true

@@ -272,15 +272,7 @@ fn kept_views_do_not_cross_frames() {
 /// the same bits as alone.
 #[test]
 fn shared_cuts_give_each_pixel_what_it_gets_alone() {
-    use crate::scene::Lighting;
-    let dir = std::env::temp_dir().join(format!("quadtex-shared-cuts-{}", std::process::id()));
-    let file = crate::terrain::write_terrain(&dir, 300, 480, 270).unwrap();
-    let lit = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
-    std::fs::remove_dir_all(&dir).ok();
-    let unlit = Scene {
-        lighting: Lighting::Unlit,
-        ..lit.clone()
-    };
+    let (lit, unlit) = small_terrain("shared-cuts");
     // The bounds are in the texture's colour units: the sun and the
     // ambient light scale them by at most their sum's largest channel.
     let demo = crate::demo_scene().unwrap();
@@ -289,20 +281,10 @@ fn shared_cuts_give_each_pixel_what_it_gets_alone() {
             width: Some(480),
             ..RenderOptions::default()
         };
-        let go = |spans| {
-            let (mut image, mut bounds) = (LinearImage::default(), Vec::new());
-            let summary = render_with(
-                scene,
-                &options,
-                &|_, _| (),
-                spans,
-                &mut image,
-                Some(&mut bounds),
-            )
-            .unwrap();
-            (image, bounds, summary)
-        };
-        let (shared, alone) = (go(Spans::Shared), go(Spans::NoSharedCuts));
+        let (shared, alone) = (
+            with_bounds(scene, &options, Spans::Shared),
+            with_bounds(scene, &options, Spans::NoSharedCuts),
+        );
         let (mut changed, mut worst) = (0, 0f64);
         for (i, (a, b)) in shared.0.pixels.iter().zip(&alone.0.pixels).enumerate() {
             // The walk's merge of close vertices moves a region's weight
@@ -343,31 +325,14 @@ fn shared_cuts_give_each_pixel_what_it_gets_alone() {
 /// (up to 0.15) at this size, each with a bound near zero.
 #[test]
 fn crests_no_centre_sees_are_found() {
-    use crate::scene::Lighting;
-    let dir = std::env::temp_dir().join(format!("quadtex-crests-{}", std::process::id()));
-    let file = crate::terrain::write_terrain(&dir, 300, 480, 270).unwrap();
-    let lit = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
-    std::fs::remove_dir_all(&dir).ok();
-    let scene = Scene {
-        lighting: Lighting::Unlit,
-        ..lit
-    };
+    let (_, scene) = small_terrain("crests");
     let run = |filter, spans| {
         let options = RenderOptions {
             width: Some(480),
             filter,
             ..RenderOptions::default()
         };
-        let (mut image, mut bounds) = (LinearImage::default(), Vec::new());
-        render_with(
-            &scene,
-            &options,
-            &|_, _| (),
-            spans,
-            &mut image,
-            Some(&mut bounds),
-        )
-        .unwrap();
+        let (image, bounds, _) = with_bounds(&scene, &options, spans);
         (image, bounds)
     };
     let (reference, _) = run(TextureFilter::Supersample(12), Spans::Shared);
@@ -394,4 +359,37 @@ fn crests_no_centre_sees_are_found() {
             "{spans:?}: pixels off by more than 0.06 and their bound: {at:?}"
         );
     }
+}
+
+/// A generated terrain of 300 cells a side for 480 × 270, under its sun
+/// and unlit (`name` keeps each test's folder apart).
+fn small_terrain(name: &str) -> (Scene, Scene) {
+    let dir = std::env::temp_dir().join(format!("quadtex-{name}-{}", std::process::id()));
+    let file = crate::terrain::write_terrain(&dir, 300, 480, 270).unwrap();
+    let lit = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let unlit = Scene {
+        lighting: crate::scene::Lighting::Unlit,
+        ..lit.clone()
+    };
+    (lit, unlit)
+}
+
+/// `scene` rendered with each pixel's relative error bound.
+fn with_bounds(
+    scene: &Scene,
+    options: &RenderOptions,
+    spans: Spans,
+) -> (LinearImage, Vec<f64>, RenderSummary) {
+    let (mut image, mut bounds) = (LinearImage::default(), Vec::new());
+    let summary = render_with(
+        scene,
+        options,
+        &|_, _| (),
+        spans,
+        &mut image,
+        Some(&mut bounds),
+    )
+    .unwrap();
+    (image, bounds, summary)
 }
