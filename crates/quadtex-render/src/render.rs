@@ -310,8 +310,9 @@ impl Rows<'_> {
             _ => None,
         };
         let mut shared_ids = Vec::new();
-        // Where a shared cut failed (a sphere listed), its pixels go one by
-        // one: no other is tried before this pixel.
+        // Where a shared cut failed (a sphere listed, or a primitive with
+        // no view), its run's pixels go one by one: no other is tried before
+        // this pixel.
         let mut no_shared_cut_until = 0;
         for (x, out) in (0..self.width).zip(row.iter_mut()) {
             if let Some((colour, parts)) = scratch
@@ -344,6 +345,7 @@ impl Rows<'_> {
                     .take_while(|&x| mixed(x))
                     .last()
                     .map_or(x, |last| last + 1);
+                let run_end = end;
                 let mut end = end;
                 if end >= x + 2 && x >= no_shared_cut_until {
                     // Pixels join while the primitives their centres see
@@ -375,7 +377,7 @@ impl Rows<'_> {
                         record(bounds, x, parts);
                         continue;
                     }
-                    no_shared_cut_until = end;
+                    no_shared_cut_until = run_end;
                 }
             }
             let mut pixel = PixelStats::default();

@@ -530,8 +530,8 @@ impl Order {
     /// remaining view is in front of where their regions overlap (the
     /// nearest at its own centroid if occlusion is cyclic, which
     /// [`Order::cyclic`] then says). Overlaps of at most `hair` area
-    /// (rounding along shared edges) set no order; [`Order::hairs`] sums
-    /// their areas.
+    /// (rounding along shared edges), and those whose depths tie at the
+    /// centroid, set no order; [`Order::hairs`] sums their areas.
     pub(super) fn front_to_back(
         &mut self,
         views: &[ViewRef<'_>],
@@ -571,6 +571,11 @@ impl Order {
                 let (di, dj) = (views[i].depth_at(c), views[j].depth_at(c));
                 behind[a * n + b] = dj < di;
                 behind[b * n + a] = di < dj;
+                // A tie (or no depth) sets no order either: both may keep
+                // the overlap.
+                if !(di < dj || dj < di) {
+                    *hairs += area;
+                }
             }
         }
         placed.clear();

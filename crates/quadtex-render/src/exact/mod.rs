@@ -50,11 +50,13 @@
 //! it. Overlaps of at most the sliver area (rounding along shared edges)
 //! set no order, their area in the bound; where occlusion is still cyclic,
 //! each primitive gets its region less those of the primitives in front of
-//! it, pair by pair. A pixel whose centres in reach all see one primitive
-//! is one integral only where no mesh triangle lies in front of that
-//! primitive's plane in its support (tested once for its run of pixels,
-//! [`Scratch::nothing_in_front`]). Limit, stated: primitives that
-//! intersect inside the pixel are ordered at one point.
+//! it, pair by pair. A pixel whose centres in reach all see one planar
+//! primitive is one integral only where no other plane, quad or mesh
+//! triangle lies in front of that primitive's plane in its support and no
+//! sphere's outline box meets it (tested once for its run of pixels,
+//! [`Scratch::nothing_in_front`]). Limits, stated: primitives that
+//! intersect inside the pixel are ordered at one point; a pixel whose
+//! centres all see one sphere is not tested for a triangle in front.
 //!
 //! **Shared cuts.** Runs of up to [`SHARED_CUT_PIXELS`] box pixels of a row
 //! whose centres see more than one thing (and, past two, at most

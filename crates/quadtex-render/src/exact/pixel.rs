@@ -379,7 +379,8 @@ impl<'a> ExactPixel<'_, 'a> {
             for &v in flooded.iter() {
                 let id = seen_id(views[v].surface(), views[v].triangle().unwrap_or(0));
                 // Keyed by the column the region lies in (a shared cut's
-                // regions span several).
+                // regions span several; a centroid left of the image, in
+                // a tent's or Mitchell's support, saturates to column 0).
                 let c = regions[v].centroid();
                 let x = c[0].floor() as u32;
                 if confirmed.recent(id, x) {
@@ -885,13 +886,15 @@ struct RunClear {
     clear: bool,
 }
 
-/// Whether a mesh triangle other than `id` lies in front of the plane of
-/// `view` somewhere in screen polygon `area` (nearer by more than `10⁻⁹`
-/// of the depth, at a vertex of its part of `area`: the difference of two
-/// planar primitives' inverse depths is affine on the screen, so where it
-/// has a sign somewhere in a convex polygon, it has it at a vertex), from
-/// the triangles [`SurfaceViews::meshes_nearer`] lists under the plane's
-/// farthest point in `area`. A triangle with no view counts as in front.
+/// Whether a primitive other than `id` lies in front of the plane of
+/// `view` somewhere in screen polygon `area`: a plane, quad or mesh
+/// triangle nearer by more than `10⁻⁹` of the depth at a vertex of its
+/// part of `area` (the difference of two planar primitives' inverse
+/// depths is affine on the screen, so where it has a sign somewhere in a
+/// convex polygon, it has it at a vertex), the triangles from those
+/// [`SurfaceViews::meshes_nearer`] lists under the plane's farthest point
+/// in `area`; or a sphere whose outline's box meets `area`'s. A triangle
+/// with no view counts as in front.
 fn in_front_within<'a>(
     pixel: &ExactPixel<'_, 'a>,
     id: Seen,
@@ -902,8 +905,29 @@ fn in_front_within<'a>(
     buffers: &mut OccluderBuffers<'a>,
 ) -> bool {
     let (scene, cache) = (pixel.shading.frame.scene, pixel.cache);
-    let far = (area.vertices().iter()).fold(f64::NEG_INFINITY, |d, &v| d.max(view.depth_at(v)));
+    // A sphere whose outline's box meets the area, counted as in front.
+    if !cache.spheres_miss(area.bounds()) {
+        return true;
+    }
     let candidate = &mut buffers.candidate;
+    let nearer = |seen: &View, candidate: &ConvexPolygon| {
+        (candidate.vertices().iter()).any(|&v| seen.depth_at(v) < view.depth_at(v) * (1.0 - 1e-9))
+    };
+    let own = surface_and_triangle(id).0;
+    for (surface, seen) in cache.planar_views().iter().enumerate() {
+        if let Some(seen) = seen
+            && surface != own
+        {
+            seen.region_into(area, candidate);
+            if nearer(seen, candidate) {
+                return true;
+            }
+        }
+    }
+    if !cache.has_meshes() {
+        return false;
+    }
+    let far = (area.vertices().iter()).fold(f64::NEG_INFINITY, |d, &v| d.max(view.depth_at(v)));
     cache.meshes_nearer(
         scene,
         area,
@@ -917,12 +941,11 @@ fn in_front_within<'a>(
             let Some(seen) = candidate_view(scene, cache, memo, other) else {
                 return true;
             };
-            let Some(seen) = seen else {
-                return false;
+            let Some(seen) = seen.as_ref().and_then(ViewRef::planar) else {
+                return seen.is_some();
             };
             seen.region_into(area, candidate);
-            (candidate.vertices().iter())
-                .any(|&v| seen.depth_at(v) < view.depth_at(v) * (1.0 - 1e-9))
+            nearer(seen, candidate)
         },
     )
 }
@@ -946,11 +969,13 @@ impl<'a> Occluders<'_, 'a> {
     /// Adds to the list (`views`, `tried`, `regions`) every mesh triangle
     /// not tried whose region of the support overlaps a visible region of
     /// `cut` and lies in front of its view there (decided at the overlap's
-    /// centroid, as [`Order::front_to_back`] decides): the candidates are
+    /// centroid, as [`Order::front_to_back`] decides; an overlap of at
+    /// most the sliver area decides nothing, its area in the bound where
+    /// no larger one shows the candidate in front): the candidates are
     /// the triangles nearer somewhere than the farthest point the cut
     /// shows ([`SurfaceViews::meshes_nearer`]), and a candidate is tested
     /// against a visible region only where its least depth is nearer than
-    /// that region's farthest point. Past the cap, an occluder's region's
+    /// that region's farthest point and its box meets that region's. Past the cap, an occluder's region's
     /// area joins the cut's unaccounted weight (the bound's). Returns how
     /// many joined; `None` when a candidate has no view.
     fn search(
@@ -1020,17 +1045,29 @@ impl<'a> Occluders<'_, 'a> {
                 }
                 let bounds = candidate.bounds();
                 // An overlap of a hair (rounding along an edge two triangles
-                // share) decides nothing, as in the order.
-                let in_front = (shown.iter().zip(cut.visible(regions))).any(
-                    |(&(i, shown_box, far), (_, r))| {
-                        near < far
-                            && !boxes_apart(bounds, shown_box)
-                            && overlap(candidate, r).is_some_and(|o| {
-                                let c = o.centroid();
-                                o.area() > sliver_area && view.depth_at(c) < views[i].depth_at(c)
-                            })
-                    },
-                );
+                // share) decides nothing, as in the order: where the
+                // candidate is in front over hairs alone, their area goes to
+                // the bound.
+                let (mut in_front, mut hairs) = (false, 0.0);
+                for (&(i, shown_box, far), (_, r)) in shown.iter().zip(cut.visible(regions)) {
+                    if near >= far || boxes_apart(bounds, shown_box) {
+                        continue;
+                    }
+                    let Some(o) = overlap(candidate, r) else {
+                        continue;
+                    };
+                    let c = o.centroid();
+                    if view.depth_at(c) < views[i].depth_at(c) {
+                        if o.area() > sliver_area {
+                            in_front = true;
+                            break;
+                        }
+                        hairs += o.area();
+                    }
+                }
+                if !in_front {
+                    left_out += hairs;
+                }
                 if in_front {
                     if added < self.cap {
                         added += 1;
@@ -1223,9 +1260,6 @@ impl<'a> Scratch<'a> {
         view: &View,
         run: u32,
     ) -> Option<u32> {
-        if !pixel.cache.has_meshes() {
-            return Some(run);
-        }
         let (x, y) = pixel.at;
         let known = &self.run_clear;
         let run_clear =

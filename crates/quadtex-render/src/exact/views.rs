@@ -387,7 +387,8 @@ impl SurfaceViews {
     /// reach into screen polygon `polygon` nearer than `depth` (the
     /// camera's forward distance) somewhere, and for others, until `visit`
     /// returns true; returns whether it did. `near` bounds the triangle's
-    /// depth from below, `bounds` holds its projection (or is infinite). From the screen bins where they hold the polygon's box
+    /// depth from below; `bounds` is a box holding its projection (widened
+    /// and rounded outward), or the whole plane. From the screen bins where they hold the polygon's box
     /// ([`ScreenBins::nearer_than`]), else the triangles the hierarchies
     /// find in its frustum whose least corner depth is below `depth`.
     /// `found`: scratch.
@@ -428,7 +429,9 @@ impl SurfaceViews {
                 _ => 0.0,
             };
             let everywhere = ([f64::NEG_INFINITY; 2], [f64::INFINITY; 2]);
-            near < depth && visit(id, near, everywhere)
+            // Lowered as the bins lower theirs (`NEAR_MARGIN`): ties within
+            // rounding are kept.
+            near * (1.0 - 1e-9) < depth && visit(id, near, everywhere)
         })
     }
 
