@@ -98,6 +98,7 @@ const MAX_GAP_PRIMITIVES: usize = 16;
 
 mod cutting;
 mod lighting;
+mod occluders;
 mod pixel;
 mod screen_cells;
 

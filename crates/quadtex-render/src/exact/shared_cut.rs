@@ -42,17 +42,6 @@ pub(crate) const SHARED_CUT_PIXELS: u32 = 16;
 /// and at 1920 × 1080, 24 and 48 lost at 480, 6 at 1920.
 pub(crate) const SHARED_CUT_PRIMITIVES: usize = 12;
 
-/// The colours and counters of the pixels of a row's last shared cut.
-#[derive(Default)]
-pub(crate) struct SharedCutFill {
-    y: u32,
-    left: u32,
-    pixels: Vec<(Rgba, PixelStats)>,
-    /// Each pixel's sums and counters while the cut is shaded.
-    sums: Vec<Sums>,
-    parts: Vec<PixelStats>,
-}
-
 impl<'a> Scratch<'a> {
     /// Cuts pixels `x0..x1` of row `y` as one support among the primitives
     /// `candidates` (what their centres in reach see) under the box
