@@ -93,6 +93,17 @@ impl Tiles {
         Some((axis(b[0], b[2], 0)?, axis(b[1], b[3], 1)?))
     }
 
+    /// The first tile, `(x, y)`, of those box `b` touches (as
+    /// [`Tiles::range`] gives them, where it gives any).
+    fn first(&self, b: &[f32; 4]) -> (usize, usize) {
+        let axis = |lo: f32, a: usize| {
+            ((f64::from(lo) - self.origin) / self.side[a])
+                .floor()
+                .max(0.0) as usize
+        };
+        (axis(b[0], 0), axis(b[1], 1))
+    }
+
     /// The tile holding screen point `c`, if one does.
     fn holding(&self, c: [f64; 2]) -> Option<usize> {
         let tile = |v: f64, a: usize| {
@@ -322,12 +333,15 @@ impl ScreenBins {
 
     /// Calls `found` with each binned triangle whose widened box meets
     /// box `q`, in the lists of the tiles (fine, then coarse) `q` touches,
-    /// each list read nearest first up to least depth `depth` (a triangle
-    /// met in several tiles comes once a tile).
+    /// each list read nearest first up to least depth `depth`. A triangle
+    /// met in several tiles comes once a tile, or with `once` only from
+    /// the first of them the query reaches (each triangle is filed under
+    /// every tile its box touches at one level).
     fn each_meeting(
         &self,
         q: &BoxQuery,
         depth: f64,
+        once: bool,
         mut found: impl FnMut(&(u32, u32, [f32; 4], f32)),
     ) {
         for tiles in [&self.fine, &self.coarse] {
@@ -342,9 +356,16 @@ impl ScreenBins {
                         if f64::from(binned.3) >= depth {
                             break;
                         }
-                        if q.meets(&binned.2) {
-                            found(binned);
+                        if !q.meets(&binned.2) {
+                            continue;
                         }
+                        if once {
+                            let (bx, by) = tiles.first(&binned.2);
+                            if (tx, ty) != (bx.max(tx0), by.max(ty0)) {
+                                continue;
+                            }
+                        }
+                        found(binned);
                     }
                 }
             }
@@ -368,7 +389,7 @@ impl ScreenBins {
         let Some(q) = self.query(lo, hi) else {
             return false;
         };
-        self.each_meeting(&q, f64::INFINITY, |&(surface, triangle, ..)| {
+        self.each_meeting(&q, f64::INFINITY, false, |&(surface, triangle, ..)| {
             out.push((surface, rank(surface, triangle), triangle));
         });
         out.sort_unstable();
@@ -379,9 +400,10 @@ impl ScreenBins {
     /// Every binned triangle whose widened box meets the screen box
     /// `lo..hi` and whose least depth (its bound, [`ScreenBox::near`]) is
     /// below `depth`, as `(surface, triangle, least depth, widened box)`
-    /// into `out`, sorted and each once: a superset of the mesh triangles
-    /// that reach into a polygon within that box nearer than `depth`
-    /// somewhere. Each tile's list is read nearest first, up to `depth`.
+    /// into `out`, each once, in the tiles' order: a superset of the mesh
+    /// triangles that reach into a polygon within that box nearer than
+    /// `depth` somewhere. Each tile's list is read nearest first, up to
+    /// `depth`.
     /// False (`out` cleared) when the box is not wholly inside the tiles.
     pub(crate) fn nearer_than(
         &self,
@@ -394,11 +416,9 @@ impl ScreenBins {
         let Some(q) = self.query(lo, hi) else {
             return false;
         };
-        self.each_meeting(&q, depth, |&(surface, triangle, b, near)| {
+        self.each_meeting(&q, depth, true, |&(surface, triangle, b, near)| {
             out.push((surface, triangle, near, b));
         });
-        out.sort_unstable_by_key(|&(surface, triangle, ..)| (surface, triangle));
-        out.dedup_by_key(|&mut (surface, triangle, ..)| (surface, triangle));
         true
     }
 
@@ -482,5 +502,64 @@ impl ScreenBins {
             }
         }
         Some(hit)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The triangles the tiles list for a box, nearer than a depth, are
+    /// those a scan of every binned triangle finds, each once: random
+    /// boxes of every size (fine and coarse tiles), at the grid's edges
+    /// too, random depths.
+    #[test]
+    fn nearer_than_lists_each_triangle_the_scan_finds_once() {
+        let mut seed = 3u64;
+        let mut next = || crate::math::unit_random(&mut seed);
+        let size = [200usize, 120usize];
+        let boxes: Vec<ScreenBox> = (0..3000)
+            .map(|t| {
+                let (w, h) = if t % 10 == 0 {
+                    (60.0 * next(), 40.0 * next())
+                } else {
+                    (6.0 * next(), 2.0 * next())
+                };
+                let (x, y) = (-10.0 + 210.0 * next(), -10.0 + 130.0 * next());
+                ScreenBox {
+                    surface: (t % 2) as u32,
+                    triangle: t as u32,
+                    screen: [x, y, x + w, y + h],
+                    near: 100.0 * next(),
+                }
+            })
+            .collect();
+        let bins = ScreenBins::build(&boxes, 0.0, size).unwrap();
+        let mut out = Vec::new();
+        let mut found = 0;
+        for _ in 0..500 {
+            let (x, y) = (180.0 * next(), 110.0 * next());
+            let (lo, hi) = ([x, y], [x + 17.0 * next(), y + 3.0 * next()]);
+            let depth = 100.0 * next();
+            assert!(bins.nearer_than(lo, hi, depth, &mut out));
+            let q = bins.query(lo, hi).unwrap();
+            let mut listed: Vec<(u32, u32)> = out.iter().map(|&(s, t, ..)| (s, t)).collect();
+            let n = listed.len();
+            listed.sort_unstable();
+            listed.dedup();
+            assert_eq!(listed.len(), n, "a triangle listed twice");
+            let mut scanned: Vec<(u32, u32)> = (bins.triangles.iter())
+                .filter(|&&(_, _, b, near)| {
+                    f64::from(near) < depth
+                        && q.meets(&b)
+                        && (bins.fine.range(&b).is_some() || bins.coarse.range(&b).is_some())
+                })
+                .map(|&(s, t, ..)| (s, t))
+                .collect();
+            scanned.sort_unstable();
+            assert_eq!(listed, scanned);
+            found += n;
+        }
+        assert!(found > 1000, "{found}");
     }
 }
