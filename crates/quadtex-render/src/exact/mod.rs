@@ -53,8 +53,8 @@
 //! it, pair by pair. A pixel whose centres in reach all see one planar
 //! primitive is one integral only where no other plane, quad or mesh
 //! triangle lies in front of that primitive's plane in its support and no
-//! sphere's outline box meets it (tested once for its run of pixels,
-//! [`Scratch::nothing_in_front`]). Limits, stated: primitives that
+//! sphere's outline box meets it (tested for its run of pixels, then
+//! parts of it, [`Scratch::nothing_in_front`]). Limits, stated: primitives that
 //! intersect inside the pixel are ordered at one point; a pixel whose
 //! centres all see one sphere is not tested for a triangle in front.
 //!

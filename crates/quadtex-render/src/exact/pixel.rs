@@ -1018,14 +1018,15 @@ impl<'a> Scratch<'a> {
         (bound <= tolerance).then(|| mean(c, 1.0))
     }
 
-    /// Whether no mesh triangle but `id` (seen through `view`) lies in
-    /// front of `view`'s plane anywhere in `pixel`'s support: tested once
-    /// for the rectangle the supports of the pixel's run cover (`run`
-    /// pixels from it whose centres in reach all see `id`), and where that
-    /// fails (a triangle in front somewhere in it), for the support alone
-    /// ([`in_front_within`]). `Some(run)` when the run is clear, `Some(1)`
-    /// when only the pixel is (no span may share its answer), `None` when
-    /// a triangle lies in front.
+    /// How many pixels from `pixel` on, of the `run` whose centres in reach
+    /// all see `id` (seen through `view`), have nothing in front of
+    /// `view`'s plane in the rectangle their supports cover
+    /// ([`in_front_within`]): the whole run where it is clear, else the
+    /// longest of a quarter, a sixteenth, … of it that is, down to the
+    /// pixel's own support (a sphere's box or an occluder elsewhere in a
+    /// long run costs the rest of the run its spans no more than a few
+    /// tests). Kept for the pixels after it. `None` when something lies in
+    /// front within the pixel's own support (the general path takes it).
     pub(super) fn nothing_in_front(
         &mut self,
         pixel: &ExactPixel<'_, 'a>,
@@ -1035,43 +1036,40 @@ impl<'a> Scratch<'a> {
     ) -> Option<u32> {
         let (x, y) = pixel.at;
         let known = &self.run_clear;
-        let run_clear =
-            if known.row == Some(y) && known.id == id && (known.from..known.until).contains(&x) {
-                known.clear
-            } else {
-                let rect = crate::span::span_rect(pixel.shading.filter, (x, y), run);
-                let clear = !in_front_within(
-                    (pixel.shading.frame.scene, pixel.cache),
-                    id,
-                    view,
-                    &rect,
-                    &mut self.memo,
-                    &mut self.planes,
-                    &mut self.occluders,
-                );
-                self.run_clear = RunClear {
-                    row: Some(y),
-                    id,
-                    from: x,
-                    until: x.saturating_add(run.max(1)),
-                    clear,
-                };
-                clear
-            };
-        if run_clear {
-            return Some(run);
+        if known.clear
+            && known.row == Some(y)
+            && known.id == id
+            && (known.from..known.until).contains(&x)
+        {
+            return Some(known.until - x);
         }
-        let clear = run > 1
-            && !in_front_within(
+        let mut len = run.max(1);
+        loop {
+            let rect = crate::span::span_rect(pixel.shading.filter, (x, y), len);
+            let occluded = in_front_within(
                 (pixel.shading.frame.scene, pixel.cache),
                 id,
                 view,
-                &pixel.support,
+                &rect,
                 &mut self.memo,
                 &mut self.planes,
                 &mut self.occluders,
             );
-        clear.then_some(1)
+            if !occluded {
+                self.run_clear = RunClear {
+                    row: Some(y),
+                    id,
+                    from: x,
+                    until: x.saturating_add(len),
+                    clear: true,
+                };
+                return Some(len);
+            }
+            if len == 1 {
+                return None;
+            }
+            len = (len / 4).max(1);
+        }
     }
 
     /// Whether a sphere is among the listed views.
