@@ -256,6 +256,33 @@ impl CentreGrid {
         sky
     }
 
+    /// How many of pixels `x..end` of row `y`, from `x`, one shared cut
+    /// takes: pixels join while the primitives their centres in reach see
+    /// number at most [`SHARED_CUT_PRIMITIVES`] (two pixels at least).
+    /// Returns the cut's end, and those primitives in `shared` (`ids`:
+    /// scratch).
+    fn shared_run(
+        &self,
+        (x, end, y): (u32, u32, u32),
+        ids: &mut Vec<Seen>,
+        shared: &mut Vec<Seen>,
+    ) -> u32 {
+        shared.clear();
+        for p in x..end {
+            self.neighbourhood(p, y, None, ids);
+            let new = ids.iter().filter(|&id| !shared.contains(id)).count();
+            if p >= x + 2 && shared.len() + new > SHARED_CUT_PRIMITIVES {
+                return p;
+            }
+            for &id in ids.iter() {
+                if !shared.contains(&id) {
+                    shared.push(id);
+                }
+            }
+        }
+        end
+    }
+
     /// What pixel `(x, y)`'s own centre sees, when the grid was cast.
     fn centre(&self, x: u32, y: u32) -> Option<Seen> {
         let (gw, pad) = (self.width, self.pad);
@@ -315,6 +342,27 @@ impl Rows<'_> {
         // this pixel.
         let mut no_shared_cut_until = 0;
         for (x, out) in (0..self.width).zip(row.iter_mut()) {
+            // A run of pixels whose centres in reach see more than one thing
+            // (`uniform` holds `None` for each), not yet answered: one cut,
+            // whose pixels the fills below then answer.
+            if let Some(filter_options) = &shared_cuts
+                && x >= no_shared_cut_until
+                && scratch.span_fill((x, y)).is_none()
+                && scratch.shared_cut_fill((x, y)).is_none()
+            {
+                let mixed = |x: u32| uniform.get(x as usize) == Some(&None);
+                let run_end = (x..self.width.min(x + SHARED_CUT_PIXELS))
+                    .take_while(|&x| mixed(x))
+                    .last()
+                    .map_or(x, |last| last + 1);
+                if run_end >= x + 2 {
+                    let end = centres.shared_run((x, run_end, y), &mut ids, &mut shared_ids);
+                    let cut = (x, end, y);
+                    if !scratch.shared_cut(self.frame, filter_options, cut, &shared_ids, views) {
+                        no_shared_cut_until = run_end;
+                    }
+                }
+            }
             if let Some((colour, parts)) = scratch
                 .span_fill((x, y))
                 .or_else(|| scratch.shared_cut_fill((x, y)))
@@ -336,49 +384,6 @@ impl Rows<'_> {
             {
                 *out = colour;
                 continue;
-            }
-            // A run of pixels whose centres in reach see more than one thing
-            // (`uniform` holds `None` for each): one cut.
-            if let Some(filter_options) = &shared_cuts {
-                let mixed = |x: u32| uniform.get(x as usize) == Some(&None);
-                let end = (x..self.width.min(x + SHARED_CUT_PIXELS))
-                    .take_while(|&x| mixed(x))
-                    .last()
-                    .map_or(x, |last| last + 1);
-                let run_end = end;
-                let mut end = end;
-                if end >= x + 2 && x >= no_shared_cut_until {
-                    // Pixels join while the primitives their centres see
-                    // number at most SHARED_CUT_PRIMITIVES (two at least).
-                    shared_ids.clear();
-                    for p in x..end {
-                        centres.neighbourhood(p, y, None, &mut ids);
-                        let new = ids.iter().filter(|&id| !shared_ids.contains(id)).count();
-                        if p >= x + 2 && shared_ids.len() + new > SHARED_CUT_PRIMITIVES {
-                            end = p;
-                            break;
-                        }
-                        for &id in &ids {
-                            if !shared_ids.contains(&id) {
-                                shared_ids.push(id);
-                            }
-                        }
-                    }
-                    if scratch.shared_cut(
-                        self.frame,
-                        filter_options,
-                        (x, end, y),
-                        &shared_ids,
-                        views,
-                    ) && let Some((colour, parts)) = scratch.shared_cut_fill((x, y))
-                    {
-                        *out = *colour;
-                        stats.merge_parts(parts);
-                        record(bounds, x, parts);
-                        continue;
-                    }
-                    no_shared_cut_until = run_end;
-                }
             }
             let mut pixel = PixelStats::default();
             let sky =
