@@ -93,6 +93,32 @@ impl Tiles {
         Some((axis(b[0], b[2], 0)?, axis(b[1], b[3], 1)?))
     }
 
+    /// The tiles a query box `lo..hi` (inside the grid) may find a
+    /// triangle in whose box meets it over more than a line
+    /// ([`BoxQuery::meets`]), `((x0, x1), (y0, y1))` inclusive: those it
+    /// touches, less a last column or row that only touches its right or
+    /// bottom side (a one-pixel support on whole pixels would otherwise
+    /// read the next row's tile and the next column's). A triangle's box
+    /// that starts before the query's end is filed in a tile before it
+    /// too: the tile numbers are exact where the sides are powers of two
+    /// and the origin whole, as the frame's are; elsewhere, and on an axis
+    /// where the box has no extent, the last tile stays.
+    fn reaching(&self, lo: [f64; 2], hi: [f64; 2]) -> ((usize, usize), (usize, usize)) {
+        let axis = |a: usize| {
+            let last = self.tiles[a] - 1;
+            let at = |v: f64| (v - self.origin) / self.side[a];
+            let first = (at(lo[a]).floor().max(0.0) as usize).min(last);
+            let end = at(hi[a]);
+            let exact = self.side[a].log2().fract() == 0.0 && self.origin.fract() == 0.0;
+            let mut to = end.floor().max(0.0) as usize;
+            if exact && lo[a] < hi[a] && end.fract() == 0.0 {
+                to = to.saturating_sub(1);
+            }
+            (first, to.clamp(first, last))
+        };
+        (axis(0), axis(1))
+    }
+
     /// The first tile, `(x, y)`, of those box `b` touches (as
     /// [`Tiles::range`] gives them, where it gives any).
     fn first(&self, b: &[f32; 4]) -> (usize, usize) {
@@ -178,22 +204,29 @@ pub(crate) struct ScreenBins {
     triangles: Vec<(u32, u32, [f32; 4], f32)>,
 }
 
-/// A screen box `lo..hi` inside the tiles, and its `f32` box rounded
-/// outward ([`ScreenBins::query`]).
+/// A screen box `lo..hi` inside the tiles ([`ScreenBins::query`]).
 struct BoxQuery {
     lo: [f64; 2],
     hi: [f64; 2],
-    rounded: [f32; 4],
 }
 
 impl BoxQuery {
-    /// Whether a binned (widened) box meets this one.
+    /// Whether a binned (widened) box meets this one over more than a
+    /// line (on an axis where this box has no extent, touching it is
+    /// enough): a triangle whose box only touches a side has nothing of
+    /// area inside, and its widened box holds its projection with room to
+    /// spare (the tiles then need not read the row or column past the
+    /// box's last side, [`Tiles::reaching`]).
     fn meets(&self, &[a0, b0, a1, b1]: &[f32; 4]) -> bool {
-        let (lo, hi) = (self.lo, self.hi);
-        !(f64::from(a1) < lo[0]
-            || f64::from(a0) > hi[0]
-            || f64::from(b1) < lo[1]
-            || f64::from(b0) > hi[1])
+        let axis = |a0: f32, a1: f32, lo: f64, hi: f64| {
+            let (a0, a1) = (f64::from(a0), f64::from(a1));
+            if lo < hi {
+                a1 > lo && a0 < hi
+            } else {
+                !(a1 < lo || a0 > hi)
+            }
+        };
+        axis(a0, a1, self.lo[0], self.hi[0]) && axis(b0, b1, self.lo[1], self.hi[1])
     }
 }
 
@@ -321,18 +354,12 @@ impl ScreenBins {
         if !(0..2).all(|a| lo[a] >= tiles.origin && hi[a] < end(a) && lo[a] <= hi[a]) {
             return None;
         }
-        // The box rounded outward to `f32`, as the tiles take boxes.
-        let rounded = [
-            (lo[0] as f32).next_down(),
-            (lo[1] as f32).next_down(),
-            (hi[0] as f32).next_up(),
-            (hi[1] as f32).next_up(),
-        ];
-        Some(BoxQuery { lo, hi, rounded })
+        Some(BoxQuery { lo, hi })
     }
 
     /// Calls `found` with each binned triangle whose widened box meets
-    /// box `q`, in the lists of the tiles (fine, then coarse) `q` touches,
+    /// box `q` ([`BoxQuery::meets`]), in the lists of the tiles (fine, then
+    /// coarse) `q` reaches ([`Tiles::reaching`]),
     /// each list read nearest first up to least depth `depth`. A triangle
     /// met in several tiles comes once a tile, or with `once` only from
     /// the first of them the query reaches (each triangle is filed under
@@ -345,9 +372,7 @@ impl ScreenBins {
         mut found: impl FnMut(&(u32, u32, [f32; 4], f32)),
     ) {
         for tiles in [&self.fine, &self.coarse] {
-            let Some(((tx0, tx1), (ty0, ty1))) = tiles.range(&q.rounded) else {
-                continue;
-            };
+            let ((tx0, tx1), (ty0, ty1)) = tiles.reaching(q.lo, q.hi);
             for ty in ty0..=ty1 {
                 for tx in tx0..=tx1 {
                     for &i in tiles.at(ty * tiles.tiles[0] + tx) {
@@ -375,7 +400,8 @@ impl ScreenBins {
     /// Every binned triangle whose widened box meets the screen box
     /// `lo..hi`, as `(surface, rank(surface, triangle), triangle)` into
     /// `out`, sorted and each once: a superset of the mesh triangles whose
-    /// projections reach into a polygon within that box, in the order
+    /// projections reach into a polygon within that box over some area
+    /// (more than a line), in the order
     /// `rank` gives. False (`out` cleared) when the box is not wholly
     /// inside the tiles: the caller searches the hierarchies.
     pub(crate) fn overlapping(
@@ -401,8 +427,8 @@ impl ScreenBins {
     /// `lo..hi` and whose least depth (its bound, [`ScreenBox::near`]) is
     /// below `depth`, as `(surface, triangle, least depth, widened box)`
     /// into `out`, each once, in the tiles' order: a superset of the mesh
-    /// triangles that reach into a polygon within that box nearer than
-    /// `depth` somewhere. Each tile's list is read nearest first, up to
+    /// triangles that reach into a polygon within that box over some area
+    /// and are nearer than `depth` somewhere there. Each tile's list is read nearest first, up to
     /// `depth`.
     /// False (`out` cleared) when the box is not wholly inside the tiles.
     pub(crate) fn nearer_than(
@@ -512,7 +538,8 @@ mod tests {
     /// The triangles the tiles list for a box, nearer than a depth, are
     /// those a scan of every binned triangle finds, each once: random
     /// boxes of every size (fine and coarse tiles), at the grid's edges
-    /// too, random depths.
+    /// too, a third on whole pixels (the tiles past their sides not
+    /// read), random depths.
     #[test]
     fn nearer_than_lists_each_triangle_the_scan_finds_once() {
         let mut seed = 3u64;
@@ -537,9 +564,21 @@ mod tests {
         let bins = ScreenBins::build(&boxes, 0.0, size).unwrap();
         let mut out = Vec::new();
         let mut found = 0;
-        for _ in 0..500 {
+        let mut trimmed = 0;
+        for q in 0..600 {
             let (x, y) = (180.0 * next(), 110.0 * next());
-            let (lo, hi) = ([x, y], [x + 17.0 * next(), y + 3.0 * next()]);
+            let (mut lo, mut hi) = ([x, y], [x + 17.0 * next(), y + 3.0 * next()]);
+            if q % 3 == 0 {
+                // On whole pixels, as supports are: the last row and column
+                // of tiles, which only touch the box, are not read.
+                (lo, hi) = (lo.map(f64::floor), hi.map(f64::ceil));
+                let q = bins.query(lo, hi).unwrap();
+                let ((_, x1), (_, y1)) = bins.fine.reaching(q.lo, q.hi);
+                let touched = bins
+                    .fine
+                    .range(&[lo[0], lo[1], hi[0], hi[1]].map(|v| v as f32));
+                trimmed += usize::from(touched.is_some_and(|t| t.0.1 > x1 || t.1.1 > y1));
+            }
             let depth = 100.0 * next();
             assert!(bins.nearer_than(lo, hi, depth, &mut out));
             let q = bins.query(lo, hi).unwrap();
@@ -561,5 +600,6 @@ mod tests {
             found += n;
         }
         assert!(found > 1000, "{found}");
+        assert!(trimmed > 150, "{trimmed}");
     }
 }
