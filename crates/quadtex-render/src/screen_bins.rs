@@ -100,9 +100,13 @@ impl Tiles {
     /// bottom side (a one-pixel support on whole pixels would otherwise
     /// read the next row's tile and the next column's). A triangle's box
     /// that starts before the query's end is filed in a tile before it
-    /// too: the tile numbers are exact where the sides are powers of two
-    /// and the origin whole, as the frame's are; elsewhere, and on an axis
-    /// where the box has no extent, the last tile stays.
+    /// too where the sides are powers of two and the origin whole, as the
+    /// frame's are (elsewhere, and on an axis where the box has no extent,
+    /// the last tile stays), up to the rounding of `v − origin`: a box
+    /// starting within about `10⁻¹⁵` of a side near the screen's origin
+    /// may be filed past it, and its triangle, widened by
+    /// [`BIN_SLACK`], then lies that far from the query and shows nothing
+    /// in it.
     fn reaching(&self, lo: [f64; 2], hi: [f64; 2]) -> ((usize, usize), (usize, usize)) {
         let axis = |a: usize| {
             let last = self.tiles[a] - 1;
@@ -535,6 +539,37 @@ impl ScreenBins {
 mod tests {
     use super::*;
 
+    /// A query meets a box over more than a line (touching a side is not
+    /// enough, but is on an axis where the query has no extent), and reads
+    /// no row or column of tiles that only touches its sides, with the
+    /// frame's origin (`−PAD`) as with origin 0; a grid whose sides are
+    /// not powers of two keeps its last tiles.
+    #[test]
+    fn queries_on_whole_pixels_read_no_tile_past_their_sides() {
+        let q = BoxQuery {
+            lo: [0.0, 0.0],
+            hi: [16.0, 1.0],
+        };
+        assert!(!q.meets(&[16.0, 0.0, 17.0, 1.0]));
+        assert!(!q.meets(&[-1.0, 0.0, 0.0, 1.0]));
+        assert!(!q.meets(&[2.0, 1.0, 3.0, 2.0]));
+        assert!(q.meets(&[-1.0, 0.0, 0.5, 1.0]));
+        assert!(q.meets(&[15.5, 0.5, 17.0, 2.0]));
+        let line = BoxQuery {
+            lo: [3.0, 0.0],
+            hi: [3.0, 1.0],
+        };
+        assert!(line.meets(&[2.0, 0.0, 3.0, 1.0]));
+        assert!(!line.meets(&[3.5, 0.0, 4.0, 1.0]));
+        let fine = Tiles::new(-3.0, [2.0, 1.0], [206, 126]);
+        // x from −3: [1, 17] spans tiles 2..=9 and touches 10 at 17.
+        assert_eq!(fine.reaching([1.0, 4.0], [17.0, 5.0]), ((2, 9), (7, 7)));
+        assert_eq!(fine.reaching([1.5, 4.5], [16.5, 5.5]), ((2, 9), (7, 8)));
+        assert_eq!(fine.reaching([1.0, 4.0], [1.0, 5.0]), ((2, 2), (7, 7)));
+        let odd = Tiles::new(0.0, [6.0, 3.0], [120, 60]);
+        assert_eq!(odd.reaching([0.0, 0.0], [12.0, 3.0]), ((0, 2), (0, 1)));
+    }
+
     /// The triangles the tiles list for a box, nearer than a depth, are
     /// those a scan of every binned triangle finds, each once: random
     /// boxes of every size (fine and coarse tiles), at the grid's edges
@@ -561,12 +596,13 @@ mod tests {
                 }
             })
             .collect();
-        let bins = ScreenBins::build(&boxes, 0.0, size).unwrap();
+        // The frame's origin, −PAD.
+        let bins = ScreenBins::build(&boxes, -3.0, size).unwrap();
         let mut out = Vec::new();
         let mut found = 0;
         let mut trimmed = 0;
         for q in 0..600 {
-            let (x, y) = (180.0 * next(), 110.0 * next());
+            let (x, y) = (175.0 * next(), 110.0 * next());
             let (mut lo, mut hi) = ([x, y], [x + 17.0 * next(), y + 3.0 * next()]);
             if q % 3 == 0 {
                 // On whole pixels, as supports are: the last row and column
