@@ -36,33 +36,43 @@ pub(super) struct RunClear {
     pub(super) clear: bool,
 }
 
-/// Whether a primitive other than `id` lies in front of the plane of
-/// `view` somewhere in screen polygon `area`: a plane, quad or mesh
-/// triangle nearer by more than `10⁻⁹` of the depth at a vertex of its
-/// part of `area` (the difference of two planar primitives' inverse
-/// depths is affine on the screen, so where it has a sign somewhere in a
-/// convex polygon, it has it at a vertex), the triangles from those
-/// [`SurfaceViews::meshes_nearer`] lists under the plane's farthest point
-/// in `area`; or a sphere whose outline's box meets `area`'s. A triangle
-/// with no view counts as in front.
+/// Whether a primitive other than `id` lies in front of `view` (a
+/// plane's, quad's or triangle's, or a sphere's holding `area`) somewhere
+/// in screen polygon `area`: a plane, quad or mesh triangle nearer by more
+/// than `10⁻⁹` of the depth at a vertex of its part of `area`, the
+/// triangles from those [`SurfaceViews::meshes_nearer`] lists under
+/// `view`'s farthest point in `area`; or another sphere whose outline's
+/// box meets `area`'s. A triangle with no view counts as in front.
+///
+/// The vertices decide. Against a plane, the difference of two planar
+/// primitives' inverse depths is affine on the screen. Against a sphere
+/// (the camera outside it), the inverse depth of its near side along the
+/// camera's ray through `s` is `(m·d + √Q(d))/k` with `d` the ray's
+/// direction (affine in `s`), `m` the centre from the camera, `k = |m|² −
+/// r²` and `Q(d) = (m·d)² − k|d|²` a form of one positive and two
+/// negative squares: inside the outline (`Q > 0`) `√Q` is concave (the
+/// reverse triangle inequality of such forms), so the primitive's inverse
+/// depth less the sphere's is convex and greatest at a vertex. The
+/// sphere's depth, the inverse of a concave function there, is convex too:
+/// its farthest point in `area` is at a vertex.
 pub(super) fn in_front_within<'a>(
     (scene, cache): (&Scene, &'a SurfaceViews),
     id: Seen,
-    view: &View,
+    view: &ViewRef<'_>,
     area: &ConvexPolygon,
     memo: &mut ViewMemo,
     planes: &mut Vec<[f64; 4]>,
     buffers: &mut OccluderBuffers<'a>,
 ) -> bool {
-    // A sphere whose outline's box meets the area, counted as in front.
-    if !cache.spheres_miss(area.bounds()) {
+    let own = surface_and_triangle(id).0;
+    // Another sphere whose outline's box meets the area, counted as in front.
+    if !cache.spheres_miss_except(area.bounds(), own) {
         return true;
     }
     let candidate = &mut buffers.candidate;
     let nearer = |seen: &View, candidate: &ConvexPolygon| {
         (candidate.vertices().iter()).any(|&v| seen.depth_at(v) < view.depth_at(v) * (1.0 - 1e-9))
     };
-    let own = surface_and_triangle(id).0;
     for (surface, seen) in cache.planar_views().iter().enumerate() {
         if let Some(seen) = seen
             && surface != own

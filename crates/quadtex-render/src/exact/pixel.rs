@@ -64,7 +64,20 @@ pub(crate) fn exact_pixel<'a>(
         && let Some(view) = candidate_view(scene, cache, &mut scratch.memo, *id)?
     {
         let colour = match &view {
-            ViewRef::Sphere(sphere) => pixel.one_sphere(sphere, stats),
+            // Held inside its outline's chords, with nothing in front of it
+            // there that no centre sees (a wire thinner than a pixel
+            // between two rows of centres).
+            ViewRef::Sphere(sphere) => (sphere.holds(&pixel.support)
+                && !in_front_within(
+                    (scene, cache),
+                    *id,
+                    &view,
+                    &pixel.support,
+                    &mut scratch.memo,
+                    &mut scratch.planes,
+                    &mut scratch.occluders,
+                ))
+            .then(|| pixel.one_sphere(sphere, stats)),
             // Unless a mesh triangle no centre sees lies in front of it (the
             // general path's occluders' search then takes the pixel).
             _ => view.planar().and_then(|view| {
@@ -251,12 +264,10 @@ impl<'a> ExactPixel<'_, 'a> {
     }
 
     /// The pixel when the one sphere its centres see holds its whole
-    /// support inside its outline's chords: one call to the sphere's
-    /// shading. `None` otherwise (the general path takes the pixel).
-    fn one_sphere(&self, sphere: &SphereView, stats: &mut PixelStats) -> Option<Rgba> {
-        if !sphere.holds(&self.support) {
-            return None;
-        }
+    /// support inside its outline's chords ([`SphereView::holds`]) and
+    /// nothing lies in front of it there ([`in_front_within`]), as the
+    /// caller has found: one call to the sphere's shading.
+    fn one_sphere(&self, sphere: &SphereView, stats: &mut PixelStats) -> Rgba {
         let mut parts = PixelStats::default();
         let (c, w, b) = sphere.shade(&self.shading, &self.support, &mut parts);
         parts.weight_error = weight_error(w);
@@ -264,7 +275,7 @@ impl<'a> ExactPixel<'_, 'a> {
         stats
             .filter
             .record_bound_against(b / w.abs().max(1e-300), self.shading.options.target_bound());
-        Some(mean(c, w))
+        mean(c, w)
     }
 
     /// Lists the views of the primitives the centres see (`candidates`)
@@ -1049,7 +1060,7 @@ impl<'a> Scratch<'a> {
             let occluded = in_front_within(
                 (pixel.shading.frame.scene, pixel.cache),
                 id,
-                view,
+                &ViewRef::Frame(view),
                 &rect,
                 &mut self.memo,
                 &mut self.planes,

@@ -441,6 +441,13 @@ impl SurfaceViews {
         (self.spheres.iter().flatten()).all(|s| s.misses_box(lo, hi))
     }
 
+    /// [`SurfaceViews::spheres_miss`] for the spheres other than surface
+    /// `own`'s.
+    pub(super) fn spheres_miss_except(&self, (lo, hi): ([f64; 2], [f64; 2]), own: usize) -> bool {
+        (self.spheres.iter().enumerate())
+            .all(|(i, s)| i == own || s.as_ref().is_none_or(|s| s.misses_box(lo, hi)))
+    }
+
     /// The views of the planes and quads, by surface (`None`: another
     /// shape, or seen edge-on).
     pub(crate) fn planar_views(&self) -> &[Option<View>] {
