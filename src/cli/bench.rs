@@ -63,9 +63,10 @@ pub struct Args {
     /// Time whole 1920×1080 frames instead: the demo, the runway scene and
     /// a generated terrain of 1 M triangles (binary glTF, see
     /// `quadtex_render::terrain`), each with `nearest`, the quadtree filter
-    /// and EWA, as medians and as ratios to `nearest` (same run). The runs
-    /// of a scene and filter render into one frame buffer, as a real-time
-    /// loop does; the first run allocates it. Also prints the terrain's
+    /// and EWA, as medians with their range and as ratios to `nearest`
+    /// (each run renders the three filters in turn, and a ratio is taken
+    /// within a run). The runs of a scene and filter render into one frame
+    /// buffer, as a real-time loop does; the first run allocates it. Also prints the terrain's
     /// load time and its first frame after load (the median and range over
     /// as many loads as runs), also as a ratio to its later frames'
     /// median.
@@ -329,6 +330,16 @@ fn write_query_times(
     Ok(())
 }
 
+/// The median of `values` (the upper one of an even count), their least
+/// and their largest.
+fn median_range(mut values: Vec<f64>) -> (f64, f64, f64) {
+    values.sort_by(f64::total_cmp);
+    match (values.first(), values.last()) {
+        (Some(&lo), Some(&hi)) => (values[values.len() / 2], lo, hi),
+        _ => (f64::NAN, f64::NAN, f64::NAN),
+    }
+}
+
 /// `quadtex bench --frames`: median frame times at 1920×1080.
 fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     use quadtex_render::{RenderOptions, TextureFilter};
@@ -376,9 +387,8 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     })();
     let _ = std::fs::remove_dir_all(&dir);
     let terrain = loads?;
-    first_frames.sort_by(f64::total_cmp);
-    let first_frame = first_frames[first_frames.len() / 2];
-    let first_range = (first_frames[0], first_frames[first_frames.len() - 1]);
+    let (first_frame, first_lo, first_hi) = median_range(first_frames);
+    let first_range = (first_lo, first_hi);
     // Each scene, and its first frame after load where one was timed.
     let scenes = [
         (
@@ -406,7 +416,7 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     let mut out = Text::stdout();
     writeln!(
         out,
-        "## quadtex bench --frames: {width}x{height}, median of {runs} runs, {} cores\n",
+        "## quadtex bench --frames: {width}x{height}, median of {runs} runs (range), the filters in turn within each run, ratios of each run's frames; {} cores\n",
         std::thread::available_parallelism().map_or(1, |n| n.get())
     )?;
     writeln!(
@@ -424,32 +434,40 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     // The quadtree median a first frame is held to, and that frame.
     let mut first_and_later = None;
     for (name, scene, first) in &scenes {
-        let mut medians = Vec::new();
-        for (_, filter) in &filters {
-            let options = options_for(*filter);
-            // One frame buffer for the runs, as a real-time loop keeps its
-            // own: the first run sizes (allocates and clears) it.
-            let mut image = quadtex_io::LinearImage::default();
-            let mut times = Vec::with_capacity(runs);
-            for _ in 0..runs {
-                times.push(
-                    quadtex_render::render_into(scene, &options, &mut image, &|_, _| {})?.seconds,
-                );
+        // One frame buffer per filter for the runs, as a real-time loop
+        // keeps its own: the first run sizes (allocates and clears) it.
+        let mut images: Vec<_> = filters
+            .iter()
+            .map(|_| quadtex_io::LinearImage::default())
+            .collect();
+        let mut times = vec![Vec::with_capacity(runs); filters.len()];
+        for _ in 0..runs {
+            // The filters in turn within each run: a drift of the host's
+            // speed over the runs moves them alike, and the ratios of one
+            // run's frames cancel it.
+            for ((_, filter), (image, t)) in filters.iter().zip(images.iter_mut().zip(&mut times)) {
+                let options = options_for(*filter);
+                t.push(quadtex_render::render_into(scene, &options, image, &|_, _| {})?.seconds);
             }
-            times.sort_by(f64::total_cmp);
-            medians.push(times[times.len() / 2]);
         }
-        let (n, q, e) = (medians[0], medians[1], medians[2]);
-        first_and_later = first.map(|f| (f, q)).or(first_and_later);
+        let per_run =
+            |f: usize| -> Vec<f64> { times[f].iter().zip(&times[0]).map(|(t, n)| t / n).collect() };
+        let [n, q, e] = [0, 1, 2].map(|f| median_range(times[f].clone()));
+        let [q_ratio, e_ratio] = [1, 2].map(|f| median_range(per_run(f)));
+        first_and_later = first.map(|f| (f, q.0)).or(first_and_later);
+        let ms = |(m, lo, hi): (f64, f64, f64)| {
+            format!("{:.0} ms ({:.0}–{:.0})", m * 1e3, lo * 1e3, hi * 1e3)
+        };
+        let ratio = |(m, lo, hi): (f64, f64, f64)| format!("{m:.2} ({lo:.2}–{hi:.2})");
         writeln!(
             out,
-            "| {name} | {:.0} ms | {:.0} ms | {:.0} ms | {:.2} | {:.2} | {:.2} |",
-            n * 1e3,
-            q * 1e3,
-            e * 1e3,
-            q / n,
-            e / n,
-            (q - n) / n
+            "| {name} | {} | {} | {} | {} | {} | {:.2} |",
+            ms(n),
+            ms(q),
+            ms(e),
+            ratio(q_ratio),
+            ratio(e_ratio),
+            q_ratio.0 - 1.0
         )?;
     }
     if let Some((first, later)) = first_and_later {
