@@ -66,10 +66,10 @@ pub struct Args {
     /// and EWA, as medians with their range and as ratios to `nearest`
     /// (each run renders the three filters in turn, and a ratio is taken
     /// within a run). The runs of a scene and filter render into one frame
-    /// buffer, as a real-time loop does; the first run allocates it. Also prints the terrain's
-    /// load time and its first frame after load (the median and range over
-    /// as many loads as runs), also as a ratio to its later frames'
-    /// median.
+    /// buffer, as a real-time loop does; the first run allocates it. Also
+    /// prints the terrain's load time and its first frame after load (the
+    /// median and range over as many loads as runs), also as a ratio to its
+    /// later frames' median.
     #[arg(long, conflicts_with_all = ["size", "queries", "texture"])]
     frames: bool,
     #[command(flatten)]

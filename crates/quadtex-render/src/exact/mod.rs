@@ -54,9 +54,10 @@
 //! primitive is one integral only where no other plane, quad or mesh
 //! triangle lies in front of that primitive's plane in its support and no
 //! sphere's outline box meets it (tested for its run of pixels, then
-//! parts of it, [`Scratch::nothing_in_front`]). Limits, stated: primitives that
-//! intersect inside the pixel are ordered at one point; a pixel whose
-//! centres all see one sphere is not tested for a triangle in front.
+//! parts of it, [`Scratch::nothing_in_front`]); one whose centres all see
+//! one sphere holding its support, where nothing lies in front of the
+//! sphere there (pixel by pixel). Limits, stated: primitives that
+//! intersect inside the pixel are ordered at one point.
 //!
 //! **Shared cuts.** Runs of up to [`SHARED_CUT_PIXELS`] box pixels of a row
 //! whose centres see more than one thing (and, past two, at most

@@ -399,7 +399,8 @@ fn with_bounds(
 /// in reach all see the ball are tested for anything in front of it
 /// (a quad here), and are within a 32 × 32 supersampled render's noise
 /// plus their bound, under each pixel filter. Without the test the wire
-/// was missing: the ball's colour where 30 % of the pixel is the wire's.
+/// was missing: the ball's colour where 15 % of each pixel of the two
+/// rows is the wire's.
 #[test]
 fn a_wire_in_front_of_a_ball_between_two_rows_of_centres_is_drawn() {
     use crate::options::PixelFilter;

@@ -39,7 +39,6 @@ use crate::scene::Lighting;
 
 use super::super::lighting::Shading;
 use super::SphereView;
-use super::edges::EdgeImage;
 
 /// What the UV box is widened by on each side: the angles come from
 /// [`atan2_near`], within [`ANGLE_ERROR`] of `atan2` (0.42 of this
@@ -203,20 +202,6 @@ impl Arc {
     }
 }
 
-/// What the texture is over a UV box ([`SphereView::box_texture`]).
-// Kept by value in a thread's `Cell` for a run of pixels (copied out,
-// never moved in bulk): boxing the large variant would allocate a run.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, Copy)]
-pub(super) enum BoxTexture {
-    /// One colour holds the box (`None`: the surface's own, untextured).
-    One(Option<quadtex_core::Rgba>),
-    /// One texture edge parts the box into two colours.
-    Two(EdgeImage),
-    /// Neither.
-    Other,
-}
-
 /// What [`SphereView::uv_box`] bounds over a polygon: the sphere's UV
 /// box (widened by [`UV_MARGIN`], `u` possibly past 1 where the polygon
 /// reaches across the seam from below) and the range of `n·L` for the
@@ -345,22 +330,6 @@ impl SphereView {
             Lighting::Unlit => None,
         };
         self.uv_box(piece, light, &scene.camera)
-    }
-
-    /// What the texture is over the UV box `uv`: one colour, where one
-    /// texture square holds the box (any colour at all for an untextured
-    /// sphere), two parted by one texture edge ([`SphereView::edge_image`]),
-    /// or neither.
-    pub(super) fn box_texture(&self, shading: &Shading<'_>, uv: &UvBox) -> BoxTexture {
-        let Some(texture) = shading.frame.texture(self.surface) else {
-            return BoxTexture::One(None);
-        };
-        let one = (self.texture_box_of_uv(uv.lo, uv.hi))
-            .and_then(|(tlo, thi)| texture.uniform_colour_in_box(tlo, thi));
-        match one {
-            Some(colour) => BoxTexture::One(Some(colour)),
-            None => (self.edge_image(shading, uv)).map_or(BoxTexture::Other, BoxTexture::Two),
-        }
     }
 
     /// A bound on `∫|k|` over `piece`, whose filter integral is `w`: the

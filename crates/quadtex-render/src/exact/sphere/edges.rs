@@ -47,6 +47,20 @@ use super::SphereView;
 use super::arcs::UvBox;
 use super::conic::{Chords, Ellipse};
 
+/// What the texture is over a UV box ([`SphereView::box_texture`]).
+// Kept by value in a thread's `Cell` for a run of pixels (copied out,
+// never moved in bulk): boxing the large variant would allocate a run.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, Copy)]
+pub(super) enum BoxTexture {
+    /// One colour holds the box (`None`: the surface's own, untextured).
+    One(Option<quadtex_core::Rgba>),
+    /// One texture edge parts the box into two colours.
+    Two(EdgeImage),
+    /// Neither.
+    Other,
+}
+
 /// A circle on the sphere along which a texture edge runs, and which side
 /// of it has which colour.
 #[derive(Debug, Clone, Copy)]
@@ -72,6 +86,22 @@ pub(super) struct EdgeImage {
 }
 
 impl SphereView {
+    /// What the texture is over the UV box `uv`: one colour, where one
+    /// texture square holds the box (any colour at all for an untextured
+    /// sphere), two parted by one texture edge ([`SphereView::edge_image`]),
+    /// or neither.
+    pub(super) fn box_texture(&self, shading: &Shading<'_>, uv: &UvBox) -> BoxTexture {
+        let Some(texture) = shading.frame.texture(self.surface) else {
+            return BoxTexture::One(None);
+        };
+        let one = (self.texture_box_of_uv(uv.lo, uv.hi))
+            .and_then(|(tlo, thi)| texture.uniform_colour_in_box(tlo, thi));
+        match one {
+            Some(colour) => BoxTexture::One(Some(colour)),
+            None => (self.edge_image(shading, uv)).map_or(BoxTexture::Other, BoxTexture::Two),
+        }
+    }
+
     /// `(Σ colour·k, Σ k, bound)` of `region` (inside the outline, its
     /// closed-form UV box `uv`) when one texture edge parts it into two
     /// colours, the edge's image is shown to part it (module doc) and the

@@ -12,7 +12,8 @@ use crate::stats::PixelStats;
 use super::super::lighting::{Shading, apply_light};
 use super::fan::{PolarFan, Wedge, meeting};
 
-use super::arcs::{BoxTexture, UvBox};
+use super::arcs::UvBox;
+use super::edges::BoxTexture;
 use super::{Chords, SphereView};
 
 /// The rings along the outline are spaced for a quarter of the default

@@ -12,7 +12,8 @@ use quadtex_core::ConvexPolygon;
 
 use super::super::lighting::Shading;
 use super::SphereView;
-use super::arcs::{BoxTexture, UvBox};
+use super::arcs::UvBox;
+use super::edges::BoxTexture;
 
 /// Pixels a run spans: the run's box is a little wider than one pixel's,
 /// so that a checker square holds most runs a pixel's box would fit in.

@@ -603,7 +603,7 @@ fn two_colours_agree_with_the_squares() {
             };
             if matches!(
                 view.box_texture(&shading, &uv),
-                super::arcs::BoxTexture::One(_)
+                super::edges::BoxTexture::One(_)
             ) {
                 continue;
             }
