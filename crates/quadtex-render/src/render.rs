@@ -270,14 +270,15 @@ impl CentreGrid {
         shared.clear();
         for p in x..end {
             self.neighbourhood(p, y, None, ids);
-            let new = ids.iter().filter(|&id| !shared.contains(id)).count();
-            if p >= x + 2 && shared.len() + new > SHARED_CUT_PRIMITIVES {
-                return p;
-            }
+            let before = shared.len();
             for &id in ids.iter() {
-                if !shared.contains(&id) {
+                if !shared[..before].contains(&id) && !shared[before..].contains(&id) {
                     shared.push(id);
                 }
+            }
+            if p >= x + 2 && shared.len() > SHARED_CUT_PRIMITIVES {
+                shared.truncate(before);
+                return p;
             }
         }
         end
@@ -345,10 +346,22 @@ impl Rows<'_> {
             // A run of pixels whose centres in reach see more than one thing
             // (`uniform` holds `None` for each), not yet answered: one cut,
             // whose pixels the fills below then answer.
+            // A pixel a span or the row's last shared cut answered.
+            let mut fill = |scratch: &Scratch<'_>, out: &mut Rgba, stats: &mut PixelStats| {
+                let filled =
+                    (scratch.span_fill((x, y))).or_else(|| scratch.shared_cut_fill((x, y)));
+                if let Some((colour, parts)) = filled {
+                    *out = *colour;
+                    stats.merge_parts(parts);
+                    record(bounds, x, parts);
+                }
+                filled.is_some()
+            };
+            if fill(&scratch, out, &mut stats) {
+                continue;
+            }
             if let Some(filter_options) = &shared_cuts
                 && x >= no_shared_cut_until
-                && scratch.span_fill((x, y)).is_none()
-                && scratch.shared_cut_fill((x, y)).is_none()
             {
                 let mixed = |x: u32| uniform.get(x as usize) == Some(&None);
                 let run_end = (x..self.width.min(x + SHARED_CUT_PIXELS))
@@ -360,17 +373,10 @@ impl Rows<'_> {
                     let cut = (x, end, y);
                     if !scratch.shared_cut(self.frame, filter_options, cut, &shared_ids, views) {
                         no_shared_cut_until = run_end;
+                    } else if fill(&scratch, out, &mut stats) {
+                        continue;
                     }
                 }
-            }
-            if let Some((colour, parts)) = scratch
-                .span_fill((x, y))
-                .or_else(|| scratch.shared_cut_fill((x, y)))
-            {
-                *out = *colour;
-                stats.merge_parts(parts);
-                record(bounds, x, parts);
-                continue;
             }
             if let (true, TextureFilter::Quadtree(filter_options), Some(Some(0))) =
                 (shared, options.filter, uniform.get(x as usize))

@@ -126,6 +126,17 @@ impl Camera {
         self.height
     }
 
+    /// The least of the depths `(p − position)·forward` of `corners` (a
+    /// triangle's), at least 0: every camera ray's direction has
+    /// `d·forward = 1`, so this bounds where a ray can meet the triangle
+    /// from below.
+    pub(crate) fn least_depth(&self, corners: &[Vec3; 3]) -> f64 {
+        (corners.iter())
+            .map(|&p| (p - self.position).dot(self.forward))
+            .fold(f64::INFINITY, f64::min)
+            .max(0.0)
+    }
+
     /// The image point (pixel units from the top-left corner) where world
     /// point `p` projects, or `None` behind (or at) the camera's plane.
     pub fn project(&self, p: Vec3) -> Option<[f64; 2]> {

@@ -61,6 +61,9 @@ struct Tiles {
     origin: f64,
     side: [f64; 2],
     tiles: [usize; 2],
+    /// Per axis, whether tile numbers are exact (a power-of-two side, a
+    /// whole origin: [`Tiles::reaching`]).
+    exact: [bool; 2],
     starts: Vec<u32>,
     items: Vec<u32>,
 }
@@ -72,9 +75,16 @@ impl Tiles {
             origin,
             side,
             tiles,
+            exact: side.map(|s| s.log2().fract() == 0.0 && origin.fract() == 0.0),
             starts: vec![0; tiles[0] * tiles[1] + 1],
             items: Vec::new(),
         }
+    }
+
+    /// Where coordinate `v` lies along axis `a`, in tiles (a tile's own
+    /// number at its lower side).
+    fn tile_at(&self, v: f64, a: usize) -> f64 {
+        (v - self.origin) / self.side[a]
     }
 
     /// The tiles box `b` touches, `((x0, x1), (y0, y1))` inclusive
@@ -82,12 +92,8 @@ impl Tiles {
     fn range(&self, b: &[f32; 4]) -> Option<((usize, usize), (usize, usize))> {
         let axis = |lo: f32, hi: f32, a: usize| {
             let last = self.tiles[a] as f64 - 1.0;
-            let first = ((f64::from(lo) - self.origin) / self.side[a])
-                .floor()
-                .max(0.0);
-            let end = ((f64::from(hi) - self.origin) / self.side[a])
-                .floor()
-                .min(last);
+            let first = self.tile_at(f64::from(lo), a).floor().max(0.0);
+            let end = self.tile_at(f64::from(hi), a).floor().min(last);
             (first <= end).then_some((first as usize, end as usize))
         };
         Some((axis(b[0], b[2], 0)?, axis(b[1], b[3], 1)?))
@@ -110,12 +116,10 @@ impl Tiles {
     fn reaching(&self, lo: [f64; 2], hi: [f64; 2]) -> ((usize, usize), (usize, usize)) {
         let axis = |a: usize| {
             let last = self.tiles[a] - 1;
-            let at = |v: f64| (v - self.origin) / self.side[a];
-            let first = (at(lo[a]).floor().max(0.0) as usize).min(last);
-            let end = at(hi[a]);
-            let exact = self.side[a].log2().fract() == 0.0 && self.origin.fract() == 0.0;
+            let first = (self.tile_at(lo[a], a).floor().max(0.0) as usize).min(last);
+            let end = self.tile_at(hi[a], a);
             let mut to = end.floor().max(0.0) as usize;
-            if exact && lo[a] < hi[a] && end.fract() == 0.0 {
+            if self.exact[a] && lo[a] < hi[a] && end.fract() == 0.0 {
                 to = to.saturating_sub(1);
             }
             (first, to.clamp(first, last))
@@ -126,18 +130,14 @@ impl Tiles {
     /// The first tile, `(x, y)`, of those box `b` touches (as
     /// [`Tiles::range`] gives them, where it gives any).
     fn first(&self, b: &[f32; 4]) -> (usize, usize) {
-        let axis = |lo: f32, a: usize| {
-            ((f64::from(lo) - self.origin) / self.side[a])
-                .floor()
-                .max(0.0) as usize
-        };
+        let axis = |lo: f32, a: usize| self.tile_at(f64::from(lo), a).floor().max(0.0) as usize;
         (axis(b[0], 0), axis(b[1], 1))
     }
 
     /// The tile holding screen point `c`, if one does.
     fn holding(&self, c: [f64; 2]) -> Option<usize> {
         let tile = |v: f64, a: usize| {
-            let t = ((v - self.origin) / self.side[a]).floor();
+            let t = self.tile_at(v, a).floor();
             (t >= 0.0 && t < self.tiles[a] as f64).then_some(t as usize)
         };
         Some(tile(c[1], 1)? * self.tiles[0] + tile(c[0], 0)?)
@@ -237,7 +237,7 @@ impl BoxQuery {
 /// Relative margin by which a triangle's least depth is lowered before it
 /// bounds the rays' hits ([`ScreenBins::nearest_through`]): far above the
 /// rounding of the depths and of the crossings' `t`.
-const NEAR_MARGIN: f64 = 1e-9;
+pub(crate) const NEAR_MARGIN: f64 = 1e-9;
 
 impl ScreenBins {
     /// Bins `boxes` over the screen rectangle `[origin, origin + size)` on
@@ -364,15 +364,13 @@ impl ScreenBins {
     /// Calls `found` with each binned triangle whose widened box meets
     /// box `q` ([`BoxQuery::meets`]), in the lists of the tiles (fine, then
     /// coarse) `q` reaches ([`Tiles::reaching`]),
-    /// each list read nearest first up to least depth `depth`. A triangle
-    /// met in several tiles comes once a tile, or with `once` only from
-    /// the first of them the query reaches (each triangle is filed under
-    /// every tile its box touches at one level).
+    /// each list read nearest first up to least depth `depth`, each
+    /// triangle once: from the first of its tiles the query reaches (each
+    /// triangle is filed under every tile its box touches, at one level).
     fn each_meeting(
         &self,
         q: &BoxQuery,
         depth: f64,
-        once: bool,
         mut found: impl FnMut(&(u32, u32, [f32; 4], f32)),
     ) {
         for tiles in [&self.fine, &self.coarse] {
@@ -388,11 +386,9 @@ impl ScreenBins {
                         if !q.meets(&binned.2) {
                             continue;
                         }
-                        if once {
-                            let (bx, by) = tiles.first(&binned.2);
-                            if (tx, ty) != (bx.max(tx0), by.max(ty0)) {
-                                continue;
-                            }
+                        let (bx, by) = tiles.first(&binned.2);
+                        if (tx, ty) != (bx.max(tx0), by.max(ty0)) {
+                            continue;
                         }
                         found(binned);
                     }
@@ -419,11 +415,10 @@ impl ScreenBins {
         let Some(q) = self.query(lo, hi) else {
             return false;
         };
-        self.each_meeting(&q, f64::INFINITY, false, |&(surface, triangle, ..)| {
+        self.each_meeting(&q, f64::INFINITY, |&(surface, triangle, ..)| {
             out.push((surface, rank(surface, triangle), triangle));
         });
         out.sort_unstable();
-        out.dedup();
         true
     }
 
@@ -446,7 +441,7 @@ impl ScreenBins {
         let Some(q) = self.query(lo, hi) else {
             return false;
         };
-        self.each_meeting(&q, depth, true, |&(surface, triangle, b, near)| {
+        self.each_meeting(&q, depth, |&(surface, triangle, b, near)| {
             out.push((surface, triangle, near, b));
         });
         true

@@ -426,7 +426,7 @@ impl<'s> Raster<'s> {
             if depths.iter().all(|&z| z <= 0.0) {
                 return None;
             }
-            let near = depths.into_iter().fold(f64::INFINITY, f64::min).max(0.0);
+            let near = cam.least_depth(&corners);
             let Some((lo, hi)) = cam.screen_box(corners) else {
                 return Some((0, gh as u32 - 1, self.behind_box(surface, t), near));
             };

@@ -237,13 +237,7 @@ impl Cut {
                     carve(inserted, &regions[j], spare, slivers, sliver_area, drop);
                 }
             }
-            for visible in inserted.drain(..) {
-                if visible.area() > sliver_area {
-                    visible_regions.push((i, visible));
-                } else if visible.area() > 0.0 {
-                    slivers.push(visible);
-                }
-            }
+            keep_visible(i, inserted, visible_regions, slivers, sliver_area);
             carve(remaining, &regions[i], spare, slivers, sliver_area, drop);
         }
         let area = |p: &[ConvexPolygon]| p.iter().map(ConvexPolygon::area).sum::<f64>();
@@ -440,12 +434,25 @@ impl Cut {
             visible_regions.splice(i..=i, carved.drain(..).map(|p| (v, p)));
             i += kept;
         }
-        for visible in inserted.drain(..) {
-            if visible.area() > sliver_area {
-                visible_regions.push((n, visible));
-            } else if visible.area() > 0.0 {
-                slivers.push(visible);
-            }
+        keep_visible(n, inserted, visible_regions, slivers, sliver_area);
+    }
+}
+
+/// Moves `pieces`, what view `view` sees, into the cut: those of more
+/// than the sliver area to `visible_regions`, the other pieces with area
+/// to `slivers`.
+fn keep_visible(
+    view: usize,
+    pieces: &mut Vec<ConvexPolygon>,
+    visible_regions: &mut Vec<(usize, ConvexPolygon)>,
+    slivers: &mut Vec<ConvexPolygon>,
+    sliver_area: f64,
+) {
+    for visible in pieces.drain(..) {
+        if visible.area() > sliver_area {
+            visible_regions.push((view, visible));
+        } else if visible.area() > 0.0 {
+            slivers.push(visible);
         }
     }
 }
@@ -526,7 +533,7 @@ pub(super) struct Order {
 }
 
 impl Order {
-    /// Indices of `views` front to back: repeatedly the one no other
+    /// Orders `views` front to back into [`Order::order`]: repeatedly the one no other
     /// remaining view is in front of where their regions overlap (the
     /// nearest at its own centroid if occlusion is cyclic, which
     /// [`Order::cyclic`] then says). Overlaps of at most `hair` area
@@ -537,7 +544,7 @@ impl Order {
         views: &[ViewRef<'_>],
         regions: &[ConvexPolygon],
         hair: f64,
-    ) -> &[usize] {
+    ) {
         let Order {
             left,
             behind,
@@ -612,7 +619,6 @@ impl Order {
                 }
             }
         }
-        order
     }
 
     /// Whether view `left[b]` is in front of view `left[a]` where their

@@ -24,18 +24,6 @@ pub(super) struct Occluders<'s, 'a> {
     pub(super) cap: usize,
 }
 
-/// A run of pixels whose rectangle [`Scratch::nothing_in_front`](super::pixel::Scratch::nothing_in_front) tested:
-/// pixels `from..until` of row `row` whose centres in reach see `id`.
-#[derive(Default)]
-pub(super) struct RunClear {
-    pub(super) row: Option<u32>,
-    pub(super) id: Seen,
-    pub(super) from: u32,
-    pub(super) until: u32,
-    /// Nothing lies in front of `id`'s plane in the rectangle.
-    pub(super) clear: bool,
-}
-
 /// Whether a primitive other than `id` lies in front of `view` (a
 /// plane's, quad's or triangle's, or a sphere's holding `area`) somewhere
 /// in screen polygon `area`: a plane, quad or mesh triangle nearer by more
@@ -83,10 +71,7 @@ pub(super) fn in_front_within<'a>(
             }
         }
     }
-    if !cache.has_meshes() {
-        return false;
-    }
-    let far = (area.vertices().iter()).fold(f64::NEG_INFINITY, |d, &v| d.max(view.depth_at(v)));
+    let far = farthest_depth(view, area);
     cache.meshes_nearer(
         scene,
         area,
@@ -147,8 +132,6 @@ impl<'a> Occluders<'_, 'a> {
         (planes, buffers): (&mut Vec<[f64; 4]>, &mut OccluderBuffers<'a>),
     ) -> Option<usize> {
         let (scene, cache, support) = (self.scene, self.cache, self.support);
-        // A view's depth over a convex region is largest at a vertex (its
-        // inverse is affine on the screen).
         let OccluderBuffers {
             tried: ids,
             shown,
@@ -159,8 +142,7 @@ impl<'a> Occluders<'_, 'a> {
         shown.clear();
         let mut farthest = f64::NEG_INFINITY;
         for (i, r) in cut.visible(regions) {
-            let far =
-                (r.vertices().iter()).fold(f64::NEG_INFINITY, |d, &v| d.max(views[i].depth_at(v)));
+            let far = farthest_depth(&views[i], r);
             farthest = farthest.max(far);
             shown.push((i, r.bounds(), far));
         }
@@ -217,23 +199,21 @@ impl<'a> Occluders<'_, 'a> {
                     };
                     let c = o.centroid();
                     if view.depth_at(c) < views[i].depth_at(c) {
-                        if o.area() > sliver_area {
+                        let area = o.area();
+                        if area > sliver_area {
                             in_front = true;
                             break;
                         }
-                        hairs += o.area();
+                        hairs += area;
                     }
                 }
                 if !in_front {
                     left_out += hairs;
-                }
-                if in_front {
-                    if added < self.cap {
-                        added += 1;
-                        joined.push((id, view, candidate.clone()));
-                    } else {
-                        left_out += candidate.area();
-                    }
+                } else if added < self.cap {
+                    added += 1;
+                    joined.push((id, view, candidate.clone()));
+                } else {
+                    left_out += candidate.area();
                 }
                 false
             },
@@ -250,4 +230,12 @@ impl<'a> Occluders<'_, 'a> {
         }
         Some(added)
     }
+}
+
+/// The farthest depth `view` shows over convex polygon `polygon`: at a
+/// vertex, for a planar primitive (its inverse depth is affine on the
+/// screen) and for a sphere holding the polygon (its depth is convex
+/// there, [`in_front_within`]).
+fn farthest_depth(view: &ViewRef<'_>, polygon: &ConvexPolygon) -> f64 {
+    (polygon.vertices().iter()).fold(f64::NEG_INFINITY, |d, &v| d.max(view.depth_at(v)))
 }

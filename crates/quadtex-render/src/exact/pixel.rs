@@ -17,7 +17,7 @@ use crate::view::View;
 use super::cutting::Flood;
 use super::cutting::{Cut, Order, Regions, overlap, push_region};
 use super::lighting::{Shading, shade_region, shade_span_pixel, tint_and_light};
-use super::occluders::{OccluderBuffers, Occluders, RunClear, in_front_within};
+use super::occluders::{OccluderBuffers, Occluders, in_front_within};
 use super::screen_cells::ScreenCells;
 use super::sky::{
     SkySpan, Whole, sky_at_centre, sky_clear_above, sky_integral, sky_range, sky_step,
@@ -704,10 +704,12 @@ impl<'a> ExactPixel<'_, 'a> {
             ..
         } = scratch;
         let left = self.support.bounds().0[0];
+        // Full contrast, or the sky's range where that is larger.
+        let contrast = sky_range(scene).max(1.0);
         // Weight no region has, or two have (|k| ≤ 1 for every pixel filter):
         // at most the larger of full contrast and the sky's range off.
         for s in sums.iter_mut() {
-            s.add([0.0; 4], 0.0, cut.unaccounted * sky_range(scene).max(1.0));
+            s.add([0.0; 4], 0.0, cut.unaccounted * contrast);
         }
         for (i, region) in cut.visible(regions) {
             // Under the box filter a planar piece's weight is its area: where
@@ -765,11 +767,7 @@ impl<'a> ExactPixel<'_, 'a> {
                 let w = filter.integral(piece, centre);
                 let at = piece.centroid();
                 let colour = sky(scene, &scene.camera.ray(at[0], at[1])).to_array();
-                sums[c].add(
-                    colour.map(|v| f64::from(v) * w),
-                    w,
-                    w.abs() * sky_range(scene).max(1.0),
-                );
+                sums[c].add(colour.map(|v| f64::from(v) * w), w, w.abs() * contrast);
             });
         }
         for (r, gap) in gaps.iter() {
@@ -955,8 +953,8 @@ pub(crate) struct Scratch<'a> {
     columns: [ConvexPolygon; 3],
     /// [`Occluders::search`]'s buffers.
     occluders: OccluderBuffers<'a>,
-    /// The row's last run tested by [`Scratch::nothing_in_front`].
-    run_clear: RunClear,
+    /// The row's last run [`Scratch::nothing_in_front`] found clear.
+    run_clear: Option<RunClear>,
     /// The pixels of the row's last shared cut.
     pub(super) shared_cut: SharedCutFill,
 }
@@ -1046,9 +1044,7 @@ impl<'a> Scratch<'a> {
         run: u32,
     ) -> Option<u32> {
         let (x, y) = pixel.at;
-        let known = &self.run_clear;
-        if known.clear
-            && known.row == Some(y)
+        if let Some(known) = &self.run_clear
             && known.id == id
             && (known.from..known.until).contains(&x)
         {
@@ -1067,13 +1063,11 @@ impl<'a> Scratch<'a> {
                 &mut self.occluders,
             );
             if !occluded {
-                self.run_clear = RunClear {
-                    row: Some(y),
+                self.run_clear = Some(RunClear {
                     id,
                     from: x,
                     until: x.saturating_add(len),
-                    clear: true,
-                };
+                });
                 return Some(len);
             }
             if len == 1 {
@@ -1094,6 +1088,16 @@ impl<'a> Scratch<'a> {
     pub(crate) fn span_fill(&self, (x, y): (u32, u32)) -> Option<&(Rgba, PixelStats)> {
         self.uniform_span.filled((x, y))
     }
+}
+
+/// A run found clear by [`Scratch::nothing_in_front`]: pixels
+/// `from..until` of the row (a [`Scratch`] lives for one row) whose
+/// centres in reach see `id`, with nothing in front of its plane in the
+/// rectangle their supports cover.
+struct RunClear {
+    id: Seen,
+    from: u32,
+    until: u32,
 }
 
 /// The colours and counters of the pixels of a row's last shared cut.

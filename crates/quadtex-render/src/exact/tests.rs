@@ -444,7 +444,8 @@ fn inserting_views_gives_what_cutting_again_gives() {
             sliver_area: sliver,
             ..Cut::default()
         };
-        for &v in order.front_to_back(&views[..listed], &regions[..listed], 0.0) {
+        order.front_to_back(&views[..listed], &regions[..listed], 0.0);
+        for &v in &order.order {
             cut.take(v, &regions[v]);
         }
         for v in listed..n {

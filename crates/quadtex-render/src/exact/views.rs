@@ -13,7 +13,7 @@ use crate::frame::Frame;
 use crate::math::Vec3;
 use crate::reach::MeshReach;
 use crate::scene::{Geometry, Hit, Scene};
-use crate::screen_bins::ScreenBins;
+use crate::screen_bins::{NEAR_MARGIN, ScreenBins};
 use crate::view::View;
 
 use super::sphere::SphereView;
@@ -296,11 +296,6 @@ impl SurfaceViews {
         self.may_reach(bounds) && self.search_hierarchies(scene, polygon, bounds, planes, visit)
     }
 
-    /// Whether the scene has meshes.
-    pub(super) fn has_meshes(&self) -> bool {
-        !self.meshes.is_empty()
-    }
-
     /// Whether a mesh triangle may reach into the screen box `(lo, hi)`:
     /// the scene has meshes, and the visibility pass's reach marks allow.
     pub(super) fn may_reach(&self, (lo, hi): ([f64; 2], [f64; 2])) -> bool {
@@ -420,18 +415,15 @@ impl SurfaceViews {
         self.search_hierarchies(scene, polygon, (lo, hi), planes, |id| {
             let (surface, t) = surface_and_triangle(id);
             let near = match scene.surfaces.get(surface).map(|s| &s.geometry) {
-                Some(Geometry::Mesh(mesh)) => mesh.corners(t as usize).map_or(0.0, |corners| {
-                    (corners.iter())
-                        .map(|&p| (p - cam.position).dot(cam.forward))
-                        .fold(f64::INFINITY, f64::min)
-                        .max(0.0)
-                }),
+                Some(Geometry::Mesh(mesh)) => {
+                    (mesh.corners(t as usize)).map_or(0.0, |corners| cam.least_depth(&corners))
+                }
                 _ => 0.0,
             };
             let everywhere = ([f64::NEG_INFINITY; 2], [f64::INFINITY; 2]);
-            // Lowered as the bins lower theirs (`NEAR_MARGIN`): ties within
-            // rounding are kept.
-            near * (1.0 - 1e-9) < depth && visit(id, near, everywhere)
+            // Lowered as the bins lower theirs: ties within rounding are
+            // kept.
+            near * (1.0 - NEAR_MARGIN) < depth && visit(id, near, everywhere)
         })
     }
 
