@@ -206,6 +206,7 @@ impl CentreGrid {
                 views,
                 (gw as usize, gh as usize),
                 pad as f64,
+                matches!(options.filter, TextureFilter::Quadtree(_)),
             );
             views.set_mesh_reach(reach);
             views.set_screen_bins(bins);

@@ -83,7 +83,8 @@ const PROJECT_RUN: usize = 4096;
 const BAND: usize = 8;
 
 /// Which primitive each centre of the padded grid sees, `gw × gh` cells,
-/// row by row, where on the screen mesh triangles may reach, and the
+/// row by row, where on the screen mesh triangles may reach, and, when
+/// `screen_bins` asks for them (only the exact pixels read them), the
 /// triangles by screen tile (from the same binning; `None` where the grid
 /// is cast).
 pub(crate) fn visibility_grid(
@@ -92,6 +93,7 @@ pub(crate) fn visibility_grid(
     views: &SurfaceViews,
     (gw, gh): (usize, usize),
     pad: f64,
+    screen_bins: bool,
 ) -> (Vec<Seen>, MeshReach, Option<ScreenBins>) {
     let cast = |gx: usize, gy: usize| {
         let ray = (scene.camera).ray(gx as f64 - pad + 0.5, gy as f64 - pad + 0.5);
@@ -102,7 +104,7 @@ pub(crate) fn visibility_grid(
     if gw == 0 {
         return (grid, MeshReach::everywhere(), None);
     }
-    match Raster::new(scene, views, (gw, gh), pad) {
+    match Raster::new(scene, views, (gw, gh), pad, screen_bins) {
         Some(mut raster) => {
             let boxes = raster.screen_boxes.take();
             // The screen bins are built (on one thread) while the bands
@@ -179,12 +181,14 @@ struct Raster<'s> {
 }
 
 impl<'s> Raster<'s> {
-    /// `None` when a plane or quad is seen edge-on.
+    /// `None` when a plane or quad is seen edge-on. `screen_bins`: whether
+    /// to list the triangles' screen boxes for [`ScreenBins`].
     fn new(
         scene: &'s Scene,
         views: &SurfaceViews,
         (gw, gh): (usize, usize),
         pad: f64,
+        screen_bins: bool,
     ) -> Option<Raster<'s>> {
         let planar = views.planar_views();
         let extent = [gw as f64 + pad, gh as f64 + pad];
@@ -208,7 +212,7 @@ impl<'s> Raster<'s> {
             extent,
             d_max,
             reach: MeshReach::new((gw, gh), pad),
-            screen_boxes: Some(Vec::new()),
+            screen_boxes: screen_bins.then(Vec::new),
         };
         for (i, s) in scene.surfaces.iter().enumerate() {
             match &s.geometry {
@@ -463,6 +467,9 @@ impl<'s> Raster<'s> {
             }
         };
         let list_boxes = || {
+            if screen_boxes.is_none() {
+                return;
+            }
             let unknown = |b: &[f64; 4]| b[0] == f64::NEG_INFINITY;
             if rows.iter().any(|(_, (_, _, b, _))| unknown(b)) {
                 *screen_boxes = None;

@@ -258,6 +258,12 @@ impl SurfaceViews {
         self.bins = bins;
     }
 
+    /// Whether the frame's mesh triangles are filed by screen tile.
+    #[cfg(test)]
+    pub(crate) fn has_screen_bins(&self) -> bool {
+        self.bins.is_some()
+    }
+
     /// What the camera's ray through screen point `c` meets first
     /// ([`crate::caster::Caster::nearest_index`]'s answer), from the screen bins where
     /// they hold `c` ([`ScreenBins::nearest_through`]). `expected`: a

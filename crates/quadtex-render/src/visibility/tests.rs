@@ -14,7 +14,7 @@ fn check(scene: &Scene, pad: usize) -> (usize, usize) {
         scene.camera.height() as usize,
     );
     let (gw, gh) = (w + 2 * pad, h + 2 * pad);
-    let raster = Raster::new(scene, &views, (gw, gh), pad as f64).expect("no spheres");
+    let raster = Raster::new(scene, &views, (gw, gh), pad as f64, true).expect("no spheres");
     let cast = |gx: usize, gy: usize| {
         let ray = (scene.camera).ray(gx as f64 - pad as f64 + 0.5, gy as f64 - pad as f64 + 0.5);
         rays.nearest_index(&ray)
@@ -35,7 +35,7 @@ fn check(scene: &Scene, pad: usize) -> (usize, usize) {
     }
     let casts = casts.get();
     assert_eq!(
-        visibility_grid(scene, &rays, &views, (gw, gh), pad as f64).0[..gw],
+        visibility_grid(scene, &rays, &views, (gw, gh), pad as f64, true).0[..gw],
         (0..gw).map(|gx| cast(gx, 0)).collect::<Vec<_>>()[..]
     );
     (casts, gw * gh)
@@ -253,7 +253,7 @@ fn culled_triangles_show_nowhere_on_the_grid() {
         let views = SurfaceViews::new(&scene);
         let pad = 3.0;
         let (gw, gh) = (166, 102);
-        let raster = Raster::new(&scene, &views, (gw, gh), pad).unwrap();
+        let raster = Raster::new(&scene, &views, (gw, gh), pad, true).unwrap();
         let kept: Vec<usize> = mesh
             .triangles_in(raster.may_show())
             .into_iter()
@@ -329,6 +329,7 @@ fn gap_searches_find_every_triangle_that_reaches_in() {
             &views,
             (120 + 2 * pad, 70 + 2 * pad),
             pad as f64,
+            true,
         );
         views.set_mesh_reach(reach);
         views.set_screen_bins(bins);
@@ -456,7 +457,7 @@ fn screen_bins_answer_as_the_ray_cast() {
         let rays = Caster::new(&scene);
         let views = SurfaceViews::new(&scene);
         let (gw, gh) = (120 + 2 * pad, 70 + 2 * pad);
-        let raster = Raster::new(&scene, &views, (gw, gh), pad as f64).unwrap();
+        let raster = Raster::new(&scene, &views, (gw, gh), pad as f64, true).unwrap();
         let boxes = raster.screen_boxes.as_ref().expect("every box is known");
         let bins = ScreenBins::build(boxes, -(pad as f64), [gw, gh]);
         let bins = bins.as_ref().expect("the bins are built");
@@ -553,7 +554,7 @@ fn mesh_searches_miss_no_triangle_that_reaches() {
         let (rays, views) = (Caster::new(&scene), SurfaceViews::new(&scene));
         let pad = 3;
         let (gw, gh) = (96 + 2 * pad, 60 + 2 * pad);
-        let (seen, reach, _) = visibility_grid(&scene, &rays, &views, (gw, gh), pad as f64);
+        let (seen, reach, _) = visibility_grid(&scene, &rays, &views, (gw, gh), pad as f64, true);
         let geometry = &scene.surfaces[0].geometry;
         let regions: Vec<View> = (0..=triangles.len() as u32)
             .filter_map(|t| View::new(&scene, 0, &geometry.planar(t)?))
