@@ -15,6 +15,24 @@ use crate::Error;
 /// The default grid: 708 × 708 cells, 1 002 528 triangles.
 pub const TERRAIN_CELLS: usize = 708;
 
+/// The terrain of `cells` a side for a `width × height` camera, written to
+/// a folder of its own under the system's temporary one (`name` keeps
+/// each test's apart), loaded, and the folder removed.
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+pub(crate) fn load_test_terrain(
+    name: &str,
+    cells: usize,
+    width: u32,
+    height: u32,
+) -> crate::scene::Scene {
+    let dir = std::env::temp_dir().join(format!("quadtex-{name}-{}", std::process::id()));
+    let file = write_terrain(&dir, cells, width, height).unwrap();
+    let scene = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    scene
+}
+
 /// Writes the terrain scene for a `width × height` camera into `dir`;
 /// returns the scene file's path.
 pub fn write_terrain(dir: &Path, cells: usize, width: u32, height: u32) -> Result<PathBuf, Error> {

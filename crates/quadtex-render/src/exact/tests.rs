@@ -60,10 +60,7 @@ fn a_memo_is_kept_for_its_frame_alone() {
 /// shown.
 #[test]
 fn a_uniform_light_is_what_each_point_gets() {
-    let dir = std::env::temp_dir().join(format!("quadtex-light-{}", std::process::id()));
-    let file = crate::terrain::write_terrain(&dir, 400, 320, 180).unwrap();
-    let scene = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
-    std::fs::remove_dir_all(&dir).ok();
+    let scene = crate::terrain::load_test_terrain("light", 400, 320, 180);
     let Lighting::Lambert {
         colour, ambient, ..
     } = scene.lighting

@@ -268,10 +268,7 @@ fn kept_views_do_not_cross_frames() {
 /// tenth of its frame on them).
 #[test]
 fn only_the_quadtree_filter_bins_triangles_by_screen_tile() {
-    let dir = std::env::temp_dir().join(format!("quadtex-bins-{}", std::process::id()));
-    let file = crate::terrain::write_terrain(&dir, 60, 160, 90).unwrap();
-    let scene = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
-    std::fs::remove_dir_all(&dir).ok();
+    let scene = crate::terrain::load_test_terrain("bins", 60, 160, 90);
     let frame = Frame::new(&scene);
     for (filter, binned) in [
         (TextureFilter::default(), true),
@@ -397,10 +394,7 @@ fn crests_no_centre_sees_are_found() {
 /// A generated terrain of 300 cells a side for 480 × 270, under its sun
 /// and unlit (`name` keeps each test's folder apart).
 fn small_terrain(name: &str) -> (Scene, Scene) {
-    let dir = std::env::temp_dir().join(format!("quadtex-{name}-{}", std::process::id()));
-    let file = crate::terrain::write_terrain(&dir, 300, 480, 270).unwrap();
-    let lit = crate::load_scene(&file, &quadtex_io::Limits::default()).unwrap();
-    std::fs::remove_dir_all(&dir).ok();
+    let lit = crate::terrain::load_test_terrain(name, 300, 480, 270);
     let unlit = Scene {
         lighting: crate::scene::Lighting::Unlit,
         ..lit.clone()
