@@ -152,6 +152,10 @@ impl SphereView {
             form,
             ref ellipse,
         } = *image;
+        // The light over the whole region first: at the limb, where the
+        // cosine varies too fast for it, nothing below is needed.
+        let texels = [Some(edge.colour_ahead), Some(edge.colour_behind)];
+        let region_light = self.light_bound(shading, region, uv, &texels)?;
         let value = |s: [f64; 2]| {
             let p = [s[0], s[1], 1.0];
             (0..3)
@@ -227,9 +231,7 @@ impl SphereView {
             }
         }
         // Each term lit at its own polygon's centroid.
-        let texels = [Some(inner_texel), Some(outer_texel)];
-        let mut light = self.light_bound(shading, region, uv, &texels)?
-            * self.absolute_weight(shading, region, whole);
+        let mut light = region_light * self.absolute_weight(shading, region, whole);
         if !part.is_empty() {
             light += self.light_bound(shading, &part, uv, &texels)?
                 * self.absolute_weight(shading, &part, within);
