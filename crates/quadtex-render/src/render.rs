@@ -344,9 +344,6 @@ impl Rows<'_> {
         // this pixel.
         let mut no_shared_cut_until = 0;
         for (x, out) in (0..self.width).zip(row.iter_mut()) {
-            // A run of pixels whose centres in reach see more than one thing
-            // (`uniform` holds `None` for each), not yet answered: one cut,
-            // whose pixels the fills below then answer.
             // A pixel a span or the row's last shared cut answered.
             let mut fill = |scratch: &Scratch<'_>, out: &mut Rgba, stats: &mut PixelStats| {
                 let filled =
@@ -361,6 +358,9 @@ impl Rows<'_> {
             if fill(&scratch, out, &mut stats) {
                 continue;
             }
+            // A run of pixels whose centres in reach see more than one thing
+            // (`uniform` holds `None` for each), not yet answered: one cut,
+            // whose pixels the fill then answers.
             if let Some(filter_options) = &shared_cuts
                 && x >= no_shared_cut_until
             {

@@ -126,15 +126,16 @@ impl Camera {
         self.height
     }
 
-    /// The least of the depths `(p − position)·forward` of `corners` (a
-    /// triangle's), at least 0: every camera ray's direction has
-    /// `d·forward = 1`, so this bounds where a ray can meet the triangle
-    /// from below.
-    pub(crate) fn least_depth(&self, corners: &[Vec3; 3]) -> f64 {
-        (corners.iter())
-            .map(|&p| (p - self.position).dot(self.forward))
-            .fold(f64::INFINITY, f64::min)
-            .max(0.0)
+    /// The least and the greatest of the depths `(p − position)·forward`
+    /// of `corners` (a triangle's), the least at least 0: every camera
+    /// ray's direction has `d·forward = 1`, so the least bounds where a ray
+    /// can meet the triangle from below, and a greatest of at most 0 says
+    /// no ray meets it.
+    pub(crate) fn depth_range(&self, corners: &[Vec3; 3]) -> (f64, f64) {
+        let depths = corners.map(|p| (p - self.position).dot(self.forward));
+        let least = depths.into_iter().fold(f64::INFINITY, f64::min).max(0.0);
+        let greatest = depths.into_iter().fold(f64::NEG_INFINITY, f64::max);
+        (least, greatest)
     }
 
     /// The image point (pixel units from the top-left corner) where world

@@ -426,11 +426,10 @@ impl<'s> Raster<'s> {
             let corners = mesh.corners(t)?;
             // Every ray's direction has `d·forward = 1`: a point with
             // `(p − c)·forward ≤ 0` is never hit.
-            let depths = corners.map(|p| (p - cam.position).dot(cam.forward));
-            if depths.iter().all(|&z| z <= 0.0) {
+            let (near, far) = cam.depth_range(&corners);
+            if far <= 0.0 {
                 return None;
             }
-            let near = cam.least_depth(&corners);
             let Some((lo, hi)) = cam.screen_box(corners) else {
                 return Some((0, gh as u32 - 1, self.behind_box(surface, t), near));
             };

@@ -422,7 +422,7 @@ impl SurfaceViews {
             let (surface, t) = surface_and_triangle(id);
             let near = match scene.surfaces.get(surface).map(|s| &s.geometry) {
                 Some(Geometry::Mesh(mesh)) => {
-                    (mesh.corners(t as usize)).map_or(0.0, |corners| cam.least_depth(&corners))
+                    (mesh.corners(t as usize)).map_or(0.0, |corners| cam.depth_range(&corners).0)
                 }
                 _ => 0.0,
             };
