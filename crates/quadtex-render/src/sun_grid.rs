@@ -342,9 +342,6 @@ impl SunGrid {
                 return false;
             }
             let seen = other.map(project);
-            if across_shared_edge(mesh, (t as u32, &own), (a, &seen), tolerance) {
-                return false;
-            }
             // Boxes apart by more than the tolerance: the projections are
             // too (the outline test below would find an edge that shows it).
             let their_box = bounds(&seen);
@@ -361,6 +358,14 @@ impl SunGrid {
                 .is_some_and(|mine| beyond(mine, &seen, -tolerance))
                 || triangle_lines(&seen).is_some_and(|theirs| beyond(&theirs, &own, -tolerance))
             {
+                return false;
+            }
+            // After the tests on numbers at hand: this one reads the
+            // neighbours of `a`, most often a cache miss (on the 1 M-triangle
+            // terrain the box and the lines settle 11.5 of the 22 candidates
+            // a triangle tests, a shared edge 1.7; all of them at load
+            // 0.333 → 0.310 s with it last). Any order gives the same answer.
+            if across_shared_edge(mesh, (t as u32, &own), (a, &seen), tolerance) {
                 return false;
             }
             // Where the projections overlap, is the other ever nearer the
