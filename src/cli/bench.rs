@@ -387,11 +387,10 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
             if first_frames.is_empty() {
                 terrain_load = started.elapsed().as_secs_f64();
             }
-            let (mut image, first) =
-                quadtex_render::render(&scene, &options_for(quadtree), &|_, _| {})?;
+            let options = options_for(quadtree);
+            let (mut image, first) = quadtex_render::render(&scene, &options, &|_, _| {})?;
             let mut later = Vec::with_capacity(FRAMES_AFTER_FIRST);
             for _ in 0..FRAMES_AFTER_FIRST {
-                let options = options_for(quadtree);
                 later.push(
                     quadtex_render::render_into(&scene, &options, &mut image, &|_, _| {})?.seconds,
                 );
@@ -411,7 +410,6 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     // the one before freed.
     let cold_ratio = first_ratios.first().copied().unwrap_or(f64::NAN);
     let first_ratio = median_range(first_ratios);
-    // Each scene, and its first frame after load where one was timed.
     let scenes = [
         ("demo (built-in airfield)", quadtex_render::demo_scene()?),
         ("runway (`scenes/runway.toml`)", runway),
