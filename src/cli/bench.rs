@@ -70,7 +70,9 @@ pub struct Args {
     /// prints the terrain's load time and its first frame after load (the
     /// median and range over as many loads as runs), also as a ratio to the
     /// median of the three frames after it in the same load (the median
-    /// and range of the loads' ratios).
+    /// and range of the loads' ratios), and the demo's quadtree frame under
+    /// the box, tent and Mitchell pixel filters (in turn within each run,
+    /// the tent's and Mitchell's as ratios to that run's box).
     #[arg(long, conflicts_with_all = ["size", "queries", "texture"])]
     frames: bool,
     #[command(flatten)]
@@ -479,12 +481,60 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
             q_ratio.0 - 1.0
         )?;
     }
+    pixel_filter_table(&mut out, &scenes[0].1, runs, &options_for(quadtree))?;
     writeln!(
         out,
         "\nThe terrain's first frame after load took {:.3}× the median of the {FRAMES_AFTER_FIRST} frames after it (the median over the {runs} loads of each load's ratio; range {:.3}–{:.3}×; the process's first load {cold_ratio:.3}×).",
         first_ratio.0, first_ratio.1, first_ratio.2
     )?;
     out.flush()?;
+    Ok(())
+}
+
+/// The demo's quadtree frame under each pixel filter, `runs` times, the
+/// filters in turn within each run: the tent's and Mitchell's times over
+/// the box's of the same run (issue 64's targets: 3× and 5×).
+fn pixel_filter_table(
+    out: &mut Text,
+    demo: &quadtex_render::Scene,
+    runs: usize,
+    options: &quadtex_render::RenderOptions,
+) -> Result<()> {
+    use quadtex_core::PixelFilter;
+    let filters = [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell];
+    let mut images: Vec<_> = filters
+        .iter()
+        .map(|_| quadtex_io::LinearImage::default())
+        .collect();
+    let mut times = vec![Vec::with_capacity(runs); filters.len()];
+    for _ in 0..runs {
+        for ((filter, image), t) in filters.iter().zip(&mut images).zip(&mut times) {
+            let options = quadtex_render::RenderOptions {
+                pixel_filter: *filter,
+                ..*options
+            };
+            t.push(quadtex_render::render_into(demo, &options, image, &|_, _| {})?.seconds);
+        }
+    }
+    writeln!(
+        out,
+        "\nPixel filters on the demo (quadtree; median of {runs} runs, range; the filters in turn within each run):\n"
+    )?;
+    writeln!(out, "| pixel filter | frame | / box (each run's) |")?;
+    writeln!(out, "|---|---:|---:|")?;
+    for (f, filter) in filters.iter().enumerate() {
+        let (m, lo, hi) = median_range(times[f].clone());
+        let ratios = times[f].iter().zip(&times[0]).map(|(t, b)| t / b).collect();
+        let (rm, rlo, rhi) = median_range(ratios);
+        writeln!(
+            out,
+            "| {} | {:.0} ms ({:.0}–{:.0}) | {rm:.2} ({rlo:.2}–{rhi:.2}) |",
+            filter.name(),
+            m * 1e3,
+            lo * 1e3,
+            hi * 1e3
+        )?;
+    }
     Ok(())
 }
 
