@@ -446,22 +446,8 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     )?;
     writeln!(out, "|---|---:|---:|---:|---:|---:|---:|")?;
     for (name, scene) in &scenes {
-        // One frame buffer per filter for the runs, as a real-time loop
-        // keeps its own: the first run sizes (allocates and clears) it.
-        let mut images: Vec<_> = filters
-            .iter()
-            .map(|_| quadtex_io::LinearImage::default())
-            .collect();
-        let mut times = vec![Vec::with_capacity(runs); filters.len()];
-        for _ in 0..runs {
-            // The filters in turn within each run: a drift of the host's
-            // speed over the runs moves them alike, and the ratios of one
-            // run's frames cancel it.
-            for ((_, filter), (image, t)) in filters.iter().zip(images.iter_mut().zip(&mut times)) {
-                let options = options_for(*filter);
-                t.push(quadtex_render::render_into(scene, &options, image, &|_, _| {})?.seconds);
-            }
-        }
+        let options = filters.map(|(_, filter)| options_for(filter));
+        let times = times_in_turn(scene, &options, runs)?;
         let per_run =
             |f: usize| -> Vec<f64> { times[f].iter().zip(&times[0]).map(|(t, n)| t / n).collect() };
         let [n, q, e] = [0, 1, 2].map(|f| median_range(times[f].clone()));
@@ -491,6 +477,30 @@ fn run_frames(runs: usize, limits: &quadtex_io::Limits) -> Result<()> {
     Ok(())
 }
 
+/// The frame times of `scene` under each of `options`, `runs` times: per
+/// set of options, its times in run order. Each set renders into a frame
+/// buffer of its own, as a real-time loop keeps one (the first run sizes,
+/// allocates and clears, it), and the sets take turns within each run: a
+/// drift of the host's speed over the runs moves them alike, and the
+/// ratios of one run's frames cancel it.
+fn times_in_turn(
+    scene: &quadtex_render::Scene,
+    options: &[quadtex_render::RenderOptions],
+    runs: usize,
+) -> Result<Vec<Vec<f64>>> {
+    let mut images: Vec<_> = options
+        .iter()
+        .map(|_| quadtex_io::LinearImage::default())
+        .collect();
+    let mut times = vec![Vec::with_capacity(runs); options.len()];
+    for _ in 0..runs {
+        for ((options, image), t) in options.iter().zip(&mut images).zip(&mut times) {
+            t.push(quadtex_render::render_into(scene, options, image, &|_, _| {})?.seconds);
+        }
+    }
+    Ok(times)
+}
+
 /// The demo's quadtree frame under each pixel filter, `runs` times, the
 /// filters in turn within each run: the tent's and Mitchell's times over
 /// the box's of the same run (issue 64's targets: 3× and 5×).
@@ -502,20 +512,14 @@ fn pixel_filter_table(
 ) -> Result<()> {
     use quadtex_core::PixelFilter;
     let filters = [PixelFilter::Box, PixelFilter::Tent, PixelFilter::Mitchell];
-    let mut images: Vec<_> = filters
-        .iter()
-        .map(|_| quadtex_io::LinearImage::default())
-        .collect();
-    let mut times = vec![Vec::with_capacity(runs); filters.len()];
-    for _ in 0..runs {
-        for ((filter, image), t) in filters.iter().zip(&mut images).zip(&mut times) {
-            let options = quadtex_render::RenderOptions {
-                pixel_filter: *filter,
-                ..*options
-            };
-            t.push(quadtex_render::render_into(demo, &options, image, &|_, _| {})?.seconds);
-        }
-    }
+    let times = times_in_turn(
+        demo,
+        &filters.map(|pixel_filter| quadtex_render::RenderOptions {
+            pixel_filter,
+            ..*options
+        }),
+        runs,
+    )?;
     writeln!(
         out,
         "\nPixel filters on the demo (quadtree; median of {runs} runs, range; the filters in turn within each run):\n"
