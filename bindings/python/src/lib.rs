@@ -23,6 +23,7 @@ mod tiles;
 
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use numpy::{PyArray1, PyArrayMethods};
@@ -31,7 +32,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyString, PyTuple};
 use quadtex_core::{
     BuildOptions, FilterOptions, Footprint, Fragment, MAX_DEPTH, QuadTree, Rgba, Threads,
-    Weighting, Wrap, WrapMode, map_runs_on_threads,
+    Weighting, Wrap, WrapMode, fill_runs_on_threads, map_runs_on_threads,
 };
 
 use crate::errors::{core_error, io_error};
@@ -134,6 +135,7 @@ impl Texture {
         let mut out: Vec<f32> = Vec::with_capacity(4 * n);
         let mut bounds: Vec<f64> = Vec::with_capacity(if return_bound { n } else { 0 });
         let mut corners: Vec<[[f64; 2]; 4]> = Vec::with_capacity(n.min(CHUNK));
+        let mut stretches = Stretches::new(threads);
         for start in (0..n).step_by(CHUNK) {
             // Copied while the GIL is held (another thread may write to the
             // array once it is released), then checked and filtered on every
@@ -156,7 +158,7 @@ impl Texture {
                     })?);
             }
             let mut filtered: Vec<(quadtex_core::Rgba, f64)> = Vec::with_capacity(footprints.len());
-            detached(py, &footprints, &mut filtered, threads, |step, out| {
+            stretches.map(py, &footprints, &mut filtered, |step, out| {
                 let mut stats = quadtex_core::FilterStats::default();
                 out.extend(
                     step.iter()
@@ -210,21 +212,41 @@ impl Texture {
         let view = arrays::view2(&readonly)?;
         let n = view.shape()[0];
         let tree = &*self.tree;
-        let mut out: Vec<f64> = Vec::with_capacity(4 * n);
-        let mut fragments = Vec::with_capacity(n.min(CHUNK));
+        // Zeroed lazily by the system: each thread's first writes bring
+        // in the pages it fills.
+        let mut out = vec![0.0f64; 4 * n];
+        let mut copied: Vec<[f64; 4]> = Vec::with_capacity(n.min(CHUNK));
+        let mut stretches = Stretches::new(threads);
         for start in (0..n).step_by(CHUNK) {
-            fragments.clear();
-            for i in start..(start + CHUNK).min(n) {
-                let r = |c: usize| view[[i, c]];
-                let fragment = Fragment::new(r(0), r(1), r(2), r(3))
-                    .map_err(|e| PyValueError::new_err(format!("rects[{i}]: {e}")))?;
-                fragments.push(fragment);
+            // Copied while the GIL is held (another thread may write to the
+            // array once it is released; a C-ordered array at once), then
+            // checked and integrated on every core without it.
+            let end = (start + CHUNK).min(n);
+            copied.clear();
+            match view.as_slice() {
+                Some(all) => copied.extend(
+                    all[4 * start..4 * end]
+                        .chunks_exact(4)
+                        .map(|r| [r[0], r[1], r[2], r[3]]),
+                ),
+                None => copied.extend((start..end).map(|i| [0, 1, 2, 3].map(|c| view[[i, c]]))),
             }
-            detached(py, &fragments, &mut out, threads, |step, out| {
-                for f in step {
-                    out.extend(tree.weighted_colour(f, k).0);
+            let refused = AtomicBool::new(false);
+            stretches.fill(py, &copied, &mut out[4 * start..4 * end], |step, out| {
+                for (&[x0, z0, x1, z1], out) in step.iter().zip(out.chunks_exact_mut(4)) {
+                    match Fragment::new(x0, z0, x1, z1) {
+                        Ok(f) => out.copy_from_slice(&tree.weighted_colour(&f, k).0),
+                        Err(_) => refused.store(true, Ordering::Relaxed),
+                    }
                 }
             })?;
+            if refused.into_inner() {
+                // The first rectangle refused, named as the check found it.
+                for (i, &[x0, z0, x1, z1]) in (start..).zip(&copied) {
+                    Fragment::new(x0, z0, x1, z1)
+                        .map_err(|e| PyValueError::new_err(format!("rects[{i}]: {e}")))?;
+                }
+            }
         }
         PyArray1::from_vec(py, out)
             .reshape([n, 4])
@@ -635,35 +657,84 @@ fn pack_file(
     })
 }
 
-/// Runs `work` over `items` (appending to `out`, in the items' order) on
-/// `threads` threads with the GIL released, in stretches of about
-/// `SIGNAL_INTERVAL`, checking for Ctrl-C between them: a long batch raises
-/// `KeyboardInterrupt` promptly instead of at its end.
-fn detached<T: Sync, O: Send>(
-    py: Python<'_>,
-    items: &[T],
-    out: &mut Vec<O>,
+/// A batch call's work without the GIL, in stretches of about
+/// `SIGNAL_INTERVAL`, checking for Ctrl-C between them: a long batch
+/// raises `KeyboardInterrupt` promptly instead of at its end. The
+/// stretches' length carries over from one part of a batch (`CHUNK` items
+/// copied while the GIL is held) to the next: each stretch starts threads
+/// of its own, and a few hundred short ones cost more than a batch of
+/// cheap items takes.
+struct Stretches {
     threads: Threads,
-    work: impl Fn(&[T], &mut Vec<O>) + Sync,
-) -> PyResult<()> {
-    let mut done = 0;
-    // Items a stretch: doubled while a stretch takes under half the interval.
-    let mut stretch = STEP * threads.count();
-    while done < items.len() {
-        let end = done.saturating_add(stretch).min(items.len());
-        let started = Instant::now();
-        let part = py.detach(|| map_runs_on_threads(&items[done..end], threads, &work));
-        out.extend(part);
-        done = end;
-        let took = started.elapsed();
-        if took < SIGNAL_INTERVAL / 2 {
-            stretch = stretch.saturating_mul(2);
-        } else if took > SIGNAL_INTERVAL {
-            stretch = (stretch / 2).max(STEP);
+    /// Items the next stretch takes: doubled while a stretch takes under
+    /// half the interval, halved past it.
+    items: usize,
+}
+
+impl Stretches {
+    fn new(threads: Threads) -> Stretches {
+        Stretches {
+            threads,
+            items: STEP * threads.count(),
         }
-        py.check_signals()?;
     }
-    Ok(())
+
+    /// Calls `stretch(range)` over `0..len`, a stretch at a time.
+    fn run(
+        &mut self,
+        py: Python<'_>,
+        len: usize,
+        mut stretch: impl FnMut(std::ops::Range<usize>),
+    ) -> PyResult<()> {
+        let mut done = 0;
+        while done < len {
+            let end = done.saturating_add(self.items).min(len);
+            let started = Instant::now();
+            stretch(done..end);
+            done = end;
+            let took = started.elapsed();
+            if took < SIGNAL_INTERVAL / 2 {
+                self.items = self.items.saturating_mul(2);
+            } else if took > SIGNAL_INTERVAL {
+                self.items = (self.items / 2).max(STEP);
+            }
+            py.check_signals()?;
+        }
+        Ok(())
+    }
+
+    /// Runs `work` over `items` (appending to `out`, in the items' order)
+    /// on the batch's threads with the GIL released.
+    fn map<T: Sync, O: Send>(
+        &mut self,
+        py: Python<'_>,
+        items: &[T],
+        out: &mut Vec<O>,
+        work: impl Fn(&[T], &mut Vec<O>) + Sync,
+    ) -> PyResult<()> {
+        let threads = self.threads;
+        self.run(py, items.len(), |range| {
+            let part = py.detach(|| map_runs_on_threads(&items[range], threads, &work));
+            out.extend(part);
+        })
+    }
+
+    /// [`Stretches::map`] for outputs written in place: `out` holds the
+    /// same number of outputs for each item ([`fill_runs_on_threads`]),
+    /// written on the threads that compute them.
+    fn fill<T: Sync, O: Send>(
+        &mut self,
+        py: Python<'_>,
+        items: &[T],
+        out: &mut [O],
+        work: impl Fn(&[T], &mut [O]) + Sync,
+    ) -> PyResult<()> {
+        let (threads, per_item) = (self.threads, out.len() / items.len().max(1));
+        self.run(py, items.len(), |range| {
+            let out = &mut out[range.start * per_item..range.end * per_item];
+            py.detach(|| fill_runs_on_threads(&items[range], out, threads, &work));
+        })
+    }
 }
 
 /// The `threads` argument of a batch call: None for every core, else at

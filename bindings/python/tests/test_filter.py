@@ -206,6 +206,16 @@ def test_batches_give_the_same_bits_on_any_number_of_threads(rng):
         np.testing.assert_array_equal(bound, one_bound)
     inside = random_rects(rng, 3000)
     np.testing.assert_array_equal(tex.integrate(inside, threads=3), tex.integrate(inside, threads=1))
+    # Past one part of a batch (65 536 rectangles copied at a time): each
+    # written in its place, C- or Fortran-ordered, and a refused one named
+    # by its index in the whole batch.
+    many = random_rects(rng, 70_000)
+    serial = tex.integrate(many, threads=1)
+    np.testing.assert_array_equal(tex.integrate(many), serial)
+    np.testing.assert_array_equal(tex.integrate(np.asfortranarray(many), threads=2), serial)
+    many[66_000] = [0.5, 0.0, 0.25, 1.0]
+    with pytest.raises(ValueError, match=r"^rects\[66000\]: reversed bounds on x"):
+        tex.integrate(many)
     for bad in (0, -2):
         with pytest.raises(ValueError, match="threads must be None"):
             tex.filter(quads[:2], threads=bad)

@@ -69,7 +69,7 @@ pub use colour::{
     srgb_encode_f32,
 };
 pub use error::Error;
-pub use filter::batch::{Threads, map_runs_on_threads};
+pub use filter::batch::{Threads, fill_runs_on_threads, map_runs_on_threads};
 pub use filter::footprint::{Footprint, MAX_TEXTURE_COORDINATE};
 pub use filter::options::{FilterOptions, FilterStats, LevelOfDetail, SQUARE_BUDGET, Weighting};
 pub use filter::pixel_filter::PixelFilter;
