@@ -72,13 +72,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             (v[2] + noise(2)).clamp(0.0, 1.0),
         )
     };
-    let image = LinearImage {
-        width: big_w,
-        height: big_h,
-        pixels: (0..big_h)
-            .flat_map(|y| (0..big_w).map(move |x| texel(x, y)))
-            .collect(),
-    };
+    let image = LinearImage::from_fn(big_w, big_h, texel);
     quadtex_io::save_image(&out, &image)?;
     println!("{}", out.display());
     Ok(())

@@ -36,13 +36,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     std::fs::create_dir_all(&dir)?;
     for (w, h) in [(1u32, 20000u32), (20000, 1), (16384, 1024), (4096, 4096)] {
-        let image = LinearImage {
-            width: w,
-            height: h,
-            pixels: (0..h)
-                .flat_map(|y| (0..w).map(move |x| texel(x, y)))
-                .collect(),
-        };
+        let image = LinearImage::from_fn(w, h, texel);
         let path = dir.join(format!("{w}_{h}.png"));
         quadtex_io::save_image(&path, &image)?;
         println!("{}", path.display());

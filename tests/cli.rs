@@ -248,13 +248,7 @@ fn hdr_exr_round_trips_to_half_precision() {
         };
         Rgba::new(v, v * 0.5, 2.0, if k == 5 { 0.5 } else { 1.0 })
     };
-    let image = LinearImage {
-        width: w,
-        height: h,
-        pixels: (0..h)
-            .flat_map(|r| (0..w).map(move |c| value(c, r)))
-            .collect(),
-    };
+    let image = LinearImage::from_fn(w, h, value);
     let exr = dir.join("hdr.exr");
     save_image(&exr, &image).unwrap();
     let qtx = dir.join("hdr.qtx");

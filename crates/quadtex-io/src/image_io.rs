@@ -31,6 +31,26 @@ pub struct LinearImage {
     pub pixels: Vec<Rgba>,
 }
 
+impl LinearImage {
+    /// The `width × height` image whose pixel in column `x` of row `y`
+    /// (from the top) is `pixel(x, y)`, called row by row.
+    pub fn from_fn(
+        width: u32,
+        height: u32,
+        mut pixel: impl FnMut(u32, u32) -> Rgba,
+    ) -> LinearImage {
+        let pixels = (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| pixel(x, y))
+            .collect();
+        LinearImage {
+            width,
+            height,
+            pixels,
+        }
+    }
+}
+
 use quadtex_core::{srgb_decode_f32, srgb_encode};
 
 /// The 8-bit sRGB code of linear `v` in `[0, 1]`: `⌊255·srgb(v) + ½⌋`, the
