@@ -5,9 +5,10 @@
 //! sliced, Fortran-ordered, another byte order) are accepted; the views read
 //! them in place when their dtype already matches, converted copies otherwise.
 
+use std::ops::Range;
 use std::sync::OnceLock;
 
-use numpy::ndarray::{ArrayView1, ArrayView2, ArrayView3, Axis, Ix2, Ix3};
+use numpy::ndarray::{ArrayView, ArrayView1, ArrayView2, ArrayView3, Axis, Ix2, Ix3, RemoveAxis};
 use numpy::{
     PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
     PyUntypedArrayMethods,
@@ -86,6 +87,28 @@ pub(crate) fn view2<'a>(a: &'a PyReadonlyArrayDyn<'_, f64>) -> PyResult<ArrayVie
     a.as_array()
         .into_dimensionality::<Ix2>()
         .map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+/// Rows `rows` of `view` (along its first axis), each its `W` numbers in
+/// C order, appended to `out`: a C-ordered array's at once, another's
+/// number by number. `W` is the row's size the caller checked.
+pub(crate) fn copy_rows<D: RemoveAxis, const W: usize>(
+    view: &ArrayView<'_, f64, D>,
+    rows: Range<usize>,
+    out: &mut Vec<[f64; W]>,
+) {
+    match view.as_slice() {
+        Some(all) => out.extend(
+            all[W * rows.start..W * rows.end]
+                .chunks_exact(W)
+                .map(|row| std::array::from_fn(|k| row[k])),
+        ),
+        None => out.extend(rows.map(|i| {
+            let row = view.index_axis(Axis(0), i);
+            let mut numbers = row.iter().copied();
+            std::array::from_fn(|_| numbers.next().unwrap_or(f64::NAN))
+        })),
+    }
 }
 
 /// An image array held for reading: `H×W` or `H×W×C`, `C` in 1..=4 (grey,

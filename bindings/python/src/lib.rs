@@ -134,20 +134,20 @@ impl Texture {
         let n = view.shape()[0];
         let mut out: Vec<f32> = Vec::with_capacity(4 * n);
         let mut bounds: Vec<f64> = Vec::with_capacity(if return_bound { n } else { 0 });
-        let mut corners: Vec<[[f64; 2]; 4]> = Vec::with_capacity(n.min(CHUNK));
+        // Each quad's corners, `x0 z0 x1 z1 …`.
+        let mut corners: Vec<[f64; 8]> = Vec::with_capacity(n.min(CHUNK));
         let mut stretches = Stretches::new(threads);
         for start in (0..n).step_by(CHUNK) {
             // Copied while the GIL is held (another thread may write to the
             // array once it is released), then checked and filtered on every
             // core without it.
             corners.clear();
-            for i in start..(start + CHUNK).min(n) {
-                let q = |c: usize, k: usize| view[[i, c, k]];
-                corners.push([0, 1, 2, 3].map(|c| [q(c, 0), q(c, 1)]));
-            }
+            arrays::copy_rows(&view, start..(start + CHUNK).min(n), &mut corners);
             let checked = py.detach(|| {
                 map_runs_on_threads(&corners, threads, |part, out| {
-                    out.extend(part.iter().map(|&c| Footprint::from_corners(c)));
+                    out.extend(part.iter().map(|c| {
+                        Footprint::from_corners([0, 1, 2, 3].map(|k| [c[2 * k], c[2 * k + 1]]))
+                    }));
                 })
             });
             let mut footprints = Vec::with_capacity(checked.len());
@@ -219,18 +219,11 @@ impl Texture {
         let mut stretches = Stretches::new(threads);
         for start in (0..n).step_by(CHUNK) {
             // Copied while the GIL is held (another thread may write to the
-            // array once it is released; a C-ordered array at once), then
-            // checked and integrated on every core without it.
+            // array once it is released), then checked and integrated on
+            // every core without it.
             let end = (start + CHUNK).min(n);
             copied.clear();
-            match view.as_slice() {
-                Some(all) => copied.extend(
-                    all[4 * start..4 * end]
-                        .chunks_exact(4)
-                        .map(|r| [r[0], r[1], r[2], r[3]]),
-                ),
-                None => copied.extend((start..end).map(|i| [0, 1, 2, 3].map(|c| view[[i, c]]))),
-            }
+            arrays::copy_rows(&view, start..end, &mut copied);
             let refused = AtomicBool::new(false);
             stretches.fill(py, &copied, &mut out[4 * start..4 * end], |step, out| {
                 for (&[x0, z0, x1, z1], out) in step.iter().zip(out.chunks_exact_mut(4)) {

@@ -83,12 +83,7 @@ pub fn map_runs_on_threads<T: Sync, O: Send>(
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .extend(mine);
     };
-    std::thread::scope(|scope| {
-        for _ in 1..threads {
-            scope.spawn(work);
-        }
-        work();
-    });
+    on_threads(threads, work);
     let mut done = done
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -147,9 +142,15 @@ pub fn fill_runs_on_threads<T: Sync, O: Send>(
             run(part, out);
         }
     };
+    on_threads(threads, work);
+}
+
+/// Runs `work` on `threads` threads at once, the calling thread among
+/// them, and returns when every one has finished.
+fn on_threads(threads: usize, work: impl Fn() + Sync) {
     std::thread::scope(|scope| {
         for _ in 1..threads {
-            scope.spawn(work);
+            scope.spawn(&work);
         }
         work();
     });
